@@ -1,0 +1,21 @@
+#pragma once
+// The subcommands of synthtrack-cli. Each lives in its own cmd_<name>.cpp, takes the arguments after its
+// name and returns the process exit code: 0 success, 1 bad input or failure, 2 usage (st::app::UsageError),
+// 130 cancelled. Errors are thrown; main() prints them as one line on stderr.
+#include <string>
+#include <vector>
+
+namespace st::app {
+
+using Args = std::vector<std::string>;
+
+int cmdSimulate(const Args& args);
+int cmdInfo(const Args& args);
+int cmdPreprocess(const Args& args);
+int cmdStack(const Args& args);
+int cmdSearch(const Args& args);
+int cmdFit(const Args& args);
+int cmdDemo(const Args& args);
+int cmdBench(const Args& args);
+
+}  // namespace st::app

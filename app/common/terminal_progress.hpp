@@ -1,0 +1,33 @@
+#pragma once
+// A ProgressSink that draws a one-line bar on stderr when stderr is a terminal (silent otherwise), and the
+// SIGINT handling that turns Ctrl-C into a cancel of the running job.
+#include <chrono>
+#include <mutex>
+#include <string>
+
+#include "st/common/progress.hpp"
+
+namespace st::app {
+
+class TerminalProgress final : public ProgressSink {
+ public:
+  TerminalProgress();
+  ~TerminalProgress() override;
+  void report(double fraction, std::string_view stage) override;
+  /// Clears the bar line (call before printing results).
+  void finish();
+
+ private:
+  std::mutex m_mutex;
+  bool m_enabled;
+  bool m_drawn = false;
+  int m_lastPermille = -1;
+  std::string m_lastStage;
+  std::chrono::steady_clock::time_point m_start;
+};
+
+/// The token cancelled by Ctrl-C (SIGINT) once installSigintCancel() has run. A second Ctrl-C exits at once.
+CancelToken& processCancelToken();
+void installSigintCancel();
+
+}  // namespace st::app

@@ -1,0 +1,52 @@
+#include "st/common/frame_cube.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <string>
+
+#include "st/common/error.hpp"
+#include "st/common/units.hpp"
+
+namespace st {
+
+FrameCube::FrameCube(int width, int height, std::size_t frames) : m_width(width), m_height(height) {
+  if (width <= 0 || height <= 0) {
+    throw InputError("frame size must be positive, got " + std::to_string(width) + "x" +
+                     std::to_string(height));
+  }
+  m_pixels.assign(framePixels() * frames, 0.0f);
+  m_info.resize(frames);
+}
+
+Image FrameCube::frameImage(std::size_t n) const {
+  Image img(m_width, m_height);
+  std::copy_n(frame(n), framePixels(), img.pixels.begin());
+  return img;
+}
+
+double FrameCube::tRefMjd() const {
+  if (m_info.empty()) throw InputError("the frame cube has no frames");
+  // Sum offsets from the first epoch so MJDs of ~6e4 lose no precision.
+  const double t0 = m_info.front().mjdMid;
+  double sum = 0.0;
+  for (const auto& f : m_info) sum += f.mjdMid - t0;
+  return t0 + sum / static_cast<double>(m_info.size());
+}
+
+std::vector<double> FrameCube::timeOffsetsS() const {
+  const double tRef = tRefMjd();
+  std::vector<double> out(m_info.size());
+  std::transform(m_info.begin(), m_info.end(), out.begin(),
+                 [tRef](const FrameInfo& f) { return (f.mjdMid - tRef) * kSecondsPerDay; });
+  return out;
+}
+
+double FrameCube::timeSpanS() const {
+  if (m_info.empty()) return 0.0;
+  const auto [lo, hi] = std::minmax_element(m_info.begin(), m_info.end(), [](const auto& a, const auto& b) {
+    return a.mjdMid < b.mjdMid;
+  });
+  return (hi->mjdMid - lo->mjdMid) * kSecondsPerDay;
+}
+
+}  // namespace st

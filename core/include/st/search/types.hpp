@@ -1,0 +1,109 @@
+#pragma once
+// The velocity-search contract shared by every backend (CPU exact, CPU tree, CUDA). The CPU exact backend
+// is the reference the others are tested against (ARCHITECTURE.md, "Interfaces that matter").
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/common/units.hpp"
+
+namespace st::search {
+
+/// Frames ready for the search: zero-biased, static sources and cosmic rays zeroed, matched-filtered.
+struct FilteredCube {
+  FrameCube frames;       ///< filtered frames, masked pixels already 0
+  double sigmaF = 0.0;    ///< noise of one filtered frame, measured robustly from the data
+  Velocity skyRate;       ///< motion of the stars, px/s (zero for a tracked telescope)
+  double psfFwhmPx = 0.0; ///< FWHM of the PSF used for the matched filter
+};
+
+/// A regular 2-D grid of trial velocities (px/s), nvx x nvy points, index (ix, iy) at
+/// centre + ((ix - (nvx-1)/2) * step, (iy - (nvy-1)/2) * step).
+struct VelocityGrid {
+  Velocity centre;
+  double stepPxS = 0.0;
+  int nvx = 0;
+  int nvy = 0;
+
+  [[nodiscard]] std::size_t count() const noexcept {
+    return static_cast<std::size_t>(nvx) * static_cast<std::size_t>(nvy);
+  }
+  [[nodiscard]] Velocity at(int ix, int iy) const noexcept {
+    return {centre.vx + (ix - 0.5 * (nvx - 1)) * stepPxS, centre.vy + (iy - 0.5 * (nvy - 1)) * stepPxS};
+  }
+};
+
+/// Search thresholds and limits.
+struct SearchParams {
+  double snrThreshold = 7.0;          ///< paper §4.4: SNR 7 (FAP ~0.34% for 512^2 x 100^2 trials)
+  std::optional<double> targetFap;    ///< when set, the SNR threshold is derived from it and the trials
+  std::size_t maxCandidates = 10000;  ///< raw cells kept before clustering (highest SNR first)
+  double minFrameFraction = 0.5;      ///< cells whose N_in is below this fraction of N_f are ignored
+};
+
+/// One detection, at its best cell after clustering in (x, y, vx, vy).
+struct Candidate {
+  int x = 0;             ///< column at t_ref, 0-based
+  int y = 0;             ///< row at t_ref, 0-based
+  Velocity v;            ///< grid velocity, px/s
+  int ivx = 0;           ///< grid index along vx
+  int ivy = 0;           ///< grid index along vy
+  double sum = 0.0;      ///< IPSA statistic S at the cell
+  int nIn = 0;           ///< frames that contributed (boundary-aware)
+  double snr = 0.0;      ///< S / (sigma_F sqrt(N_in))
+  double fap = 1.0;      ///< detection false-alarm probability (paper \label{Prob_false})
+  int clusterCells = 1;  ///< cells above threshold merged into this candidate
+};
+
+/// The trial counts that enter the false-alarm probability.
+struct TrialCounts {
+  std::int64_t nx = 0, ny = 0, nvx = 0, nvy = 0;
+  [[nodiscard]] double total() const noexcept {
+    return static_cast<double>(nx) * static_cast<double>(ny) * static_cast<double>(nvx) *
+           static_cast<double>(nvy);
+  }
+};
+
+/// For every grid velocity: the highest SNR over all pixels, and where it was.
+struct VelocityMap {
+  int nvx = 0;
+  int nvy = 0;
+  std::vector<float> maxSnr;  ///< nvy rows of nvx, index iy * nvx + ix
+  std::vector<int> argX;      ///< column of the maximum
+  std::vector<int> argY;      ///< row of the maximum
+};
+
+struct SearchResult {
+  VelocityGrid grid;
+  VelocityMap map;
+  std::vector<Candidate> candidates;  ///< clustered, sorted by decreasing SNR
+  TrialCounts trials;
+  double snrThreshold = 0.0;          ///< the threshold actually used
+  double tRefMjd = 0.0;
+  std::string backend;                ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
+  std::string method;                 ///< "exact" or "tree"
+  double elapsedS = 0.0;
+};
+
+enum class StackMode { Ipsa, Csa };
+
+/// A search implementation. Implementations are not required to be thread-safe; one search at a time.
+class SearchBackend {
+ public:
+  virtual ~SearchBackend() = default;
+  /// Short human-readable name, e.g. "cpu (2 threads)" or "cuda: NVIDIA H100".
+  [[nodiscard]] virtual std::string name() const = 0;
+  /// Runs the velocity search over the whole grid. Throws st::Cancelled when cancelled.
+  virtual SearchResult search(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                              ProgressSink& progress, CancelToken& cancel) = 0;
+  /// The stack of the cube at one velocity (sum over frames, out-of-frame samples excluded), for live
+  /// scrubbing in the GUI.
+  virtual Image stackAt(const FilteredCube& cube, Velocity v, StackMode mode) = 0;
+};
+
+}  // namespace st::search

@@ -1,0 +1,85 @@
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+
+#include "st/common/error.hpp"
+#include "st/common/fits_header.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/common/parallel.hpp"
+#include "st/common/units.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st {
+namespace {
+
+TEST(Units, RoundTripsAndKnownValues) {
+  // Paper §5.1: 5.97 deg/day at 0.305"/px (binned CHIMERA) is 5.97*3600/86400/0.305 = 0.8156 px/s.
+  const double pxs = degPerDayToPxPerSec(5.97, 0.305);
+  EXPECT_NEAR(pxs, 0.815574, 1e-6);
+  EXPECT_NEAR(pxPerSecToDegPerDay(pxs, 0.305), 5.97, 1e-12);
+  // 5"/s sky drift = 300"/min.
+  EXPECT_NEAR(pxPerSecToArcsecPerMin(5.0 / 0.305, 0.305), 300.0, 1e-9);
+  EXPECT_NEAR(arcsecPerMinToPxPerSec(300.0, 0.305), 5.0 / 0.305, 1e-12);
+}
+
+TEST(FrameCube, ReferenceEpochIsMeanOfMidTimes) {
+  FrameCube cube(4, 3, 3);
+  cube.info()[0].mjdMid = 60000.0;
+  cube.info()[1].mjdMid = 60000.0 + 1.0 / 86400.0;
+  cube.info()[2].mjdMid = 60000.0 + 5.0 / 86400.0;
+  EXPECT_NEAR(cube.tRefMjd(), 60000.0 + 2.0 / 86400.0, 1e-11);
+  const auto dt = cube.timeOffsetsS();
+  EXPECT_NEAR(dt[0], -2.0, 1e-5);
+  EXPECT_NEAR(dt[2], 3.0, 1e-5);
+  EXPECT_NEAR(cube.timeSpanS(), 5.0, 1e-5);
+  EXPECT_EQ(cube.pixels().size(), 36u);
+  EXPECT_THROW(FrameCube(0, 3, 1), InputError);
+}
+
+TEST(FitsHeader, QuotedNumbersAndBadValues) {
+  FitsHeader h;
+  h.setString("CDELT1", "0.000272");
+  h.set("EXPTIME", "1.5D2");
+  h.setString("OBJECT", "M31");
+  EXPECT_NEAR(*h.getDouble("cdelt1"), 0.000272, 1e-15);
+  EXPECT_NEAR(*h.getDouble("EXPTIME"), 150.0, 1e-12);
+  EXPECT_FALSE(h.getDouble("NOPE").has_value());
+  try {
+    (void)h.getDouble("OBJECT");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("OBJECT"), std::string::npos);
+  }
+}
+
+TEST(Parallel, CoversRangeOnceAndPropagatesErrors) {
+  std::vector<std::atomic<int>> hits(1000);
+  parallelFor(hits.size(), 7, [&](std::size_t b, std::size_t e) {
+    for (auto i = b; i < e; ++i) hits[i]++;
+  });
+  for (auto& h : hits) EXPECT_EQ(h.load(), 1);
+  EXPECT_THROW(parallelFor(100, 1,
+                           [](std::size_t b, std::size_t) {
+                             if (b == 50) throw InputError("boom");
+                           }),
+               InputError);
+}
+
+TEST(Moffat, FwhmAndIntegralsMatchClosedForms) {
+  psf::Moffat m{3.3, 4.0};
+  EXPECT_NEAR(m(m.fwhm() / 2.0, 0.0), 0.5, 1e-12);
+  EXPECT_NEAR(psf::Moffat::radiusForFwhm(m.fwhm(), 4.0), 3.3, 1e-12);
+  double sum = 0.0, sum2 = 0.0;
+  for (int y = -200; y <= 200; ++y)
+    for (int x = -200; x <= 200; ++x) {
+      const double p = m(x, y);
+      sum += p;
+      sum2 += p * p;
+    }
+  EXPECT_NEAR(sum / m.integral(), 1.0, 2e-3);
+  EXPECT_NEAR(sum2 / m.integralOfSquare(), 1.0, 2e-3);
+}
+
+}  // namespace
+}  // namespace st
