@@ -18,4 +18,12 @@ int cmdFit(const Args& args);
 int cmdDemo(const Args& args);
 int cmdBench(const Args& args);
 
+// `synthtrack-cli bench WHAT`: each benchmark in its own bench_<what>.cpp. They print one result line per
+// measurement (what, problem size, time, rate) and take --json.
+int benchLoad(const Args& args);
+int benchPreprocess(const Args& args);
+int benchStack(const Args& args);
+int benchSearch(const Args& args);
+int benchFit(const Args& args);
+
 }  // namespace st::app

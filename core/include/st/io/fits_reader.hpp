@@ -1,0 +1,60 @@
+#pragma once
+// Loading frames from FITS: a 3-D cube, a list of 2-D files, or a folder (sorted by time); tile-compressed
+// .fz and gzip .fits.gz; any image HDU. Bad input throws st::InputError / st::FitsError naming the file,
+// HDU and keyword or value; nothing is half-loaded.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/progress.hpp"
+
+namespace st::io {
+
+struct CropRegion {
+  int x0 = 0;  ///< 0-based first column
+  int y0 = 0;  ///< 0-based first row
+  int width = 0;
+  int height = 0;
+};
+
+struct LoadOptions {
+  /// HDU to read: a 1-based number or an EXTNAME. Default: the first image HDU with data.
+  std::optional<std::string> hdu;
+  /// For frames whose headers carry no time: start (MJD, UTC, mid-time of the first frame) and frame rate.
+  std::optional<double> startMjd;
+  std::optional<double> frameRateHz;
+  /// Exposure length when headers have none (seconds).
+  std::optional<double> exposureS;
+  /// Crop every frame to this region (needed when frames differ in size).
+  std::optional<CropRegion> crop;
+  /// Plate scale to use when there is no WCS (arcsec/px); a WCS wins unless `forcePlateScale`.
+  std::optional<double> plateScaleArcsecPerPx;
+  bool forcePlateScale = false;
+};
+
+/// Loads every frame of `inputs` (files or folders) into one cube, frames sorted by mid-time (a warning in
+/// cube.warnings when they were out of order). Reports progress per frame; throws st::Cancelled.
+FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options, ProgressSink& progress,
+                     CancelToken& cancel);
+
+/// Convenience overload with default options and no progress.
+FrameCube loadFrames(const std::vector<std::string>& inputs);
+
+/// A short description of the inputs without reading all pixels (for `synthtrack-cli info`).
+struct InputSummary {
+  std::size_t frames = 0;
+  int width = 0;
+  int height = 0;
+  int bitpix = 0;
+  double firstMjd = 0.0;
+  double lastMjd = 0.0;
+  double medianCadenceS = 0.0;
+  double exposureS = 0.0;
+  bool hasWcs = false;
+  std::optional<double> plateScaleArcsecPerPx;
+  std::vector<std::string> files;
+  std::vector<std::string> warnings;
+};
+
+}  // namespace st::io
