@@ -11,6 +11,7 @@ using Args = std::vector<std::string>;
 
 int cmdSimulate(const Args& args);
 int cmdInfo(const Args& args);
+int cmdConvert(const Args& args);
 int cmdPreprocess(const Args& args);
 int cmdStack(const Args& args);
 int cmdSearch(const Args& args);

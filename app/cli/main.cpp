@@ -22,6 +22,7 @@ constexpr Command kCommands[] = {
     {"demo", st::app::cmdDemo, "simulate the paper's observation (paper-neo) and run the whole pipeline"},
     {"simulate", st::app::cmdSimulate, "write a synthetic observation (FITS cube + truth JSON)"},
     {"info", st::app::cmdInfo, "describe frames: size, BITPIX, times, cadence, WCS, warnings"},
+    {"convert", st::app::cmdConvert, "load frames (cube, files or folder) and write one FITS cube"},
     {"preprocess", st::app::cmdPreprocess, "calibrate, remove background and static sources"},
     {"stack", st::app::cmdStack, "IPSA or CSA stack at one velocity"},
     {"search", st::app::cmdSearch, "velocity search: candidates and the velocity map"},
