@@ -15,17 +15,16 @@ struct Block {
   double tS = 0.0;
 };
 
-Block blockMean(const FrameCube& cube, std::size_t first, std::size_t last, double background, double sigma,
-                double detectSigma, const std::vector<double>& dt) {
+// Mean of frames [first, last) minus the background; unmasked samples only.
+cv::Mat meanOf(const FrameCube& cube, std::size_t first, std::size_t last, double background) {
   const int w = cube.width(), h = cube.height();
-  Block b;
-  b.image = cv::Mat::zeros(h, w, CV_64F);
+  cv::Mat image = cv::Mat::zeros(h, w, CV_64F);
   std::vector<float> cnt(cube.framePixels(), 0.0f);
   const auto& mask = cube.mask();
   for (std::size_t n = first; n < last; ++n) {
     const float* f = cube.frame(n);
     for (int y = 0; y < h; ++y) {
-      double* row = b.image.ptr<double>(y);
+      double* row = image.ptr<double>(y);
       for (int x = 0; x < w; ++x) {
         const std::size_t i = static_cast<std::size_t>(y) * w + x;
         if (!mask.empty() && mask[n * cube.framePixels() + i]) continue;
@@ -33,15 +32,35 @@ Block blockMean(const FrameCube& cube, std::size_t first, std::size_t last, doub
         cnt[i] += 1.0f;
       }
     }
-    b.tS += dt[n];
   }
+  for (int y = 0; y < h; ++y) {
+    double* row = image.ptr<double>(y);
+    for (int x = 0; x < w; ++x) {
+      const float c = cnt[static_cast<std::size_t>(y) * w + x];
+      row[x] = c > 0 ? row[x] / c : 0.0;
+    }
+  }
+  return image;
+}
+
+// A block's image: the smaller of the means of its two halves, so that a cosmic ray (in one frame, one half)
+// does not survive while a star (in both) does; then faint pixels zeroed and the rest compressed.
+Block blockMean(const FrameCube& cube, std::size_t first, std::size_t last, double background, double sigma,
+                double detectSigma, const std::vector<double>& dt) {
+  const int w = cube.width(), h = cube.height();
+  Block b;
+  const std::size_t mid = first + std::max<std::size_t>(1, (last - first) / 2);
+  b.image = mid < last ? cv::min(meanOf(cube, first, mid, background), meanOf(cube, mid, last, background))
+                       : meanOf(cube, first, last, background);
+  for (std::size_t n = first; n < last; ++n)
+    b.tS += dt[n];
   b.tS /= static_cast<double>(last - first);
-  const double thr = detectSigma * sigma / std::sqrt(static_cast<double>(last - first));
+  const double thr =
+      detectSigma * sigma / std::sqrt(std::max<double>(1.0, static_cast<double>(last - first) / 2));
   for (int y = 0; y < h; ++y) {
     double* row = b.image.ptr<double>(y);
     for (int x = 0; x < w; ++x) {
-      const float c = cnt[static_cast<std::size_t>(y) * w + x];
-      const double v = c > 0 ? row[x] / c : 0.0;
+      const double v = row[x];
       // Bright sources only, compressed so that one saturated star does not decide alone.
       row[x] = v > thr ? std::log1p(v / thr) : 0.0;
     }
@@ -64,7 +83,8 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   std::vector<Block> blocks;
   for (int k = 0; k < nb; ++k) {
     cancel.throwIfCancelled();
-    blocks.push_back(blockMean(cube, nf * k / nb, nf * (k + 1) / nb, background, sigma, params.detectSigma, dt));
+    blocks.push_back(
+        blockMean(cube, nf * k / nb, nf * (k + 1) / nb, background, sigma, params.detectSigma, dt));
   }
   cv::Mat window;
   cv::createHanningWindow(window, blocks.front().image.size(), CV_64F);
@@ -94,7 +114,8 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   out.reliable = true;
   out.note = "sky rate: measured from adjacent blocks of frames";
   const double span = blocks.back().tS - blocks.front().tS;
-  if (std::abs(out.rate.vx * span) < 0.5 * cube.width() && std::abs(out.rate.vy * span) < 0.5 * cube.height()) {
+  if (std::abs(out.rate.vx * span) < 0.5 * cube.width() &&
+      std::abs(out.rate.vy * span) < 0.5 * cube.height()) {
     double response = 0.0;
     const cv::Point2d d = cv::phaseCorrelate(blocks.front().image, blocks.back().image, window, &response);
     const Velocity refined{d.x / span, d.y / span};

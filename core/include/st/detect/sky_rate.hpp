@@ -10,16 +10,16 @@
 namespace st::detect {
 
 struct SkyRateParams {
-  int blocks = 8;              ///< the cube is cut into this many blocks of consecutive frames
-  double detectSigma = 5.0;    ///< pixels below this SNR in a block mean are zeroed (keep the stars)
-  double minResponse = 0.03;   ///< phase-correlation peak below this: no reliable stars, rate 0
+  int blocks = 8;             ///< the cube is cut into this many blocks of consecutive frames
+  double detectSigma = 5.0;   ///< pixels below this SNR in a block mean are zeroed (keep the stars)
+  double minResponse = 0.03;  ///< phase-correlation peak below this: no reliable stars, rate 0
 };
 
 struct SkyRate {
-  Velocity rate;            ///< px/s
-  bool reliable = false;    ///< false when no star pattern was found (rate is then 0)
-  double response = 0.0;    ///< phase-correlation peak of the final measurement
-  std::string note;         ///< how it was measured, for the user
+  Velocity rate;          ///< px/s
+  bool reliable = false;  ///< false when no star pattern was found (rate is then 0)
+  double response = 0.0;  ///< phase-correlation peak of the final measurement
+  std::string note;       ///< how it was measured, for the user
 };
 
 /// Measures the sky rate by phase correlation (OpenCV) of the means of blocks of frames with the global
