@@ -44,8 +44,14 @@ void measurePsfInto(Prepared& out, const PreprocessParams& params, ProgressSink&
 Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink& progress,
                     CancelToken& cancel) {
   const auto start = std::chrono::steady_clock::now();
-  if (raw.empty()) throw InputError("pre-processing: no frames");
+  auto last = start;
   Prepared out;
+  auto lap = [&](const char* stage) {
+    const auto now = std::chrono::steady_clock::now();
+    out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - last).count());
+    last = now;
+  };
+  if (raw.empty()) throw InputError("pre-processing: no frames");
   out.frames = std::move(raw);
   FrameCube& cube = out.frames;
   {
@@ -53,6 +59,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.calibration = calib::applyCalibration(cube, params.masters.value_or(calib::MasterCalibration{}),
                                               params.calib, sub, cancel);
   }
+  lap("calibrate");
   out.global = stats::globalBackground(cube, params.background.global);
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
@@ -65,6 +72,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
   }
+  lap("global background and sky rate");
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);
@@ -75,6 +83,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
   }
+  lap("cosmic rays");
   detect::StaticSources stars;
   {
     SubProgress sub(progress, 0.3, 0.4);
@@ -83,6 +92,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
     out.stars = stars.stars;
   }
+  lap("static sources");
   {
     SubProgress sub(progress, 0.4, 0.65);
     stats::Background bg = stats::estimateBackground(cube, params.background, &stars.mask, sub, cancel);
@@ -102,10 +112,13 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     stats::subtractBackground(cube, out.background, sub, cancel);
   }
   calib::zeroPixels(cube, cr.pixels);
+  out.cosmicRayPixels = std::move(cr.pixels);
+  lap("per-pixel background");
   {
     SubProgress sub(progress, 0.7, 0.75);
     measurePsfInto(out, params, sub, cancel);
   }
+  lap("PSF");
   {
     SubProgress sub(progress, 0.75, 0.8);
     out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
@@ -128,6 +141,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();
+    lap("matched filter");
   }
   progress.report(1.0, "pre-processing done");
   out.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -24,8 +24,10 @@ struct SkyRate {
 
 /// Measures the sky rate by phase correlation (OpenCV) of the means of blocks of frames with the global
 /// background `background` removed and faint pixels (< detectSigma * sigma / sqrt(frames in block)) zeroed:
-/// adjacent blocks give a first rate (robust to large drifts), the first and last blocks refine it when the
-/// predicted shift stays within half the frame.
+/// adjacent blocks give a first rate (robust to large drifts; each block is the smaller of the means of its
+/// two halves so that cosmic rays drop out); then stacks at that rate of the first and last thirds of the
+/// frames are phase-correlated (stars coincide when the rate is right) and the residual offset over their
+/// time separation corrects it (up to 3 times).
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
                        CancelToken& cancel);
 

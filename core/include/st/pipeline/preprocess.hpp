@@ -12,6 +12,7 @@
 // cube is the matched-filtered copy (Prepared::filtered). Per-pixel images (background, noise), the
 // stacks and masks are frame-sized; the cube's pixel mask (1 byte per sample, a quarter of a float cube)
 // exists only when the loader or the bad-pixel mask needs one.
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -65,7 +66,9 @@ struct Prepared {
   bool psfFitted = false;
   std::optional<std::pair<double, double>> psfStarAt;  ///< the star used (0-based px at t_ref)
   search::FilteredCube filtered;                       ///< matched-filtered frames and sigma_F for the search
-  std::vector<std::string> notes;  ///< what the user should know (sky rate, PSF fallback, ...)
+  std::vector<std::string> notes;              ///< what the user should know (sky rate, PSF fallback, ...)
+  std::vector<std::uint64_t> cosmicRayPixels;  ///< flat cube indices of the pixels zeroed as cosmic rays
+  std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage
   double elapsedS = 0.0;
 };
 
