@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "st/detect/hot_pixels.hpp"
 #include "st/detect/moving_mask.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/detect/sky_stack.hpp"
@@ -126,6 +127,21 @@ TEST(SingleFrameSources, BrightTransientIsZeroedInItsFrameOnly) {
   EXPECT_EQ(r.seedsPerFrame[1], 1u);
   EXPECT_EQ(r.seedsPerFrame[0], 0u);
   EXPECT_EQ(cube.frame(1)[15 * 40 + 20], 0.0f);
+}
+
+TEST(HotPixels, FoundAndStarsAreNot) {
+  auto sc = scene({});  // tracked: the stars are as persistent as a hot pixel, but not as sharp
+  FrameCube cube = sc.make();
+  for (std::size_t n = 0; n < cube.frameCount(); ++n)
+    cube.frame(n)[50 * sc.width + 10] += 80.0f;
+  CancelToken c;
+  const stats::ClipStats g = stats::globalBackground(cube);
+  const auto hot = findHotPixels(cube, g.mean, g.sigma, {}, c);
+  ASSERT_EQ(hot.size(), 1u);
+  EXPECT_EQ(hot[0], static_cast<std::size_t>(50 * sc.width + 10));
+  EXPECT_EQ(maskPixelsInAllFrames(cube, hot), 1u);
+  EXPECT_TRUE(cube.isMasked(7, 10, 50));
+  EXPECT_FALSE(cube.isMasked(7, 30, 25));
 }
 
 TEST(SkyStack, CountsOnlyContributingFrames) {
