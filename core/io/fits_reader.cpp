@@ -2,6 +2,7 @@
 // per job (a 2-D file, or a run of planes of a cube), straight into the cube's memory.
 #include "st/io/fits_reader.hpp"
 
+#include <unistd.h>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -17,6 +18,7 @@
 namespace st::io {
 namespace {
 
+using detail::describeFrame;
 using detail::FitsFile;
 using detail::LoadPlan;
 using detail::PlaneRef;
@@ -144,12 +146,31 @@ void attachWcs(FrameCube& cube, const LoadOptions& options) {
   }
 }
 
+// The cube must fit in memory: a header (of a compressed file especially) can claim any size.
+void checkMemory(const LoadPlan& plan) {
+  const double bytes = static_cast<double>(plan.region.width) * plan.region.height * 4.0 *
+                       static_cast<double>(plan.frames.size());
+  const long pages = sysconf(_SC_PHYS_PAGES);
+  const long pageSize = sysconf(_SC_PAGE_SIZE);
+  const double physical =
+      pages > 0 && pageSize > 0 ? static_cast<double>(pages) * static_cast<double>(pageSize) : 1e18;
+  if (bytes > 0.9 * physical) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "%zu frames of %d x %d px need %.1f GB as float32, more than this machine's %.1f GB",
+                  plan.frames.size(), plan.region.width, plan.region.height, bytes / 1e9, physical / 1e9);
+    throw InputError(describeFrame(plan, plan.frames.front()) + ": " + buf +
+                     "; load fewer frames or --crop [x1:x2,y1:y2] to a smaller region");
+  }
+}
+
 }  // namespace
 
 FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options,
                      ProgressSink& progress, CancelToken& cancel) {
   SubProgress scanProgress(progress, 0.0, kScanShare);
   LoadPlan plan = detail::planLoad(inputs, options, scanProgress, cancel);
+  checkMemory(plan);
   FrameCube cube(plan.region.width, plan.region.height, plan.frames.size());
   readPixels(plan, cube, progress, cancel);
   for (std::size_t n = 0; n < plan.frames.size(); ++n) {

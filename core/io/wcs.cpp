@@ -206,8 +206,9 @@ std::pair<double, double> Wcs::skyToPixel(double raDeg, double decDeg) const {
 double Wcs::plateScaleArcsecPerPx() const {
   const wcsprm* w = m_impl->wcs;
   const int n = w->naxis;
-  const double* m = w->lin.piximg;  // CDELT * PC (or CD), row = world axis, column = pixel axis
-  const double a = m[w->lng * n + 0], b = m[w->lng * n + 1], c = m[w->lat * n + 0], d = m[w->lat * n + 1];
+  // CDELT * PC, row = world axis, column = pixel axis (wcsset copies a CD matrix into pc with cdelt = 1).
+  auto m = [&](int i, int j) { return w->cdelt[i] * w->pc[i * n + j]; };
+  const double a = m(w->lng, 0), b = m(w->lng, 1), c = m(w->lat, 0), d = m(w->lat, 1);
   return std::sqrt(std::abs(a * d - b * c)) * 3600.0;
 }
 
@@ -226,7 +227,8 @@ FitsHeader Wcs::toHeader() const {
   // users compare keywords).
   const bool cd = (w->altlin & 2) != 0 && (w->altlin & 1) == 0;
   auto isPcOrCdelt = [](const std::string& k) {
-    return (startsWith(k, "PC") && k.size() > 2 && std::isdigit(static_cast<unsigned char>(k[2]))) || startsWith(k, "CDELT");
+    return (startsWith(k, "PC") && k.size() > 2 && std::isdigit(static_cast<unsigned char>(k[2]))) ||
+           startsWith(k, "CDELT");
   };
   for (auto& c : all.cards) {
     if (c.key.empty() || !isWcsKeyword(c.key) || (cd && isPcOrCdelt(c.key))) continue;
@@ -237,7 +239,8 @@ FitsHeader Wcs::toHeader() const {
       for (int j = 0; j < w->naxis; ++j) {
         const double v = w->cd[i * w->naxis + j];
         if (v != 0.0 || i == j) {
-          out.setNumber("CD" + std::to_string(i + 1) + "_" + std::to_string(j + 1), v, "linear transformation matrix");
+          out.setNumber("CD" + std::to_string(i + 1) + "_" + std::to_string(j + 1), v,
+                        "linear transformation matrix");
         }
       }
     }
