@@ -144,6 +144,17 @@ TEST(IoWcs, QuotedNumbersParseLikeNumbers) {
   EXPECT_FALSE(quoted->hasSip());
 }
 
+TEST(IoWcs, CdeltWithoutPcGivesPlateScale) {
+  // NEOSSat-style CDELT only (unity PC): 8.325e-4 deg/px = 2.997"/px.
+  const auto w =
+      Wcs::fromHeader(header({str("CTYPE1", "RA---TAN"), str("CTYPE2", "DEC--TAN"), num("CRVAL1", "121.4"),
+                              num("CRVAL2", "-40.9"), num("CRPIX1", "262"), num("CRPIX2", "249"),
+                              num("CDELT1", "-8.325E-4"), num("CDELT2", "8.325E-4")}),
+                      nullptr);
+  ASSERT_TRUE(w);
+  EXPECT_NEAR(w->plateScaleArcsecPerPx(), 2.997, 1e-12);
+}
+
 TEST(IoWcs, ToHeaderRoundTrips) {
   const auto a = Wcs::fromHeader(tanHeader(true), nullptr);
   ASSERT_TRUE(a);
