@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "fits_file.hpp"
+#include "rice_check.hpp"
 #include "st/common/error.hpp"
 #include "st/common/units.hpp"
 #include "st/io/fits_time.hpp"
@@ -258,6 +259,7 @@ ScannedFile scanFile(const std::string& path, std::size_t fileIndex, const LoadO
     }
     if (plain && rawBitpix == FLOAT_IMG) s.rawFloatOffset = dataStart;
   }
+  checkRiceTiles(f);  // before CFITSIO decompresses anything (it crashes on corrupt RICE tiles)
   s.header = readHeader(f);
   try {
     if (s.header.getDouble("BZERO").value_or(0.0) != 0.0 ||
