@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstring>
+#include <filesystem>
 #include <vector>
 
 #include "st/common/error.hpp"
@@ -93,10 +94,11 @@ void checkRiceTiles(const FitsFile& f) {
   if (!fits_is_compressed_image(f.get(), &status)) return;
   char type[FLEN_VALUE] = {};
   fits_read_key(f.get(), TSTRING, "ZCMPTYPE", type, nullptr, &status);
-  if (status != 0 || std::strncmp(type, "RICE_1", 6) != 0) {
+  if (status != 0) {
     fits_clear_errmsg();
     return;
   }
+  const bool rice = std::strncmp(type, "RICE_1", 6) == 0;  // other types: only the tile sizes are checked
   const std::string where = f.path() + " HDU " + std::to_string(f.currentHdu());
   int zbitpix = 0;
   int znaxis = 0;
@@ -144,6 +146,14 @@ void checkRiceTiles(const FitsFile& f) {
   }
   long rows = 0;
   fits_get_num_rows(f.get(), &rows, &status);
+  // A tile cannot hold more bytes than the heap (PCOUNT), nor than the file (gzip'ed files: allow for the
+  // ratio).
+  LONGLONG heap = 0;
+  fits_read_key(f.get(), TLONGLONG, "PCOUNT", &heap, nullptr, &status);
+  f.check(status, "reading PCOUNT");
+  std::error_code ec;
+  const auto onDisk = static_cast<LONGLONG>(std::filesystem::file_size(f.path(), ec));
+  const LONGLONG maxTileBytes = ec ? heap : std::min<LONGLONG>(heap, onDisk * 64);
   std::vector<std::uint8_t> bytes;
   for (long r = 1; r <= rows; ++r) {
     LONGLONG repeat = 0;
@@ -151,9 +161,12 @@ void checkRiceTiles(const FitsFile& f) {
     fits_read_descriptll(f.get(), col, r, &repeat, &offset, &status);
     f.check(status, "reading the descriptor of compressed tile " + std::to_string(r));
     if (repeat == 0) continue;  // the tile is stored in another column (GZIP or uncompressed)
-    if (repeat > (LONGLONG{1} << 31))
+    if (repeat < 0 || offset < 0 || repeat > maxTileBytes || offset > heap - repeat) {
       throw InputError(where + ": compressed tile " + std::to_string(r) + " claims " +
-                       std::to_string(repeat) + " bytes");
+                       std::to_string(repeat) + " bytes at heap offset " + std::to_string(offset) +
+                       ", outside the heap of " + std::to_string(heap) +
+                       " bytes (corrupt or truncated file)");
+    }
     // Pixels in tile r: tiles run fastest along axis 1; edge tiles are smaller.
     long long index = r - 1;
     long long pixels = 1;
@@ -163,6 +176,7 @@ void checkRiceTiles(const FitsFile& f) {
       index /= count;
       pixels *= std::min(tile[a], size[a] - t * tile[a]);
     }
+    if (!rice) continue;
     bytes.resize(static_cast<std::size_t>(repeat));
     unsigned char nul = 0;
     int anyNull = 0;
