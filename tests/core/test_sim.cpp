@@ -379,3 +379,32 @@ TEST(Sim, ResizeKeepsObjectsCentredAndRejectsBadSizes) {
   p.width = 0;
   EXPECT_THROW(p.validate(), st::InputError);
 }
+
+TEST(Sim, BrightStarsHaveSpikesAndHotPixelsMatchTruth) {
+  SimParams p = cleanSmall(1);
+  p.noiseless = true;
+  p.fullWellE = 1e9;  // no bleed, so only the spikes extend along the axes
+  p.saturationAdu = 1e9;
+  p.fixedStars = {{64.0, 64.0, 11.0}};
+  p.hotPixels = 4;
+  const auto r = run(p, 3);
+  ASSERT_TRUE(r.truth.stars.at(0).spikes);
+  const auto img = calibrated(r, 0);
+  const auto at = [&](int x, int y) {
+    return img[static_cast<std::size_t>(y) * p.width + x] - r.truth.skyAdu[0];
+  };
+  // At 20 px from the centre the spike arm carries much more light than the Moffat wing on the diagonal.
+  EXPECT_GT(at(84, 64), 10.0 * at(78, 78));
+  EXPECT_GT(at(64, 44), 10.0 * at(50, 50));
+  // The same scene without hot pixels (their RNG stream is separate) differs exactly at the listed pixels.
+  p.hotPixels = 0;
+  const auto cold = run(p, 3);
+  ASSERT_EQ(r.truth.hotPixels.size(), 4u);
+  std::vector<double> listed(r.cube.framePixels(), 0.0);
+  for (const auto& h : r.truth.hotPixels)
+    listed[static_cast<std::size_t>(h.y) * p.width + h.x] = h.excessAdu;
+  for (std::size_t k = 0; k < listed.size(); ++k) {
+    ASSERT_NEAR(r.cube.frame(0)[k] - cold.cube.frame(0)[k], listed[k], 1e-3 * listed[k] + 0.01)
+        << "pixel " << k;
+  }
+}
