@@ -58,4 +58,7 @@ std::size_t workingBytes(int width, int height, const VelocityGrid& grid, unsign
 /// acc[0, wp) += sum_k src[k][0, wp); wp a multiple of 8. AVX2 when the CPU has it.
 void addRows(float* acc, const float* const* src, int count, int wp);
 
+/// The largest of a[0, n) (n >= 1). AVX2 when the CPU has it.
+float maxOf(const float* a, int n);
+
 }  // namespace st::search::detail

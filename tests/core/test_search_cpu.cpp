@@ -304,3 +304,24 @@ TEST(SearchCpu, RejectsBadInput) {
 
 }  // namespace
 }  // namespace st::search
+
+namespace st::search {
+namespace {
+
+TEST(SearchCpu, ShiftRoundsHalfAwayFromZeroLikeLround) {
+  const double ps[] = {
+      0.5,       -0.5,       1.5,       -1.5, 2.5, -2.5, 0.49999999999999994, -0.49999999999999994,
+      1e9 + 0.5, -3.4999999, 3.5000001, 0.0,  -0.0};
+  for (const double p : ps)
+    EXPECT_EQ(ipsaShift(p, 1.0), static_cast<int>(std::lround(p))) << p;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-300.0, 300.0);
+  for (int i = 0; i < 100000; ++i) {
+    const double v = u(rng);
+    const double dt = u(rng) / 7.0;
+    ASSERT_EQ(ipsaShift(v, dt), static_cast<int>(std::lround(v * dt))) << v << " " << dt;
+  }
+}
+
+}  // namespace
+}  // namespace st::search
