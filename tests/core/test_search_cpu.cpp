@@ -325,3 +325,35 @@ TEST(SearchCpu, ShiftRoundsHalfAwayFromZeroLikeLround) {
 
 }  // namespace
 }  // namespace st::search
+
+namespace st::search {
+namespace {
+
+TEST(SearchCpu, HugeShiftsAreOutOfFrameNotOutOfMemory) {
+  // A velocity that moves samples ~1e9 px: every sample but the one at t_ref's nearest frame is out.
+  const FilteredCube fc = smallRandomCube(20, 20, 9, 3, false);
+  const VelocityGrid grid{{1e8, -1e8}, 1.0, 3, 3};
+  SearchParams params;
+  params.snrThreshold = -1e30;
+  params.minFrameFraction = 0.0;
+  auto backend = makeCpuBackend();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult r = backend->search(fc, grid, params, progress, cancel);
+  const std::vector<double> dt = fc.frames.timeOffsetsS();
+  std::int64_t expected = 0;
+  for (int iy = 0; iy < 3; ++iy) {
+    for (int ix = 0; ix < 3; ++ix) {
+      for (int y = 0; y < 20; ++y) {
+        for (int x = 0; x < 20; ++x)
+          expected += ipsaReference(fc.frames, dt, x, y, grid.at(ix, iy)).nIn > 0;
+      }
+    }
+  }
+  EXPECT_EQ(r.cellsAboveThreshold, expected);
+  EXPECT_EQ(ipsaShift(1e300, 1.0), 1 << 30);
+  EXPECT_EQ(ipsaShift(-1e300, 1.0), -(1 << 30));
+}
+
+}  // namespace
+}  // namespace st::search
