@@ -16,10 +16,10 @@ namespace st::search {
 
 /// Frames ready for the search: zero-biased, static sources and cosmic rays zeroed, matched-filtered.
 struct FilteredCube {
-  FrameCube frames;        ///< filtered frames, masked pixels already 0
-  double sigmaF = 0.0;     ///< noise of one filtered frame, measured robustly from the data
-  Velocity skyRate;        ///< motion of the stars, px/s (zero for a tracked telescope)
-  double psfFwhmPx = 0.0;  ///< FWHM of the PSF used for the matched filter
+  FrameCube frames;       ///< filtered frames, masked pixels already 0
+  double sigmaF = 0.0;    ///< noise of one filtered frame, measured robustly from the data
+  Velocity skyRate;       ///< motion of the stars, px/s (zero for a tracked telescope)
+  double psfFwhmPx = 0.0; ///< FWHM of the PSF used for the matched filter
 };
 
 /// A regular 2-D grid of trial velocities (px/s), nvx x nvy points, index (ix, iy) at
@@ -83,10 +83,10 @@ struct SearchResult {
   VelocityMap map;
   std::vector<Candidate> candidates;  ///< clustered, sorted by decreasing SNR
   TrialCounts trials;
-  double snrThreshold = 0.0;  ///< the threshold actually used
+  double snrThreshold = 0.0;          ///< the threshold actually used
   double tRefMjd = 0.0;
-  std::string backend;  ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
-  std::string method;   ///< "exact" or "tree"
+  std::string backend;                ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
+  std::string method;                 ///< "exact" or "tree"
   double elapsedS = 0.0;
   std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
   int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
