@@ -8,6 +8,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/io/wcs.hpp"
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::calib {
@@ -62,7 +63,7 @@ std::optional<Section> sectionFrom(const std::optional<Section>& given, const Fi
                                    int w, int h) {
   std::optional<Section> s = given;
   if (!s) {
-    if (auto text = header.getString(key)) s = parseSection(*text, key);
+    s = io::sectionFromHeader(header, key);
   }
   if (s) checkSectionInside(*s, w, h, key);
   return s;
@@ -244,9 +245,7 @@ void trimInPlace(FrameCube& cube, const Section& s) {
   out.mask() = std::move(cube.mask());
   out.info() = std::move(cube.info());
   out.header = std::move(cube.header);
-  // The WCS object keeps the untrimmed pixel grid; the header cards are shifted below and the pipeline
-  // re-reads the WCS from them (st::Wcs::fromHeader) once the io stage provides it.
-  out.wcs = std::move(cube.wcs);
+  const bool hadWcs = cube.wcs != nullptr;
   out.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
   out.warnings = std::move(cube.warnings);
   // 0-based trim offset moves the reference pixel of a WCS by the same amount.
@@ -255,6 +254,8 @@ void trimInPlace(FrameCube& cube, const Section& s) {
   }
   out.header.erase("TRIMSEC");
   out.header.erase("BIASSEC");
+  // The WCS is re-read from the shifted cards so that it refers to the trimmed pixel grid.
+  if (hadWcs) out.wcs = Wcs::fromHeader(out.header, &out.warnings);
   cube = std::move(out);
 }
 

@@ -110,29 +110,34 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
   return full;
 }
 
-FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0) const {
-  double sp = 0, spp = 0, sd = 0, sdp = 0, n = 0;
+FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
+  LinearSums l;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
     const double px = p.xc + p.v.vx * m_times[k];
     const double py = p.yc + p.v.vy * m_times[k];
     forEachPixel(k, [&](int x, int y, double d) {
       const double v = pixelPsfValue(m_psf, x - px, y - py);
-      sp += v;
-      spp += v * v;
-      sd += d;
-      sdp += d * v;
-      n += 1;
+      l.sp += v;
+      l.spp += v * v;
+      l.sd += d;
+      l.sdp += d * v;
+      l.n += 1;
     });
   }
+  return l;
+}
+
+FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0) const {
+  const LinearSums l = linearSums(p);
   FitParams out = p;
   if (fitI0) {
-    const double det = spp * n - sp * sp;
+    const double det = l.spp * l.n - l.sp * l.sp;
     if (det > 0) {
-      out.alpha = (sdp * n - sp * sd) / det;
-      out.i0 = (spp * sd - sp * sdp) / det;
+      out.alpha = (l.sdp * l.n - l.sp * l.sd) / det;
+      out.i0 = (l.spp * l.sd - l.sp * l.sdp) / det;
     }
-  } else if (spp > 0) {
-    out.alpha = (sdp - p.i0 * sp) / spp;
+  } else if (l.spp > 0) {
+    out.alpha = (l.sdp - p.i0 * l.sp) / l.spp;
   }
   if (!std::isfinite(out.alpha)) out.alpha = 0.0;
   if (!std::isfinite(out.i0)) out.i0 = p.i0;

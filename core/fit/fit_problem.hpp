@@ -34,6 +34,11 @@ class FitProblem {
   [[nodiscard]] ParamMatrix noiseMoment(const FitParams& p, double sigmaN2, double gain) const;
   /// Linear least squares for (alpha, I0) with the track of `p` held fixed (I0 held when !fitI0).
   [[nodiscard]] FitParams linearAmplitude(const FitParams& p, bool fitI0) const;
+  /// Sums over the stamps at the track of `p`: n, sum P, sum P^2, sum d, sum d P.
+  struct LinearSums {
+    double n = 0, sp = 0, spp = 0, sd = 0, sdp = 0;
+  };
+  [[nodiscard]] LinearSums linearSums(const FitParams& p) const;
   /// Data, model and residual stacks on the current stamp grid (integer-shift aligned).
   void stacks(const FitParams& p, Image& data, Image& model, Image& residual) const;
   [[nodiscard]] std::size_t frameCount() const noexcept { return m_frames.size(); }

@@ -12,7 +12,7 @@ namespace {
 
 /// Rows per block: the block's accumulators (kBlockRows x width floats) stay in L1/L2 while every frame's
 /// matching rows stream through once.
-constexpr int kBlockRows = 4;
+constexpr int kBlockRows = 16;
 constexpr double kMaxShift = 1073741824.0;  // 2^30
 
 int roundShift(double s) {

@@ -22,8 +22,9 @@ struct CalibParams {
   std::optional<Section> biasSec;   ///< overrides the header's BIASSEC (0-based)
   std::optional<Section> trimSec;   ///< overrides the header's TRIMSEC (0-based)
   double hotSigma = 8.0;            ///< hot pixel: master dark (or bias) above clip mean + hotSigma * sigma
-  double flatLow = 0.5;             ///< bad pixel: normalised flat below this (or <= 0) ...
-  double flatHigh = 1.5;            ///< ... or above this
+  double flatLow = 0.2;             ///< bad pixel: normalised flat below this (or <= 0); real flats are
+                                    ///< vignetted to ~0.3 in corners (Lowell 42-inch), which stays usable
+  double flatHigh = 2.0;            ///< ... or above this
 };
 
 /// Masters at the raw (untrimmed) frame size. Empty images mean "not given".

@@ -134,6 +134,21 @@ struct FitResult {
                                     const IterationCallback& onIteration, CancelToken& cancel);
 [[nodiscard]] FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOptions& options);
 
+/// Forced photometry on a fixed track: linear least squares for (alpha, I0) over the same stamps as the fit,
+/// with the position and velocity of `track` held. sigmaAlpha = sigma_n sqrt(n / (n sum P^2 - (sum P)^2))
+/// (sqrt(1 / sum P^2) when I0 is held); snr = alpha / sigmaAlpha, which for many frames is detection_snr.
+struct ForcedPhotometry {
+  double alpha = 0.0;
+  double i0 = 0.0;
+  double sigmaAlpha = 0.0;
+  double snr = 0.0;
+  std::size_t pixels = 0;
+};
+/// `sigmaN` is the per-pixel noise of one frame (data units); options.frames / tRefOffsetS / psf /
+/// stampHalfSize / fitBackground apply as in fitComoving.
+[[nodiscard]] ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track,
+                                                const FitOptions& options, double sigmaN);
+
 /// The stamp half-size FitOptions::stampHalfSize = 0 stands for: ceil(3 W).
 [[nodiscard]] int defaultStampHalfSize(const psf::Moffat& psf) noexcept;
 
