@@ -7,6 +7,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/fit/comoving_fit.hpp"
+#include "st/fit/pixel_psf.hpp"
 
 namespace st::fit::detail {
 
@@ -54,6 +55,7 @@ class FitProblem {
   std::vector<int> m_cx;
   std::vector<int> m_cy;
   psf::Moffat m_psf;
+  PixelPsfTable m_table;
   int m_half;
 };
 
