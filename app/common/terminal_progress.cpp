@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -45,7 +46,7 @@ CancelToken& processCancelToken() {
 }
 
 namespace {
-volatile std::sig_atomic_t g_interrupts = 0;
+std::atomic<int> g_interrupts{0};  // lock-free, so safe to touch from a signal handler
 void onSigint(int) {
   if (++g_interrupts >= 2) std::_Exit(130);
   processCancelToken().cancel();  // an atomic store: async-signal-safe for lock-free atomics

@@ -8,15 +8,12 @@
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
+#include "st/io/sections.hpp"
 
 namespace st::io {
 
-struct CropRegion {
-  int x0 = 0;  ///< 0-based first column
-  int y0 = 0;  ///< 0-based first row
-  int width = 0;
-  int height = 0;
-};
+/// A crop to a common region (0-based first column/row, width, height); see st/io/sections.hpp.
+using CropRegion = PixelRegion;
 
 struct LoadOptions {
   /// HDU to read: a 1-based number or an EXTNAME. Default: the first image HDU with data.
@@ -35,8 +32,16 @@ struct LoadOptions {
 
 /// Loads every frame of `inputs` (files or folders) into one cube, frames sorted by mid-time (a warning in
 /// cube.warnings when they were out of order). Reports progress per frame; throws st::Cancelled.
-FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options, ProgressSink& progress,
-                     CancelToken& cancel);
+///
+/// Pixels are read as float through CFITSIO (BZERO/BSCALE applied, any BITPIX); BLANK and NaN pixels are
+/// set to 0 and flagged in cube.mask(). Times (mid-exposure, MJD UTC): from a "FRAMES" binary table or
+/// MJD_<n> keywords for 3-D cubes, else per header (st/io/fits_time.hpp; a cube's DATE-OBS plus
+/// FRAMERAT/CADENCE); when no frame has a time, options.startMjd + n / options.frameRateHz.
+/// Files are read in parallel, one CFITSIO handle per thread. All checks (sizes, NAXIS, times, duplicates,
+/// truncation) are done on the headers before any pixel is read. Throws st::InputError / st::FitsError
+/// naming the file, HDU and keyword or value.
+FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options,
+                     ProgressSink& progress, CancelToken& cancel);
 
 /// Convenience overload with default options and no progress.
 FrameCube loadFrames(const std::vector<std::string>& inputs);
@@ -55,6 +60,15 @@ struct InputSummary {
   std::optional<double> plateScaleArcsecPerPx;
   std::vector<std::string> files;
   std::vector<std::string> warnings;
+  // Added for `info`:
+  int hdu = 0;                 ///< 1-based HDU of the image in the first file
+  std::string timeSource;      ///< keywords the times came from, e.g. "DATE-OBS+UTCSTART (start) + EXPTIME/2"
+  std::string wcsDescription;  ///< e.g. "RA---TAN-SIP / DEC--TAN-SIP, centre 303.2064 +46.0174"
+  std::vector<double> mjdMid;  ///< every frame's mid-time, sorted
 };
+
+/// Describes `inputs` from their headers only (no pixels): the same checks and time rules as loadFrames,
+/// so an input that summarizes without error loads. Throws like loadFrames.
+InputSummary summarizeInputs(const std::vector<std::string>& inputs, const LoadOptions& options = {});
 
 }  // namespace st::io

@@ -3,6 +3,7 @@
 // (software version, parameters, velocity, reference epoch). astropy reads them with equal pixels and
 // header values (tests/python). Pixels are converted to FITS's 1-based convention here and nowhere else.
 #include <string>
+#include <string_view>
 
 #include "st/common/fits_header.hpp"
 #include "st/common/frame_cube.hpp"
@@ -13,12 +14,24 @@ namespace st::io {
 /// Writes the cube as one 3-D float32 image HDU (NAXIS3 = frames) with the first frame's header cards
 /// (structural keywords replaced), `extra` cards, and a binary table extension "FRAMES" with each frame's
 /// MJD mid-time, exposure and origin. Overwrites `path`. Throws st::FitsError.
+///
+/// Card values keep their types: numbers are written as numbers, logicals as T/F, strings quoted; WCS cards
+/// come from cube.wcs->toHeader() when the cube has a WCS (so quoted-number WCS values become numbers).
+/// Masked pixels (cube.mask()) are written as NaN. FRAMES columns: MJD_MID (D, day, UTC mid-exposure),
+/// EXPTIME (D, s), FILE (A), HDU (J, 1-based), PLANE (J, 0-based). loadFrames reads the times back.
 void writeCube(const std::string& path, const FrameCube& cube, const FitsHeader& extra = {});
 
 /// Writes one 2-D float32 image with `header` cards (e.g. a WCS and provenance). Overwrites `path`.
 void writeImage(const std::string& path, const Image& image, const FitsHeader& header = {});
 
-/// Cards recording provenance: SOFTWARE = "synthtrack x.y.z", STEP, and the given parameters.
-FitsHeader provenanceCards(const std::string& step);
+/// Cards recording provenance: SOFTWARE = "synthtrack x.y.z", STEP = `step`, DATE = the UTC time of the call
+/// (ISO 8601), followed by `parameters` (cards the caller names, keys of at most 8 characters, e.g.
+/// VX_PXS = 1.25 / velocity x px/s; REFEPOCH = 60000.1 / t_ref MJD).
+FitsHeader provenanceCards(const std::string& step, const FitsHeader& parameters = {});
+
+/// Header keywords that describe the data layout (SIMPLE, BITPIX, NAXISn, BZERO, BSCALE, BLANK,
+/// tile-compression Z*, table T* keywords, CHECKSUM, ...): the writers drop them from copied headers and
+/// write their own.
+bool isStructuralKeyword(std::string_view key);
 
 }  // namespace st::io

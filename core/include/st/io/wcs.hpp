@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "st/common/fits_header.hpp"
@@ -34,6 +35,13 @@ class Wcs {
   [[nodiscard]] FitsHeader toHeader() const;
   /// True when SIP distortion terms were read.
   [[nodiscard]] bool hasSip() const;
+  /// True when TPV distortion (SCAMP's PVi_m on a TAN projection, or CTYPE -TPV) was read.
+  [[nodiscard]] bool hasTpv() const;
+
+  /// True for keywords that describe a WCS (CTYPEi, CRVALi, CRPIXi, CDi_j, PCi_j, CDELTi, PVi_m, SIP A_/B_/
+  /// AP_/BP_ terms, RADESYS, EQUINOX, LONPOLE, ...). Writers use it to replace a header's WCS cards by
+  /// toHeader()'s typed ones.
+  static bool isWcsKeyword(std::string_view key);
 
   struct Impl;
 

@@ -1,0 +1,227 @@
+#include "st/io/fits_writer.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+
+#include "fits_file.hpp"
+#include "st/common/error.hpp"
+#include "st/config.hpp"
+#include "st/io/wcs.hpp"
+
+namespace st::io {
+namespace {
+
+using detail::FitsFile;
+
+bool startsWith(std::string_view s, std::string_view p) {
+  return s.substr(0, p.size()) == p;
+}
+
+enum class ValueKind { Integer, Real, Logical, Other };
+
+ValueKind classify(const std::string& text) {
+  if (text == "T" || text == "F") return ValueKind::Logical;
+  std::string t = text;
+  if (!t.empty() && t.front() == '+') t.erase(0, 1);
+  long long i = 0;
+  if (auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), i);
+      !t.empty() && ec == std::errc() && p == t.data() + t.size()) {
+    return ValueKind::Integer;
+  }
+  std::replace(t.begin(), t.end(), 'D', 'E');
+  double d = 0.0;
+  if (auto [p, ec] = std::from_chars(t.data(), t.data() + t.size(), d);
+      !t.empty() && ec == std::errc() && p == t.data() + t.size()) {
+    return std::isfinite(d) ? ValueKind::Real : ValueKind::Other;
+  }
+  return ValueKind::Other;
+}
+
+void writeCard(const FitsFile& f, const FitsCard& c) {
+  if (c.key.empty()) return;
+  int status = 0;
+  if (c.key == "COMMENT" || c.key == "HISTORY") {
+    std::string text = c.comment.empty() ? c.value : c.comment;
+    if (c.key == "COMMENT") {
+      fits_write_comment(f.get(), text.c_str(), &status);
+    } else {
+      fits_write_history(f.get(), text.c_str(), &status);
+    }
+    f.check(status, "writing " + c.key);
+    return;
+  }
+  std::string key = c.key;
+  const char* comment = c.comment.empty() ? nullptr : c.comment.c_str();
+  // WCS values written as quoted numbers by some pipelines become numbers (astropy and wcslib want numbers).
+  const ValueKind kind = classify(c.value);
+  const bool asString =
+      c.isString ? !(Wcs::isWcsKeyword(key) && (kind == ValueKind::Integer || kind == ValueKind::Real))
+                 : kind == ValueKind::Other;
+  if (asString) {
+    std::string v = c.value;
+    fits_update_key_longstr(f.get(), key.c_str(), v.data(), comment, &status);
+  } else if (kind == ValueKind::Logical) {
+    int b = c.value == "T" ? 1 : 0;
+    fits_update_key(f.get(), TLOGICAL, key.c_str(), &b, comment, &status);
+  } else if (kind == ValueKind::Integer) {
+    std::string t = c.value;
+    if (t.front() == '+') t.erase(0, 1);
+    LONGLONG v = std::stoll(t);
+    fits_update_key(f.get(), TLONGLONG, key.c_str(), &v, comment, &status);
+  } else {
+    std::string t = c.value;
+    std::replace(t.begin(), t.end(), 'D', 'E');
+    double v = std::stod(t);
+    fits_update_key_dbl(f.get(), key.c_str(), v, -17, comment, &status);
+  }
+  f.check(status, "writing keyword " + key + " = '" + c.value + "'");
+}
+
+void writeCards(const FitsFile& f, const FitsHeader& h, const Wcs* wcs) {
+  for (const auto& c : h.cards) {
+    if (isStructuralKeyword(c.key)) continue;
+    if (wcs != nullptr && Wcs::isWcsKeyword(c.key)) continue;
+    writeCard(f, c);
+  }
+  if (wcs != nullptr) {
+    for (const auto& c : wcs->toHeader().cards)
+      writeCard(f, c);
+  }
+}
+
+std::string utcNowIso() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%S", &tm);
+  return buf;
+}
+
+void writeFramesTable(const FitsFile& f, const FrameCube& cube) {
+  const long n = static_cast<long>(cube.frameCount());
+  std::size_t width = 1;
+  for (const auto& i : cube.info())
+    width = std::max(width, i.file.size());
+  const std::string fileForm = std::to_string(width) + "A";
+  char* ttype[] = {const_cast<char*>("MJD_MID"), const_cast<char*>("EXPTIME"), const_cast<char*>("FILE"),
+                   const_cast<char*>("HDU"), const_cast<char*>("PLANE")};
+  char* tform[] = {const_cast<char*>("1D"), const_cast<char*>("1D"), const_cast<char*>(fileForm.c_str()),
+                   const_cast<char*>("1J"), const_cast<char*>("1J")};
+  char* tunit[] = {const_cast<char*>("d"), const_cast<char*>("s"), const_cast<char*>(""),
+                   const_cast<char*>(""), const_cast<char*>("")};
+  int status = 0;
+  fits_create_tbl(f.get(), BINARY_TBL, n, 5, ttype, tform, tunit, "FRAMES", &status);
+  f.check(status, "creating the FRAMES table");
+  std::vector<double> mjd, exp;
+  std::vector<int> hdu, plane;
+  std::vector<std::string> files;
+  std::vector<char*> filePtrs;
+  for (const auto& i : cube.info()) {
+    mjd.push_back(i.mjdMid);
+    exp.push_back(i.exposureS);
+    hdu.push_back(i.hdu);
+    plane.push_back(i.plane);
+    files.push_back(i.file.empty() ? std::string(" ") : i.file);
+  }
+  for (auto& s : files)
+    filePtrs.push_back(s.data());
+  fits_write_col(f.get(), TDOUBLE, 1, 1, 1, n, mjd.data(), &status);
+  fits_write_col(f.get(), TDOUBLE, 2, 1, 1, n, exp.data(), &status);
+  fits_write_col(f.get(), TSTRING, 3, 1, 1, n, filePtrs.data(), &status);
+  fits_write_col(f.get(), TINT, 4, 1, 1, n, hdu.data(), &status);
+  fits_write_col(f.get(), TINT, 5, 1, 1, n, plane.data(), &status);
+  f.check(status, "writing the FRAMES table");
+  fits_write_comment(f.get(),
+                     "One row per plane of the primary cube: mid-exposure MJD (UTC), exposure (s), origin.",
+                     &status);
+}
+
+}  // namespace
+
+bool isStructuralKeyword(std::string_view key) {
+  static constexpr std::string_view kExact[] = {
+      "SIMPLE",   "BITPIX",  "EXTEND", "BZERO",   "BSCALE", "BLANK",   "PCOUNT", "GCOUNT", "XTENSION",
+      "CHECKSUM", "DATASUM", "END",    "TFIELDS", "THEAP",  "EXTNAME", "EXTVER", "INHERIT"};
+  for (auto k : kExact) {
+    if (key == k) return true;
+  }
+  if (startsWith(key, "NAXIS")) return true;
+  if (key.size() > 1 && key[0] == 'Z' &&
+      (startsWith(key, "ZIMAGE") || startsWith(key, "ZBITPIX") || startsWith(key, "ZNAXIS") ||
+       startsWith(key, "ZTILE") || startsWith(key, "ZCMPTYPE") || startsWith(key, "ZNAME") ||
+       startsWith(key, "ZVAL") || startsWith(key, "ZQUANTIZ") || startsWith(key, "ZDITHER") ||
+       startsWith(key, "ZSIMPLE") || startsWith(key, "ZTENSION") || startsWith(key, "ZEXTEND") ||
+       startsWith(key, "ZPCOUNT") || startsWith(key, "ZGCOUNT") || startsWith(key, "ZHECKSUM") ||
+       startsWith(key, "ZDATASUM") || startsWith(key, "ZBLANK") || startsWith(key, "ZSCALE") ||
+       startsWith(key, "ZZERO"))) {
+    return true;
+  }
+  for (auto p : {"TTYPE", "TFORM", "TUNIT", "TDIM", "TNULL", "TSCAL", "TZERO", "TDISP"}) {
+    if (startsWith(key, p) && key.size() > std::string_view(p).size() &&
+        std::isdigit(static_cast<unsigned char>(key[std::string_view(p).size()]))) {
+      return true;
+    }
+  }
+  return false;
+}
+
+void writeCube(const std::string& path, const FrameCube& cube, const FitsHeader& extra) {
+  if (cube.empty()) throw InputError(path + ": cannot write an empty cube (zero frames)");
+  FitsFile f = FitsFile::create(path);
+  int status = 0;
+  long naxes[3] = {cube.width(), cube.height(), static_cast<long>(cube.frameCount())};
+  fits_create_img(f.get(), FLOAT_IMG, 3, naxes, &status);
+  f.check(status, "creating the image");
+  writeCards(f, cube.header, cube.wcs.get());
+  writeCards(f, extra, nullptr);
+  const std::size_t n = cube.framePixels();
+  std::vector<float> buffer;
+  for (std::size_t k = 0; k < cube.frameCount(); ++k) {
+    const float* src = cube.frame(k);
+    if (!cube.mask().empty()) {
+      buffer.assign(src, src + n);
+      const std::uint8_t* m = cube.mask().data() + k * n;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (m[i] != 0) buffer[i] = std::nanf("");
+      }
+      src = buffer.data();
+    }
+    fits_write_img(f.get(), TFLOAT, static_cast<LONGLONG>(k * n + 1), static_cast<LONGLONG>(n),
+                   const_cast<float*>(src), &status);
+    f.check(status, "writing plane " + std::to_string(k + 1));
+  }
+  writeFramesTable(f, cube);
+  f.close();
+}
+
+void writeImage(const std::string& path, const Image& image, const FitsHeader& header) {
+  if (image.empty()) throw InputError(path + ": cannot write an empty image");
+  FitsFile f = FitsFile::create(path);
+  int status = 0;
+  long naxes[2] = {image.width, image.height};
+  fits_create_img(f.get(), FLOAT_IMG, 2, naxes, &status);
+  f.check(status, "creating the image");
+  writeCards(f, header, nullptr);
+  fits_write_img(f.get(), TFLOAT, 1, static_cast<LONGLONG>(image.size()), const_cast<float*>(image.data()),
+                 &status);
+  f.check(status, "writing the pixels");
+  f.close();
+}
+
+FitsHeader provenanceCards(const std::string& step, const FitsHeader& parameters) {
+  FitsHeader h;
+  h.setString("SOFTWARE", std::string("synthtrack ") + ST_VERSION, "software that wrote this file");
+  h.setString("STEP", step, "processing step");
+  h.setString("DATE", utcNowIso(), "UTC time the file was written");
+  for (const auto& c : parameters.cards)
+    h.cards.push_back(c);
+  return h;
+}
+
+}  // namespace st::io
