@@ -36,6 +36,16 @@ int FitProblem::centreDrift(const FitParams& p) const {
   return drift > 1e6 ? 1000000 : static_cast<int>(drift);
 }
 
+std::size_t FitProblem::framesInside(const FitParams& p) const {
+  std::size_t n = 0;
+  for (double t : m_times) {
+    const double x = p.xc + p.v.vx * t;
+    const double y = p.yc + p.v.vy * t;
+    if (x >= -0.5 && y >= -0.5 && x < m_cube.width() - 0.5 && y < m_cube.height() - 0.5) ++n;
+  }
+  return n;
+}
+
 // Calls fn(x, y, value) for every unmasked in-frame pixel of stamp k.
 template <typename PixelFn>
 void FitProblem::forEachPixel(std::size_t k, const PixelFn& fn) const {
