@@ -221,8 +221,26 @@ FitsHeader Wcs::toHeader() const {
   FitsHeader all = io::detail::parseHeaderText(text, nkeys);
   wcsdealloc(text);
   FitsHeader out;
+  const wcsprm* w = m_impl->wcs;
+  // wcshdo writes PCi_j + CDELTi; a header that came with a CD matrix gets its CDi_j back (astropy and DS9
+  // users compare keywords).
+  const bool cd = (w->altlin & 2) != 0 && (w->altlin & 1) == 0;
+  auto isPcOrCdelt = [](const std::string& k) {
+    return (startsWith(k, "PC") && k.size() > 2 && std::isdigit(static_cast<unsigned char>(k[2]))) || startsWith(k, "CDELT");
+  };
   for (auto& c : all.cards) {
-    if (!c.key.empty() && isWcsKeyword(c.key)) out.cards.push_back(std::move(c));
+    if (c.key.empty() || !isWcsKeyword(c.key) || (cd && isPcOrCdelt(c.key))) continue;
+    out.cards.push_back(std::move(c));
+  }
+  if (cd) {
+    for (int i = 0; i < w->naxis; ++i) {
+      for (int j = 0; j < w->naxis; ++j) {
+        const double v = w->cd[i * w->naxis + j];
+        if (v != 0.0 || i == j) {
+          out.setNumber("CD" + std::to_string(i + 1) + "_" + std::to_string(j + 1), v, "linear transformation matrix");
+        }
+      }
+    }
   }
   return out;
 }

@@ -88,6 +88,8 @@ struct SearchResult {
   std::string backend;                ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
   std::string method;                 ///< "exact" or "tree"
   double elapsedS = 0.0;
+  std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
+  int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
 };
 
 enum class StackMode { Ipsa, Csa };

@@ -1,6 +1,13 @@
 #pragma once
 // The CUDA search backend (exact IPSA on every visible GPU). Only plain types cross this header, so it is
 // included from app/ without CUDA headers.
+//
+// What it does (issue 5): the velocity grid is split by rows of vy across every visible device
+// (CUDA_VISIBLE_DEVICES is respected, one host thread per device). Each device holds the cube once when it
+// fits; otherwise frames are streamed in chunks with partial sums kept on the device, so there is no frame
+// cap. Results (per-velocity maxima, cells above threshold) are reduced on the device. Any CUDA failure
+// (no driver, out of memory, a failed launch) throws st::GpuError so the caller can fall back to the CPU.
+#include <cstddef>
 #include <memory>
 #include <string>
 
@@ -8,8 +15,36 @@
 
 namespace st::gpu {
 
-/// A CUDA backend over every visible device, or nullptr with `whyNot` set (no device, no driver, ...).
+/// Knobs for tests and benchmarks; the defaults are what the app wants.
+struct CudaOptions {
+  /// Device memory a search may use on each device, bytes; 0 = what the device has free less 256 MiB.
+  /// Tests set it small to force frame and velocity tiling.
+  std::size_t deviceMemoryLimitBytes = 0;
+  /// Cells above threshold kept on the device per search; 0 = max(4 x maxCandidates, 65536). When more
+  /// cells pass the threshold the search is re-run once with room for all of them.
+  std::size_t cellCapacity = 0;
+  /// Use the naive one-thread-per-(pixel, velocity) reference kernel (benchmarks, tests). Needs the cube
+  /// resident on the device.
+  bool naiveKernel = false;
+  /// Use at most this many devices (0 = all visible).
+  int maxDevices = 0;
+};
+
+/// The CUDA backend, with what its last search did about memory (tiling, devices) for the log.
+class CudaSearchBackend : public search::SearchBackend {
+ public:
+  /// One line per device used by the last search: how the cube and the grid were tiled.
+  [[nodiscard]] virtual std::string lastNote() const = 0;
+  /// Device seconds spent in search kernels by the last search (summed over devices).
+  [[nodiscard]] virtual double lastKernelSeconds() const = 0;
+};
+
+/// A CUDA backend over every visible device, or nullptr with `whyNot` set (no device, no driver, a device
+/// older than sm_90, ...).
 std::unique_ptr<search::SearchBackend> makeCudaBackend(std::string& whyNot);
+
+/// Same, with options, as the CUDA type.
+std::unique_ptr<CudaSearchBackend> makeCudaSearchBackend(std::string& whyNot, const CudaOptions& options);
 
 /// One line per visible device ("0: NVIDIA H100 80GB HBM3, 79.1 GiB, sm_90"), or why there is none.
 std::string deviceSummary();

@@ -1,0 +1,66 @@
+#include "st/detect/moving_mask.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace st::detect {
+
+MovingMask::MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate)
+    : m_w(width), m_h(height), m_rate(rate) {
+  m_sx.reserve(timeOffsetsS.size());
+  m_sy.reserve(timeOffsetsS.size());
+  for (double dt : timeOffsetsS) {
+    m_sx.push_back(static_cast<int>(std::lround(rate.vx * dt)));
+    m_sy.push_back(static_cast<int>(std::lround(rate.vy * dt)));
+  }
+  const auto [minX, maxX] = std::minmax_element(m_sx.begin(), m_sx.end());
+  const auto [minY, maxY] = std::minmax_element(m_sy.begin(), m_sy.end());
+  const int sxLo = m_sx.empty() ? 0 : *minX, sxHi = m_sx.empty() ? 0 : *maxX;
+  const int syLo = m_sy.empty() ? 0 : *minY, syHi = m_sy.empty() ? 0 : *maxY;
+  // Reference position X = x - sx ranges over [-sxHi, w - 1 - sxLo].
+  m_x0 = -sxHi;
+  m_y0 = -syHi;
+  m_cw = width + (sxHi - sxLo);
+  m_ch = height + (syHi - syLo);
+  m_canvas.assign(static_cast<std::size_t>(m_cw) * static_cast<std::size_t>(m_ch), 0);
+}
+
+void MovingMask::set(int x, int y) {
+  const int i = x - m_x0, j = y - m_y0;
+  if (i < 0 || j < 0 || i >= m_cw || j >= m_ch) return;
+  m_canvas[static_cast<std::size_t>(j) * m_cw + i] = 1;
+}
+
+bool MovingMask::isSetAtRef(int x, int y) const {
+  const int i = x - m_x0, j = y - m_y0;
+  if (i < 0 || j < 0 || i >= m_cw || j >= m_ch) return false;
+  return m_canvas[static_cast<std::size_t>(j) * m_cw + i] != 0;
+}
+
+void MovingMask::dilate(int radius) {
+  if (radius <= 0 || m_canvas.empty()) return;
+  std::vector<std::uint8_t> out(m_canvas);
+  const int r2 = radius * radius;
+  for (int j = 0; j < m_ch; ++j) {
+    for (int i = 0; i < m_cw; ++i) {
+      if (!m_canvas[static_cast<std::size_t>(j) * m_cw + i]) continue;
+      for (int dj = -radius; dj <= radius; ++dj) {
+        const int jj = j + dj;
+        if (jj < 0 || jj >= m_ch) continue;
+        for (int di = -radius; di <= radius; ++di) {
+          const int ii = i + di;
+          if (ii < 0 || ii >= m_cw || di * di + dj * dj > r2) continue;
+          out[static_cast<std::size_t>(jj) * m_cw + ii] = 1;
+        }
+      }
+    }
+  }
+  m_canvas.swap(out);
+}
+
+std::size_t MovingMask::count() const {
+  return static_cast<std::size_t>(std::count(m_canvas.begin(), m_canvas.end(), std::uint8_t{1}));
+}
+
+}  // namespace st::detect

@@ -1,0 +1,190 @@
+#include "st/detect/static_sources.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <vector>
+
+#include "st/common/parallel.hpp"
+#include "st/detect/sky_stack.hpp"
+#include "st/stats/sigma_clip.hpp"
+
+namespace st::detect {
+namespace {
+
+// Connected pixels (8-neighbours) with snr >= grow, reached from a seed with snr >= seed.
+std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, int h, double seed, double grow) {
+  std::vector<std::vector<int>> out;
+  std::vector<std::uint8_t> seen(snr.size(), 0);
+  std::vector<int> stack;
+  for (int i = 0; i < static_cast<int>(snr.size()); ++i) {
+    if (seen[i] || !(snr[i] >= seed)) continue;
+    std::vector<int> comp;
+    stack.push_back(i);
+    seen[i] = 1;
+    while (!stack.empty()) {
+      const int p = stack.back();
+      stack.pop_back();
+      comp.push_back(p);
+      const int px = p % w, py = p / w;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int qx = px + dx, qy = py + dy;
+          if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+          const int q = qy * w + qx;
+          if (seen[q] || !(snr[q] >= grow)) continue;
+          seen[q] = 1;
+          stack.push_back(q);
+        }
+    }
+    out.push_back(std::move(comp));
+  }
+  return out;
+}
+
+Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr, const SkyStack& s,
+              const StaticSourceParams& params, double background) {
+  Star st;
+  double sw = 0.0, sx = 0.0, sy = 0.0;
+  float peakMax = -1e30f;
+  const int w = resid.width;
+  for (int p : comp) {
+    const double v = resid.pixels[p];
+    st.flux += v;
+    if (v > st.peak) st.peak = v;
+    st.snr = std::max<double>(st.snr, snr[p]);
+    peakMax = std::max(peakMax, s.max.pixels[p]);
+    if (v > 0) {
+      sw += v;
+      sx += v * (p % w);
+      sy += v * (p / w);
+    }
+  }
+  st.pixels = static_cast<int>(comp.size());
+  st.x = s.x0 + (sw > 0 ? sx / sw : comp.front() % w);
+  st.y = s.y0 + (sw > 0 ? sy / sw : comp.front() / w);
+  // Saturation: the given level, else a flat top (>= 3 pixels within 0.5% of the highest raw value, which
+  // stands far above the background).
+  double level = params.saturationLevel.value_or(0.0);
+  std::map<int, int> satPerColumn;
+  int nearTop = 0;
+  for (int p : comp) {
+    const float m = s.max.pixels[p];
+    const bool sat = params.saturationLevel ? m >= level : (m >= 0.995f * peakMax && peakMax - background > 1000.0);
+    if (sat) {
+      ++nearTop;
+      ++satPerColumn[p % w];
+    }
+  }
+  st.saturated = params.saturationLevel ? nearTop > 0 : nearTop >= 3;
+  if (st.saturated) {
+    const int run = std::max(3, static_cast<int>(std::ceil(2.0 * params.psfFwhmPx)));
+    for (const auto& [col, n] : satPerColumn)
+      if (n >= run) st.bleedColumns.push_back(col + s.x0);
+  }
+  return st;
+}
+
+}  // namespace
+
+StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
+                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel) {
+  StaticSources out;
+  out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  SubProgress sub(progress, 0.0, 0.8);
+  const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
+  const int cw = s.mean.width, ch = s.mean.height;
+  const Image local = meshBackground(s.mean, s.count, params.meshPx);
+  Image resid(cw, ch);
+  std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
+  for (std::size_t i = 0; i < resid.size(); ++i) {
+    resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
+    if (s.count.pixels[i] > 0) scaled.push_back(resid.pixels[i] * std::sqrt(s.count.pixels[i]));
+  }
+  const stats::ClipStats noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+  out.stackNoise = noise.sigma;
+  std::vector<float> snr(resid.size(), 0.0f);
+  if (noise.sigma > 0) {
+    for (std::size_t i = 0; i < resid.size(); ++i)
+      snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
+  }
+  cancel.throwIfCancelled();
+  const auto comps = components(snr, cw, ch, params.snrThreshold, params.growSnr);
+  for (const auto& comp : comps) {
+    out.stars.push_back(describe(comp, resid, snr, s, params, background));
+    for (int p : comp) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+  }
+  out.mask.dilate(static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1);
+  std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
+  progress.report(1.0, "static sources");
+  return out;
+}
+
+std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel) {
+  if (mask.empty()) return 0;
+  // The set reference positions, listed once.
+  std::vector<std::pair<int, int>> set;
+  const auto& c = mask.canvas();
+  for (int j = 0; j < mask.canvasHeight(); ++j)
+    for (int i = 0; i < mask.canvasWidth(); ++i)
+      if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i]) set.emplace_back(mask.x0() + i, mask.y0() + j);
+  std::vector<std::size_t> perFrame(cube.frameCount(), 0);
+  const int w = cube.width(), h = cube.height();
+  parallelFor(cube.frameCount(), 16, [&](std::size_t n0, std::size_t n1) {
+    for (std::size_t n = n0; n < n1; ++n) {
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      for (const auto& [X, Y] : set) {
+        const int x = X + mask.shiftX(n), y = Y + mask.shiftY(n);
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        f[static_cast<std::size_t>(y) * w + x] = 0.0f;
+        ++perFrame[n];
+      }
+    }
+    progress.report(static_cast<double>(n1) / cube.frameCount(), "zero static sources");
+  });
+  std::size_t total = 0;
+  for (auto v : perFrame) total += v;
+  return total;
+}
+
+SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel) {
+  SingleFrameSources out;
+  out.seedsPerFrame.assign(cube.frameCount(), 0);
+  out.zeroedPerFrame.assign(cube.frameCount(), 0);
+  const int w = cube.width(), h = cube.height();
+  const std::size_t np = cube.framePixels();
+  const bool perPixel = sigma.size() == np;
+  const int r2 = radiusPx * radiusPx;
+  parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
+    std::vector<int> seeds;
+    for (std::size_t n = n0; n < n1; ++n) {
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      seeds.clear();
+      for (std::size_t i = 0; i < np; ++i) {
+        const double s = perPixel ? sigma.pixels[i] : sigmaN;
+        if (s > 0 && f[i] >= snr * s) seeds.push_back(static_cast<int>(i));
+      }
+      out.seedsPerFrame[n] = seeds.size();
+      for (int p : seeds) {
+        const int px = p % w, py = p / w;
+        for (int dy = -radiusPx; dy <= radiusPx; ++dy)
+          for (int dx = -radiusPx; dx <= radiusPx; ++dx) {
+            const int x = px + dx, y = py + dy;
+            if (x < 0 || y < 0 || x >= w || y >= h || dx * dx + dy * dy > r2) continue;
+            float& v = f[static_cast<std::size_t>(y) * w + x];
+            if (v != 0.0f) {
+              v = 0.0f;
+              ++out.zeroedPerFrame[n];
+            }
+          }
+      }
+    }
+    progress.report(static_cast<double>(n1) / cube.frameCount(), "single-frame sources");
+  });
+  return out;
+}
+
+}  // namespace st::detect

@@ -1,0 +1,74 @@
+#pragma once
+// Detector calibration (paper §4.2, "The pre-processing procedure"): master bias (per-pixel median), an
+// optional master dark scaled by exposure, a normalised master flat, overscan (BIASSEC) subtraction, TRIMSEC
+// trim and a bad/hot-pixel mask. Masters are built once from raw calibration frames (as loaded, untrimmed)
+// and applied to the science cube in place.
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/calib/section.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+
+namespace st::calib {
+
+struct CalibParams {
+  bool subtractOverscan = true;     ///< subtract the median of BIASSEC from each frame when it is known
+  bool trim = true;                 ///< trim every frame to TRIMSEC when it is known
+  std::optional<Section> biasSec;   ///< overrides the header's BIASSEC (0-based)
+  std::optional<Section> trimSec;   ///< overrides the header's TRIMSEC (0-based)
+  double hotSigma = 8.0;            ///< hot pixel: master dark (or bias) above clip mean + hotSigma * sigma
+  double flatLow = 0.2;             ///< bad pixel: normalised flat below this (or <= 0); real flats are
+                                    ///< vignetted to ~0.3 in corners (Lowell 42-inch), which stays usable
+  double flatHigh = 2.0;            ///< ... or above this
+};
+
+/// Masters at the raw (untrimmed) frame size. Empty images mean "not given".
+struct MasterCalibration {
+  int width = 0;                  ///< raw frame size the masters were built for
+  int height = 0;
+  std::string binning;            ///< the calibration frames' binning (CCDSUM/XBINNING...), empty if unknown
+  Image bias;                     ///< per-pixel median of the bias frames (overscan-subtracted), counts
+  Image darkPerS;                 ///< median of (dark - bias) / EXPTIME, counts per second
+  Image flat;                     ///< normalised flat (median 1); 1 where it was unusable (then masked)
+  std::vector<std::uint8_t> bad;  ///< 1 = bad pixel (hot, or unusable flat), raw size; empty = none
+  std::size_t hotPixels = 0;         ///< from the dark (or bias) outliers
+  std::size_t flatNonPositive = 0;   ///< flat pixels <= 0 (or not finite) after bias subtraction
+  std::size_t flatOutliers = 0;      ///< flat pixels outside [flatLow, flatHigh] after normalisation
+  std::optional<Section> biasSec;    ///< the overscan used (from params or the calibration headers)
+  std::optional<Section> trimSec;
+};
+
+/// Builds the masters. `bias` is required unless all three are empty; `dark` and `flat` are optional (empty
+/// cubes). `science` is only used to check sizes and binning and to find BIASSEC/TRIMSEC. Throws
+/// st::InputError naming both sizes and the file when a calibration frame differs in size or binning from
+/// the science frames, and when a flat has no positive pixel.
+MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, const FrameCube& flat,
+                               const FrameCube& science, const CalibParams& params, ProgressSink& progress,
+                               CancelToken& cancel);
+
+struct CalibrationReport {
+  std::vector<float> overscanLevel;  ///< per frame, counts (empty without overscan)
+  std::size_t badPixels = 0;         ///< pixels masked per frame (after trim)
+  int trimmedWidth = 0;
+  int trimmedHeight = 0;
+};
+
+/// Applies the masters to `cube` in place: overscan, bias, dark * EXPTIME, flat; bad pixels are set in the
+/// cube's mask; then the trim (the pixel buffer is compacted in place, no second cube). Without masters
+/// (`masters` empty) only overscan and trim are done, from params or the cube's header. Throws st::InputError
+/// on a size mismatch (naming both sizes and the file).
+CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters, const CalibParams& params,
+                                   ProgressSink& progress, CancelToken& cancel);
+
+/// The binning of a header as text ("3 3"), from CCDSUM, or XBINNING/YBINNING, or BINNING; empty if absent.
+std::string binningOf(const FitsHeader& header);
+
+/// Per-pixel median over the frames of a cube (unmasked samples), the master-bias combiner.
+Image medianCombine(const FrameCube& cube, CancelToken& cancel);
+
+}  // namespace st::calib

@@ -1,0 +1,52 @@
+#pragma once
+// A set of pixels given at the reference epoch t_ref and carried along with the sky motion: in frame n the
+// pixel (x, y) is covered when (x - sx_n, y - sy_n) is set at t_ref, with (sx_n, sy_n) =
+// (round(vx (t_n - t_ref)), round(vy (t_n - t_ref))), the integer shift of ARCHITECTURE.md's IPSA
+// convention. Its canvas spans every reference position that some frame sees, so stars that drift into or
+// out of the field are covered too. Used to exclude static sources from the background and to zero them.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "st/common/units.hpp"
+
+namespace st::detect {
+
+class MovingMask {
+ public:
+  MovingMask() = default;
+  /// A mask for frames of width x height at the given offsets t_n - t_ref (seconds) and sky rate (px/s).
+  MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate);
+
+  [[nodiscard]] bool empty() const noexcept { return m_canvas.empty(); }
+  /// Canvas geometry: canvas pixel (i, j) is the reference position (x0 + i, y0 + j).
+  [[nodiscard]] int x0() const noexcept { return m_x0; }
+  [[nodiscard]] int y0() const noexcept { return m_y0; }
+  [[nodiscard]] int canvasWidth() const noexcept { return m_cw; }
+  [[nodiscard]] int canvasHeight() const noexcept { return m_ch; }
+  [[nodiscard]] int shiftX(std::size_t n) const { return m_sx[n]; }
+  [[nodiscard]] int shiftY(std::size_t n) const { return m_sy[n]; }
+  [[nodiscard]] std::size_t frameCount() const noexcept { return m_sx.size(); }
+  [[nodiscard]] Velocity rate() const noexcept { return m_rate; }
+
+  /// Sets the reference position (x, y); positions off the canvas are ignored.
+  void set(int x, int y);
+  [[nodiscard]] bool isSetAtRef(int x, int y) const;
+  /// True when pixel (x, y) of frame n is covered.
+  [[nodiscard]] bool covers(std::size_t n, int x, int y) const { return isSetAtRef(x - m_sx[n], y - m_sy[n]); }
+  /// Grows every set region by a disc of `radius` pixels.
+  void dilate(int radius);
+  /// Number of set reference positions.
+  [[nodiscard]] std::size_t count() const;
+  /// Raw canvas (canvasWidth x canvasHeight, row-major, 1 = set).
+  [[nodiscard]] const std::vector<std::uint8_t>& canvas() const noexcept { return m_canvas; }
+
+ private:
+  int m_w = 0, m_h = 0;
+  int m_x0 = 0, m_y0 = 0, m_cw = 0, m_ch = 0;
+  Velocity m_rate;
+  std::vector<int> m_sx, m_sy;
+  std::vector<std::uint8_t> m_canvas;
+};
+
+}  // namespace st::detect

@@ -1,0 +1,32 @@
+#pragma once
+// The sky rate: how fast the stars move across the detector (px/s). Zero for a tracked telescope; the drift
+// rate when the sky moves (paper §4.1: scanning at 5"/s). Measured from the stars when not given.
+#include <string>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/progress.hpp"
+#include "st/common/units.hpp"
+
+namespace st::detect {
+
+struct SkyRateParams {
+  int blocks = 8;              ///< the cube is cut into this many blocks of consecutive frames
+  double detectSigma = 5.0;    ///< pixels below this SNR in a block mean are zeroed (keep the stars)
+  double minResponse = 0.03;   ///< phase-correlation peak below this: no reliable stars, rate 0
+};
+
+struct SkyRate {
+  Velocity rate;            ///< px/s
+  bool reliable = false;    ///< false when no star pattern was found (rate is then 0)
+  double response = 0.0;    ///< phase-correlation peak of the final measurement
+  std::string note;         ///< how it was measured, for the user
+};
+
+/// Measures the sky rate by phase correlation (OpenCV) of the means of blocks of frames with the global
+/// background `background` removed and faint pixels (< detectSigma * sigma / sqrt(frames in block)) zeroed:
+/// adjacent blocks give a first rate (robust to large drifts), the first and last blocks refine it when the
+/// predicted shift stays within half the frame.
+SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
+                       CancelToken& cancel);
+
+}  // namespace st::detect

@@ -1,0 +1,33 @@
+#pragma once
+// The stack of a cube at the sky rate (paper §4.3: "synthetically track at the sidereal rate"), on the
+// MovingMask canvas so that stars drifting through the field are stacked too. IPSA convention
+// (ARCHITECTURE.md): frame n is shifted by round(v (t_n - t_ref)); samples outside a frame contribute nothing
+// and are not counted; masked samples neither.
+#include <cstddef>
+#include <cstdint>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/detect/moving_mask.hpp"
+
+namespace st::detect {
+
+struct SkyStack {
+  int x0 = 0;   ///< reference position of canvas pixel (0, 0)
+  int y0 = 0;
+  Image mean;   ///< mean over contributing frames of (F_n - subtract), counts per frame
+  Image count;  ///< number of contributing frames
+  Image max;    ///< largest raw value met (for saturation), counts
+};
+
+/// Stacks frames [first, last) of `cube` at `rate` (px/s) on the canvas of MovingMask(cube..., rate), with
+/// `subtract` (e.g. the global background) removed from every sample. last = 0 means all frames.
+SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
+                        CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
+
+/// A smooth local background of an image: one-sided clip (xi = 3) of each `mesh` x `mesh` cell over pixels
+/// with weight > 0, bilinearly interpolated between cell centres (the SExtractor scheme).
+Image meshBackground(const Image& image, const Image& weight, int mesh);
+
+}  // namespace st::detect

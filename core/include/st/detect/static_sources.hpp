@@ -1,0 +1,66 @@
+#pragma once
+// Static sources (paper §4.3): stars and galaxies found in the stack at the sky rate (SNR >= 7) and bright
+// objects found in single frames (SNR >= 7), zeroed in every frame with their footprint dilated by the PSF
+// and carried along with the sky motion. The star catalog is kept for astrometry and vetting.
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/common/units.hpp"
+#include "st/detect/moving_mask.hpp"
+
+namespace st::detect {
+
+struct StaticSourceParams {
+  double snrThreshold = 7.0;  ///< detection in the sky-rate stack (paper §4.3: SNR 7)
+  double growSnr = 2.0;       ///< a detection's footprint grows over connected pixels down to this SNR
+  double psfFwhmPx = 3.0;     ///< PSF FWHM used for the dilation before the PSF is fitted (paper: ~3 px)
+  double dilateFwhm = 1.0;    ///< footprints are dilated by ceil(dilateFwhm * FWHM) + 1 px (sub-pixel motion)
+  int meshPx = 32;            ///< cell of the local background of the stack
+  std::optional<double> saturationLevel;  ///< calibrated counts; else a flat-topped peak counts as saturated
+};
+
+/// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky
+/// drifts).
+struct Star {
+  double x = 0.0;                 ///< flux-weighted centroid, column
+  double y = 0.0;                 ///< row
+  double flux = 0.0;              ///< counts per frame summed over the footprint (background removed)
+  double peak = 0.0;              ///< highest stacked pixel, counts per frame
+  double snr = 0.0;               ///< peak SNR in the sky-rate stack
+  int pixels = 0;                 ///< footprint size before dilation
+  bool saturated = false;
+  std::vector<int> bleedColumns;  ///< columns (0-based, at t_ref) with a vertical run of saturated pixels
+};
+
+struct StaticSources {
+  std::vector<Star> stars;  ///< sorted by decreasing flux
+  MovingMask mask;          ///< footprints, dilated, at t_ref; follows the sky rate
+  double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
+};
+
+/// Finds static sources in the stack of `cube` at `skyRate` (px/s) with `background` (a scalar, e.g. the
+/// global clip mean) removed and a mesh background of the stack subtracted. Seeds are pixels with stack SNR
+/// >= snrThreshold, grown over connected pixels down to growSnr. Throws st::Cancelled.
+StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
+                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel);
+
+/// Sets every pixel covered by `mask` to 0 in every frame (frames must be zero-biased). Returns the number of
+/// pixels zeroed over all frames.
+std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel);
+
+struct SingleFrameSources {
+  std::vector<std::size_t> seedsPerFrame;   ///< pixels at or above the threshold, per frame
+  std::vector<std::size_t> zeroedPerFrame;  ///< pixels zeroed (seeds dilated), per frame
+};
+
+/// Paper §4.3: in zero-biased frames, pixels with value >= snr * sigma (sigma: per-pixel noise image, or
+/// sigmaN when `sigma` is empty) are bright objects of that frame alone; they are zeroed together with a
+/// disc of `radiusPx` around them, in that frame only.
+SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel);
+
+}  // namespace st::detect

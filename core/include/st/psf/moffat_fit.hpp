@@ -1,0 +1,80 @@
+#pragma once
+// Fitting the Moffat PSF of the paper (\label{MoffatPsf}) to one star: model
+//   M(x, y) = B + A * <P(x - x0, y - y0; R, beta)>_pixel,
+// where <.>_pixel is the mean of P over the pixel (the detector integrates over its pixels, so fitting a
+// point-sampled P to the data would bias R by ~1-3% at FWHM ~3 px). Six parameters (x0, y0, R, beta, A, B)
+// by Levenberg-Marquardt with an analytic Jacobian (Eigen dense solves). The radial profile of a star
+// (binned mean vs radius) with the fitted curve, as in the paper's Fig. 4.
+#include <string>
+#include <vector>
+
+#include "st/common/image.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st::psf {
+
+/// Options of fitMoffat. Defaults suit stars of FWHM 2-15 px.
+struct MoffatFitOptions {
+  int halfSize = 0;         ///< stamp half-size, px; 0 = chosen from the star (4 FWHM, clamped to 6..30)
+  int subsamples = 4;       ///< n x n Gauss-Legendre rule for the pixel mean (1..5); 1 = point sampling
+  int maxIterations = 200;  ///< LM iterations before giving up
+  double betaGuess = 3.0;   ///< starting beta
+  double noiseSigma = 0.0;  ///< per-pixel noise of the image; 0 = estimate from the residuals
+  bool ignoreZeros = true;  ///< skip pixels that are exactly 0 (zeroed by earlier stages, masked)
+};
+
+/// Why the LM iterations stopped.
+enum class FitConvergence {
+  RelativeReduction,  ///< chi^2 changed by less than 1e-10 relative (converged)
+  SmallStep,          ///< parameter step below 1e-9 relative (converged)
+  SmallGradient,      ///< gradient below tolerance (converged)
+  MaxIterations,      ///< not converged
+  Diverged,           ///< damping grew without bound; no step reduces chi^2 (not converged)
+};
+
+/// Human-readable text for a FitConvergence value.
+std::string toString(FitConvergence c);
+
+/// The result of one Moffat fit. Positions are 0-based pixel coordinates of the whole image.
+struct MoffatFit {
+  double x0 = 0.0, y0 = 0.0;  ///< centre, px
+  Moffat model;               ///< R (px) and beta
+  double amplitude = 0.0;     ///< A: the peak of the continuous profile above background, image units
+  double background = 0.0;    ///< B, image units
+  /// 1-sigma uncertainties of (x0, y0, R, beta, A, B), from the inverse of J^T J scaled by the residual
+  /// variance (or by noiseSigma^2 when given).
+  double sigmaX0 = 0.0, sigmaY0 = 0.0, sigmaRadius = 0.0, sigmaBeta = 0.0, sigmaAmplitude = 0.0,
+         sigmaBackground = 0.0;
+  double sigmaFwhm = 0.0;    ///< 1-sigma of W, propagated with the R-beta covariance
+  double residualRms = 0.0;  ///< rms of (data - model) over the stamp, image units
+  double reducedChi2 = 0.0;  ///< sum of squared residuals / (pixels - 6) / noiseSigma^2 (1 when not given)
+  int pixels = 0;            ///< pixels used
+  int iterations = 0;
+  FitConvergence convergence = FitConvergence::MaxIterations;
+  [[nodiscard]] bool converged() const noexcept {
+    return convergence != FitConvergence::MaxIterations && convergence != FitConvergence::Diverged;
+  }
+  /// FWHM W = 2 R sqrt(2^(1/beta) - 1), px.
+  [[nodiscard]] double fwhm() const noexcept { return model.fwhm(); }
+};
+
+/// Fits the Moffat profile to the star near (xGuess, yGuess) in `image`. The stamp is clipped to the image.
+/// Throws st::InputError when the stamp has fewer than 20 usable pixels or the guess is outside the image.
+/// A fit that does not converge is returned with its convergence reason; the caller decides.
+MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const MoffatFitOptions& options = {});
+
+/// One bin of a radial profile.
+struct RadialBin {
+  double radius = 0.0;  ///< mean distance of the bin's pixel centres from the centre, px
+  double mean = 0.0;    ///< mean of (data - background) over the bin
+  double model = 0.0;   ///< mean of the fitted profile (without background) over the same pixels
+  int count = 0;        ///< pixels in the bin
+};
+
+/// The radial profile of the star of `fit` in `image`: pixels within maxRadius (px) of (x0, y0) binned by
+/// distance in bins of binWidth px (default 0.5), background removed, with the fitted curve averaged over
+/// the same pixels. Exact-zero pixels are skipped (masked). Empty bins are left out.
+std::vector<RadialBin> radialProfile(const Image& image, const MoffatFit& fit, double maxRadius,
+                                     double binWidth = 0.5, int subsamples = 4);
+
+}  // namespace st::psf

@@ -1,0 +1,69 @@
+#pragma once
+// Measuring the PSF of an observation: choose a bright, isolated, unsaturated star (from a catalog of
+// candidates, e.g. the static-source catalog, or from local maxima found here) in a well-exposed image
+// (a sky-rate stack or a zero-biased frame) and fit the Moffat profile to it (st/psf/moffat_fit.hpp).
+// When no star is usable, st::InputError says so and asks for a FWHM (Moffat::fromFwhm is the fallback).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/common/image.hpp"
+#include "st/psf/moffat_fit.hpp"
+
+namespace st::psf {
+
+/// A star that might serve for the PSF. Plain data so that any catalog (st::detect's static sources) can be
+/// passed in.
+struct StarCandidate {
+  double x = 0.0;          ///< column, 0-based px
+  double y = 0.0;          ///< row, 0-based px
+  double flux = 0.0;       ///< any brightness measure in image units (larger = brighter); used for ranking
+  bool saturated = false;  ///< saturated or bleeding: never used
+};
+
+/// How a PSF star is chosen and accepted.
+struct PsfStarOptions {
+  std::optional<double>
+      saturationLevel;              ///< pixel values >= this are saturated (image units); none = unknown
+  double minPeakSnr = 20.0;         ///< fitted amplitude / image noise must reach this
+  double isolationRadiusPx = 15.0;  ///< no other candidate brighter than isolationFluxRatio x this star's
+                                    ///< flux (or saturated) within this radius, px
+  double isolationFluxRatio = 0.05;
+  int edgeMarginPx = 10;   ///< candidates closer to the edge are skipped
+  double minFwhmPx = 0.8;  ///< fits outside [min, max] FWHM are rejected as not a star
+  double maxFwhmPx = 40.0;
+  int maxTries = 10;     ///< candidates fitted, brightest first, before giving up
+  MoffatFitOptions fit;  ///< options of the Moffat fit
+};
+
+/// The PSF measured on one star.
+struct PsfMeasurement {
+  MoffatFit fit;
+  StarCandidate star;                 ///< the star used
+  int candidatesConsidered = 0;       ///< candidates after the saturation/edge/isolation cuts
+  std::vector<std::string> rejected;  ///< why earlier candidates were rejected (for the user to see)
+};
+
+/// Robust noise of an image: 1.4826 x MAD about the median over the non-zero finite pixels (every pixel
+/// up to 2^20 of them, then an even subsample). Returns 0 when fewer than 16 usable pixels.
+double robustImageNoise(const Image& image);
+
+/// Local maxima of `image` above median + thresholdSigma x robust noise (3x3 neighbourhood, strictly
+/// greater than the pixels before it, >= those after it, so plateaus give one maximum), with flux = the
+/// background-subtracted sum over a 5x5 box, and `saturated` set when the peak reaches saturationLevel or
+/// the peak is a plateau of >= 3 equal pixels (a clipped star). Sorted by decreasing flux.
+std::vector<StarCandidate> findStarCandidates(const Image& image, double thresholdSigma = 10.0,
+                                              std::optional<double> saturationLevel = std::nullopt);
+
+/// Chooses the brightest candidate that is unsaturated, away from the edges and isolated, fits it, and
+/// accepts the first fit that converged with a plausible FWHM and peak SNR. With `candidates` empty, finds
+/// them with findStarCandidates. Throws st::InputError ("no star usable for the PSF ... give a FWHM") when
+/// none is accepted; the message lists why the best candidates were rejected.
+PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& candidates,
+                          const PsfStarOptions& options = {});
+
+/// Fits the star the user named near (x, y). Throws st::InputError naming the position when the fit does
+/// not converge or gives an implausible FWHM.
+PsfMeasurement measurePsfAt(const Image& image, double x, double y, const PsfStarOptions& options = {});
+
+}  // namespace st::psf

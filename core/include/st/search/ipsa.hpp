@@ -1,0 +1,31 @@
+#pragma once
+// The IPSA statistic of ARCHITECTURE.md, in the exact form every backend must reproduce:
+//   S(x, y, v) = sum_n F_n(x + round(vx dt_n), y + round(vy dt_n)),  dt_n = t_n - t_ref in seconds,
+// out-of-frame samples excluded and not counted (N_in), SNR = S / (sigma_F sqrt(N_in)).
+// round() is round-half-away-from-zero of the double product (std::lround; CUDA llround on doubles).
+// This header also gives the brute-force reference (one cell, a plain loop) the tests compare against.
+#include <cmath>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/units.hpp"
+
+namespace st::search {
+
+/// Integer pixel shift of a source moving at vPxS (px/s) after dtS seconds: round(v * dt), halves away
+/// from zero.
+inline int ipsaShift(double vPxS, double dtS) noexcept {
+  return static_cast<int>(std::lround(vPxS * dtS));
+}
+
+/// One cell of the statistic, computed the slow, obvious way.
+struct IpsaCell {
+  double sum = 0.0;  ///< S, accumulated in double
+  int nIn = 0;       ///< frames whose shifted sample lies inside the frame
+};
+
+/// Brute-force IPSA at pixel (x, y) (0-based, at t_ref) and velocity v (px/s). `dt` are t_n - t_ref in
+/// seconds (FrameCube::timeOffsetsS()). For tests and spot checks only: O(frames).
+IpsaCell ipsaReference(const FrameCube& cube, const std::vector<double>& dt, int x, int y, Velocity v);
+
+}  // namespace st::search

@@ -1,0 +1,31 @@
+#pragma once
+// The velocity search as one plain function (for the demo, the CLI and the GUI): grid from a GridSpec,
+// then backend.search(). Also the validation every backend applies to its inputs.
+#include "st/search/types.hpp"
+#include "st/search/velocity_grid.hpp"
+
+namespace st::search {
+
+struct SearchRequest {
+  GridSpec grid;        ///< range, centre (default: the cube's sky rate), spacing
+  SearchParams params;  ///< threshold (SNR or target FAP), caps
+};
+
+/// Builds the grid for `cube` and runs `backend` over it. Throws st::InputError for bad input (see
+/// validateSearchInput, makeVelocityGrid), st::Cancelled when cancelled.
+SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,
+                       ProgressSink& progress, CancelToken& cancel);
+
+/// Throws st::InputError naming the value at fault unless: at least 2 frames, a positive time span,
+/// sigma_F > 0 and finite, a non-empty grid with a positive finite step, minFrameFraction in [0, 1],
+/// maxCandidates >= 1, and a threshold that is finite (or a target FAP in (0, trials/2]).
+void validateSearchInput(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params);
+
+/// The SNR threshold a search uses: params.snrThreshold, or the inverse of Prob_false for
+/// params.targetFap with `trials` (st::stats::snrThresholdForFap).
+double effectiveThreshold(const SearchParams& params, const TrialCounts& trials);
+
+/// N_in below this is ignored: ceil(minFrameFraction x frames), at least 1.
+int minFramesFor(const SearchParams& params, std::size_t frames);
+
+}  // namespace st::search

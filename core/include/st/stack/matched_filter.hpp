@@ -1,0 +1,61 @@
+#pragma once
+// The matched filter (paper §4.3, last sentence): every zero-biased frame is convolved with the PSF before
+// the velocity search. The kernel is the Moffat PSF averaged over each pixel (what the detector records
+// for a star of unit peak), truncated where P < kDefaultTruncation of its peak; a Moffat is not separable,
+// so the convolution is a direct 2-D one (OpenCV filter2D, which switches to a DFT for large kernels).
+// A source alpha * K then filters to a peak alpha * sum K^2, and white noise sigma_n to
+// sigma_n * sqrt(sum K^2); real frames have correlated, masked noise, so sigma_F is always measured from
+// the filtered data (ARCHITECTURE.md, SNR convention).
+#include <cstddef>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st::stack {
+
+/// P below 1e-3 of its peak no longer matters: beyond that radius the kernel holds < 0.3% of sum P^2 for
+/// beta = 4 (and its noise contribution is below float rounding of the sum for typical frames).
+inline constexpr double kDefaultTruncation = 1e-3;
+
+/// The matched-filter kernel: (2 halfSize + 1)^2 pixels, centre at (halfSize, halfSize), the pixel mean of
+/// P (peak of the continuous profile 1), set to 0 where the point value P < truncation (a disc).
+struct FilterKernel {
+  Image kernel;
+  int halfSize = 0;
+  double sumSquares = 0.0;  ///< sum K^2: the filtered peak of a unit-amplitude source, and the white-noise
+                            ///< variance gain
+  double sum = 0.0;         ///< sum K
+};
+
+/// Builds the kernel for `psf`, truncated at `truncation` x peak (default kDefaultTruncation). Throws
+/// st::InputError for a non-positive truncation or a PSF of non-positive R or beta <= 1.
+FilterKernel makeFilterKernel(const psf::Moffat& psf, double truncation = kDefaultTruncation);
+
+/// Convolves one frame (width x height, row-major, in place) with the kernel; samples outside the frame
+/// count as 0 (the frames are zero-biased). `scratch` must hold width x height floats.
+void filterFrame(float* frame, int width, int height, const FilterKernel& kernel, float* scratch);
+
+/// What filterCube measured.
+struct MatchedFilterResult {
+  double sigmaF = 0.0;           ///< robust noise of one filtered frame (1.4826 x MAD about the median)
+  std::size_t noiseSamples = 0;  ///< pixels that entered sigmaF
+  int kernelHalfSize = 0;
+  double kernelSumSquares = 0.0;
+};
+
+/// Filters every frame of `cube` in place (parallel over frames; one scratch frame per thread, no second
+/// cube). Masked and non-finite pixels are set to 0 first. sigma_F is measured on up to 64 frames spread
+/// over the cube from every 3rd pixel that is at least halfSize away from the frame edge and from any
+/// zero/masked input pixel (there the noise is lower and would bias sigma_F). Reports progress; throws
+/// st::Cancelled, and st::InputError when too few pixels are left to measure sigma_F (< 1000).
+MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
+                               CancelToken& cancel);
+
+/// Robust noise (1.4826 x MAD about the median) of already-filtered frames: non-zero pixels of up to
+/// maxFrames frames spread over the cube, every `stride`-th pixel, `border` px from the edges. Returns 0 when
+/// fewer than 1000 pixels qualify.
+double measureFilteredNoise(const FrameCube& cube, int border, std::size_t maxFrames = 64, int stride = 3);
+
+}  // namespace st::stack

@@ -1,0 +1,60 @@
+#pragma once
+// Background and noise (paper §3.1 and §4.2): a pixel-independent background from ~50 frames (xi = 5),
+// then a pixel-dependent background from up to ~2000 frames per pixel (xi = 4), the noise sigma_n from the
+// frame-to-frame variation averaged over pixels, an optional smooth noise map, and the subtraction that
+// makes the frames zero-biased.
+#include <cstddef>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/detect/moving_mask.hpp"
+#include "st/stats/sigma_clip.hpp"
+
+namespace st::stats {
+
+struct GlobalBackgroundParams {
+  std::size_t frames = 50;  ///< frames used, evenly spaced over the cube (paper §4.2: 50)
+  double xi = 5.0;          ///< clip threshold (paper §3.1: 5)
+};
+
+/// The pixel-independent background: the one-sided clip (sigmaClip) of every unmasked pixel of up to
+/// `params.frames` frames. Throws st::InputError when every one of those pixels is masked.
+ClipStats globalBackground(const FrameCube& cube, const GlobalBackgroundParams& params = {});
+
+struct BackgroundParams {
+  GlobalBackgroundParams global;  ///< the pixel-independent first estimate (paper: 50 frames, xi = 5)
+  double xi = 4.0;              ///< per-pixel clip threshold (paper §3.1: 4)
+  std::size_t maxFrames = 2000; ///< frames per pixel, evenly spaced when the cube has more (paper: ~2000)
+  double strongSignalXi = 5.0;  ///< samples above global mean + this * global sigma are left out first
+                                ///< ("eliminate most of the strong signals", paper §4.2)
+  std::size_t minSamples = 10;  ///< pixels with fewer background samples take the global mean
+  bool noiseMap = false;        ///< also compute a smooth noise map (box mean of the per-pixel sigma)
+  int noiseMapBoxPx = 33;       ///< side of that box, pixels
+};
+
+struct Background {
+  Image level;                   ///< per-pixel background (mean of the converged set B), counts
+  Image sigma;                   ///< per-pixel frame-to-frame standard deviation of B, counts
+  double sigmaN = 0.0;           ///< noise of one pixel of one frame: sqrt(mean over pixels of sigma^2)
+  ClipStats global;              ///< the pixel-independent estimate it started from
+  std::size_t framesUsed = 0;    ///< frames that entered the per-pixel clip
+  std::size_t pixelsFilled = 0;  ///< pixels with < minSamples samples (level = global mean, not in sigmaN)
+  Image noiseMap;                ///< smooth noise map when params.noiseMap, else empty
+};
+
+/// Per-pixel background of the cube (paper §3.1 with xi = 4 over up to ~2000 frames). Masked samples, samples
+/// covered by `exclude` (static sources following the sky motion; may be null) and strong signals are left
+/// out. Tiled by rows over worker threads; the clip of each pixel gives exactly sigmaClip's result on that
+/// pixel's samples. Throws st::InputError when no pixel has enough samples; st::Cancelled.
+Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
+                              const detect::MovingMask* exclude, ProgressSink& progress, CancelToken& cancel);
+
+/// Subtracts `level` from every frame in place; masked pixels become 0, so the frames are zero-biased and
+/// carry no NaN. Throws st::InputError when the sizes differ.
+void subtractBackground(FrameCube& cube, const Image& level, ProgressSink& progress, CancelToken& cancel);
+
+/// Box mean (side `box`, odd) of `image` over pixels where `valid` is non-zero (all when empty).
+Image boxSmooth(const Image& image, int box, const std::vector<std::uint8_t>& valid = {});
+
+}  // namespace st::stats

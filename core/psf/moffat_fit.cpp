@@ -1,0 +1,270 @@
+#include "st/psf/moffat_fit.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "st/common/error.hpp"
+
+namespace st::psf {
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+enum Param { kX0 = 0, kY0, kR, kBeta, kAmp, kBg };
+
+constexpr double kMinRadius = 0.2;
+constexpr double kMaxRadius = 200.0;
+constexpr double kMinBeta = 1.05;
+constexpr double kMaxBeta = 50.0;
+
+struct Pixel {
+  double x, y, value;
+};
+
+/// Model value and its gradient with respect to the six parameters at one pixel (pixel mean, s x s).
+double modelAt(const Vec6& p, double px, double py, const Moffat::GaussRule& g, Vec6* grad) {
+  const double r2inv = 1.0 / (p[kR] * p[kR]);
+  double sumP = 0.0, sumDx = 0.0, sumDy = 0.0, sumDr = 0.0, sumDb = 0.0;
+  for (int j = 0; j < g.n; ++j) {
+    const double dy = py + g.x[j] - p[kY0];
+    for (int i = 0; i < g.n; ++i) {
+      const double dx = px + g.x[i] - p[kX0];
+      const double wt = g.w[i] * g.w[j];
+      const double rr = dx * dx + dy * dy;
+      const double u = 1.0 + rr * r2inv;
+      const double lnu = std::log(u);
+      const double val = wt * std::exp(-p[kBeta] * lnu);
+      const double q = 2.0 * p[kBeta] * val / u * r2inv;  // 2 beta u^(-beta-1) / R^2
+      sumP += val;
+      sumDx += q * dx;
+      sumDy += q * dy;
+      sumDr += q * rr / p[kR];
+      sumDb -= lnu * val;
+    }
+  }
+  if (grad) {
+    (*grad)[kX0] = p[kAmp] * sumDx;
+    (*grad)[kY0] = p[kAmp] * sumDy;
+    (*grad)[kR] = p[kAmp] * sumDr;
+    (*grad)[kBeta] = p[kAmp] * sumDb;
+    (*grad)[kAmp] = sumP;
+    (*grad)[kBg] = 1.0;
+  }
+  return p[kBg] + p[kAmp] * sumP;
+}
+
+/// Sum of squared residuals; with normal equations when jtj/jtr are given.
+double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Moffat::GaussRule& s, Mat6* jtj,
+                Vec6* jtr) {
+  double ssr = 0.0;
+  if (jtj) jtj->setZero();
+  if (jtr) jtr->setZero();
+  Vec6 g;
+  for (const auto& px : pixels) {
+    const double r = px.value - modelAt(p, px.x, px.y, s, jtj ? &g : nullptr);
+    ssr += r * r;
+    if (jtj) {
+      jtj->selfadjointView<Eigen::Lower>().rankUpdate(g);
+      *jtr += g * r;
+    }
+  }
+  if (jtj) *jtj = jtj->selfadjointView<Eigen::Lower>();
+  return ssr;
+}
+
+void clampParams(Vec6& p) {
+  p[kR] = std::clamp(p[kR], kMinRadius, kMaxRadius);
+  p[kBeta] = std::clamp(p[kBeta], kMinBeta, kMaxBeta);
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+struct Stamp {
+  int x0, y0, x1, y1;  // inclusive-exclusive bounds
+};
+
+Stamp clipStamp(const Image& image, int cx, int cy, int half) {
+  return {std::max(0, cx - half), std::max(0, cy - half), std::min(image.width, cx + half + 1),
+          std::min(image.height, cy + half + 1)};
+}
+
+/// Starting values: brightest pixel near the guess, border median as background, FWHM from the area above
+/// half maximum. Returns the parameters and the FWHM estimate.
+Vec6 initialGuess(const Image& image, double xg, double yg, const MoffatFitOptions& o, double* fwhmGuess) {
+  int bx = static_cast<int>(std::lround(xg)), by = static_cast<int>(std::lround(yg));
+  float best = image.at(bx, by);
+  for (int y = std::max(0, by - 2); y <= std::min(image.height - 1, by + 2); ++y)
+    for (int x = std::max(0, bx - 2); x <= std::min(image.width - 1, bx + 2); ++x)
+      if (image.at(x, y) > best) best = image.at(x, y), bx = x, by = y;
+  const int half = o.halfSize > 0 ? o.halfSize : 12;
+  const Stamp st = clipStamp(image, bx, by, half);
+  std::vector<double> border;
+  for (int y = st.y0; y < st.y1; ++y)
+    for (int x = st.x0; x < st.x1; ++x) {
+      const bool edge = y == st.y0 || y == st.y1 - 1 || x == st.x0 || x == st.x1 - 1;
+      if (edge && !(o.ignoreZeros && image.at(x, y) == 0.0f)) border.push_back(image.at(x, y));
+    }
+  const double bg = median(border);
+  const double amp = std::max(1e-30, double(best) - bg);
+  int above = 0;
+  for (int y = st.y0; y < st.y1; ++y)
+    for (int x = st.x0; x < st.x1; ++x)
+      above += (image.at(x, y) - bg > 0.5 * amp) ? 1 : 0;
+  *fwhmGuess = std::max(1.0, 2.0 * std::sqrt(above / M_PI));
+  Vec6 p;
+  p << bx, by, Moffat::radiusForFwhm(*fwhmGuess, o.betaGuess), o.betaGuess, amp, bg;
+  return p;
+}
+
+double fwhmDerivBeta(double r, double beta) {
+  const double t = std::pow(2.0, 1.0 / beta);
+  return 2.0 * r * (0.5 / std::sqrt(t - 1.0)) * t * std::log(2.0) * (-1.0 / (beta * beta));
+}
+
+}  // namespace
+
+std::string toString(FitConvergence c) {
+  switch (c) {
+    case FitConvergence::RelativeReduction:
+      return "converged (relative chi^2 reduction < 1e-10)";
+    case FitConvergence::SmallStep:
+      return "converged (relative step < 1e-9)";
+    case FitConvergence::SmallGradient:
+      return "converged (gradient below tolerance)";
+    case FitConvergence::MaxIterations:
+      return "not converged (iteration limit reached)";
+    case FitConvergence::Diverged:
+      return "not converged (no step reduces chi^2)";
+  }
+  return "unknown";
+}
+
+MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const MoffatFitOptions& o) {
+  if (!std::isfinite(xGuess) || !std::isfinite(yGuess) ||
+      !image.contains(int(std::lround(xGuess)), int(std::lround(yGuess))))
+    throw InputError("Moffat fit: star position (" + std::to_string(xGuess) + ", " + std::to_string(yGuess) +
+                     ") is outside the " + std::to_string(image.width) + " x " +
+                     std::to_string(image.height) + " image");
+  const Moffat::GaussRule s = Moffat::gaussRule(o.subsamples);
+  double fwhmGuess = 0.0;
+  Vec6 p = initialGuess(image, xGuess, yGuess, o, &fwhmGuess);
+  const int half = o.halfSize > 0 ? o.halfSize : std::clamp(int(std::ceil(4.0 * fwhmGuess)), 6, 30);
+  const Stamp st = clipStamp(image, int(p[kX0]), int(p[kY0]), half);
+  std::vector<Pixel> pixels;
+  for (int y = st.y0; y < st.y1; ++y)
+    for (int x = st.x0; x < st.x1; ++x) {
+      const float v = image.at(x, y);
+      if (!std::isfinite(v) || (o.ignoreZeros && v == 0.0f)) continue;
+      pixels.push_back({double(x), double(y), double(v)});
+    }
+  if (pixels.size() < 20)
+    throw InputError("Moffat fit: only " + std::to_string(pixels.size()) + " usable pixels around (" +
+                     std::to_string(xGuess) + ", " + std::to_string(yGuess) + "); need at least 20");
+
+  MoffatFit fit;
+  Mat6 jtj;
+  Vec6 jtr;
+  double ssr = evaluate(pixels, p, s, &jtj, &jtr);
+  double lambda = 1e-3;
+  int it = 0;
+  fit.convergence = FitConvergence::MaxIterations;
+  for (; it < o.maxIterations; ++it) {
+    if (jtr.cwiseAbs().maxCoeff() <= 1e-12 * (ssr + 1e-300)) {
+      fit.convergence = FitConvergence::SmallGradient;
+      break;
+    }
+    bool accepted = false;
+    while (!accepted) {
+      Mat6 a = jtj;
+      a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+      Vec6 trial = p + a.ldlt().solve(jtr);
+      clampParams(trial);
+      const double trialSsr = evaluate(pixels, trial, s, nullptr, nullptr);
+      if (std::isfinite(trialSsr) && trialSsr < ssr) {
+        const double step = ((trial - p).cwiseAbs().array() / (p.cwiseAbs().array() + 1e-12)).maxCoeff();
+        const double reduction = (ssr - trialSsr) / std::max(ssr, 1e-300);
+        p = trial;
+        ssr = evaluate(pixels, p, s, &jtj, &jtr);
+        lambda = std::max(lambda * 0.1, 1e-12);
+        accepted = true;
+        if (reduction < 1e-10) fit.convergence = FitConvergence::RelativeReduction;
+        if (step < 1e-9) fit.convergence = FitConvergence::SmallStep;
+      } else {
+        lambda *= 10.0;
+        if (lambda > 1e12) {
+          // No step helps: at a minimum when the last relative change was already tiny.
+          const bool atMinimum = std::isfinite(trialSsr) && (trialSsr - ssr) <= 1e-10 * ssr;
+          fit.convergence = atMinimum ? FitConvergence::RelativeReduction : FitConvergence::Diverged;
+          break;
+        }
+      }
+    }
+    if (fit.convergence != FitConvergence::MaxIterations) break;
+  }
+  fit.iterations = it + 1;
+  fit.x0 = p[kX0];
+  fit.y0 = p[kY0];
+  fit.model = Moffat{p[kR], p[kBeta]};
+  fit.amplitude = p[kAmp];
+  fit.background = p[kBg];
+  fit.pixels = static_cast<int>(pixels.size());
+  const double dof = std::max<double>(1.0, double(pixels.size()) - 6.0);
+  fit.residualRms = std::sqrt(ssr / double(pixels.size()));
+  const double variance = o.noiseSigma > 0.0 ? o.noiseSigma * o.noiseSigma : ssr / dof;
+  fit.reducedChi2 = o.noiseSigma > 0.0 ? ssr / dof / variance : 1.0;
+  const Mat6 cov = jtj.ldlt().solve(Mat6::Identity()) * variance;
+  fit.sigmaX0 = std::sqrt(std::max(0.0, cov(kX0, kX0)));
+  fit.sigmaY0 = std::sqrt(std::max(0.0, cov(kY0, kY0)));
+  fit.sigmaRadius = std::sqrt(std::max(0.0, cov(kR, kR)));
+  fit.sigmaBeta = std::sqrt(std::max(0.0, cov(kBeta, kBeta)));
+  fit.sigmaAmplitude = std::sqrt(std::max(0.0, cov(kAmp, kAmp)));
+  fit.sigmaBackground = std::sqrt(std::max(0.0, cov(kBg, kBg)));
+  const double dWdR = fit.model.fwhm() / p[kR], dWdB = fwhmDerivBeta(p[kR], p[kBeta]);
+  fit.sigmaFwhm = std::sqrt(std::max(
+      0.0, dWdR * dWdR * cov(kR, kR) + dWdB * dWdB * cov(kBeta, kBeta) + 2.0 * dWdR * dWdB * cov(kR, kBeta)));
+  return fit;
+}
+
+std::vector<RadialBin> radialProfile(const Image& image, const MoffatFit& fit, double maxRadius,
+                                     double binWidth, int subsamples) {
+  if (!(binWidth > 0.0) || !(maxRadius > 0.0))
+    throw InputError("radial profile: bin width (" + std::to_string(binWidth) + ") and maximum radius (" +
+                     std::to_string(maxRadius) + ") must be positive");
+  const int nBins = static_cast<int>(std::ceil(maxRadius / binWidth));
+  std::vector<RadialBin> bins(static_cast<std::size_t>(nBins));
+  const int x0 = std::max(0, int(std::floor(fit.x0 - maxRadius))),
+            x1 = std::min(image.width - 1, int(std::ceil(fit.x0 + maxRadius)));
+  const int y0 = std::max(0, int(std::floor(fit.y0 - maxRadius))),
+            y1 = std::min(image.height - 1, int(std::ceil(fit.y0 + maxRadius)));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const float v = image.at(x, y);
+      const double r = std::hypot(x - fit.x0, y - fit.y0);
+      if (r >= maxRadius || v == 0.0f || !std::isfinite(v)) continue;
+      auto& b = bins[static_cast<std::size_t>(r / binWidth)];
+      b.radius += r;
+      b.mean += v - fit.background;
+      b.model += fit.amplitude * fit.model.pixelMean(x - fit.x0, y - fit.y0, subsamples);
+      ++b.count;
+    }
+  std::vector<RadialBin> out;
+  for (auto& b : bins) {
+    if (b.count == 0) continue;
+    b.radius /= b.count;
+    b.mean /= b.count;
+    b.model /= b.count;
+    out.push_back(b);
+  }
+  return out;
+}
+
+}  // namespace st::psf

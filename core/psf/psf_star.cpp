@@ -1,0 +1,168 @@
+#include "st/psf/psf_star.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "st/common/error.hpp"
+
+namespace st::psf {
+namespace {
+
+std::string fmt(double v, int digits = 1) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+std::string where(const StarCandidate& c) {
+  return "star at (" + fmt(c.x) + ", " + fmt(c.y) + ")";
+}
+
+double medianOf(std::vector<float>& v) {
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+/// Median and robust sigma of the non-zero finite pixels (subsampled to at most ~2^20).
+void robustStats(const Image& image, double* med, double* sigma) {
+  const std::size_t stride = std::max<std::size_t>(1, image.size() >> 20);
+  std::vector<float> v;
+  v.reserve(image.size() / stride + 1);
+  for (std::size_t i = 0; i < image.size(); i += stride) {
+    const float p = image.pixels[i];
+    if (p != 0.0f && std::isfinite(p)) v.push_back(p);
+  }
+  if (v.size() < 16) {
+    *med = 0.0;
+    *sigma = 0.0;
+    return;
+  }
+  *med = medianOf(v);
+  for (auto& p : v)
+    p = std::fabs(p - static_cast<float>(*med));
+  *sigma = 1.4826 * medianOf(v);
+}
+
+/// Why a fit is not acceptable as the PSF, or empty when it is.
+std::string judgeFit(const MoffatFit& fit, const StarCandidate& c, double noise, const PsfStarOptions& o) {
+  if (!fit.converged()) return where(c) + ": " + toString(fit.convergence);
+  const double w = fit.fwhm();
+  if (!(w >= o.minFwhmPx && w <= o.maxFwhmPx))
+    return where(c) + ": FWHM " + fmt(w, 2) + " px outside [" + fmt(o.minFwhmPx) + ", " + fmt(o.maxFwhmPx) +
+           "]";
+  if (std::hypot(fit.x0 - c.x, fit.y0 - c.y) > std::max(3.0, w))
+    return where(c) + ": fit wandered to (" + fmt(fit.x0) + ", " + fmt(fit.y0) + ")";
+  if (noise > 0.0 && fit.amplitude / noise < o.minPeakSnr)
+    return where(c) + ": peak SNR " + fmt(fit.amplitude / noise) + " below " + fmt(o.minPeakSnr);
+  if (fit.amplitude <= 0.0) return where(c) + ": non-positive amplitude";
+  return {};
+}
+
+}  // namespace
+
+double robustImageNoise(const Image& image) {
+  double med = 0.0, sigma = 0.0;
+  robustStats(image, &med, &sigma);
+  return sigma;
+}
+
+std::vector<StarCandidate> findStarCandidates(const Image& image, double thresholdSigma,
+                                              std::optional<double> saturationLevel) {
+  double med = 0.0, sigma = 0.0;
+  robustStats(image, &med, &sigma);
+  const double threshold = med + thresholdSigma * sigma;
+  std::vector<StarCandidate> out;
+  for (int y = 1; y + 1 < image.height; ++y)
+    for (int x = 1; x + 1 < image.width; ++x) {
+      const float v = image.at(x, y);
+      if (!(v > threshold)) continue;
+      bool isMax = true;
+      int equal = 1;
+      for (int dy = -1; dy <= 1 && isMax; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dx == 0 && dy == 0) continue;
+          const float n = image.at(x + dx, y + dy);
+          const bool before = dy < 0 || (dy == 0 && dx < 0);
+          if (n > v || (before && n == v)) {
+            isMax = false;
+            break;
+          }
+          equal += (n == v) ? 1 : 0;
+        }
+      if (!isMax) continue;
+      StarCandidate c{double(x), double(y), 0.0, false};
+      for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx)
+          if (image.contains(x + dx, y + dy)) c.flux += image.at(x + dx, y + dy) - med;
+      c.saturated = equal >= 3 || (saturationLevel && v >= *saturationLevel);
+      out.push_back(c);
+    }
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
+  return out;
+}
+
+PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& given,
+                          const PsfStarOptions& o) {
+  const std::vector<StarCandidate> all =
+      given.empty() ? findStarCandidates(image, 10.0, o.saturationLevel) : given;
+  std::vector<StarCandidate> sorted = all;
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
+  const double noise = robustImageNoise(image);
+  PsfMeasurement m;
+  int tries = 0;
+  for (const auto& c : sorted) {
+    if (tries >= o.maxTries) break;
+    if (c.saturated || !(c.flux > 0.0)) continue;
+    if (c.x < o.edgeMarginPx || c.y < o.edgeMarginPx || c.x > image.width - 1 - o.edgeMarginPx ||
+        c.y > image.height - 1 - o.edgeMarginPx)
+      continue;
+    if (o.saturationLevel && image.at(int(std::lround(c.x)), int(std::lround(c.y))) >= *o.saturationLevel)
+      continue;
+    const double isoR = o.isolationRadiusPx;
+    const bool crowded = std::any_of(all.begin(), all.end(), [&](const StarCandidate& n) {
+      const double d = std::hypot(n.x - c.x, n.y - c.y);
+      return d > 0.5 && d < isoR && (n.saturated || n.flux > o.isolationFluxRatio * c.flux);
+    });
+    if (crowded) continue;
+    ++m.candidatesConsidered;
+    ++tries;
+    MoffatFit fit;
+    try {
+      fit = fitMoffat(image, c.x, c.y, o.fit);
+    } catch (const InputError& e) {
+      m.rejected.push_back(where(c) + ": " + e.what());
+      continue;
+    }
+    const std::string why = judgeFit(fit, c, noise, o);
+    if (why.empty()) {
+      m.fit = fit;
+      m.star = c;
+      return m;
+    }
+    m.rejected.push_back(why);
+  }
+  std::string msg =
+      "no star usable for the PSF among " + std::to_string(all.size()) +
+      " candidates (need a bright, isolated, unsaturated star away from the edges); give the PSF "
+      "FWHM instead (e.g. --fwhm)";
+  for (std::size_t i = 0; i < std::min<std::size_t>(3, m.rejected.size()); ++i)
+    msg += "; " + m.rejected[i];
+  throw InputError(msg);
+}
+
+PsfMeasurement measurePsfAt(const Image& image, double x, double y, const PsfStarOptions& o) {
+  PsfMeasurement m;
+  m.star = {x, y, 0.0, false};
+  m.fit = fitMoffat(image, x, y, o.fit);
+  m.candidatesConsidered = 1;
+  const std::string why = judgeFit(m.fit, m.star, robustImageNoise(image), o);
+  if (!why.empty())
+    throw InputError("PSF fit on the given " + why + "; give the PSF FWHM instead (e.g. --fwhm)");
+  return m;
+}
+
+}  // namespace st::psf

@@ -1,0 +1,117 @@
+#include "st/search/candidates.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+
+#include "st/stats/false_alarm.hpp"
+
+namespace st::search {
+
+namespace {
+
+class UnionFind {
+ public:
+  explicit UnionFind(std::size_t n) : m_parent(n) { std::iota(m_parent.begin(), m_parent.end(), 0); }
+  std::size_t find(std::size_t i) {
+    while (m_parent[i] != i) {
+      m_parent[i] = m_parent[m_parent[i]];
+      i = m_parent[i];
+    }
+    return i;
+  }
+  void unite(std::size_t a, std::size_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) m_parent[std::max(a, b)] = std::min(a, b);  // root = lowest index = highest SNR
+  }
+
+ private:
+  std::vector<std::size_t> m_parent;
+};
+
+/// Buckets in (x, y, ivx, ivy) with sides >= the linking radii: linked cells are in adjacent buckets.
+std::uint64_t bucketKey(std::int64_t bx, std::int64_t by, std::int64_t bvx, std::int64_t bvy) {
+  auto part = [](std::int64_t v) { return static_cast<std::uint64_t>(v) & 0xffffULL; };
+  return part(bx) | part(by) << 16 | part(bvx) << 32 | part(bvy) << 48;
+}
+
+std::int64_t floorDiv(int v, std::int64_t side) {
+  return v >= 0 ? v / side : -((-v + side - 1) / side);
+}
+
+}  // namespace
+
+ClusterParams defaultClusterParams(double psfFwhmPx) {
+  ClusterParams p;
+  p.positionRadiusPx = std::max(2.0, 2.0 * psfFwhmPx);
+  p.velocityRadiusSteps = 2;
+  return p;
+}
+
+std::vector<Candidate> clusterCells(const std::vector<CellHit>& cellsIn, const VelocityGrid& grid,
+                                    const ClusterParams& params, const TrialCounts& trials) {
+  std::vector<CellHit> cells = cellsIn;
+  std::stable_sort(cells.begin(), cells.end(), [](const CellHit& a, const CellHit& b) {
+    if (a.snr != b.snr) return a.snr > b.snr;
+    if (a.y != b.y) return a.y < b.y;
+    return a.x < b.x;
+  });
+  const int radius = static_cast<int>(std::floor(params.positionRadiusPx));
+  const int vRadius = params.velocityRadiusSteps;
+  const std::int64_t side = std::max(1, radius);
+  const std::int64_t vSide = std::max(1, vRadius);
+  auto keyOf = [&](const CellHit& c, int dx, int dy, int dvx, int dvy) {
+    return bucketKey(floorDiv(c.x, side) + dx, floorDiv(c.y, side) + dy, floorDiv(c.ivx, vSide) + dvx,
+                     floorDiv(c.ivy, vSide) + dvy);
+  };
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> buckets;
+  buckets.reserve(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i)
+    buckets[keyOf(cells[i], 0, 0, 0, 0)].push_back(i);
+  UnionFind uf(cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const CellHit& a = cells[i];
+    for (int d = 0; d < 81; ++d) {
+      const auto it = buckets.find(keyOf(a, d % 3 - 1, d / 3 % 3 - 1, d / 9 % 3 - 1, d / 27 - 1));
+      if (it == buckets.end()) continue;
+      for (const std::size_t j : it->second) {
+        if (j <= i) continue;
+        const CellHit& b = cells[j];
+        if (std::abs(a.x - b.x) <= radius && std::abs(a.y - b.y) <= radius &&
+            std::abs(a.ivx - b.ivx) <= vRadius && std::abs(a.ivy - b.ivy) <= vRadius) {
+          uf.unite(i, j);
+        }
+      }
+    }
+  }
+  std::vector<Candidate> out;
+  std::unordered_map<std::size_t, std::size_t> rootToCandidate;
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const std::size_t root = uf.find(i);
+    const auto it = rootToCandidate.find(root);
+    if (it != rootToCandidate.end()) {
+      ++out[it->second].clusterCells;
+      continue;
+    }
+    // Cells are in decreasing SNR, so the first cell met of a cluster is its best.
+    const CellHit& c = cells[i];
+    Candidate cand;
+    cand.x = c.x;
+    cand.y = c.y;
+    cand.ivx = c.ivx;
+    cand.ivy = c.ivy;
+    cand.v = grid.at(c.ivx, c.ivy);
+    cand.sum = c.sum;
+    cand.nIn = c.nIn;
+    cand.snr = c.snr;
+    cand.fap = stats::detectionFap(c.snr, trials.nx, trials.ny, trials.nvx, trials.nvy);
+    cand.clusterCells = 1;
+    rootToCandidate.emplace(root, out.size());
+    out.push_back(cand);
+  }
+  return out;
+}
+
+}  // namespace st::search

@@ -1,0 +1,56 @@
+#include "st/search/search_run.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "st/common/error.hpp"
+#include "st/stats/false_alarm.hpp"
+
+namespace st::search {
+
+void validateSearchInput(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params) {
+  if (cube.frames.frameCount() < 2) {
+    throw InputError("a velocity search needs at least 2 frames, got " +
+                     std::to_string(cube.frames.frameCount()));
+  }
+  if (!(cube.frames.timeSpanS() > 0.0)) {
+    throw InputError("the frames span no time (all mid-times equal): shifts cannot be computed");
+  }
+  if (!(cube.sigmaF > 0.0) || !std::isfinite(cube.sigmaF)) {
+    throw InputError("sigma_F (noise of one filtered frame) must be positive and finite, got " +
+                     std::to_string(cube.sigmaF));
+  }
+  if (grid.nvx <= 0 || grid.nvy <= 0) {
+    throw InputError("the velocity grid is empty (" + std::to_string(grid.nvx) + " x " +
+                     std::to_string(grid.nvy) + ")");
+  }
+  if (!(grid.stepPxS > 0.0) || !std::isfinite(grid.stepPxS)) {
+    throw InputError("the velocity grid step must be positive, got " + std::to_string(grid.stepPxS) +
+                     " px/s");
+  }
+  if (!(params.minFrameFraction >= 0.0 && params.minFrameFraction <= 1.0)) {
+    throw InputError("minFrameFraction must be in [0, 1], got " + std::to_string(params.minFrameFraction));
+  }
+  if (params.maxCandidates < 1) throw InputError("maxCandidates must be at least 1");
+  if (!params.targetFap && !std::isfinite(params.snrThreshold)) {
+    throw InputError("the SNR threshold must be finite");
+  }
+}
+
+double effectiveThreshold(const SearchParams& params, const TrialCounts& trials) {
+  if (params.targetFap) return stats::snrThresholdForFap(*params.targetFap, trials.total());
+  return params.snrThreshold;
+}
+
+int minFramesFor(const SearchParams& params, std::size_t frames) {
+  const double need = std::ceil(params.minFrameFraction * static_cast<double>(frames) - 1e-9);
+  return std::max(1, static_cast<int>(need));
+}
+
+SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,
+                       ProgressSink& progress, CancelToken& cancel) {
+  const VelocityGrid grid = makeVelocityGrid(request.grid, cube);
+  return backend.search(cube, grid, request.params, progress, cancel);
+}
+
+}  // namespace st::search

@@ -1,0 +1,158 @@
+#include "st/stack/matched_filter.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+
+namespace st::stack {
+namespace {
+
+constexpr std::size_t kMinNoiseSamples = 1000;
+
+double madSigma(std::vector<float>& v) {
+  if (v.empty()) return 0.0;
+  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  const float med = *mid;
+  for (auto& x : v)
+    x = std::fabs(x - med);
+  std::nth_element(v.begin(), mid, v.end());
+  return 1.4826 * double(*mid);
+}
+
+/// Indices of up to maxFrames frames spread evenly over n frames.
+std::vector<std::size_t> spreadFrames(std::size_t n, std::size_t maxFrames) {
+  std::vector<std::size_t> idx;
+  const std::size_t k = std::min(n, maxFrames);
+  for (std::size_t i = 0; i < k; ++i)
+    idx.push_back(i * n / k);
+  return idx;
+}
+
+/// 1 where the input pixel is zero, masked or non-finite (after zeroing it), grown by `half` px, and along
+/// the frame edges.
+cv::Mat excludedPixels(float* frame, const std::uint8_t* mask, int width, int height, int half) {
+  cv::Mat bad(height, width, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < height; ++y) {
+    auto* row = bad.ptr<std::uint8_t>(y);
+    for (int x = 0; x < width; ++x) {
+      const std::size_t i = std::size_t(y) * width + x;
+      row[x] = (frame[i] == 0.0f || (mask && mask[i])) ? 1 : 0;
+    }
+  }
+  if (half > 0) {
+    const cv::Mat se = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * half + 1, 2 * half + 1));
+    cv::dilate(bad, bad, se, cv::Point(-1, -1), 1, cv::BORDER_CONSTANT, cv::Scalar(1));
+  }
+  return bad;
+}
+
+}  // namespace
+
+FilterKernel makeFilterKernel(const psf::Moffat& psf, double truncation) {
+  if (!(truncation > 0.0 && truncation < 1.0))
+    throw InputError("matched filter: truncation " + std::to_string(truncation) + " must be in (0, 1)");
+  if (!(psf.radius > 0.0) || !(psf.beta > 1.0) || !std::isfinite(psf.radius) || !std::isfinite(psf.beta))
+    throw InputError("matched filter: PSF with R = " + std::to_string(psf.radius) +
+                     ", beta = " + std::to_string(psf.beta) + " is not usable (need R > 0, beta > 1)");
+  const double rMax = psf.radiusAtFraction(truncation);
+  FilterKernel k;
+  k.halfSize = std::max(1, static_cast<int>(std::floor(rMax)));
+  const int n = 2 * k.halfSize + 1;
+  k.kernel = Image(n, n, 0.0f);
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const double dx = x - k.halfSize, dy = y - k.halfSize;
+      if (dx * dx + dy * dy > rMax * rMax) continue;
+      const float v = static_cast<float>(psf.pixelMean(dx, dy, 4));
+      k.kernel.at(x, y) = v;
+      k.sum += v;
+      k.sumSquares += double(v) * v;
+    }
+  return k;
+}
+
+void filterFrame(float* frame, int width, int height, const FilterKernel& kernel, float* scratch) {
+  const cv::Mat src(height, width, CV_32F, frame);
+  cv::Mat dst(height, width, CV_32F, scratch);
+  const cv::Mat k(kernel.kernel.height, kernel.kernel.width, CV_32F,
+                  const_cast<float*>(kernel.kernel.data()));
+  // filter2D correlates; the Moffat kernel is point-symmetric, so this is the convolution.
+  cv::filter2D(src, dst, CV_32F, k, cv::Point(-1, -1), 0.0, cv::BORDER_CONSTANT);
+  std::memcpy(frame, scratch, sizeof(float) * std::size_t(width) * height);
+}
+
+MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
+                               CancelToken& cancel) {
+  const int w = cube.width(), h = cube.height();
+  const std::size_t nFrames = cube.frameCount(), np = cube.framePixels();
+  const bool hasMask = cube.mask().size() == cube.pixels().size();
+  const std::vector<std::size_t> sampleFrames = spreadFrames(nFrames, 64);
+  std::vector<std::vector<float>> samples(sampleFrames.size());
+  std::atomic<std::size_t> done{0};
+  progress.report(0.0, "matched filter");
+  parallelFor(nFrames, 1, [&](std::size_t b, std::size_t e) {
+    std::vector<float> scratch(np);
+    for (std::size_t n = b; n < e; ++n) {
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      const std::uint8_t* m = hasMask ? cube.mask().data() + n * np : nullptr;
+      for (std::size_t i = 0; i < np; ++i)
+        if (!std::isfinite(f[i]) || (m && m[i])) f[i] = 0.0f;
+      const auto slot = std::lower_bound(sampleFrames.begin(), sampleFrames.end(), n);
+      const bool sampled = slot != sampleFrames.end() && *slot == n;
+      cv::Mat bad;
+      if (sampled) bad = excludedPixels(f, m, w, h, kernel.halfSize);
+      filterFrame(f, w, h, kernel, scratch.data());
+      if (sampled) {
+        auto& out = samples[std::size_t(slot - sampleFrames.begin())];
+        for (int y = kernel.halfSize; y < h - kernel.halfSize; y += 3) {
+          const auto* row = bad.ptr<std::uint8_t>(y);
+          for (int x = kernel.halfSize; x < w - kernel.halfSize; x += 3)
+            if (!row[x]) out.push_back(f[std::size_t(y) * w + x]);
+        }
+      }
+      const std::size_t d = ++done;
+      if (d % 16 == 0 || d == nFrames) progress.report(double(d) / double(nFrames), "matched filter");
+    }
+  });
+  std::vector<float> all;
+  for (auto& s : samples)
+    all.insert(all.end(), s.begin(), s.end());
+  if (all.size() < kMinNoiseSamples)
+    throw InputError("matched filter: only " + std::to_string(all.size()) +
+                     " unmasked pixels away from edges and zeroed regions to measure the filtered noise "
+                     "sigma_F (need " +
+                     std::to_string(kMinNoiseSamples) + "); the frames are mostly masked");
+  MatchedFilterResult r;
+  r.noiseSamples = all.size();
+  r.sigmaF = madSigma(all);
+  r.kernelHalfSize = kernel.halfSize;
+  r.kernelSumSquares = kernel.sumSquares;
+  return r;
+}
+
+double measureFilteredNoise(const FrameCube& cube, int border, std::size_t maxFrames, int stride) {
+  std::vector<float> all;
+  const int w = cube.width(), h = cube.height();
+  stride = std::max(1, stride);
+  for (std::size_t n : spreadFrames(cube.frameCount(), maxFrames)) {
+    const float* f = cube.frame(n);
+    for (int y = border; y < h - border; y += stride)
+      for (int x = border; x < w - border; x += stride) {
+        const float v = f[std::size_t(y) * w + x];
+        if (v != 0.0f && std::isfinite(v)) all.push_back(v);
+      }
+  }
+  return all.size() < kMinNoiseSamples ? 0.0 : madSigma(all);
+}
+
+}  // namespace st::stack

@@ -1,0 +1,228 @@
+#include "st/stats/background.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+
+namespace st::stats {
+namespace {
+
+std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted) {
+  std::vector<std::size_t> idx;
+  if (total == 0) return idx;
+  const std::size_t n = std::min(total, std::max<std::size_t>(1, wanted));
+  idx.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) idx.push_back(n == total ? i : (i * total) / n);
+  return idx;
+}
+
+// Per-pixel clip of one row: buf holds nf x w samples (frame-major), NaN where left out. Performs exactly
+// the arithmetic of sigmaClip (same shift, same summation order) for each column, vectorised over columns.
+struct RowClip {
+  std::vector<double> mean, sigma;
+  std::vector<std::size_t> count;
+};
+
+RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi) {
+  RowClip r;
+  r.mean.assign(w, 0.0);
+  r.sigma.assign(w, 0.0);
+  r.count.assign(w, 0);
+  std::vector<double> shift(w, 0.0), hi(w, std::numeric_limits<double>::infinity());
+  std::vector<std::size_t> prev(w, std::numeric_limits<std::size_t>::max());
+  std::vector<std::uint8_t> done(w, 0);
+  for (int x = 0; x < w; ++x) {
+    done[x] = 1;
+    for (std::size_t n = 0; n < nf; ++n) {
+      const float v = buf[n * w + x];
+      if (!std::isnan(v)) {
+        shift[x] = v;
+        done[x] = 0;
+        break;
+      }
+    }
+  }
+  std::vector<double> s(w), ss(w);
+  std::vector<std::size_t> c(w);
+  int remaining = static_cast<int>(std::count(done.begin(), done.end(), 0));
+  for (int it = 0; it < 100 && remaining > 0; ++it) {
+    std::fill(s.begin(), s.end(), 0.0);
+    std::fill(ss.begin(), ss.end(), 0.0);
+    std::fill(c.begin(), c.end(), 0);
+    for (std::size_t n = 0; n < nf; ++n) {
+      const float* row = buf.data() + n * w;
+      for (int x = 0; x < w; ++x) {
+        const double y = row[x];
+        if (!(y <= hi[x]) || done[x]) continue;
+        const double d = y - shift[x];
+        ++c[x];
+        s[x] += d;
+        ss[x] += d * d;
+      }
+    }
+    for (int x = 0; x < w; ++x) {
+      if (done[x]) continue;
+      r.count[x] = c[x];
+      if (c[x] == 0) {
+        done[x] = 1;
+        --remaining;
+        continue;
+      }
+      const double m = s[x] / static_cast<double>(c[x]);
+      r.mean[x] = shift[x] + m;
+      r.sigma[x] = c[x] > 1 ? std::sqrt(std::max(0.0, (ss[x] - s[x] * m) / static_cast<double>(c[x] - 1))) : 0.0;
+      if (c[x] == prev[x]) {
+        done[x] = 1;
+        --remaining;
+        continue;
+      }
+      prev[x] = c[x];
+      hi[x] = r.mean[x] + xi * r.sigma[x];
+    }
+  }
+  return r;
+}
+
+}  // namespace
+
+ClipStats globalBackground(const FrameCube& cube, const GlobalBackgroundParams& params) {
+  if (cube.empty()) throw InputError("global background: the frame cube has no frames");
+  const auto frames = evenlySpaced(cube.frameCount(), params.frames);
+  std::vector<float> samples;
+  samples.reserve(frames.size() * cube.framePixels());
+  const auto& mask = cube.mask();
+  for (std::size_t n : frames) {
+    const float* f = cube.frame(n);
+    const std::size_t base = n * cube.framePixels();
+    for (std::size_t i = 0; i < cube.framePixels(); ++i) {
+      if ((!mask.empty() && mask[base + i]) || !std::isfinite(f[i])) continue;
+      samples.push_back(f[i]);
+    }
+  }
+  if (samples.empty()) {
+    throw InputError("global background: every pixel of the " + std::to_string(frames.size()) +
+                     " frames used is masked (first file: " + cube.info().front().file + ")");
+  }
+  return sigmaClip(samples.data(), samples.size(), params.xi);
+}
+
+Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
+                              const detect::MovingMask* exclude, ProgressSink& progress, CancelToken& cancel) {
+  Background out;
+  out.global = globalBackground(cube, params.global);
+  const int w = cube.width(), h = cube.height();
+  const auto frames = evenlySpaced(cube.frameCount(), params.maxFrames);
+  out.framesUsed = frames.size();
+  out.level = Image(w, h);
+  out.sigma = Image(w, h);
+  const double strong = out.global.mean + params.strongSignalXi * out.global.sigma;
+  const auto& mask = cube.mask();
+  const float kNaN = std::numeric_limits<float>::quiet_NaN();
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
+  parallelFor(static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
+    std::vector<float> buf(frames.size() * static_cast<std::size_t>(w));
+    for (std::size_t y = y0; y < y1; ++y) {
+      cancel.throwIfCancelled();
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        const std::size_t n = frames[k];
+        const std::size_t off = n * cube.framePixels() + y * w;
+        const float* src = cube.pixels().data() + off;
+        float* dst = buf.data() + k * w;
+        for (int x = 0; x < w; ++x) {
+          const float v = src[x];
+          const bool out1 = !std::isfinite(v) || v > strong || (!mask.empty() && mask[off + x]) ||
+                            (exclude && exclude->covers(n, x, static_cast<int>(y)));
+          dst[x] = out1 ? kNaN : v;
+        }
+      }
+      const RowClip r = clipRow(buf, frames.size(), w, params.xi);
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = y * w + x;
+        const bool ok = r.count[x] >= params.minSamples;
+        valid[i] = ok;
+        out.level.pixels[i] = static_cast<float>(ok ? r.mean[x] : out.global.mean);
+        out.sigma.pixels[i] = static_cast<float>(ok ? r.sigma[x] : out.global.sigma);
+      }
+      if (y % 16 == 0) progress.report(static_cast<double>(y) / h, "per-pixel background");
+    }
+  });
+  double sumVar = 0.0;
+  std::size_t nValid = 0;
+  for (std::size_t i = 0; i < valid.size(); ++i) {
+    if (!valid[i]) continue;
+    sumVar += static_cast<double>(out.sigma.pixels[i]) * out.sigma.pixels[i];
+    ++nValid;
+  }
+  out.pixelsFilled = valid.size() - nValid;
+  if (nValid == 0) {
+    throw InputError("per-pixel background: no pixel has " + std::to_string(params.minSamples) +
+                     " unmasked background samples (frames used: " + std::to_string(frames.size()) + ")");
+  }
+  out.sigmaN = std::sqrt(sumVar / static_cast<double>(nValid));
+  if (params.noiseMap) out.noiseMap = boxSmooth(out.sigma, params.noiseMapBoxPx, valid);
+  progress.report(1.0, "per-pixel background");
+  return out;
+}
+
+void subtractBackground(FrameCube& cube, const Image& level, ProgressSink& progress, CancelToken& cancel) {
+  if (level.width != cube.width() || level.height != cube.height()) {
+    throw InputError("background of " + std::to_string(level.width) + "x" + std::to_string(level.height) +
+                     " does not match frames of " + std::to_string(cube.width()) + "x" +
+                     std::to_string(cube.height()));
+  }
+  const std::size_t np = cube.framePixels();
+  const auto& mask = cube.mask();
+  parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
+    for (std::size_t n = n0; n < n1; ++n) {
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      const std::uint8_t* m = mask.empty() ? nullptr : mask.data() + n * np;
+      for (std::size_t i = 0; i < np; ++i) {
+        const float v = f[i] - level.pixels[i];
+        f[i] = ((m && m[i]) || !std::isfinite(v)) ? 0.0f : v;
+      }
+    }
+    progress.report(static_cast<double>(n1) / cube.frameCount(), "subtract background");
+  });
+}
+
+Image boxSmooth(const Image& image, int box, const std::vector<std::uint8_t>& valid) {
+  const int w = image.width, h = image.height, r = std::max(0, box / 2);
+  // Separable sums of value and weight; O(1) per pixel per pass with running sums.
+  std::vector<double> v(image.size()), wt(image.size());
+  for (std::size_t i = 0; i < image.size(); ++i) {
+    const double ok = valid.empty() || valid[i] ? 1.0 : 0.0;
+    v[i] = ok * image.pixels[i];
+    wt[i] = ok;
+  }
+  auto pass = [&](std::vector<double>& a, bool alongX) {
+    std::vector<double> out(a.size());
+    const int len = alongX ? w : h, lines = alongX ? h : w;
+    for (int l = 0; l < lines; ++l) {
+      auto at = [&](int k) -> double& {
+        return alongX ? a[static_cast<std::size_t>(l) * w + k] : a[static_cast<std::size_t>(k) * w + l];
+      };
+      std::vector<double> prefix(len + 1, 0.0);
+      for (int k = 0; k < len; ++k) prefix[k + 1] = prefix[k] + at(k);
+      for (int k = 0; k < len; ++k) {
+        const double s = prefix[std::min(len, k + r + 1)] - prefix[std::max(0, k - r)];
+        (alongX ? out[static_cast<std::size_t>(l) * w + k] : out[static_cast<std::size_t>(k) * w + l]) = s;
+      }
+    }
+    a.swap(out);
+  };
+  pass(v, true);
+  pass(v, false);
+  pass(wt, true);
+  pass(wt, false);
+  Image out(w, h);
+  for (std::size_t i = 0; i < out.size(); ++i) out.pixels[i] = wt[i] > 0 ? static_cast<float>(v[i] / wt[i]) : 0.0f;
+  return out;
+}
+
+}  // namespace st::stats

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Runs the GPU tests, compute-sanitizer memcheck and the benchmark on a machine with a GPU, from binaries
+# built elsewhere (build-gpu/, Debian 12: they need only glibc and libstdc++). Logs go to $OUT (or /tmp).
+# Usage: gpu/bench/run_device.sh [test|memcheck|bench|sass]...   (default: all)
+set -uo pipefail
+out=${OUT:-/tmp/st_gpu_out}
+mkdir -p "$out"
+bin=build-gpu
+steps=("$@")
+[ ${#steps[@]} -eq 0 ] && steps=(test memcheck bench)
+nvidia-smi --query-gpu=index,name,driver_version,memory.total,clocks.sm,clocks.max.sm --format=csv
+for s in "${steps[@]}"; do
+  case $s in
+    test) "$bin/tests/st_gpu_test_cuda_backend" 2>&1 | tee "$out/test.log" | grep -E "^\[ +(OK|FAILED|SKIPPED|PASSED) |Failure|Expected|Which|actual" | head -60 ;;
+    memcheck) timeout 240 compute-sanitizer --tool memcheck --leak-check full "$bin/tests/st_gpu_test_cuda_backend" \
+                --gtest_filter=-*LongCube* >"$out/memcheck.log" 2>&1; echo "memcheck rc=$?"; tail -4 "$out/memcheck.log" ;;
+    bench) "$bin/gpu/st_gpu_bench" 2>&1 | tee "$out/bench.log" ;;
+    sass) cuobjdump -sass "$bin/gpu/st_gpu_bench" >"$out/bench.sass" 2>&1; grep -c LDS "$out/bench.sass" ;;
+  esac
+done

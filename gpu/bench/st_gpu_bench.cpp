@@ -1,0 +1,172 @@
+// st_gpu_bench: the benchmark of issue 5 on the device machine. The paper's problem (Zhai et al. 2014,
+// section 4: 1500 frames of 512 x 512, 100 x 100 trial velocities; a Tesla K20c took just under 90 s):
+//   - end-to-end CudaBackend::search (plan, upload, kernels, reduction, candidates), twice;
+//   - additions/s of the tiled kernel, and of the naive one-thread-per-(pixel, velocity) kernel on the
+//     same cube (a band of velocity rows, so the naive run stays short), both timed with device events;
+//   - stackAt for 500 x 512^2 (device time of the kernels, and the whole call).
+// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames]
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "st/common/error.hpp"
+#include "st/gpu/cuda_backend.hpp"
+#include "stack_engine.hpp"
+
+namespace {
+
+using st::search::FilteredCube;
+using st::search::VelocityGrid;
+
+/// Noise of sigma ~1 (sum of 4 uniforms, scaled), generated on every core; a source at (200, 300).
+FilteredCube makeCube(int n, int size, st::Velocity src) {
+  FilteredCube c;
+  c.frames = st::FrameCube(size, size, static_cast<std::size_t>(n));
+  c.sigmaF = 1.0;
+  c.psfFwhmPx = 2.5;
+  for (int k = 0; k < n; ++k)
+    c.frames.info()[k].mjdMid = 60000.0 + (k / 16.7) / st::kSecondsPerDay;
+  std::vector<float>& px = c.frames.pixels();
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < threads; ++t) {
+    pool.emplace_back([&, t] {
+      std::uint64_t s = 0x9E3779B97F4A7C15ull * (t + 1);
+      const std::size_t b = px.size() * t / threads;
+      const std::size_t e = px.size() * (t + 1) / threads;
+      for (std::size_t i = b; i < e; ++i) {
+        float u = 0.0f;
+        for (int j = 0; j < 4; ++j) {
+          s ^= s << 13;
+          s ^= s >> 7;
+          s ^= s << 17;
+          u += static_cast<float>(s >> 40) * (1.0f / 16777216.0f);
+        }
+        px[i] = (u - 2.0f) * 1.7320508f;  // variance of the sum of 4 U(0,1) is 1/3
+      }
+    });
+  }
+  for (auto& t : pool)
+    t.join();
+  const std::vector<double> dt = c.frames.timeOffsetsS();
+  for (int k = 0; k < n; ++k) {
+    const int x = 200 + static_cast<int>(std::lround(src.vx * dt[k]));
+    const int y = 300 + static_cast<int>(std::lround(src.vy * dt[k]));
+    if (x >= 0 && y >= 0 && x < size && y < size)
+      c.frames.frame(k)[static_cast<std::size_t>(y) * size + x] += 0.4f;
+  }
+  return c;
+}
+
+struct Quiet final : st::ProgressSink {
+  void report(double, std::string_view) override {}
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int run(int argc, char** argv) {
+  const int frames = argc > 1 ? std::atoi(argv[1]) : 1500;
+  const int size = argc > 2 ? std::atoi(argv[2]) : 512;
+  const int nv = argc > 3 ? std::atoi(argv[3]) : 100;
+  const int naiveRows = argc > 4 ? std::atoi(argv[4]) : 10;
+  const int stackFrames = argc > 5 ? std::atoi(argv[5]) : 500;
+  const std::time_t now = std::time(nullptr);
+  char date[64];
+  std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  std::printf("st_gpu_bench %s\n%s", date, st::gpu::deviceSummary().c_str());
+
+  std::string whyNot;
+  auto backend = st::gpu::makeCudaSearchBackend(whyNot, {});
+  if (!backend) {
+    std::printf("no CUDA backend: %s\n", whyNot.c_str());
+    return 2;
+  }
+  const double span = (frames - 1) / 16.7;
+  // Neighbouring velocities differ by 1 px at the ends of the span (the paper's grid design).
+  VelocityGrid grid{{0.5, -0.3}, 2.0 / span, nv, nv};
+  auto t0 = std::chrono::steady_clock::now();
+  FilteredCube cube = makeCube(frames, size, grid.at(nv / 3, nv / 2));
+  std::printf(
+      "cube %d x %d x %d (%.2f GiB) made in %.1f s; grid %d x %d, step %.4f px/s, |v| up to %.2f px/s\n",
+      frames, size, size, cube.frames.pixels().size() * 4.0 / (1 << 30),
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), nv, nv, grid.stepPxS,
+      grid.at(0, 0).norm());
+  const double additions = double(frames) * size * size * double(grid.count());
+  st::search::SearchParams params;
+  Quiet quiet;
+  st::CancelToken cancel;
+  for (int rep = 0; rep < 2; ++rep) {
+    const auto r = backend->search(cube, grid, params, quiet, cancel);
+    std::printf(
+        "search %d: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; %zu candidates, best SNR %.1f "
+        "at (%d, %d) v[%d,%d]\n  %s",
+        rep, r.elapsedS, backend->lastKernelSeconds(), additions / backend->lastKernelSeconds(),
+        r.candidates.size(), r.candidates.empty() ? 0.0 : r.candidates.front().snr,
+        r.candidates.empty() ? -1 : r.candidates.front().x,
+        r.candidates.empty() ? -1 : r.candidates.front().y,
+        r.candidates.empty() ? -1 : r.candidates.front().ivx,
+        r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
+  }
+  // Tiled vs naive on the same band of velocity rows.
+  VelocityGrid band = grid;
+  band.nvy = std::min(naiveRows, nv);
+  const double bandAdds = double(frames) * size * size * double(band.count());
+  st::gpu::CudaOptions naiveOptions;
+  naiveOptions.naiveKernel = true;
+  auto naive = st::gpu::makeCudaSearchBackend(whyNot, naiveOptions);
+  double tiledS = 1e30;
+  double naiveS = 1e30;
+  for (int rep = 0; rep < 2; ++rep) {
+    backend->search(cube, band, params, quiet, cancel);
+    tiledS = std::min(tiledS, backend->lastKernelSeconds());
+    naive->search(cube, band, params, quiet, cancel);
+    naiveS = std::min(naiveS, naive->lastKernelSeconds());
+  }
+  std::printf(
+      "band of %d x %d velocities: tiled %.4f s = %.3g additions/s, naive %.4f s = %.3g additions/s, "
+      "tiled/naive %.1fx\n",
+      band.nvx, band.nvy, tiledS, bandAdds / tiledS, naiveS, bandAdds / naiveS, naiveS / tiledS);
+
+  // stackAt, 500 x size^2: the first call uploads the cube, the next ones only stack.
+  FilteredCube small;
+  const int sf = std::min(stackFrames, frames);
+  small.frames = st::FrameCube(size, size, static_cast<std::size_t>(sf));
+  std::copy_n(cube.frames.pixels().begin(), small.frames.pixels().size(), small.frames.pixels().begin());
+  std::copy_n(cube.frames.info().begin(), sf, small.frames.info().begin());
+  small.sigmaF = 1.0;
+  st::gpu::StackEngine engine(0);
+  engine.stack(small, {0.1, 0.2}, st::search::StackMode::Ipsa);
+  for (const auto mode : {st::search::StackMode::Ipsa, st::search::StackMode::Csa}) {
+    std::vector<double> kernel, call;
+    for (int i = 0; i < 21; ++i) {
+      const auto c0 = std::chrono::steady_clock::now();
+      engine.stack(small, grid.at(i, 2 * i % nv), mode);
+      call.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count());
+      kernel.push_back(engine.lastKernelSeconds());
+    }
+    std::printf("stackAt %s %d x %d^2: kernels %.3f ms (median of 21), whole call %.3f ms (cube resident)\n",
+                mode == st::search::StackMode::Ipsa ? "IPSA" : "CSA ", sf, size, 1e3 * median(kernel),
+                1e3 * median(call));
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "st_gpu_bench: %s\n", e.what());
+    return 1;
+  }
+}

@@ -1,0 +1,236 @@
+// CudaBackend: the SearchBackend over every usable device. Threading rules: search() runs one host thread
+// per device (each calls cudaSetDevice first and touches only its own device's memory); exceptions are
+// caught in each thread and rethrown here; progress is reported from the device threads (ProgressSink is
+// thread-safe by contract). stackAt runs on the first device, in the calling thread.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <exception>
+#include <mutex>
+#include <thread>
+
+#include "device_info.hpp"
+#include "device_search.hpp"
+#include "search_plan.hpp"
+#include "st/common/error.hpp"
+#include "st/gpu/cuda_backend.hpp"
+#include "stack_engine.hpp"
+
+namespace st::gpu {
+namespace {
+
+/// A cell above threshold on the host, before capping and clustering.
+struct HostCell {
+  float snr;
+  float sum;
+  int x, y, ivx, ivy, nIn;
+};
+
+class CudaBackend final : public CudaSearchBackend {
+ public:
+  CudaBackend(std::vector<DeviceInfo> devices, CudaOptions options)
+      : m_devices(std::move(devices)), m_options(options), m_stack(m_devices.front().ordinal) {
+    if (m_options.maxDevices > 0 && static_cast<int>(m_devices.size()) > m_options.maxDevices) {
+      m_devices.resize(static_cast<std::size_t>(m_options.maxDevices));
+    }
+  }
+
+  [[nodiscard]] std::string name() const override {
+    std::string out = "cuda: ";
+    if (m_devices.size() > 1) out += std::to_string(m_devices.size()) + " x ";
+    return out + m_devices.front().name;
+  }
+  [[nodiscard]] std::string lastNote() const override { return m_note; }
+  [[nodiscard]] double lastKernelSeconds() const override { return m_kernelSeconds; }
+
+  search::SearchResult search(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                              const search::SearchParams& params, ProgressSink& progress,
+                              CancelToken& cancel) override {
+    const auto start = std::chrono::steady_clock::now();
+    validateSearch(cube, grid, params);
+    search::SearchResult result;
+    result.grid = grid;
+    result.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
+    result.snrThreshold = effectiveSnrThreshold(params, result.trials);
+    result.tRefMjd = cube.frames.tRefMjd();
+    result.backend = name();
+    result.method = "exact";
+    const int minFrames = minFramesFor(params, cube.frames.frameCount());
+    const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, minFrames);
+    std::size_t capacity = m_options.cellCapacity > 0
+                               ? m_options.cellCapacity
+                               : std::max<std::size_t>(4 * params.maxCandidates, 65536);
+    progress.report(0.0, "velocity search (" + name() + ")");
+    std::vector<DeviceOutcome> outcomes = runAll(plan, cube, capacity, progress, cancel);
+    std::uint64_t above = 0;
+    for (const auto& o : outcomes)
+      above += o.cellsAbove;
+    if (above > capacity) {
+      // More cells passed than the buffer held: run again with room for all (never a silent truncation).
+      constexpr std::uint64_t kMaxCells = std::uint64_t{1} << 27;  // 4 GiB of cells
+      if (above > kMaxCells) {
+        throw GpuError(std::to_string(above) + " cells exceed SNR " + std::to_string(result.snrThreshold) +
+                       ": too many to collect on the GPU (raise the threshold)");
+      }
+      capacity = static_cast<std::size_t>(above);
+      outcomes = runAll(plan, cube, capacity, progress, cancel);
+    }
+    mergeMap(outcomes, plan, result);
+    result.candidates = makeCandidates(outcomes, grid, params, result.trials);
+    m_note.clear();
+    m_kernelSeconds = 0.0;
+    for (std::size_t i = 0; i < outcomes.size(); ++i) {
+      m_note += "device " + std::to_string(m_devices[i].ordinal) + ": " + outcomes[i].note + "\n";
+      m_kernelSeconds += outcomes[i].kernelSeconds;
+    }
+    result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    progress.report(1.0, "velocity search (" + name() + ")");
+    return result;
+  }
+
+  Image stackAt(const search::FilteredCube& cube, Velocity v, search::StackMode mode) override {
+    return m_stack.stack(cube, v, mode);
+  }
+
+ private:
+  std::vector<DeviceOutcome> runAll(const HostPlan& plan, const search::FilteredCube& cube,
+                                    std::size_t capacity, ProgressSink& progress, CancelToken& cancel) {
+    const int used = std::min<int>(static_cast<int>(m_devices.size()), plan.nvy);
+    std::vector<DeviceOutcome> outcomes(static_cast<std::size_t>(used));
+    std::vector<std::exception_ptr> errors(static_cast<std::size_t>(used));
+    std::vector<double> fractions(static_cast<std::size_t>(used), 0.0);
+    std::mutex progressMutex;
+    std::atomic<bool> abort{false};
+    const std::string stage = "velocity search (" + name() + ")";
+    auto work = [&](int d) {
+      try {
+        DeviceJob job;
+        job.device = m_devices[d].ordinal;
+        job.iyBegin = static_cast<int>(static_cast<long>(plan.nvy) * d / used);
+        job.iyEnd = static_cast<int>(static_cast<long>(plan.nvy) * (d + 1) / used);
+        job.memoryLimitBytes = m_options.deviceMemoryLimitBytes;
+        job.cellCapacity = capacity;
+        job.naiveKernel = m_options.naiveKernel;
+        outcomes[d] = runOnDevice(
+            plan, cube.frames.pixels().data(), job,
+            [&](double f) {
+              std::lock_guard lock(progressMutex);
+              fractions[d] = f;
+              double sum = 0.0;
+              for (double x : fractions)
+                sum += x;
+              progress.report(sum / used, stage);
+            },
+            cancel, abort);
+      } catch (...) {
+        errors[d] = std::current_exception();
+        abort.store(true);  // stop the other devices early; the first real error is rethrown below
+      }
+    };
+    std::vector<std::thread> threads;
+    for (int d = 1; d < used; ++d)
+      threads.emplace_back(work, d);
+    work(0);
+    for (auto& t : threads)
+      t.join();
+    // Rethrow a real error in preference to the Cancelled it caused on the other devices.
+    std::exception_ptr first;
+    for (const auto& e : errors) {
+      if (!e) continue;
+      try {
+        std::rethrow_exception(e);
+      } catch (const Cancelled&) {
+        if (!first) first = e;
+      } catch (...) {
+        std::rethrow_exception(e);
+      }
+    }
+    if (first) std::rethrow_exception(first);
+    return outcomes;
+  }
+
+  static void mergeMap(const std::vector<DeviceOutcome>& outcomes, const HostPlan& plan,
+                       search::SearchResult& r) {
+    const std::size_t nv = static_cast<std::size_t>(plan.nvx) * plan.nvy;
+    r.map.nvx = plan.nvx;
+    r.map.nvy = plan.nvy;
+    r.map.maxSnr.assign(nv, 0.0f);
+    r.map.argX.assign(nv, -1);
+    r.map.argY.assign(nv, -1);
+    std::size_t iv = 0;
+    for (const auto& o : outcomes) {
+      for (const unsigned long long key : o.mapKeys) {
+        if (key != 0ull) {
+          const std::uint64_t pixel = hostUnpackIndex(key);
+          r.map.maxSnr[iv] = hostUnpackSnr(key);
+          r.map.argX[iv] = static_cast<int>(pixel % static_cast<std::uint64_t>(plan.width));
+          r.map.argY[iv] = static_cast<int>(pixel / static_cast<std::uint64_t>(plan.width));
+        }
+        ++iv;
+      }
+    }
+  }
+
+  /// Cells above threshold, highest SNR first (ties: lowest y, then x), capped at maxCandidates.
+  /// TODO(search): cluster with st::search::clusterCells once the CPU backend's clustering lands on main;
+  /// until then each capped cell is its own candidate (clusterCells = 1).
+  static std::vector<search::Candidate> makeCandidates(const std::vector<DeviceOutcome>& outcomes,
+                                                       const search::VelocityGrid& grid,
+                                                       const search::SearchParams& params,
+                                                       const search::TrialCounts& trials) {
+    std::vector<HostCell> cells;
+    for (const auto& o : outcomes) {
+      for (const DeviceCell& c : o.cells)
+        cells.push_back(HostCell{c.snr, c.sum, c.x, c.y, c.ivx, c.ivy, c.nIn});
+    }
+    std::sort(cells.begin(), cells.end(), [](const HostCell& a, const HostCell& b) {
+      if (a.snr != b.snr) return a.snr > b.snr;
+      if (a.y != b.y) return a.y < b.y;
+      if (a.x != b.x) return a.x < b.x;
+      if (a.ivy != b.ivy) return a.ivy < b.ivy;
+      return a.ivx < b.ivx;
+    });
+    if (cells.size() > params.maxCandidates) cells.resize(params.maxCandidates);
+    std::vector<search::Candidate> out;
+    out.reserve(cells.size());
+    for (const HostCell& c : cells) {
+      search::Candidate cand;
+      cand.x = c.x;
+      cand.y = c.y;
+      cand.ivx = c.ivx;
+      cand.ivy = c.ivy;
+      cand.v = grid.at(c.ivx, c.ivy);
+      cand.sum = c.sum;
+      cand.nIn = c.nIn;
+      cand.snr = c.snr;
+      cand.fap = detectionFap(c.snr, trials);
+      out.push_back(cand);
+    }
+    return out;
+  }
+
+  std::vector<DeviceInfo> m_devices;
+  CudaOptions m_options;
+  StackEngine m_stack;
+  std::string m_note;
+  double m_kernelSeconds = 0.0;
+};
+
+}  // namespace
+
+std::unique_ptr<CudaSearchBackend> makeCudaSearchBackend(std::string& whyNot, const CudaOptions& options) {
+  try {
+    std::vector<DeviceInfo> devices = usableDevices(whyNot);
+    if (devices.empty()) return nullptr;
+    return std::make_unique<CudaBackend>(std::move(devices), options);
+  } catch (const std::exception& e) {
+    whyNot = e.what();
+    return nullptr;
+  }
+}
+
+std::unique_ptr<search::SearchBackend> makeCudaBackend(std::string& whyNot) {
+  return makeCudaSearchBackend(whyNot, CudaOptions{});
+}
+
+}  // namespace st::gpu

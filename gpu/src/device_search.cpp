@@ -1,0 +1,331 @@
+#include "device_search.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <memory>
+
+#include "cuda_check.hpp"
+
+namespace st::gpu {
+namespace {
+
+constexpr std::size_t kReserveBytes = std::size_t{256} << 20;  // left free for the runtime and others
+constexpr std::size_t kStagingBytes = std::size_t{32} << 20;   // one pinned staging buffer
+constexpr std::size_t kUploadChunkBytes = std::size_t{128} << 20;
+constexpr int kVelocitiesPerLaunch = 2048;
+
+template <class T>
+DeviceBuffer<T> toDevice(const std::vector<T>& host) {
+  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
+  if (!host.empty())
+    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+  return d;
+}
+
+/// Copies frames from pageable host memory to the device through two pinned staging buffers, so that the
+/// host copy of one piece overlaps the DMA of the previous one.
+class Uploader {
+ public:
+  Uploader(const float* host, std::size_t plane, std::size_t totalFloats)
+      : m_host(host), m_plane(plane), m_pieceFloats(std::min(totalFloats, kStagingBytes / sizeof(float))) {
+    for (auto& b : m_pinned)
+      b = PinnedBuffer(m_pieceFloats * sizeof(float));
+  }
+  /// Enqueues frames [n0, n1) into `dst` on `stream`. Blocks only while a staging buffer is still in flight.
+  void upload(float* dst, int n0, int n1, cudaStream_t stream) {
+    const std::size_t total = static_cast<std::size_t>(n1 - n0) * m_plane;
+    const float* src = m_host + static_cast<std::size_t>(n0) * m_plane;
+    for (std::size_t off = 0; off < total; off += m_pieceFloats) {
+      const std::size_t piece = std::min(m_pieceFloats, total - off);
+      const int b = m_next;
+      m_next ^= 1;
+      m_free[b].sync();
+      std::memcpy(m_pinned[b].get(), src + off, piece * sizeof(float));
+      ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_pinned[b].get(), piece * sizeof(float),
+                                    cudaMemcpyHostToDevice, stream));
+      m_free[b].record(stream);
+    }
+  }
+
+ private:
+  const float* m_host;
+  std::size_t m_plane;
+  std::size_t m_pieceFloats;
+  PinnedBuffer m_pinned[2];
+  Event m_free[2];
+  int m_next = 0;
+};
+
+/// Everything one device holds for the whole search besides frames and partial sums.
+struct DeviceTables {
+  DeviceBuffer<int> shiftX, shiftY, spanX, spanY;
+  DeviceBuffer<float> invNorm;
+  DeviceBuffer<unsigned long long> mapKeys;
+  DeviceBuffer<DeviceCell> cells;
+  DeviceBuffer<unsigned long long> count;
+};
+
+std::size_t tableBytes(const HostPlan& plan, std::size_t cellCapacity) {
+  return (plan.shiftX.size() + plan.shiftY.size() + plan.spanX.size() + plan.spanY.size()) * sizeof(int) +
+         plan.invNorm.size() * sizeof(float) + static_cast<std::size_t>(plan.nvx) * plan.nvy * 8 +
+         cellCapacity * sizeof(DeviceCell) + 64;
+}
+
+SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const DeviceJob& job) {
+  SearchLaunch p{};
+  p.width = plan.width;
+  p.height = plan.height;
+  p.frameCount = plan.frameCount;
+  p.shiftX = t.shiftX.get();
+  p.shiftY = t.shiftY.get();
+  p.spanX = reinterpret_cast<const int2*>(t.spanX.get());
+  p.spanY = reinterpret_cast<const int2*>(t.spanY.get());
+  p.nvx = plan.nvx;
+  p.nvy = plan.nvy;
+  p.invNorm = t.invNorm.get();
+  p.snrThreshold = plan.snrThreshold;
+  p.minFrames = plan.minFrames;
+  p.mapKeys = t.mapKeys.get();
+  p.cells = t.cells.get();
+  p.cellCount = t.count.get();
+  p.cellCapacity = job.cellCapacity;
+  p.vtileX = plan.vtileX;
+  p.vtileY = plan.vtileY;
+  p.pitch = plan.pitch;
+  p.winRows = plan.winRows;
+  p.framesPerStage = plan.framesPerStage;
+  return p;
+}
+
+int tilesFor(const HostPlan& plan, int rows) {
+  return ((plan.nvx + plan.vtileX - 1) / plan.vtileX) * ((rows + plan.vtileY - 1) / plan.vtileY);
+}
+
+/// Runs the search, timing each launch with events on the compute stream.
+class Launcher {
+ public:
+  Launcher(const HostPlan& plan, bool naive, cudaStream_t stream, int maxRows)
+      : m_plan(plan), m_naive(naive), m_stream(stream) {
+    if (!naive) {
+      const std::size_t n =
+          static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * (kVelPerBlock + 2);
+      m_offsets = DeviceBuffer<int>(n);
+      configureTiledKernel(tiledSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
+    }
+  }
+  /// Prepares the window offsets of velocity rows [iy0, iy1).
+  void prepare(SearchLaunch& p, int iy0, int iy1) {
+    p.iy0 = iy0;
+    p.iy1 = iy1;
+    if (m_naive) return;
+    if (tilesFor(m_plan, iy1 - iy0) > 65535) throw GpuError("too many velocity tiles in one launch");
+    p.tileOffsets = m_offsets.get();
+    launchTileOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+  }
+  void launch(const SearchLaunch& p) {
+    m_timers.emplace_back(std::make_unique<Event>(true), std::make_unique<Event>(true));
+    m_timers.back().first->record(m_stream);
+    if (m_naive) {
+      launchNaiveSearch(p, m_stream);
+    } else {
+      launchTiledSearch(p, m_stream);
+    }
+    m_timers.back().second->record(m_stream);
+  }
+  /// Device seconds of all launches so far (synchronises).
+  double seconds() const {
+    double s = 0.0;
+    for (const auto& [a, b] : m_timers) {
+      b->sync();
+      float ms = 0.0f;
+      ST_CUDA_CHECK(cudaEventElapsedTime(&ms, a->get(), b->get()));
+      s += ms * 1e-3;
+    }
+    return s;
+  }
+
+ private:
+  const HostPlan& m_plan;
+  bool m_naive;
+  cudaStream_t m_stream;
+  DeviceBuffer<int> m_offsets;
+  std::vector<std::pair<std::unique_ptr<Event>, std::unique_ptr<Event>>> m_timers;
+};
+
+}  // namespace
+
+DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const DeviceJob& job,
+                          const std::function<void(double)>& progress, const CancelToken& cancel,
+                          const std::atomic<bool>& abort) {
+  auto poll = [&] {
+    cancel.throwIfCancelled();
+    if (abort.load(std::memory_order_relaxed)) throw Cancelled();
+  };
+  ST_CUDA_CHECK(cudaSetDevice(job.device));
+  std::size_t freeBytes = 0;
+  std::size_t totalBytes = 0;
+  ST_CUDA_CHECK(cudaMemGetInfo(&freeBytes, &totalBytes));
+  std::size_t budget = freeBytes > kReserveBytes ? freeBytes - kReserveBytes : 0;
+  if (job.memoryLimitBytes > 0) budget = std::min(budget, job.memoryLimitBytes);
+
+  const int n = plan.frameCount;
+  const std::size_t plane = static_cast<std::size_t>(plan.width) * plan.height;
+  const std::size_t frameBytes = plane * sizeof(float);
+  const std::size_t cubeBytes = frameBytes * n;
+  const int rows = job.iyEnd - job.iyBegin;
+  // The naive kernel also serves when the shift spread of 8 velocities is too wide for shared memory.
+  const bool naive = job.naiveKernel || !plan.useTiled;
+  const int step = naive ? 1 : plan.vtileY;
+  int chunkRows = std::max(1, kVelocitiesPerLaunch / std::max(1, plan.nvx));
+  chunkRows = std::min(rows, (chunkRows + step - 1) / step * step);
+  auto offsetBytes = [&](int r) {
+    return naive ? 0 : static_cast<std::size_t>(tilesFor(plan, r)) * n * (kVelPerBlock + 2) * sizeof(int);
+  };
+  auto partialBytes = [&](int r) { return static_cast<std::size_t>(r) * plan.nvx * frameBytes; };
+  const std::size_t fixed = tableBytes(plan, job.cellCapacity);
+
+  DeviceOutcome out;
+  const bool resident = fixed + offsetBytes(chunkRows) + cubeBytes <= budget;
+  int frameChunk = n;
+  if (!resident) {
+    if (naive)
+      throw GpuError(
+          "the naive kernel (used for very coarse velocity grids) needs the whole cube on the device");
+    // Velocity rows per chunk: partial sums take at most half of what is left.
+    const std::size_t room = budget > fixed ? budget - fixed : 0;
+    chunkRows = std::min<int>(chunkRows, static_cast<int>(room / 2 / (partialBytes(1) + offsetBytes(1))));
+    if (chunkRows < 1) {
+      throw GpuError("not enough device memory: one velocity row of partial sums needs " +
+                     std::to_string(partialBytes(1) >> 20) + " MiB, " + std::to_string(room >> 20) +
+                     " MiB allowed");
+    }
+    const std::size_t left = room - partialBytes(chunkRows) - offsetBytes(chunkRows);
+    frameChunk = static_cast<int>(std::min<std::size_t>(n, left / (2 * frameBytes)));
+    if (frameChunk < 1) throw GpuError("not enough device memory for two frames and the partial sums");
+  }
+
+  DeviceTables t{toDevice(plan.shiftX),
+                 toDevice(plan.shiftY),
+                 toDevice(plan.spanX),
+                 toDevice(plan.spanY),
+                 toDevice(plan.invNorm),
+                 DeviceBuffer<unsigned long long>(static_cast<std::size_t>(plan.nvx) * plan.nvy),
+                 DeviceBuffer<DeviceCell>(std::max<std::size_t>(job.cellCapacity, 1)),
+                 DeviceBuffer<unsigned long long>(1)};
+  Stream compute;
+  Stream copy;
+  ST_CUDA_CHECK(cudaMemsetAsync(t.mapKeys.get(), 0, t.mapKeys.bytes(), compute.get()));
+  ST_CUDA_CHECK(cudaMemsetAsync(t.count.get(), 0, sizeof(unsigned long long), compute.get()));
+  SearchLaunch p = baseLaunch(plan, t, job);
+  Launcher launcher(plan, naive, compute.get(), chunkRows);
+  Uploader uploader(frames, plane, static_cast<std::size_t>(frameChunk) * plane);
+  Event uploaded;
+  int rowsDone = 0;
+  auto report = [&](int r) {
+    rowsDone += r;
+    progress(static_cast<double>(rowsDone) / std::max(1, rows));
+  };
+
+  if (resident) {
+    DeviceBuffer<float> cube(static_cast<std::size_t>(n) * plane);
+    p.frames = cube.get();
+    p.frameBase = 0;
+    const int firstEnd = std::min(job.iyEnd, job.iyBegin + chunkRows);
+    const int uploadFrames = std::max<int>(1, static_cast<int>(kUploadChunkBytes / frameBytes));
+    // The first velocity chunk follows the upload frame chunk by frame chunk (partial sums on the device)
+    // when memory allows; the others run over all frames in one launch.
+    const bool overlap =
+        !naive && uploadFrames < n &&
+        fixed + offsetBytes(chunkRows) + cubeBytes + partialBytes(firstEnd - job.iyBegin) <= budget;
+    DeviceBuffer<float> partial(overlap ? static_cast<std::size_t>(firstEnd - job.iyBegin) * plan.nvx * plane
+                                        : 0);
+    if (overlap) launcher.prepare(p, job.iyBegin, firstEnd);
+    p.partial = partial.get();
+    for (int n0 = 0; n0 < n; n0 += uploadFrames) {
+      const int n1 = std::min(n, n0 + uploadFrames);
+      uploader.upload(cube.get() + static_cast<std::size_t>(n0) * plane, n0, n1, copy.get());
+      uploaded.record(copy.get());
+      ST_CUDA_CHECK(cudaStreamWaitEvent(compute.get(), uploaded.get(), 0));
+      if (overlap) {
+        p.f0 = n0;
+        p.f1 = n1;
+        p.loadPartial = n0 > 0;
+        p.finalize = n1 == n;
+        launcher.launch(p);
+      }
+      poll();
+    }
+    p.partial = nullptr;
+    p.loadPartial = false;
+    p.finalize = true;
+    p.f0 = 0;
+    p.f1 = n;
+    int iy = job.iyBegin;
+    if (overlap) {
+      compute.sync();
+      report(firstEnd - iy);
+      iy = firstEnd;
+    }
+    for (; iy < job.iyEnd; iy += chunkRows) {
+      const int iy1 = std::min(job.iyEnd, iy + chunkRows);
+      launcher.prepare(p, iy, iy1);
+      launcher.launch(p);
+      compute.sync();
+      poll();
+      report(iy1 - iy);
+    }
+    out.note = "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB), " +
+               (overlap ? "upload overlapped with the first velocity chunk" : "upload then search") +
+               (naive ? ", naive kernel" : ", tiled kernel");
+  } else {
+    DeviceBuffer<float> buf[2] = {DeviceBuffer<float>(static_cast<std::size_t>(frameChunk) * plane),
+                                  DeviceBuffer<float>(static_cast<std::size_t>(frameChunk) * plane)};
+    DeviceBuffer<float> partial(partialBytes(chunkRows) / sizeof(float));
+    Event done[2];
+    p.partial = partial.get();
+    for (int iy = job.iyBegin; iy < job.iyEnd; iy += chunkRows) {
+      const int iy1 = std::min(job.iyEnd, iy + chunkRows);
+      launcher.prepare(p, iy, iy1);
+      for (int n0 = 0, c = 0; n0 < n; n0 += frameChunk, ++c) {
+        const int n1 = std::min(n, n0 + frameChunk);
+        ST_CUDA_CHECK(cudaStreamWaitEvent(copy.get(), done[c & 1].get(), 0));
+        uploader.upload(buf[c & 1].get(), n0, n1, copy.get());
+        uploaded.record(copy.get());
+        ST_CUDA_CHECK(cudaStreamWaitEvent(compute.get(), uploaded.get(), 0));
+        p.frames = buf[c & 1].get();
+        p.frameBase = n0;
+        p.f0 = n0;
+        p.f1 = n1;
+        p.loadPartial = n0 > 0;
+        p.finalize = n1 == n;
+        launcher.launch(p);
+        done[c & 1].record(compute.get());
+        poll();
+      }
+      compute.sync();
+      report(iy1 - iy);
+    }
+    out.note = "cube of " + std::to_string(cubeBytes >> 20) + " MiB does not fit in " +
+               std::to_string(budget >> 20) + " MiB: frames streamed in chunks of " +
+               std::to_string(frameChunk) + ", velocities in chunks of " + std::to_string(chunkRows) +
+               " rows";
+  }
+  compute.sync();
+  copy.sync();
+  out.kernelSeconds = launcher.seconds();
+  const std::size_t mapOffset = static_cast<std::size_t>(job.iyBegin) * plan.nvx;
+  out.mapKeys.resize(static_cast<std::size_t>(rows) * plan.nvx);
+  ST_CUDA_CHECK(cudaMemcpy(out.mapKeys.data(), t.mapKeys.get() + mapOffset, out.mapKeys.size() * 8,
+                           cudaMemcpyDeviceToHost));
+  unsigned long long count = 0;
+  ST_CUDA_CHECK(cudaMemcpy(&count, t.count.get(), sizeof(count), cudaMemcpyDeviceToHost));
+  out.cellsAbove = count;
+  out.cells.resize(std::min<std::size_t>(count, job.cellCapacity));
+  if (!out.cells.empty()) {
+    ST_CUDA_CHECK(cudaMemcpy(out.cells.data(), t.cells.get(), out.cells.size() * sizeof(DeviceCell),
+                             cudaMemcpyDeviceToHost));
+  }
+  return out;
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,44 @@
+#pragma once
+// The search on one device: uploads the cube (pinned staging, a copy stream overlapping the first
+// velocity chunk's compute), runs the tiled kernel over chunks of velocity rows, and brings back only the
+// per-velocity maxima and the cells above threshold. When the cube does not fit in the memory allowed,
+// frames are streamed in chunks and partial sums kept on the device per velocity chunk.
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "kernel_params.hpp"
+#include "search_plan.hpp"
+#include "st/common/progress.hpp"
+
+namespace st::gpu {
+
+struct DeviceJob {
+  int device = 0;
+  int iyBegin = 0;  ///< grid rows [iyBegin, iyEnd) go to this device
+  int iyEnd = 0;
+  std::size_t memoryLimitBytes = 0;  ///< 0: what the device has free (less a reserve)
+  std::size_t cellCapacity = 0;      ///< candidate buffer, cells
+  bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
+};
+
+struct DeviceOutcome {
+  std::vector<unsigned long long> mapKeys;  ///< [iyEnd - iyBegin][nvx] packed maxima, 0 = no valid cell
+  std::vector<DeviceCell> cells;            ///< cells above threshold (at most cellCapacity)
+  std::uint64_t cellsAbove = 0;             ///< all cells above threshold (> cells.size() on overflow)
+  std::string note;                         ///< how the work was tiled, for the log
+  double kernelSeconds = 0.0;               ///< device time of the search kernels (events)
+};
+
+/// Runs `job` for `plan` over `frames` (N_f * W * H floats, host). `progress(fraction)` is called from
+/// this thread; `cancel` (the user's) and `abort`
+/// (another device failed) are polled between launches. Throws st::GpuError on any CUDA failure (out of
+/// memory included) and st::Cancelled.
+DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const DeviceJob& job,
+                          const std::function<void(double)>& progress, const CancelToken& cancel,
+                          const std::atomic<bool>& abort);
+
+}  // namespace st::gpu

@@ -1,0 +1,110 @@
+#pragma once
+// Plain parameter structs that cross into the .cu files (C++17, no core headers). The host side
+// (search_plan.cpp) converts the core types (FilteredCube, VelocityGrid, SearchParams) into these.
+#include <cuda_runtime.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+
+namespace st::gpu {
+
+/// One raw cell above threshold, appended by the search kernel into a bounded device buffer.
+struct DeviceCell {
+  int x;
+  int y;
+  int ivx;
+  int ivy;
+  float sum;
+  float snr;
+  int nIn;
+  int pad;
+};
+
+/// What the tiled search kernel and the naive reference kernel need. All pointers are device pointers.
+struct SearchLaunch {
+  const float* frames;  ///< frames [f0Resident, ...) resident on the device, frame-major, W*H each
+  int frameBase;        ///< index of the first resident frame (frames[0] is frame frameBase)
+  int width;
+  int height;
+  int frameCount;     ///< N_f of the whole cube
+  int f0;             ///< first frame of this launch (absolute index)
+  int f1;             ///< one past the last frame of this launch
+  const int* shiftX;  ///< [nvx][frameCount] round(vx * dt_n)
+  const int* shiftY;  ///< [nvy][frameCount] round(vy * dt_n)
+  const int2* spanX;  ///< [nvx][width]  frames (in time order) whose x-shift keeps column x in frame
+  const int2* spanY;  ///< [nvy][height] same for rows
+  int nvx;
+  int nvy;
+  int iy0;  ///< velocity chunk: rows [iy0, iy1) of the grid
+  int iy1;
+  float* partial;                 ///< [chunk velocities][H][W] partial sums across frame chunks, or null
+  bool loadPartial;               ///< add partial[] to the accumulators before the first frame
+  bool finalize;                  ///< last frame chunk: compute SNR, reduce the map, append candidates
+  const float* invNorm;           ///< [frameCount + 1] float(1 / (sigma_F sqrt(n))), as the CPU backend uses
+  float snrThreshold;             ///< cells with SNR strictly above are candidates (as the CPU backend)
+  int minFrames;                  ///< cells with N_in below this are ignored (map and candidates)
+  unsigned long long* mapKeys;    ///< [nvy][nvx] packed (ordered SNR bits, ~pixel index), atomicMax
+  DeviceCell* cells;              ///< bounded candidate buffer
+  unsigned long long* cellCount;  ///< number of cells found (may exceed cellCapacity: overflow)
+  unsigned long long cellCapacity;
+  // Tiling chosen by the host for the tiled kernel (ignored by the naive kernel).
+  int vtileX;  ///< velocities per block along x (vtileX * vtileY == kVelPerBlock)
+  int vtileY;
+  int pitch;    ///< shared-memory row pitch (floats) of one frame window
+  int winRows;  ///< rows of one frame window
+  int framesPerStage;
+  const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
+};
+
+/// Velocities one block of the tiled kernel accumulates in registers.
+inline constexpr int kVelPerBlock = 8;
+/// Block shape of the tiled kernel: 8 warps; each thread owns kColsPerThread columns (stride 32)
+/// x kRowsPerThread rows (stride 8).
+inline constexpr int kColsPerThread = 4;
+inline constexpr int kRowsPerThread = 2;
+inline constexpr int kTileW = 32 * kColsPerThread;
+inline constexpr int kTileH = 8 * kRowsPerThread;
+inline constexpr int kThreads = 256;
+
+/// Packs an SNR and a pixel index so that a 64-bit max picks the highest SNR and, on ties, the lowest
+/// index (the first in row-major order, as a sequential scan keeps it).
+inline std::uint64_t hostUnpackIndex(unsigned long long key) {
+  return 0xFFFFFFFFull - (key & 0xFFFFFFFFull);
+}
+inline float hostUnpackSnr(unsigned long long key) {
+  std::uint32_t bits = static_cast<std::uint32_t>(key >> 32);
+  bits = (bits & 0x80000000u) ? (bits & 0x7FFFFFFFu) : ~bits;
+  float f;
+  static_assert(sizeof(f) == sizeof(bits));
+  std::memcpy(&f, &bits, sizeof(f));
+  return f;
+}
+
+/// Launchers (search_kernels.cu). Each checks the launch and throws st::GpuError on failure.
+void launchTileOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
+void launchTiledSearch(const SearchLaunch& p, cudaStream_t stream);
+void launchNaiveSearch(const SearchLaunch& p, cudaStream_t stream);
+/// Bytes of dynamic shared memory the tiled kernel needs for this tiling.
+std::size_t tiledSharedBytes(int pitch, int winRows, int framesPerStage);
+/// Raises the tiled kernel's dynamic shared-memory limit on the current device.
+void configureTiledKernel(std::size_t sharedBytes);
+
+/// Stack of frames [0, frameCount) at integer shifts (IPSA) or bilinear sub-pixel shifts (CSA).
+struct StackLaunch {
+  const float* frames;
+  int width;
+  int height;
+  int frameCount;
+  const int* shiftX;  ///< IPSA: [frameCount]
+  const int* shiftY;
+  const float* subX;  ///< CSA: [frameCount] vx*dt, px
+  const float* subY;
+  bool csa;
+  float* partial;  ///< [groups][H][W]
+  int groups;
+  float* out;  ///< [H][W]
+};
+void launchStack(const StackLaunch& p, cudaStream_t stream);
+
+}  // namespace st::gpu

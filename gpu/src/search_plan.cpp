@@ -1,0 +1,178 @@
+#include "search_plan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "kernel_params.hpp"
+#include "st/common/error.hpp"
+
+namespace st::gpu {
+namespace {
+
+int ipsaShift(double v, double dt) {
+  return static_cast<int>(std::lround(v * dt));
+}
+
+/// Inclusive range [lo, hi] of time-ordered frames k with a <= s[k] < b, s monotone either way.
+void validSpan(const int* s, int n, int a, int b, int* out) {
+  int lo = 0;
+  int hi = 0;
+  if (s[n - 1] >= s[0]) {
+    lo = static_cast<int>(std::lower_bound(s, s + n, a) - s);
+    hi = static_cast<int>(std::lower_bound(s, s + n, b) - s);
+  } else {
+    lo = static_cast<int>(std::partition_point(s, s + n, [b](int v) { return v >= b; }) - s);
+    hi = static_cast<int>(std::partition_point(s, s + n, [a](int v) { return v >= a; }) - s);
+  }
+  out[0] = lo;
+  out[1] = std::max(hi, lo) - 1;
+}
+
+/// Shifts [nv][N] in frame order, and the spans from the same shifts in time order.
+void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, const std::vector<int>& order,
+               int extent, std::vector<int>& shifts, std::vector<int>& spans) {
+  const int n = static_cast<int>(dt.size());
+  const int nv = static_cast<int>(vel.size());
+  shifts.resize(static_cast<std::size_t>(nv) * n);
+  spans.resize(static_cast<std::size_t>(nv) * extent * 2);
+  std::vector<int> sorted(static_cast<std::size_t>(n));
+  for (int i = 0; i < nv; ++i) {
+    for (int k = 0; k < n; ++k) {
+      shifts[static_cast<std::size_t>(i) * n + k] = ipsaShift(vel[i], dt[k]);
+      sorted[k] = ipsaShift(vel[i], dt[order[k]]);
+    }
+    for (int c = 0; c < extent; ++c) {
+      validSpan(sorted.data(), n, -c, extent - c, &spans[(static_cast<std::size_t>(i) * extent + c) * 2]);
+    }
+  }
+}
+
+/// Largest shift difference, over frames, between velocities `len` grid steps apart (tiles can start
+/// anywhere).
+int maxSpread(const std::vector<int>& shifts, int nv, int n, int len) {
+  int spread = 0;
+  const int lastStart = std::max(0, nv - len);
+  for (int i = 0; i <= lastStart; ++i) {
+    const int j = std::min(nv - 1, i + len - 1);
+    for (int k = 0; k < n; ++k) {
+      spread = std::max(spread, std::abs(shifts[static_cast<std::size_t>(j) * n + k] -
+                                         shifts[static_cast<std::size_t>(i) * n + k]));
+    }
+  }
+  return spread;
+}
+
+void chooseTiling(HostPlan& plan) {
+  constexpr std::size_t kTwoBlocksShared = 100 * 1024;
+  constexpr std::size_t kOneBlockShared = 220 * 1024;
+  const int n = plan.frameCount;
+  long best = -1;
+  for (const int vx : {8, 4, 2, 1}) {
+    const int vy = kVelPerBlock / vx;
+    const int sx = maxSpread(plan.shiftX, plan.nvx, n, vx);
+    const int sy = maxSpread(plan.shiftY, plan.nvy, n, vy);
+    const long area = static_cast<long>(kTileW + sx) * (kTileH + sy);
+    if (best < 0 || area < best) {
+      best = area;
+      plan.vtileX = vx;
+      plan.vtileY = vy;
+      plan.pitch = kTileW + sx;
+      plan.winRows = kTileH + sy;
+    }
+  }
+  for (const int fs : {4, 2, 1}) {
+    if (tiledSharedBytes(plan.pitch, plan.winRows, fs) <= kTwoBlocksShared) {
+      plan.framesPerStage = fs;
+      plan.useTiled = true;
+      return;
+    }
+  }
+  plan.framesPerStage = 1;
+  plan.useTiled = tiledSharedBytes(plan.pitch, plan.winRows, 1) <= kOneBlockShared;
+}
+
+}  // namespace
+
+HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGrid& grid, double threshold,
+                      int minFrames) {
+  const FrameCube& f = cube.frames;
+  HostPlan plan;
+  plan.width = f.width();
+  plan.height = f.height();
+  plan.frameCount = static_cast<int>(f.frameCount());
+  plan.nvx = grid.nvx;
+  plan.nvy = grid.nvy;
+  const std::vector<double> dt = f.timeOffsetsS();
+  std::vector<int> order(dt.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return dt[a] < dt[b]; });
+  std::vector<double> vx(static_cast<std::size_t>(grid.nvx));
+  std::vector<double> vy(static_cast<std::size_t>(grid.nvy));
+  for (int i = 0; i < grid.nvx; ++i)
+    vx[i] = grid.at(i, 0).vx;
+  for (int i = 0; i < grid.nvy; ++i)
+    vy[i] = grid.at(0, i).vy;
+  buildAxis(vx, dt, order, plan.width, plan.shiftX, plan.spanX);
+  buildAxis(vy, dt, order, plan.height, plan.shiftY, plan.spanY);
+  plan.invNorm.assign(static_cast<std::size_t>(plan.frameCount) + 1, 0.0f);
+  for (int k = 1; k <= plan.frameCount; ++k) {
+    plan.invNorm[k] = static_cast<float>(1.0 / (cube.sigmaF * std::sqrt(static_cast<double>(k))));
+  }
+  plan.snrThreshold = static_cast<float>(threshold);
+  plan.minFrames = minFrames;
+  chooseTiling(plan);
+  return plan;
+}
+
+double effectiveSnrThreshold(const search::SearchParams& params, const search::TrialCounts& trials) {
+  if (!params.targetFap) return params.snrThreshold;
+  const double fap = *params.targetFap;
+  if (!(fap > 0.0 && fap < 1.0)) throw InputError("targetFap must be in (0, 1), got " + std::to_string(fap));
+  // Solve trials * erfc(s / sqrt 2) / 2 = fap for s by bisection (erfc is monotone).
+  double lo = 0.0;
+  double hi = 40.0;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (trials.total() * 0.5 * std::erfc(mid / std::sqrt(2.0)) > fap ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+int minFramesFor(const search::SearchParams& params, std::size_t frames) {
+  const double need = std::ceil(params.minFrameFraction * static_cast<double>(frames) - 1e-9);
+  return std::max(1, static_cast<int>(need));
+}
+
+double detectionFap(double snr, const search::TrialCounts& trials) {
+  return trials.total() * 0.5 * std::erfc(snr / std::sqrt(2.0));
+}
+
+void validateSearch(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                    const search::SearchParams& params) {
+  const std::size_t n = cube.frames.frameCount();
+  if (n < 2) throw InputError("a velocity search needs at least 2 frames, got " + std::to_string(n));
+  if (n > 0x7FFFFFFF / 4) throw InputError("too many frames for the CUDA backend: " + std::to_string(n));
+  if (cube.frames.pixels().size() != n * cube.frames.framePixels()) {
+    throw InputError("the cube's pixel buffer does not match its frames (" +
+                     std::to_string(cube.frames.pixels().size()) + " values)");
+  }
+  if (!(cube.frames.timeSpanS() > 0.0)) throw InputError("the frames span no time (all mid-times equal)");
+  if (!(cube.sigmaF > 0.0) || !std::isfinite(cube.sigmaF)) {
+    throw InputError("sigma_F must be positive and finite, got " + std::to_string(cube.sigmaF));
+  }
+  if (grid.nvx <= 0 || grid.nvy <= 0) {
+    throw InputError("the velocity grid is empty (" + std::to_string(grid.nvx) + " x " +
+                     std::to_string(grid.nvy) + ")");
+  }
+  if (!(grid.stepPxS > 0.0) || !std::isfinite(grid.stepPxS)) {
+    throw InputError("the velocity grid step must be positive, got " + std::to_string(grid.stepPxS) +
+                     " px/s");
+  }
+  if (!(params.minFrameFraction >= 0.0 && params.minFrameFraction <= 1.0)) {
+    throw InputError("minFrameFraction must be in [0, 1], got " + std::to_string(params.minFrameFraction));
+  }
+  if (params.maxCandidates < 1) throw InputError("maxCandidates must be at least 1");
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,144 @@
+// Static sources (paper §4.3): stars found in the sky-rate stack and zeroed along the sky motion, the sky rate
+// measured from the stars, the moving object left alone.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "st/detect/moving_mask.hpp"
+#include "st/detect/sky_rate.hpp"
+#include "st/detect/sky_stack.hpp"
+#include "st/detect/static_sources.hpp"
+#include "st/stats/background.hpp"
+#include "synthetic_frames.hpp"
+
+namespace st::detect {
+namespace {
+
+test::SynthScene scene(Velocity sky) {
+  test::SynthScene s;
+  s.skyRate = sky;
+  s.stars = {{30.0, 25.0, 400.0}, {70.3, 40.6, 12.0}, {55.0, 15.0, 60.0}, {15.2, 30.7, 2000.0}};
+  return s;
+}
+
+const Star* nearest(const std::vector<Star>& stars, double x, double y) {
+  const Star* best = nullptr;
+  double bd = 1e9;
+  for (const auto& s : stars) {
+    const double d = std::hypot(s.x - x, s.y - y);
+    if (d < bd) bd = d, best = &s;
+  }
+  return bd < 1.0 ? best : nullptr;
+}
+
+TEST(MovingMask, FollowsTheSkyRate) {
+  const std::vector<double> dt = {-10.0, 0.0, 10.0};
+  MovingMask m(50, 40, dt, {0.5, -0.2});
+  m.set(20, 20);
+  EXPECT_TRUE(m.covers(1, 20, 20));
+  EXPECT_TRUE(m.covers(0, 15, 22));  // 20 + 0.5 * -10, 20 - 0.2 * -10
+  EXPECT_TRUE(m.covers(2, 25, 18));
+  EXPECT_FALSE(m.covers(2, 20, 20));
+  // The canvas reaches positions that only some frames see.
+  m.set(-4, 10);
+  EXPECT_TRUE(m.covers(2, 1, 8));
+  m.dilate(2);
+  // Two discs of radius 2 (13 px each); the one at x = -4 loses its leftmost pixel to the canvas edge (x0 = -5).
+  EXPECT_EQ(m.x0(), -5);
+  EXPECT_EQ(m.count(), 25u);
+}
+
+class StaticSourcesTest : public ::testing::TestWithParam<bool> {};
+
+TEST_P(StaticSourcesTest, FindsStarsZeroesThemAndKeepsTheMovingObject) {
+  const bool drifting = GetParam();
+  const Velocity sky = drifting ? Velocity{0.3, -0.2} : Velocity{};
+  auto sc = scene(sky);
+  FrameCube cube = sc.make();
+  NullProgress p;
+  CancelToken c;
+  const stats::ClipStats global = stats::globalBackground(cube);
+  EXPECT_NEAR(global.mean, sc.background, 0.3);
+  Velocity rate = sky;
+  if (drifting) {
+    const SkyRate measured = measureSkyRate(cube, global.mean, global.sigma, {}, c);
+    ASSERT_TRUE(measured.reliable) << measured.note;
+    EXPECT_NEAR(measured.rate.vx, sky.vx, 0.02) << measured.note;
+    EXPECT_NEAR(measured.rate.vy, sky.vy, 0.02) << measured.note;
+    rate = measured.rate;
+  }
+  const StaticSources found = findStaticSources(cube, rate, global.mean, {}, p, c);
+  for (const auto& s : sc.stars) {
+    const Star* f = nearest(found.stars, s.x, s.y);
+    ASSERT_NE(f, nullptr) << "star at " << s.x << "," << s.y << " not found";
+    EXPECT_NEAR(f->x, s.x, 0.25);
+    EXPECT_NEAR(f->y, s.y, 0.25);
+    EXPECT_GE(f->snr, 7.0);
+    // Flux per frame within the grown footprint: most of the Gaussian's 2 pi s^2 peak.
+    const double total = s.peak * 2.0 * M_PI * std::pow(3.0 / 2.354820045, 2);
+    EXPECT_GT(f->flux, 0.7 * total);
+    EXPECT_LT(f->flux, 1.15 * total);
+  }
+  EXPECT_EQ(found.stars.size(), sc.stars.size());  // no false detection, the moving object not a star
+
+  const FrameCube before = cube;
+  stats::Background bg = stats::estimateBackground(cube, {}, &found.mask, p, c);
+  EXPECT_NEAR(bg.sigmaN, sc.sigma, 0.03 * sc.sigma);
+  stats::subtractBackground(cube, bg.level, p, c);
+  zeroMasked(cube, found.mask, p, c);
+  const auto single = zeroSingleFrameSources(cube, bg.sigma, bg.sigmaN, 7.0, 3, p, c);
+  const auto dt = cube.timeOffsetsS();
+  std::size_t objectPixelsKept = 0, starResidue = 0;
+  for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+    const auto [ox, oy] = sc.objectAt(dt[n]);
+    for (int y = static_cast<int>(oy) - 1; y <= static_cast<int>(oy) + 2; ++y)
+      for (int x = static_cast<int>(ox) - 1; x <= static_cast<int>(ox) + 2; ++x) {
+        if (x < 0 || y < 0 || x >= cube.width() || y >= cube.height()) continue;
+        ASSERT_NE(cube.frame(n)[y * cube.width() + x], 0.0f) << "object pixel zeroed in frame " << n;
+        EXPECT_NEAR(cube.frame(n)[y * cube.width() + x],
+                    before.frame(n)[y * cube.width() + x] - bg.level.at(x, y), 1e-3);
+        ++objectPixelsKept;
+      }
+    for (const auto& s : sc.stars) {  // star centres are zero in every frame
+      const int x = static_cast<int>(std::lround(s.x + sky.vx * dt[n]));
+      const int y = static_cast<int>(std::lround(s.y + sky.vy * dt[n]));
+      if (x >= 0 && y >= 0 && x < cube.width() && y < cube.height()) starResidue += cube.frame(n)[y * cube.width() + x] != 0.0f;
+    }
+  }
+  EXPECT_GT(objectPixelsKept, 500u);
+  EXPECT_EQ(starResidue, 0u);
+  std::size_t seeds = 0;
+  for (auto s : single.seedsPerFrame) seeds += s;
+  EXPECT_LT(seeds, 3u);  // stars already gone; pure noise rarely reaches 7 sigma
+}
+
+INSTANTIATE_TEST_SUITE_P(TrackedAndDrifting, StaticSourcesTest, ::testing::Values(false, true));
+
+TEST(SingleFrameSources, BrightTransientIsZeroedInItsFrameOnly) {
+  FrameCube cube(40, 30, 3);
+  cube.frame(1)[15 * 40 + 20] = 100.0f;
+  NullProgress p;
+  CancelToken c;
+  const auto r = zeroSingleFrameSources(cube, Image(), 5.0, 7.0, 2, p, c);
+  EXPECT_EQ(r.seedsPerFrame[1], 1u);
+  EXPECT_EQ(r.seedsPerFrame[0], 0u);
+  EXPECT_EQ(cube.frame(1)[15 * 40 + 20], 0.0f);
+}
+
+TEST(SkyStack, CountsOnlyContributingFrames) {
+  FrameCube cube(10, 8, 5);
+  for (std::size_t n = 0; n < 5; ++n) {
+    cube.info()[n].mjdMid = 60000.0 + n / 86400.0;
+    std::fill(cube.frame(n), cube.frame(n) + 80, 1.0f);
+  }
+  NullProgress p;
+  CancelToken c;
+  const SkyStack s = stackAtSkyRate(cube, {1.0, 0.0}, 0.0, p, c);
+  EXPECT_EQ(s.mean.width, 14);  // shifts -2..2
+  EXPECT_EQ(s.count.at(0, 0), 1.0f);   // reference x = -2: only the last frame sees it
+  EXPECT_EQ(s.count.at(7, 3), 5.0f);
+  EXPECT_FLOAT_EQ(s.mean.at(0, 0), 1.0f);
+}
+
+}  // namespace
+}  // namespace st::detect

@@ -1,0 +1,192 @@
+// Tests of the paper's sigma-clip (§3.1) and the background/noise estimation against brute-force oracles and
+// known truth of synthetic frames.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+#include <vector>
+
+#include "st/common/error.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/stats/background.hpp"
+#include "st/stats/sigma_clip.hpp"
+
+namespace st::stats {
+namespace {
+
+// Brute-force oracle: the paper's steps 1-4 written literally with explicit index sets.
+ClipStats literalClip(const std::vector<float>& y, double xi) {
+  std::vector<std::size_t> b(y.size());
+  std::iota(b.begin(), b.end(), 0);
+  ClipStats out;
+  for (int it = 1; it < 1000; ++it) {
+    double mean = 0.0;
+    for (auto i : b) mean += y[i];
+    mean /= static_cast<double>(b.size());
+    double var = 0.0;
+    for (auto i : b) var += (y[i] - mean) * (y[i] - mean);
+    const double sd = std::sqrt(var / static_cast<double>(b.size() - 1));
+    std::vector<std::size_t> nb;
+    for (std::size_t i = 0; i < y.size(); ++i)
+      if (y[i] <= mean + xi * sd) nb.push_back(i);
+    out = {mean, sd, b.size(), it, nb == b};
+    if (nb == b) break;
+    b = nb;
+  }
+  return out;
+}
+
+TEST(SigmaClip, MatchesLiteralPaperAlgorithm) {
+  std::mt19937 rng(1);
+  std::normal_distribution<float> noise(100.0f, 5.0f);
+  std::vector<float> y(5000);
+  for (auto& v : y) v = noise(rng);
+  for (int i = 0; i < 200; ++i) y[i * 7] += 30.0f + i;  // signals above the background
+  for (double xi : {3.0, 4.0, 5.0}) {
+    const ClipStats fast = sigmaClip(y.data(), y.size(), xi);
+    const ClipStats ref = literalClip(y, xi);
+    EXPECT_TRUE(fast.converged);
+    EXPECT_EQ(fast.count, ref.count) << "xi " << xi;
+    EXPECT_NEAR(fast.mean, ref.mean, 1e-9 * std::abs(ref.mean));
+    EXPECT_NEAR(fast.sigma, ref.sigma, 1e-9 * ref.sigma);
+  }
+}
+
+TEST(SigmaClip, RemovesSignalsAndRecoversGaussianTruth) {
+  std::mt19937 rng(2);
+  std::normal_distribution<float> noise(1000.0f, 10.0f);
+  std::vector<float> y(200000);
+  for (auto& v : y) v = noise(rng);
+  for (std::size_t i = 0; i < y.size(); i += 50) y[i] += 500.0f;  // 2% bright outliers
+  const ClipStats c = sigmaClip(y.data(), y.size(), 4.0);
+  EXPECT_NEAR(c.mean, 1000.0, 0.1);  // ~4 standard errors of the mean (10 / sqrt(2e5) = 0.022)
+  EXPECT_NEAR(c.sigma, 10.0, 0.1);
+  EXPECT_LE(c.count, y.size() - y.size() / 50);
+}
+
+TEST(SigmaClip, EdgeCasesAreFinite) {
+  EXPECT_EQ(sigmaClip(nullptr, 0, 4.0).count, 0u);
+  const std::vector<float> same(10, 3.0f);
+  const ClipStats c = sigmaClip(same.data(), same.size(), 4.0);
+  EXPECT_EQ(c.count, 10u);
+  EXPECT_DOUBLE_EQ(c.mean, 3.0);
+  EXPECT_DOUBLE_EQ(c.sigma, 0.0);
+  const float one = 7.0f;
+  EXPECT_DOUBLE_EQ(sigmaClip(&one, 1, 4.0).sigma, 0.0);
+}
+
+TEST(SigmaClip, SymmetricClipsBothSides) {
+  std::mt19937 rng(3);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  std::vector<float> y(20000);
+  for (auto& v : y) v = noise(rng);
+  for (int i = 0; i < 100; ++i) y[i] = (i % 2 ? 50.0f : -50.0f);
+  const ClipStats c = sigmaClipSymmetric(y.data(), y.size(), 5.0);
+  EXPECT_NEAR(c.sigma, 1.0, 0.03);
+  EXPECT_NEAR(c.mean, 0.0, 0.03);
+}
+
+// A cube with a pixel-dependent background (gradient), Gaussian noise, a few moving bright spots.
+FrameCube noisyCube(int w, int h, std::size_t nf, double sigma, std::uint32_t seed) {
+  FrameCube cube(w, h, nf);
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, static_cast<float>(sigma));
+  for (std::size_t n = 0; n < nf; ++n) {
+    cube.info()[n].mjdMid = 60000.0 + static_cast<double>(n) / 86400.0;
+    float* f = cube.frame(n);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) f[y * w + x] = 500.0f + 0.5f * x + 0.25f * y + noise(rng);
+    const int sx = static_cast<int>(n * 3) % w, sy = static_cast<int>(n * 5) % h;
+    f[sy * w + sx] += 400.0f;  // a bright moving object: an outlier in each pixel's time series
+  }
+  return cube;
+}
+
+TEST(Background, PerPixelClipEqualsScalarClipOfEachPixel) {
+  FrameCube cube = noisyCube(37, 11, 120, 10.0, 4);
+  NullProgress p;
+  CancelToken c;
+  BackgroundParams params;
+  params.global.frames = 120;
+  const Background bg = estimateBackground(cube, params, nullptr, p, c);
+  const double strong = bg.global.mean + 5.0 * bg.global.sigma;
+  for (int y = 0; y < cube.height(); ++y) {
+    for (int x = 0; x < cube.width(); ++x) {
+      std::vector<float> s;
+      for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+        const float v = cube.frame(n)[y * cube.width() + x];
+        if (v <= strong) s.push_back(v);
+      }
+      const ClipStats ref = sigmaClip(s.data(), s.size(), 4.0);
+      ASSERT_FLOAT_EQ(bg.level.at(x, y), static_cast<float>(ref.mean)) << x << "," << y;
+      ASSERT_FLOAT_EQ(bg.sigma.at(x, y), static_cast<float>(ref.sigma)) << x << "," << y;
+    }
+  }
+}
+
+TEST(Background, BiasAndNoiseMatchTruth) {
+  const double sigma = 12.0;
+  FrameCube cube = noisyCube(64, 48, 400, sigma, 5);
+  NullProgress p;
+  CancelToken c;
+  const Background bg = estimateBackground(cube, {}, nullptr, p, c);
+  double bias = 0.0;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) bias += bg.level.at(x, y) - (500.0 + 0.5 * x + 0.25 * y);
+  bias /= 64.0 * 48.0;
+  EXPECT_LT(std::abs(bias), 0.05 * sigma);  // issue 3: bias < 0.05 sigma
+  EXPECT_NEAR(bg.sigmaN, sigma, 0.03 * sigma);  // issue 3: sigma_n within 3%
+  EXPECT_EQ(bg.pixelsFilled, 0u);
+  subtractBackground(cube, bg.level, p, c);
+  double mean = 0.0;
+  for (float v : cube.pixels()) mean += v;
+  EXPECT_LT(std::abs(mean / static_cast<double>(cube.pixels().size())), 0.05 * sigma);
+}
+
+TEST(Background, ExcludedStaticSourceDoesNotBiasLevel) {
+  // A static star (tracked telescope) is constant in every frame: without exclusion the per-pixel clip takes
+  // it as background; with the star's MovingMask it is left out and the level falls back to the global mean.
+  FrameCube cube = noisyCube(32, 32, 100, 5.0, 6);
+  for (std::size_t n = 0; n < cube.frameCount(); ++n) cube.frame(n)[16 * 32 + 16] += 25.0f;  // below the strong-signal cut
+  detect::MovingMask mask(32, 32, cube.timeOffsetsS(), {});
+  mask.set(16, 16);
+  NullProgress p;
+  CancelToken c;
+  const Background with = estimateBackground(cube, {}, &mask, p, c);
+  const Background without = estimateBackground(cube, {}, nullptr, p, c);
+  EXPECT_NEAR(without.level.at(16, 16), 500.0 + 8.0 + 4.0 + 25.0, 2.0);
+  EXPECT_NEAR(with.level.at(16, 16), with.global.mean, 1e-3);
+  EXPECT_EQ(with.pixelsFilled, 1u);
+}
+
+TEST(Background, AllMaskedThrowsClearError) {
+  FrameCube cube(8, 8, 5);
+  cube.info()[0].file = "all_masked.fits";
+  cube.mask().assign(cube.pixels().size(), 1);
+  NullProgress p;
+  CancelToken c;
+  try {
+    estimateBackground(cube, {}, nullptr, p, c);
+    FAIL() << "expected st::InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("masked"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("all_masked.fits"), std::string::npos);
+  }
+}
+
+TEST(Background, SmoothNoiseMapIsFinite) {
+  FrameCube cube = noisyCube(40, 30, 60, 7.0, 7);
+  NullProgress p;
+  CancelToken c;
+  BackgroundParams params;
+  params.noiseMap = true;
+  params.noiseMapBoxPx = 9;
+  const Background bg = estimateBackground(cube, params, nullptr, p, c);
+  ASSERT_EQ(bg.noiseMap.size(), bg.sigma.size());
+  for (float v : bg.noiseMap.pixels) EXPECT_NEAR(v, 7.0, 1.0);
+}
+
+}  // namespace
+}  // namespace st::stats

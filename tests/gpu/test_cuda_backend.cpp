@@ -1,0 +1,270 @@
+// The CUDA backend against a plain host reference of the exact IPSA search (ipsa_host_reference.hpp):
+// same velocity map (SNR within 1e-4 relative, argmax at a cell whose reference SNR ties the maximum),
+// same cells above threshold (SNR within 1e-4 relative, same N_in), on cubes with non-uniform, unsorted
+// frame times, shifts far out of the frame and an injected moving source. Tiled vs naive kernel, frame-
+// and velocity-chunked vs resident, and a candidate-buffer overflow must all give the same answer.
+// Every test skips when no CUDA device is usable.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+#include <tuple>
+
+#include "ipsa_host_reference.hpp"
+#include "st/common/error.hpp"
+#include "st/gpu/cuda_backend.hpp"
+
+namespace st {
+namespace {
+
+using search::FilteredCube;
+using search::SearchParams;
+using search::SearchResult;
+using search::VelocityGrid;
+
+std::unique_ptr<gpu::CudaSearchBackend> backendOrSkip(const gpu::CudaOptions& options = {}) {
+  std::string whyNot;
+  auto b = gpu::makeCudaSearchBackend(whyNot, options);
+  return b;
+}
+
+#define ST_REQUIRE_GPU(var, ...)         \
+  auto var = backendOrSkip(__VA_ARGS__); \
+  if (!var) GTEST_SKIP() << "no usable CUDA device";
+
+/// A noise cube (sigma 1) with non-uniform, partly unsorted times and a source moving at `src`.
+FilteredCube makeCube(int w, int h, int n, Velocity src, int x0, int y0, float amp, unsigned seed) {
+  FilteredCube c;
+  c.frames = FrameCube(w, h, static_cast<std::size_t>(n));
+  c.sigmaF = 1.0;
+  c.psfFwhmPx = 2.5;
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  for (auto& p : c.frames.pixels())
+    p = noise(rng);
+  for (int k = 0; k < n; ++k) {
+    double t = 0.06 * k + jitter(rng) + (k > n / 2 ? 1.0 : 0.0);  // uneven cadence and a gap
+    c.frames.info()[k].mjdMid = 60000.0 + t / kSecondsPerDay;
+  }
+  std::swap(c.frames.info()[1], c.frames.info()[4]);  // frames need not be in time order
+  const std::vector<double> dt = c.frames.timeOffsetsS();
+  for (int k = 0; k < n; ++k) {
+    const int x = x0 + test::refShift(src.vx, dt[k]);
+    const int y = y0 + test::refShift(src.vy, dt[k]);
+    if (x >= 0 && y >= 0 && x < w && y < h) c.frames.frame(k)[static_cast<std::size_t>(y) * w + x] += amp;
+  }
+  return c;
+}
+
+VelocityGrid makeGrid(int nvx, int nvy, double step) {
+  return VelocityGrid{{3.0, -2.0}, step, nvx, nvy};
+}
+
+int minFramesOf(const SearchParams& p, std::size_t n) {
+  return std::max(1, static_cast<int>(std::ceil(p.minFrameFraction * static_cast<double>(n) - 1e-9)));
+}
+
+void expectMatchesReference(const SearchResult& g, const FilteredCube& cube, const VelocityGrid& grid,
+                            const SearchParams& params) {
+  const test::RefSearch ref =
+      test::refSearch(cube, grid, params.snrThreshold, minFramesOf(params, cube.frames.frameCount()));
+  const int w = cube.frames.width();
+  const int h = cube.frames.height();
+  ASSERT_EQ(g.map.maxSnr.size(), grid.count());
+  std::size_t sameArg = 0;
+  for (std::size_t iv = 0; iv < grid.count(); ++iv) {
+    if (ref.argX[iv] < 0) {
+      EXPECT_EQ(g.map.argX[iv], -1) << "velocity " << iv;
+      continue;
+    }
+    EXPECT_NEAR(g.map.maxSnr[iv], ref.mapSnr[iv], 1e-4 * std::max(1.0, std::abs(ref.mapSnr[iv])))
+        << "velocity " << iv;
+    ASSERT_GE(g.map.argX[iv], 0);
+    const double atArg = ref.snr[(iv * h + g.map.argY[iv]) * w + g.map.argX[iv]];
+    EXPECT_NEAR(atArg, ref.mapSnr[iv], 1e-4 * std::max(1.0, std::abs(ref.mapSnr[iv]))) << "velocity " << iv;
+    sameArg += (g.map.argX[iv] == ref.argX[iv] && g.map.argY[iv] == ref.argY[iv]) ? 1 : 0;
+  }
+  EXPECT_GE(sameArg + 2, grid.count());  // float vs double may only swap near-ties
+  // Cells: every reference cell clearly above threshold is a GPU candidate and vice versa.
+  std::map<std::tuple<int, int, int, int>, const search::Candidate*> got;
+  for (const auto& c : g.candidates)
+    got[{c.x, c.y, c.ivx, c.ivy}] = &c;
+  const double edge = 1e-4 * params.snrThreshold;
+  std::size_t matched = 0;
+  for (const auto& r : ref.cells) {
+    const auto it = got.find({r.x, r.y, r.ivx, r.ivy});
+    if (r.snr < params.snrThreshold + edge && it == got.end()) continue;  // borderline: either way is right
+    ASSERT_NE(it, got.end()) << "missing cell x=" << r.x << " y=" << r.y << " ivx=" << r.ivx
+                             << " ivy=" << r.ivy;
+    EXPECT_NEAR(it->second->snr, r.snr, 1e-4 * r.snr);
+    EXPECT_EQ(it->second->nIn, r.nIn);
+    EXPECT_NEAR(it->second->sum, r.sum, 1e-4 * std::max(1.0, std::abs(r.sum)));
+    ++matched;
+  }
+  EXPECT_LE(g.candidates.size(), matched + 2);  // GPU extras only at the threshold edge
+  EXPECT_GT(matched, 10u);
+  for (std::size_t i = 1; i < g.candidates.size(); ++i)
+    EXPECT_GE(g.candidates[i - 1].snr, g.candidates[i].snr);
+}
+
+struct Problem {
+  FilteredCube cube;
+  VelocityGrid grid;
+  SearchParams params;
+};
+
+Problem standardProblem() {
+  Problem p;
+  p.grid = makeGrid(9, 7, 1.5);  // vx in [-3, 9] px/s over ~3.3 s: shifts up to ~15 px out of frame
+  p.cube = makeCube(61, 47, 37, p.grid.at(6, 2), 30, 20, 1.6f, 7u);
+  p.params.snrThreshold = 3.5;
+  p.params.maxCandidates = 100000;
+  p.params.minFrameFraction = 0.5;
+  return p;
+}
+
+TEST(CudaBackend, MatchesHostReferenceAndFindsTheSource) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult r = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  expectMatchesReference(r, p.cube, p.grid, p.params);
+  ASSERT_FALSE(r.candidates.empty());
+  EXPECT_EQ(r.candidates.front().x, 30);
+  EXPECT_EQ(r.candidates.front().y, 20);
+  EXPECT_EQ(r.candidates.front().ivx, 6);
+  EXPECT_EQ(r.candidates.front().ivy, 2);
+  EXPECT_EQ(r.method, "exact");
+  EXPECT_EQ(r.trials.total(), 61.0 * 47 * 9 * 7);
+  EXPECT_NE(gpu->lastNote().find("resident"), std::string::npos) << gpu->lastNote();
+}
+
+TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
+  gpu::CudaOptions o;
+  o.naiveKernel = true;
+  ST_REQUIRE_GPU(gpu, o);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  expectMatchesReference(gpu->search(p.cube, p.grid, p.params, progress, cancel), p.cube, p.grid, p.params);
+}
+
+TEST(CudaBackend, ChunkedOverFramesAndVelocitiesEqualsResident) {
+  ST_REQUIRE_GPU(resident);
+  gpu::CudaOptions o;
+  o.deviceMemoryLimitBytes = 500 * 1024;  // cube 415 KiB + tables 140 KiB: frames and velocity rows tiled
+  o.cellCapacity = 4096;
+  ST_REQUIRE_GPU(tiny, o);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult a = resident->search(p.cube, p.grid, p.params, progress, cancel);
+  const SearchResult b = tiny->search(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_NE(tiny->lastNote().find("streamed"), std::string::npos) << tiny->lastNote();
+  // Same additions in the same order: identical results, bit for bit.
+  EXPECT_EQ(a.map.maxSnr, b.map.maxSnr);
+  EXPECT_EQ(a.map.argX, b.map.argX);
+  EXPECT_EQ(a.map.argY, b.map.argY);
+  ASSERT_EQ(a.candidates.size(), b.candidates.size());
+  for (std::size_t i = 0; i < a.candidates.size(); ++i) {
+    EXPECT_EQ(a.candidates[i].snr, b.candidates[i].snr);
+    EXPECT_EQ(a.candidates[i].x, b.candidates[i].x);
+    EXPECT_EQ(a.candidates[i].ivx, b.candidates[i].ivx);
+  }
+}
+
+TEST(CudaBackend, LongCubeUploadOverlapEqualsReference) {
+  ST_REQUIRE_GPU(gpu);
+  // 600 frames of 256 x 240 (141 MiB) upload in more than one chunk; the first velocity chunk is summed
+  // chunk by chunk through device partial sums while the rest of the cube arrives.
+  Problem p;
+  p.grid = makeGrid(5, 3, 1.0);
+  p.cube = makeCube(256, 240, 600, p.grid.at(1, 1), 100, 90, 0.5f, 11u);
+  p.params.snrThreshold = 4.0;
+  p.params.maxCandidates = 100000;
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult r = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_NE(gpu->lastNote().find("overlapped"), std::string::npos) << gpu->lastNote();
+  expectMatchesReference(r, p.cube, p.grid, p.params);
+}
+
+TEST(CudaBackend, CandidateOverflowIsRecoveredNotTruncated) {
+  gpu::CudaOptions o;
+  o.cellCapacity = 8;
+  ST_REQUIRE_GPU(gpu, o);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  expectMatchesReference(gpu->search(p.cube, p.grid, p.params, progress, cancel), p.cube, p.grid, p.params);
+}
+
+TEST(CudaBackend, CoarseGridFallsBackToTheNaiveKernel) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  p.grid = makeGrid(9, 9, 200.0);  // neighbours ~340 px apart at the ends: no window fits shared memory
+  NullProgress progress;
+  CancelToken cancel;
+  p.params.minFrameFraction = 0.1;
+  const SearchResult r = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_NE(gpu->lastNote().find("naive"), std::string::npos) << gpu->lastNote();
+  const test::RefSearch ref =
+      test::refSearch(p.cube, p.grid, p.params.snrThreshold, minFramesOf(p.params, 37));
+  for (std::size_t iv = 0; iv < p.grid.count(); ++iv) {
+    EXPECT_NEAR(r.map.maxSnr[iv], ref.mapSnr[iv], 1e-4 * std::max(1.0, std::abs(ref.mapSnr[iv])));
+  }
+}
+
+TEST(CudaBackend, StackAtEqualsReference) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  for (const Velocity v : {Velocity{0.0, 0.0}, Velocity{7.3, -4.6}, Velocity{-12.0, 9.5}}) {
+    for (const bool csa : {false, true}) {
+      const Image g = gpu->stackAt(p.cube, v, csa ? search::StackMode::Csa : search::StackMode::Ipsa);
+      const Image r = test::refStack(p.cube.frames, v, csa);
+      ASSERT_EQ(g.width, r.width);
+      ASSERT_EQ(g.height, r.height);
+      double worst = 0.0;
+      for (std::size_t i = 0; i < r.pixels.size(); ++i)
+        worst = std::max(worst, double(std::abs(g.pixels[i] - r.pixels[i])));
+      EXPECT_LT(worst, 2e-5 * 37) << "v=(" << v.vx << "," << v.vy << ") csa=" << csa;
+    }
+  }
+  // A changed cube is noticed (the device copy is refreshed).
+  for (std::size_t i = 0; i < p.cube.frames.framePixels(); ++i)
+    p.cube.frames.frame(3)[i] += 1.0f;
+  const Image g = gpu->stackAt(p.cube, {0.0, 0.0}, search::StackMode::Ipsa);
+  const Image r = test::refStack(p.cube.frames, {0.0, 0.0}, false);
+  EXPECT_NEAR(g.pixels[5], r.pixels[5], 1e-3);
+}
+
+TEST(CudaBackend, CancelledSearchThrowsCancelled) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  cancel.cancel();
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), Cancelled);
+}
+
+TEST(CudaBackend, BadInputIsAnInputError) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  p.cube.sigmaF = 0.0;
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), InputError);
+}
+
+TEST(CudaBackend, DeviceSummaryNamesTheDevice) {
+  ST_REQUIRE_GPU(gpu);
+  EXPECT_NE(gpu::deviceSummary().find("sm_"), std::string::npos);
+  EXPECT_EQ(gpu->name().rfind("cuda: ", 0), 0u);
+}
+
+}  // namespace
+}  // namespace st
