@@ -24,7 +24,7 @@ QRgb renderOne(float v, double lo, double hi, Stretch s, Colormap c) {
 TEST(ImageRender, LinearGrayMapsLimitsToBlackAndWhiteAndMidToMidGray) {
   EXPECT_EQ(renderOne(10.0f, 10, 20, Stretch::Linear, Colormap::Gray), qRgb(0, 0, 0));
   EXPECT_EQ(renderOne(20.0f, 10, 20, Stretch::Linear, Colormap::Gray), qRgb(255, 255, 255));
-  EXPECT_EQ(renderOne(-5.0f, 10, 20, Stretch::Linear, Colormap::Gray), qRgb(0, 0, 0));     // clamped below
+  EXPECT_EQ(renderOne(-5.0f, 10, 20, Stretch::Linear, Colormap::Gray), qRgb(0, 0, 0));        // clamped below
   EXPECT_EQ(renderOne(99.0f, 10, 20, Stretch::Linear, Colormap::Gray), qRgb(255, 255, 255));  // clamped above
   const int mid = qRed(renderOne(15.0f, 10, 20, Stretch::Linear, Colormap::Gray));
   EXPECT_NEAR(mid, 128, 1);
@@ -48,7 +48,8 @@ TEST(ImageRender, LogAndAsinhFollowTheirFormulas) {
 TEST(ImageRender, ColormapEndpointsAreMatplotlibs) {
   // viridis: #440154 at 0, #fde725 at 1; inferno: #000004 at 0, #fcffa4 at 1 (matplotlib, +-1 per channel).
   auto near = [](QRgb a, QRgb b) {
-    return std::abs(qRed(a) - qRed(b)) <= 1 && std::abs(qGreen(a) - qGreen(b)) <= 1 && std::abs(qBlue(a) - qBlue(b)) <= 1;
+    return std::abs(qRed(a) - qRed(b)) <= 1 && std::abs(qGreen(a) - qGreen(b)) <= 1 &&
+           std::abs(qBlue(a) - qBlue(b)) <= 1;
   };
   EXPECT_TRUE(near(renderOne(0.f, 0, 1, Stretch::Linear, Colormap::Viridis), qRgb(0x44, 0x01, 0x54)));
   EXPECT_TRUE(near(renderOne(1.f, 0, 1, Stretch::Linear, Colormap::Viridis), qRgb(0xfd, 0xe7, 0x25)));
@@ -63,7 +64,7 @@ TEST(ImageRender, ColormapEndpointsAreMatplotlibs) {
 
 TEST(ImageRender, RowZeroIsDrawnAtTheBottomAndNanIsMarked) {
   Image img(2, 2, 0.0f);
-  img.at(1, 0) = 1.0f;         // x = 1, y = 0: bottom-right on screen
+  img.at(1, 0) = 1.0f;           // x = 1, y = 0: bottom-right on screen
   img.at(0, 1) = std::nanf("");  // top-left on screen
   DisplaySettings d;
   const QImage q = renderImage(img, 0, 1, d);
@@ -74,7 +75,8 @@ TEST(ImageRender, RowZeroIsDrawnAtTheBottomAndNanIsMarked) {
 TEST(ImageRender, PercentileAndZScaleLimits) {
   // A ramp 0..9999: the 99 % limits are the 1st and 99th percentiles.
   std::vector<float> ramp(10000);
-  for (int i = 0; i < 10000; ++i) ramp[static_cast<std::size_t>(i)] = static_cast<float>(i);
+  for (int i = 0; i < 10000; ++i)
+    ramp[static_cast<std::size_t>(i)] = static_cast<float>(i);
   DisplaySettings d;
   d.limits = LimitsMode::Percentile;
   d.percentile = 99.0;
@@ -83,7 +85,8 @@ TEST(ImageRender, PercentileAndZScaleLimits) {
   EXPECT_NEAR(hi, 9899, 2);
   // Gaussian-like noise around 100 with one very bright star: zscale ignores the star.
   std::vector<float> sky(40000);
-  for (std::size_t i = 0; i < sky.size(); ++i) sky[i] = 100.0f + static_cast<float>(std::sin(i * 12.9898) * 5.0);
+  for (std::size_t i = 0; i < sky.size(); ++i)
+    sky[i] = 100.0f + static_cast<float>(std::sin(i * 12.9898) * 5.0);
   sky[20000] = 1e6f;
   d.limits = LimitsMode::ZScale;
   std::tie(lo, hi) = computeLimits(sky.data(), sky.size(), d);

@@ -9,15 +9,15 @@
 #include <QTest>
 #include <QTimer>
 
+#include <qcustomplot.h>
 #include "candidate_table.hpp"
 #include "image_view.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "search_panel.hpp"
 #include "stack_scrubber.hpp"
-#include "velocity_map_widget.hpp"
-#include <qcustomplot.h>
 #include "ui_test_support.hpp"
+#include "velocity_map_widget.hpp"
 
 using namespace st;
 using namespace st::ui;
@@ -27,7 +27,8 @@ namespace {
 constexpr Velocity kDotV{8.0, -4.0};  // px/s; frames 0.1 s apart, 40 frames: 3.9 s span
 
 std::unique_ptr<MainWindow> loadedWindow(int slowdownMs = 0, int size = 96, std::size_t frames = 40) {
-  auto w = std::make_unique<MainWindow>(test::fakeServices(test::movingDotCube(size, size, frames, kDotV, 40, 50), slowdownMs));
+  auto w = std::make_unique<MainWindow>(
+      test::fakeServices(test::movingDotCube(size, size, frames, kDotV, 40, 50), slowdownMs));
   w->resize(1400, 900);
   w->show();
   w->openDemo();
@@ -104,7 +105,8 @@ TEST(MainWindow, SelectingACandidateSetsVelocityAndCsaToggles) {
   w->selectCandidate(last);
   EXPECT_EQ(w->observation()->velocity(), cands[static_cast<std::size_t>(last)].v);
   // The view is centred on the candidate.
-  const QPointF centre = w->imageView()->widgetToImage(QPointF(w->imageView()->width() / 2.0, w->imageView()->height() / 2.0));
+  const QPointF centre =
+      w->imageView()->widgetToImage(QPointF(w->imageView()->width() / 2.0, w->imageView()->height() / 2.0));
   EXPECT_NEAR(centre.x(), cands[static_cast<std::size_t>(last)].x, 1.0);
   EXPECT_NEAR(centre.y(), cands[static_cast<std::size_t>(last)].y, 1.0);
   // Selecting through the table does the same.
@@ -119,7 +121,8 @@ TEST(MainWindow, CancelStopsASearchPromptly) {
   auto w = loadedWindow(/*slowdownMs=*/50);
   w->searchPanel()->setGridPxS({0, 0}, 10.0, 0.5);  // 41 x 41 velocities x 50 ms: far longer than the test
   bool cancelled = false;
-  QObject::connect(w->jobs(), &JobRunner::finished, [&](const QString&, bool, bool c, const QString&, double) { cancelled = c; });
+  QObject::connect(w->jobs(), &JobRunner::finished,
+                   [&](const QString&, bool, bool c, const QString&, double) { cancelled = c; });
   w->runSearch();
   ASSERT_TRUE(w->jobs()->busy());
   QTest::qWait(300);
@@ -146,7 +149,9 @@ TEST(MainWindow, EventLoopNeverStallsDuringASearch) {
   QObject::connect(&timer, &QTimer::timeout, [&] {
     const qint64 now = clock.elapsed();
     if (ticks++ > 0) maxGap = std::max(maxGap, now - last);
-    if (ticks > 1 && now - last > 20) std::fprintf(stderr, "gap %lld ms at %lld ms\n", static_cast<long long>(now - last), static_cast<long long>(now));
+    if (ticks > 1 && now - last > 20)
+      std::fprintf(stderr, "gap %lld ms at %lld ms\n", static_cast<long long>(now - last),
+                   static_cast<long long>(now));
     last = now;
     if (ticks % 10 == 0) w->observation()->setVelocity({ticks * 0.01, 0.0});  // scrub while searching
   });
@@ -167,8 +172,11 @@ TEST(StackScrubber, LatestRequestWinsAndResultsCarryTheirVelocity) {
   cube->frames = test::movingDotCube(64, 64, 30, kDotV, 30, 30);
   std::vector<Velocity> got;
   QObject::connect(&scrubber, &StackScrubber::stackReady,
-                   [&](const std::shared_ptr<const Image>&, const StackRequest& r, double, double) { got.push_back(r.velocity); });
-  for (int i = 0; i < 50; ++i) scrubber.request(cube, {i * 0.1, 0.0}, search::StackMode::Ipsa);
+                   [&](const std::shared_ptr<const Image>&, const StackRequest& r, double, double) {
+                     got.push_back(r.velocity);
+                   });
+  for (int i = 0; i < 50; ++i)
+    scrubber.request(cube, {i * 0.1, 0.0}, search::StackMode::Ipsa);
   ASSERT_TRUE(test::waitFor([&] { return !got.empty() && got.back().vx == 4.9; }));
   EXPECT_LT(got.size(), 50u);  // intermediate requests were dropped, not queued
   EXPECT_GT(scrubber.droppedCount(), 0);

@@ -19,7 +19,8 @@ namespace st::test {
 /// at `v` px/s through (x0, y0) at t_ref.
 inline FrameCube movingDotCube(int w, int h, std::size_t frames, Velocity v, int x0, int y0) {
   FrameCube cube(w, h, frames);
-  for (std::size_t n = 0; n < frames; ++n) cube.info()[n].mjdMid = 60000.0 + n * 0.1 / 86400.0;
+  for (std::size_t n = 0; n < frames; ++n)
+    cube.info()[n].mjdMid = 60000.0 + n * 0.1 / 86400.0;
   const auto dt = cube.timeOffsetsS();
   for (std::size_t n = 0; n < frames; ++n) {
     const int x = x0 + static_cast<int>(std::lround(v.vx * dt[n]));
@@ -47,7 +48,8 @@ class FakeBackend : public search::SearchBackend {
         if (yy < 0 || yy >= f.height()) continue;
         for (int x = 0; x < f.width(); ++x) {
           const int xx = x + sx;
-          if (xx >= 0 && xx < f.width()) out.at(x, y) += f.frame(n)[static_cast<std::size_t>(yy) * f.width() + xx];
+          if (xx >= 0 && xx < f.width())
+            out.at(x, y) += f.frame(n)[static_cast<std::size_t>(yy) * f.width() + xx];
         }
       }
     }
@@ -111,9 +113,10 @@ inline ui::CoreServices fakeServices(FrameCube cube, int slowdownMs = 0, double 
     p.report(1.0, "simulating");
     return *shared;
   };
-  s.preprocessStages = {ui::StageSpec{"Matched filter", true, false, {ui::StageParam{"fwhm", "FWHM", "px", 2.5, 0.5, 20, 2, ""}}}};
-  s.preprocess = [sigmaF](std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>&, ProgressSink&,
-                          CancelToken&) {
+  s.preprocessStages = {ui::StageSpec{
+      "Matched filter", true, false, {ui::StageParam{"fwhm", "FWHM", "px", 2.5, 0.5, 20, 2, ""}}}};
+  s.preprocess = [sigmaF](std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>&,
+                          ProgressSink&, CancelToken&) {
     ui::PreparedView v;
     auto f = std::make_shared<search::FilteredCube>();
     f->frames = *raw;
@@ -144,11 +147,11 @@ inline bool waitFor(const std::function<bool()>& done, int timeoutMs = 20000) {
 }  // namespace st::test
 
 /// gtest main with an offscreen QApplication (tests never need a display).
-#define ST_UI_TEST_MAIN()                                        \
-  int main(int argc, char** argv) {                              \
-    qputenv("QT_QPA_PLATFORM", "offscreen");                     \
-    QCoreApplication::setOrganizationName("synthtrack-tests");   \
-    QApplication app(argc, argv);                                \
-    ::testing::InitGoogleTest(&argc, argv);                      \
-    return RUN_ALL_TESTS();                                      \
+#define ST_UI_TEST_MAIN()                                      \
+  int main(int argc, char** argv) {                            \
+    qputenv("QT_QPA_PLATFORM", "offscreen");                   \
+    QCoreApplication::setOrganizationName("synthtrack-tests"); \
+    QApplication app(argc, argv);                              \
+    ::testing::InitGoogleTest(&argc, argv);                    \
+    return RUN_ALL_TESTS();                                    \
   }
