@@ -43,7 +43,8 @@ struct PlanPair {
   fftwf_plan inverse = nullptr;
 };
 
-/// The process's plans, one pair per (nx, ny, measure), destroyed at exit (so leak checkers see none).
+/// The process's plans, one pair per (nx, ny, measure), destroyed at exit (so leak checkers see none). No
+/// fftwf_cleanup*: that would invalidate plans other code might still hold.
 class PlanCache {
  public:
   ~PlanCache() {
@@ -51,7 +52,6 @@ class PlanCache {
       fftwf_destroy_plan(p.forward);
       fftwf_destroy_plan(p.inverse);
     }
-    fftwf_cleanup_threads();
   }
   PlanPair get(int nx, int ny, bool measure) {
     std::lock_guard lock(m_mutex);
