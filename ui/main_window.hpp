@@ -1,12 +1,134 @@
 #pragma once
+// The main window: the central image view (any frame, intermediate or live stack), docks for processing,
+// search, velocity map, candidates and the stack inspector, a status bar with pixel readout, stack latency
+// and the progress of the running job (with Cancel). All long work goes through JobRunner (search, load,
+// pre-process) or StackScrubber (live stacks); see job_runner.hpp for the threading rules.
 #include <QMainWindow>
+#include <QStringList>
+#include <memory>
+#include <optional>
+
+#include "core_services.hpp"
+#include "observation.hpp"
+
+class QComboBox;
+class QSpinBox;
+class QLabel;
+class QProgressBar;
+class QPushButton;
+class QMenu;
+class QDockWidget;
 
 namespace st::ui {
+
+class ImageView;
+class JobRunner;
+class StackScrubber;
+class ProcessingPanel;
+class SearchPanel;
+class VelocityMapWidget;
+class CandidatePanel;
+class InspectorPanel;
+
+/// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE] [--quit]` asks for.
+struct ScriptOptions {
+  QStringList inputs;
+  bool demo = false;
+  bool search = false;
+  std::optional<int> select;  ///< 1-based candidate number
+  QString screenshot;
+  bool quit = false;
+};
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
  public:
-  explicit MainWindow(QWidget* parent = nullptr);
+  /// What the central view shows.
+  enum class Source { RawFrame = 0, FilteredFrame = 1, UnfilteredFrame = 2, Stack = 3, Layer = 100 };
+  static constexpr int kCentralTag = 1;
+
+  explicit MainWindow(CoreServices services, QWidget* parent = nullptr);
+  ~MainWindow() override;
+
+  void openInputs(const QStringList& paths);
+  void openDemo();
+  void runPreprocess();
+  void runSearch();
+  /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
+  void selectCandidate(int index);
+  void showSource(Source source, int layer = 0);
+  bool saveScreenshot(const QString& path);
+  /// Runs the command-line script; with quit, the application exits when done (code 1 on failure).
+  void runScript(const ScriptOptions& options);
+
+  [[nodiscard]] Observation* observation() const noexcept { return m_obs; }
+  [[nodiscard]] JobRunner* jobs() const noexcept { return m_jobs; }
+  [[nodiscard]] StackScrubber* scrubber() const noexcept { return m_scrubber; }
+  [[nodiscard]] ImageView* imageView() const noexcept { return m_view; }
+  [[nodiscard]] VelocityMapWidget* velocityMap() const noexcept { return m_velocityMap; }
+  [[nodiscard]] CandidatePanel* candidates() const noexcept { return m_candidates; }
+  [[nodiscard]] InspectorPanel* inspector() const noexcept { return m_inspector; }
+  [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
+  /// Latency (ms) of the last live stack shown in the central view, input to pixels.
+  [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
+
+ signals:
+  /// A central-view stack reached the screen.
+  void centralStackShown(double latencyMs);
+  void scriptFinished(bool ok);
+
+ protected:
+  void closeEvent(QCloseEvent* event) override;
+  void dragEnterEvent(QDragEnterEvent* event) override;
+  void dropEvent(QDropEvent* event) override;
+
+ private:
+  void buildMenus();
+  void buildDocks();
+  QWidget* buildCentral();
+  void buildStatusBar();
+  void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
+  void onJobFinished(const QString& name, bool ok, bool cancelled, const QString& message, double elapsedS);
+  void onRawChanged();
+  void onPreparedChanged();
+  void onSelection();
+  void refreshSourceList();
+  void refreshCentral();
+  void requestCentralStack();
+  void updateMarkers();
+  void onHover(int x, int y, double value, bool inside);
+  void addRecent(const QStringList& paths);
+  void rebuildRecentMenu();
+  void advanceScript(const QString& finishedJob, bool ok);
+  void finishScript(bool ok, const QString& message);
+  void showError(const QString& title, const QString& message);
+
+  CoreServices m_services;
+  Observation* m_obs;
+  JobRunner* m_jobs;
+  StackScrubber* m_scrubber;
+  ImageView* m_view = nullptr;
+  QComboBox* m_sourceCombo = nullptr;
+  QSpinBox* m_frameSpin = nullptr;
+  QComboBox* m_stretch = nullptr;
+  QComboBox* m_limits = nullptr;
+  QComboBox* m_cmap = nullptr;
+  ProcessingPanel* m_processing = nullptr;
+  SearchPanel* m_search = nullptr;
+  VelocityMapWidget* m_velocityMap = nullptr;
+  CandidatePanel* m_candidates = nullptr;
+  InspectorPanel* m_inspector = nullptr;
+  QLabel* m_pixelLabel = nullptr;
+  QLabel* m_stackLabel = nullptr;
+  QLabel* m_jobLabel = nullptr;
+  QProgressBar* m_progress = nullptr;
+  QPushButton* m_cancel = nullptr;
+  QMenu* m_recentMenu = nullptr;
+  std::optional<ScriptOptions> m_script;
+  std::shared_ptr<search::SearchBackend> m_stackBackend;
+  double m_lastLatencyMs = 0.0;
+  bool m_autoPreprocess = true;
+  bool m_demoGrid = false;  ///< the demo gets a grid that searches in under a minute on 2 cores
 };
 
 }  // namespace st::ui

@@ -149,6 +149,7 @@ void runLm(const FrameCube& cube, const FitOptions& o, const Setup& s, detail::F
            FitResult& res, const IterationCallback& onIteration, CancelToken& cancel) {
   const double tHalf = 0.5 * effectiveDurationS(s.times);
   double lambda = 1e-3;
+  double nu = 2.0;
   int recentres = 0;
   const auto report = [&](int it) {
     res.costHistory.push_back(st.ev.cost);
@@ -170,15 +171,22 @@ void runLm(const FrameCube& cube, const FitOptions& o, const Setup& s, detail::F
     }
     const FitParams trial = FitParams::fromVector(st.p.toVector() + step);
     detail::NormalEquations evTrial = prob.evaluate(trial, true);
+    // Gain ratio of the actual to the predicted cost decrease (C = sum r^2, so C(p + d) ~ C - 2 d.Jr + dAd).
+    const double predicted = 2.0 * step.dot(st.ev.jtr) - step.dot(st.ev.jtj * step);
+    const double rho = predicted > 0 ? (st.ev.cost - evTrial.cost) / predicted : -1.0;
     if (std::isfinite(evTrial.cost) && evTrial.cost <= st.ev.cost) {
       const double dof = std::max<double>(1.0, static_cast<double>(st.ev.pixels) - s.nFree);
       const double dChi = step.dot(st.ev.jtj * step);
       converged = dChi < o.stepTolerance * st.ev.cost / dof;
       st.p = trial;
       st.ev = std::move(evTrial);
-      lambda = std::max(lambda * 0.1, 1e-10);
+      // Nielsen's update: shrink lambda by up to 3x when the quadratic model predicted the decrease well.
+      lambda *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * std::clamp(rho, 0.0, 1.0) - 1.0, 3));
+      lambda = std::max(lambda, 1e-12);
+      nu = 2.0;
     } else {
-      lambda *= 10.0;
+      lambda *= nu;
+      nu *= 2.0;
       converged = lambda > 1e12;  // no step lowers the cost: at the minimum to rounding
     }
     report(it);
@@ -200,6 +208,7 @@ void runLm(const FrameCube& cube, const FitOptions& o, const Setup& s, detail::F
       prob.centreStamps(st.p);
       st.ev = prob.evaluate(st.p, true);
       lambda = 1e-3;
+      nu = 2.0;
       continue;
     }
     res.status = FitStatus::Converged;
@@ -276,8 +285,9 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
   res.tTotS = effectiveDurationS(s.times);
   res.sumP2 = pixelPsfSumOfSquares(o.psf);
   res.photonsPerFrame = o.gain * st.p.alpha * o.psf.integral();
-  const double nf = static_cast<double>(s.frames.size());
-  if (res.sigmaN > 0) res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN);
+  res.framesInside = prob.framesInside(st.p);
+  const double nf = static_cast<double>(res.framesInside);
+  if (res.sigmaN > 0 && nf > 0) res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN);
   if (res.photonsPerFrame > 0 && res.snr > 0) {
     res.sigmaPosPaper = positionSigmaPaper(res.photonsPerFrame, w, o.gain * res.sigmaN, nf);
     res.sigmaPosSnr = positionSigmaFromSnr(w, res.snr);
@@ -328,6 +338,27 @@ FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOp
   runLm(cube, options, s, prob, st, res, onIteration, cancel);
   finish(options, s, prob, st, res);
   return res;
+}
+
+ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track, const FitOptions& options,
+                                  double sigmaN) {
+  const Setup s = makeSetup(cube, options);
+  detail::FitProblem prob(cube, s.frames, s.times, options.psf, s.half);
+  prob.centreStamps(track);
+  FitParams p = track;
+  p.alpha = std::numeric_limits<double>::quiet_NaN();
+  p = prob.linearAmplitude(p, options.fitBackground);
+  const auto l = prob.linearSums(track);
+  ForcedPhotometry f;
+  f.alpha = p.alpha;
+  f.i0 = p.i0;
+  f.pixels = static_cast<std::size_t>(l.n);
+  f.framesInside = prob.framesInside(track);
+  const double det = l.n * l.spp - l.sp * l.sp;
+  const double var = options.fitBackground ? (det > 0 ? l.n / det : 0.0) : (l.spp > 0 ? 1.0 / l.spp : 0.0);
+  f.sigmaAlpha = sigmaN * std::sqrt(var);
+  f.snr = f.sigmaAlpha > 0 ? f.alpha / f.sigmaAlpha : 0.0;
+  return f;
 }
 
 }  // namespace st::fit

@@ -7,6 +7,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/fit/comoving_fit.hpp"
+#include "st/fit/pixel_psf.hpp"
 
 namespace st::fit::detail {
 
@@ -34,8 +35,16 @@ class FitProblem {
   [[nodiscard]] ParamMatrix noiseMoment(const FitParams& p, double sigmaN2, double gain) const;
   /// Linear least squares for (alpha, I0) with the track of `p` held fixed (I0 held when !fitI0).
   [[nodiscard]] FitParams linearAmplitude(const FitParams& p, bool fitI0) const;
+  /// Sums over the stamps at the track of `p`: n, sum P, sum P^2, sum d, sum d P.
+  struct LinearSums {
+    double n = 0, sp = 0, spp = 0, sd = 0, sdp = 0;
+  };
+  [[nodiscard]] LinearSums linearSums(const FitParams& p) const;
   /// Data, model and residual stacks on the current stamp grid (integer-shift aligned).
   void stacks(const FitParams& p, Image& data, Image& model, Image& residual) const;
+  /// Frames whose track position (pixel centre convention) lies inside the frame: the N_in of the paper's
+  /// IPSA boundary rule, which is the N_f that enters detection_snr and eq:sig.
+  [[nodiscard]] std::size_t framesInside(const FitParams& p) const;
   [[nodiscard]] std::size_t frameCount() const noexcept { return m_frames.size(); }
   [[nodiscard]] int halfSize() const noexcept { return m_half; }
 
@@ -49,6 +58,7 @@ class FitProblem {
   std::vector<int> m_cx;
   std::vector<int> m_cy;
   psf::Moffat m_psf;
+  PixelPsfTable m_table;
   int m_half;
 };
 

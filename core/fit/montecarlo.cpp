@@ -14,7 +14,7 @@ namespace st::fit {
 void renderMovingSource(FrameCube& cube, const psf::Moffat& psf, const MovingSource& source) {
   constexpr int kSub = 5;
   const double alpha = source.photons / psf.integral();
-  const int reach = static_cast<int>(std::ceil(6.0 * psf.fwhm())) + 6;
+  const int reach = static_cast<int>(std::ceil(4.0 * psf.fwhm())) + 4;
   const std::vector<double> t = cube.timeOffsetsS();
   for (std::size_t n = 0; n < cube.frameCount(); ++n) {
     const double sx = source.x + source.v.vx * t[n];

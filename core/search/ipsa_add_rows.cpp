@@ -65,6 +65,26 @@ __attribute__((target("avx2"))) void addRowsAvx2(float* acc, const float* const*
   }
 }
 
+__attribute__((target("avx2"))) float maxOfAvx2(const float* a, int n) {
+  int i = 0;
+  float m = a[0];
+  if (n >= 16) {
+    __m256 m0 = _mm256_loadu_ps(a);
+    __m256 m1 = _mm256_loadu_ps(a + 8);
+    for (i = 16; i + 16 <= n; i += 16) {
+      m0 = _mm256_max_ps(m0, _mm256_loadu_ps(a + i));
+      m1 = _mm256_max_ps(m1, _mm256_loadu_ps(a + i + 8));
+    }
+    alignas(32) float lanes[8];
+    _mm256_store_ps(lanes, _mm256_max_ps(m0, m1));
+    for (const float l : lanes)
+      m = l > m ? l : m;
+  }
+  for (; i < n; ++i)
+    m = a[i] > m ? a[i] : m;
+  return m;
+}
+
 bool cpuHasAvx2() {
   static const bool has = __builtin_cpu_supports("avx2") != 0;
   return has;
@@ -72,6 +92,16 @@ bool cpuHasAvx2() {
 #endif
 
 }  // namespace
+
+float maxOf(const float* a, int n) {
+#ifdef ST_IPSA_HAVE_AVX2_PATH
+  if (cpuHasAvx2()) return maxOfAvx2(a, n);
+#endif
+  float m = a[0];
+  for (int i = 1; i < n; ++i)
+    m = a[i] > m ? a[i] : m;
+  return m;
+}
 
 void addRows(float* acc, const float* const* src, int count, int wp) {
 #ifdef ST_IPSA_HAVE_AVX2_PATH

@@ -53,9 +53,9 @@ double snrThresholdForFap(double targetFap, double trials) {
     os << "number of trials must be >= 1, got " << trials;
     throw InputError(os.str());
   }
-  if (!(targetFap > 0.0) || !(targetFap < 0.5 * trials)) {
+  if (!(targetFap > 0.0) || !(targetFap <= 0.5 * trials)) {
     std::ostringstream os;
-    os << "target false-alarm probability must be in (0, " << 0.5 * trials << ") for " << trials
+    os << "target false-alarm probability must be in (0, " << 0.5 * trials << "] for " << trials
        << " trials, got " << targetFap;
     throw InputError(os.str());
   }
@@ -75,7 +75,8 @@ double snrThresholdForFap(double targetFap, double trials) {
     const double f = logTailProbability(s) - goal;
     const double dlog = -std::exp(-0.5 * s * s - kLogSqrt2Pi - logTailProbability(s));
     const double next = s - f / dlog;
-    if (!(next > lo && next < hi)) break;
+    // The bisection bracket is only 1e-6 wide and its ends can be the root itself: allow a little outside.
+    if (!(next > lo - (hi - lo) && next < hi + (hi - lo))) break;
     if (std::abs(next - s) <= 1e-15 * s) {
       s = next;
       break;

@@ -63,6 +63,11 @@ inline void matchedFilter(FrameCube& cube, const psf::Moffat& psf, int r) {
   const int w = cube.width();
   const int h = cube.height();
   std::vector<float> out(static_cast<std::size_t>(w) * h);
+  std::vector<double> stamp;
+  for (int dy = -r; dy <= r; ++dy) {
+    for (int dx = -r; dx <= r; ++dx)
+      stamp.push_back(psf(dx, dy));
+  }
   for (std::size_t n = 0; n < cube.frameCount(); ++n) {
     float* f = cube.frame(n);
     for (int y = 0; y < h; ++y) {
@@ -73,7 +78,8 @@ inline void matchedFilter(FrameCube& cube, const psf::Moffat& psf, int r) {
             const int xx = x + dx;
             const int yy = y + dy;
             if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-            s += psf(dx, dy) * f[static_cast<std::size_t>(yy) * w + xx];
+            s += stamp[static_cast<std::size_t>((dy + r) * (2 * r + 1) + dx + r)] *
+                 f[static_cast<std::size_t>(yy) * w + xx];
           }
         }
         out[static_cast<std::size_t>(y) * w + x] = static_cast<float>(s);

@@ -56,9 +56,11 @@ TEST(FitsHeader, QuotedNumbersAndBadValues) {
 TEST(Parallel, CoversRangeOnceAndPropagatesErrors) {
   std::vector<std::atomic<int>> hits(1000);
   parallelFor(hits.size(), 7, [&](std::size_t b, std::size_t e) {
-    for (auto i = b; i < e; ++i) hits[i]++;
+    for (auto i = b; i < e; ++i)
+      hits[i]++;
   });
-  for (auto& h : hits) EXPECT_EQ(h.load(), 1);
+  for (auto& h : hits)
+    EXPECT_EQ(h.load(), 1);
   EXPECT_THROW(parallelFor(100, 1,
                            [](std::size_t b, std::size_t) {
                              if (b == 50) throw InputError("boom");

@@ -95,7 +95,9 @@ struct FitResult {
   std::vector<double> costHistory;  ///< cost at the start and after each iteration
   double cost = 0.0;                ///< final C
   std::size_t pixels = 0;           ///< stamp pixels summed over frames
-  std::size_t framesUsed = 0;
+  std::size_t framesUsed = 0;       ///< frames given to the fit
+  std::size_t framesInside = 0;     ///< of those, frames whose fitted track is inside the frame (N_in): the
+                                    ///< N_f of detection_snr and eq:sig
   int freeParams = 0;
   double rmsResidual = 0.0;  ///< sqrt(C / (pixels - freeParams)), data units
   double sigmaN = 0.0;       ///< noise used for SNR: FitOptions::sigmaN or rmsResidual
@@ -133,6 +135,22 @@ struct FitResult {
 [[nodiscard]] FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOptions& options,
                                     const IterationCallback& onIteration, CancelToken& cancel);
 [[nodiscard]] FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOptions& options);
+
+/// Forced photometry on a fixed track: linear least squares for (alpha, I0) over the same stamps as the fit,
+/// with the position and velocity of `track` held. sigmaAlpha = sigma_n sqrt(n / (n sum P^2 - (sum P)^2))
+/// (sqrt(1 / sum P^2) when I0 is held); snr = alpha / sigmaAlpha, which for many frames is detection_snr.
+struct ForcedPhotometry {
+  double alpha = 0.0;
+  double i0 = 0.0;
+  double sigmaAlpha = 0.0;
+  double snr = 0.0;
+  std::size_t pixels = 0;
+  std::size_t framesInside = 0;  ///< frames whose track is inside the frame
+};
+/// `sigmaN` is the per-pixel noise of one frame (data units); options.frames / tRefOffsetS / psf /
+/// stampHalfSize / fitBackground apply as in fitComoving.
+[[nodiscard]] ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track,
+                                                const FitOptions& options, double sigmaN);
 
 /// The stamp half-size FitOptions::stampHalfSize = 0 stands for: ceil(3 W).
 [[nodiscard]] int defaultStampHalfSize(const psf::Moffat& psf) noexcept;

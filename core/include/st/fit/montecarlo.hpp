@@ -24,7 +24,7 @@ struct MovingSource {
 
 /// Fills every frame of `cube` (sizes and times already set) with the expected photons of `source`,
 /// integrated over each pixel by 5x5 sub-sampling (a finer rule than the fitter's 3x3, on purpose), out
-/// to ceil(6 W) + 6 px from the source (the Moffat tail beyond holds < 1e-4 of the flux for beta >= 3).
+/// to ceil(4 W) + 4 px from the source (the tail beyond holds < 1e-4 of the flux for R = 3.3, beta = 4).
 /// Adds to what is there.
 void renderMovingSource(FrameCube& cube, const psf::Moffat& psf, const MovingSource& source);
 

@@ -18,7 +18,7 @@ SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const S
 
 /// Throws st::InputError naming the value at fault unless: at least 2 frames, a positive time span,
 /// sigma_F > 0 and finite, a non-empty grid with a positive finite step, minFrameFraction in [0, 1],
-/// maxCandidates >= 1, and a threshold that is finite (or a target FAP in (0, trials/2)).
+/// maxCandidates >= 1, and a threshold that is finite (or a target FAP in (0, trials/2]).
 void validateSearchInput(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params);
 
 /// The SNR threshold a search uses: params.snrThreshold, or the inverse of Prob_false for

@@ -31,7 +31,7 @@ double detectionFap(double snr, std::int64_t nx, std::int64_t ny, std::int64_t n
 double confirmationFap(double snr, std::int64_t dnx, std::int64_t dny, std::int64_t dnvx, std::int64_t dnvy);
 
 /// The SNR threshold at which `trials` * Q(snr) equals `targetFap` (the inverse of Prob_false).
-/// targetFap must be in (0, trials / 2) and trials >= 1; throws st::InputError naming the value otherwise.
+/// targetFap must be in (0, trials / 2] and trials >= 1; throws st::InputError naming the value otherwise.
 /// Solved in log space (bisection then Newton on ln Q), so targets like 1e-30 are exact; relative error of
 /// the returned threshold < 1e-12.
 double snrThresholdForFap(double targetFap, double trials);

@@ -1,0 +1,266 @@
+#include "candidate_table.hpp"
+
+#include <QDoubleSpinBox>
+#include <QDoubleValidator>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QLineEdit>
+#include <QTableView>
+#include <QVBoxLayout>
+
+namespace st::ui {
+
+CandidateModel::CandidateModel(Observation* observation, QObject* parent)
+    : QAbstractTableModel(parent), m_obs(observation) {}
+
+int CandidateModel::rowCount(const QModelIndex& parent) const {
+  if (parent.isValid() || !m_obs->result()) return 0;
+  return static_cast<int>(m_obs->result()->candidates.size());
+}
+
+int CandidateModel::columnCount(const QModelIndex& parent) const {
+  return parent.isValid() ? 0 : ColumnCount;
+}
+
+QString CandidateModel::flagsOf(const search::Candidate& c) const {
+  QStringList flags;
+  const auto& raw = m_obs->raw();
+  const auto& prepared = m_obs->prepared();
+  if (raw) {
+    const double fwhm = prepared && prepared->filtered ? prepared->filtered->psfFwhmPx : 3.0;
+    const double margin = 2.0 * std::max(fwhm, 1.0);
+    if (c.x < margin || c.y < margin || c.x > raw->width() - 1 - margin || c.y > raw->height() - 1 - margin)
+      flags << "edge";
+    if (c.nIn < static_cast<int>(raw->frameCount())) flags << "partial";
+  }
+  return flags.join(", ");
+}
+
+QVariant CandidateModel::data(const QModelIndex& index, int role) const {
+  if (!index.isValid() || !m_obs->result()) return {};
+  const auto& c = m_obs->result()->candidates[static_cast<std::size_t>(index.row())];
+  const auto scale = m_obs->plateScale();
+  const auto unit = m_obs->unit();
+  const double vx = fromPxPerS(c.v.vx, unit, scale);
+  const double vy = fromPxPerS(c.v.vy, unit, scale);
+  const double rate = fromPxPerS(c.v.norm(), unit, scale);
+  if (role == Qt::UserRole) {  // sort key
+    switch (index.column()) {
+      case Index:
+        return index.row();
+      case X:
+        return c.x;
+      case Y:
+        return c.y;
+      case Vx:
+        return vx;
+      case Vy:
+        return vy;
+      case Rate:
+        return rate;
+      case Snr:
+        return c.snr;
+      case Fap:
+        return c.fap;
+      case NIn:
+        return c.nIn;
+      case Cells:
+        return c.clusterCells;
+      case Flags:
+        return flagsOf(c);
+      default:
+        return {};
+    }
+  }
+  if (role == Qt::DisplayRole) {
+    switch (index.column()) {
+      case Index:
+        return index.row() + 1;
+      case X:
+        return c.x;
+      case Y:
+        return c.y;
+      case Vx:
+        return QString::number(vx, 'g', 4);
+      case Vy:
+        return QString::number(vy, 'g', 4);
+      case Rate:
+        return QString::number(rate, 'g', 4);
+      case Snr:
+        return QString::number(c.snr, 'f', 2);
+      case Fap:
+        return QString::number(c.fap, 'e', 2);
+      case NIn:
+        return c.nIn;
+      case Cells:
+        return c.clusterCells;
+      case Flags:
+        return flagsOf(c);
+      default:
+        return {};
+    }
+  }
+  if (role == Qt::TextAlignmentRole && index.column() != Flags)
+    return static_cast<int>(Qt::AlignRight | Qt::AlignVCenter);
+  return {};
+}
+
+QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, int role) const {
+  if (orientation != Qt::Horizontal || role != Qt::DisplayRole)
+    return QAbstractTableModel::headerData(section, orientation, role);
+  const QString u = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
+  switch (section) {
+    case Index:
+      return "#";
+    case X:
+      return "x [px]";
+    case Y:
+      return "y [px]";
+    case Vx:
+      return "vx [" + u + "]";
+    case Vy:
+      return "vy [" + u + "]";
+    case Rate:
+      return "rate [" + u + "]";
+    case Snr:
+      return "SNR";
+    case Fap:
+      return "FAP";
+    case NIn:
+      return "N_in";
+    case Cells:
+      return "cells";
+    case Flags:
+      return "flags";
+    default:
+      return {};
+  }
+}
+
+void CandidateModel::reload() {
+  beginResetModel();
+  endResetModel();
+}
+
+void CandidateFilter::setMinSnr(double snr) {
+  m_minSnr = snr;
+  invalidateFilter();
+}
+void CandidateFilter::setMaxFap(double fap) {
+  m_maxFap = fap;
+  invalidateFilter();
+}
+void CandidateFilter::setFlagText(const QString& text) {
+  m_flagText = text.trimmed();
+  invalidateFilter();
+}
+
+bool CandidateFilter::filterAcceptsRow(int row, const QModelIndex& parent) const {
+  auto value = [&](int column) { return sourceModel()->index(row, column, parent).data(Qt::UserRole); };
+  if (value(CandidateModel::Snr).toDouble() < m_minSnr) return false;
+  if (value(CandidateModel::Fap).toDouble() > m_maxFap) return false;
+  if (!m_flagText.isEmpty()) {
+    const QString flags = value(CandidateModel::Flags).toString();
+    if (m_flagText == "-") return flags.isEmpty();  // "-" keeps only unflagged candidates
+    if (!flags.contains(m_flagText, Qt::CaseInsensitive)) return false;
+  }
+  return true;
+}
+
+CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
+    : QWidget(parent), m_obs(observation) {
+  m_model = new CandidateModel(observation, this);
+  m_filter = new CandidateFilter(this);
+  m_filter->setSourceModel(m_model);
+  m_filter->setSortRole(Qt::UserRole);
+  m_table = new QTableView(this);
+  m_table->setModel(m_filter);
+  m_table->setSortingEnabled(true);
+  m_table->sortByColumn(CandidateModel::Snr, Qt::DescendingOrder);
+  m_table->setSelectionBehavior(QAbstractItemView::SelectRows);
+  m_table->setSelectionMode(QAbstractItemView::SingleSelection);
+  m_table->verticalHeader()->setVisible(false);
+  m_table->verticalHeader()->setDefaultSectionSize(20);
+  m_table->horizontalHeader()->setStretchLastSection(true);
+  m_table->setAlternatingRowColors(true);
+
+  m_minSnr = new QDoubleSpinBox(this);
+  m_minSnr->setRange(0, 1000);
+  m_minSnr->setDecimals(1);
+  m_minSnr->setPrefix("SNR ≥ ");
+  m_maxFap = new QLineEdit("1", this);
+  m_maxFap->setValidator(new QDoubleValidator(0, 1, 20, m_maxFap));
+  m_maxFap->setMaximumWidth(80);
+  m_maxFap->setToolTip("Show candidates whose false-alarm probability is at most this");
+  m_flags = new QLineEdit(this);
+  m_flags->setPlaceholderText("flag contains… ('-' = none)");
+  m_count = new QLabel(this);
+  auto* bar = new QHBoxLayout;
+  bar->addWidget(m_minSnr);
+  bar->addWidget(new QLabel("FAP ≤", this));
+  bar->addWidget(m_maxFap);
+  bar->addWidget(m_flags, 1);
+  bar->addWidget(m_count);
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addLayout(bar);
+  layout->addWidget(m_table, 1);
+
+  auto updateCount = [this] {
+    m_count->setText(QString("%1 of %2").arg(m_filter->rowCount()).arg(m_model->rowCount()));
+  };
+  connect(m_minSnr, &QDoubleSpinBox::valueChanged, this, [this, updateCount](double v) {
+    m_filter->setMinSnr(v);
+    updateCount();
+  });
+  connect(m_maxFap, &QLineEdit::textChanged, this, [this, updateCount](const QString& t) {
+    bool ok = false;
+    const double v = t.toDouble(&ok);
+    m_filter->setMaxFap(ok ? v : 1.0);
+    updateCount();
+  });
+  connect(m_flags, &QLineEdit::textChanged, this, [this, updateCount](const QString& t) {
+    m_filter->setFlagText(t);
+    updateCount();
+  });
+  connect(m_obs, &Observation::resultChanged, this, [this, updateCount] {
+    onResult();
+    updateCount();
+  });
+  connect(m_obs, &Observation::unitChanged, m_model, &CandidateModel::reload);
+  connect(m_obs, &Observation::selectionChanged, this, &CandidatePanel::onSelectionFromObservation);
+  connect(m_table->selectionModel(), &QItemSelectionModel::currentRowChanged, this,
+          [this](const QModelIndex& current) {
+            if (m_syncing || !current.isValid()) return;
+            m_obs->setSelected(m_filter->mapToSource(current).row());
+          });
+  updateCount();
+}
+
+void CandidatePanel::onResult() {
+  m_model->reload();
+  m_table->resizeColumnsToContents();
+}
+
+void CandidatePanel::selectCandidate(int index) {
+  m_obs->setSelected(index);
+}
+
+void CandidatePanel::onSelectionFromObservation() {
+  const auto sel = m_obs->selected();
+  m_syncing = true;
+  if (!sel || *sel >= m_model->rowCount()) {
+    m_table->clearSelection();
+  } else {
+    const QModelIndex proxy = m_filter->mapFromSource(m_model->index(*sel, 0));
+    if (proxy.isValid()) {
+      m_table->selectionModel()->setCurrentIndex(
+          proxy, QItemSelectionModel::ClearAndSelect | QItemSelectionModel::Rows);
+      m_table->scrollTo(proxy);
+    }
+  }
+  m_syncing = false;
+}
+
+}  // namespace st::ui

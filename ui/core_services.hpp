@@ -1,0 +1,94 @@
+#pragma once
+// What the GUI needs from the core, as plain functions the application fills in (app/gui/core_adapter.cpp).
+// The GUI never re-implements science: it calls these from worker threads and shows the results. Keeping
+// them behind one struct lets tests inject small fakes and keeps st_ui free of st_gpu (a backend is made by
+// the application's factory and handed in).
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/search/types.hpp"
+
+namespace st::ui {
+
+/// One numeric parameter of a pre-processing stage, with its default (the paper's value) and range.
+struct StageParam {
+  std::string key;    ///< identifier the adapter maps onto the typed core parameter struct
+  std::string label;  ///< shown to the user
+  std::string unit;   ///< e.g. "px", "sigma"
+  double value = 0.0;
+  double minimum = 0.0;
+  double maximum = 1e9;
+  int decimals = 2;
+  std::string help;  ///< tooltip: what it does and where the default comes from
+};
+
+/// A pre-processing stage as the panel shows it: name, on/off, parameters.
+struct StageSpec {
+  std::string name;
+  bool enabled = true;
+  bool optional = true;  ///< false: the stage cannot be switched off
+  std::vector<StageParam> params;
+};
+
+/// What pre-processing produced, as the GUI shows it.
+struct PreparedView {
+  /// The matched-filtered frames the search runs on (null when not produced).
+  std::shared_ptr<const search::FilteredCube> filtered;
+  /// The same frames before the matched filter (zero-biased, static sources removed), for "unfiltered"
+  /// stacks. May be null when the pipeline does not keep them.
+  std::shared_ptr<const search::FilteredCube> unfiltered;
+  /// Named intermediate images: "calibrated (frame 0)", "background", "noise", "static-source mask", ...
+  std::vector<std::pair<std::string, Image>> layers;
+  /// One-line summary: noise, PSF, number of masked stars, etc.
+  std::string summary;
+};
+
+/// A radial profile at a point of an image with its Moffat fit (paper \label{MoffatPsf}).
+struct ProfileFit {
+  std::vector<double> radiusPx;  ///< sample radii
+  std::vector<double> value;     ///< image value at those radii
+  std::vector<double> fitRadiusPx;
+  std::vector<double> fitValue;  ///< fitted model on fitRadiusPx
+  double fwhmPx = 0.0;
+  double beta = 0.0;
+  double centreX = 0.0;
+  double centreY = 0.0;
+  bool ok = false;
+  std::string message;  ///< why the fit failed, or a short summary
+};
+
+enum class BackendKind { Auto, Cpu, Gpu };
+
+struct CoreServices {
+  /// Loads files and/or folders into one cube (st::io::loadFrames).
+  std::function<FrameCube(const std::vector<std::string>& inputs, ProgressSink&, CancelToken&)> loadFrames;
+  /// Simulates the demo observation (st::sim preset "paper-neo").
+  std::function<FrameCube(ProgressSink&, CancelToken&)> simulateDemo;
+  /// The pre-processing stages with the paper's defaults.
+  std::vector<StageSpec> preprocessStages;
+  /// Runs pre-processing with the stages as the user set them (st::pipeline::preprocess).
+  std::function<PreparedView(std::shared_ptr<const FrameCube> raw, const std::vector<StageSpec>& stages,
+                             ProgressSink&, CancelToken&)>
+      preprocess;
+  /// Makes a fresh search backend; `message` says what was chosen and why (app/common makeBackend).
+  std::function<std::unique_ptr<search::SearchBackend>(BackendKind kind, std::string& message)> makeBackend;
+  /// Radial profile and Moffat fit around (x, y) of an image (st::psf).
+  std::function<ProfileFit(const Image& image, double x, double y)> radialProfile;
+  /// 0-based pixel -> (RA, Dec) in degrees through the cube's WCS (st::Wcs); nullopt without a WCS.
+  std::function<std::optional<std::pair<double, double>>(const FrameCube& cube, double x, double y)>
+      pixelToSky;
+  /// Names of the available GPUs, for the backend selector (empty when none).
+  std::vector<std::string> gpuNames;
+};
+
+/// A service that was not provided: throws st::InputError naming it (e.g. a build without the simulator).
+[[noreturn]] void throwMissingService(const char* name);
+
+}  // namespace st::ui

@@ -1,0 +1,232 @@
+// MainWindow: loading, pre-processing, searching and the command-line script. Every job's work runs on the
+// JobRunner thread; only the returned closures touch the window (job_runner.hpp).
+#include <QApplication>
+#include <QComboBox>
+#include <QDir>
+#include <QFileInfo>
+#include <QLabel>
+#include <QProgressBar>
+#include <QPushButton>
+#include <QSpinBox>
+#include <QStatusBar>
+#include <QTimer>
+#include <cstdio>
+
+#include "candidate_table.hpp"
+#include "image_view.hpp"
+#include "inspector_panel.hpp"
+#include "job_runner.hpp"
+#include "main_window.hpp"
+#include "processing_panel.hpp"
+#include "search_panel.hpp"
+#include "stack_scrubber.hpp"
+
+namespace st::ui {
+
+void MainWindow::openInputs(const QStringList& paths) {
+  if (paths.isEmpty()) return;
+  std::vector<std::string> inputs;
+  for (const QString& p : paths)
+    inputs.push_back(QFileInfo(p).absoluteFilePath().toStdString());
+  auto load = m_services.loadFrames;
+  const QString label =
+      paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
+  addRecent(paths);
+  m_demoGrid = false;
+  startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
+    if (!load) throwMissingService("FITS reader");
+    return load(inputs, progress, cancel);
+  });
+}
+
+void MainWindow::openDemo() {
+  auto simulate = m_services.simulateDemo;
+  m_demoGrid = true;
+  startLoad("demo observation (simulated paper-neo)",
+            [simulate](ProgressSink& progress, CancelToken& cancel) {
+              if (!simulate) throwMissingService("simulator");
+              return simulate(progress, cancel);
+            });
+}
+
+void MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
+  const bool started =
+      m_jobs->start("Loading", [this, load, label](ProgressSink& progress, CancelToken& cancel) {
+        auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
+        return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
+      });
+  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+}
+
+void MainWindow::runPreprocess() {
+  auto raw = m_obs->raw();
+  if (!raw) return;
+  auto preprocess = m_services.preprocess;
+  auto makeBackend = m_services.makeBackend;
+  const auto stages = m_processing->stages();
+  const BackendKind kind = m_search->backendKind();
+  m_jobs->start("Pre-processing", [this, raw, preprocess, makeBackend, stages, kind](ProgressSink& progress,
+                                                                                     CancelToken& cancel) {
+    if (!preprocess) throwMissingService("pre-processing pipeline");
+    auto prepared = std::make_shared<const PreparedView>(preprocess(raw, stages, progress, cancel));
+    std::string message;
+    std::shared_ptr<search::SearchBackend> backend;
+    if (makeBackend) backend = makeBackend(kind, message);  // the live-stack backend, its own instance
+    return std::function<void()>([this, prepared, backend, message] {
+      m_stackBackend = backend;
+      m_scrubber->setBackend(backend);
+      if (!message.empty()) m_search->setBackendMessage("stacks: " + QString::fromStdString(message));
+      m_obs->setPrepared(prepared);
+    });
+  });
+}
+
+void MainWindow::runSearch() {
+  const auto& prepared = m_obs->prepared();
+  if (!prepared || !prepared->filtered) return;
+  auto cube = prepared->filtered;
+  auto makeBackend = m_services.makeBackend;
+  const search::VelocityGrid grid = m_search->grid();
+  const search::SearchParams params = m_search->params();
+  const BackendKind kind = m_search->backendKind();
+  m_jobs->start("Searching", [this, cube, makeBackend, grid, params, kind](ProgressSink& progress,
+                                                                           CancelToken& cancel) {
+    if (!makeBackend) throwMissingService("search backend");
+    std::string message;
+    std::unique_ptr<search::SearchBackend> backend = makeBackend(kind, message);
+    auto result =
+        std::make_shared<const search::SearchResult>(backend->search(*cube, grid, params, progress, cancel));
+    return std::function<void()>([this, result, message] {
+      m_search->setBackendMessage(QString::fromStdString(message));
+      m_obs->setResult(result);
+      statusBar()->showMessage(QString("Search: %1 candidates above SNR %2 in %3 s (%4)")
+                                   .arg(result->candidates.size())
+                                   .arg(result->snrThreshold, 0, 'f', 2)
+                                   .arg(result->elapsedS, 0, 'f', 1)
+                                   .arg(QString::fromStdString(result->backend)),
+                               15000);
+      if (!result->candidates.empty()) selectCandidate(0);
+    });
+  });
+}
+
+void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, const QString& message,
+                               double elapsedS) {
+  m_progress->hide();
+  m_cancel->hide();
+  m_processing->setRunEnabled(m_obs->raw() != nullptr);
+  m_search->setRunning(false);
+  if (cancelled) {
+    m_jobLabel->setText(name + " cancelled");
+  } else if (!ok) {
+    m_jobLabel->setText(name + " failed");
+    showError(name + " failed", message);
+  } else {
+    m_jobLabel->setText(QString("%1 done in %2 s").arg(name).arg(elapsedS, 0, 'f', 1));
+  }
+  if (ok && name == "Loading" && m_autoPreprocess) runPreprocess();
+  if (m_script) advanceScript(name, ok && !cancelled);
+  if (!ok && m_script && !cancelled) finishScript(false, message);
+}
+
+void MainWindow::onRawChanged() {
+  const auto& raw = m_obs->raw();
+  setWindowTitle(raw ? "synthtrack — " + m_obs->label() : QString("synthtrack"));
+  m_processing->setRunEnabled(raw != nullptr);
+  m_search->setReady(false);
+  if (raw) {
+    m_frameSpin->setRange(0, static_cast<int>(raw->frameCount()) - 1);
+    m_frameSpin->setSuffix(QString(" / %1").arg(raw->frameCount()));
+    m_search->setDefaultsFor(*raw, {});
+    QString summary = QString("%1 frames of %2 × %3 px, %4 s")
+                          .arg(raw->frameCount())
+                          .arg(raw->width())
+                          .arg(raw->height())
+                          .arg(raw->timeSpanS(), 0, 'f', 1);
+    if (raw->plateScaleArcsecPerPx)
+      summary += QString(", %1\"/px").arg(*raw->plateScaleArcsecPerPx, 0, 'f', 3);
+    for (const auto& w : raw->warnings)
+      summary += "\n⚠ " + QString::fromStdString(w);
+    m_processing->setSummary(summary);
+  }
+  refreshSourceList();
+  showSource(Source::RawFrame);
+}
+
+void MainWindow::onPreparedChanged() {
+  const auto& prepared = m_obs->prepared();
+  m_search->setReady(prepared && prepared->filtered);
+  if (prepared) {
+    m_processing->setSummary(QString::fromStdString(prepared->summary));
+    if (prepared->filtered && m_obs->raw()) {
+      m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
+      const auto& raw = *m_obs->raw();
+      if (m_demoGrid && raw.plateScaleArcsecPerPx) {
+        // The paper's object moves at ~6 deg/day: +-7 deg/day around the sky rate, 2 px over the span per
+        // step (the paper notes 1 px is finer than the ~3 px PSF needs).
+        const double span = std::max(raw.timeSpanS(), 1e-3);
+        m_search->setGridPxS(prepared->filtered->skyRate,
+                             degPerDayToPxPerSec(7.0, *raw.plateScaleArcsecPerPx), 2.0 / span);
+      }
+      m_obs->setVelocity(prepared->filtered->skyRate);
+    }
+  }
+  refreshSourceList();
+  if (prepared && prepared->filtered) showSource(Source::Stack);
+}
+
+void MainWindow::selectCandidate(int index) {
+  const auto& result = m_obs->result();
+  if (!result || index < 0 || index >= static_cast<int>(result->candidates.size())) return;
+  m_obs->setSelected(index);
+}
+
+void MainWindow::onSelection() {
+  const search::Candidate* c = m_obs->selectedCandidate();
+  updateMarkers();
+  if (!c) return;
+  m_obs->setVelocity(c->v);
+  showSource(Source::Stack);
+  m_view->centreOn(c->x, c->y);
+}
+
+void MainWindow::runScript(const ScriptOptions& options) {
+  m_script = options;
+  if (options.demo)
+    openDemo();
+  else if (!options.inputs.isEmpty())
+    openInputs(options.inputs);
+  else
+    QTimer::singleShot(300, this, [this] { finishScript(true, {}); });
+}
+
+void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
+  if (!ok) return;
+  if (finishedJob == "Loading" && !m_autoPreprocess) runPreprocess();
+  if (finishedJob == "Pre-processing") {
+    if (m_script->search)
+      runSearch();
+    else
+      finishScript(true, {});
+  }
+  if (finishedJob == "Searching") {
+    if (m_script->select) selectCandidate(*m_script->select - 1);
+    finishScript(true, {});
+  }
+}
+
+void MainWindow::finishScript(bool ok, const QString& message) {
+  if (!m_script) return;
+  const ScriptOptions script = *m_script;
+  if (!ok) std::fprintf(stderr, "synthtrack: %s\n", message.toLocal8Bit().constData());
+  // Let the live stack arrive and the widgets lay out before the picture is taken.
+  QTimer::singleShot(1200, this, [this, script, ok] {
+    bool good = ok;
+    if (!script.screenshot.isEmpty()) good = saveScreenshot(script.screenshot) && good;
+    m_script.reset();
+    emit scriptFinished(good);
+    if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);
+  });
+}
+
+}  // namespace st::ui

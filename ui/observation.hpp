@@ -1,0 +1,117 @@
+#pragma once
+// The state of one analysis in the GUI: the raw cube, what pre-processing made, the search grid and result,
+// the current velocity and the selected candidate. Panels read it and listen to its signals; only the GUI
+// thread changes it (results arrive through JobRunner's apply closures).
+#include <QObject>
+#include <QString>
+#include <memory>
+#include <optional>
+
+#include "core_services.hpp"
+#include "st/search/types.hpp"
+#include "velocity_units.hpp"
+
+namespace st::ui {
+
+class Observation : public QObject {
+  Q_OBJECT
+ public:
+  explicit Observation(QObject* parent = nullptr) : QObject(parent) {}
+
+  [[nodiscard]] const std::shared_ptr<const FrameCube>& raw() const noexcept { return m_raw; }
+  [[nodiscard]] const std::shared_ptr<const PreparedView>& prepared() const noexcept { return m_prepared; }
+  [[nodiscard]] const std::shared_ptr<const search::SearchResult>& result() const noexcept {
+    return m_result;
+  }
+  [[nodiscard]] const search::VelocityGrid& grid() const noexcept { return m_grid; }
+  [[nodiscard]] Velocity velocity() const noexcept { return m_velocity; }
+  [[nodiscard]] search::StackMode stackMode() const noexcept { return m_mode; }
+  [[nodiscard]] std::optional<int> selected() const noexcept { return m_selected; }
+  [[nodiscard]] VelocityUnit unit() const noexcept { return m_unit; }
+  [[nodiscard]] const QString& label() const noexcept { return m_label; }
+  /// Plate scale of the raw cube (arcsec/px), when known.
+  [[nodiscard]] std::optional<double> plateScale() const {
+    return m_raw ? m_raw->plateScaleArcsecPerPx : std::nullopt;
+  }
+  /// Motion of the stars (px/s): from pre-processing, else zero.
+  [[nodiscard]] Velocity skyRate() const {
+    return m_prepared && m_prepared->filtered ? m_prepared->filtered->skyRate : Velocity{};
+  }
+  /// The selected candidate, if any.
+  [[nodiscard]] const search::Candidate* selectedCandidate() const {
+    if (!m_result || !m_selected || *m_selected < 0 ||
+        *m_selected >= static_cast<int>(m_result->candidates.size()))
+      return nullptr;
+    return &m_result->candidates[static_cast<std::size_t>(*m_selected)];
+  }
+
+  /// A new observation: drops everything derived from the previous one.
+  void setRaw(std::shared_ptr<const FrameCube> raw, const QString& label) {
+    m_raw = std::move(raw);
+    m_label = label;
+    m_prepared.reset();
+    m_result.reset();
+    m_selected.reset();
+    emit rawChanged();
+    emit preparedChanged();
+    emit resultChanged();
+  }
+  void setPrepared(std::shared_ptr<const PreparedView> prepared) {
+    m_prepared = std::move(prepared);
+    m_result.reset();
+    m_selected.reset();
+    emit preparedChanged();
+    emit resultChanged();
+  }
+  void setResult(std::shared_ptr<const search::SearchResult> result) {
+    m_result = std::move(result);
+    m_selected.reset();
+    if (m_result) setGrid(m_result->grid);
+    emit resultChanged();
+  }
+  void setGrid(const search::VelocityGrid& grid) {
+    m_grid = grid;
+    emit gridChanged();
+  }
+  void setVelocity(Velocity v) {
+    if (v == m_velocity) return;
+    m_velocity = v;
+    emit velocityChanged(v);
+  }
+  void setStackMode(search::StackMode mode) {
+    if (mode == m_mode) return;
+    m_mode = mode;
+    emit stackModeChanged();
+  }
+  void setSelected(std::optional<int> index) {
+    m_selected = index;
+    emit selectionChanged();
+  }
+  void setUnit(VelocityUnit unit) {
+    m_unit = unit;
+    emit unitChanged();
+  }
+
+ signals:
+  void rawChanged();
+  void preparedChanged();
+  void resultChanged();
+  void gridChanged();
+  void velocityChanged(st::Velocity v);
+  void stackModeChanged();
+  void selectionChanged();
+  void unitChanged();
+
+ private:
+  std::shared_ptr<const FrameCube> m_raw;
+  std::shared_ptr<const PreparedView> m_prepared;
+  std::shared_ptr<const search::SearchResult> m_result;
+  search::VelocityGrid m_grid;
+  Velocity m_velocity;
+  search::StackMode m_mode = search::StackMode::Ipsa;
+  std::optional<int> m_selected;
+  VelocityUnit m_unit = VelocityUnit::PxPerS;
+  QString m_label;
+};
+
+}  // namespace st::ui

@@ -1,0 +1,260 @@
+#include "search_panel.hpp"
+
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QDoubleValidator>
+#include <QFormLayout>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QLineEdit>
+#include <QPushButton>
+#include <QRadioButton>
+#include <QStandardItemModel>
+#include <QVBoxLayout>
+#include <cmath>
+
+#include "st/common/parallel.hpp"
+#include "st/search/velocity_grid.hpp"
+#include "st/stats/false_alarm.hpp"
+
+namespace st::ui {
+
+namespace {
+QDoubleSpinBox* velocitySpin(QWidget* parent, double min) {
+  auto* s = new QDoubleSpinBox(parent);
+  s->setRange(min, 1e6);
+  s->setDecimals(4);
+  s->setKeyboardTracking(false);
+  return s;
+}
+QString humanBytes(double b) {
+  if (b >= 1e9) return QString::number(b / 1e9, 'f', 2) + " GB";
+  return QString::number(b / 1e6, 'f', 0) + " MB";
+}
+QString humanSeconds(double s) {
+  if (s < 1) return QString::number(s * 1000, 'f', 0) + " ms";
+  if (s < 120) return QString::number(s, 'f', 1) + " s";
+  return QString::number(s / 60, 'f', 1) + " min";
+}
+}  // namespace
+
+SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string>& gpuNames, QWidget* parent)
+    : QWidget(parent), m_obs(observation) {
+  auto* gridBox = new QGroupBox("Velocity grid", this);
+  auto* form = new QFormLayout(gridBox);
+  m_unit = new QComboBox(gridBox);
+  m_unit->addItem("px/s", static_cast<int>(VelocityUnit::PxPerS));
+  m_unit->addItem("\"/min", static_cast<int>(VelocityUnit::ArcsecPerMin));
+  m_unit->addItem("deg/day", static_cast<int>(VelocityUnit::DegPerDay));
+  m_cx = velocitySpin(gridBox, -1e6);
+  m_cy = velocitySpin(gridBox, -1e6);
+  m_half = velocitySpin(gridBox, 0);
+  m_step = velocitySpin(gridBox, 0);
+  m_step->setMinimum(1e-6);
+  m_half->setToolTip("Half-width of the square grid around the centre");
+  m_step->setToolTip("Grid spacing; the paper's default is 1 pixel over the observation's time span");
+  auto* centre = new QHBoxLayout;
+  centre->addWidget(m_cx);
+  centre->addWidget(m_cy);
+  m_gridSize = new QLabel(gridBox);
+  form->addRow("Units", m_unit);
+  form->addRow("Centre vx, vy", centre);
+  form->addRow("Half-range", m_half);
+  form->addRow("Step", m_step);
+  form->addRow("Grid", m_gridSize);
+
+  auto* thrBox = new QGroupBox("Detection threshold", this);
+  auto* thr = new QFormLayout(thrBox);
+  m_bySnr = new QRadioButton("SNR ≥", thrBox);
+  m_byFap = new QRadioButton("FAP ≤", thrBox);
+  m_bySnr->setChecked(true);
+  m_snr = new QDoubleSpinBox(thrBox);
+  m_snr->setRange(1, 100);
+  m_snr->setDecimals(2);
+  m_snr->setValue(search::SearchParams{}.snrThreshold);
+  m_snr->setToolTip("Paper §4.4: SNR 7, about 0.34% false alarms for 512² pixels × 100² velocities");
+  m_fap = new QLineEdit("0.01", thrBox);
+  m_fap->setValidator(new QDoubleValidator(1e-300, 1, 30, m_fap));
+  m_fap->setToolTip("False-alarm probability over all trials (paper, Prob_false)");
+  thr->addRow(m_bySnr, m_snr);
+  thr->addRow(m_byFap, m_fap);
+
+  auto* runBox = new QGroupBox("Run", this);
+  auto* run = new QFormLayout(runBox);
+  m_backend = new QComboBox(runBox);
+  m_backend->addItem("Auto", static_cast<int>(BackendKind::Auto));
+  m_backend->addItem("CPU", static_cast<int>(BackendKind::Cpu));
+  m_backend->addItem(
+      gpuNames.empty() ? QString("GPU (none found)") : "GPU: " + QString::fromStdString(gpuNames.front()),
+      static_cast<int>(BackendKind::Gpu));
+  m_backendInfo = new QLabel(gpuNames.empty() ? "CPU (no GPU in this build or machine)" : "", runBox);
+  m_backendInfo->setWordWrap(true);
+  m_estimate = new QLabel(runBox);
+  m_estimate->setWordWrap(true);
+  m_run = new QPushButton(QIcon::fromTheme("system-search"), "Search", runBox);
+  m_cancel = new QPushButton("Cancel", runBox);
+  m_cancel->setEnabled(false);
+  m_run->setEnabled(false);
+  auto* buttons = new QHBoxLayout;
+  buttons->addWidget(m_run, 1);
+  buttons->addWidget(m_cancel);
+  m_status = new QLabel(runBox);
+  m_status->setWordWrap(true);
+  run->addRow("Backend", m_backend);
+  run->addRow("", m_backendInfo);
+  run->addRow("Estimate", m_estimate);
+  run->addRow(buttons);
+  run->addRow(m_status);
+
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addWidget(gridBox);
+  layout->addWidget(thrBox);
+  layout->addWidget(runBox);
+  layout->addStretch(1);
+
+  connect(m_unit, &QComboBox::currentIndexChanged, this, &SearchPanel::onUnitChanged);
+  for (auto* s : {m_cx, m_cy, m_half, m_step})
+    connect(s, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
+  connect(m_snr, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
+  connect(m_fap, &QLineEdit::textChanged, this, &SearchPanel::refresh);
+  connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
+  connect(m_run, &QPushButton::clicked, this, &SearchPanel::runRequested);
+  connect(m_cancel, &QPushButton::clicked, this, &SearchPanel::cancelRequested);
+  connect(m_obs, &Observation::rawChanged, this, [this] {
+    const bool angular = m_obs->plateScale().has_value();
+    for (int i = 1; i < 3; ++i) {
+      auto* item = qobject_cast<QStandardItemModel*>(m_unit->model());
+      if (item) item->item(i)->setEnabled(angular);
+    }
+    if (!angular) m_unit->setCurrentIndex(0);
+    refresh();
+  });
+  setGridPxS({}, 0.5, 0.01);
+}
+
+void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {
+  const auto scale = m_obs->plateScale();
+  const QSignalBlocker b1(m_cx), b2(m_cy), b3(m_half), b4(m_step);
+  m_cx->setValue(fromPxPerS(centre.vx, m_shownUnit, scale));
+  m_cy->setValue(fromPxPerS(centre.vy, m_shownUnit, scale));
+  m_half->setValue(fromPxPerS(halfRange, m_shownUnit, scale));
+  m_step->setValue(fromPxPerS(step, m_shownUnit, scale));
+  refresh();
+}
+
+void SearchPanel::setDefaultsFor(const FrameCube& cube, Velocity skyRate) {
+  const double span = std::max(cube.timeSpanS(), 1e-3);
+  const double step = 1.0 / span;
+  double half = 12.0 * step;  // without a plate scale: 12 px over the span on either side
+  if (cube.plateScaleArcsecPerPx) half = degPerDayToPxPerSec(12.0, *cube.plateScaleArcsecPerPx);
+  setGridPxS(skyRate, half, step);
+}
+
+void SearchPanel::onUnitChanged() {
+  const auto scale = m_obs->plateScale();
+  const auto next = static_cast<VelocityUnit>(m_unit->currentData().toInt());
+  const QSignalBlocker b1(m_cx), b2(m_cy), b3(m_half), b4(m_step);
+  for (auto* s : {m_cx, m_cy, m_half, m_step}) {
+    const double px = toPxPerS(s->value(), m_shownUnit, scale);
+    s->setValue(fromPxPerS(px, next, scale));
+  }
+  m_shownUnit = scale ? next : VelocityUnit::PxPerS;
+  setSpinUnits();
+  m_obs->setUnit(m_shownUnit);
+  refresh();
+}
+
+void SearchPanel::setSpinUnits() {
+  for (auto* s : {m_cx, m_cy, m_half, m_step})
+    s->setSuffix(" " + unitLabel(m_shownUnit));
+}
+
+search::VelocityGrid SearchPanel::grid() const {
+  const auto scale = m_obs->plateScale();
+  search::VelocityGrid g;
+  g.centre = {toPxPerS(m_cx->value(), m_shownUnit, scale), toPxPerS(m_cy->value(), m_shownUnit, scale)};
+  g.stepPxS = toPxPerS(m_step->value(), m_shownUnit, scale);
+  const double half = toPxPerS(m_half->value(), m_shownUnit, scale);
+  const int n = 2 * static_cast<int>(std::floor(half / g.stepPxS + 1e-9)) + 1;
+  g.nvx = g.nvy = std::max(1, n);
+  return g;
+}
+
+search::SearchParams SearchPanel::params() const {
+  search::SearchParams p;
+  p.snrThreshold = m_snr->value();
+  if (m_byFap->isChecked()) p.targetFap = m_fap->text().toDouble();
+  return p;
+}
+
+BackendKind SearchPanel::backendKind() const {
+  return static_cast<BackendKind>(m_backend->currentData().toInt());
+}
+
+void SearchPanel::refresh() {
+  setSpinUnits();
+  const search::VelocityGrid g = grid();
+  m_gridSize->setText(QString("%1 × %2 = %3 velocities").arg(g.nvx).arg(g.nvy).arg(g.count()));
+  if (m_obs->grid().nvx != g.nvx || m_obs->grid().stepPxS != g.stepPxS || !(m_obs->grid().centre == g.centre))
+    m_obs->setGrid(g);
+  const auto& raw = m_obs->raw();
+  if (!raw) {
+    m_estimate->setText("open an observation first");
+    return;
+  }
+  // Throughput from the last live stack (w * h * frames additions), when one was measured.
+  std::optional<double> rate;
+  if (m_stackSeconds && *m_stackSeconds > 0)
+    rate = static_cast<double>(raw->width()) * raw->height() * static_cast<double>(raw->frameCount()) /
+           *m_stackSeconds;
+  const search::SearchEstimate e =
+      search::estimateSearch(raw->width(), raw->height(), raw->frameCount(), g, workerCount(), rate);
+  const double trials = search::trialCounts(raw->width(), raw->height(), g).total();
+  QString text = QString("%1 trials · %2 (+%3 cube)")
+                     .arg(trials, 0, 'e', 2)
+                     .arg(humanBytes(static_cast<double>(e.workingBytes)))
+                     .arg(humanBytes(static_cast<double>(e.cubeBytes)));
+  text += " · ~" + humanSeconds(e.seconds) + (rate ? "" : " (assumed speed)");
+  try {
+    if (m_byFap->isChecked())
+      text += QString("\nFAP %1 ⇒ SNR ≥ %2")
+                  .arg(m_fap->text())
+                  .arg(stats::snrThresholdForFap(m_fap->text().toDouble(), trials), 0, 'f', 2);
+    else
+      text += QString("\nSNR %1 ⇒ FAP %2")
+                  .arg(m_snr->value())
+                  .arg(stats::expectedFalseAlarms(m_snr->value(), trials), 0, 'e', 1);
+  } catch (const std::exception& ex) {
+    text += "\n" + QString::fromStdString(ex.what());
+  }
+  m_estimate->setText(text);
+}
+
+void SearchPanel::setMeasuredStackSeconds(double seconds) {
+  if (m_stackSeconds && std::abs(*m_stackSeconds - seconds) < 0.2 * seconds) return;
+  m_stackSeconds = seconds;
+  refresh();
+}
+
+void SearchPanel::setReady(bool ready) {
+  m_ready = ready;
+  m_run->setEnabled(ready);
+}
+
+void SearchPanel::setRunning(bool running) {
+  m_run->setEnabled(!running && m_ready);
+  m_cancel->setEnabled(running);
+}
+
+void SearchPanel::setProgress(double fraction, const QString& stage, double elapsedS) {
+  m_status->setText(
+      QString("%1 %2% · %3 s").arg(stage).arg(fraction * 100, 0, 'f', 0).arg(elapsedS, 0, 'f', 1));
+}
+
+void SearchPanel::setBackendMessage(const QString& text) {
+  m_backendInfo->setText(text);
+}
+
+}  // namespace st::ui

@@ -1,0 +1,190 @@
+#include "velocity_map_widget.hpp"
+
+#include <qcustomplot.h>
+#include <QKeyEvent>
+#include <QLabel>
+#include <QVBoxLayout>
+#include <algorithm>
+#include <cmath>
+
+#include "image_render.hpp"
+
+namespace st::ui {
+
+VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
+    : QWidget(parent), m_obs(observation) {
+  setFocusPolicy(Qt::StrongFocus);
+  m_plot = new QCustomPlot(this);
+  m_plot->setMinimumSize(260, 220);
+  m_plot->setFocusPolicy(Qt::NoFocus);
+  m_map = new QCPColorMap(m_plot->xAxis, m_plot->yAxis);
+  m_scale = new QCPColorScale(m_plot);
+  m_plot->plotLayout()->addElement(0, 1, m_scale);
+  m_scale->setType(QCPAxis::atRight);
+  m_scale->axis()->setLabel("max SNR");
+  m_map->setColorScale(m_scale);
+  QCPColorGradient viridis;  // the same viridis as the image view (QCustomPlot 2.0 has no preset)
+  viridis.clearColorStops();
+  const auto& table = colormapTable(Colormap::Viridis);
+  for (int i = 0; i <= 16; ++i)
+    viridis.setColorStopAt(i / 16.0, QColor(table[static_cast<std::size_t>(std::min(255, i * 16))]));
+  m_map->setGradient(viridis);
+  m_map->setInterpolate(false);
+  auto* margins = new QCPMarginGroup(m_plot);
+  m_plot->axisRect()->setMarginGroup(QCP::msBottom | QCP::msTop, margins);
+  m_scale->setMarginGroup(QCP::msBottom | QCP::msTop, margins);
+
+  auto makeGraph = [&](QCPScatterStyle style, const QString& name) {
+    QCPGraph* g = m_plot->addGraph();
+    g->setLineStyle(QCPGraph::lsNone);
+    g->setScatterStyle(style);
+    g->setName(name);
+    return g;
+  };
+  m_candidates =
+      makeGraph(QCPScatterStyle(QCPScatterStyle::ssCircle, QPen(QColor(255, 80, 80), 1.5), Qt::NoBrush, 11),
+                "candidates");
+  m_sky =
+      makeGraph(QCPScatterStyle(QCPScatterStyle::ssCross, QPen(Qt::white, 2), Qt::NoBrush, 12), "sky rate");
+  m_current =
+      makeGraph(QCPScatterStyle(QCPScatterStyle::ssPlusCircle, QPen(QColor(255, 200, 0), 2), Qt::NoBrush, 14),
+                "current");
+  m_plot->legend->setVisible(true);
+  m_plot->legend->setFont(QFont(font().family(), 8));
+  m_plot->legend->removeItem(m_plot->legend->itemCount() - 1);  // the color map has no legend entry worth
+  m_plot->axisRect()->insetLayout()->setInsetAlignment(0, Qt::AlignTop | Qt::AlignRight);
+  m_plot->legend->setBrush(QColor(255, 255, 255, 200));
+
+  m_readout = new QLabel(this);
+  m_readout->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addWidget(m_plot, 1);
+  layout->addWidget(m_readout);
+
+  connect(m_plot, &QCustomPlot::mousePress, this, [this](QMouseEvent* e) { onMouse(e, true); });
+  connect(m_plot, &QCustomPlot::mouseMove, this, [this](QMouseEvent* e) { onMouse(e, false); });
+  connect(m_obs, &Observation::resultChanged, this, &VelocityMapWidget::rebuild);
+  connect(m_obs, &Observation::gridChanged, this, &VelocityMapWidget::rebuild);
+  connect(m_obs, &Observation::unitChanged, this, &VelocityMapWidget::rebuild);
+  connect(m_obs, &Observation::preparedChanged, this, &VelocityMapWidget::updateMarkers);
+  connect(m_obs, &Observation::velocityChanged, this, &VelocityMapWidget::updateMarkers);
+  rebuild();
+}
+
+double VelocityMapWidget::toUnit(double pxPerS) const {
+  return fromPxPerS(pxPerS, m_obs->unit(), m_obs->plateScale());
+}
+double VelocityMapWidget::fromUnit(double value) const {
+  return toPxPerS(value, m_obs->unit(), m_obs->plateScale());
+}
+
+void VelocityMapWidget::rebuild() {
+  const search::VelocityGrid& grid = m_obs->grid();
+  const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
+  m_plot->xAxis->setLabel("vx [" + unit + "]");
+  m_plot->yAxis->setLabel("vy [" + unit + "]");
+  const auto& result = m_obs->result();
+  if (grid.nvx > 0 && grid.nvy > 0) {
+    const Velocity lo = grid.at(0, 0);
+    const Velocity hi = grid.at(grid.nvx - 1, grid.nvy - 1);
+    m_map->data()->setSize(grid.nvx, grid.nvy);
+    m_map->data()->setRange(QCPRange(toUnit(lo.vx), toUnit(hi.vx)), QCPRange(toUnit(lo.vy), toUnit(hi.vy)));
+    const bool haveMap = result && result->map.nvx == grid.nvx && result->map.nvy == grid.nvy;
+    for (int iy = 0; iy < grid.nvy; ++iy)
+      for (int ix = 0; ix < grid.nvx; ++ix)
+        m_map->data()->setCell(
+            ix, iy, haveMap ? result->map.maxSnr[static_cast<std::size_t>(iy) * grid.nvx + ix] : 0.0);
+    m_map->rescaleDataRange(true);
+    const double half = 0.5 * grid.stepPxS;
+    m_plot->xAxis->setRange(toUnit(lo.vx - half), toUnit(hi.vx + half));
+    m_plot->yAxis->setRange(toUnit(lo.vy - half), toUnit(hi.vy + half));
+    m_map->setVisible(true);
+  } else {
+    m_map->setVisible(false);
+  }
+  QVector<double> cx, cy;
+  if (result) {
+    for (const auto& c : result->candidates) {
+      cx.push_back(toUnit(c.v.vx));
+      cy.push_back(toUnit(c.v.vy));
+    }
+  }
+  m_candidates->setData(cx, cy);
+  updateMarkers();
+}
+
+void VelocityMapWidget::updateMarkers() {
+  const Velocity sky = m_obs->skyRate();
+  m_sky->setData({toUnit(sky.vx)}, {toUnit(sky.vy)});
+  const Velocity v = m_obs->velocity();
+  m_current->setData({toUnit(v.vx)}, {toUnit(v.vy)});
+  m_plot->replot(QCustomPlot::rpQueuedReplot);
+}
+
+Velocity VelocityMapWidget::velocityAtPlotPixel(const QPointF& pos) const {
+  const double vx = fromUnit(m_plot->xAxis->pixelToCoord(pos.x()));
+  const double vy = fromUnit(m_plot->yAxis->pixelToCoord(pos.y()));
+  const search::VelocityGrid& g = m_obs->grid();
+  if (g.nvx <= 0 || g.nvy <= 0 || g.stepPxS <= 0) return {vx, vy};
+  const auto snap = [&](double v, double c, int n) {
+    const double i = std::round((v - c) / g.stepPxS + 0.5 * (n - 1));
+    return static_cast<int>(std::clamp(i, 0.0, n - 1.0));
+  };
+  return g.at(snap(vx, g.centre.vx, g.nvx), snap(vy, g.centre.vy, g.nvy));
+}
+
+QPointF VelocityMapWidget::plotPixelOf(Velocity v) const {
+  return {m_plot->xAxis->coordToPixel(toUnit(v.vx)), m_plot->yAxis->coordToPixel(toUnit(v.vy))};
+}
+
+void VelocityMapWidget::onMouse(QMouseEvent* event, bool press) {
+  const Velocity v = velocityAtPlotPixel(event->position());
+  const search::VelocityGrid& g = m_obs->grid();
+  QString snr;
+  const auto& result = m_obs->result();
+  if (result && g.stepPxS > 0 && result->map.nvx == g.nvx) {
+    const int ix = static_cast<int>(std::lround((v.vx - g.centre.vx) / g.stepPxS + 0.5 * (g.nvx - 1)));
+    const int iy = static_cast<int>(std::lround((v.vy - g.centre.vy) / g.stepPxS + 0.5 * (g.nvy - 1)));
+    if (ix >= 0 && iy >= 0 && ix < g.nvx && iy < g.nvy) {
+      const std::size_t k = static_cast<std::size_t>(iy) * g.nvx + ix;
+      snr = QString("   max SNR %1 at (%2, %3)")
+                .arg(result->map.maxSnr[k], 0, 'f', 2)
+                .arg(result->map.argX[k])
+                .arg(result->map.argY[k]);
+    }
+  }
+  const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
+  m_readout->setText(
+      QString("v = (%1, %2) %3%4").arg(toUnit(v.vx), 0, 'g', 4).arg(toUnit(v.vy), 0, 'g', 4).arg(unit, snr));
+  if (press || (event->buttons() & Qt::LeftButton)) {
+    setFocus();
+    m_obs->setVelocity(v);
+  }
+}
+
+void VelocityMapWidget::keyPressEvent(QKeyEvent* event) {
+  const search::VelocityGrid& g = m_obs->grid();
+  const double step = g.stepPxS > 0 ? g.stepPxS : 0.01;
+  Velocity v = m_obs->velocity();
+  switch (event->key()) {
+    case Qt::Key_Left:
+      v.vx -= step;
+      break;
+    case Qt::Key_Right:
+      v.vx += step;
+      break;
+    case Qt::Key_Up:
+      v.vy += step;
+      break;
+    case Qt::Key_Down:
+      v.vy -= step;
+      break;
+    default:
+      QWidget::keyPressEvent(event);
+      return;
+  }
+  m_obs->setVelocity(v);
+}
+
+}  // namespace st::ui

@@ -1,0 +1,49 @@
+#pragma once
+// Velocity space: the search's velocity map (max SNR over pixels per grid velocity) as a heatmap with a
+// colour scale, axes in the chosen unit, candidates (circles), the sky rate (cross) and the current
+// velocity (crosshair). Click or drag to scrub; arrow keys step one grid cell; a readout shows velocity and
+// SNR under the cursor. Before a search it shows the empty grid plane, so scrubbing works already.
+#include <QWidget>
+
+#include "observation.hpp"
+
+class QCustomPlot;
+class QCPColorMap;
+class QCPColorScale;
+class QCPGraph;
+class QLabel;
+
+namespace st::ui {
+
+class VelocityMapWidget : public QWidget {
+  Q_OBJECT
+ public:
+  VelocityMapWidget(Observation* observation, QWidget* parent = nullptr);
+
+  /// The velocity (px/s) at a widget position of the plot; snapped to the nearest grid velocity.
+  [[nodiscard]] Velocity velocityAtPlotPixel(const QPointF& pos) const;
+  /// Plot-pixel position of a velocity (px/s), for tests.
+  [[nodiscard]] QPointF plotPixelOf(Velocity v) const;
+  [[nodiscard]] QCustomPlot* plot() const noexcept { return m_plot; }
+
+ protected:
+  void keyPressEvent(QKeyEvent* event) override;
+
+ private:
+  void rebuild();
+  void updateMarkers();
+  void onMouse(QMouseEvent* event, bool press);
+  [[nodiscard]] double toUnit(double pxPerS) const;
+  [[nodiscard]] double fromUnit(double value) const;
+
+  Observation* m_obs;
+  QCustomPlot* m_plot = nullptr;
+  QCPColorMap* m_map = nullptr;
+  QCPColorScale* m_scale = nullptr;
+  QCPGraph* m_candidates = nullptr;
+  QCPGraph* m_sky = nullptr;
+  QCPGraph* m_current = nullptr;
+  QLabel* m_readout = nullptr;
+};
+
+}  // namespace st::ui
