@@ -32,6 +32,7 @@ void MainWindow::openInputs(const QStringList& paths) {
   const QString label =
       paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
   addRecent(paths);
+  m_demoGrid = false;
   startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
     if (!load) throwMissingService("FITS reader");
     return load(inputs, progress, cancel);
@@ -40,6 +41,7 @@ void MainWindow::openInputs(const QStringList& paths) {
 
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
+  m_demoGrid = true;
   startLoad("demo observation (simulated paper-neo)",
             [simulate](ProgressSink& progress, CancelToken& cancel) {
               if (!simulate) throwMissingService("simulator");
@@ -158,6 +160,14 @@ void MainWindow::onPreparedChanged() {
     m_processing->setSummary(QString::fromStdString(prepared->summary));
     if (prepared->filtered && m_obs->raw()) {
       m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
+      const auto& raw = *m_obs->raw();
+      if (m_demoGrid && raw.plateScaleArcsecPerPx) {
+        // The paper's object moves at ~6 deg/day: +-7 deg/day around the sky rate, 2 px over the span per
+        // step (the paper notes 1 px is finer than the ~3 px PSF needs).
+        const double span = std::max(raw.timeSpanS(), 1e-3);
+        m_search->setGridPxS(prepared->filtered->skyRate,
+                             degPerDayToPxPerSec(7.0, *raw.plateScaleArcsecPerPx), 2.0 / span);
+      }
       m_obs->setVelocity(prepared->filtered->skyRate);
     }
   }
