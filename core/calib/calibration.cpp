@@ -14,10 +14,13 @@
 namespace st::calib {
 namespace {
 
-std::string sizeText(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+std::string sizeText(int w, int h) {
+  return std::to_string(w) + "x" + std::to_string(h);
+}
 
 std::string fileOf(const FrameCube& c) {
-  return c.info().empty() || c.info().front().file.empty() ? std::string("(in memory)") : c.info().front().file;
+  return c.info().empty() || c.info().front().file.empty() ? std::string("(in memory)")
+                                                           : c.info().front().file;
 }
 
 float medianOf(std::vector<float>& v) {
@@ -30,8 +33,8 @@ float medianOf(std::vector<float>& v) {
 }
 
 // Per-pixel median of value(n, i) over n, for i in [0, np).
-Image combineMedian(int w, int h, std::size_t frames, const std::function<float(std::size_t, std::size_t)>& value,
-                    CancelToken& cancel) {
+Image combineMedian(int w, int h, std::size_t frames,
+                    const std::function<float(std::size_t, std::size_t)>& value, CancelToken& cancel) {
   Image out(w, h);
   parallelFor(static_cast<std::size_t>(h), 8, [&](std::size_t y0, std::size_t y1) {
     std::vector<float> s;
@@ -55,12 +58,13 @@ float overscanLevel(const float* frame, int width, const Section& s) {
   std::vector<float> v;
   v.reserve(static_cast<std::size_t>(s.width) * s.height);
   for (int y = s.y0; y < s.y0 + s.height; ++y)
-    for (int x = s.x0; x < s.x0 + s.width; ++x) v.push_back(frame[static_cast<std::size_t>(y) * width + x]);
+    for (int x = s.x0; x < s.x0 + s.width; ++x)
+      v.push_back(frame[static_cast<std::size_t>(y) * width + x]);
   return medianOf(v);
 }
 
-std::optional<Section> sectionFrom(const std::optional<Section>& given, const FitsHeader& header, const char* key,
-                                   int w, int h) {
+std::optional<Section> sectionFrom(const std::optional<Section>& given, const FitsHeader& header,
+                                   const char* key, int w, int h) {
   std::optional<Section> s = given;
   if (!s) {
     s = io::sectionFromHeader(header, key);
@@ -72,9 +76,9 @@ std::optional<Section> sectionFrom(const std::optional<Section>& given, const Fi
 void checkMatches(const FrameCube& calib, const FrameCube& science, const char* what) {
   if (calib.empty()) return;
   if (calib.width() != science.width() || calib.height() != science.height()) {
-    throw InputError(std::string(what) + " frame " + fileOf(calib) + " is " + sizeText(calib.width(), calib.height()) +
-                     " but the science frames (" + fileOf(science) + ") are " +
-                     sizeText(science.width(), science.height()));
+    throw InputError(std::string(what) + " frame " + fileOf(calib) + " is " +
+                     sizeText(calib.width(), calib.height()) + " but the science frames (" + fileOf(science) +
+                     ") are " + sizeText(science.width(), science.height()));
   }
   const std::string bc = binningOf(calib.header), bs = binningOf(science.header);
   if (!bc.empty() && !bs.empty() && bc != bs) {
@@ -86,16 +90,19 @@ void checkMatches(const FrameCube& calib, const FrameCube& science, const char* 
 std::vector<float> overscans(const FrameCube& c, const std::optional<Section>& s) {
   std::vector<float> out(c.frameCount(), 0.0f);
   if (!s) return out;
-  for (std::size_t n = 0; n < c.frameCount(); ++n) out[n] = overscanLevel(c.frame(n), c.width(), *s);
+  for (std::size_t n = 0; n < c.frameCount(); ++n)
+    out[n] = overscanLevel(c.frame(n), c.width(), *s);
   return out;
 }
 
 // Outliers of a master (hot pixels): one-sided clip over the trim region, then > mean + k sigma.
-std::size_t markHot(const Image& img, const std::optional<Section>& region, double k, std::vector<std::uint8_t>& bad) {
+std::size_t markHot(const Image& img, const std::optional<Section>& region, double k,
+                    std::vector<std::uint8_t>& bad) {
   const Section r = region.value_or(Section{0, 0, img.width, img.height});
   std::vector<float> v;
   for (int y = r.y0; y < r.y0 + r.height; ++y)
-    for (int x = r.x0; x < r.x0 + r.width; ++x) v.push_back(img.at(x, y));
+    for (int x = r.x0; x < r.x0 + r.width; ++x)
+      v.push_back(img.at(x, y));
   const stats::ClipStats c = stats::sigmaClipSymmetric(v.data(), v.size(), 5.0);
   const double thr = c.mean + k * std::max(c.sigma, 1e-6);
   std::size_t count = 0;
@@ -121,10 +128,13 @@ std::string binningOf(const FitsHeader& header) {
 Image medianCombine(const FrameCube& cube, CancelToken& cancel) {
   const auto& mask = cube.mask();
   const std::size_t np = cube.framePixels();
-  return combineMedian(cube.width(), cube.height(), cube.frameCount(), [&](std::size_t n, std::size_t i) {
-    if (!mask.empty() && mask[n * np + i]) return std::numeric_limits<float>::quiet_NaN();
-    return cube.frame(n)[i];
-  }, cancel);
+  return combineMedian(
+      cube.width(), cube.height(), cube.frameCount(),
+      [&](std::size_t n, std::size_t i) {
+        if (!mask.empty() && mask[n * np + i]) return std::numeric_limits<float>::quiet_NaN();
+        return cube.frame(n)[i];
+      },
+      cancel);
 }
 
 MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, const FrameCube& flat,
@@ -151,8 +161,9 @@ MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, con
 
   progress.report(0.0, "master bias");
   const auto osBias = overscans(bias, m.biasSec);
-  m.bias = combineMedian(w, h, bias.frameCount(),
-                         [&](std::size_t n, std::size_t i) { return bias.frame(n)[i] - osBias[n]; }, cancel);
+  m.bias = combineMedian(
+      w, h, bias.frameCount(), [&](std::size_t n, std::size_t i) { return bias.frame(n)[i] - osBias[n]; },
+      cancel);
   if (!dark.empty()) {
     progress.report(0.3, "master dark");
     const auto osDark = overscans(dark, m.biasSec);
@@ -161,9 +172,13 @@ MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, con
         throw InputError("dark frame " + dark.info()[n].file + " has no positive exposure time (EXPTIME)");
       }
     }
-    m.darkPerS = combineMedian(w, h, dark.frameCount(), [&](std::size_t n, std::size_t i) {
-      return static_cast<float>((dark.frame(n)[i] - osDark[n] - m.bias.pixels[i]) / dark.info()[n].exposureS);
-    }, cancel);
+    m.darkPerS = combineMedian(
+        w, h, dark.frameCount(),
+        [&](std::size_t n, std::size_t i) {
+          return static_cast<float>((dark.frame(n)[i] - osDark[n] - m.bias.pixels[i]) /
+                                    dark.info()[n].exposureS);
+        },
+        cancel);
     m.hotPixels = markHot(m.darkPerS, m.trimSec, params.hotSigma, m.bad);
   } else {
     m.hotPixels = markHot(m.bias, m.trimSec, params.hotSigma, m.bad);
@@ -193,19 +208,20 @@ MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, con
                          "): not a usable flat");
       }
     }
-    m.flat = combineMedian(w, h, flat.frameCount(),
-                           [&](std::size_t n, std::size_t i) { return static_cast<float>(corrected(n, i) / norm[n]); },
-                           cancel);
+    m.flat = combineMedian(
+        w, h, flat.frameCount(),
+        [&](std::size_t n, std::size_t i) { return static_cast<float>(corrected(n, i) / norm[n]); }, cancel);
     std::vector<float> v;
     for (int y = region.y0; y < region.y0 + region.height; ++y)
-      for (int x = region.x0; x < region.x0 + region.width; ++x) v.push_back(m.flat.at(x, y));
+      for (int x = region.x0; x < region.x0 + region.width; ++x)
+        v.push_back(m.flat.at(x, y));
     const double med = medianOf(v);
     if (!(med > 0.0)) throw InputError("master flat from " + fileOf(flat) + " has no positive median");
     for (std::size_t i = 0; i < np; ++i) {
       float& f = m.flat.pixels[i];
       const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
-      const bool inside = x >= region.x0 && y >= region.y0 && x < region.x0 + region.width &&
-                          y < region.y0 + region.height;
+      const bool inside =
+          x >= region.x0 && y >= region.y0 && x < region.x0 + region.width && y < region.y0 + region.height;
       f = inside ? static_cast<float>(f / med) : 1.0f;  // outside TRIMSEC (overscan) it is trimmed away
       if (!std::isfinite(f) || f <= 0.0f) {
         ++m.flatNonPositive;
@@ -261,14 +277,14 @@ void trimInPlace(FrameCube& cube, const Section& s) {
 
 }  // namespace
 
-CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters, const CalibParams& params,
-                                   ProgressSink& progress, CancelToken& cancel) {
+CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
+                                   const CalibParams& params, ProgressSink& progress, CancelToken& cancel) {
   CalibrationReport rep;
   if (cube.empty()) throw InputError("calibration: the frame cube has no frames");
   const int w = cube.width(), h = cube.height();
   if (!masters.bias.empty() && (masters.width != w || masters.height != h)) {
-    throw InputError("calibration masters are " + sizeText(masters.width, masters.height) + " but the frames (" +
-                     fileOf(cube) + ") are " + sizeText(w, h));
+    throw InputError("calibration masters are " + sizeText(masters.width, masters.height) +
+                     " but the frames (" + fileOf(cube) + ") are " + sizeText(w, h));
   }
   std::optional<Section> biasSec = masters.bias.empty() ? std::nullopt : masters.biasSec;
   std::optional<Section> trimSec = masters.bias.empty() ? std::nullopt : masters.trimSec;
@@ -305,7 +321,8 @@ CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& mas
           if (masters.bad[i]) mask[n * np + i] = 1;
     }
   }
-  if (trimSec && params.trim && !(trimSec->x0 == 0 && trimSec->y0 == 0 && trimSec->width == w && trimSec->height == h)) {
+  if (trimSec && params.trim &&
+      !(trimSec->x0 == 0 && trimSec->y0 == 0 && trimSec->width == w && trimSec->height == h)) {
     trimInPlace(cube, *trimSec);
   }
   rep.trimmedWidth = cube.width();
@@ -313,7 +330,8 @@ CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& mas
   if (!masters.bad.empty()) {
     const Section r = trimSec && params.trim ? *trimSec : Section{0, 0, w, h};
     for (int y = r.y0; y < r.y0 + r.height; ++y)
-      for (int x = r.x0; x < r.x0 + r.width; ++x) rep.badPixels += masters.bad[static_cast<std::size_t>(y) * w + x];
+      for (int x = r.x0; x < r.x0 + r.width; ++x)
+        rep.badPixels += masters.bad[static_cast<std::size_t>(y) * w + x];
   }
   return rep;
 }

@@ -31,22 +31,22 @@ struct Protection {
   }
 };
 
-Protection protection(const FrameCube& cube, const CosmicRayParams& params, double sigma, ProgressSink& progress,
-                      CancelToken& cancel) {
+Protection protection(const FrameCube& cube, const CosmicRayParams& params, double sigma,
+                      ProgressSink& progress, CancelToken& cancel) {
   detect::MovingMask mask(cube.width(), cube.height(), cube.timeOffsetsS(), params.skyRate);
   const std::size_t nf = cube.frameCount();
   const int blocks = static_cast<int>(std::clamp<std::size_t>(params.protectBlocks, 1, nf));
   std::vector<float> minSnr, minMean;
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
-    const detect::SkyStack s =
-        detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, nf * b / blocks, nf * (b + 1) / blocks);
+    const detect::SkyStack s = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, nf * b / blocks,
+                                                      nf * (b + 1) / blocks);
     const Image local = detect::meshBackground(s.mean, s.count, 32);
     if (minSnr.empty()) minSnr.assign(s.mean.size(), 1e30f), minMean.assign(s.mean.size(), 1e30f);
     for (std::size_t i = 0; i < s.mean.size(); ++i) {
-      const float snr = s.count.pixels[i] > 0
-                            ? static_cast<float>((s.mean.pixels[i] - local.pixels[i]) * std::sqrt(s.count.pixels[i]) / sigma)
-                            : 0.0f;
+      const float snr = s.count.pixels[i] > 0 ? static_cast<float>((s.mean.pixels[i] - local.pixels[i]) *
+                                                                   std::sqrt(s.count.pixels[i]) / sigma)
+                                              : 0.0f;
       minSnr[i] = std::min(minSnr[i], snr);
       minMean[i] = std::min(minMean[i], s.mean.pixels[i] - local.pixels[i]);
     }
@@ -78,7 +78,8 @@ double noiseFromFrameDifferences(const FrameCube& cube) {
       if (!mask.empty() && (mask[a * np + i] || mask[b * np + i])) continue;
       d.push_back(cube.frame(b)[i] - cube.frame(a)[i]);
     }
-    if (d.size() > 1) sig.push_back(stats::sigmaClipSymmetric(d.data(), d.size(), 5.0).sigma / std::sqrt(2.0));
+    if (d.size() > 1)
+      sig.push_back(stats::sigmaClipSymmetric(d.data(), d.size(), 5.0).sigma / std::sqrt(2.0));
   }
   if (sig.empty()) return 0.0;
   std::sort(sig.begin(), sig.end());

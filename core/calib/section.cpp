@@ -11,8 +11,8 @@ void checkSectionInside(const Section& s, int width, int height, std::string_vie
       s.y0 + s.height > height) {
     throw InputError(std::string(keyword) + " [" + std::to_string(s.x0 + 1) + ":" +
                      std::to_string(s.x0 + s.width) + "," + std::to_string(s.y0 + 1) + ":" +
-                     std::to_string(s.y0 + s.height) + "] does not fit frames of " + std::to_string(width) + "x" +
-                     std::to_string(height));
+                     std::to_string(s.y0 + s.height) + "] does not fit frames of " + std::to_string(width) +
+                     "x" + std::to_string(height));
   }
 }
 

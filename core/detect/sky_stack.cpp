@@ -36,7 +36,8 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
         if (y < 0 || y >= h) continue;
         const int off = geom.shiftX(n) + s.x0;  // frame column x -> canvas column x - off
         const float* row = cube.frame(n) + static_cast<std::size_t>(y) * w;
-        const std::uint8_t* mrow = mask.empty() ? nullptr : mask.data() + n * np + static_cast<std::size_t>(y) * w;
+        const std::uint8_t* mrow =
+            mask.empty() ? nullptr : mask.data() + n * np + static_cast<std::size_t>(y) * w;
         for (int x = 0; x < w; ++x) {
           if (mrow && mrow[x]) continue;
           const int i = x - off;
@@ -68,7 +69,8 @@ Image meshBackground(const Image& image, const Image& weight, int mesh) {
       for (int y = cy * mesh; y < std::min(h, (cy + 1) * mesh); ++y)
         for (int x = cx * mesh; x < std::min(w, (cx + 1) * mesh); ++x)
           if (weight.at(x, y) > 0) v.push_back(image.at(x, y));
-      if (v.size() >= 8) cell[static_cast<std::size_t>(cy) * nx + cx] = stats::sigmaClip(v.data(), v.size(), 3.0).mean;
+      if (v.size() >= 8)
+        cell[static_cast<std::size_t>(cy) * nx + cx] = stats::sigmaClip(v.data(), v.size(), 3.0).mean;
     }
   // Empty cells take the mean of the filled ones.
   double fill = 0.0;

@@ -13,7 +13,8 @@ namespace st::detect {
 namespace {
 
 // Connected pixels (8-neighbours) with snr >= grow, reached from a seed with snr >= seed.
-std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, int h, double seed, double grow) {
+std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, int h, double seed,
+                                         double grow) {
   std::vector<std::vector<int>> out;
   std::vector<std::uint8_t> seen(snr.size(), 0);
   std::vector<int> stack;
@@ -42,8 +43,8 @@ std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, i
   return out;
 }
 
-Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr, const SkyStack& s,
-              const StaticSourceParams& params, double background) {
+Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr,
+              const SkyStack& s, const StaticSourceParams& params, double background) {
   Star st;
   double sw = 0.0, sx = 0.0, sy = 0.0;
   float peakMax = -1e30f;
@@ -70,7 +71,8 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
   int nearTop = 0;
   for (int p : comp) {
     const float m = s.max.pixels[p];
-    const bool sat = params.saturationLevel ? m >= level : (m >= 0.995f * peakMax && peakMax - background > 1000.0);
+    const bool sat =
+        params.saturationLevel ? m >= level : (m >= 0.995f * peakMax && peakMax - background > 1000.0);
     if (sat) {
       ++nearTop;
       ++satPerColumn[p % w];
@@ -88,7 +90,8 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
-                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel) {
+                                const StaticSourceParams& params, ProgressSink& progress,
+                                CancelToken& cancel) {
   StaticSources out;
   out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
   SubProgress sub(progress, 0.0, 0.8);
@@ -112,7 +115,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const auto comps = components(snr, cw, ch, params.snrThreshold, params.growSnr);
   for (const auto& comp : comps) {
     out.stars.push_back(describe(comp, resid, snr, s, params, background));
-    for (int p : comp) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+    for (int p : comp)
+      out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
   }
   out.mask.dilate(static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
@@ -127,7 +131,8 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
   const auto& c = mask.canvas();
   for (int j = 0; j < mask.canvasHeight(); ++j)
     for (int i = 0; i < mask.canvasWidth(); ++i)
-      if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i]) set.emplace_back(mask.x0() + i, mask.y0() + j);
+      if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i])
+        set.emplace_back(mask.x0() + i, mask.y0() + j);
   std::vector<std::size_t> perFrame(cube.frameCount(), 0);
   const int w = cube.width(), h = cube.height();
   parallelFor(cube.frameCount(), 16, [&](std::size_t n0, std::size_t n1) {
@@ -144,7 +149,8 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
     progress.report(static_cast<double>(n1) / cube.frameCount(), "zero static sources");
   });
   std::size_t total = 0;
-  for (auto v : perFrame) total += v;
+  for (auto v : perFrame)
+    total += v;
   return total;
 }
 

@@ -17,7 +17,8 @@ std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted) {
   if (total == 0) return idx;
   const std::size_t n = std::min(total, std::max<std::size_t>(1, wanted));
   idx.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) idx.push_back(n == total ? i : (i * total) / n);
+  for (std::size_t i = 0; i < n; ++i)
+    idx.push_back(n == total ? i : (i * total) / n);
   return idx;
 }
 
@@ -75,7 +76,8 @@ RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi)
       }
       const double m = s[x] / static_cast<double>(c[x]);
       r.mean[x] = shift[x] + m;
-      r.sigma[x] = c[x] > 1 ? std::sqrt(std::max(0.0, (ss[x] - s[x] * m) / static_cast<double>(c[x] - 1))) : 0.0;
+      r.sigma[x] =
+          c[x] > 1 ? std::sqrt(std::max(0.0, (ss[x] - s[x] * m) / static_cast<double>(c[x] - 1))) : 0.0;
       if (c[x] == prev[x]) {
         done[x] = 1;
         --remaining;
@@ -112,7 +114,8 @@ ClipStats globalBackground(const FrameCube& cube, const GlobalBackgroundParams& 
 }
 
 Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
-                              const detect::MovingMask* exclude, ProgressSink& progress, CancelToken& cancel) {
+                              const detect::MovingMask* exclude, ProgressSink& progress,
+                              CancelToken& cancel) {
   Background out;
   out.global = globalBackground(cube, params.global);
   const int w = cube.width(), h = cube.height();
@@ -208,7 +211,8 @@ Image boxSmooth(const Image& image, int box, const std::vector<std::uint8_t>& va
         return alongX ? a[static_cast<std::size_t>(l) * w + k] : a[static_cast<std::size_t>(k) * w + l];
       };
       std::vector<double> prefix(len + 1, 0.0);
-      for (int k = 0; k < len; ++k) prefix[k + 1] = prefix[k] + at(k);
+      for (int k = 0; k < len; ++k)
+        prefix[k + 1] = prefix[k] + at(k);
       for (int k = 0; k < len; ++k) {
         const double s = prefix[std::min(len, k + r + 1)] - prefix[std::max(0, k - r)];
         (alongX ? out[static_cast<std::size_t>(l) * w + k] : out[static_cast<std::size_t>(k) * w + l]) = s;
@@ -221,7 +225,8 @@ Image boxSmooth(const Image& image, int box, const std::vector<std::uint8_t>& va
   pass(wt, true);
   pass(wt, false);
   Image out(w, h);
-  for (std::size_t i = 0; i < out.size(); ++i) out.pixels[i] = wt[i] > 0 ? static_cast<float>(v[i] / wt[i]) : 0.0f;
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out.pixels[i] = wt[i] > 0 ? static_cast<float>(v[i] / wt[i]) : 0.0f;
   return out;
 }
 

@@ -69,7 +69,8 @@ struct SynthScene {
     const auto dt = cube.timeOffsetsS();
     for (std::size_t n = 0; n < frames; ++n) {
       float* f = cube.frame(n);
-      for (std::size_t i = 0; i < cube.framePixels(); ++i) f[i] = static_cast<float>(background) + noise(rng);
+      for (std::size_t i = 0; i < cube.framePixels(); ++i)
+        f[i] = static_cast<float>(background) + noise(rng);
       for (const auto& s : stars)
         addGauss(f, width, height, s.x + skyRate.vx * dt[n], s.y + skyRate.vy * dt[n], s.peak, fwhm);
       if (withObject) {

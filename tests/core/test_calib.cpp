@@ -59,12 +59,16 @@ TEST(Calibration, RecoversSkyThroughBiasOverscanFlatAndTrim) {
   FrameCube flat = d.frames(5, 20000.0, 0.0, 2, "flat.fits");
   for (std::size_t k = 0; k < flat.frameCount(); ++k)  // twilight: flats differ in level
     for (int i = 0; i < d.w * d.h; ++i)
-      if (i % d.w < d.dataW) flat.frame(k)[i] = 100.0f + d.bias(i % d.w, i / d.w) + (flat.frame(k)[i] - 100.0f - d.bias(i % d.w, i / d.w)) * (1.0f + 0.1f * k);
+      if (i % d.w < d.dataW)
+        flat.frame(k)[i] = 100.0f + d.bias(i % d.w, i / d.w) +
+                           (flat.frame(k)[i] - 100.0f - d.bias(i % d.w, i / d.w)) * (1.0f + 0.1f * k);
   FrameCube sci = d.frames(4, 1000.0, 5.0, 3, "sci.fits");
   sci.header.setNumber("CRPIX1", 20.0);
   // One dead pixel (flat 0 -> masked, never inf) and one hot pixel in the bias.
-  for (std::size_t k = 0; k < flat.frameCount(); ++k) flat.frame(k)[5 * d.w + 7] = 100.0f + d.bias(7, 5);
-  for (std::size_t k = 0; k < bias.frameCount(); ++k) bias.frame(k)[9 * d.w + 11] += 500.0f;
+  for (std::size_t k = 0; k < flat.frameCount(); ++k)
+    flat.frame(k)[5 * d.w + 7] = 100.0f + d.bias(7, 5);
+  for (std::size_t k = 0; k < bias.frameCount(); ++k)
+    bias.frame(k)[9 * d.w + 11] += 500.0f;
   NullProgress p;
   CancelToken c;
   const MasterCalibration m = buildMasters(bias, FrameCube(), flat, sci, {}, p, c);
@@ -151,13 +155,15 @@ TEST(Calibration, DarkScalesWithExposure) {
   for (std::size_t k = 0; k < dark.frameCount(); ++k) {
     dark.info()[k].exposureS = 100.0;
     for (int y = 0; y < d.h; ++y)
-      for (int x = 0; x < d.dataW; ++x) dark.frame(k)[y * d.w + x] += 0.5f * 100.0f;  // 0.5 counts/s
+      for (int x = 0; x < d.dataW; ++x)
+        dark.frame(k)[y * d.w + x] += 0.5f * 100.0f;  // 0.5 counts/s
   }
   FrameCube sci = d.frames(2, 0.0, 0.0, 12, "sci.fits");
   for (std::size_t k = 0; k < sci.frameCount(); ++k) {
     sci.info()[k].exposureS = 30.0;
     for (int y = 0; y < d.h; ++y)
-      for (int x = 0; x < d.dataW; ++x) sci.frame(k)[y * d.w + x] += 0.5f * 30.0f;
+      for (int x = 0; x < d.dataW; ++x)
+        sci.frame(k)[y * d.w + x] += 0.5f * 30.0f;
   }
   NullProgress p;
   CancelToken c;
@@ -165,7 +171,8 @@ TEST(Calibration, DarkScalesWithExposure) {
   EXPECT_NEAR(m.darkPerS.at(3, 3), 0.5, 0.02);
   applyCalibration(sci, m, {}, p, c);
   double mean = 0.0;
-  for (float v : sci.pixels()) mean += v;
+  for (float v : sci.pixels())
+    mean += v;
   EXPECT_NEAR(mean / static_cast<double>(sci.pixels().size()), 0.0, 0.1);
 }
 

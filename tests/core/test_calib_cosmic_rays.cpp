@@ -30,17 +30,22 @@ void checkRemoval(bool drifting) {
   const std::size_t np = cube.framePixels();
   std::set<std::uint64_t> flagged(r.pixels.begin(), r.pixels.end());
   std::set<std::uint64_t> injected;
-  for (const auto& h : sc.injected) injected.insert(h.frame * np + static_cast<std::size_t>(h.y) * sc.width + h.x);
+  for (const auto& h : sc.injected)
+    injected.insert(h.frame * np + static_cast<std::size_t>(h.y) * sc.width + h.x);
   std::size_t found = 0;
-  for (auto q : injected) found += flagged.count(q);
+  for (auto q : injected)
+    found += flagged.count(q);
   EXPECT_GE(found, static_cast<std::size_t>(std::ceil(0.95 * injected.size())))
       << found << " of " << injected.size() << " hit pixels removed";
   std::size_t falseFlags = 0;
-  for (auto q : flagged) falseFlags += injected.count(q) == 0;
+  for (auto q : flagged)
+    falseFlags += injected.count(q) == 0;
   EXPECT_LE(falseFlags, injected.size() / 50) << "pixels flagged that no hit touched";
-  for (auto q : flagged) EXPECT_EQ(cube.pixels()[q], 0.0f);
+  for (auto q : flagged)
+    EXPECT_EQ(cube.pixels()[q], 0.0f);
   std::size_t perFrameSum = 0;
-  for (auto v : r.perFrame) perFrameSum += v;
+  for (auto v : r.perFrame)
+    perFrameSum += v;
   EXPECT_EQ(perFrameSum, r.total);
   // The moving object: none of its pixels (within 2 px of its centre) removed unless a hit landed there.
   const auto dt = cube.timeOffsetsS();
@@ -51,7 +56,8 @@ void checkRemoval(bool drifting) {
         if (x < 0 || y < 0 || x >= sc.width || y >= sc.height) continue;
         const std::uint64_t q = n * np + static_cast<std::size_t>(y) * sc.width + x;
         if (injected.count(q)) continue;
-        EXPECT_EQ(flagged.count(q), 0u) << "object pixel " << x << "," << y << " of frame " << n << " removed";
+        EXPECT_EQ(flagged.count(q), 0u)
+            << "object pixel " << x << "," << y << " of frame " << n << " removed";
       }
     for (const auto& s : sc.stars) {
       const int x = static_cast<int>(std::lround(s.x + sc.skyRate.vx * dt[n]));
@@ -65,8 +71,12 @@ void checkRemoval(bool drifting) {
   }
 }
 
-TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsTracked) { checkRemoval(false); }
-TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsDrifting) { checkRemoval(true); }
+TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsTracked) {
+  checkRemoval(false);
+}
+TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsDrifting) {
+  checkRemoval(true);
+}
 
 TEST(CosmicRays, TimeNeighbourFillAndLaterZero) {
   test::SynthScene sc;
@@ -79,9 +89,11 @@ TEST(CosmicRays, TimeNeighbourFillAndLaterZero) {
   params.fill = CosmicRayParams::Fill::TimeNeighbours;
   const CosmicRayResult r = removeCosmicRays(cube, params, p, c);
   ASSERT_GT(r.total, 0u);
-  for (auto q : r.pixels) EXPECT_NEAR(cube.pixels()[q], sc.background, 6 * sc.sigma);
+  for (auto q : r.pixels)
+    EXPECT_NEAR(cube.pixels()[q], sc.background, 6 * sc.sigma);
   zeroPixels(cube, r.pixels);
-  for (auto q : r.pixels) EXPECT_EQ(cube.pixels()[q], 0.0f);
+  for (auto q : r.pixels)
+    EXPECT_EQ(cube.pixels()[q], 0.0f);
 }
 
 TEST(CosmicRays, TooFewFramesDoesNothing) {

@@ -1,6 +1,6 @@
-// Calibration on the real Lowell 42-inch bias and flat frames (../shared/data/real/lowell42-5945; skipped when
-// absent): masters are finite, the flat is normalised with its unusable pixels counted, science frames come
-// out trimmed to TRIMSEC with no NaN and a positive sky.
+// Calibration on the real Lowell 42-inch bias and flat frames (../shared/data/real/lowell42-5945; skipped
+// when absent): masters are finite, the flat is normalised with its unusable pixels counted, science frames
+// come out trimmed to TRIMSEC with no NaN and a positive sky.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,7 +16,8 @@ namespace {
 
 std::vector<std::string> filesIn(const std::filesystem::path& dir, std::size_t max = 100) {
   std::vector<std::string> out;
-  for (const auto& e : std::filesystem::directory_iterator(dir)) out.push_back(e.path().string());
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    out.push_back(e.path().string());
   std::sort(out.begin(), out.end());
   if (out.size() > max) out.resize(max);
   return out;
@@ -41,18 +42,22 @@ TEST(CalibrationReal, LowellBiasAndFlat) {
   // After overscan subtraction the bias residual in the data area is a few counts at most.
   std::vector<float> b;
   for (int y = 0; y < 1370; ++y)
-    for (int x = 17; x < 1382; ++x) b.push_back(m.bias.at(x, y));
+    for (int x = 17; x < 1382; ++x)
+      b.push_back(m.bias.at(x, y));
   std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
   EXPECT_LT(std::abs(b[b.size() / 2]), 20.0f);
   // The flat is normalised to median 1 inside TRIMSEC and is finite and positive everywhere.
   std::vector<float> f;
   for (int y = 0; y < 1370; ++y)
-    for (int x = 17; x < 1382; ++x) f.push_back(m.flat.at(x, y));
+    for (int x = 17; x < 1382; ++x)
+      f.push_back(m.flat.at(x, y));
   std::nth_element(f.begin(), f.begin() + f.size() / 2, f.end());
   EXPECT_NEAR(f[f.size() / 2], 1.0, 0.01);
-  for (float v : m.flat.pixels) ASSERT_TRUE(std::isfinite(v) && v > 0.0f);
+  for (float v : m.flat.pixels)
+    ASSERT_TRUE(std::isfinite(v) && v > 0.0f);
   const double nData = 1365.0 * 1370.0;
-  // This flat is vignetted to ~0.3 in the corners; below flatLow (0.2) only the far corners (~1.3%) are masked.
+  // This flat is vignetted to ~0.3 in the corners; below flatLow (0.2) only the far corners (~1.3%) are
+  // masked.
   EXPECT_LT(static_cast<double>(m.flatNonPositive + m.flatOutliers), 0.03 * nData);
   EXPECT_LT(static_cast<double>(m.hotPixels), 0.001 * nData);
   for (std::size_t i = 0; i < m.bad.size(); ++i) {
@@ -69,7 +74,8 @@ TEST(CalibrationReal, LowellBiasAndFlat) {
   std::vector<float> sky;
   for (std::size_t i = 0; i < sci.framePixels(); ++i) {
     ASSERT_TRUE(std::isfinite(sci.frame(0)[i]));
-    if (!sci.isMasked(0, static_cast<int>(i % 1365), static_cast<int>(i / 1365))) sky.push_back(sci.frame(0)[i]);
+    if (!sci.isMasked(0, static_cast<int>(i % 1365), static_cast<int>(i / 1365)))
+      sky.push_back(sci.frame(0)[i]);
   }
   std::nth_element(sky.begin(), sky.begin() + sky.size() / 2, sky.end());
   EXPECT_GT(sky[sky.size() / 2], 10.0f);  // 300 s of sky in VR

@@ -1,5 +1,5 @@
-// Static sources (paper §4.3): stars found in the sky-rate stack and zeroed along the sky motion, the sky rate
-// measured from the stars, the moving object left alone.
+// Static sources (paper §4.3): stars found in the sky-rate stack and zeroed along the sky motion, the sky
+// rate measured from the stars, the moving object left alone.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -43,7 +43,8 @@ TEST(MovingMask, FollowsTheSkyRate) {
   m.set(-4, 10);
   EXPECT_TRUE(m.covers(2, 1, 8));
   m.dilate(2);
-  // Two discs of radius 2 (13 px each); the one at x = -4 loses its leftmost pixel to the canvas edge (x0 = -5).
+  // Two discs of radius 2 (13 px each); the one at x = -4 loses its leftmost pixel to the canvas edge (x0 =
+  // -5).
   EXPECT_EQ(m.x0(), -5);
   EXPECT_EQ(m.count(), 25u);
 }
@@ -102,13 +103,15 @@ TEST_P(StaticSourcesTest, FindsStarsZeroesThemAndKeepsTheMovingObject) {
     for (const auto& s : sc.stars) {  // star centres are zero in every frame
       const int x = static_cast<int>(std::lround(s.x + sky.vx * dt[n]));
       const int y = static_cast<int>(std::lround(s.y + sky.vy * dt[n]));
-      if (x >= 0 && y >= 0 && x < cube.width() && y < cube.height()) starResidue += cube.frame(n)[y * cube.width() + x] != 0.0f;
+      if (x >= 0 && y >= 0 && x < cube.width() && y < cube.height())
+        starResidue += cube.frame(n)[y * cube.width() + x] != 0.0f;
     }
   }
   EXPECT_GT(objectPixelsKept, 500u);
   EXPECT_EQ(starResidue, 0u);
   std::size_t seeds = 0;
-  for (auto s : single.seedsPerFrame) seeds += s;
+  for (auto s : single.seedsPerFrame)
+    seeds += s;
   EXPECT_LT(seeds, 3u);  // stars already gone; pure noise rarely reaches 7 sigma
 }
 
@@ -134,8 +137,8 @@ TEST(SkyStack, CountsOnlyContributingFrames) {
   NullProgress p;
   CancelToken c;
   const SkyStack s = stackAtSkyRate(cube, {1.0, 0.0}, 0.0, p, c);
-  EXPECT_EQ(s.mean.width, 14);  // shifts -2..2
-  EXPECT_EQ(s.count.at(0, 0), 1.0f);   // reference x = -2: only the last frame sees it
+  EXPECT_EQ(s.mean.width, 14);        // shifts -2..2
+  EXPECT_EQ(s.count.at(0, 0), 1.0f);  // reference x = -2: only the last frame sees it
   EXPECT_EQ(s.count.at(7, 3), 5.0f);
   EXPECT_FLOAT_EQ(s.mean.at(0, 0), 1.0f);
 }

@@ -23,10 +23,12 @@ ClipStats literalClip(const std::vector<float>& y, double xi) {
   ClipStats out;
   for (int it = 1; it < 1000; ++it) {
     double mean = 0.0;
-    for (auto i : b) mean += y[i];
+    for (auto i : b)
+      mean += y[i];
     mean /= static_cast<double>(b.size());
     double var = 0.0;
-    for (auto i : b) var += (y[i] - mean) * (y[i] - mean);
+    for (auto i : b)
+      var += (y[i] - mean) * (y[i] - mean);
     const double sd = std::sqrt(var / static_cast<double>(b.size() - 1));
     std::vector<std::size_t> nb;
     for (std::size_t i = 0; i < y.size(); ++i)
@@ -42,8 +44,10 @@ TEST(SigmaClip, MatchesLiteralPaperAlgorithm) {
   std::mt19937 rng(1);
   std::normal_distribution<float> noise(100.0f, 5.0f);
   std::vector<float> y(5000);
-  for (auto& v : y) v = noise(rng);
-  for (int i = 0; i < 200; ++i) y[i * 7] += 30.0f + i;  // signals above the background
+  for (auto& v : y)
+    v = noise(rng);
+  for (int i = 0; i < 200; ++i)
+    y[i * 7] += 30.0f + i;  // signals above the background
   for (double xi : {3.0, 4.0, 5.0}) {
     const ClipStats fast = sigmaClip(y.data(), y.size(), xi);
     const ClipStats ref = literalClip(y, xi);
@@ -58,8 +62,10 @@ TEST(SigmaClip, RemovesSignalsAndRecoversGaussianTruth) {
   std::mt19937 rng(2);
   std::normal_distribution<float> noise(1000.0f, 10.0f);
   std::vector<float> y(200000);
-  for (auto& v : y) v = noise(rng);
-  for (std::size_t i = 0; i < y.size(); i += 50) y[i] += 500.0f;  // 2% bright outliers
+  for (auto& v : y)
+    v = noise(rng);
+  for (std::size_t i = 0; i < y.size(); i += 50)
+    y[i] += 500.0f;  // 2% bright outliers
   const ClipStats c = sigmaClip(y.data(), y.size(), 4.0);
   EXPECT_NEAR(c.mean, 1000.0, 0.1);  // ~4 standard errors of the mean (10 / sqrt(2e5) = 0.022)
   EXPECT_NEAR(c.sigma, 10.0, 0.1);
@@ -81,8 +87,10 @@ TEST(SigmaClip, SymmetricClipsBothSides) {
   std::mt19937 rng(3);
   std::normal_distribution<float> noise(0.0f, 1.0f);
   std::vector<float> y(20000);
-  for (auto& v : y) v = noise(rng);
-  for (int i = 0; i < 100; ++i) y[i] = (i % 2 ? 50.0f : -50.0f);
+  for (auto& v : y)
+    v = noise(rng);
+  for (int i = 0; i < 100; ++i)
+    y[i] = (i % 2 ? 50.0f : -50.0f);
   const ClipStats c = sigmaClipSymmetric(y.data(), y.size(), 5.0);
   EXPECT_NEAR(c.sigma, 1.0, 0.03);
   EXPECT_NEAR(c.mean, 0.0, 0.03);
@@ -97,7 +105,8 @@ FrameCube noisyCube(int w, int h, std::size_t nf, double sigma, std::uint32_t se
     cube.info()[n].mjdMid = 60000.0 + static_cast<double>(n) / 86400.0;
     float* f = cube.frame(n);
     for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) f[y * w + x] = 500.0f + 0.5f * x + 0.25f * y + noise(rng);
+      for (int x = 0; x < w; ++x)
+        f[y * w + x] = 500.0f + 0.5f * x + 0.25f * y + noise(rng);
     const int sx = static_cast<int>(n * 3) % w, sy = static_cast<int>(n * 5) % h;
     f[sy * w + sx] += 400.0f;  // a bright moving object: an outlier in each pixel's time series
   }
@@ -134,14 +143,16 @@ TEST(Background, BiasAndNoiseMatchTruth) {
   const Background bg = estimateBackground(cube, {}, nullptr, p, c);
   double bias = 0.0;
   for (int y = 0; y < 48; ++y)
-    for (int x = 0; x < 64; ++x) bias += bg.level.at(x, y) - (500.0 + 0.5 * x + 0.25 * y);
+    for (int x = 0; x < 64; ++x)
+      bias += bg.level.at(x, y) - (500.0 + 0.5 * x + 0.25 * y);
   bias /= 64.0 * 48.0;
-  EXPECT_LT(std::abs(bias), 0.05 * sigma);  // issue 3: bias < 0.05 sigma
+  EXPECT_LT(std::abs(bias), 0.05 * sigma);      // issue 3: bias < 0.05 sigma
   EXPECT_NEAR(bg.sigmaN, sigma, 0.03 * sigma);  // issue 3: sigma_n within 3%
   EXPECT_EQ(bg.pixelsFilled, 0u);
   subtractBackground(cube, bg.level, p, c);
   double mean = 0.0;
-  for (float v : cube.pixels()) mean += v;
+  for (float v : cube.pixels())
+    mean += v;
   EXPECT_LT(std::abs(mean / static_cast<double>(cube.pixels().size())), 0.05 * sigma);
 }
 
@@ -149,7 +160,8 @@ TEST(Background, ExcludedStaticSourceDoesNotBiasLevel) {
   // A static star (tracked telescope) is constant in every frame: without exclusion the per-pixel clip takes
   // it as background; with the star's MovingMask it is left out and the level falls back to the global mean.
   FrameCube cube = noisyCube(32, 32, 100, 5.0, 6);
-  for (std::size_t n = 0; n < cube.frameCount(); ++n) cube.frame(n)[16 * 32 + 16] += 25.0f;  // below the strong-signal cut
+  for (std::size_t n = 0; n < cube.frameCount(); ++n)
+    cube.frame(n)[16 * 32 + 16] += 25.0f;  // below the strong-signal cut
   detect::MovingMask mask(32, 32, cube.timeOffsetsS(), {});
   mask.set(16, 16);
   NullProgress p;
@@ -185,7 +197,8 @@ TEST(Background, SmoothNoiseMapIsFinite) {
   params.noiseMapBoxPx = 9;
   const Background bg = estimateBackground(cube, params, nullptr, p, c);
   ASSERT_EQ(bg.noiseMap.size(), bg.sigma.size());
-  for (float v : bg.noiseMap.pixels) EXPECT_NEAR(v, 7.0, 1.0);
+  for (float v : bg.noiseMap.pixels)
+    EXPECT_NEAR(v, 7.0, 1.0);
 }
 
 }  // namespace

@@ -17,29 +17,29 @@
 namespace st::calib {
 
 struct CalibParams {
-  bool subtractOverscan = true;     ///< subtract the median of BIASSEC from each frame when it is known
-  bool trim = true;                 ///< trim every frame to TRIMSEC when it is known
-  std::optional<Section> biasSec;   ///< overrides the header's BIASSEC (0-based)
-  std::optional<Section> trimSec;   ///< overrides the header's TRIMSEC (0-based)
-  double hotSigma = 8.0;            ///< hot pixel: master dark (or bias) above clip mean + hotSigma * sigma
-  double flatLow = 0.2;             ///< bad pixel: normalised flat below this (or <= 0); real flats are
-                                    ///< vignetted to ~0.3 in corners (Lowell 42-inch), which stays usable
-  double flatHigh = 2.0;            ///< ... or above this
+  bool subtractOverscan = true;    ///< subtract the median of BIASSEC from each frame when it is known
+  bool trim = true;                ///< trim every frame to TRIMSEC when it is known
+  std::optional<Section> biasSec;  ///< overrides the header's BIASSEC (0-based)
+  std::optional<Section> trimSec;  ///< overrides the header's TRIMSEC (0-based)
+  double hotSigma = 8.0;           ///< hot pixel: master dark (or bias) above clip mean + hotSigma * sigma
+  double flatLow = 0.2;            ///< bad pixel: normalised flat below this (or <= 0); real flats are
+                                   ///< vignetted to ~0.3 in corners (Lowell 42-inch), which stays usable
+  double flatHigh = 2.0;           ///< ... or above this
 };
 
 /// Masters at the raw (untrimmed) frame size. Empty images mean "not given".
 struct MasterCalibration {
-  int width = 0;                  ///< raw frame size the masters were built for
+  int width = 0;  ///< raw frame size the masters were built for
   int height = 0;
   std::string binning;            ///< the calibration frames' binning (CCDSUM/XBINNING...), empty if unknown
   Image bias;                     ///< per-pixel median of the bias frames (overscan-subtracted), counts
   Image darkPerS;                 ///< median of (dark - bias) / EXPTIME, counts per second
   Image flat;                     ///< normalised flat (median 1); 1 where it was unusable (then masked)
   std::vector<std::uint8_t> bad;  ///< 1 = bad pixel (hot, or unusable flat), raw size; empty = none
-  std::size_t hotPixels = 0;         ///< from the dark (or bias) outliers
-  std::size_t flatNonPositive = 0;   ///< flat pixels <= 0 (or not finite) after bias subtraction
-  std::size_t flatOutliers = 0;      ///< flat pixels outside [flatLow, flatHigh] after normalisation
-  std::optional<Section> biasSec;    ///< the overscan used (from params or the calibration headers)
+  std::size_t hotPixels = 0;      ///< from the dark (or bias) outliers
+  std::size_t flatNonPositive = 0;  ///< flat pixels <= 0 (or not finite) after bias subtraction
+  std::size_t flatOutliers = 0;     ///< flat pixels outside [flatLow, flatHigh] after normalisation
+  std::optional<Section> biasSec;   ///< the overscan used (from params or the calibration headers)
   std::optional<Section> trimSec;
 };
 
@@ -62,8 +62,8 @@ struct CalibrationReport {
 /// cube's mask; then the trim (the pixel buffer is compacted in place, no second cube). Without masters
 /// (`masters` empty) only overscan and trim are done, from params or the cube's header. Throws st::InputError
 /// on a size mismatch (naming both sizes and the file).
-CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters, const CalibParams& params,
-                                   ProgressSink& progress, CancelToken& cancel);
+CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
+                                   const CalibParams& params, ProgressSink& progress, CancelToken& cancel);
 
 /// The binning of a header as text ("3 3"), from CCDSUM, or XBINNING/YBINNING, or BINNING; empty if absent.
 std::string binningOf(const FitsHeader& header);

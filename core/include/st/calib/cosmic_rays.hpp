@@ -21,8 +21,8 @@ struct CosmicRayParams {
                                 ///< stacks are protected (a star is in every block, a hit in one)
   int protectBlocks = 3;
   int protectDilatePx = 2;
-  double protectedExcess = 1.0; ///< on a protected pixel a hit must also exceed this times the star signal
-  Velocity skyRate;             ///< px/s, so that protection follows drifting stars
+  double protectedExcess = 1.0;  ///< on a protected pixel a hit must also exceed this times the star signal
+  Velocity skyRate;              ///< px/s, so that protection follows drifting stars
   enum class Fill { Zero, TimeNeighbours };
   /// Zero (the paper) for zero-biased frames; TimeNeighbours (mean of the two frames used as reference) when
   /// the background has not been subtracted yet, so that the per-pixel clip is not pulled down. The pipeline

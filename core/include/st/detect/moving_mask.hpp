@@ -33,7 +33,9 @@ class MovingMask {
   void set(int x, int y);
   [[nodiscard]] bool isSetAtRef(int x, int y) const;
   /// True when pixel (x, y) of frame n is covered.
-  [[nodiscard]] bool covers(std::size_t n, int x, int y) const { return isSetAtRef(x - m_sx[n], y - m_sy[n]); }
+  [[nodiscard]] bool covers(std::size_t n, int x, int y) const {
+    return isSetAtRef(x - m_sx[n], y - m_sy[n]);
+  }
   /// Grows every set region by a disc of `radius` pixels.
   void dilate(int radius);
   /// Number of set reference positions.

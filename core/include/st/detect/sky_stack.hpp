@@ -14,7 +14,7 @@
 namespace st::detect {
 
 struct SkyStack {
-  int x0 = 0;   ///< reference position of canvas pixel (0, 0)
+  int x0 = 0;  ///< reference position of canvas pixel (0, 0)
   int y0 = 0;
   Image mean;   ///< mean over contributing frames of (F_n - subtract), counts per frame
   Image count;  ///< number of contributing frames

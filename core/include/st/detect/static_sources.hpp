@@ -26,12 +26,12 @@ struct StaticSourceParams {
 /// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky
 /// drifts).
 struct Star {
-  double x = 0.0;                 ///< flux-weighted centroid, column
-  double y = 0.0;                 ///< row
-  double flux = 0.0;              ///< counts per frame summed over the footprint (background removed)
-  double peak = 0.0;              ///< highest stacked pixel, counts per frame
-  double snr = 0.0;               ///< peak SNR in the sky-rate stack
-  int pixels = 0;                 ///< footprint size before dilation
+  double x = 0.0;     ///< flux-weighted centroid, column
+  double y = 0.0;     ///< row
+  double flux = 0.0;  ///< counts per frame summed over the footprint (background removed)
+  double peak = 0.0;  ///< highest stacked pixel, counts per frame
+  double snr = 0.0;   ///< peak SNR in the sky-rate stack
+  int pixels = 0;     ///< footprint size before dilation
   bool saturated = false;
   std::vector<int> bleedColumns;  ///< columns (0-based, at t_ref) with a vertical run of saturated pixels
 };
@@ -46,7 +46,8 @@ struct StaticSources {
 /// global clip mean) removed and a mesh background of the stack subtracted. Seeds are pixels with stack SNR
 /// >= snrThreshold, grown over connected pixels down to growSnr. Throws st::Cancelled.
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
-                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel);
+                                const StaticSourceParams& params, ProgressSink& progress,
+                                CancelToken& cancel);
 
 /// Sets every pixel covered by `mask` to 0 in every frame (frames must be zero-biased). Returns the number of
 /// pixels zeroed over all frames.

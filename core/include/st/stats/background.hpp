@@ -24,13 +24,13 @@ ClipStats globalBackground(const FrameCube& cube, const GlobalBackgroundParams& 
 
 struct BackgroundParams {
   GlobalBackgroundParams global;  ///< the pixel-independent first estimate (paper: 50 frames, xi = 5)
-  double xi = 4.0;              ///< per-pixel clip threshold (paper §3.1: 4)
-  std::size_t maxFrames = 2000; ///< frames per pixel, evenly spaced when the cube has more (paper: ~2000)
-  double strongSignalXi = 5.0;  ///< samples above global mean + this * global sigma are left out first
-                                ///< ("eliminate most of the strong signals", paper §4.2)
-  std::size_t minSamples = 10;  ///< pixels with fewer background samples take the global mean
-  bool noiseMap = false;        ///< also compute a smooth noise map (box mean of the per-pixel sigma)
-  int noiseMapBoxPx = 33;       ///< side of that box, pixels
+  double xi = 4.0;                ///< per-pixel clip threshold (paper §3.1: 4)
+  std::size_t maxFrames = 2000;   ///< frames per pixel, evenly spaced when the cube has more (paper: ~2000)
+  double strongSignalXi = 5.0;    ///< samples above global mean + this * global sigma are left out first
+                                  ///< ("eliminate most of the strong signals", paper §4.2)
+  std::size_t minSamples = 10;    ///< pixels with fewer background samples take the global mean
+  bool noiseMap = false;          ///< also compute a smooth noise map (box mean of the per-pixel sigma)
+  int noiseMapBoxPx = 33;         ///< side of that box, pixels
 };
 
 struct Background {

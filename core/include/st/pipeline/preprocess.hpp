@@ -1,0 +1,80 @@
+#pragma once
+// Pre-processing of one observation (paper §4.2-4.3, ARCHITECTURE.md data flow):
+//   calibrate (overscan, bias, dark, flat, trim, bad pixels)
+//   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
+//   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
+//   -> static sources in the sky-rate stack (SNR >= 7): star catalog and footprint mask
+//   -> per-pixel background (<= 2000 frames, xi = 4, stars left out), sigma_n, subtraction (zero-biased)
+//   -> cosmic-ray pixels, static sources (along the sky motion) and single-frame sources (SNR >= 7) zeroed
+//   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing) -> matched filter.
+//
+// Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
+// cube is the matched-filtered copy (Prepared::filtered). Per-pixel images (background, noise), the
+// stacks and masks are frame-sized; the cube's pixel mask (1 byte per sample, a quarter of a float cube)
+// exists only when the loader or the bad-pixel mask needs one.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/calib/calibration.hpp"
+#include "st/calib/cosmic_rays.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/detect/sky_rate.hpp"
+#include "st/detect/static_sources.hpp"
+#include "st/psf/moffat.hpp"
+#include "st/search/types.hpp"
+#include "st/stats/background.hpp"
+
+namespace st::pipeline {
+
+struct PreprocessParams {
+  std::optional<calib::MasterCalibration> masters;  ///< from calib::buildMasters; none = overscan/trim only
+  calib::CalibParams calib;
+  bool removeCosmicRays = true;
+  calib::CosmicRayParams cosmicRays;   ///< skyRate and fill are set by the pipeline
+  stats::BackgroundParams background;  ///< paper: global 50 frames xi 5, per-pixel <= 2000 frames xi 4
+  std::optional<Velocity> skyRate;     ///< px/s; none = measure it from the stars
+  detect::SkyRateParams skyRateParams;
+  detect::StaticSourceParams stars;  ///< paper §4.3: SNR 7
+  double singleFrameSnr = 7.0;       ///< paper §4.3: bright objects in single frames, SNR 7
+  double psfFwhmPx = 3.0;            ///< footprint dilation before the fit, and the fallback PSF
+  double psfBeta = 4.0;              ///< beta of the fallback PSF (paper §3.3)
+  std::optional<std::pair<double, double>>
+      psfStar;                ///< the star the user names for the PSF (0-based px, t_ref)
+  bool matchedFilter = true;  ///< produce Prepared::filtered (one extra cube)
+};
+
+struct Prepared {
+  FrameCube frames;         ///< zero-biased; cosmic rays, stars, single-frame sources and masked pixels 0
+  double sigmaN = 0.0;      ///< noise of one pixel of one frame, counts (paper §4.2)
+  Image background;         ///< per-pixel background that was subtracted, counts
+  Image noise;              ///< per-pixel frame-to-frame sigma, counts
+  Image noiseMap;           ///< smooth noise map when params.background.noiseMap
+  stats::ClipStats global;  ///< pixel-independent background (50 frames, xi = 5)
+  std::vector<detect::Star> stars;  ///< static-source catalog, positions at t_ref
+  Velocity skyRate;                 ///< px/s
+  bool skyRateMeasured = false;
+  calib::CalibrationReport calibration;
+  std::vector<std::size_t> cosmicRaysPerFrame;
+  std::size_t cosmicRays = 0;
+  std::size_t staticPixelsZeroed = 0;  ///< over all frames
+  detect::SingleFrameSources singleFrame;
+  psf::Moffat psf;  ///< fitted, or the fallback of params.psfFwhmPx
+  bool psfFitted = false;
+  std::optional<std::pair<double, double>> psfStarAt;  ///< the star used (0-based px at t_ref)
+  search::FilteredCube filtered;                       ///< matched-filtered frames and sigma_F for the search
+  std::vector<std::string> notes;              ///< what the user should know (sky rate, PSF fallback, ...)
+  std::vector<std::uint64_t> cosmicRayPixels;  ///< flat cube indices of the pixels zeroed as cosmic rays
+  std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage
+  double elapsedS = 0.0;
+};
+
+/// Runs the whole pre-processing on `raw` (moved in; it becomes Prepared::frames). Throws st::InputError on
+/// bad input (sizes, all masked, ...), st::Cancelled when cancelled. Progress goes from 0 to 1 over stages.
+Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink& progress,
+                    CancelToken& cancel);
+
+}  // namespace st::pipeline

@@ -1,0 +1,72 @@
+#include "st/pipeline/prepared_json.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "st/common/error.hpp"
+#include "st/io/wcs.hpp"
+
+namespace st::pipeline {
+
+nlohmann::json preparedToJson(const Prepared& p) {
+  using nlohmann::json;
+  json j;
+  j["schema"] = "synthtrack.prepared";
+  j["version"] = 1;
+  j["frames"] = p.frames.frameCount();
+  j["width_px"] = p.frames.width();
+  j["height_px"] = p.frames.height();
+  if (!p.frames.empty()) j["t_ref_mjd"] = p.frames.tRefMjd();
+  j["sigma_n_counts"] = p.sigmaN;
+  j["global_background_counts"] = p.global.mean;
+  j["global_sigma_counts"] = p.global.sigma;
+  j["sky_rate_px_s"] = {{"vx", p.skyRate.vx}, {"vy", p.skyRate.vy}, {"measured", p.skyRateMeasured}};
+  j["psf"] = {{"model", "moffat"},
+              {"radius_px", p.psf.radius},
+              {"beta", p.psf.beta},
+              {"fwhm_px", p.psf.fwhm()},
+              {"fitted", p.psfFitted}};
+  if (p.psfStarAt) j["psf"]["star_px"] = {p.psfStarAt->first, p.psfStarAt->second};
+  j["sigma_f_counts"] = p.filtered.sigmaF;
+  j["cosmic_rays"] = {{"total", p.cosmicRays}, {"per_frame", p.cosmicRaysPerFrame}};
+  j["single_frame_sources"] = {{"seed_pixels_per_frame", p.singleFrame.seedsPerFrame},
+                               {"zeroed_pixels_per_frame", p.singleFrame.zeroedPerFrame}};
+  j["static_pixels_zeroed"] = p.staticPixelsZeroed;
+  j["calibration"] = {{"overscan_counts_per_frame", p.calibration.overscanLevel},
+                      {"bad_pixels", p.calibration.badPixels}};
+  json stars = json::array();
+  for (const auto& s : p.stars) {
+    json e = {
+        {"x_px", s.x},  {"y_px", s.y},        {"flux_counts", s.flux},    {"peak_counts", s.peak},
+        {"snr", s.snr}, {"pixels", s.pixels}, {"saturated", s.saturated}, {"bleed_columns", s.bleedColumns}};
+    if (p.frames.wcs) {
+      try {
+        const auto sky = p.frames.wcs->pixelToSky(s.x, s.y);
+        e["ra_deg"] = sky.raDeg;
+        e["dec_deg"] = sky.decDeg;
+      } catch (const InputError&) {
+      }
+    }
+    stars.push_back(std::move(e));
+  }
+  j["stars"] = std::move(stars);
+  j["notes"] = p.notes;
+  j["elapsed_s"] = p.elapsedS;
+  return j;
+}
+
+void writePreparedSidecar(const std::string& path, const Prepared& prepared) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) throw InputError("cannot write " + tmp);
+    f << preparedToJson(prepared).dump(2) << '\n';
+    if (!f) throw InputError("cannot write " + tmp);
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw InputError("cannot rename " + tmp + " to " + path + ": " + ec.message());
+}
+
+}  // namespace st::pipeline

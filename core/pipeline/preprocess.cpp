@@ -1,0 +1,151 @@
+#include "st/pipeline/preprocess.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "st/common/error.hpp"
+#include "st/detect/sky_stack.hpp"
+#include "st/psf/psf_star.hpp"
+#include "st/stack/matched_filter.hpp"
+
+namespace st::pipeline {
+namespace {
+
+// The PSF from the sky-rate stack of the zero-biased frames (stars still in), brightest isolated
+// unsaturated catalog star first; the fallback FWHM with a note when none is usable.
+void measurePsfInto(Prepared& out, const PreprocessParams& params, ProgressSink& progress,
+                    CancelToken& cancel) {
+  const detect::SkyStack s = detect::stackAtSkyRate(out.frames, out.skyRate, 0.0, progress, cancel);
+  std::vector<psf::StarCandidate> candidates;
+  for (const auto& st : out.stars)
+    candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
+  psf::PsfStarOptions opt;
+  opt.fit.noiseSigma = 0.0;
+  try {
+    const psf::PsfMeasurement m = params.psfStar ? psf::measurePsfAt(s.mean, params.psfStar->first - s.x0,
+                                                                     params.psfStar->second - s.y0, opt)
+                                                 : psf::measurePsf(s.mean, candidates, opt);
+    out.psf = m.fit.model;
+    out.psfFitted = true;
+    out.psfStarAt = std::make_pair(m.fit.x0 + s.x0, m.fit.y0 + s.y0);
+  } catch (const InputError& e) {
+    out.psf = psf::Moffat::fromFwhm(params.psfFwhmPx, params.psfBeta);
+    out.psfFitted = false;
+    std::ostringstream note;
+    note << "PSF: " << e.what() << "; using the given FWHM " << params.psfFwhmPx << " px, beta "
+         << params.psfBeta;
+    out.notes.push_back(note.str());
+  }
+}
+
+}  // namespace
+
+Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink& progress,
+                    CancelToken& cancel) {
+  const auto start = std::chrono::steady_clock::now();
+  auto last = start;
+  Prepared out;
+  auto lap = [&](const char* stage) {
+    const auto now = std::chrono::steady_clock::now();
+    out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - last).count());
+    last = now;
+  };
+  if (raw.empty()) throw InputError("pre-processing: no frames");
+  out.frames = std::move(raw);
+  FrameCube& cube = out.frames;
+  {
+    SubProgress sub(progress, 0.0, 0.1);
+    out.calibration = calib::applyCalibration(cube, params.masters.value_or(calib::MasterCalibration{}),
+                                              params.calib, sub, cancel);
+  }
+  lap("calibrate");
+  out.global = stats::globalBackground(cube, params.background.global);
+  if (params.skyRate) {
+    out.skyRate = *params.skyRate;
+  } else {
+    const detect::SkyRate r =
+        detect::measureSkyRate(cube, out.global.mean, out.global.sigma, params.skyRateParams, cancel);
+    out.skyRate = r.rate;
+    out.skyRateMeasured = r.reliable;
+    std::ostringstream note;
+    note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
+    out.notes.push_back(note.str());
+  }
+  lap("global background and sky rate");
+  calib::CosmicRayResult cr;
+  if (params.removeCosmicRays) {
+    SubProgress sub(progress, 0.1, 0.3);
+    calib::CosmicRayParams cp = params.cosmicRays;
+    cp.skyRate = out.skyRate;
+    cp.fill = calib::CosmicRayParams::Fill::TimeNeighbours;  // zeroed after background subtraction
+    cr = calib::removeCosmicRays(cube, cp, sub, cancel);
+    out.cosmicRaysPerFrame = cr.perFrame;
+    out.cosmicRays = cr.total;
+  }
+  lap("cosmic rays");
+  detect::StaticSources stars;
+  {
+    SubProgress sub(progress, 0.3, 0.4);
+    detect::StaticSourceParams sp = params.stars;
+    sp.psfFwhmPx = params.psfFwhmPx;
+    stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
+    out.stars = stars.stars;
+  }
+  lap("static sources");
+  {
+    SubProgress sub(progress, 0.4, 0.65);
+    stats::Background bg = stats::estimateBackground(cube, params.background, &stars.mask, sub, cancel);
+    out.sigmaN = bg.sigmaN;
+    out.background = std::move(bg.level);
+    out.noise = std::move(bg.sigma);
+    out.noiseMap = std::move(bg.noiseMap);
+    if (bg.pixelsFilled > 0) {
+      out.notes.push_back(
+          std::to_string(bg.pixelsFilled) +
+          " pixels had too few background samples (under static sources); their background is "
+          "the global mean");
+    }
+  }
+  {
+    SubProgress sub(progress, 0.65, 0.7);
+    stats::subtractBackground(cube, out.background, sub, cancel);
+  }
+  calib::zeroPixels(cube, cr.pixels);
+  out.cosmicRayPixels = std::move(cr.pixels);
+  lap("per-pixel background");
+  {
+    SubProgress sub(progress, 0.7, 0.75);
+    measurePsfInto(out, params, sub, cancel);
+  }
+  lap("PSF");
+  {
+    SubProgress sub(progress, 0.75, 0.8);
+    out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
+    const int radius = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
+    out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
+                                                     radius, sub, cancel);
+  }
+  if (params.matchedFilter) {
+    SubProgress sub(progress, 0.8, 1.0);
+    // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
+    FrameCube& f = out.filtered.frames;
+    f = FrameCube(cube.width(), cube.height(), 0);
+    f.pixels() = cube.pixels();
+    f.info() = cube.info();
+    f.header = cube.header;
+    f.wcs = cube.wcs;
+    f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+    const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
+    const stack::MatchedFilterResult mf = stack::filterCube(out.filtered.frames, kernel, sub, cancel);
+    out.filtered.sigmaF = mf.sigmaF;
+    out.filtered.skyRate = out.skyRate;
+    out.filtered.psfFwhmPx = out.psf.fwhm();
+    lap("matched filter");
+  }
+  progress.report(1.0, "pre-processing done");
+  out.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace st::pipeline
