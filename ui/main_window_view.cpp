@@ -62,6 +62,7 @@ void MainWindow::refreshCentral() {
       source == Source::RawFrame || source == Source::FilteredFrame || source == Source::UnfilteredFrame;
   m_frameSpin->setEnabled(frames);
   const auto& prepared = m_obs->prepared();
+  m_centralShowsStack = false;
   switch (source) {
     case Source::RawFrame:
       if (m_obs->raw()) m_view->setImage(frameOf(*m_obs->raw(), m_frameSpin->value()), true);

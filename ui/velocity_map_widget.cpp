@@ -51,12 +51,13 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
                 "current");
   m_hint = new QCPItemText(m_plot);
   m_hint->position->setType(QCPItemPosition::ptAxisRectRatio);
-  m_hint->position->setCoords(0.5, 0.5);
+  m_hint->position->setCoords(0.5, 0.12);
   m_hint->setColor(Qt::white);
   m_hint->setText("no search yet: click to scrub");
-  m_legend = new QLabel("<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
-                        "<span style='color:#d4a000'>⊕</span> current velocity",
-                        this);
+  m_legend = new QLabel(
+      "<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
+      "<span style='color:#d4a000'>⊕</span> current velocity",
+      this);
   m_readout = new QLabel(this);
   m_readout->setTextInteractionFlags(Qt::TextSelectableByMouse);
   auto* layout = new QVBoxLayout(this);
