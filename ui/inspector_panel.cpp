@@ -34,6 +34,7 @@ InspectorPanel::InspectorPanel(Observation* observation, StackScrubber* scrubber
   m_trackView = new ImageView(this);
   for (auto* v : {m_skyView, m_trackView}) {
     v->setMinimumSize(140, 140);
+    v->setPlaceholder("select a candidate or click the image");
     DisplaySettings d;
     d.colormap = Colormap::Inferno;
     d.limits = LimitsMode::MinMax;

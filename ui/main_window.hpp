@@ -128,7 +128,8 @@ class MainWindow : public QMainWindow {
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;
-  bool m_demoGrid = false;  ///< the demo gets a grid that searches in under a minute on 2 cores
+  bool m_centralShowsStack = false;  ///< the central view's image is a live stack (limits are kept)
+  bool m_demoGrid = false;           ///< the demo gets a grid that searches in under a minute on 2 cores
 };
 
 }  // namespace st::ui

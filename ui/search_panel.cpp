@@ -122,16 +122,20 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
   connect(m_run, &QPushButton::clicked, this, &SearchPanel::runRequested);
   connect(m_cancel, &QPushButton::clicked, this, &SearchPanel::cancelRequested);
-  connect(m_obs, &Observation::rawChanged, this, [this] {
-    const bool angular = m_obs->plateScale().has_value();
-    for (int i = 1; i < 3; ++i) {
-      auto* item = qobject_cast<QStandardItemModel*>(m_unit->model());
-      if (item) item->item(i)->setEnabled(angular);
-    }
-    if (!angular) m_unit->setCurrentIndex(0);
-    refresh();
-  });
+  connect(m_obs, &Observation::rawChanged, this, &SearchPanel::onRawChanged);
   setGridPxS({}, 0.5, 0.01);
+  if (m_obs->raw()) onRawChanged();
+}
+
+void SearchPanel::onRawChanged() {
+  const bool angular = m_obs->plateScale().has_value();
+  for (int i = 1; i < 3; ++i) {
+    auto* item = qobject_cast<QStandardItemModel*>(m_unit->model());
+    if (item) item->item(i)->setEnabled(angular);
+  }
+  // Astronomers think in deg/day (the paper's unit) when the plate scale allows it.
+  m_unit->setCurrentIndex(angular ? 2 : 0);
+  onUnitChanged();
 }
 
 void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {

@@ -44,6 +44,7 @@ class SearchPanel : public QWidget {
 
  private:
   void onUnitChanged();
+  void onRawChanged();
   void refresh();
   void setSpinUnits();
 

@@ -1,11 +1,16 @@
 #include "core_adapter.hpp"
 
+#include <QDir>
+#include <QFileInfo>
+#include <QStandardPaths>
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "backend_factory.hpp"
 #include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
+#include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
 #include "st/psf/moffat_fit.hpp"
 #include "st/sim/simulator.hpp"
@@ -148,6 +153,39 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
 }
 #endif
 
+// The demo is simulated once (tens of seconds on 2 cores) and cached as a FITS cube with its frame times
+// and WCS (st::io::writeCube), so later starts open it in seconds. The cache is keyed by preset and seed;
+// a cache that fails to load is simulated again.
+FrameCube simulateDemo(ProgressSink& progress, CancelToken& cancel) {
+  const QString dir = QStandardPaths::writableLocation(QStandardPaths::CacheLocation);
+  const std::string path = (dir + QString("/paper-neo-seed%1.fits").arg(kDemoSeed)).toStdString();
+  if (!dir.isEmpty() && QFileInfo::exists(QString::fromStdString(path))) {
+    try {
+      SubProgress sub(progress, 0.0, 1.0);
+      return io::loadFrames({path}, io::LoadOptions{}, sub, cancel);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const std::exception&) {
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);  // stale or damaged: simulate again
+    }
+  }
+  SubProgress simProgress(progress, 0.0, 0.9);
+  FrameCube cube = sim::simulate(sim::preset("paper-neo"), kDemoSeed, simProgress, cancel).cube;
+  if (!dir.isEmpty() && QDir().mkpath(dir)) {
+    progress.report(0.9, "caching the demo cube");
+    const std::string tmp = path + ".part";
+    try {
+      io::writeCube(tmp, cube);
+      std::filesystem::rename(tmp, path);
+    } catch (const std::exception&) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);  // a cache is optional
+    }
+  }
+  return cube;
+}
+
 }  // namespace
 
 ui::CoreServices makeCoreServices() {
@@ -155,9 +193,7 @@ ui::CoreServices makeCoreServices() {
   s.loadFrames = [](const std::vector<std::string>& inputs, ProgressSink& progress, CancelToken& cancel) {
     return io::loadFrames(inputs, io::LoadOptions{}, progress, cancel);
   };
-  s.simulateDemo = [](ProgressSink& progress, CancelToken& cancel) {
-    return sim::simulate(sim::preset("paper-neo"), kDemoSeed, progress, cancel).cube;
-  };
+  s.simulateDemo = simulateDemo;
 #ifdef ST_GUI_HAVE_PIPELINE
   s.preprocessStages = stageSpecs();
   s.preprocess = runPreprocess;
