@@ -8,6 +8,7 @@
 #include "backend_factory.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "st/report/search_report.hpp"
 #include "load_args.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
@@ -118,72 +119,6 @@ search::FilteredCube loadFiltered(const CliArgs& cli, const Options& o, Progress
   return fc;
 }
 
-nlohmann::json candidateJson(const search::FilteredCube& fc, const search::Candidate& c) {
-  nlohmann::json j;
-  j["x"] = c.x;
-  j["y"] = c.y;
-  j["vx_px_s"] = c.v.vx;
-  j["vy_px_s"] = c.v.vy;
-  j["snr"] = c.snr;
-  j["n_frames"] = c.nIn;
-  j["fap"] = c.fap;
-  j["sum"] = c.sum;
-  j["cluster_cells"] = c.clusterCells;
-  j["ivx"] = c.ivx;
-  j["ivy"] = c.ivy;
-  const search::SkyMotion m = search::skyMotion(fc.frames, c.x, c.y, c.v);
-  if (m.rateDegPerDay) j["rate_deg_day"] = *m.rateDegPerDay;
-  if (m.paDeg) j["pa_deg"] = *m.paDeg;
-  return j;
-}
-
-nlohmann::json resultJson(const search::FilteredCube& fc, const search::SearchResult& r,
-                          const std::vector<std::string>& inputs) {
-  nlohmann::json j;
-  j["inputs"] = inputs;
-  j["backend"] = r.backend;
-  j["method"] = r.method;
-  j["t_ref_mjd"] = r.tRefMjd;
-  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
-  j["frames"] = fc.frames.frameCount();
-  j["sigma_f"] = fc.sigmaF;
-  j["psf_fwhm_px"] = fc.psfFwhmPx;
-  j["grid"] = {{"centre_vx_px_s", r.grid.centre.vx},
-               {"centre_vy_px_s", r.grid.centre.vy},
-               {"step_px_s", r.grid.stepPxS},
-               {"nvx", r.grid.nvx},
-               {"nvy", r.grid.nvy}};
-  j["trials"] = {{"nx", r.trials.nx},
-                 {"ny", r.trials.ny},
-                 {"nvx", r.trials.nvx},
-                 {"nvy", r.trials.nvy},
-                 {"total", r.trials.total()}};
-  j["snr_threshold"] = r.snrThreshold;
-  j["min_frames"] = r.minFrames;
-  j["cells_above_threshold"] = r.cellsAboveThreshold;
-  j["elapsed_s"] = r.elapsedS;
-  j["candidates"] = nlohmann::json::array();
-  for (const auto& c : r.candidates)
-    j["candidates"].push_back(candidateJson(fc, c));
-  return j;
-}
-
-void writeCsv(const std::string& path, const nlohmann::json& j) {
-  std::ofstream out(path);
-  if (!out) throw InputError("cannot write '" + path + "'");
-  out << "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells\n";
-  out.precision(10);
-  for (const auto& c : j["candidates"]) {
-    out << c["x"] << ',' << c["y"] << ',' << c["vx_px_s"].get<double>() << ',' << c["vy_px_s"].get<double>()
-        << ',' << c["snr"].get<double>() << ',' << c["n_frames"] << ',' << c["fap"].get<double>() << ',';
-    if (c.contains("rate_deg_day")) out << c["rate_deg_day"].get<double>();
-    out << ',';
-    if (c.contains("pa_deg")) out << c["pa_deg"].get<double>();
-    out << ',' << c["cluster_cells"] << '\n';
-  }
-  if (!out) throw InputError("error writing '" + path + "'");
-}
-
 void printTable(const nlohmann::json& j) {
   std::printf("t_ref %s (MJD %.8f), %s, trials %lld x %lld x %lld x %lld, SNR threshold %.3f\n",
               j["t_ref_utc"].get<std::string>().c_str(), j["t_ref_mjd"].get<double>(),
@@ -250,8 +185,11 @@ int cmdSearch(const Args& args) {
   const search::SearchResult r =
       sel.backend->search(fc, grid, o.request.params, progress, processCancelToken());
   progress.finish();
-  const nlohmann::json j = resultJson(fc, r, cli.positionals());
-  if (o.csv) writeCsv(*o.csv, j);
+  nlohmann::json j = report::searchResultToJson(fc, r, cli.positionals());
+  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
+  j["min_frames"] = r.minFrames;
+  j["cells_above_threshold"] = r.cellsAboveThreshold;
+  if (o.csv) report::writeCandidatesCsv(*o.csv, j);
   if (o.json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
