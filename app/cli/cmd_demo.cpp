@@ -32,7 +32,7 @@ constexpr const char* kHelp =
     "                           [--backend auto|cpu|cuda]\n"
     "Simulates the demo observation (default paper-neo: the paper's V~23 asteroid at 5.97 deg/day, 500\n"
     "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s), pre-processes it, searches +-D deg/day around the\n"
-    "sky rate (default 8), fits the K best candidates (default 3) and writes everything to DIR\n"
+    "sky rate (default 8), fits the K best candidates (default 40) and writes everything to DIR\n"
     "(default ./demo-output).\n";
 
 struct DemoOptions {
@@ -43,7 +43,7 @@ struct DemoOptions {
   double vmaxDegDay = 8.0;
   double stepPx = 1.5;
   double snr = 7.0;
-  int fits = 3;
+  int fits = 40;
   BackendChoice backend = BackendChoice::Auto;
 };
 
