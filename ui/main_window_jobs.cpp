@@ -222,7 +222,8 @@ void MainWindow::finishScript(bool ok, const QString& message) {
   // Let the live stack arrive and the widgets lay out before the picture is taken.
   QTimer::singleShot(1200, this, [this, script, ok] {
     bool good = ok;
-    if (!script.screenshot.isEmpty()) good = saveScreenshot(script.screenshot) && good;
+    if (!script.screenshot.isEmpty())
+      good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
     m_script.reset();
     emit scriptFinished(good);
     if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);

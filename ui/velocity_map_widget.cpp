@@ -53,7 +53,7 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_hint->position->setType(QCPItemPosition::ptAxisRectRatio);
   m_hint->position->setCoords(0.5, 0.12);
   m_hint->setColor(Qt::white);
-  m_hint->setText("no search yet: click to scrub");
+  m_hint->setText("no search yet");
   m_legend = new QLabel(
       "<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
       "<span style='color:#d4a000'>⊕</span> current velocity",
