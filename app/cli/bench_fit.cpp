@@ -169,7 +169,7 @@ int benchMonteCarlo(const CliArgs& a) {
         << p.config.trials << ',' << p.converged << ',' << p.meanSnr << ',' << p.sdPos << ','
         << p.predictedSigmaPos << ',' << p.sdPos / p.predictedSigmaPos << ',' << p.meanDx << ',' << p.meanDy
         << ',' << p.meanHessianSigmaPos << ',' << p.sdVel << ',' << p.predictedSigmaVel << ','
-        << p.sdVel / p.predictedSigmaVel << '\n';
+        << p.sdVel / p.predictedSigmaVel << std::endl;  // flushed: long runs leave a partial table
   }
   progress.finish();
   writeSvg((dir / "fit_montecarlo.svg").string(), pts, noises);

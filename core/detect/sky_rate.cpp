@@ -160,50 +160,51 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
                        CancelToken& cancel) {
   SkyRate out;
   const std::size_t nf = cube.frameCount();
-  const int nb = static_cast<int>(std::min<std::size_t>(std::max(2, params.blocks), nf));
-  if (nb < 2 || cube.timeSpanS() <= 0.0) {
+  // Pairs of short adjacent blocks spread over the cube: short so that drifting stars do not streak much.
+  const std::size_t len =
+      std::clamp<std::size_t>(nf / 8, 1, static_cast<std::size_t>(std::max(1, params.blockFrames)));
+  const int pairs = std::max(1, params.blocks);
+  if (nf < 2 * len || nf < 2 || cube.timeSpanS() <= 0.0) {
     out.note = "sky rate: fewer than two frames or no time span, assumed 0";
     return out;
   }
   const auto dt = cube.timeOffsetsS();
-  std::vector<Block> blocks;
-  for (int k = 0; k < nb; ++k) {
-    cancel.throwIfCancelled();
-    blocks.push_back(
-        blockMean(cube, nf * k / nb, nf * (k + 1) / nb, background, sigma, params.detectSigma, dt));
-  }
   cv::Mat window;
-  cv::createHanningWindow(window, blocks.front().image.size(), CV_64F);
-  std::vector<double> vx, vy;
-  double minResponse = 1.0;
-  for (int k = 0; k + 1 < nb; ++k) {
+  cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
+  std::vector<double> vx, vy, responses;
+  for (int k = 0; k < pairs; ++k) {
+    cancel.throwIfCancelled();
+    const std::size_t start = pairs > 1 ? (nf - 2 * len) * static_cast<std::size_t>(k) / (pairs - 1) : 0;
+    const Block a = blockMean(cube, start, start + len, background, sigma, params.detectSigma, dt);
+    const Block b = blockMean(cube, start + len, start + 2 * len, background, sigma, params.detectSigma, dt);
     double response = 0.0;
-    const cv::Point2d d = cv::phaseCorrelate(blocks[k].image, blocks[k + 1].image, window, &response);
-    minResponse = std::min(minResponse, response);
-    const double span = blocks[k + 1].tS - blocks[k].tS;
+    const cv::Point2d d = cv::phaseCorrelate(a.image, b.image, window, &response);
+    const double span = b.tS - a.tS;
     if (span <= 0) continue;
     vx.push_back(d.x / span);
     vy.push_back(d.y / span);
-  }
-  if (vx.empty() || minResponse < params.minResponse) {
-    out.note = "sky rate: no reliable star pattern (phase-correlation peak " + std::to_string(minResponse) +
-               "), assumed 0";
-    out.response = minResponse;
-    return out;
+    responses.push_back(response);
   }
   auto median = [](std::vector<double> v) {
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
+  const double medianResponse = responses.empty() ? 0.0 : median(responses);
+  out.response = medianResponse;
+  if (vx.empty() || medianResponse < params.minResponse) {
+    out.note = "sky rate: no reliable star pattern (phase-correlation peak " +
+               std::to_string(medianResponse) + "), assumed 0";
+    return out;
+  }
   out.rate = {median(vx), median(vy)};
-  out.response = minResponse;
   out.reliable = true;
-  out.note = "sky rate: measured from adjacent blocks of frames";
+  const Velocity first = out.rate;
   double response = out.response;
   out.rate = refineRate(cube, out.rate, background, sigma, params.detectSigma, params.minResponse, &response,
                         cancel);
   out.response = response;
-  out.note = "sky rate: measured from blocks of frames, refined on stacks of the first and last thirds";
+  out.note = "sky rate: pairs of short blocks gave (" + std::to_string(first.vx) + ", " +
+             std::to_string(first.vy) + ") px/s, refined on stacks of the first and last thirds";
   return out;
 }
 

@@ -64,21 +64,21 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
   st.pixels = static_cast<int>(comp.size());
   st.x = s.x0 + (sw > 0 ? sx / sw : comp.front() % w);
   st.y = s.y0 + (sw > 0 ? sy / sw : comp.front() / w);
-  // Saturation: the given level, else a flat top (>= 3 pixels within 0.5% of the highest raw value, which
-  // stands far above the background).
-  double level = params.saturationLevel.value_or(0.0);
+  // Saturation: the given level (ADC full scale), or a flat top: >= 5 pixels within 3% of the highest value
+  // (the flat spreads a plateau by its pixel-to-pixel rms; an unsaturated star centred on a pixel corner
+  // has at most 4 near-equal pixels), far above the background: a full well that bled before the ADC
+  // saturated.
   std::map<int, int> satPerColumn;
-  int nearTop = 0;
+  int atLevel = 0, nearTop = 0;
   for (int p : comp) {
     const float m = s.max.pixels[p];
-    const bool sat =
-        params.saturationLevel ? m >= level : (m >= 0.995f * peakMax && peakMax - background > 1000.0);
-    if (sat) {
-      ++nearTop;
-      ++satPerColumn[p % w];
-    }
+    const bool level = params.saturationLevel && m >= *params.saturationLevel;
+    const bool flat = m >= 0.97f * peakMax && peakMax - background > 1000.0;
+    atLevel += level;
+    nearTop += flat;
+    if (level || flat) ++satPerColumn[p % w];
   }
-  st.saturated = params.saturationLevel ? nearTop > 0 : nearTop >= 3;
+  st.saturated = atLevel > 0 || nearTop >= 5;
   if (st.saturated) {
     const int run = std::max(3, static_cast<int>(std::ceil(2.0 * params.psfFwhmPx)));
     for (const auto& [col, n] : satPerColumn)

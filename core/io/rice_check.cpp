@@ -92,58 +92,22 @@ bool riceStreamIsSafe(const std::uint8_t* data, std::size_t length, std::size_t 
 void checkRiceTiles(const FitsFile& f) {
   int status = 0;
   if (!fits_is_compressed_image(f.get(), &status)) return;
-  char type[FLEN_VALUE] = {};
-  fits_read_key(f.get(), TSTRING, "ZCMPTYPE", type, nullptr, &status);
-  if (status != 0) {
-    fits_clear_errmsg();
-    return;
-  }
-  const bool rice = std::strncmp(type, "RICE_1", 6) == 0;  // other types: only the tile sizes are checked
   const std::string where = f.path() + " HDU " + std::to_string(f.currentHdu());
-  int zbitpix = 0;
-  int znaxis = 0;
-  fits_read_key(f.get(), TINT, "ZBITPIX", &zbitpix, nullptr, &status);
-  fits_read_key(f.get(), TINT, "ZNAXIS", &znaxis, nullptr, &status);
-  f.check(status, "reading ZBITPIX/ZNAXIS");
-  if (znaxis < 1 || znaxis > 9) return;  // CFITSIO refuses these itself
+  // The parameters exactly as CFITSIO parsed them when it opened the HDU (they drive its decoder).
+  const FITSfile& p = *f.get()->Fptr;
+  const bool rice = p.compress_type == RICE_1;  // other types: only the tile sizes are checked
+  const int znaxis = p.zndim;
+  if (znaxis < 1 || znaxis > MAX_COMPRESS_DIM) return;  // CFITSIO refuses these itself
   std::vector<long long> size(static_cast<std::size_t>(znaxis)), tile(static_cast<std::size_t>(znaxis));
   for (int a = 0; a < znaxis; ++a) {
-    std::string k = "ZNAXIS" + std::to_string(a + 1);
-    fits_read_key(f.get(), TLONGLONG, k.c_str(), &size[a], nullptr, &status);
-    k = "ZTILE" + std::to_string(a + 1);
-    int s2 = 0;
-    tile[a] = a == 0 ? size[0] : 1;
-    fits_read_key(f.get(), TLONGLONG, k.c_str(), &tile[a], nullptr, &s2);
-    if (s2 != 0) fits_clear_errmsg();
+    size[a] = p.znaxis[a];
+    tile[a] = p.tilesize[a];
     if (size[a] <= 0 || tile[a] <= 0) return;
   }
-  f.check(status, "reading ZNAXISn");
-  int blockSize = 32;
-  int bytePix = zbitpix < 0 ? 4 : std::abs(zbitpix) / 8;
-  for (int n = 1; n <= 9; ++n) {
-    char name[FLEN_VALUE] = {};
-    int s2 = 0;
-    fits_read_key(f.get(), TSTRING, ("ZNAME" + std::to_string(n)).c_str(), name, nullptr, &s2);
-    if (s2 != 0) {
-      fits_clear_errmsg();
-      break;
-    }
-    int value = 0;
-    fits_read_key(f.get(), TINT, ("ZVAL" + std::to_string(n)).c_str(), &value, nullptr, &s2);
-    if (s2 != 0) {
-      fits_clear_errmsg();
-      continue;
-    }
-    if (std::strcmp(name, "BLOCKSIZE") == 0) blockSize = value;
-    if (std::strcmp(name, "BYTEPIX") == 0) bytePix = value;
-  }
-  int col = 0;
-  char colName[] = "COMPRESSED_DATA";
-  fits_get_colnum(f.get(), CASEINSEN, colName, &col, &status);
-  if (status != 0) {
-    fits_clear_errmsg();
-    return;
-  }
+  const int blockSize = p.rice_blocksize;
+  const int bytePix = p.rice_bytepix;
+  const int col = p.cn_compressed;
+  if (col <= 0) return;
   long rows = 0;
   fits_get_num_rows(f.get(), &rows, &status);
   // A tile cannot hold more bytes than the heap (PCOUNT), nor than the file (gzip'ed files: allow for the

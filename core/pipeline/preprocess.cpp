@@ -1,10 +1,12 @@
 #include "st/pipeline/preprocess.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/detect/hot_pixels.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -61,6 +63,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   }
   lap("calibrate");
   out.global = stats::globalBackground(cube, params.background.global);
+  if (params.findHotPixels) {
+    const auto hot = detect::findHotPixels(cube, out.global.mean, out.global.sigma, {}, cancel);
+    out.hotPixels = detect::maskPixelsInAllFrames(cube, hot);
+  }
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
   } else {
@@ -89,6 +95,19 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.3, 0.4);
     detect::StaticSourceParams sp = params.stars;
     sp.psfFwhmPx = params.psfFwhmPx;
+    // The ADC full scale of the raw frames (SATURATE), less the bias, in calibrated counts, with a 5% margin
+    // for the flat and the bias pattern.
+    if (!sp.saturationLevel) {
+      if (const auto sat = cube.header.getDouble("SATURATE")) {
+        double biasLevel = 0.0;
+        if (params.masters && !params.masters->bias.empty()) {
+          std::vector<float> b = params.masters->bias.pixels;
+          std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
+          biasLevel = b[b.size() / 2];
+        }
+        sp.saturationLevel = 0.95 * (*sat - biasLevel);
+      }
+    }
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
     out.stars = stars.stars;
   }

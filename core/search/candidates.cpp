@@ -24,7 +24,7 @@ class UnionFind {
   void unite(std::size_t a, std::size_t b) {
     a = find(a);
     b = find(b);
-    if (a != b) m_parent[std::max(a, b)] = std::min(a, b);  // root = lowest index = highest SNR
+    if (a != b) m_parent[std::max(a, b)] = std::min(a, b);
   }
 
  private:
@@ -66,30 +66,46 @@ std::vector<Candidate> clusterCells(const std::vector<CellHit>& cellsIn, const V
     return bucketKey(floorDiv(c.x, side) + dx, floorDiv(c.y, side) + dy, floorDiv(c.ivx, vSide) + dvx,
                      floorDiv(c.ivy, vSide) + dvy);
   };
-  std::unordered_map<std::uint64_t, std::vector<std::size_t>> buckets;
-  buckets.reserve(cells.size());
-  for (std::size_t i = 0; i < cells.size(); ++i)
-    buckets[keyOf(cells[i], 0, 0, 0, 0)].push_back(i);
-  UnionFind uf(cells.size());
+  // Cells in one bucket are always within the linking radii of each other (sides <= radii), so the
+  // union-find runs over buckets: a bucket joins a neighbouring one at the first linking pair. Dense
+  // clusters (a bright source lights up ~1e6 cells) cost O(cells), not O(cells x neighbours).
+  std::unordered_map<std::uint64_t, std::size_t> bucketIndex;
+  std::vector<std::vector<std::size_t>> buckets;
+  std::vector<std::size_t> bucketOf(cells.size());
+  bucketIndex.reserve(cells.size());
   for (std::size_t i = 0; i < cells.size(); ++i) {
-    const CellHit& a = cells[i];
+    const auto [it, added] = bucketIndex.try_emplace(keyOf(cells[i], 0, 0, 0, 0), buckets.size());
+    if (added) buckets.emplace_back();
+    buckets[it->second].push_back(i);
+    bucketOf[i] = it->second;
+  }
+  auto links = [&](const CellHit& a, const CellHit& b) {
+    return std::abs(a.x - b.x) <= radius && std::abs(a.y - b.y) <= radius &&
+           std::abs(a.ivx - b.ivx) <= vRadius && std::abs(a.ivy - b.ivy) <= vRadius;
+  };
+  UnionFind uf(buckets.size());
+  for (std::size_t ba = 0; ba < buckets.size(); ++ba) {
+    const CellHit& first = cells[buckets[ba].front()];
     for (int d = 0; d < 81; ++d) {
-      const auto it = buckets.find(keyOf(a, d % 3 - 1, d / 3 % 3 - 1, d / 9 % 3 - 1, d / 27 - 1));
-      if (it == buckets.end()) continue;
-      for (const std::size_t j : it->second) {
-        if (j <= i) continue;
-        const CellHit& b = cells[j];
-        if (std::abs(a.x - b.x) <= radius && std::abs(a.y - b.y) <= radius &&
-            std::abs(a.ivx - b.ivx) <= vRadius && std::abs(a.ivy - b.ivy) <= vRadius) {
-          uf.unite(i, j);
+      const auto it = bucketIndex.find(keyOf(first, d % 3 - 1, d / 3 % 3 - 1, d / 9 % 3 - 1, d / 27 - 1));
+      if (it == bucketIndex.end() || it->second <= ba || uf.find(it->second) == uf.find(ba)) continue;
+      bool linked = false;
+      for (const std::size_t i : buckets[ba]) {
+        for (const std::size_t j : buckets[it->second]) {
+          if (links(cells[i], cells[j])) {
+            linked = true;
+            break;
+          }
         }
+        if (linked) break;
       }
+      if (linked) uf.unite(ba, it->second);
     }
   }
   std::vector<Candidate> out;
   std::unordered_map<std::size_t, std::size_t> rootToCandidate;
   for (std::size_t i = 0; i < cells.size(); ++i) {
-    const std::size_t root = uf.find(i);
+    const std::size_t root = uf.find(bucketOf[i]);
     const auto it = rootToCandidate.find(root);
     if (it != rootToCandidate.end()) {
       ++out[it->second].clusterCells;

@@ -159,6 +159,48 @@ TEST(IoErrors, SomeFramesWithoutTimes) {
                  {"untimed.fits", "no timestamp"});
 }
 
+TEST(IoErrors, CorruptRiceTilesAreRefusedNotDecoded) {
+  // CFITSIO 4.2 reads past the end of a corrupt RICE tile (and can crash); the loader checks tiles first.
+  TempDir dir;
+  FixtureImage img = timedFrame("2020-01-01T00:00:00", 1, 0, 64, 8);
+  img.bitpix = 16;
+  img.compress = RICE_1;
+  for (auto& v : img.raw)
+    v = 100.0;  // constant rows compress to a few bytes each
+  const auto path = dir / "corrupt.fits.fz";
+  writeFixture(path, img);
+  ASSERT_EQ(loadFrames({path.string()}).frame(0)[70], 100.0f);
+  LONGLONG dataStart = 0;
+  LONGLONG heapStart = 0;
+  LONGLONG heapBytes = 0;
+  {
+    fitsfile* f = nullptr;
+    int status = 0;
+    fits_open_file(&f, path.string().c_str(), READONLY, &status);
+    fits_movabs_hdu(f, 2, nullptr, &status);
+    LONGLONG head = 0;
+    LONGLONG end = 0;
+    fits_get_hduaddrll(f, &head, &dataStart, &end, &status);
+    LONGLONG rowBytes = 0;
+    LONGLONG rows = 0;
+    fits_read_key(f, TLONGLONG, "NAXIS1", &rowBytes, nullptr, &status);
+    fits_read_key(f, TLONGLONG, "NAXIS2", &rows, nullptr, &status);
+    fits_read_key(f, TLONGLONG, "PCOUNT", &heapBytes, nullptr, &status);
+    fits_close_file(f, &status);
+    ASSERT_EQ(status, 0);
+    heapStart = dataStart + rowBytes * rows;
+  }
+  ASSERT_GT(heapBytes, 0);
+  {
+    std::fstream io(path, std::ios::in | std::ios::out | std::ios::binary);
+    io.seekp(heapStart);
+    const std::string ff(static_cast<std::size_t>(heapBytes),
+                         '\xff');  // every block claims raw 16-bit pixels
+    io.write(ff.data(), static_cast<std::streamsize>(ff.size()));
+  }
+  expectMentions(loadError({path.string()}), {"corrupt.fits.fz", "HDU 2", "tile", "corrupt"});
+}
+
 TEST(IoErrors, CropOutsideTheFrame) {
   TempDir dir;
   writeFixture(dir / "a.fits", timedFrame("2020-01-01T00:00:00", 1, 0, 6, 4));

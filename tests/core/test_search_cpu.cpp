@@ -368,3 +368,44 @@ TEST(SearchCpu, HugeShiftsAreOutOfFrameNotOutOfMemory) {
 
 }  // namespace
 }  // namespace st::search
+
+namespace st::search {
+namespace {
+
+TEST(SearchClustering, LinksWithinRadiiAndChains) {
+  const VelocityGrid grid{{0, 0}, 0.1, 20, 20};
+  ClusterParams p;
+  p.positionRadiusPx = 4.0;
+  p.velocityRadiusSteps = 2;
+  std::vector<CellHit> cells = {
+      {9.0f, 0, 10, 10, 5, 5, 10},  // A: best of cluster 1
+      {8.0f, 0, 13, 10, 6, 5, 10},  // links to A (dx 3, dv 1)
+      {7.5f, 0, 17, 10, 8, 5, 10},  // links to the previous (dx 4, dv 2), not to A: chained
+      {7.2f, 0, 22, 10, 8, 5, 10},  // dx 5 from its nearest: separate
+      {8.5f, 0, 14, 10, 9, 5, 10},  // dv 4 from A, (dx 3, dv 1) from the 7.5 cell: chained too
+      {7.1f, 0, 50, 50, 0, 0, 10},  // far away: separate
+  };
+  const std::vector<Candidate> c = clusterCells(cells, grid, p, TrialCounts{100, 100, 20, 20});
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c[0].x, 10);
+  EXPECT_FLOAT_EQ(static_cast<float>(c[0].snr), 9.0f);
+  EXPECT_EQ(c[0].clusterCells, 4);
+  EXPECT_EQ(c[1].x, 22);
+  EXPECT_EQ(c[2].x, 50);
+  EXPECT_EQ(c[2].clusterCells, 1);
+  EXPECT_DOUBLE_EQ(c[0].v.vx, grid.at(5, 5).vx);
+  EXPECT_NEAR(c[0].fap, stats::detectionFap(9.0, 100, 100, 20, 20), 1e-30);
+  // A dense block of cells (a bright source) is one candidate, and fast.
+  std::vector<CellHit> dense;
+  for (int y = 0; y < 60; ++y)
+    for (int x = 0; x < 60; ++x)
+      for (int v = 0; v < 100; ++v)
+        dense.push_back({static_cast<float>(x + y + v), 0, x, y, v % 10, v / 10, 10});
+  const auto d = clusterCells(dense, grid, p, TrialCounts{100, 100, 20, 20});
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].clusterCells, 360000);
+  EXPECT_EQ(d[0].x, 59);
+}
+
+}  // namespace
+}  // namespace st::search

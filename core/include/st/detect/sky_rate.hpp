@@ -10,7 +10,8 @@
 namespace st::detect {
 
 struct SkyRateParams {
-  int blocks = 8;             ///< the cube is cut into this many blocks of consecutive frames
+  int blocks = 8;             ///< pairs of adjacent blocks, spread evenly over the cube
+  int blockFrames = 12;       ///< frames per block at most (short, so that drifting stars streak little)
   double detectSigma = 5.0;   ///< pixels below this SNR in a block mean are zeroed (keep the stars)
   double minResponse = 0.03;  ///< phase-correlation peak below this: no reliable stars, rate 0
 };
@@ -24,10 +25,10 @@ struct SkyRate {
 
 /// Measures the sky rate by phase correlation (OpenCV) of the means of blocks of frames with the global
 /// background `background` removed and faint pixels (< detectSigma * sigma / sqrt(frames in block)) zeroed:
-/// adjacent blocks give a first rate (robust to large drifts; each block is the smaller of the means of its
-/// two halves so that cosmic rays drop out); then stacks at that rate of the first and last thirds of the
-/// frames are phase-correlated (stars coincide when the rate is right) and the residual offset over their
-/// time separation corrects it (up to 3 times).
+/// pairs of short adjacent blocks (median over pairs) give a first rate (robust to large drifts; each block
+/// is the smaller of the means of its two halves so that cosmic rays drop out); then stacks at that rate of
+/// the first and last thirds of the frames are phase-correlated (stars coincide when the rate is right) and
+/// the residual offset over their time separation corrects it (up to 3 times).
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
                        CancelToken& cancel);
 

@@ -33,6 +33,7 @@ namespace st::pipeline {
 struct PreprocessParams {
   std::optional<calib::MasterCalibration> masters;  ///< from calib::buildMasters; none = overscan/trim only
   calib::CalibParams calib;
+  bool findHotPixels = true;  ///< mask pixels bright in every block of frames and sharper than the PSF
   bool removeCosmicRays = true;
   calib::CosmicRayParams cosmicRays;   ///< skyRate and fill are set by the pipeline
   stats::BackgroundParams background;  ///< paper: global 50 frames xi 5, per-pixel <= 2000 frames xi 4
@@ -58,6 +59,7 @@ struct Prepared {
   Velocity skyRate;                 ///< px/s
   bool skyRateMeasured = false;
   calib::CalibrationReport calibration;
+  std::size_t hotPixels = 0;  ///< found in the science frames and masked in every frame
   std::vector<std::size_t> cosmicRaysPerFrame;
   std::size_t cosmicRays = 0;
   std::size_t staticPixelsZeroed = 0;  ///< over all frames

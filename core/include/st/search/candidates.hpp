@@ -7,6 +7,10 @@
 // t_ref does not depend on the trial velocity, only its blur does) and their grid indices differ by at most
 // `velocityRadiusSteps` in both vx and vy (default 2 steps). Chains link: a bright source smeared over many
 // velocities stays one candidate.
+// Cost: cells are bucketed in (x, y, ivx, ivy) with sides no larger than the radii (so a bucket is always
+// one cluster) and union-find runs over buckets: O(cells) even for the ~1e6 cells of a bright source.
+// Bucket keys pack 16 bits per coordinate: coordinates must span less than 65536 buckets (any real frame
+// and grid).
 #include <cstdint>
 #include <vector>
 

@@ -1,0 +1,63 @@
+#include "st/detect/hot_pixels.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "st/common/parallel.hpp"
+
+namespace st::detect {
+
+std::vector<std::size_t> findHotPixels(const FrameCube& cube, double background, double sigma,
+                                       const HotPixelParams& params, CancelToken& cancel) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const int blocks =
+      static_cast<int>(std::clamp<std::size_t>(params.blocks, 1, std::max<std::size_t>(1, nf)));
+  std::vector<float> minExcess(np, 1e30f);
+  const auto& mask = cube.mask();
+  for (int b = 0; b < blocks; ++b) {
+    const std::size_t n0 = nf * b / blocks, n1 = nf * (b + 1) / blocks;
+    parallelFor(np, 65536, [&](std::size_t i0, std::size_t i1) {
+      cancel.throwIfCancelled();
+      for (std::size_t i = i0; i < i1; ++i) {
+        double s = 0.0;
+        std::size_t c = 0;
+        for (std::size_t n = n0; n < n1; ++n) {
+          if (!mask.empty() && mask[n * np + i]) continue;
+          s += cube.frame(n)[i];
+          ++c;
+        }
+        const float e = c ? static_cast<float>(s / c - background) : 0.0f;
+        minExcess[i] = std::min(minExcess[i], e);
+      }
+    });
+  }
+  const double blockSigma = sigma / std::sqrt(std::max<double>(1.0, static_cast<double>(nf) / blocks));
+  const int w = cube.width(), h = cube.height();
+  std::vector<std::size_t> hot;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * w + x;
+      const float e = minExcess[i];
+      if (!(e > params.snr * blockSigma)) continue;
+      float neighbour = 0.0f;
+      if (x > 0) neighbour = std::max(neighbour, minExcess[i - 1]);
+      if (x + 1 < w) neighbour = std::max(neighbour, minExcess[i + 1]);
+      if (y > 0) neighbour = std::max(neighbour, minExcess[i - w]);
+      if (y + 1 < h) neighbour = std::max(neighbour, minExcess[i + w]);
+      if (e > params.sharpness * neighbour) hot.push_back(i);
+    }
+  return hot;
+}
+
+std::size_t maskPixelsInAllFrames(FrameCube& cube, const std::vector<std::size_t>& pixels) {
+  if (pixels.empty()) return 0;
+  auto& mask = cube.mask();
+  if (mask.empty()) mask.assign(cube.pixels().size(), 0);
+  const std::size_t np = cube.framePixels();
+  for (std::size_t n = 0; n < cube.frameCount(); ++n)
+    for (std::size_t i : pixels)
+      mask[n * np + i] = 1;
+  return pixels.size();
+}
+
+}  // namespace st::detect
