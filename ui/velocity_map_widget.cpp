@@ -17,6 +17,8 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_plot = new QCustomPlot(this);
   m_plot->setMinimumSize(260, 220);
   m_plot->setFocusPolicy(Qt::NoFocus);
+  m_plot->xAxis->ticker()->setTickCount(4);  // rates like 117.5 deg/day need room
+  m_plot->yAxis->ticker()->setTickCount(5);
   m_map = new QCPColorMap(m_plot->xAxis, m_plot->yAxis);
   m_scale = new QCPColorScale(m_plot);
   m_plot->plotLayout()->addElement(0, 1, m_scale);
