@@ -232,6 +232,8 @@ void MainWindow::finishScript(bool ok, const QString& message) {
     bool good = ok;
     if (!script.screenshot.isEmpty())
       good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
+    if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
+    std::fflush(stdout);
     m_script.reset();
     emit scriptFinished(good);
     if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);
