@@ -14,6 +14,9 @@ ImageView::ImageView(QWidget* parent) : QWidget(parent) {
   setMouseTracking(true);
   setMinimumSize(200, 200);
   setAttribute(Qt::WA_OpaquePaintEvent);
+  m_placeholder =
+      tr("Open a FITS cube (File → Open), a folder, drop files here, or open the demo observation "
+         "(File → Open demo observation, Ctrl+D)");
 }
 
 void ImageView::setImage(std::shared_ptr<const Image> image, bool keepLimits) {
@@ -58,6 +61,11 @@ void ImageView::setMarkers(std::vector<ImageMarker> markers) {
 
 void ImageView::setOverlayText(const QString& text) {
   m_overlay = text;
+  update();
+}
+
+void ImageView::setPlaceholder(const QString& text) {
+  m_placeholder = text;
   update();
 }
 
@@ -115,9 +123,7 @@ void ImageView::paintEvent(QPaintEvent*) {
   p.fillRect(rect(), QColor(24, 24, 28));
   if (m_rendered.isNull()) {
     p.setPen(QColor(150, 150, 160));
-    p.drawText(rect(), Qt::AlignCenter,
-               m_overlay.isEmpty() ? tr("Open a FITS cube (File → Open) or the demo observation (Ctrl+D)")
-                                   : m_overlay);
+    p.drawText(rect(), Qt::AlignCenter | Qt::TextWordWrap, m_placeholder);
     return;
   }
   p.setRenderHint(QPainter::SmoothPixmapTransform, m_zoom < 1.0);
@@ -133,6 +139,12 @@ void ImageView::paintEvent(QPaintEvent*) {
     if (!m.label.isEmpty()) p.drawText(c + QPointF(r + 3, -r), m.label);
   }
   if (!m_overlay.isEmpty()) {
+    // A dark band under the caption keeps it readable over bright images.
+    const QRectF band = p.fontMetrics()
+                            .boundingRect(m_overlay)
+                            .adjusted(-6, -3, 6, 3)
+                            .translated(14, 10 + p.fontMetrics().ascent());
+    p.fillRect(band, QColor(0, 0, 0, 170));
     p.setPen(QColor(230, 230, 120));
     p.drawText(QRectF(8, 6, width() - 16, 20), Qt::AlignLeft | Qt::AlignTop, m_overlay);
   }

@@ -41,6 +41,8 @@ class ImageView : public QWidget {
 
   void setMarkers(std::vector<ImageMarker> markers);
   void setOverlayText(const QString& text);
+  /// Text shown while there is no image.
+  void setPlaceholder(const QString& text);
 
   [[nodiscard]] double zoom() const noexcept { return m_zoom; }
   void setZoom(double zoom);
@@ -85,6 +87,7 @@ class ImageView : public QWidget {
   bool m_dragging = false;
   std::vector<ImageMarker> m_markers;
   QString m_overlay;
+  QString m_placeholder;
 };
 
 }  // namespace st::ui

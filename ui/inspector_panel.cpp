@@ -34,6 +34,7 @@ InspectorPanel::InspectorPanel(Observation* observation, StackScrubber* scrubber
   m_trackView = new ImageView(this);
   for (auto* v : {m_skyView, m_trackView}) {
     v->setMinimumSize(140, 140);
+    v->setPlaceholder("select a candidate or click the image");
     DisplaySettings d;
     d.colormap = Colormap::Inferno;
     d.limits = LimitsMode::MinMax;
@@ -106,8 +107,8 @@ InspectorPanel::InspectorPanel(Observation* observation, StackScrubber* scrubber
     m_profile->rescaleAxes();
     m_profile->replot();
     m_profileLabel->setText(fit.ok ? QString("(%1, %2): FWHM %3 px, β %4  %5")
-                                         .arg(fit.centreX, 0, 'f', 1)
-                                         .arg(fit.centreY, 0, 'f', 1)
+                                         .arg(fit.centreX + m_profileOffset.x(), 0, 'f', 1)
+                                         .arg(fit.centreY + m_profileOffset.y(), 0, 'f', 1)
                                          .arg(fit.fwhmPx, 0, 'f', 2)
                                          .arg(fit.beta, 0, 'f', 2)
                                          .arg(QString::fromStdString(fit.message))
@@ -162,11 +163,15 @@ void InspectorPanel::onStack(const std::shared_ptr<const Image>& image, const St
   if ((req.tag != kSkyTag && req.tag != kTrackTag) || !image || m_px < 0) return;
   auto stamp = cutout(*image);
   (req.tag == kSkyTag ? m_skyView : m_trackView)->setImage(stamp);
-  if (req.tag == kTrackTag) showProfile(stamp, kStampHalf, kStampHalf);
+  if (req.tag == kTrackTag)
+    showProfile(stamp, kStampHalf, kStampHalf, std::lround(m_px) - kStampHalf,
+                std::lround(m_py) - kStampHalf);
 }
 
-void InspectorPanel::showProfile(std::shared_ptr<const Image> image, double x, double y) {
+void InspectorPanel::showProfile(std::shared_ptr<const Image> image, double x, double y, double offsetX,
+                                 double offsetY) {
   if (!m_services->radialProfile || !image || m_profileWatcher.isRunning()) return;
+  m_profileOffset = QPointF(offsetX, offsetY);
   auto fn = m_services->radialProfile;
   m_profileWatcher.setFuture(QtConcurrent::run([fn, image, x, y]() -> ProfileFit {
     try {

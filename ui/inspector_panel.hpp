@@ -33,8 +33,10 @@ class InspectorPanel : public QWidget {
   [[nodiscard]] std::shared_ptr<const search::FilteredCube> stackCube() const;
   /// Centre of the stamps and of the profile (image pixel).
   void setPoint(double x, double y);
-  /// Fits the radial profile at (x, y) of `image` in a worker; shows it when done.
-  void showProfile(std::shared_ptr<const Image> image, double x, double y);
+  /// Fits the radial profile at (x, y) of `image` in a worker; shows it when done. (offsetX, offsetY) is
+  /// added to the positions shown (a stamp's corner in the full image).
+  void showProfile(std::shared_ptr<const Image> image, double x, double y, double offsetX = 0,
+                   double offsetY = 0);
   [[nodiscard]] bool useUnfiltered() const;
 
  signals:
@@ -58,6 +60,7 @@ class InspectorPanel : public QWidget {
   QCustomPlot* m_profile;
   QLabel* m_profileLabel;
   QFutureWatcher<ProfileFit> m_profileWatcher;
+  QPointF m_profileOffset;
   double m_px = -1;
   double m_py = -1;
 };

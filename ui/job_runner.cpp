@@ -2,6 +2,12 @@
 
 #include <exception>
 
+#ifdef __linux__
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
+
 #include "core_services.hpp"
 #include "st/common/error.hpp"
 
@@ -34,6 +40,13 @@ JobRunner::JobRunner(QObject* parent) : QObject(parent) {
   connect(&m_thread, &QThread::finished, m_worker, &QObject::deleteLater);
   m_thread.setObjectName("st-job");
   m_thread.start();
+#ifdef __linux__
+  // Batch work runs at a lower CPU priority than the GUI thread (nice +5, per thread on Linux; threads the
+  // core starts from here inherit it), so a busy machine still repaints and answers the mouse.
+  QMetaObject::invokeMethod(
+      m_worker, [] { setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 5); },
+      Qt::QueuedConnection);
+#endif
   m_poll.setInterval(50);
   connect(&m_poll, &QTimer::timeout, this, [this] {
     const auto [fraction, stage] = m_progress.latest();

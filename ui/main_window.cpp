@@ -9,6 +9,7 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QHBoxLayout>
+#include <QImage>
 #include <QLabel>
 #include <QMenuBar>
 #include <QMessageBox>
@@ -53,15 +54,23 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   connect(m_obs, &Observation::resultChanged, this, &MainWindow::updateMarkers);
   connect(m_obs, &Observation::selectionChanged, this, &MainWindow::onSelection);
   connect(m_obs, &Observation::velocityChanged, this, &MainWindow::requestCentralStack);
-  connect(m_obs, &Observation::stackModeChanged, this, &MainWindow::requestCentralStack);
-  connect(m_inspector, &InspectorPanel::cubeChoiceChanged, this, &MainWindow::requestCentralStack);
+  // IPSA/CSA and filtered/unfiltered stacks have different scales: new display limits for those.
+  const auto restack = [this] {
+    m_centralShowsStack = false;
+    requestCentralStack();
+  };
+  connect(m_obs, &Observation::stackModeChanged, this, restack);
+  connect(m_inspector, &InspectorPanel::cubeChoiceChanged, this, restack);
   connect(m_scrubber, &StackScrubber::stackReady, this,
           [this](const std::shared_ptr<const Image>& image, const StackRequest& req, double latencyMs,
                  double computeMs) {
             m_search->setMeasuredStackSeconds(computeMs / 1000.0);
             if (req.tag != kCentralTag) return;
             if (static_cast<Source>(m_sourceCombo->currentData().toInt()) != Source::Stack) return;
-            m_view->setImage(image, true);
+            // Keep the display limits while scrubbing (no brightness jumps), but not across a change of
+            // what is shown: a raw frame's limits mean nothing for a filtered stack.
+            m_view->setImage(image, m_centralShowsStack);
+            m_centralShowsStack = true;
             m_lastLatencyMs = latencyMs;
             m_stackLabel->setText(QString("%1 stack: %2 ms (compute %3 ms)")
                                       .arg(req.mode == search::StackMode::Ipsa ? "IPSA" : "CSA")
@@ -325,8 +334,11 @@ void MainWindow::showError(const QString& title, const QString& message) {
   QMessageBox::warning(this, title, message);
 }
 
-bool MainWindow::saveScreenshot(const QString& path) {
-  const bool ok = grab().save(path);
+bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
+  QImage image = grab().toImage();
+  if (maxWidth > 0 && image.width() > maxWidth)
+    image = image.scaledToWidth(maxWidth, Qt::SmoothTransformation);
+  const bool ok = image.save(path, nullptr, 0);
   if (!ok) showError("Screenshot", "could not write " + path);
   return ok;
 }

@@ -32,6 +32,7 @@ void MainWindow::openInputs(const QStringList& paths) {
   const QString label =
       paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
   addRecent(paths);
+  m_demoGrid = false;
   startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
     if (!load) throwMissingService("FITS reader");
     return load(inputs, progress, cancel);
@@ -40,6 +41,7 @@ void MainWindow::openInputs(const QStringList& paths) {
 
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
+  m_demoGrid = true;
   startLoad("demo observation (simulated paper-neo)",
             [simulate](ProgressSink& progress, CancelToken& cancel) {
               if (!simulate) throwMissingService("simulator");
@@ -158,6 +160,14 @@ void MainWindow::onPreparedChanged() {
     m_processing->setSummary(QString::fromStdString(prepared->summary));
     if (prepared->filtered && m_obs->raw()) {
       m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
+      const auto& raw = *m_obs->raw();
+      if (m_demoGrid && raw.plateScaleArcsecPerPx) {
+        // The paper's object moves at ~6 deg/day: +-7 deg/day around the sky rate, 2 px over the span per
+        // step (the paper notes 1 px is finer than the ~3 px PSF needs).
+        const double span = std::max(raw.timeSpanS(), 1e-3);
+        m_search->setGridPxS(prepared->filtered->skyRate,
+                             degPerDayToPxPerSec(7.0, *raw.plateScaleArcsecPerPx), 2.0 / span);
+      }
       m_obs->setVelocity(prepared->filtered->skyRate);
     }
   }
@@ -200,6 +210,14 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
       finishScript(true, {});
   }
   if (finishedJob == "Searching") {
+    // Scripted runs list the candidates on stdout, so a figure's --select N can be chosen reproducibly.
+    const auto& result = m_obs->result();
+    for (std::size_t i = 0; result && i < result->candidates.size(); ++i) {
+      const auto& c = result->candidates[i];
+      std::printf("candidate %zu: x %d y %d vx %.4f vy %.4f px/s snr %.2f fap %.3g n_in %d\n", i + 1, c.x,
+                  c.y, c.v.vx, c.v.vy, c.snr, c.fap, c.nIn);
+    }
+    std::fflush(stdout);
     if (m_script->select) selectCandidate(*m_script->select - 1);
     finishScript(true, {});
   }
@@ -212,7 +230,10 @@ void MainWindow::finishScript(bool ok, const QString& message) {
   // Let the live stack arrive and the widgets lay out before the picture is taken.
   QTimer::singleShot(1200, this, [this, script, ok] {
     bool good = ok;
-    if (!script.screenshot.isEmpty()) good = saveScreenshot(script.screenshot) && good;
+    if (!script.screenshot.isEmpty())
+      good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
+    if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
+    std::fflush(stdout);
     m_script.reset();
     emit scriptFinished(good);
     if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);

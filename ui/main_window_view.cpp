@@ -62,6 +62,7 @@ void MainWindow::refreshCentral() {
       source == Source::RawFrame || source == Source::FilteredFrame || source == Source::UnfilteredFrame;
   m_frameSpin->setEnabled(frames);
   const auto& prepared = m_obs->prepared();
+  m_centralShowsStack = false;
   switch (source) {
     case Source::RawFrame:
       if (m_obs->raw()) m_view->setImage(frameOf(*m_obs->raw(), m_frameSpin->value()), true);
@@ -112,13 +113,14 @@ void MainWindow::updateMarkers() {
   const auto& result = m_obs->result();
   if (result) {
     const auto selected = m_obs->selected();
-    for (std::size_t i = 0; i < result->candidates.size() && i < 200; ++i) {
+    for (std::size_t i = 0; i < result->candidates.size() && i < 100; ++i) {
       const auto& c = result->candidates[i];
+      const bool isSelected = selected && *selected == static_cast<int>(i);
       ImageMarker m;
       m.pixel = QPointF(c.x, c.y);
       m.radiusPx = 8.0;
-      m.label = QString("#%1").arg(i + 1);
-      m.colour = selected && *selected == static_cast<int>(i) ? QColor(255, 210, 0) : QColor(0, 220, 120);
+      if (i < 10 || isSelected) m.label = QString("#%1").arg(i + 1);
+      m.colour = isSelected ? QColor(255, 210, 0) : QColor(0, 220, 120);
       markers.push_back(m);
     }
   }

@@ -14,33 +14,11 @@
 #include <QVBoxLayout>
 #include <cmath>
 
+#include "st/common/parallel.hpp"
+#include "st/search/velocity_grid.hpp"
+#include "st/stats/false_alarm.hpp"
+
 namespace st::ui {
-
-SearchEstimate estimateSearch(int width, int height, std::size_t frames, const search::VelocityGrid& grid,
-                              std::optional<double> secondsPerVelocity) {
-  SearchEstimate e;
-  const double velocities = static_cast<double>(grid.count());
-  e.trials = static_cast<double>(width) * height * velocities;
-  // The filtered cube (float32, held once), one stack and one N_in image per worker, and the map.
-  const double pixels = static_cast<double>(width) * height;
-  e.memoryBytes = pixels * static_cast<double>(frames) * 4.0 + pixels * 8.0 * 2.0 + velocities * 12.0;
-  if (secondsPerVelocity) e.seconds = *secondsPerVelocity * velocities;
-  return e;
-}
-
-double snrForFap(double fap, double trials) {
-  if (!(fap > 0.0) || !(trials > 0.0)) return 0.0;
-  double lo = 0.0;
-  double hi = 40.0;
-  for (int i = 0; i < 100; ++i) {  // FAP decreases with SNR: bisection
-    const double mid = 0.5 * (lo + hi);
-    if (trials * std::erfc(mid / std::sqrt(2.0)) / 2.0 > fap)
-      lo = mid;
-    else
-      hi = mid;
-  }
-  return 0.5 * (lo + hi);
-}
 
 namespace {
 QDoubleSpinBox* velocitySpin(QWidget* parent, double min) {
@@ -144,16 +122,20 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
   connect(m_run, &QPushButton::clicked, this, &SearchPanel::runRequested);
   connect(m_cancel, &QPushButton::clicked, this, &SearchPanel::cancelRequested);
-  connect(m_obs, &Observation::rawChanged, this, [this] {
-    const bool angular = m_obs->plateScale().has_value();
-    for (int i = 1; i < 3; ++i) {
-      auto* item = qobject_cast<QStandardItemModel*>(m_unit->model());
-      if (item) item->item(i)->setEnabled(angular);
-    }
-    if (!angular) m_unit->setCurrentIndex(0);
-    refresh();
-  });
+  connect(m_obs, &Observation::rawChanged, this, &SearchPanel::onRawChanged);
   setGridPxS({}, 0.5, 0.01);
+  if (m_obs->raw()) onRawChanged();
+}
+
+void SearchPanel::onRawChanged() {
+  const bool angular = m_obs->plateScale().has_value();
+  for (int i = 1; i < 3; ++i) {
+    auto* item = qobject_cast<QStandardItemModel*>(m_unit->model());
+    if (item) item->item(i)->setEnabled(angular);
+  }
+  // Astronomers think in deg/day (the paper's unit) when the plate scale allows it.
+  m_unit->setCurrentIndex(angular ? 2 : 0);
+  onUnitChanged();
 }
 
 void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {
@@ -226,19 +208,31 @@ void SearchPanel::refresh() {
     m_estimate->setText("open an observation first");
     return;
   }
-  const SearchEstimate e =
-      estimateSearch(raw->width(), raw->height(), raw->frameCount(), g,
-                     m_stackSeconds ? std::optional<double>(*m_stackSeconds) : std::nullopt);
-  QString text = QString("%1 trials · %2").arg(e.trials, 0, 'e', 2).arg(humanBytes(e.memoryBytes));
-  text += e.seconds ? " · ~" + humanSeconds(*e.seconds) : QString(" · time: scrub once to measure");
-  if (m_byFap->isChecked())
-    text += QString("\nFAP %1 ⇒ SNR ≥ %2")
-                .arg(m_fap->text())
-                .arg(snrForFap(m_fap->text().toDouble(), e.trials), 0, 'f', 2);
-  else
-    text += QString("\nSNR %1 ⇒ FAP %2")
-                .arg(m_snr->value())
-                .arg(e.trials * std::erfc(m_snr->value() / std::sqrt(2.0)) / 2.0, 0, 'e', 1);
+  // Throughput from the last live stack (w * h * frames additions), when one was measured.
+  std::optional<double> rate;
+  if (m_stackSeconds && *m_stackSeconds > 0)
+    rate = static_cast<double>(raw->width()) * raw->height() * static_cast<double>(raw->frameCount()) /
+           *m_stackSeconds;
+  const search::SearchEstimate e =
+      search::estimateSearch(raw->width(), raw->height(), raw->frameCount(), g, workerCount(), rate);
+  const double trials = search::trialCounts(raw->width(), raw->height(), g).total();
+  QString text = QString("%1 trials · %2 (+%3 cube)")
+                     .arg(trials, 0, 'e', 2)
+                     .arg(humanBytes(static_cast<double>(e.workingBytes)))
+                     .arg(humanBytes(static_cast<double>(e.cubeBytes)));
+  text += " · ~" + humanSeconds(e.seconds) + (rate ? "" : " (assumed speed)");
+  try {
+    if (m_byFap->isChecked())
+      text += QString("\nFAP %1 ⇒ SNR ≥ %2")
+                  .arg(m_fap->text())
+                  .arg(stats::snrThresholdForFap(m_fap->text().toDouble(), trials), 0, 'f', 2);
+    else
+      text += QString("\nSNR %1 ⇒ FAP %2")
+                  .arg(m_snr->value())
+                  .arg(stats::expectedFalseAlarms(m_snr->value(), trials), 0, 'e', 1);
+  } catch (const std::exception& ex) {
+    text += "\n" + QString::fromStdString(ex.what());
+  }
   m_estimate->setText(text);
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // Search parameters with units (px/s, "/min, deg/day), a live estimate of trials, memory and time, the
-// threshold by SNR or by false-alarm probability, the backend (auto/CPU/GPU), and Run/Cancel. The search
-// itself runs in the main window's JobRunner.
+// threshold by SNR or by false-alarm probability (estimate and FAP from st::search / st::stats), the backend
+// (auto/CPU/GPU), and Run/Cancel. The search itself runs in the main window's JobRunner.
 #include <QWidget>
 #include <optional>
 
@@ -17,18 +17,6 @@ class QPushButton;
 class QRadioButton;
 
 namespace st::ui {
-
-/// Pure arithmetic behind the estimate: trials N_x N_y N_vx N_vy (paper \label{Prob_false}), memory for
-/// the cube plus the per-velocity map, time from a measured single-velocity stack.
-struct SearchEstimate {
-  double trials = 0.0;
-  double memoryBytes = 0.0;
-  std::optional<double> seconds;
-};
-SearchEstimate estimateSearch(int width, int height, std::size_t frames, const search::VelocityGrid& grid,
-                              std::optional<double> secondsPerVelocity);
-/// The SNR at which trials * erfc(SNR / sqrt 2) / 2 equals `fap` (paper \label{Prob_false}), for display.
-double snrForFap(double fap, double trials);
 
 class SearchPanel : public QWidget {
   Q_OBJECT
@@ -56,6 +44,7 @@ class SearchPanel : public QWidget {
 
  private:
   void onUnitChanged();
+  void onRawChanged();
   void refresh();
   void setSpinUnits();
 

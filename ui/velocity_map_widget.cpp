@@ -17,6 +17,8 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_plot = new QCustomPlot(this);
   m_plot->setMinimumSize(260, 220);
   m_plot->setFocusPolicy(Qt::NoFocus);
+  m_plot->xAxis->ticker()->setTickCount(4);  // rates like 117.5 deg/day need room
+  m_plot->yAxis->ticker()->setTickCount(5);
   m_map = new QCPColorMap(m_plot->xAxis, m_plot->yAxis);
   m_scale = new QCPColorScale(m_plot);
   m_plot->plotLayout()->addElement(0, 1, m_scale);
@@ -49,17 +51,21 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_current =
       makeGraph(QCPScatterStyle(QCPScatterStyle::ssPlusCircle, QPen(QColor(255, 200, 0), 2), Qt::NoBrush, 14),
                 "current");
-  m_plot->legend->setVisible(true);
-  m_plot->legend->setFont(QFont(font().family(), 8));
-  m_plot->legend->removeItem(m_plot->legend->itemCount() - 1);  // the color map has no legend entry worth
-  m_plot->axisRect()->insetLayout()->setInsetAlignment(0, Qt::AlignTop | Qt::AlignRight);
-  m_plot->legend->setBrush(QColor(255, 255, 255, 200));
-
+  m_hint = new QCPItemText(m_plot);
+  m_hint->position->setType(QCPItemPosition::ptAxisRectRatio);
+  m_hint->position->setCoords(0.5, 0.12);
+  m_hint->setColor(Qt::white);
+  m_hint->setText("no search yet");
+  m_legend = new QLabel(
+      "<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
+      "<span style='color:#d4a000'>⊕</span> current velocity",
+      this);
   m_readout = new QLabel(this);
   m_readout->setTextInteractionFlags(Qt::TextSelectableByMouse);
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(2, 2, 2, 2);
   layout->addWidget(m_plot, 1);
+  layout->addWidget(m_legend);
   layout->addWidget(m_readout);
 
   connect(m_plot, &QCustomPlot::mousePress, this, [this](QMouseEvent* e) { onMouse(e, true); });
@@ -96,6 +102,7 @@ void VelocityMapWidget::rebuild() {
         m_map->data()->setCell(
             ix, iy, haveMap ? result->map.maxSnr[static_cast<std::size_t>(iy) * grid.nvx + ix] : 0.0);
     m_map->rescaleDataRange(true);
+    m_hint->setVisible(!haveMap);
     const double half = 0.5 * grid.stepPxS;
     m_plot->xAxis->setRange(toUnit(lo.vx - half), toUnit(hi.vx + half));
     m_plot->yAxis->setRange(toUnit(lo.vy - half), toUnit(hi.vy + half));

@@ -11,6 +11,7 @@ class QCustomPlot;
 class QCPColorMap;
 class QCPColorScale;
 class QCPGraph;
+class QCPItemText;
 class QLabel;
 
 namespace st::ui {
@@ -44,6 +45,8 @@ class VelocityMapWidget : public QWidget {
   QCPGraph* m_sky = nullptr;
   QCPGraph* m_current = nullptr;
   QLabel* m_readout = nullptr;
+  QLabel* m_legend = nullptr;
+  QCPItemText* m_hint = nullptr;
 };
 
 }  // namespace st::ui

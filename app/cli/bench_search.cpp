@@ -33,13 +33,13 @@ int benchSearch(const Args& args) {
     std::printf(
         "usage: synthtrack-cli bench search [--frames N] [--size N] [--nv N] [--json]\n"
         "  exact CPU search of N frames of size x size random pixels over nv x nv velocities\n"
-        "  (defaults 300 frames, 512 px, 21 x 21: ~3.5e10 additions), frames at 16.7 Hz like the paper,\n"
+        "  (defaults 500 frames, 512 px, 31 x 31: 1.26e11 additions), frames at 16.7 Hz like the paper,\n"
         "  grid step 1 px over the span. Reports additions/s and the paper-scale extrapolation.\n");
     return 0;
   }
-  const long long frames = cli.integer("frames").value_or(300);
+  const long long frames = cli.integer("frames").value_or(500);
   const long long size = cli.integer("size").value_or(512);
-  const long long nv = cli.integer("nv").value_or(21);
+  const long long nv = cli.integer("nv").value_or(31);
   if (frames < 2 || size < 8 || nv < 1 || size > 8192 || frames > 100000 || nv > 1000) {
     throw UsageError("need --frames >= 2, 8 <= --size <= 8192, 1 <= --nv <= 1000");
   }

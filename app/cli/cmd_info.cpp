@@ -67,13 +67,13 @@ void printText(const io::InputSummary& s) {
               s.files.size() > 1 ? ", ..." : "");
   std::printf("frames:      %zu (image HDU %d)\n", s.frames, s.hdu);
   std::printf("size:        %d x %d px\n", s.width, s.height);
-  std::printf("BITPIX:      %d (%s)\n",
-              s.bitpix > 16 && s.bitpix < 90 ? (s.bitpix == 20   ? 16
-                                                : s.bitpix == 40 ? 32
-                                                : s.bitpix == 80 ? 64
-                                                                 : 8)
-                                             : s.bitpix,
-              bitpixText(s.bitpix));
+  // CFITSIO's equivalent types 10/20/40/80 are BITPIX 8/16/32/64 with the standard BZERO offset.
+  const int stored = s.bitpix == 10   ? 8
+                     : s.bitpix == 20 ? 16
+                     : s.bitpix == 40 ? 32
+                     : s.bitpix == 80 ? 64
+                                      : s.bitpix;
+  std::printf("BITPIX:      %d (%s)\n", stored, bitpixText(s.bitpix));
   std::printf("first frame: MJD %.8f (%s UTC, mid-exposure)\n", s.firstMjd, isoFromMjd(s.firstMjd).c_str());
   std::printf("last frame:  MJD %.8f (%s UTC)\n", s.lastMjd, isoFromMjd(s.lastMjd).c_str());
   std::printf("time span:   %.3f s\n", (s.lastMjd - s.firstMjd) * kSecondsPerDay);

@@ -1,8 +1,201 @@
+// synthtrack-cli search INPUT... : the velocity search (paper §4.4) over a grid of trial velocities,
+// candidates above threshold with their false-alarm probabilities (paper Prob_false).
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "backend_factory.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "st/report/search_report.hpp"
+#include "load_args.hpp"
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/search/search_run.hpp"
+#include "st/search/sky_motion.hpp"
+#include "st/search/velocity_grid.hpp"
+#include "st/stack/matched_filter.hpp"
+#include "terminal_progress.hpp"
 
 namespace st::app {
+namespace {
 
-int cmdSearch(const Args&) { throw UsageError("'search' is not implemented yet"); }
+constexpr const char* kHelp =
+    "usage: synthtrack-cli search INPUT... --preprocessed [options]\n"
+    "  Searches a matched-filtered cube over a grid of trial velocities (exact IPSA, paper §4.4).\n"
+    "  --preprocessed        INPUT is already pre-processed and matched-filtered (required until the\n"
+    "                        pipeline lands); sigma_F, PSF FWHM and sky rate come from the header keywords\n"
+    "                        SIGMAF, PSFFWHM, SKYVX/SKYVY (px/s) when present, else from the options below\n"
+    "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
+    "                        half-width of the grid around its centre (default: 12 deg/day, the paper's,\n"
+    "                        when the plate scale is known)\n"
+    "  --centre-px-s VX,VY   grid centre (default: the sky rate)\n"
+    "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's rule)\n"
+    "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
+    "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all trials\n"
+    "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
+    "  --max-candidates N    cells kept before clustering (default 10000)\n"
+    "  --sigma-f S           noise of one filtered frame (default: header SIGMAF, else measured: 1.4826 "
+    "MAD)\n"
+    "  --fwhm PX             PSF FWHM (default: header PSFFWHM, else 3)\n"
+    "  --backend auto|cpu|cuda  (default auto)   --method exact\n"
+    "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
+
+struct Options {
+  search::SearchRequest request;
+  std::optional<double> sigmaF;
+  std::optional<double> fwhm;
+  std::string backend = "auto";
+  std::optional<std::string> csv;
+  bool json = false;
+};
+
+Velocity parsePair(const std::string& text, const std::string& name) {
+  double a = 0.0, b = 0.0;
+  char comma = 0;
+  if (std::sscanf(text.c_str(), "%lf%c%lf", &a, &comma, &b) != 3 || comma != ',') {
+    throw UsageError("--" + name + " needs VX,VY, got '" + text + "'");
+  }
+  return {a, b};
+}
+
+Options parseOptions(const CliArgs& cli) {
+  Options o;
+  search::GridSpec& g = o.request.grid;
+  const int ranges = cli.has("vmax-px-s") + cli.has("vmax-arcsec-min") + cli.has("vmax-deg-day");
+  if (ranges > 1) throw UsageError("give one of --vmax-px-s, --vmax-arcsec-min, --vmax-deg-day");
+  g.unit = search::VelocityUnit::DegPerDay;
+  g.halfRange = 12.0;
+  if (auto v = cli.number("vmax-px-s")) g = {*v, search::VelocityUnit::PxPerS};
+  if (auto v = cli.number("vmax-arcsec-min")) g = {*v, search::VelocityUnit::ArcsecPerMin};
+  if (auto v = cli.number("vmax-deg-day")) g = {*v, search::VelocityUnit::DegPerDay};
+  if (auto c = cli.value("centre-px-s")) g.centre = parsePair(*c, "centre-px-s");
+  if (cli.flag("grid-step-fwhm")) {
+    if (cli.has("grid-step-px")) throw UsageError("give --grid-step-px or --grid-step-fwhm, not both");
+    g.stepRule = search::StepRule::FwhmOverSpan;
+  }
+  if (auto p = cli.number("grid-step-px")) g.stepPx = *p;
+  search::SearchParams& p = o.request.params;
+  if (cli.has("snr") && cli.has("fap")) throw UsageError("give --snr or --fap, not both");
+  if (auto s = cli.number("snr")) p.snrThreshold = *s;
+  p.targetFap = cli.number("fap");
+  if (auto f = cli.number("min-frame-fraction")) p.minFrameFraction = *f;
+  if (auto n = cli.integer("max-candidates")) {
+    if (*n < 1) throw UsageError("--max-candidates must be >= 1");
+    p.maxCandidates = static_cast<std::size_t>(*n);
+  }
+  o.sigmaF = cli.number("sigma-f");
+  o.fwhm = cli.number("fwhm");
+  if (auto b = cli.value("backend")) o.backend = *b;
+  if (auto m = cli.value("method"); m && *m != "exact") {
+    throw UsageError("--method must be 'exact' (the tree search is not available), got '" + *m + "'");
+  }
+  o.csv = cli.value("out");
+  o.json = cli.flag("json");
+  return o;
+}
+
+search::FilteredCube loadFiltered(const CliArgs& cli, const Options& o, ProgressSink& progress) {
+  search::FilteredCube fc;
+  SubProgress loadProgress(progress, 0.0, 1.0);
+  fc.frames = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
+  const FitsHeader& h = fc.frames.header;
+  fc.psfFwhmPx = o.fwhm.value_or(h.getDouble("PSFFWHM").value_or(3.0));
+  if (!(fc.psfFwhmPx > 0.0)) throw InputError("PSF FWHM must be > 0, got " + std::to_string(fc.psfFwhmPx));
+  fc.skyRate = {h.getDouble("SKYVX").value_or(0.0), h.getDouble("SKYVY").value_or(0.0)};
+  if (o.sigmaF) {
+    fc.sigmaF = *o.sigmaF;
+  } else if (auto s = h.getDouble("SIGMAF")) {
+    fc.sigmaF = *s;
+  } else {
+    fc.sigmaF = stack::measureFilteredNoise(fc.frames, static_cast<int>(std::ceil(2.0 * fc.psfFwhmPx)));
+    if (!(fc.sigmaF > 0.0)) {
+      throw InputError(
+          "could not measure sigma_F from the data (fewer than 1000 usable pixels); give --sigma-f");
+    }
+  }
+  return fc;
+}
+
+void printTable(const nlohmann::json& j) {
+  std::printf("t_ref %s (MJD %.8f), %s, trials %lld x %lld x %lld x %lld, SNR threshold %.3f\n",
+              j["t_ref_utc"].get<std::string>().c_str(), j["t_ref_mjd"].get<double>(),
+              j["backend"].get<std::string>().c_str(), j["trials"]["nx"].get<long long>(),
+              j["trials"]["ny"].get<long long>(), j["trials"]["nvx"].get<long long>(),
+              j["trials"]["nvy"].get<long long>(), j["snr_threshold"].get<double>());
+  std::printf("%zu candidates\n", j["candidates"].size());
+  if (j["candidates"].empty()) return;
+  std::printf("%6s %6s %10s %10s %8s %6s %10s %10s %8s\n", "x", "y", "vx_px_s", "vy_px_s", "snr", "nIn",
+              "fap", "deg_day", "pa_deg");
+  for (const auto& c : j["candidates"]) {
+    std::printf("%6d %6d %10.5f %10.5f %8.2f %6d %10.3g %10s %8s\n", c["x"].get<int>(), c["y"].get<int>(),
+                c["vx_px_s"].get<double>(), c["vy_px_s"].get<double>(), c["snr"].get<double>(),
+                c["n_frames"].get<int>(), c["fap"].get<double>(),
+                c.contains("rate_deg_day") ? std::to_string(c["rate_deg_day"].get<double>()).c_str() : "-",
+                c.contains("pa_deg") ? std::to_string(c["pa_deg"].get<double>()).c_str() : "-");
+  }
+}
+
+}  // namespace
+
+int cmdSearch(const Args& args) {
+  std::set<std::string> valued = {"vmax-px-s",
+                                  "vmax-arcsec-min",
+                                  "vmax-deg-day",
+                                  "centre-px-s",
+                                  "grid-step-px",
+                                  "snr",
+                                  "fap",
+                                  "min-frame-fraction",
+                                  "max-candidates",
+                                  "sigma-f",
+                                  "fwhm",
+                                  "backend",
+                                  "method",
+                                  "out"};
+  for (const auto& n : loadOptionNames())
+    valued.insert(n);
+  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "help"});
+  if (cli.flag("help")) {
+    std::printf("%s%s", kHelp, loadOptionsHelp());
+    return 0;
+  }
+  if (cli.positionals().empty()) throw UsageError("no INPUT given");
+  if (!cli.flag("preprocessed")) {
+    throw UsageError(
+        "raw frames need pre-processing, which this build cannot run inside 'search' yet: run "
+        "'synthtrack-cli preprocess' and pass its filtered cube with --preprocessed");
+  }
+  const Options o = parseOptions(cli);
+  BackendSelection sel = makeBackend(parseBackendChoice(o.backend));
+  TerminalProgress progress;
+  const search::FilteredCube fc = loadFiltered(cli, o, progress);
+  const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
+  const search::SearchEstimate e = search::estimateSearch(fc.frames.width(), fc.frames.height(),
+                                                          fc.frames.frameCount(), grid, workerCount());
+  progress.finish();
+  std::fprintf(stderr,
+               "%s\nsearch: %d x %d px, %zu frames, %d x %d velocities (step %.4g px/s) = %.3g additions; "
+               "cube %.0f MB + %.0f MB working; CPU estimate %.0f s\n",
+               sel.message.c_str(), fc.frames.width(), fc.frames.height(), fc.frames.frameCount(), grid.nvx,
+               grid.nvy, grid.stepPxS, e.additions, e.cubeBytes / 1048576.0, e.workingBytes / 1048576.0,
+               e.seconds);
+  const search::SearchResult r =
+      sel.backend->search(fc, grid, o.request.params, progress, processCancelToken());
+  progress.finish();
+  nlohmann::json j = report::searchResultToJson(fc, r, cli.positionals());
+  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
+  j["min_frames"] = r.minFrames;
+  j["cells_above_threshold"] = r.cellsAboveThreshold;
+  if (o.csv) report::writeCandidatesCsv(*o.csv, j);
+  if (o.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    printTable(j);
+  }
+  return 0;
+}
 
 }  // namespace st::app

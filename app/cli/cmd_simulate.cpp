@@ -7,6 +7,7 @@
 
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "st/common/error.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/sim/simulator.hpp"
 #include "terminal_progress.hpp"
@@ -114,6 +115,11 @@ int cmdSimulate(const Args& args) {
   }
   if (cli.has("calib-frames") && !cli.has("calib-dir")) throw UsageError("--calib-frames needs --calib-dir");
 
+  // Fail before the (long) simulation when the output cannot be written.
+  const auto outDir = std::filesystem::path(*out).parent_path();
+  if (!outDir.empty() && !std::filesystem::is_directory(outDir)) {
+    throw InputError("output folder '" + outDir.string() + "' does not exist (for -o " + *out + ")");
+  }
   sim::SimParams params = sim::preset(*presetName);
   int width = 0, height = 0;
   if (const auto size = cli.value("size")) std::tie(width, height) = parseSize(*size);

@@ -285,8 +285,9 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
   res.tTotS = effectiveDurationS(s.times);
   res.sumP2 = pixelPsfSumOfSquares(o.psf);
   res.photonsPerFrame = o.gain * st.p.alpha * o.psf.integral();
-  const double nf = static_cast<double>(s.frames.size());
-  if (res.sigmaN > 0) res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN);
+  res.framesInside = prob.framesInside(st.p);
+  const double nf = static_cast<double>(res.framesInside);
+  if (res.sigmaN > 0 && nf > 0) res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN);
   if (res.photonsPerFrame > 0 && res.snr > 0) {
     res.sigmaPosPaper = positionSigmaPaper(res.photonsPerFrame, w, o.gain * res.sigmaN, nf);
     res.sigmaPosSnr = positionSigmaFromSnr(w, res.snr);
@@ -352,6 +353,7 @@ ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track,
   f.alpha = p.alpha;
   f.i0 = p.i0;
   f.pixels = static_cast<std::size_t>(l.n);
+  f.framesInside = prob.framesInside(track);
   const double det = l.n * l.spp - l.sp * l.sp;
   const double var = options.fitBackground ? (det > 0 ? l.n / det : 0.0) : (l.spp > 0 ? 1.0 / l.spp : 0.0);
   f.sigmaAlpha = sigmaN * std::sqrt(var);

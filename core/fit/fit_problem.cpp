@@ -17,6 +17,7 @@ FitProblem::FitProblem(const FrameCube& cube, std::vector<std::size_t> frames, s
       m_cx(m_frames.size(), 0),
       m_cy(m_frames.size(), 0),
       m_psf(psf),
+      m_table(psf, 2.0 * halfSize + 4.0),
       m_half(halfSize) {}
 
 void FitProblem::centreStamps(const FitParams& p) {
@@ -33,6 +34,16 @@ int FitProblem::centreDrift(const FitParams& p) const {
     drift = std::max(drift, std::abs(std::round(p.yc + p.v.vy * m_times[k]) - m_cy[k]));
   }
   return drift > 1e6 ? 1000000 : static_cast<int>(drift);
+}
+
+std::size_t FitProblem::framesInside(const FitParams& p) const {
+  std::size_t n = 0;
+  for (double t : m_times) {
+    const double x = p.xc + p.v.vx * t;
+    const double y = p.yc + p.v.vy * t;
+    if (x >= -0.5 && y >= -0.5 && x < m_cube.width() - 0.5 && y < m_cube.height() - 0.5) ++n;
+  }
+  return n;
 }
 
 // Calls fn(x, y, value) for every unmasked in-frame pixel of stamp k.
@@ -68,7 +79,7 @@ NormalEquations FitProblem::evaluate(const FitParams& p, bool withJacobian) cons
       const double px = p.xc + p.v.vx * t;
       const double py = p.yc + p.v.vy * t;
       forEachPixel(k, [&](int x, int y, double d) {
-        const PsfSample s = pixelPsf(m_psf, x - px, y - py);
+        const PsfSample s = m_table.sample(x - px, y - py);
         const double r = d - (p.alpha * s.value + p.i0);
         acc.cost += r * r;
         ++acc.pixels;
@@ -100,7 +111,7 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
     const double px = p.xc + p.v.vx * t;
     const double py = p.yc + p.v.vy * t;
     forEachPixel(k, [&](int x, int y, double) {
-      const PsfSample s = pixelPsf(m_psf, x - px, y - py);
+      const PsfSample s = m_table.sample(x - px, y - py);
       const double var = sigmaN2 + std::max(p.alpha * s.value, 0.0) / gain;
       j << -p.alpha * t * s.du, -p.alpha * t * s.dv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
       m.selfadjointView<Eigen::Lower>().rankUpdate(j, var);
@@ -116,7 +127,7 @@ FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
     const double px = p.xc + p.v.vx * m_times[k];
     const double py = p.yc + p.v.vy * m_times[k];
     forEachPixel(k, [&](int x, int y, double d) {
-      const double v = pixelPsfValue(m_psf, x - px, y - py);
+      const double v = m_table.value(x - px, y - py);
       l.sp += v;
       l.spp += v * v;
       l.sd += d;
@@ -163,7 +174,7 @@ void FitProblem::stacks(const FitParams& p, Image& data, Image& model, Image& re
         if (m_cube.isMasked(m_frames[k], x, y)) continue;
         const double d = img[static_cast<std::size_t>(y) * m_cube.width() + x];
         if (!std::isfinite(d)) continue;
-        const double m = p.alpha * pixelPsfValue(m_psf, x - px, y - py) + p.i0;
+        const double m = p.alpha * m_table.value(x - px, y - py) + p.i0;
         data.at(sx, sy) += static_cast<float>(d);
         model.at(sx, sy) += static_cast<float>(m);
         residual.at(sx, sy) += static_cast<float>(d - m);

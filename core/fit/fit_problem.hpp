@@ -7,6 +7,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/fit/comoving_fit.hpp"
+#include "st/fit/pixel_psf.hpp"
 
 namespace st::fit::detail {
 
@@ -41,6 +42,9 @@ class FitProblem {
   [[nodiscard]] LinearSums linearSums(const FitParams& p) const;
   /// Data, model and residual stacks on the current stamp grid (integer-shift aligned).
   void stacks(const FitParams& p, Image& data, Image& model, Image& residual) const;
+  /// Frames whose track position (pixel centre convention) lies inside the frame: the N_in of the paper's
+  /// IPSA boundary rule, which is the N_f that enters detection_snr and eq:sig.
+  [[nodiscard]] std::size_t framesInside(const FitParams& p) const;
   [[nodiscard]] std::size_t frameCount() const noexcept { return m_frames.size(); }
   [[nodiscard]] int halfSize() const noexcept { return m_half; }
 
@@ -54,6 +58,7 @@ class FitProblem {
   std::vector<int> m_cx;
   std::vector<int> m_cy;
   psf::Moffat m_psf;
+  PixelPsfTable m_table;
   int m_half;
 };
 

@@ -2,10 +2,15 @@
 // per job (a 2-D file, or a run of planes of a cube), straight into the cube's memory.
 #include "st/io/fits_reader.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <functional>
 
 #include "fits_file.hpp"
 #include "load_plan.hpp"
@@ -17,6 +22,7 @@
 namespace st::io {
 namespace {
 
+using detail::describeFrame;
 using detail::FitsFile;
 using detail::LoadPlan;
 using detail::PlaneRef;
@@ -78,38 +84,110 @@ bool readPlane(const FitsFile& f, const ScannedFile& s, int plane, const PixelRe
   return true;
 }
 
+// Converts big-endian IEEE floats in place. NaN and Inf become masked zeros and denormals zeros, as CFITSIO
+// does for its null checks. Returns true when a pixel was masked (flags then hold the mask).
+bool swapFloats(float* out, std::size_t n, std::vector<char>& flags) {
+  bool anyNull = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t v;
+    std::memcpy(&v, out + i, 4);
+    v = __builtin_bswap32(v);
+    std::memcpy(out + i, &v, 4);
+    anyNull |= (v & 0x7f800000u) == 0x7f800000u;
+  }
+  if (!anyNull) return false;
+  flags.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint32_t v;
+    std::memcpy(&v, out + i, 4);
+    if ((v & 0x7f800000u) == 0x7f800000u) {
+      flags[i] = 1;
+      out[i] = 0.0f;
+    }
+  }
+  return true;
+}
+
+// A plain file opened with POSIX for the direct float32 path.
+class RawFile {
+ public:
+  explicit RawFile(const std::string& path) : m_path(path), m_fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {
+    if (m_fd < 0) throw InputError(path + ": cannot open: " + std::strerror(errno));
+  }
+  ~RawFile() { ::close(m_fd); }
+  RawFile(const RawFile&) = delete;
+  RawFile& operator=(const RawFile&) = delete;
+  void read(void* dst, std::size_t bytes, long long offset, int hdu, int plane) const {
+    auto* p = static_cast<char*>(dst);
+    while (bytes > 0) {
+      const ssize_t got = ::pread(m_fd, p, bytes, offset);
+      if (got <= 0) {
+        throw FitsError(m_path + " HDU " + std::to_string(hdu) + ": reading the pixels of plane " +
+                        std::to_string(plane + 1) + ": " +
+                        (got == 0 ? std::string("file ends early (truncated)") : std::strerror(errno)));
+      }
+      p += got;
+      bytes -= static_cast<std::size_t>(got);
+      offset += got;
+    }
+  }
+
+ private:
+  std::string m_path;
+  int m_fd;
+};
+
+void readJob(const LoadPlan& plan, const ReadJob& job, FrameCube& cube,
+             std::vector<std::vector<std::uint8_t>>& masks, const std::function<void()>& frameDone,
+             CancelToken& cancel) {
+  const ScannedFile& s = plan.files[job.fileIndex];
+  std::vector<char> flags;
+  const PixelRegion& r = plan.region;
+  const bool whole = r.x0 == 0 && r.y0 == 0 && r.width == s.width && r.height == s.height;
+  if (s.rawFloatOffset >= 0 && whole) {
+    RawFile f(s.path);
+    const std::size_t n = cube.framePixels();
+    for (const auto& [plane, dest] : job.planes) {
+      cancel.throwIfCancelled();
+      f.read(cube.frame(dest), n * 4,
+             s.rawFloatOffset + static_cast<long long>(plane) * static_cast<long long>(n) * 4, s.hdu, plane);
+      if (swapFloats(cube.frame(dest), n, flags)) masks[dest].assign(flags.begin(), flags.end());
+      frameDone();
+    }
+    return;
+  }
+  FitsFile f = FitsFile::openRead(s.path);
+  int status = 0;
+  fits_movabs_hdu(f.get(), s.hdu, nullptr, &status);
+  f.check(status, "moving to the image HDU");
+  for (const auto& [plane, dest] : job.planes) {
+    cancel.throwIfCancelled();
+    if (readPlane(f, s, plane, r, cube.frame(dest), flags)) masks[dest].assign(flags.begin(), flags.end());
+    frameDone();
+  }
+}
+
 void readPixels(const LoadPlan& plan, FrameCube& cube, ProgressSink& progress, CancelToken& cancel) {
   const std::vector<ReadJob> jobs = makeJobs(plan);
   const std::size_t total = plan.frames.size();
   std::vector<std::vector<std::uint8_t>> masks(total);
   std::atomic<std::size_t> done{0};
+  const std::function<void()> frameDone = [&] {
+    const std::size_t k = ++done;
+    progress.report(kScanShare + (1.0 - kScanShare) * static_cast<double>(k) / static_cast<double>(total),
+                    "loading frames");
+  };
   parallelFor(jobs.size(), 1, [&](std::size_t b, std::size_t e) {
-    std::vector<char> flags;
-    for (std::size_t j = b; j < e; ++j) {
-      const ReadJob& job = jobs[j];
-      const ScannedFile& s = plan.files[job.fileIndex];
-      cancel.throwIfCancelled();
-      FitsFile f = FitsFile::openRead(s.path);
-      int status = 0;
-      fits_movabs_hdu(f.get(), s.hdu, nullptr, &status);
-      f.check(status, "moving to the image HDU");
-      for (const auto& [plane, dest] : job.planes) {
-        cancel.throwIfCancelled();
-        if (readPlane(f, s, plane, plan.region, cube.frame(dest), flags)) {
-          masks[dest].assign(flags.begin(), flags.end());
-        }
-        const std::size_t k = ++done;
-        progress.report(kScanShare + (1.0 - kScanShare) * static_cast<double>(k) / static_cast<double>(total),
-                        "loading frames");
-      }
-    }
+    for (std::size_t j = b; j < e; ++j)
+      readJob(plan, jobs[j], cube, masks, frameDone, cancel);
   });
   if (std::any_of(masks.begin(), masks.end(), [](const auto& m) { return !m.empty(); })) {
     cube.mask().assign(cube.pixels().size(), 0);
     for (std::size_t n = 0; n < total; ++n) {
-      if (!masks[n].empty())
+      if (!masks[n].empty()) {
         std::copy(masks[n].begin(), masks[n].end(),
                   cube.mask().begin() + static_cast<long>(n * cube.framePixels()));
+      }
     }
   }
 }
@@ -144,12 +222,31 @@ void attachWcs(FrameCube& cube, const LoadOptions& options) {
   }
 }
 
+// The cube must fit in memory: a header (of a compressed file especially) can claim any size.
+void checkMemory(const LoadPlan& plan) {
+  const double bytes = static_cast<double>(plan.region.width) * plan.region.height * 4.0 *
+                       static_cast<double>(plan.frames.size());
+  const long pages = sysconf(_SC_PHYS_PAGES);
+  const long pageSize = sysconf(_SC_PAGE_SIZE);
+  const double physical =
+      pages > 0 && pageSize > 0 ? static_cast<double>(pages) * static_cast<double>(pageSize) : 1e18;
+  if (bytes > 0.9 * physical) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  "%zu frames of %d x %d px need %.1f GB as float32, more than this machine's %.1f GB",
+                  plan.frames.size(), plan.region.width, plan.region.height, bytes / 1e9, physical / 1e9);
+    throw InputError(describeFrame(plan, plan.frames.front()) + ": " + buf +
+                     "; load fewer frames or --crop [x1:x2,y1:y2] to a smaller region");
+  }
+}
+
 }  // namespace
 
 FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options,
                      ProgressSink& progress, CancelToken& cancel) {
   SubProgress scanProgress(progress, 0.0, kScanShare);
   LoadPlan plan = detail::planLoad(inputs, options, scanProgress, cancel);
+  checkMemory(plan);
   FrameCube cube(plan.region.width, plan.region.height, plan.frames.size());
   readPixels(plan, cube, progress, cancel);
   for (std::size_t n = 0; n < plan.frames.size(); ++n) {

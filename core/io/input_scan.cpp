@@ -4,9 +4,11 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 
 #include "fits_file.hpp"
+#include "rice_check.hpp"
 #include "st/common/error.hpp"
 #include "st/common/units.hpp"
 #include "st/io/fits_time.hpp"
@@ -238,8 +240,9 @@ ScannedFile scanFile(const std::string& path, std::size_t fileIndex, const LoadO
   s.width = static_cast<int>(naxes[0]);
   s.height = static_cast<int>(naxes[1]);
   s.planes = naxis >= 3 ? static_cast<int>(naxes[2]) : 1;
-  // Truncated uncompressed files are caught here, before any pixel is read.
-  int compressed = fits_is_compressed_image(f.get(), &status);
+  // Truncated uncompressed files are caught here, before any pixel is read. A plain (not gzip'ed) file
+  // also gets the data offset for the direct float32 read path.
+  const int compressed = fits_is_compressed_image(f.get(), &status);
   if (!compressed) {
     LONGLONG headStart = 0, dataStart = 0, dataEnd = 0;
     fits_get_hduaddrll(f.get(), &headStart, &dataStart, &dataEnd, &status);
@@ -247,13 +250,25 @@ ScannedFile scanFile(const std::string& path, std::size_t fileIndex, const LoadO
     const LONGLONG bytes = static_cast<LONGLONG>(std::abs(rawBitpix) / 8) * naxes[0] * naxes[1] * s.planes;
     std::error_code ec;
     const auto fileSize = static_cast<LONGLONG>(std::filesystem::file_size(path, ec));
-    const bool gz = path.size() > 3 && path.compare(path.size() - 3, 3, ".gz") == 0;
-    if (!gz && !ec && dataStart + bytes > fileSize) {
+    char magic[6] = {};
+    std::ifstream(path, std::ios::binary).read(magic, sizeof magic);
+    const bool plain = std::string_view(magic, 6) == "SIMPLE";
+    if (plain && !ec && dataStart + bytes > fileSize) {
       throw InputError(where + ": file is truncated: the image needs " + std::to_string(dataStart + bytes) +
                        " bytes, the file has " + std::to_string(fileSize));
     }
+    if (plain && rawBitpix == FLOAT_IMG) s.rawFloatOffset = dataStart;
   }
+  checkRiceTiles(f);  // before CFITSIO decompresses anything (it crashes on corrupt RICE tiles)
   s.header = readHeader(f);
+  try {
+    if (s.header.getDouble("BZERO").value_or(0.0) != 0.0 ||
+        s.header.getDouble("BSCALE").value_or(1.0) != 1.0) {
+      s.rawFloatOffset = -1;  // scaled floats go through CFITSIO
+    }
+  } catch (const InputError& e) {
+    throw InputError(where + ": " + e.what());
+  }
   s.frames.resize(static_cast<std::size_t>(s.planes));
   for (int n = 0; n < s.planes; ++n) {
     s.frames[n].fileIndex = fileIndex;

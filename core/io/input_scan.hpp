@@ -27,6 +27,9 @@ struct ScannedFile {
   int planes = 0;
   int bitpix = 0;  ///< equivalent BITPIX (BZERO 32768 on 16 bits reads as 20 = unsigned 16)
   FitsHeader header;
+  /// Byte offset of the data of an unscaled BITPIX -32 image in a plain file (read directly, big-endian
+  /// floats); -1 when CFITSIO must convert (other types, scaling, compression, gzip).
+  long long rawFloatOffset = -1;
   std::string timeSource;
   std::vector<PlaneRef> frames;
   std::vector<std::string> warnings;

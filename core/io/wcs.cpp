@@ -96,6 +96,40 @@ bool ctypeIsPlainTan(const FitsHeader& header) {
   return t && t->size() == 8 && t->substr(4) == "-TAN";
 }
 
+// The pixel -> intermediate matrix (CD, or CDELT * PC) as wcspih left it, before wcsset.
+bool linearPartInvertible(const wcsprm& w) {
+  const int n = w.naxis;
+  if (n <= 0 || n > 9) return false;
+  const bool cd = (w.altlin & 2) != 0 && (w.altlin & 1) == 0;
+  std::vector<double> m(static_cast<std::size_t>(n * n));
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      m[i * n + j] = cd ? w.cd[i * n + j] : w.cdelt[i] * w.pc[i * n + j];
+      if (!std::isfinite(m[i * n + j])) return false;
+    }
+  }
+  // Gaussian elimination with partial pivoting: singular when a pivot vanishes.
+  double scale = 0.0;
+  for (double v : m)
+    scale = std::max(scale, std::abs(v));
+  if (scale == 0.0) return false;
+  for (int c = 0; c < n; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < n; ++r) {
+      if (std::abs(m[r * n + c]) > std::abs(m[piv * n + c])) piv = r;
+    }
+    if (std::abs(m[piv * n + c]) <= 1e-14 * scale) return false;
+    for (int k = 0; k < n; ++k)
+      std::swap(m[c * n + k], m[piv * n + k]);
+    for (int r = c + 1; r < n; ++r) {
+      const double f = m[r * n + c] / m[c * n + c];
+      for (int k = c; k < n; ++k)
+        m[r * n + k] -= f * m[c * n + k];
+    }
+  }
+  return true;
+}
+
 // Parses `text`, keeps the primary WCS when it has celestial axes. Returns an error text on failure.
 std::string tryParse(std::string text, Wcs::Impl& impl) {
   const int nkeys = static_cast<int>(text.size() / 80);
@@ -104,8 +138,9 @@ std::string tryParse(std::string text, Wcs::Impl& impl) {
   int status = wcspih(text.data(), nkeys, WCSHDR_all, 0, &nreject, &impl.nwcs, &impl.wcs);
   if (status != 0 || impl.nwcs == 0)
     return std::string("wcspih: ") + (status ? wcshdr_errmsg[status] : "no WCS");
-  // Move the primary (blank alternate) WCS to the front; drop the others.
   wcsprm* w = impl.wcs;
+  // wcslib 7.12 leaks its matrices when linset() meets a singular matrix: refuse those here.
+  if (!linearPartInvertible(*w)) return "the CD/PC matrix is singular";
   int stat[NWCSFIX] = {};
   wcsfix(1, nullptr, w, stat);  // translate non-standard units, CD/CDELT mixtures, RADECSYS, ...
   status = wcsset(w);
@@ -206,8 +241,9 @@ std::pair<double, double> Wcs::skyToPixel(double raDeg, double decDeg) const {
 double Wcs::plateScaleArcsecPerPx() const {
   const wcsprm* w = m_impl->wcs;
   const int n = w->naxis;
-  const double* m = w->lin.piximg;  // CDELT * PC (or CD), row = world axis, column = pixel axis
-  const double a = m[w->lng * n + 0], b = m[w->lng * n + 1], c = m[w->lat * n + 0], d = m[w->lat * n + 1];
+  // CDELT * PC, row = world axis, column = pixel axis (wcsset copies a CD matrix into pc with cdelt = 1).
+  auto m = [&](int i, int j) { return w->cdelt[i] * w->pc[i * n + j]; };
+  const double a = m(w->lng, 0), b = m(w->lng, 1), c = m(w->lat, 0), d = m(w->lat, 1);
   return std::sqrt(std::abs(a * d - b * c)) * 3600.0;
 }
 
@@ -226,7 +262,8 @@ FitsHeader Wcs::toHeader() const {
   // users compare keywords).
   const bool cd = (w->altlin & 2) != 0 && (w->altlin & 1) == 0;
   auto isPcOrCdelt = [](const std::string& k) {
-    return (startsWith(k, "PC") && k.size() > 2 && std::isdigit(static_cast<unsigned char>(k[2]))) || startsWith(k, "CDELT");
+    return (startsWith(k, "PC") && k.size() > 2 && std::isdigit(static_cast<unsigned char>(k[2]))) ||
+           startsWith(k, "CDELT");
   };
   for (auto& c : all.cards) {
     if (c.key.empty() || !isWcsKeyword(c.key) || (cd && isPcOrCdelt(c.key))) continue;
@@ -237,7 +274,8 @@ FitsHeader Wcs::toHeader() const {
       for (int j = 0; j < w->naxis; ++j) {
         const double v = w->cd[i * w->naxis + j];
         if (v != 0.0 || i == j) {
-          out.setNumber("CD" + std::to_string(i + 1) + "_" + std::to_string(j + 1), v, "linear transformation matrix");
+          out.setNumber("CD" + std::to_string(i + 1) + "_" + std::to_string(j + 1), v,
+                        "linear transformation matrix");
         }
       }
     }

@@ -11,6 +11,7 @@
 #include "st/search/ipsa.hpp"
 #include "st/search/search_run.hpp"
 #include "st/search/velocity_grid.hpp"
+#include "st/stack/ipsa.hpp"
 
 namespace st::search {
 
@@ -55,30 +56,9 @@ class CpuBackend final : public SearchBackend {
   }
 
   Image stackAt(const FilteredCube& cube, Velocity v, StackMode mode) override {
+    // CSA (sub-pixel shifts, paper §2.2) is not part of st::stack yet.
     if (mode == StackMode::Csa) throw InputError("CSA not supported by this backend");
-    const FrameCube& f = cube.frames;
-    if (f.frameCount() == 0) throw InputError("cannot stack a cube with no frames");
-    const int w = f.width();
-    const int h = f.height();
-    Image out(w, h, 0.0f);
-    const std::vector<double> dt = f.timeOffsetsS();
-    for (std::size_t n = 0; n < f.frameCount(); ++n) {
-      const int sx = ipsaShift(v.vx, dt[n]);
-      const int sy = ipsaShift(v.vy, dt[n]);
-      // out(x, y) += F_n(x + sx, y + sy) where the sample is inside the frame.
-      const int x0 = std::max(0, -sx);
-      const int x1 = std::min(w, w - sx);
-      const int y0 = std::max(0, -sy);
-      const int y1 = std::min(h, h - sy);
-      const float* src = f.frame(n);
-      for (int y = y0; y < y1; ++y) {
-        float* o = out.data() + static_cast<std::size_t>(y) * w;
-        const float* s = src + static_cast<std::size_t>(y + sy) * w + sx;
-        for (int x = x0; x < x1; ++x)
-          o[x] += s[x];
-      }
-    }
-    return out;
+    return stack::stackIpsa(cube.frames, v).sum;
   }
 };
 

@@ -132,16 +132,20 @@ TileGeometry fillTile(Shared& sh, Scratch& s, int nv, int k0, int nb, int y0, in
   return g;
 }
 
+/// Shifts in time order, clamped to +-width / +-height: a sample shifted that far is outside the frame for
+/// every output pixel either way, so the statistic and N_in are unchanged while tiles stay small.
 void computeShifts(Shared& sh, Scratch& s, int iv0, int nv) {
   const int n = static_cast<int>(sh.order.dt.size());
+  const int w = sh.cube.width();
+  const int h = sh.cube.height();
   s.sx.resize(static_cast<std::size_t>(nv) * n);
   s.sy.resize(static_cast<std::size_t>(nv) * n);
   for (int v = 0; v < nv; ++v) {
     const int iv = iv0 + v;
     const Velocity vel = sh.grid.at(iv % sh.grid.nvx, iv / sh.grid.nvx);
     for (int k = 0; k < n; ++k) {
-      s.sx[v * n + k] = ipsaShift(vel.vx, sh.order.dt[k]);
-      s.sy[v * n + k] = ipsaShift(vel.vy, sh.order.dt[k]);
+      s.sx[v * n + k] = std::clamp(ipsaShift(vel.vx, sh.order.dt[k]), -w, w);
+      s.sy[v * n + k] = std::clamp(ipsaShift(vel.vy, sh.order.dt[k]), -h, h);
     }
   }
 }
@@ -338,12 +342,13 @@ KernelOutput runIpsaKernel(const FrameCube& cube, const VelocityGrid& grid, cons
   return std::move(sh.out);
 }
 
-std::size_t workingBytes(int width, int height, const VelocityGrid& grid, unsigned threads) {
+std::size_t workingBytes(int width, int height, std::size_t frames, const VelocityGrid& grid,
+                         unsigned threads) {
   (void)height;
   const std::size_t wp = static_cast<std::size_t>(roundUp8(width));
   const std::size_t perThread =
       sizeof(float) * (kVelBlock * kRowTile * wp + kFrameBlock * 2 * kRowTile * (wp + 64)) +
-      sizeof(int) * kVelBlock * 4096 * 2;
+      sizeof(int) * kVelBlock * frames * 2;
   const std::size_t map = grid.count() * (sizeof(float) + 2 * sizeof(int));
   const std::size_t hits = 3 * 10000 * sizeof(CellHit);
   return perThread * std::max(1u, threads) + map + hits;

@@ -53,7 +53,8 @@ KernelOutput runIpsaKernel(const FrameCube& cube, const VelocityGrid& grid, cons
                            const KernelParams& params, ProgressSink& progress, CancelToken& cancel);
 
 /// Bytes the kernel allocates on top of the cube (scratch per thread, map, hit buffers).
-std::size_t workingBytes(int width, int height, const VelocityGrid& grid, unsigned threads);
+std::size_t workingBytes(int width, int height, std::size_t frames, const VelocityGrid& grid,
+                         unsigned threads);
 
 /// acc[0, wp) += sum_k src[k][0, wp); wp a multiple of 8. AVX2 when the CPU has it.
 void addRows(float* acc, const float* const* src, int count, int wp);

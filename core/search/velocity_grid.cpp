@@ -111,7 +111,7 @@ SearchEstimate estimateSearch(int width, int height, std::size_t frames, const V
   const double pixels = static_cast<double>(width) * static_cast<double>(height);
   e.additions = pixels * static_cast<double>(frames) * static_cast<double>(grid.count());
   e.cubeBytes = static_cast<std::size_t>(pixels) * frames * sizeof(float);
-  e.workingBytes = detail::workingBytes(width, height, grid, threads);
+  e.workingBytes = detail::workingBytes(width, height, frames, grid, threads);
   e.throughputPerS = additionsPerSecond.value_or(kCpuAdditionsPerSecondPerThread * std::max(1u, threads));
   e.seconds = e.throughputPerS > 0.0 ? e.additions / e.throughputPerS : 0.0;
   return e;

@@ -23,7 +23,7 @@ class FrameRenderer {
   /// Expected photons per pixel of frame n before the flat: sky + stars (with spikes) + objects.
   void expectedPhotons(int n, std::vector<double>& photons) const;
   /// Turns expected photons into raw ADU (flat, Poisson, bleed, EM gain, read noise, bias, hot pixels,
-  /// cosmic rays, ADC clip) into `out` (width * height floats). `charge` is scratch space.
+  /// cosmic rays, ADC clip) into `out` (width * height floats). `photons` is overwritten (charge).
   void detector(int n, std::vector<double>& photons, Rng& rng, float* out) const;
 
   [[nodiscard]] const PsfStamp& starStamp() const noexcept { return m_starStamp; }

@@ -24,6 +24,9 @@ PsfStamp::PsfStamp(const psf::Moffat& psf, double trailDxPx, double trailDyPx, i
   const int steps = std::max(1, static_cast<int>(std::ceil(trail / 0.1)));
   std::vector<double> fine(static_cast<std::size_t>(n) * n);
   const double invR2 = 1.0 / (psf.radius * psf.radius);
+  // Integer beta (the paper's 4): repeated multiplication instead of pow, 10x faster.
+  const int integerBeta =
+      psf.beta == std::round(psf.beta) && psf.beta <= 16.0 ? static_cast<int>(psf.beta) : 0;
   for (int b = 0; b < n; ++b) {
     const double v = (b + mMin + 0.5) / s;
     for (int a = 0; a < n; ++a) {
@@ -33,7 +36,15 @@ PsfStamp::PsfStamp(const psf::Moffat& psf, double trailDxPx, double trailDyPx, i
         const double f = (k + 0.5) / steps - 0.5;
         const double du = u - trailDxPx * f;
         const double dv = v - trailDyPx * f;
-        sum += std::pow(1.0 + (du * du + dv * dv) * invR2, -psf.beta);
+        const double base = 1.0 / (1.0 + (du * du + dv * dv) * invR2);
+        if (integerBeta > 0) {
+          double term = base;
+          for (int e = 1; e < integerBeta; ++e)
+            term *= base;
+          sum += term;
+        } else {
+          sum += std::pow(base, psf.beta);
+        }
       }
       fine[static_cast<std::size_t>(b) * n + a] = sum / steps;
     }

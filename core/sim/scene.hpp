@@ -45,7 +45,7 @@ double photonsPerFrame(const SimParams& p, double mag);
 
 Scene planScene(const SimParams& params, std::uint64_t seed);
 
-/// Noise of a calibrated frame ((raw - bias) / flat) for sky level `skyPhotons`: rms over pixels of the
+/// Noise of a calibrated frame ((raw - bias) / flat) at the sky level of `p`: rms over pixels of the
 /// per-pixel sigma, ADU. Uses the flat (empty flat = 1 everywhere).
 double calibratedSigmaAdu(const SimParams& p, const Image& flat);
 

@@ -43,10 +43,42 @@ struct PlanPair {
   fftwf_plan inverse = nullptr;
 };
 
-std::mutex& planMutex() {
-  static std::mutex m;
-  return m;
-}
+/// The process's plans, one pair per (nx, ny, measure), destroyed at exit (so leak checkers see none). No
+/// fftwf_cleanup*: that would invalidate plans other code might still hold.
+class PlanCache {
+ public:
+  ~PlanCache() {
+    for (auto& [key, p] : m_plans) {
+      fftwf_destroy_plan(p.forward);
+      fftwf_destroy_plan(p.inverse);
+    }
+  }
+  PlanPair get(int nx, int ny, bool measure) {
+    std::lock_guard lock(m_mutex);
+    auto it = m_plans.find({nx, ny, measure});
+    if (it != m_plans.end()) return it->second;
+    const std::size_t nReal = std::size_t(nx) * ny, nCplx = std::size_t(nx / 2 + 1) * ny;
+    RealBuf r = allocReal(nReal);
+    CplxBuf c = allocCplx(nCplx);
+    const unsigned flags = measure ? FFTW_MEASURE : FFTW_ESTIMATE;
+    fftwf_plan_with_nthreads(1);
+    PlanPair p;
+    p.forward = fftwf_plan_dft_r2c_2d(ny, nx, r.get(), c.get(), flags);
+    p.inverse = fftwf_plan_dft_c2r_2d(ny, nx, c.get(), r.get(), flags);
+    if (!p.forward || !p.inverse) {
+      if (p.forward) fftwf_destroy_plan(p.forward);
+      if (p.inverse) fftwf_destroy_plan(p.inverse);
+      throw InputError("CSA stack: FFTW could not plan a " + std::to_string(nx) + " x " + std::to_string(ny) +
+                       " FFT");
+    }
+    m_plans.emplace(std::make_tuple(nx, ny, measure), p);
+    return p;
+  }
+
+ private:
+  std::mutex m_mutex;
+  std::map<std::tuple<int, int, bool>, PlanPair> m_plans;
+};
 
 PlanPair plansFor(int nx, int ny, bool measure) {
   static std::once_flag once;
@@ -54,23 +86,8 @@ PlanPair plansFor(int nx, int ny, bool measure) {
     fftwf_init_threads();
     fftwf_make_planner_thread_safe();
   });
-  static std::map<std::tuple<int, int, bool>, PlanPair> cache;
-  std::lock_guard lock(planMutex());
-  auto it = cache.find({nx, ny, measure});
-  if (it != cache.end()) return it->second;
-  const std::size_t nReal = std::size_t(nx) * ny, nCplx = std::size_t(nx / 2 + 1) * ny;
-  RealBuf r = allocReal(nReal);
-  CplxBuf c = allocCplx(nCplx);
-  const unsigned flags = measure ? FFTW_MEASURE : FFTW_ESTIMATE;
-  fftwf_plan_with_nthreads(1);
-  PlanPair p;
-  p.forward = fftwf_plan_dft_r2c_2d(ny, nx, r.get(), c.get(), flags);
-  p.inverse = fftwf_plan_dft_c2r_2d(ny, nx, c.get(), r.get(), flags);
-  if (!p.forward || !p.inverse)
-    throw InputError("CSA stack: FFTW could not plan a " + std::to_string(nx) + " x " + std::to_string(ny) +
-                     " FFT");
-  cache.emplace(std::make_tuple(nx, ny, measure), p);
-  return p;
+  static PlanCache cache;  // constructed after the init above, so destroyed before anything it needs
+  return cache.get(nx, ny, measure);
 }
 
 /// exp(2 pi i k Delta / n) for k = 0..count-1 with signed frequencies (k > n/2 -> k - n). At the Nyquist

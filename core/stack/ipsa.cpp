@@ -58,6 +58,13 @@ void ipsaRows(const FrameCube& cube, const std::vector<IntShift>& shifts, int y0
       if (xlo >= xhi) continue;
       const int rlo = std::max(yb, -dy), rhi = std::min(ye, h - dy);  // rows whose source row is inside
       const float* frame = cube.frame(n);
+      if (n + 2 < shifts.size()) {  // touch the pages of frame n+2's rows: TLB walk and prefetch start early
+        const float* nf = cube.frame(n + 2);
+        const int r0 = std::clamp(yb + shifts[n + 2].dy, 0, h - 1),
+                  r1 = std::clamp(ye + shifts[n + 2].dy, 0, h);
+        for (std::size_t off = std::size_t(r0) * w; off < std::size_t(r1) * w; off += 1024)
+          __builtin_prefetch(nf + off, 0, 0);
+      }
       for (int y = rlo; y < rhi; ++y) {
         addRow(acc + std::size_t(y - yb) * w + xlo, frame + std::size_t(y + dy) * w + xlo + dx, xhi - xlo);
         int* d = diff.data() + std::size_t(y - yb) * (w + 1);

@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "st/common/error.hpp"
@@ -153,6 +154,17 @@ double measureFilteredNoise(const FrameCube& cube, int border, std::size_t maxFr
       }
   }
   return all.size() < kMinNoiseSamples ? 0.0 : madSigma(all);
+}
+
+search::FilteredCube makeFilteredCube(FrameCube prepared, const psf::Moffat& psf, Velocity skyRate,
+                                      ProgressSink& progress, CancelToken& cancel) {
+  search::FilteredCube out;
+  out.frames = std::move(prepared);
+  const FilterKernel kernel = makeFilterKernel(psf);
+  out.sigmaF = filterCube(out.frames, kernel, progress, cancel).sigmaF;
+  out.skyRate = skyRate;
+  out.psfFwhmPx = psf.fwhm();
+  return out;
 }
 
 }  // namespace st::stack

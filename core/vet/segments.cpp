@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/stack/ipsa.hpp"
 
 namespace st::vet {
 
@@ -30,12 +31,18 @@ Image stackStamp(const FrameCube& cube, const std::vector<std::size_t>& frames, 
                  Velocity v, double t0OffsetS, int half) {
   const int side = 2 * half + 1;
   Image out(side, side);
-  const std::vector<double> t = cube.timeOffsetsS();
+  const std::vector<double> all = cube.timeOffsetsS();
+  std::vector<double> t;
+  for (std::size_t n : frames)
+    t.push_back(all[n] - t0OffsetS);
+  // The search's own rounding convention (st::stack::ipsaShifts), so segment stacks match full stacks.
+  const std::vector<stack::IntShift> shifts = stack::ipsaShifts(t, v);
   const int cx = static_cast<int>(std::lround(x));
   const int cy = static_cast<int>(std::lround(y));
-  for (std::size_t n : frames) {
-    const int dx = static_cast<int>(std::lround(v.vx * (t[n] - t0OffsetS)));
-    const int dy = static_cast<int>(std::lround(v.vy * (t[n] - t0OffsetS)));
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const std::size_t n = frames[k];
+    const int dx = shifts[k].dx;
+    const int dy = shifts[k].dy;
     const float* img = cube.frame(n);
     for (int j = -half; j <= half; ++j) {
       const int yy = cy + j + dy;
@@ -109,7 +116,10 @@ void measureSegment(const FrameCube& cube, const fit::FitResult& whole, const fi
   m.forcedSigmaAlpha = f.sigmaAlpha;
   m.forcedSnr = f.snr;
   m.photonsPerFrame = base.gain * f.alpha * base.psf.integral();
-  m.expectedSnr = whole.snr * std::sqrt(static_cast<double>(m.frames.size()) / whole.framesUsed);
+  m.framesInside = f.framesInside;
+  m.expectedSnr = whole.framesInside > 0
+                      ? whole.snr * std::sqrt(static_cast<double>(f.framesInside) / whole.framesInside)
+                      : 0.0;
   track.alpha = std::numeric_limits<double>::quiet_NaN();
   const fit::FitResult r = fit::fitComoving(cube, track, o);
   m.fitStatus = r.status;

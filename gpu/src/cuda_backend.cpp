@@ -14,6 +14,9 @@
 #include "search_plan.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
+#include "st/search/candidates.hpp"
+#include "st/search/search_run.hpp"
+#include "st/stack/csa.hpp"
 #include "stack_engine.hpp"
 
 namespace st::gpu {
@@ -47,16 +50,23 @@ class CudaBackend final : public CudaSearchBackend {
                               const search::SearchParams& params, ProgressSink& progress,
                               CancelToken& cancel) override {
     const auto start = std::chrono::steady_clock::now();
-    validateSearch(cube, grid, params);
+    search::validateSearchInput(cube, grid, params);
+    validateForGpu(cube);
     search::SearchResult result;
     result.grid = grid;
     result.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
-    result.snrThreshold = effectiveSnrThreshold(params, result.trials);
+    result.snrThreshold = search::effectiveThreshold(params, result.trials);
     result.tRefMjd = cube.frames.tRefMjd();
     result.backend = name();
     result.method = "exact";
-    const int minFrames = minFramesFor(params, cube.frames.frameCount());
-    const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, minFrames);
+    result.minFrames = search::minFramesFor(params, cube.frames.frameCount());
+    HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
+    if (m_options.kernelVariant >= 0) {
+      plan.tiledMode = m_options.kernelVariant;
+      chooseTiling(plan, false, false);
+    } else if (m_options.kernelVariant == -2) {
+      chooseTiling(plan, true, true);
+    }
     std::size_t capacity = m_options.cellCapacity > 0
                                ? m_options.cellCapacity
                                : std::max<std::size_t>(4 * params.maxCandidates, 65536);
@@ -76,7 +86,8 @@ class CudaBackend final : public CudaSearchBackend {
       outcomes = runAll(plan, cube, capacity, progress, cancel);
     }
     mergeMap(outcomes, plan, result);
-    result.candidates = makeCandidates(outcomes, grid, params, result.trials);
+    result.cellsAboveThreshold = static_cast<std::int64_t>(above);
+    result.candidates = makeCandidates(outcomes, cube, grid, params, result.trials);
     m_note.clear();
     m_kernelSeconds = 0.0;
     for (std::size_t i = 0; i < outcomes.size(); ++i) {
@@ -88,8 +99,15 @@ class CudaBackend final : public CudaSearchBackend {
     return result;
   }
 
+  /// IPSA on the first device; CSA (spectral sub-pixel shifts, st::stack::stackCsa) on the CPU, so both
+  /// backends give the same CSA stack.
   Image stackAt(const search::FilteredCube& cube, Velocity v, search::StackMode mode) override {
-    return m_stack.stack(cube, v, mode);
+    if (mode == search::StackMode::Csa) {
+      NullProgress progress;
+      CancelToken cancel;
+      return stack::stackCsa(cube.frames, v, progress, cancel).sum;
+    }
+    return m_stack.stack(cube, v);
   }
 
  private:
@@ -171,19 +189,19 @@ class CudaBackend final : public CudaSearchBackend {
     }
   }
 
-  /// Cells above threshold, highest SNR first (ties: lowest y, then x), capped at maxCandidates.
-  /// TODO(search): cluster with st::search::clusterCells once the CPU backend's clustering lands on main;
-  /// until then each capped cell is its own candidate (clusterCells = 1).
+  /// Cells above threshold, highest SNR first, capped at maxCandidates, then clustered exactly as the CPU
+  /// backend does (st::search::clusterCells with the default radii for the PSF).
   static std::vector<search::Candidate> makeCandidates(const std::vector<DeviceOutcome>& outcomes,
+                                                       const search::FilteredCube& cube,
                                                        const search::VelocityGrid& grid,
                                                        const search::SearchParams& params,
                                                        const search::TrialCounts& trials) {
-    std::vector<HostCell> cells;
+    std::vector<search::CellHit> cells;
     for (const auto& o : outcomes) {
       for (const DeviceCell& c : o.cells)
-        cells.push_back(HostCell{c.snr, c.sum, c.x, c.y, c.ivx, c.ivy, c.nIn});
+        cells.push_back(search::CellHit{c.snr, c.sum, c.x, c.y, c.ivx, c.ivy, c.nIn});
     }
-    std::sort(cells.begin(), cells.end(), [](const HostCell& a, const HostCell& b) {
+    std::sort(cells.begin(), cells.end(), [](const search::CellHit& a, const search::CellHit& b) {
       if (a.snr != b.snr) return a.snr > b.snr;
       if (a.y != b.y) return a.y < b.y;
       if (a.x != b.x) return a.x < b.x;
@@ -191,22 +209,7 @@ class CudaBackend final : public CudaSearchBackend {
       return a.ivx < b.ivx;
     });
     if (cells.size() > params.maxCandidates) cells.resize(params.maxCandidates);
-    std::vector<search::Candidate> out;
-    out.reserve(cells.size());
-    for (const HostCell& c : cells) {
-      search::Candidate cand;
-      cand.x = c.x;
-      cand.y = c.y;
-      cand.ivx = c.ivx;
-      cand.ivy = c.ivy;
-      cand.v = grid.at(c.ivx, c.ivy);
-      cand.sum = c.sum;
-      cand.nIn = c.nIn;
-      cand.snr = c.snr;
-      cand.fap = detectionFap(c.snr, trials);
-      out.push_back(cand);
-    }
-    return out;
+    return search::clusterCells(cells, grid, search::defaultClusterParams(cube.psfFwhmPx), trials);
   }
 
   std::vector<DeviceInfo> m_devices;

@@ -94,10 +94,27 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.pitch = plan.pitch;
   p.winRows = plan.winRows;
   p.framesPerStage = plan.framesPerStage;
+  p.variant = plan.tiledMode;
+  p.groups = plan.rowGroups;
   return p;
 }
 
+std::string kernelName(const HostPlan& plan, bool naive) {
+  if (naive) return ", naive kernel";
+  if (plan.kernel == HostPlan::Kernel::Row) {
+    return ", row kernel (" + std::to_string(plan.rowGroups * kRowVelocities) +
+           " velocities per block, window " + std::to_string(plan.winRows) + " x " +
+           std::to_string(plan.pitch) + ", " + std::to_string(plan.framesPerStage) + " frames per stage)";
+  }
+  return ", tiled kernel";
+}
+
+std::size_t offsetInts(const HostPlan& plan) {
+  return plan.kernel == HostPlan::Kernel::Row ? rowOffsetInts() : static_cast<std::size_t>(kVelPerBlock + 2);
+}
+
 int tilesFor(const HostPlan& plan, int rows) {
+  if (plan.kernel == HostPlan::Kernel::Row) return rowTileCount(plan.nvx, rows, plan.rowGroups);
   return ((plan.nvx + plan.vtileX - 1) / plan.vtileX) * ((rows + plan.vtileY - 1) / plan.vtileY);
 }
 
@@ -108,9 +125,13 @@ class Launcher {
       : m_plan(plan), m_naive(naive), m_stream(stream) {
     if (!naive) {
       const std::size_t n =
-          static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * (kVelPerBlock + 2);
+          static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
-      configureTiledKernel(tiledSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
+      if (plan.kernel == HostPlan::Kernel::Row) {
+        configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
+      } else {
+        configureTiledKernel(tiledSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
+      }
     }
   }
   /// Prepares the window offsets of velocity rows [iy0, iy1).
@@ -118,15 +139,20 @@ class Launcher {
     p.iy0 = iy0;
     p.iy1 = iy1;
     if (m_naive) return;
-    if (tilesFor(m_plan, iy1 - iy0) > 65535) throw GpuError("too many velocity tiles in one launch");
     p.tileOffsets = m_offsets.get();
-    launchTileOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+    if (m_plan.kernel == HostPlan::Kernel::Row) {
+      launchRowOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+    } else {
+      launchTileOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+    }
   }
   void launch(const SearchLaunch& p) {
     m_timers.emplace_back(std::make_unique<Event>(true), std::make_unique<Event>(true));
     m_timers.back().first->record(m_stream);
     if (m_naive) {
       launchNaiveSearch(p, m_stream);
+    } else if (m_plan.kernel == HostPlan::Kernel::Row) {
+      launchRowSearch(p, m_stream);
     } else {
       launchTiledSearch(p, m_stream);
     }
@@ -174,12 +200,12 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
   const std::size_t cubeBytes = frameBytes * n;
   const int rows = job.iyEnd - job.iyBegin;
   // The naive kernel also serves when the shift spread of 8 velocities is too wide for shared memory.
-  const bool naive = job.naiveKernel || !plan.useTiled;
+  const bool naive = job.naiveKernel || plan.kernel == HostPlan::Kernel::Naive;
   const int step = naive ? 1 : plan.vtileY;
   int chunkRows = std::max(1, kVelocitiesPerLaunch / std::max(1, plan.nvx));
   chunkRows = std::min(rows, (chunkRows + step - 1) / step * step);
   auto offsetBytes = [&](int r) {
-    return naive ? 0 : static_cast<std::size_t>(tilesFor(plan, r)) * n * (kVelPerBlock + 2) * sizeof(int);
+    return naive ? 0 : static_cast<std::size_t>(tilesFor(plan, r)) * n * offsetInts(plan) * sizeof(int);
   };
   auto partialBytes = [&](int r) { return static_cast<std::size_t>(r) * plan.nvx * frameBytes; };
   const std::size_t fixed = tableBytes(plan, job.cellCapacity);
@@ -193,11 +219,16 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
           "the naive kernel (used for very coarse velocity grids) needs the whole cube on the device");
     // Velocity rows per chunk: partial sums take at most half of what is left.
     const std::size_t room = budget > fixed ? budget - fixed : 0;
-    chunkRows = std::min<int>(chunkRows, static_cast<int>(room / 2 / (partialBytes(1) + offsetBytes(1))));
+    // Partial sums take at most half of what is left, or, when one velocity row needs more, all but two
+    // frames.
+    const std::size_t perRow = partialBytes(1) + offsetBytes(1);
+    std::size_t fit = room / 2 / perRow;
+    if (fit < 1 && room > 2 * frameBytes) fit = (room - 2 * frameBytes) / perRow;
+    chunkRows = std::min<int>(chunkRows, static_cast<int>(std::min<std::size_t>(fit, 1 << 20)));
     if (chunkRows < 1) {
       throw GpuError("not enough device memory: one velocity row of partial sums needs " +
-                     std::to_string(partialBytes(1) >> 20) + " MiB, " + std::to_string(room >> 20) +
-                     " MiB allowed");
+                     std::to_string(partialBytes(1) >> 10) + " KiB, " + std::to_string(room >> 10) +
+                     " KiB allowed");
     }
     const std::size_t left = room - partialBytes(chunkRows) - offsetBytes(chunkRows);
     frameChunk = static_cast<int>(std::min<std::size_t>(n, left / (2 * frameBytes)));
@@ -276,7 +307,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
     }
     out.note = "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB), " +
                (overlap ? "upload overlapped with the first velocity chunk" : "upload then search") +
-               (naive ? ", naive kernel" : ", tiled kernel");
+               kernelName(plan, naive);
   } else {
     DeviceBuffer<float> buf[2] = {DeviceBuffer<float>(static_cast<std::size_t>(frameChunk) * plane),
                                   DeviceBuffer<float>(static_cast<std::size_t>(frameChunk) * plane)};
@@ -308,7 +339,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
     out.note = "cube of " + std::to_string(cubeBytes >> 20) + " MiB does not fit in " +
                std::to_string(budget >> 20) + " MiB: frames streamed in chunks of " +
                std::to_string(frameChunk) + ", velocities in chunks of " + std::to_string(chunkRows) +
-               " rows";
+               " rows" + kernelName(plan, naive);
   }
   compute.sync();
   copy.sync();

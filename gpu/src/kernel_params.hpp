@@ -54,8 +54,17 @@ struct SearchLaunch {
   int pitch;    ///< shared-memory row pitch (floats) of one frame window
   int winRows;  ///< rows of one frame window
   int framesPerStage;
+  int groups;              ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
+  int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
+                           ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
+
+/// The row kernel (row_search_kernel.cu): kRowVelocities consecutive vx of one vy per block; usable when
+/// the frame width is a multiple of 4 and, at every frame, those velocities' x shifts span at most
+/// kRowMaxOffset - 3 pixels.
+inline constexpr int kRowVelocities = 8;
+inline constexpr int kRowMaxOffset = 12;
 
 /// Velocities one block of the tiled kernel accumulates in registers.
 inline constexpr int kVelPerBlock = 8;
@@ -89,8 +98,21 @@ void launchNaiveSearch(const SearchLaunch& p, cudaStream_t stream);
 std::size_t tiledSharedBytes(int pitch, int winRows, int framesPerStage);
 /// Raises the tiled kernel's dynamic shared-memory limit on the current device.
 void configureTiledKernel(std::size_t sharedBytes);
+/// Tile width (pixels) of the tiled kernel for SearchLaunch::variant (>= 10: 2 columns per thread).
+int tiledTileWidth(int variant);
 
-/// Stack of frames [0, frameCount) at integer shifts (IPSA) or bilinear sub-pixel shifts (CSA).
+/// Row kernel launchers (row_search_kernel.cu); tileOffsets hold kRowVelocities + 2 ints per tile and frame.
+void launchRowOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
+void launchRowSearch(const SearchLaunch& p, cudaStream_t stream);
+/// Shared memory of the row kernel for a window of winRows x pitch floats.
+std::size_t rowSharedBytes(int pitch, int winRows, int framesPerStage);
+void configureRowKernel(std::size_t sharedBytes);
+/// Velocity tiles of the row kernel (groups x 8 velocities each) for `rows` grid rows.
+int rowTileCount(int nvx, int rows, int groups);
+/// Ints per (tile, frame) in the row kernel's offset table.
+std::size_t rowOffsetInts();
+
+/// IPSA stack of frames [0, frameCount) at integer shifts.
 struct StackLaunch {
   const float* frames;
   int width;
@@ -98,9 +120,6 @@ struct StackLaunch {
   int frameCount;
   const int* shiftX;  ///< IPSA: [frameCount]
   const int* shiftY;
-  const float* subX;  ///< CSA: [frameCount] vx*dt, px
-  const float* subY;
-  bool csa;
   float* partial;  ///< [groups][H][W]
   int groups;
   float* out;  ///< [H][W]

@@ -11,53 +11,10 @@
 
 #include "cuda_check.hpp"
 #include "kernel_params.hpp"
+#include "search_device.cuh"
 
 namespace st::gpu {
 namespace {
-
-__device__ __forceinline__ unsigned long long packKey(float snr, int pixel) {
-  unsigned int bits = __float_as_uint(snr);
-  bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
-  return (static_cast<unsigned long long>(bits) << 32) | (0xFFFFFFFFull - static_cast<unsigned int>(pixel));
-}
-
-__device__ __forceinline__ unsigned long long warpMax(unsigned long long v) {
-  for (int o = 16; o > 0; o >>= 1) {
-    const unsigned long long other = __shfl_xor_sync(0xFFFFFFFFu, v, o);
-    v = other > v ? other : v;
-  }
-  return v;
-}
-
-__device__ __forceinline__ int framesInBoth(int2 a, int2 b) {
-  const int lo = max(a.x, b.x);
-  const int hi = min(a.y, b.y);
-  return hi >= lo ? hi - lo + 1 : 0;
-}
-
-/// Scores one cell; returns its map key (0 when the cell is ignored) and appends it when above threshold.
-__device__ __forceinline__ unsigned long long scoreCell(const SearchLaunch& p, float sum, int nIn, int x,
-                                                        int y, int ix, int iy) {
-  if (nIn <= 0 || nIn < p.minFrames) return 0ull;
-  const float snr = sum * p.invNorm[nIn];
-  if (snr > p.snrThreshold) {
-    const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
-    if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
-  }
-  return packKey(snr, y * p.width + x);
-}
-
-__device__ __forceinline__ void cpAsync4(float* dst, const float* src, bool inFrame) {
-  const unsigned int d = static_cast<unsigned int>(__cvta_generic_to_shared(dst));
-  const int srcBytes = inFrame ? 4 : 0;  // 0 bytes read: the 4 destination bytes are zero-filled
-  asm volatile("cp.async.ca.shared.global [%0], [%1], 4, %2;\n" ::"r"(d), "l"(src), "r"(srcBytes));
-}
-__device__ __forceinline__ void cpAsyncCommit() {
-  asm volatile("cp.async.commit_group;\n" ::);
-}
-__device__ __forceinline__ void cpAsyncWaitOne() {
-  asm volatile("cp.async.wait_group 1;\n" ::);
-}
 
 __global__ void tileOffsetsKernel(SearchLaunch p, int* out, int tileCount) {
   const long long i = blockIdx.x * static_cast<long long>(blockDim.x) + threadIdx.x;
@@ -84,7 +41,6 @@ __global__ void tileOffsetsKernel(SearchLaunch p, int* out, int tileCount) {
     o[2 + k] = (sy[k] - oy) * p.pitch + (sx[k] - ox);
 }
 
-constexpr int kCx = kColsPerThread;
 constexpr int kRy = kRowsPerThread;
 constexpr int kK = kVelPerBlock;
 constexpr int kOffs = kVelPerBlock + 2;
@@ -116,13 +72,71 @@ __device__ void issueStage(const SearchLaunch& p, float* win, int* offs, int n0,
   cpAsyncCommit();
 }
 
-__global__ void __launch_bounds__(kThreads, 2) tiledSearchKernel(SearchLaunch p) {
+/// Adds one frame's window to the accumulators. kMode 0: a velocity whose offset equals the previous
+/// one's reuses the values in registers (uniform branch); 1: every velocity loads (no branches); 2: the
+/// reuse decided by predicated loads instead of branches.
+template <int kMode, int kCx>
+__device__ __forceinline__ void accumulateFrame(float (&acc)[kK][kRy][kCx], const float* w, const int* o,
+                                                int rowStride) {
+  int prev = -1;
+  float v[kRy][kCx];
+#pragma unroll
+  for (int k = 0; k < kK; ++k) {
+    const int off = o[k];
+    if constexpr (kMode == 0) {
+      if (off != prev) {  // uniform across the block: no divergence
+#pragma unroll
+        for (int r = 0; r < kRy; ++r) {
+#pragma unroll
+          for (int j = 0; j < kCx; ++j)
+            v[r][j] = w[off + r * rowStride + 32 * j];
+        }
+      }
+    } else if constexpr (kMode == 1) {
+#pragma unroll
+      for (int r = 0; r < kRy; ++r) {
+#pragma unroll
+        for (int j = 0; j < kCx; ++j)
+          v[r][j] = w[off + r * rowStride + 32 * j];
+      }
+    } else {
+      const int load = off != prev ? 1 : 0;
+#pragma unroll
+      for (int r = 0; r < kRy; ++r) {
+#pragma unroll
+        for (int j = 0; j < kCx; ++j) {
+          if (k == 0) {
+            v[r][j] = w[off + r * rowStride + 32 * j];
+          } else {
+            const unsigned a =
+                static_cast<unsigned>(__cvta_generic_to_shared(w + off + r * rowStride + 32 * j));
+            asm volatile("{\n .reg .pred q;\n setp.ne.b32 q, %2, 0;\n @q ld.shared.f32 %0, [%1];\n}"
+                         : "+f"(v[r][j])
+                         : "r"(a), "r"(load));
+          }
+        }
+      }
+    }
+    prev = off;
+#pragma unroll
+    for (int r = 0; r < kRy; ++r) {
+#pragma unroll
+      for (int j = 0; j < kCx; ++j)
+        acc[k][r][j] += v[r][j];
+    }
+  }
+}
+
+template <int kMode, int kCx>
+__global__ void __launch_bounds__(kThreads, kCx == 4 ? 2 : 3) tiledSearchKernel(SearchLaunch p) {
+  constexpr int kTileWidth = 32 * kCx;
   extern __shared__ float smem[];
   const int lane = threadIdx.x & 31;
   const int warp = threadIdx.x >> 5;
-  const int x0 = blockIdx.x * kTileW;
-  const int y0 = blockIdx.y * kTileH;
-  const int tile = blockIdx.z;
+  // Velocity tiles vary fastest: blocks resident together share pixel tiles, so frame windows hit in L2.
+  const int tile = blockIdx.x;
+  const int x0 = blockIdx.y * kTileWidth;
+  const int y0 = blockIdx.z * kTileH;
   const int tilesX = (p.nvx + p.vtileX - 1) / p.vtileX;
   const int ixBase = (tile % tilesX) * p.vtileX;
   const int iyBase = p.iy0 + (tile / tilesX) * p.vtileY;
@@ -175,27 +189,7 @@ __global__ void __launch_bounds__(kThreads, 2) tiledSearchKernel(SearchLaunch p)
     for (int i = 0; i < count; ++i) {
       const float* w = wins + (buf * fs + i) * winSize + warp * p.pitch + lane;
       const int* o = offs + (buf * fs + i) * kOffs + 2;
-      int prev = -1;
-      float v[kRy][kCx];
-#pragma unroll
-      for (int k = 0; k < kK; ++k) {
-        const int off = o[k];
-        if (off != prev) {  // uniform across the block: no divergence
-          prev = off;
-#pragma unroll
-          for (int r = 0; r < kRy; ++r) {
-#pragma unroll
-            for (int j = 0; j < kCx; ++j)
-              v[r][j] = w[off + r * rowStride + 32 * j];
-          }
-        }
-#pragma unroll
-        for (int r = 0; r < kRy; ++r) {
-#pragma unroll
-          for (int j = 0; j < kCx; ++j)
-            acc[k][r][j] += v[r][j];
-        }
-      }
+      accumulateFrame<kMode, kCx>(acc, w, o, rowStride);
     }
     __syncthreads();
   }
@@ -273,9 +267,24 @@ std::size_t tiledSharedBytes(int pitch, int winRows, int framesPerStage) {
          (static_cast<std::size_t>(pitch) * winRows * sizeof(float) + kOffs * sizeof(int));
 }
 
-void configureTiledKernel(std::size_t sharedBytes) {
-  ST_CUDA_CHECK(cudaFuncSetAttribute(tiledSearchKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
+template <int kMode, int kCx>
+void setShared(std::size_t sharedBytes) {
+  ST_CUDA_CHECK(cudaFuncSetAttribute(tiledSearchKernel<kMode, kCx>,
+                                     cudaFuncAttributeMaxDynamicSharedMemorySize,
                                      static_cast<int>(sharedBytes)));
+}
+
+void configureTiledKernel(std::size_t sharedBytes) {
+  setShared<0, 4>(sharedBytes);
+  setShared<1, 4>(sharedBytes);
+  setShared<2, 4>(sharedBytes);
+  setShared<0, 2>(sharedBytes);
+  setShared<1, 2>(sharedBytes);
+  setShared<2, 2>(sharedBytes);
+}
+
+int tiledTileWidth(int variant) {
+  return variant >= 10 ? 64 : 128;
 }
 
 void launchTileOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream) {
@@ -288,9 +297,29 @@ void launchTileOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, c
 void launchTiledSearch(const SearchLaunch& p, cudaStream_t stream) {
   const int tilesX = (p.nvx + p.vtileX - 1) / p.vtileX;
   const int tilesY = (p.iy1 - p.iy0 + p.vtileY - 1) / p.vtileY;
-  const dim3 grid((p.width + kTileW - 1) / kTileW, (p.height + kTileH - 1) / kTileH, tilesX * tilesY);
+  const int tw = tiledTileWidth(p.variant);
+  const dim3 grid(tilesX * tilesY, (p.width + tw - 1) / tw, (p.height + kTileH - 1) / kTileH);
   const std::size_t shared = tiledSharedBytes(p.pitch, p.winRows, p.framesPerStage);
-  tiledSearchKernel<<<grid, kThreads, shared, stream>>>(p);
+  switch (p.variant) {
+    case 1:
+      tiledSearchKernel<1, 4><<<grid, kThreads, shared, stream>>>(p);
+      break;
+    case 2:
+      tiledSearchKernel<2, 4><<<grid, kThreads, shared, stream>>>(p);
+      break;
+    case 10:
+      tiledSearchKernel<0, 2><<<grid, kThreads, shared, stream>>>(p);
+      break;
+    case 11:
+      tiledSearchKernel<1, 2><<<grid, kThreads, shared, stream>>>(p);
+      break;
+    case 12:
+      tiledSearchKernel<2, 2><<<grid, kThreads, shared, stream>>>(p);
+      break;
+    default:
+      tiledSearchKernel<0, 4><<<grid, kThreads, shared, stream>>>(p);
+      break;
+  }
   checkLaunch("tiledSearchKernel");
 }
 

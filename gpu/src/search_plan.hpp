@@ -22,14 +22,18 @@ struct HostPlan {
   std::vector<float> invNorm;  ///< [N + 1] float(1 / (sigma_F sqrt(n)))
   float snrThreshold = 0.0f;   ///< cells strictly above are candidates
   int minFrames = 1;           ///< cells with fewer contributing frames are ignored
-  // Tiling of the tiled kernel (useTiled false: the shift spread is too large for shared memory and the
-  // naive kernel is used instead; slower, same result).
-  bool useTiled = true;
+  /// Which search kernel runs: the row kernel when its conditions hold (kernel_params.hpp), else the tiled
+  /// kernel, else (shift spread too large for shared memory) the naive kernel; same results, slower.
+  enum class Kernel { Row, Tiled, Naive };
+  Kernel kernel = Kernel::Tiled;
+  // Tiling of the tiled kernel.
   int vtileX = 8;
   int vtileY = 1;
   int pitch = 0;
   int winRows = 0;
   int framesPerStage = 1;
+  int rowGroups = 1;  ///< row kernel: groups of 8 velocities per block
+  int tiledMode = 0;  ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 
 /// Builds the tables for `cube` and `grid`. `threshold` is the SNR threshold actually used and
@@ -37,18 +41,12 @@ struct HostPlan {
 HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGrid& grid, double threshold,
                       int minFrames);
 
-/// The SNR threshold actually used: from params.targetFap (paper \label{Prob_false}) when set, else
-/// params.snrThreshold.
-double effectiveSnrThreshold(const search::SearchParams& params, const search::TrialCounts& trials);
+/// Chooses the kernel and its tiling for `plan` (done by makeHostPlan with allowRow, !preferRow).
+/// allowRow false forces the tiled (or naive) kernel; preferRow takes the row kernel whenever it applies.
+void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow);
 
-/// ceil(minFrameFraction * N_f), at least 1.
-int minFramesFor(const search::SearchParams& params, std::size_t frames);
-
-/// Detection false-alarm probability, paper \label{Prob_false}: N_x N_y N_vx N_vy erfc(SNR / sqrt 2) / 2.
-double detectionFap(double snr, const search::TrialCounts& trials);
-
-/// Validates the search inputs; throws st::InputError naming the value at fault.
-void validateSearch(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                    const search::SearchParams& params);
+/// Checks what the CUDA backend needs beyond st::search::validateSearchInput (pixel buffer size, frame
+/// count); throws st::InputError naming the value.
+void validateForGpu(const search::FilteredCube& cube);
 
 }  // namespace st::gpu

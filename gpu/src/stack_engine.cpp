@@ -50,11 +50,10 @@ void StackEngine::ensureResident(const FrameCube& frames) {
   m_partial = DeviceBuffer<float>(static_cast<std::size_t>(kStackGroups) * frames.framePixels());
   m_out = DeviceBuffer<float>(frames.framePixels());
   m_shifts = DeviceBuffer<int>(2 * frames.frameCount());
-  m_sub = DeviceBuffer<float>(2 * frames.frameCount());
   m_key = key;
 }
 
-Image StackEngine::stack(const search::FilteredCube& cube, Velocity v, search::StackMode mode) {
+Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
   const FrameCube& f = cube.frames;
   if (f.frameCount() == 0) throw InputError("cannot stack a cube with no frames");
   if (f.pixels().size() != f.frameCount() * f.framePixels()) {
@@ -65,16 +64,12 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v, search::S
   const std::vector<double> dt = f.timeOffsetsS();
   const std::size_t n = dt.size();
   std::vector<int> shifts(2 * n);
-  std::vector<float> sub(2 * n);
   for (std::size_t k = 0; k < n; ++k) {
     shifts[k] = static_cast<int>(std::lround(v.vx * dt[k]));
     shifts[n + k] = static_cast<int>(std::lround(v.vy * dt[k]));
-    sub[k] = static_cast<float>(v.vx * dt[k]);
-    sub[n + k] = static_cast<float>(v.vy * dt[k]);
   }
   ST_CUDA_CHECK(
       cudaMemcpy(m_shifts.get(), shifts.data(), shifts.size() * sizeof(int), cudaMemcpyHostToDevice));
-  ST_CUDA_CHECK(cudaMemcpy(m_sub.get(), sub.data(), sub.size() * sizeof(float), cudaMemcpyHostToDevice));
   StackLaunch p{};
   p.frames = m_cube.get();
   p.width = f.width();
@@ -82,9 +77,6 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v, search::S
   p.frameCount = static_cast<int>(n);
   p.shiftX = m_shifts.get();
   p.shiftY = m_shifts.get() + n;
-  p.subX = m_sub.get();
-  p.subY = m_sub.get() + n;
-  p.csa = mode == search::StackMode::Csa;
   p.groups = static_cast<int>(std::min<std::size_t>(kStackGroups, n));
   p.partial = m_partial.get();
   p.out = m_out.get();

@@ -11,9 +11,9 @@ namespace st::gpu {
 class StackEngine {
  public:
   explicit StackEngine(int device) : m_device(device) {}
-  /// Sum over frames of the cube shifted by v (IPSA: round(v dt), out-of-frame samples excluded; CSA:
-  /// bilinear at v dt, samples whose position is outside the frame excluded). Throws st::GpuError.
-  Image stack(const search::FilteredCube& cube, Velocity v, search::StackMode mode);
+  /// IPSA stack: sum over frames of F_n(x + round(vx dt_n), y + round(vy dt_n)), out-of-frame samples
+  /// excluded (as st::search::SearchBackend::stackAt). Throws st::GpuError.
+  Image stack(const search::FilteredCube& cube, Velocity v);
   /// Device seconds of the last stack's kernels.
   [[nodiscard]] double lastKernelSeconds() const noexcept { return m_lastSeconds; }
 
@@ -25,7 +25,6 @@ class StackEngine {
   DeviceBuffer<float> m_partial;
   DeviceBuffer<float> m_out;
   DeviceBuffer<int> m_shifts;
-  DeviceBuffer<float> m_sub;
   double m_lastSeconds = 0.0;
 };
 

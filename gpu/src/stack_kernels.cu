@@ -1,7 +1,6 @@
-// Stacks of the cube at one velocity, for live scrubbing (ARCHITECTURE.md "IPSA"; paper \label{sec:CSA}).
+// Stacks of the cube at one velocity, for live scrubbing (ARCHITECTURE.md "IPSA").
 // Frames are split into groups; each group sums into its own plane (deterministic), then one pass adds the
-// planes. IPSA: integer shifts round(v dt), out-of-frame samples excluded. CSA: bilinear interpolation at
-// the exact shift v dt, a sample used when its position lies inside the frame.
+// planes. IPSA: integer shifts round(v dt), out-of-frame samples excluded.
 #include <cuda_runtime.h>
 
 #include "cuda_check.hpp"
@@ -9,20 +8,6 @@
 
 namespace st::gpu {
 namespace {
-
-__device__ __forceinline__ float csaSample(const float* f, int w, int h, float fx, float fy) {
-  if (!(fx >= 0.0f && fy >= 0.0f && fx <= static_cast<float>(w - 1) && fy <= static_cast<float>(h - 1)))
-    return 0.0f;
-  const int xa = min(static_cast<int>(floorf(fx)), w - 1);
-  const int ya = min(static_cast<int>(floorf(fy)), h - 1);
-  const float ax = fx - xa;
-  const float ay = fy - ya;
-  const int xb = min(xa + 1, w - 1);
-  const int yb = min(ya + 1, h - 1);
-  const float top = (1.0f - ax) * f[ya * w + xa] + ax * f[ya * w + xb];
-  const float bottom = (1.0f - ax) * f[yb * w + xa] + ax * f[yb * w + xb];
-  return (1.0f - ay) * top + ay * bottom;
-}
 
 __global__ void stackGroupsKernel(StackLaunch p) {
   const int x = blockIdx.x * blockDim.x + threadIdx.x;
@@ -36,14 +21,10 @@ __global__ void stackGroupsKernel(StackLaunch p) {
   float sum = 0.0f;
   for (int n = n0; n < n1; ++n) {
     const float* f = p.frames + n * plane;
-    if (p.csa) {
-      sum += csaSample(f, p.width, p.height, x + p.subX[n], y + p.subY[n]);
-    } else {
-      const int sx = x + p.shiftX[n];
-      const int sy = y + p.shiftY[n];
-      if (sx >= 0 && sx < p.width && sy >= 0 && sy < p.height)
-        sum += f[static_cast<long long>(sy) * p.width + sx];
-    }
+    const int sx = x + p.shiftX[n];
+    const int sy = y + p.shiftY[n];
+    if (sx >= 0 && sx < p.width && sy >= 0 && sy < p.height)
+      sum += f[static_cast<long long>(sy) * p.width + sx];
   }
   p.partial[g * plane + static_cast<long long>(y) * p.width + x] = sum;
 }

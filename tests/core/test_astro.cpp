@@ -8,6 +8,7 @@
 #include "st/astro/photometry.hpp"
 #include "st/common/error.hpp"
 #include "st/fit/montecarlo.hpp"
+#include "st/io/wcs.hpp"
 
 namespace st::astro {
 namespace {
@@ -79,6 +80,31 @@ TEST(Astrometry, RateAndPositionAngleThroughAWcs) {
   m = skyMeasurement(wcs, fakeFit(100.0, 100.0, {1.0, -1.0}, 0.01, 0.001), {}, 0.0);
   EXPECT_NEAR(m.positionAngleDeg, 225.0, 1e-6);
   EXPECT_NEAR(m.rateArcsecPerMin, 18.0 * std::sqrt(2.0), 1e-5);
+}
+
+TEST(Astrometry, ThroughAFitsWcsLikeThroughTheSameTanProjection) {
+  // A TAN header, CRPIX 1-based = 101 (0-based 100), north up, east left, 0.3"/px.
+  FitsHeader h;
+  h.setString("CTYPE1", "RA---TAN");
+  h.setString("CTYPE2", "DEC--TAN");
+  h.setNumber("CRVAL1", 150.0);
+  h.setNumber("CRVAL2", 30.0);
+  h.setNumber("CRPIX1", 101.0);
+  h.setNumber("CRPIX2", 101.0);
+  h.setNumber("CD1_1", -0.3 / 3600.0);
+  h.setNumber("CD1_2", 0.0);
+  h.setNumber("CD2_1", 0.0);
+  h.setNumber("CD2_2", 0.3 / 3600.0);
+  std::vector<std::string> warnings;
+  const auto wcs = Wcs::fromHeader(h, &warnings);
+  ASSERT_NE(wcs, nullptr);
+  const fit::FitResult f = fakeFit(130.0, 80.0, {-0.7, 1.3}, 0.02, 0.002);
+  const SkyMeasurement a = skyMeasurement(*wcs, f, {}, 0.0);
+  const SkyMeasurement b = skyMeasurement(tanProjection(150.0, 30.0, 0.3, 100.0, 100.0), f, {}, 0.0);
+  EXPECT_NEAR(a.raDeg, b.raDeg, 1e-9);
+  EXPECT_NEAR(a.decDeg, b.decDeg, 1e-9);
+  EXPECT_NEAR(a.rateDegPerDay, b.rateDegPerDay, 1e-6 * b.rateDegPerDay);
+  EXPECT_NEAR(a.positionAngleDeg, b.positionAngleDeg, 1e-4);
 }
 
 TEST(Astrometry, SkyRateIsRemovedAndTheMappingEpochRespected) {

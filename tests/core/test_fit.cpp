@@ -271,3 +271,25 @@ TEST(ComovingFit, HessianErrorsMatchEqSigWhenBackgroundLimited) {
 
 }  // namespace
 }  // namespace st::fit
+
+namespace st::fit {
+namespace {
+
+TEST(PixelPsf, TableMatchesTheExactEvaluation) {
+  for (const psf::Moffat m : {psf::Moffat{3.3, 4.0}, psf::Moffat{3.0, 2.5}, psf::Moffat{5.0, 6.3}}) {
+    const PixelPsfTable t(m, 28.0);
+    double worst = 0.0, worstGrad = 0.0;
+    for (double u = -30.0; u <= 30.0; u += 0.37) {
+      for (double v = -30.0; v <= 30.0; v += 0.53) {
+        const PsfSample a = pixelPsf(m, u, v), b = t.sample(u, v);
+        worst = std::max({worst, std::abs(a.value - b.value), std::abs(t.value(u, v) - a.value)});
+        worstGrad = std::max({worstGrad, std::abs(a.du - b.du), std::abs(a.dv - b.dv)});
+      }
+    }
+    EXPECT_LT(worst, 3e-6);
+    EXPECT_LT(worstGrad, 3e-6);
+  }
+}
+
+}  // namespace
+}  // namespace st::fit

@@ -33,7 +33,8 @@ std::string loadError(const std::vector<std::string>& inputs, const LoadOptions&
 }
 
 void expectMentions(const std::string& message, const std::vector<std::string>& parts) {
-  for (const auto& p : parts) EXPECT_NE(message.find(p), std::string::npos) << "'" << p << "' not in: " << message;
+  for (const auto& p : parts)
+    EXPECT_NE(message.find(p), std::string::npos) << "'" << p << "' not in: " << message;
 }
 
 TEST(IoErrors, MissingFile) {
@@ -43,7 +44,8 @@ TEST(IoErrors, MissingFile) {
 
 TEST(IoErrors, NotFits) {
   TempDir dir;
-  std::ofstream(dir / "text.fits") << "this is not a FITS file, just some text that is long enough to matter\n";
+  std::ofstream(dir / "text.fits")
+      << "this is not a FITS file, just some text that is long enough to matter\n";
   expectMentions(loadError({(dir / "text.fits").string()}), {"text.fits", "not a readable FITS file"});
 }
 
@@ -96,7 +98,8 @@ TEST(IoErrors, WrongNaxis) {
   fits_close_file(f, &status);
   ASSERT_EQ(status, 0);
   expectMentions(loadError({(dir / "oned.fits").string()}), {"oned.fits", "HDU 1", "NAXIS = 1"});
-  expectMentions(loadError({(dir / "fourd.fits").string()}), {"fourd.fits", "HDU 1", "NAXIS = 4", "NAXIS4 = 3"});
+  expectMentions(loadError({(dir / "fourd.fits").string()}),
+                 {"fourd.fits", "HDU 1", "NAXIS = 4", "NAXIS4 = 3"});
 }
 
 TEST(IoErrors, DifferentSizesNameTheOddFileBothSizesAndTheCrop) {
@@ -104,7 +107,8 @@ TEST(IoErrors, DifferentSizesNameTheOddFileBothSizesAndTheCrop) {
   writeFixture(dir / "a.fits", timedFrame("2020-01-01T00:00:00", 1, 0, 6, 4));
   writeFixture(dir / "b.fits", timedFrame("2020-01-01T00:00:01", 1, 0, 6, 4));
   writeFixture(dir / "odd.fits", timedFrame("2020-01-01T00:00:02", 1, 0, 7, 4));
-  const auto msg = loadError({(dir / "a.fits").string(), (dir / "odd.fits").string(), (dir / "b.fits").string()});
+  const auto msg =
+      loadError({(dir / "a.fits").string(), (dir / "odd.fits").string(), (dir / "b.fits").string()});
   expectMentions(msg, {"odd.fits", "7x4", "6x4", "a.fits", "--crop"});
 }
 
@@ -112,7 +116,8 @@ TEST(IoErrors, NoTimestampsSaysHowToSupplyThem) {
   TempDir dir;
   FixtureImage img = timedFrame("2020-01-01", 1, 0);  // date only, no time keyword
   writeFixture(dir / "t.fits", img);
-  expectMentions(loadError({(dir / "t.fits").string()}), {"t.fits", "HDU 1", "no timestamps", "--start-mjd", "--frame-rate"});
+  expectMentions(loadError({(dir / "t.fits").string()}),
+                 {"t.fits", "HDU 1", "no timestamps", "--start-mjd", "--frame-rate"});
   LoadOptions user;
   user.startMjd = 60000.0;
   user.frameRateHz = 10.0;
@@ -124,7 +129,8 @@ TEST(IoErrors, NoTimestampsSaysHowToSupplyThem) {
 TEST(IoErrors, MalformedTimeKeywordNamesKeywordAndValue) {
   TempDir dir;
   writeFixture(dir / "bad.fits", timedFrame("2020-13-45T99:00:00", 1, 0));
-  expectMentions(loadError({(dir / "bad.fits").string()}), {"bad.fits", "HDU 1", "DATE-OBS", "2020-13-45T99:00:00"});
+  expectMentions(loadError({(dir / "bad.fits").string()}),
+                 {"bad.fits", "HDU 1", "DATE-OBS", "2020-13-45T99:00:00"});
   FixtureImage img = timedFrame("2020-01-01", 1, 0);
   img.cards.push_back({"UTCSTART", "'25:61'", ""});
   writeFixture(dir / "badut.fits", img);
@@ -141,7 +147,8 @@ TEST(IoErrors, DuplicateTimesNameBothFrames) {
   writeFixture(dir / "again.fits", timedFrame("2020-01-01T00:00:00", 1, 5));
   expectMentions(loadError({(dir / "first.fits").string(), (dir / "again.fits").string()}),
                  {"duplicate frame time", "first.fits", "again.fits"});
-  expectMentions(loadError({(dir / "first.fits").string(), (dir / "first.fits").string()}), {"duplicate frame time"});
+  expectMentions(loadError({(dir / "first.fits").string(), (dir / "first.fits").string()}),
+                 {"duplicate frame time"});
 }
 
 TEST(IoErrors, SomeFramesWithoutTimes) {
@@ -150,6 +157,48 @@ TEST(IoErrors, SomeFramesWithoutTimes) {
   writeFixture(dir / "untimed.fits", timedFrame("2020-01-01", 1, 0));
   expectMentions(loadError({(dir / "timed.fits").string(), (dir / "untimed.fits").string()}),
                  {"untimed.fits", "no timestamp"});
+}
+
+TEST(IoErrors, CorruptRiceTilesAreRefusedNotDecoded) {
+  // CFITSIO 4.2 reads past the end of a corrupt RICE tile (and can crash); the loader checks tiles first.
+  TempDir dir;
+  FixtureImage img = timedFrame("2020-01-01T00:00:00", 1, 0, 64, 8);
+  img.bitpix = 16;
+  img.compress = RICE_1;
+  for (auto& v : img.raw)
+    v = 100.0;  // constant rows compress to a few bytes each
+  const auto path = dir / "corrupt.fits.fz";
+  writeFixture(path, img);
+  ASSERT_EQ(loadFrames({path.string()}).frame(0)[70], 100.0f);
+  LONGLONG dataStart = 0;
+  LONGLONG heapStart = 0;
+  LONGLONG heapBytes = 0;
+  {
+    fitsfile* f = nullptr;
+    int status = 0;
+    fits_open_file(&f, path.string().c_str(), READONLY, &status);
+    fits_movabs_hdu(f, 2, nullptr, &status);
+    LONGLONG head = 0;
+    LONGLONG end = 0;
+    fits_get_hduaddrll(f, &head, &dataStart, &end, &status);
+    LONGLONG rowBytes = 0;
+    LONGLONG rows = 0;
+    fits_read_key(f, TLONGLONG, "NAXIS1", &rowBytes, nullptr, &status);
+    fits_read_key(f, TLONGLONG, "NAXIS2", &rows, nullptr, &status);
+    fits_read_key(f, TLONGLONG, "PCOUNT", &heapBytes, nullptr, &status);
+    fits_close_file(f, &status);
+    ASSERT_EQ(status, 0);
+    heapStart = dataStart + rowBytes * rows;
+  }
+  ASSERT_GT(heapBytes, 0);
+  {
+    std::fstream io(path, std::ios::in | std::ios::out | std::ios::binary);
+    io.seekp(heapStart);
+    const std::string ff(static_cast<std::size_t>(heapBytes),
+                         '\xff');  // every block claims raw 16-bit pixels
+    io.write(ff.data(), static_cast<std::streamsize>(ff.size()));
+  }
+  expectMentions(loadError({path.string()}), {"corrupt.fits.fz", "HDU 2", "tile", "corrupt"});
 }
 
 TEST(IoErrors, CropOutsideTheFrame) {

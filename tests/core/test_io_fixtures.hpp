@@ -23,14 +23,14 @@ struct FixtureImage {
   int bitpix = -32;
   int width = 6;
   int height = 4;
-  int planes = 0;             ///< 0 = 2-D image, else NAXIS3
-  std::vector<double> raw;    ///< raw (stored) values, width*height*max(planes,1)
+  int planes = 0;           ///< 0 = 2-D image, else NAXIS3
+  std::vector<double> raw;  ///< raw (stored) values, width*height*max(planes,1)
   std::optional<double> bzero, bscale;
   std::optional<long long> blank;
   std::vector<FixtureCard> cards;
   bool emptyPrimary = false;  ///< put the image in extension 1 after an empty primary
   std::string extname;
-  int compress = 0;           ///< 0 or a CFITSIO compression type (RICE_1, GZIP_1)
+  int compress = 0;  ///< 0 or a CFITSIO compression type (RICE_1, GZIP_1)
 };
 
 inline void fixtureCheck(int status, const std::string& what) {
@@ -39,7 +39,8 @@ inline void fixtureCheck(int status, const std::string& what) {
     fits_get_errstatus(status, text);
     std::string stack;
     char msg[FLEN_ERRMSG];
-    while (fits_read_errmsg(msg) != 0) stack += std::string(" | ") + msg;
+    while (fits_read_errmsg(msg) != 0)
+      stack += std::string(" | ") + msg;
     throw std::runtime_error("fixture: " + what + ": " + text + stack);
   }
 }
@@ -80,7 +81,8 @@ inline void writeFixture(const std::filesystem::path& path, const FixtureImage& 
   if (img.compress == 0) {
     fits_set_bscale(f, 1.0, 0.0, &status);  // write the raw values as given
   } else {
-    for (auto& v : data) v = v * img.bscale.value_or(1.0) + img.bzero.value_or(0.0);  // CFITSIO scales back
+    for (auto& v : data)
+      v = v * img.bscale.value_or(1.0) + img.bzero.value_or(0.0);  // CFITSIO scales back
   }
   const auto n = static_cast<LONGLONG>(data.size());
   if (img.compress == 0) {
@@ -104,11 +106,13 @@ inline void writeFixture(const std::filesystem::path& path, const FixtureImage& 
 }
 
 /// A float frame with DATE-OBS (start) and EXPTIME; pixel value = base + index.
-inline FixtureImage timedFrame(const std::string& dateObs, double exptime, double base, int w = 6, int h = 4) {
+inline FixtureImage timedFrame(const std::string& dateObs, double exptime, double base, int w = 6,
+                               int h = 4) {
   FixtureImage img;
   img.width = w;
   img.height = h;
-  for (int i = 0; i < w * h; ++i) img.raw.push_back(base + i);
+  for (int i = 0; i < w * h; ++i)
+    img.raw.push_back(base + i);
   img.cards.push_back({"DATE-OBS", "'" + dateObs + "'", "exposure start"});
   img.cards.push_back({"EXPTIME", std::to_string(exptime), "s"});
   return img;

@@ -21,8 +21,12 @@ FitsHeader header(std::initializer_list<FitsCard> cards) {
   h.cards = cards;
   return h;
 }
-FitsCard num(std::string k, std::string v, std::string c = {}) { return FitsCard{std::move(k), std::move(v), std::move(c), false}; }
-FitsCard str(std::string k, std::string v, std::string c = {}) { return FitsCard{std::move(k), std::move(v), std::move(c), true}; }
+FitsCard num(std::string k, std::string v, std::string c = {}) {
+  return FitsCard{std::move(k), std::move(v), std::move(c), false};
+}
+FitsCard str(std::string k, std::string v, std::string c = {}) {
+  return FitsCard{std::move(k), std::move(v), std::move(c), true};
+}
 
 constexpr double kMicrosecond = 1e-6 / kSecondsPerDay;
 
@@ -43,18 +47,32 @@ TEST(IoTime, KeywordVariants) {
     double expected;
   };
   const std::vector<Case> cases = {
-      {"DATE-OBS with time", header({str("DATE-OBS", "2019-03-26T02:53:16.35"), num("EXPTIME", "300.")}), start + half},
-      {"date + UTCSTART (Lowell)", header({str("DATE-OBS", "2019-03-26"), num("EXPTIME", "300."), str("UTCSTART", "02:53:16.35")}), start + half},
-      {"date + TIME-OBS", header({str("DATE-OBS", "2019-03-26"), str("TIME-OBS", "02:53:16.35"), num("EXPOSURE", "300")}), start + half},
-      {"date + UT", header({str("DATE-OBS", "2019-03-26"), str("UT", "02:53:16.35"), num("EXPTIME", "300")}), start + half},
+      {"DATE-OBS with time", header({str("DATE-OBS", "2019-03-26T02:53:16.35"), num("EXPTIME", "300.")}),
+       start + half},
+      {"date + UTCSTART (Lowell)",
+       header({str("DATE-OBS", "2019-03-26"), num("EXPTIME", "300."), str("UTCSTART", "02:53:16.35")}),
+       start + half},
+      {"date + TIME-OBS",
+       header({str("DATE-OBS", "2019-03-26"), str("TIME-OBS", "02:53:16.35"), num("EXPOSURE", "300")}),
+       start + half},
+      {"date + UT", header({str("DATE-OBS", "2019-03-26"), str("UT", "02:53:16.35"), num("EXPTIME", "300")}),
+       start + half},
       {"MJD-OBS", header({num("MJD-OBS", "58568.120328125"), num("EXPTIME", "300")}), 58568.120328125 + half},
-      {"JD in MJD-OBS", header({num("MJD-OBS", "2458568.620328125"), num("EXPTIME", "300")}), 58568.120328125 + half},
-      {"MJD-OBS said to be mid", header({num("MJD-OBS", "58568.2", "MJD at mid-exposure"), num("EXPTIME", "300")}), 58568.2},
-      {"DATE-AVG is mid", header({str("DATE-AVG", "2019-03-26T02:53:16.35"), str("DATE-OBS", "2000-01-01T00:00:00"), num("EXPTIME", "300")}), start},
+      {"JD in MJD-OBS", header({num("MJD-OBS", "2458568.620328125"), num("EXPTIME", "300")}),
+       58568.120328125 + half},
+      {"MJD-OBS said to be mid",
+       header({num("MJD-OBS", "58568.2", "MJD at mid-exposure"), num("EXPTIME", "300")}), 58568.2},
+      {"DATE-AVG is mid",
+       header({str("DATE-AVG", "2019-03-26T02:53:16.35"), str("DATE-OBS", "2000-01-01T00:00:00"),
+               num("EXPTIME", "300")}),
+       start},
       {"MJD-AVG is mid", header({num("MJD-AVG", "58568.3"), num("EXPTIME", "300")}), 58568.3},
-      {"old DD/MM/YY with year 102", header({str("DATE-OBS", "26/07/102"), str("TIME-OBS", "19:36:37"), num("EXPTIME", "60")}),
+      {"old DD/MM/YY with year 102",
+       header({str("DATE-OBS", "26/07/102"), str("TIME-OBS", "19:36:37"), num("EXPTIME", "60")}),
        mjdFromCalendar(2002, 7, 26, 19 * 3600 + 36 * 60 + 37 + 30)},
-      {"TIME-OBS holding a full date (NEOSSat)", header({str("DATE-OBS", "2023-11-07"), str("TIME-OBS", "2023-11-07T00:58:08.043"), num("EXPOSURE", "1.34043E2")}),
+      {"TIME-OBS holding a full date (NEOSSat)",
+       header({str("DATE-OBS", "2023-11-07"), str("TIME-OBS", "2023-11-07T00:58:08.043"),
+               num("EXPOSURE", "1.34043E2")}),
        mjdFromCalendar(2023, 11, 7, 58 * 60 + 8.043 + 67.0215)},
       {"no exposure: start taken as mid", header({str("DATE-OBS", "2019-03-26T02:53:16.35")}), start},
   };
@@ -67,7 +85,9 @@ TEST(IoTime, KeywordVariants) {
   }
   EXPECT_FALSE(frameTimeFromHeader(header({str("DATE-OBS", "2019-03-26"), num("EXPTIME", "1")}), "x").mjdMid);
   EXPECT_THROW((void)frameTimeFromHeader(header({str("DATE-OBS", "yesterday")}), "x"), InputError);
-  EXPECT_THROW((void)frameTimeFromHeader(header({str("DATE-OBS", "2019-03-26T02:53"), num("EXPTIME", "-3")}), "x"), InputError);
+  EXPECT_THROW(
+      (void)frameTimeFromHeader(header({str("DATE-OBS", "2019-03-26T02:53"), num("EXPTIME", "-3")}), "x"),
+      InputError);
 }
 
 TEST(IoSections, ParsesBlanksAndConvertsToZeroBased) {
@@ -75,7 +95,8 @@ TEST(IoSections, ParsesBlanksAndConvertsToZeroBased) {
   EXPECT_EQ(parseSection("[  17: 528,   1: 520]"), (PixelRegion{16, 0, 512, 520}));
   EXPECT_EQ(parseSection("[1388:1432,1:1370]"), (PixelRegion{1387, 0, 45, 1370}));
   EXPECT_EQ(parseSection("[100:1, 5:5]"), (PixelRegion{0, 4, 100, 1}));
-  for (const char* bad : {"18:1382,1:1370", "[18:1382]", "[0:10,1:5]", "[a:b,c:d]", "[1:2,3:4]x", "", "[1:2,3:4,5:6]"}) {
+  for (const char* bad :
+       {"18:1382,1:1370", "[18:1382]", "[0:10,1:5]", "[a:b,c:d]", "[1:2,3:4]x", "", "[1:2,3:4,5:6]"}) {
     try {
       (void)parseSection(bad, "TRIMSEC");
       ADD_FAILURE() << bad;
@@ -94,8 +115,8 @@ FitsHeader tanHeader(bool quoted) {
   return header({num("NAXIS", "2"), num("NAXIS1", "1432"), num("NAXIS2", "1370"), str("CTYPE1", "RA---TAN"),
                  str("CTYPE2", "DEC--TAN"), v("CRVAL1", "124.6186165755"), v("CRVAL2", "25.32886785958"),
                  v("CRPIX1", "716.0"), v("CRPIX2", "685.0"), v("CD1_1", "-0.0003073739923533"),
-                 v("CD1_2", "1.222848019531e-05"), v("CD2_1", "1.222848019531e-05"), v("CD2_2", "0.0003073739923533"),
-                 str("RADESYS", "ICRS")});
+                 v("CD1_2", "1.222848019531e-05"), v("CD2_1", "1.222848019531e-05"),
+                 v("CD2_2", "0.0003073739923533"), str("RADESYS", "ICRS")});
 }
 
 TEST(IoWcs, QuotedNumbersParseLikeNumbers) {
@@ -121,6 +142,17 @@ TEST(IoWcs, QuotedNumbersParseLikeNumbers) {
   EXPECT_NEAR(back.raDeg, 124.5, 1e-10);
   EXPECT_NEAR(back.decDeg, 25.4, 1e-10);
   EXPECT_FALSE(quoted->hasSip());
+}
+
+TEST(IoWcs, CdeltWithoutPcGivesPlateScale) {
+  // NEOSSat-style CDELT only (unity PC): 8.325e-4 deg/px = 2.997"/px.
+  const auto w =
+      Wcs::fromHeader(header({str("CTYPE1", "RA---TAN"), str("CTYPE2", "DEC--TAN"), num("CRVAL1", "121.4"),
+                              num("CRVAL2", "-40.9"), num("CRPIX1", "262"), num("CRPIX2", "249"),
+                              num("CDELT1", "-8.325E-4"), num("CDELT2", "8.325E-4")}),
+                      nullptr);
+  ASSERT_TRUE(w);
+  EXPECT_NEAR(w->plateScaleArcsecPerPx(), 2.997, 1e-12);
 }
 
 TEST(IoWcs, ToHeaderRoundTrips) {
@@ -176,7 +208,8 @@ TEST(IoWcs, ScampTanWithPvIsReadAsTpv) {
   EXPECT_NEAR(a.raDeg, b.raDeg, 1e-10);
   const auto far = tpv->pixelToSky(715.0, 1369.0);
   const auto farTan = tan->pixelToSky(715.0, 1369.0);
-  // eta ~ 685 px * 0.000308 deg = 0.211 deg, so xi moves by 0.01 * 0.211^2 = 4.4e-4 deg (RA by that / cos dec).
+  // eta ~ 685 px * 0.000308 deg = 0.211 deg, so xi moves by 0.01 * 0.211^2 = 4.4e-4 deg (RA by that / cos
+  // dec).
   EXPECT_NEAR(std::abs(far.raDeg - farTan.raDeg) * std::cos(25.5 * M_PI / 180), 4.4e-4, 0.3e-4);
 }
 
@@ -234,8 +267,8 @@ TEST(IoWriter, CardsKeepTheirTypesAndQuotedWcsNumbersBecomeNumbers) {
   fits_read_key(f, TDOUBLE, "CRVAL1", &crval, nullptr, &status);
   EXPECT_EQ(crval, 124.6186165755);
   fits_close_file(f, &status);
-  const FrameCube back = loadFrames({path}, LoadOptions{.startMjd = 60000.0, .frameRateHz = 1.0}, *std::make_unique<NullProgress>(),
-                                    *std::make_unique<CancelToken>());
+  const FrameCube back = loadFrames({path}, LoadOptions{.startMjd = 60000.0, .frameRateHz = 1.0},
+                                    *std::make_unique<NullProgress>(), *std::make_unique<CancelToken>());
   EXPECT_EQ(back.header.getString("QUOTE").value_or(""), "it's");
   EXPECT_TRUE(back.wcs);
   EXPECT_EQ(back.frame(0)[11], 1.5f);

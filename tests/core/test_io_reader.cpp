@@ -56,7 +56,8 @@ TEST(IoReader, EveryBitpixWithScalingAndBlankRoundTrips) {
     img.blank = c.blank;
     img.cards.push_back({"DATE-OBS", "'2024-01-02T03:04:05.5'", ""});
     img.cards.push_back({"EXPTIME", "2.0", ""});
-    const auto path = dir / ("b" + std::to_string(c.bitpix) + "_" + std::to_string(c.bzero.value_or(0)) + ".fits");
+    const auto path =
+        dir / ("b" + std::to_string(c.bitpix) + "_" + std::to_string(c.bzero.value_or(0)) + ".fits");
     writeFixture(path, img);
     const FrameCube cube = loadFrames({path.string()});
     ASSERT_EQ(cube.width(), 3);
@@ -116,7 +117,8 @@ TEST(IoReader, FilesCubeAndFolderGiveIdenticalCubes) {
   EXPECT_EQ(fromCube.pixels(), fromFiles.pixels());
   EXPECT_TRUE(fromCube.warnings.empty());
   for (std::size_t n = 0; n < 5; ++n) {
-    EXPECT_NEAR(fromCube.info()[n].mjdMid, fromFiles.info()[n].mjdMid, 1e-12) << "times from the FRAMES table";
+    EXPECT_NEAR(fromCube.info()[n].mjdMid, fromFiles.info()[n].mjdMid, 1e-12)
+        << "times from the FRAMES table";
     EXPECT_DOUBLE_EQ(fromCube.info()[n].exposureS, 0.2);
     EXPECT_EQ(fromCube.info()[n].plane, static_cast<int>(n));
   }
@@ -128,7 +130,8 @@ TEST(IoReader, TileCompressedAndGzipMatchPlain) {
   FixtureImage img = timedFrame("2020-02-03T04:05:06", 1.0, 0.0, 40, 30);
   img.bitpix = 16;
   img.bzero = 32768.0;
-  for (std::size_t i = 0; i < img.raw.size(); ++i) img.raw[i] = static_cast<double>((i * 7919) % 60000) - 30000.0;
+  for (std::size_t i = 0; i < img.raw.size(); ++i)
+    img.raw[i] = static_cast<double>((i * 7919) % 60000) - 30000.0;
   writeFixture(dir / "plain.fits", img);
   FixtureImage rice = img;
   rice.compress = RICE_1;
@@ -182,7 +185,8 @@ TEST(IoReader, CubeTimesFromPlaneKeywordsAndFrameRate) {
   cube.width = 2;
   cube.height = 2;
   cube.planes = 3;
-  for (int i = 0; i < 12; ++i) cube.raw.push_back(i);
+  for (int i = 0; i < 12; ++i)
+    cube.raw.push_back(i);
   cube.cards = {{"MJD_1", "60000.8", ""}, {"MJD_2", "2460001.1", "JD-like"}, {"MJD_3", "60000.75", ""}};
   writeFixture(dir / "keys.fits", cube);
   const FrameCube a = loadFrames({(dir / "keys.fits").string()});
@@ -194,11 +198,13 @@ TEST(IoReader, CubeTimesFromPlaneKeywordsAndFrameRate) {
   EXPECT_EQ(a.frame(2)[0], 0.0f) << "plane 1 sorts last";
   EXPECT_FALSE(a.warnings.empty()) << "out-of-order planes are sorted with a warning";
 
-  cube.cards = {{"DATE-OBS", "'2022-01-01T00:00:00'", ""}, {"EXPTIME", "0.05", ""}, {"FRAMERAT", "20.0", "Hz"}};
+  cube.cards = {
+      {"DATE-OBS", "'2022-01-01T00:00:00'", ""}, {"EXPTIME", "0.05", ""}, {"FRAMERAT", "20.0", "Hz"}};
   writeFixture(dir / "rate.fits", cube);
   const FrameCube b = loadFrames({(dir / "rate.fits").string()});
   const double t0 = mjdFromCalendar(2022, 1, 1, 0.025);
-  for (int n = 0; n < 3; ++n) EXPECT_NEAR(b.info()[n].mjdMid, t0 + n * 0.05 / kSecondsPerDay, 1e-11);
+  for (int n = 0; n < 3; ++n)
+    EXPECT_NEAR(b.info()[n].mjdMid, t0 + n * 0.05 / kSecondsPerDay, 1e-11);
 
   cube.cards.clear();
   writeFixture(dir / "none.fits", cube);

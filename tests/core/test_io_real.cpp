@@ -56,7 +56,8 @@ TEST(IoReal, LowellScienceFrames) {
   const float* f0 = cube.frame(0);
   const float peak = f0[728 * 1432 + 692];
   for (int dy = -2; dy <= 2; ++dy) {
-    for (int dx = -2; dx <= 2; ++dx) EXPECT_LE(f0[(728 + dy) * 1432 + 692 + dx], peak);
+    for (int dx = -2; dx <= 2; ++dx)
+      EXPECT_LE(f0[(728 + dy) * 1432 + 692 + dx], peak);
   }
 }
 
@@ -71,13 +72,18 @@ TEST(IoReal, RobustnessFilesLoadOrFailCleanly) {
     double mjdMid;
   };
   const std::vector<Expect> expected = {
-      {"panoptes_solved.fits.fz", 700, 700, true, mjdFromCalendar(2016, 9, 9, 8 * 3600 + 14 * 60 + 34 + 60.2)},
-      {"panoptes_unsolved.fits", 700, 700, false, mjdFromCalendar(2016, 9, 9, 8 * 3600 + 12 * 60 + 26 + 60.2)},
+      {"panoptes_solved.fits.fz", 700, 700, true,
+       mjdFromCalendar(2016, 9, 9, 8 * 3600 + 14 * 60 + 34 + 60.2)},
+      {"panoptes_unsolved.fits", 700, 700, false,
+       mjdFromCalendar(2016, 9, 9, 8 * 3600 + 12 * 60 + 26 + 60.2)},
       {"r20180617.060.fits", 739, 688, true, mjdFromCalendar(2018, 6, 18, 4 * 3600 + 36 * 60 + 42.01 + 60)},
       {"a8280271.fits", 536, 520, false, mjdFromCalendar(2013, 7, 13, 57 * 60 + 33 + 75.02)},
-      {"ystar_saao_long_streak.fits", 512, 512, true, mjdFromCalendar(2002, 7, 26, 19 * 3600 + 36 * 60 + 37 + 30)},
-      {"NEOS_SCI_2024239174545_cord.fits", 512, 512, true, mjdFromCalendar(2024, 8, 26, 17 * 3600 + 45 * 60 + 45.582 + 5.0013)},
-      {"NEOS_SCI_2023311005808.fits.gz", 383, 343, true, mjdFromCalendar(2023, 11, 7, 58 * 60 + 8.043 + 67.0215)},
+      {"ystar_saao_long_streak.fits", 512, 512, true,
+       mjdFromCalendar(2002, 7, 26, 19 * 3600 + 36 * 60 + 37 + 30)},
+      {"NEOS_SCI_2024239174545_cord.fits", 512, 512, true,
+       mjdFromCalendar(2024, 8, 26, 17 * 3600 + 45 * 60 + 45.582 + 5.0013)},
+      {"NEOS_SCI_2023311005808.fits.gz", 383, 343, true,
+       mjdFromCalendar(2023, 11, 7, 58 * 60 + 8.043 + 67.0215)},
   };
   for (const auto& e : expected) {
     SCOPED_TRACE(e.file);
@@ -109,12 +115,14 @@ TEST(IoReal, RobustnessFilesLoadOrFailCleanly) {
         const FrameCube c = loadFrames({entry.path().string()}, o, progress, cancel);
         EXPECT_GT(c.frameCount(), 0u);
       } catch (const InputError& e) {
-        EXPECT_NE(std::string(e.what()).find(entry.path().filename().string()), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find(entry.path().filename().string()), std::string::npos)
+            << e.what();
       }
     }
   }
   // The three NEOSSat frames as one sequence.
-  const FrameCube seq = loadFrames({(dir / "NEOS_SCI_2023311012456.fits.gz").string(), (dir / "NEOS_SCI_2023311005808.fits.gz").string(),
+  const FrameCube seq = loadFrames({(dir / "NEOS_SCI_2023311012456.fits.gz").string(),
+                                    (dir / "NEOS_SCI_2023311005808.fits.gz").string(),
                                     (dir / "NEOS_SCI_2023311011346.fits.gz").string()});
   ASSERT_EQ(seq.frameCount(), 3u);
   EXPECT_NE(seq.info()[0].file.find("005808"), std::string::npos) << "sorted by time";

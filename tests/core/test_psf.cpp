@@ -13,10 +13,10 @@
 namespace st::psf {
 namespace {
 
-/// Adds amp x (the mean of P over each pixel by a 24 x 24 midpoint rule: another quadrature than the fit's
+/// Adds amp x (the mean of P over each pixel by a 16 x 16 midpoint rule: another quadrature than the fit's
 /// Gauss-Legendre one, so the test does not fit its own discretisation) centred at (x0, y0).
-void addStar(Image& img, double x0, double y0, const Moffat& m, double amp, int half = 40) {
-  constexpr int kSub = 24;
+void addStar(Image& img, double x0, double y0, const Moffat& m, double amp, int half = 20) {
+  constexpr int kSub = 16;
   for (int y = std::max(0, int(y0) - half); y <= std::min(img.height - 1, int(y0) + half); ++y)
     for (int x = std::max(0, int(x0) - half); x <= std::min(img.width - 1, int(x0) + half); ++x) {
       double sum = 0.0;

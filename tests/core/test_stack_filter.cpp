@@ -91,6 +91,19 @@ TEST(MatchedFilter, PeakResponseToPsfShapedSource) {
       EXPECT_LE(f[y * 64 + x], f[33 * 64 + 30]);
 }
 
+TEST(MatchedFilter, MakesTheSearchInput) {
+  FrameCube cube = noiseCube(96, 96, 20, 3.0f, 21);
+  const psf::Moffat m = psf::Moffat::fromFwhm(3.2);
+  NullProgress progress;
+  CancelToken cancel;
+  const search::FilteredCube fc = makeFilteredCube(std::move(cube), m, Velocity{0.5, 0.0}, progress, cancel);
+  const double predicted = 3.0 * std::sqrt(makeFilterKernel(m).sumSquares);
+  EXPECT_NEAR(fc.sigmaF, predicted, 0.03 * predicted);
+  EXPECT_DOUBLE_EQ(fc.psfFwhmPx, m.fwhm());
+  EXPECT_EQ(fc.skyRate, (Velocity{0.5, 0.0}));
+  EXPECT_EQ(fc.frames.frameCount(), 20u);
+}
+
 TEST(MatchedFilter, CancelsAndRejectsAllMasked) {
   FrameCube cube = noiseCube(64, 64, 8, 1.0f, 3);
   const FilterKernel k = makeFilterKernel(psf::Moffat::fromFwhm(3.0));

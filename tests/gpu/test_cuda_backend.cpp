@@ -15,6 +15,9 @@
 #include "ipsa_host_reference.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
+#include "st/search/candidates.hpp"
+#include "st/search/cpu_backend.hpp"
+#include "st/stack/csa.hpp"
 
 namespace st {
 namespace {
@@ -88,24 +91,30 @@ void expectMatchesReference(const SearchResult& g, const FilteredCube& cube, con
     sameArg += (g.map.argX[iv] == ref.argX[iv] && g.map.argY[iv] == ref.argY[iv]) ? 1 : 0;
   }
   EXPECT_GE(sameArg + 2, grid.count());  // float vs double may only swap near-ties
-  // Cells: every reference cell clearly above threshold is a GPU candidate and vice versa.
+  // Candidates: the reference cells, capped and clustered as the backends do, give the same candidates.
+  std::vector<search::CellHit> cells;
+  for (const auto& r : ref.cells) {
+    cells.push_back(
+        search::CellHit{static_cast<float>(r.snr), static_cast<float>(r.sum), r.x, r.y, r.ivx, r.ivy, r.nIn});
+  }
+  std::stable_sort(cells.begin(), cells.end(), [](const auto& a, const auto& b) { return a.snr > b.snr; });
+  if (cells.size() > params.maxCandidates) cells.resize(params.maxCandidates);
+  const auto want = search::clusterCells(cells, grid, search::defaultClusterParams(cube.psfFwhmPx), g.trials);
+  EXPECT_EQ(g.cellsAboveThreshold, static_cast<std::int64_t>(ref.cells.size()));
+  ASSERT_EQ(g.candidates.size(), want.size());
   std::map<std::tuple<int, int, int, int>, const search::Candidate*> got;
   for (const auto& c : g.candidates)
     got[{c.x, c.y, c.ivx, c.ivy}] = &c;
-  const double edge = 1e-4 * params.snrThreshold;
-  std::size_t matched = 0;
-  for (const auto& r : ref.cells) {
-    const auto it = got.find({r.x, r.y, r.ivx, r.ivy});
-    if (r.snr < params.snrThreshold + edge && it == got.end()) continue;  // borderline: either way is right
-    ASSERT_NE(it, got.end()) << "missing cell x=" << r.x << " y=" << r.y << " ivx=" << r.ivx
-                             << " ivy=" << r.ivy;
-    EXPECT_NEAR(it->second->snr, r.snr, 1e-4 * r.snr);
-    EXPECT_EQ(it->second->nIn, r.nIn);
-    EXPECT_NEAR(it->second->sum, r.sum, 1e-4 * std::max(1.0, std::abs(r.sum)));
-    ++matched;
+  for (const auto& e : want) {
+    const auto it = got.find({e.x, e.y, e.ivx, e.ivy});
+    ASSERT_NE(it, got.end()) << "missing candidate x=" << e.x << " y=" << e.y << " ivx=" << e.ivx
+                             << " ivy=" << e.ivy;
+    EXPECT_NEAR(it->second->snr, e.snr, 1e-4 * e.snr);
+    EXPECT_EQ(it->second->nIn, e.nIn);
+    EXPECT_EQ(it->second->clusterCells, e.clusterCells);
+    EXPECT_NEAR(it->second->sum, e.sum, 1e-4 * std::max(1.0, std::abs(e.sum)));
   }
-  EXPECT_LE(g.candidates.size(), matched + 2);  // GPU extras only at the threshold edge
-  EXPECT_GT(matched, 10u);
+  EXPECT_GT(cells.size(), 10u);
   for (std::size_t i = 1; i < g.candidates.size(); ++i)
     EXPECT_GE(g.candidates[i - 1].snr, g.candidates[i].snr);
 }
@@ -116,19 +125,27 @@ struct Problem {
   SearchParams params;
 };
 
-Problem standardProblem() {
+/// Width 61 runs the tiled kernel (vx in [-3, 9] px/s over ~3.3 s: shifts up to ~15 px out of the frame);
+/// width 64 with a finer grid (neighbours < 1 px apart) runs the row kernel.
+Problem standardProblem(bool rowKernel = false) {
   Problem p;
-  p.grid = makeGrid(9, 7, 1.5);  // vx in [-3, 9] px/s over ~3.3 s: shifts up to ~15 px out of frame
-  p.cube = makeCube(61, 47, 37, p.grid.at(6, 2), 30, 20, 1.6f, 7u);
+  p.grid = rowKernel ? makeGrid(19, 7, 0.4) : makeGrid(9, 7, 1.5);
+  p.cube = makeCube(rowKernel ? 64 : 61, 47, 37, p.grid.at(6, 2), 30, 20, 1.6f, 7u);
   p.params.snrThreshold = 3.5;
   p.params.maxCandidates = 100000;
   p.params.minFrameFraction = 0.5;
   return p;
 }
 
-TEST(CudaBackend, MatchesHostReferenceAndFindsTheSource) {
-  ST_REQUIRE_GPU(gpu);
-  Problem p = standardProblem();
+gpu::CudaOptions kernelOptions(bool rowKernel) {
+  gpu::CudaOptions o;
+  o.kernelVariant = rowKernel ? -2 : 0;
+  return o;
+}
+
+void checkAgainstReference(bool rowKernel) {
+  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
+  Problem p = standardProblem(rowKernel);
   NullProgress progress;
   CancelToken cancel;
   const SearchResult r = gpu->search(p.cube, p.grid, p.params, progress, cancel);
@@ -139,8 +156,18 @@ TEST(CudaBackend, MatchesHostReferenceAndFindsTheSource) {
   EXPECT_EQ(r.candidates.front().ivx, 6);
   EXPECT_EQ(r.candidates.front().ivy, 2);
   EXPECT_EQ(r.method, "exact");
-  EXPECT_EQ(r.trials.total(), 61.0 * 47 * 9 * 7);
+  EXPECT_EQ(r.trials.total(), double(p.cube.frames.width()) * 47 * p.grid.nvx * p.grid.nvy);
   EXPECT_NE(gpu->lastNote().find("resident"), std::string::npos) << gpu->lastNote();
+  EXPECT_NE(gpu->lastNote().find(rowKernel ? "row kernel" : "tiled kernel"), std::string::npos)
+      << gpu->lastNote();
+}
+
+TEST(CudaBackend, TiledKernelMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(false);
+}
+
+TEST(CudaBackend, RowKernelMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(true);
 }
 
 TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
@@ -153,18 +180,29 @@ TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
   expectMatchesReference(gpu->search(p.cube, p.grid, p.params, progress, cancel), p.cube, p.grid, p.params);
 }
 
-TEST(CudaBackend, ChunkedOverFramesAndVelocitiesEqualsResident) {
-  ST_REQUIRE_GPU(resident);
-  gpu::CudaOptions o;
-  o.deviceMemoryLimitBytes = 500 * 1024;  // cube 415 KiB + tables 140 KiB: frames and velocity rows tiled
-  o.cellCapacity = 4096;
-  ST_REQUIRE_GPU(tiny, o);
-  Problem p = standardProblem();
+void checkChunkedEqualsResident(bool rowKernel) {
+  ST_REQUIRE_GPU(resident, kernelOptions(rowKernel));
+  Problem p = standardProblem(rowKernel);
   NullProgress progress;
   CancelToken cancel;
   const SearchResult a = resident->search(p.cube, p.grid, p.params, progress, cancel);
-  const SearchResult b = tiny->search(p.cube, p.grid, p.params, progress, cancel);
-  EXPECT_NE(tiny->lastNote().find("streamed"), std::string::npos) << tiny->lastNote();
+  // The cube is ~430 KiB and the tables ~150 KiB: find a memory limit under which both frames and velocity
+  // rows must be tiled (the exact bytes depend on the kernel's tables).
+  SearchResult b;
+  bool streamed = false;
+  for (std::size_t limit = 600 * 1024; limit >= 250 * 1024 && !streamed; limit -= 10 * 1024) {
+    gpu::CudaOptions o = kernelOptions(rowKernel);
+    o.deviceMemoryLimitBytes = limit;
+    o.cellCapacity = 4096;
+    auto tiny = backendOrSkip(o);
+    try {
+      b = tiny->search(p.cube, p.grid, p.params, progress, cancel);
+    } catch (const GpuError&) {
+      break;  // too little memory even for one velocity row: the limits above did not stream
+    }
+    streamed = tiny->lastNote().find("streamed") != std::string::npos;
+  }
+  ASSERT_TRUE(streamed);
   // Same additions in the same order: identical results, bit for bit.
   EXPECT_EQ(a.map.maxSnr, b.map.maxSnr);
   EXPECT_EQ(a.map.argX, b.map.argX);
@@ -177,12 +215,20 @@ TEST(CudaBackend, ChunkedOverFramesAndVelocitiesEqualsResident) {
   }
 }
 
-TEST(CudaBackend, LongCubeUploadOverlapEqualsReference) {
-  ST_REQUIRE_GPU(gpu);
+TEST(CudaBackend, TiledKernelChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(false);
+}
+
+TEST(CudaBackend, RowKernelChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(true);
+}
+
+void checkLongCube(double step, const char* kernel) {
+  ST_REQUIRE_GPU(gpu, kernelOptions(std::string(kernel) == "row kernel"));
   // 600 frames of 256 x 240 (141 MiB) upload in more than one chunk; the first velocity chunk is summed
   // chunk by chunk through device partial sums while the rest of the cube arrives.
   Problem p;
-  p.grid = makeGrid(5, 3, 1.0);
+  p.grid = makeGrid(9, 3, step);
   p.cube = makeCube(256, 240, 600, p.grid.at(1, 1), 100, 90, 0.5f, 11u);
   p.params.snrThreshold = 4.0;
   p.params.maxCandidates = 100000;
@@ -190,7 +236,16 @@ TEST(CudaBackend, LongCubeUploadOverlapEqualsReference) {
   CancelToken cancel;
   const SearchResult r = gpu->search(p.cube, p.grid, p.params, progress, cancel);
   EXPECT_NE(gpu->lastNote().find("overlapped"), std::string::npos) << gpu->lastNote();
+  EXPECT_NE(gpu->lastNote().find(kernel), std::string::npos) << gpu->lastNote();
   expectMatchesReference(r, p.cube, p.grid, p.params);
+}
+
+TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceTiledKernel) {
+  checkLongCube(1.0, "tiled kernel");
+}
+
+TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceRowKernel) {
+  checkLongCube(0.04, "row kernel");
 }
 
 TEST(CudaBackend, CandidateOverflowIsRecoveredNotTruncated) {
@@ -223,23 +278,65 @@ TEST(CudaBackend, StackAtEqualsReference) {
   ST_REQUIRE_GPU(gpu);
   Problem p = standardProblem();
   for (const Velocity v : {Velocity{0.0, 0.0}, Velocity{7.3, -4.6}, Velocity{-12.0, 9.5}}) {
-    for (const bool csa : {false, true}) {
-      const Image g = gpu->stackAt(p.cube, v, csa ? search::StackMode::Csa : search::StackMode::Ipsa);
-      const Image r = test::refStack(p.cube.frames, v, csa);
-      ASSERT_EQ(g.width, r.width);
-      ASSERT_EQ(g.height, r.height);
-      double worst = 0.0;
-      for (std::size_t i = 0; i < r.pixels.size(); ++i)
-        worst = std::max(worst, double(std::abs(g.pixels[i] - r.pixels[i])));
-      EXPECT_LT(worst, 2e-5 * 37) << "v=(" << v.vx << "," << v.vy << ") csa=" << csa;
-    }
+    const Image g = gpu->stackAt(p.cube, v, search::StackMode::Ipsa);
+    const Image r = test::refStack(p.cube.frames, v, false);
+    ASSERT_EQ(g.width, r.width);
+    ASSERT_EQ(g.height, r.height);
+    double worst = 0.0;
+    for (std::size_t i = 0; i < r.pixels.size(); ++i)
+      worst = std::max(worst, double(std::abs(g.pixels[i] - r.pixels[i])));
+    EXPECT_LT(worst, 2e-5 * 37) << "v=(" << v.vx << "," << v.vy << ")";
   }
+  // CSA is the core's spectral stack, identical to what the CPU backend's callers get.
+  NullProgress progress;
+  CancelToken cancel;
+  const Image csa = gpu->stackAt(p.cube, {7.3, -4.6}, search::StackMode::Csa);
+  EXPECT_EQ(csa.pixels, stack::stackCsa(p.cube.frames, {7.3, -4.6}, progress, cancel).sum.pixels);
   // A changed cube is noticed (the device copy is refreshed).
   for (std::size_t i = 0; i < p.cube.frames.framePixels(); ++i)
     p.cube.frames.frame(3)[i] += 1.0f;
   const Image g = gpu->stackAt(p.cube, {0.0, 0.0}, search::StackMode::Ipsa);
   const Image r = test::refStack(p.cube.frames, {0.0, 0.0}, false);
   EXPECT_NEAR(g.pixels[5], r.pixels[5], 1e-3);
+}
+
+void checkAgainstCpuBackend(bool rowKernel) {
+  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
+  Problem p = standardProblem(rowKernel);
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  const SearchResult c = search::makeCpuBackend()->search(p.cube, p.grid, p.params, progress, cancel);
+  ASSERT_EQ(g.map.maxSnr.size(), c.map.maxSnr.size());
+  for (std::size_t iv = 0; iv < c.map.maxSnr.size(); ++iv) {
+    EXPECT_NEAR(g.map.maxSnr[iv], c.map.maxSnr[iv], 1e-4 * std::max(1.0f, std::abs(c.map.maxSnr[iv]))) << iv;
+    EXPECT_EQ(g.map.argX[iv] < 0, c.map.argX[iv] < 0) << iv;
+  }
+  EXPECT_EQ(g.cellsAboveThreshold, c.cellsAboveThreshold);
+  EXPECT_EQ(g.minFrames, c.minFrames);
+  EXPECT_EQ(g.snrThreshold, c.snrThreshold);
+  ASSERT_EQ(g.candidates.size(), c.candidates.size());
+  for (std::size_t i = 0; i < c.candidates.size(); ++i) {
+    EXPECT_EQ(g.candidates[i].x, c.candidates[i].x) << i;
+    EXPECT_EQ(g.candidates[i].y, c.candidates[i].y) << i;
+    if (g.candidates[i].ivx != c.candidates[i].ivx || g.candidates[i].ivy != c.candidates[i].ivy) {
+      // Neighbouring velocities with identical shifts at every frame have identical sums: either cell of
+      // such an exact tie may represent the cluster (the CPU backend's order of tied hits is not fixed).
+      EXPECT_NEAR(g.candidates[i].snr, c.candidates[i].snr, 1e-5 * c.candidates[i].snr) << i;
+      EXPECT_LE(std::abs(g.candidates[i].ivx - c.candidates[i].ivx), 2) << i;
+      EXPECT_LE(std::abs(g.candidates[i].ivy - c.candidates[i].ivy), 2) << i;
+    }
+    EXPECT_EQ(g.candidates[i].clusterCells, c.candidates[i].clusterCells) << i;
+    EXPECT_NEAR(g.candidates[i].snr, c.candidates[i].snr, 1e-4 * c.candidates[i].snr) << i;
+  }
+}
+
+TEST(CudaBackend, TiledKernelGivesTheCpuBackendsResult) {
+  checkAgainstCpuBackend(false);
+}
+
+TEST(CudaBackend, RowKernelGivesTheCpuBackendsResult) {
+  checkAgainstCpuBackend(true);
 }
 
 TEST(CudaBackend, CancelledSearchThrowsCancelled) {

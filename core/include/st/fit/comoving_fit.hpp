@@ -95,7 +95,9 @@ struct FitResult {
   std::vector<double> costHistory;  ///< cost at the start and after each iteration
   double cost = 0.0;                ///< final C
   std::size_t pixels = 0;           ///< stamp pixels summed over frames
-  std::size_t framesUsed = 0;
+  std::size_t framesUsed = 0;       ///< frames given to the fit
+  std::size_t framesInside = 0;     ///< of those, frames whose fitted track is inside the frame (N_in): the
+                                    ///< N_f of detection_snr and eq:sig
   int freeParams = 0;
   double rmsResidual = 0.0;  ///< sqrt(C / (pixels - freeParams)), data units
   double sigmaN = 0.0;       ///< noise used for SNR: FitOptions::sigmaN or rmsResidual
@@ -143,6 +145,7 @@ struct ForcedPhotometry {
   double sigmaAlpha = 0.0;
   double snr = 0.0;
   std::size_t pixels = 0;
+  std::size_t framesInside = 0;  ///< frames whose track is inside the frame
 };
 /// `sigmaN` is the per-pixel noise of one frame (data units); options.frames / tRefOffsetS / psf /
 /// stampHalfSize / fitBackground apply as in fitComoving.

@@ -51,6 +51,8 @@ struct InputSummary {
   std::size_t frames = 0;
   int width = 0;
   int height = 0;
+  /// CFITSIO's equivalent BITPIX (fits_get_img_equivtype): 8, 16, 32, 64, -32, -64, or 10 / 20 / 40 / 80 for
+  /// signed bytes and unsigned 16/32/64-bit integers stored with the standard BZERO offsets.
   int bitpix = 0;
   double firstMjd = 0.0;
   double lastMjd = 0.0;

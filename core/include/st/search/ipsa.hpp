@@ -13,9 +13,17 @@
 namespace st::search {
 
 /// Integer pixel shift of a source moving at vPxS (px/s) after dtS seconds: round(v * dt), halves away
-/// from zero.
+/// from zero, exactly std::lround of the double product (written out because lround is a slow libm call
+/// and the search computes many shifts; p - trunc(p) is exact for |p| < 2^52). Products beyond +-2^30 px
+/// are clamped there (such a sample is outside any frame anyway).
 inline int ipsaShift(double vPxS, double dtS) noexcept {
-  return static_cast<int>(std::lround(vPxS * dtS));
+  constexpr double kLimit = 1073741824.0;  // 2^30
+  double p = vPxS * dtS;
+  if (!(p < kLimit)) p = kLimit;  // also catches NaN
+  if (p < -kLimit) p = -kLimit;
+  const auto t = static_cast<long long>(p);  // toward zero
+  const double f = p - static_cast<double>(t);
+  return static_cast<int>(f >= 0.5 ? t + 1 : (f <= -0.5 ? t - 1 : t));
 }
 
 /// One cell of the statistic, computed the slow, obvious way.

@@ -69,8 +69,9 @@ struct SearchEstimate {
 };
 
 /// Additions per second of the CPU exact backend per worker thread, calibrated with
-/// `synthtrack-cli bench search` on the 2-core development machine (AMD EPYC, AVX2).
-inline constexpr double kCpuAdditionsPerSecondPerThread = 1.0e10;
+/// `synthtrack-cli bench search` on the 2-core development machine (AMD EPYC Zen 3, AVX2): 1.3e10 additions
+/// per CPU-second, 2026-11-22; rounded down for the second thread sharing L3 and memory.
+inline constexpr double kCpuAdditionsPerSecondPerThread = 1.2e10;
 
 /// Estimates time and memory of an exact search of `frames` frames of width x height over `grid`, with
 /// `threads` workers at `additionsPerSecond` in all (default: kCpuAdditionsPerSecondPerThread * threads).

@@ -7,15 +7,23 @@
 //   lambda   = flat(x, y) * (sky + stars + objects)                     expected photo-electrons
 //   n        = Poisson(lambda), then column bleed above fullWellE        image-area charge
 //   e_out    = Gamma(n, emGain) when emGain > 1 (else n)                 EM register, excess factor sqrt(2)
-//   raw_ADU  = bias(x, y) + (e_out + hot) / gainEPerAdu + Normal(0, readNoiseE / gainEPerAdu) + cosmic rays
-//   raw_ADU  clipped at saturationAdu (ADC full scale)
+//   raw_ADU  = bias(x, y) + e_out / gainEPerAdu + Normal(0, readNoiseE / gainEPerAdu) + hot + cosmic rays
+//   raw_ADU  clipped to [0, saturationAdu] (ADC full scale)
+// Hot pixels (a fixed excess in ADU every frame) and cosmic rays (1 to 5 px, one frame, ADU) are added after
+// the EM register; both are listed in the truth. Diffraction spikes are four arms along +-x and +-y.
+// The bleed is modelled in the image area with an effective full well; in an EMCCD the EM register and
+// the ADC saturate first, so the EM presets set fullWellE near that limit (a documented simplification).
+// Poisson and Gamma are sampled exactly (st/sim/samplers.hpp); noiseless = true keeps the expected values.
 // The Gamma(n, G) output of an EM register of gain G is the standard high-gain model (Basden et al. 2003):
 // its variance is 2 n G^2, i.e. the sqrt(2) excess noise factor, with the real, skewed output distribution.
 // A calibrated frame (raw - bias) / flat therefore has signal photons * emGain / gainEPerAdu ADU.
 //
 // Geometry and time follow ARCHITECTURE.md: 0-based pixels, centres at integers; frame n has its exposure
 // mid-time t_n; t_ref = mean of the t_n; a source at t is at x(t) = x_ref + vx (t - t_ref). Every source is
-// trailed over its exposure (sub-stepped), since the paper's sky drift of 5"/s moves stars ~1 px in 60 ms.
+// trailed over its exposure (sub-stepped, <= 0.1 px), since the paper's sky drift of 5"/s moves stars ~1 px
+// in 60 ms; moving objects are trailed with their own velocity in the frames (sky drift + own motion), so
+// in paper-neo they trail ~0.9 px too. The PSF is integrated over pixels (8x8 sub-samples, tabulated at 1/8
+// px phases and interpolated) and each source's total flux is exact up to clipping at the frame edges.
 #include <cstdint>
 #include <string>
 #include <string_view>

@@ -12,6 +12,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/psf/moffat.hpp"
+#include "st/search/types.hpp"
 
 namespace st::stack {
 
@@ -57,5 +58,11 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
 /// maxFrames frames spread over the cube, every `stride`-th pixel, `border` px from the edges. Returns 0 when
 /// fewer than 1000 pixels qualify.
 double measureFilteredNoise(const FrameCube& cube, int border, std::size_t maxFrames = 64, int stride = 3);
+
+/// The search's input in one call: takes `prepared` (zero-biased frames with static sources and cosmic
+/// rays zeroed; moved in, not copied), filters it in place with the kernel of `psf` (kDefaultTruncation)
+/// and fills sigmaF (filterCube), skyRate and psfFwhmPx. Same errors as filterCube.
+search::FilteredCube makeFilteredCube(FrameCube prepared, const psf::Moffat& psf, Velocity skyRate,
+                                      ProgressSink& progress, CancelToken& cancel);
 
 }  // namespace st::stack

@@ -36,7 +36,8 @@ struct SegmentMeasurement {
   double forcedAlpha = 0.0;
   double forcedSigmaAlpha = 0.0;
   double forcedSnr = 0.0;
-  double expectedSnr = 0.0;  ///< whole-fit SNR * sqrt(frames_k / frames)
+  std::size_t framesInside = 0;  ///< frames of this segment whose predicted track is inside the frame
+  double expectedSnr = 0.0;      ///< whole-fit SNR * sqrt(framesInside_k / framesInside of the whole fit)
   bool missing = false;
   /// Fit of the segment's frames with the velocity held at the whole fit's (position, alpha, I0 free).
   fit::FitStatus fitStatus = fit::FitStatus::Diverged;
@@ -69,7 +70,9 @@ struct SegmentReport {
 
 /// IPSA over a stamp (ARCHITECTURE.md convention): S(i, j) = sum_n F_n(cx + i + round(vx (t_n - t0)),
 /// cy + j + round(vy (t_n - t0))) for i, j in [-h, h], with (cx, cy) = the rounded (x, y) at time t0
-/// (seconds from the cube's t_ref). Out-of-frame and masked samples contribute nothing. Image (2h+1)^2.
+/// (seconds from the cube's t_ref), shifts from st::stack::ipsaShifts (the search's rounding). Out-of-frame
+/// and masked samples contribute nothing. Image (2h+1)^2. A stamp, not st::stack::stackIpsa's whole frame,
+/// because a segment is a subset of frames and copying them into a sub-cube would copy the data.
 [[nodiscard]] Image stackStamp(const FrameCube& cube, const std::vector<std::size_t>& frames, double x,
                                double y, Velocity v, double t0OffsetS, int half);
 

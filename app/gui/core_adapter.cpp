@@ -1,0 +1,219 @@
+#include "core_adapter.hpp"
+
+#include <QDir>
+#include <QFileInfo>
+#include <QStandardPaths>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "backend_factory.hpp"
+#include "st/common/error.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/io/fits_writer.hpp"
+#include "st/io/wcs.hpp"
+#include "st/psf/moffat_fit.hpp"
+#include "st/sim/simulator.hpp"
+#if __has_include("st/pipeline/preprocess.hpp")
+#include "st/pipeline/preprocess.hpp"
+#define ST_GUI_HAVE_PIPELINE 1
+#endif
+
+namespace st::app {
+namespace {
+
+ui::ProfileFit profileAt(const Image& image, double x, double y) {
+  ui::ProfileFit out;
+  const psf::MoffatFit fit = psf::fitMoffat(image, x, y);
+  out.centreX = fit.x0;
+  out.centreY = fit.y0;
+  out.fwhmPx = fit.fwhm();
+  out.beta = fit.model.beta;
+  out.ok = fit.converged() && std::isfinite(out.fwhmPx);
+  const double maxRadius = std::clamp(3.0 * (out.ok ? out.fwhmPx : 3.0), 6.0, 30.0);
+  for (const psf::RadialBin& b : psf::radialProfile(image, fit, maxRadius)) {
+    out.radiusPx.push_back(b.radius);
+    out.value.push_back(b.mean);
+    out.fitRadiusPx.push_back(b.radius);
+    out.fitValue.push_back(b.model);
+  }
+  out.message =
+      out.ok ? "± " + std::to_string(fit.sigmaFwhm).substr(0, 5) + " px, " + psf::toString(fit.convergence)
+             : "Moffat fit did not converge (" + psf::toString(fit.convergence) + ")";
+  return out;
+}
+
+#ifdef ST_GUI_HAVE_PIPELINE
+double param(const std::vector<ui::StageSpec>& stages, const std::string& key, double fallback) {
+  for (const auto& s : stages)
+    for (const auto& p : s.params)
+      if (p.key == key) return p.value;
+  return fallback;
+}
+bool enabled(const std::vector<ui::StageSpec>& stages, const std::string& name) {
+  for (const auto& s : stages)
+    if (s.name == name) return s.enabled;
+  return true;
+}
+
+std::vector<ui::StageSpec> stageSpecs() {
+  const pipeline::PreprocessParams d;
+  using P = ui::StageParam;
+  return {
+      {"Calibration (overscan, trim, bad pixels)", true, false, {}},
+      {"Cosmic rays",
+       d.removeCosmicRays,
+       true,
+       {P{"cr.threshold", "Hit threshold", "σ", d.cosmicRays.thresholdSigma, 3, 50, 1,
+          "F_n - max(two nearest frames) above this many single-frame sigma"},
+        P{"cr.grow", "Grow threshold", "σ", d.cosmicRays.growSigma, 1, 50, 1,
+          "neighbours above this join a hit"}}},
+      {"Background",
+       true,
+       false,
+       {P{"bg.globalFrames", "Global frames", "", static_cast<double>(d.background.global.frames), 1, 1e6, 0,
+          "frames of the first, pixel-independent estimate (paper §4.2: 50)"},
+        P{"bg.globalXi", "Global clip ξ", "σ", d.background.global.xi, 1, 20, 1, "paper §3.1: 5"},
+        P{"bg.xi", "Per-pixel clip ξ", "σ", d.background.xi, 1, 20, 1, "paper §3.1: 4"},
+        P{"bg.maxFrames", "Frames per pixel", "", static_cast<double>(d.background.maxFrames), 10, 1e6, 0,
+          "paper: ~2000"}}},
+      {"Sky rate (measured from the stars)",
+       true,
+       true,
+       {P{"sky.vx", "vx if not measured", "px/s", 0.0, -1e4, 1e4, 4, "used when the stage is off"},
+        P{"sky.vy", "vy if not measured", "px/s", 0.0, -1e4, 1e4, 4, "used when the stage is off"}}},
+      {"Static sources",
+       true,
+       false,
+       {P{"stars.snr", "Detection SNR", "", d.stars.snrThreshold, 2, 100, 1,
+          "in the sky-rate stack (paper §4.3: 7)"},
+        P{"stars.grow", "Footprint down to SNR", "", d.stars.growSnr, 0.5, 50, 1, ""},
+        P{"stars.dilate", "Dilation", "FWHM", d.stars.dilateFwhm, 0, 10, 1, ""},
+        P{"single.snr", "Single-frame SNR", "", d.singleFrameSnr, 2, 100, 1, "paper §4.3: 7"}}},
+      {"PSF and matched filter",
+       true,
+       false,
+       {P{"psf.fwhm", "Fallback FWHM", "px", d.psfFwhmPx, 0.5, 50, 2,
+          "used when no star can be fitted (paper: ~3 px)"},
+        P{"psf.beta", "Fallback β", "", d.psfBeta, 1.1, 20, 2, "paper §3.3: 4"}}},
+  };
+}
+
+ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>& stages,
+                               ProgressSink& progress, CancelToken& cancel) {
+  pipeline::PreprocessParams p;
+  p.removeCosmicRays = enabled(stages, "Cosmic rays");
+  p.cosmicRays.thresholdSigma = param(stages, "cr.threshold", p.cosmicRays.thresholdSigma);
+  p.cosmicRays.growSigma = param(stages, "cr.grow", p.cosmicRays.growSigma);
+  p.background.global.frames = static_cast<std::size_t>(param(stages, "bg.globalFrames", 50));
+  p.background.global.xi = param(stages, "bg.globalXi", p.background.global.xi);
+  p.background.xi = param(stages, "bg.xi", p.background.xi);
+  p.background.maxFrames = static_cast<std::size_t>(param(stages, "bg.maxFrames", 2000));
+  if (!enabled(stages, "Sky rate (measured from the stars)"))
+    p.skyRate = Velocity{param(stages, "sky.vx", 0), param(stages, "sky.vy", 0)};
+  p.stars.snrThreshold = param(stages, "stars.snr", p.stars.snrThreshold);
+  p.stars.growSnr = param(stages, "stars.grow", p.stars.growSnr);
+  p.stars.dilateFwhm = param(stages, "stars.dilate", p.stars.dilateFwhm);
+  p.singleFrameSnr = param(stages, "single.snr", p.singleFrameSnr);
+  p.psfFwhmPx = param(stages, "psf.fwhm", p.psfFwhmPx);
+  p.psfBeta = param(stages, "psf.beta", p.psfBeta);
+  // preprocess takes the cube by value and works in place; the GUI keeps the raw frames for viewing, so
+  // this is the one documented extra copy of the cube.
+  pipeline::Prepared prep = pipeline::preprocess(*raw, p, progress, cancel);
+
+  ui::PreparedView view;
+  const double fwhm = prep.psf.fwhm();
+  auto filtered = std::make_shared<search::FilteredCube>(std::move(prep.filtered));
+  auto unfiltered = std::make_shared<search::FilteredCube>();
+  unfiltered->frames = std::move(prep.frames);
+  unfiltered->sigmaF = prep.sigmaN;
+  unfiltered->skyRate = prep.skyRate;
+  unfiltered->psfFwhmPx = fwhm;
+  Image zeroed(unfiltered->frames.width(), unfiltered->frames.height(), 0.0f);
+  if (!unfiltered->frames.empty())
+    for (std::size_t i = 0; i < zeroed.size(); ++i)
+      zeroed.pixels[i] = unfiltered->frames.frame(0)[i] == 0.0f ? 1.0f : 0.0f;
+  view.layers.emplace_back("Background (subtracted)", std::move(prep.background));
+  view.layers.emplace_back("Noise σ per pixel", std::move(prep.noise));
+  view.layers.emplace_back("Zeroed pixels, frame 0 (stars, cosmic rays, masks)", std::move(zeroed));
+  char line[512];
+  std::snprintf(
+      line, sizeof line,
+      "σ_n %.3g counts · σ_F %.3g · PSF FWHM %.2f px (%s) · sky rate (%.4g, %.4g) px/s%s · %zu stars · "
+      "%zu cosmic-ray pixels · %.1f s",
+      prep.sigmaN, filtered->sigmaF, fwhm, prep.psfFitted ? "fitted" : "fallback", prep.skyRate.vx,
+      prep.skyRate.vy, prep.skyRateMeasured ? " measured" : "", prep.stars.size(), prep.cosmicRays,
+      prep.elapsedS);
+  view.summary = line;
+  for (const auto& note : prep.notes)
+    view.summary += "\n• " + note;
+  view.filtered = std::move(filtered);
+  view.unfiltered = std::move(unfiltered);
+  return view;
+}
+#endif
+
+// The demo is simulated once (tens of seconds on 2 cores) and cached as a FITS cube with its frame times
+// and WCS (st::io::writeCube), so later starts open it in seconds. The cache is keyed by preset and seed;
+// a cache that fails to load is simulated again.
+FrameCube simulateDemo(ProgressSink& progress, CancelToken& cancel) {
+  const QString dir = QStandardPaths::writableLocation(QStandardPaths::CacheLocation);
+  const std::string path = (dir + QString("/paper-neo-seed%1.fits").arg(kDemoSeed)).toStdString();
+  if (!dir.isEmpty() && QFileInfo::exists(QString::fromStdString(path))) {
+    try {
+      SubProgress sub(progress, 0.0, 1.0);
+      return io::loadFrames({path}, io::LoadOptions{}, sub, cancel);
+    } catch (const Cancelled&) {
+      throw;
+    } catch (const std::exception&) {
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);  // stale or damaged: simulate again
+    }
+  }
+  SubProgress simProgress(progress, 0.0, 0.9);
+  FrameCube cube = sim::simulate(sim::preset("paper-neo"), kDemoSeed, simProgress, cancel).cube;
+  if (!dir.isEmpty() && QDir().mkpath(dir)) {
+    progress.report(0.9, "caching the demo cube");
+    const std::string tmp = path + ".part";
+    try {
+      io::writeCube(tmp, cube);
+      std::filesystem::rename(tmp, path);
+    } catch (const std::exception&) {
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);  // a cache is optional
+    }
+  }
+  return cube;
+}
+
+}  // namespace
+
+ui::CoreServices makeCoreServices() {
+  ui::CoreServices s;
+  s.loadFrames = [](const std::vector<std::string>& inputs, ProgressSink& progress, CancelToken& cancel) {
+    return io::loadFrames(inputs, io::LoadOptions{}, progress, cancel);
+  };
+  s.simulateDemo = simulateDemo;
+#ifdef ST_GUI_HAVE_PIPELINE
+  s.preprocessStages = stageSpecs();
+  s.preprocess = runPreprocess;
+#endif
+  s.makeBackend = [](ui::BackendKind kind, std::string& message) {
+    const BackendChoice choice = kind == ui::BackendKind::Cpu   ? BackendChoice::Cpu
+                                 : kind == ui::BackendKind::Gpu ? BackendChoice::Cuda
+                                                                : BackendChoice::Auto;
+    BackendSelection sel = makeBackend(choice);
+    message = sel.message;
+    return std::move(sel.backend);
+  };
+  s.radialProfile = profileAt;
+  s.pixelToSky = [](const FrameCube& cube, double x, double y) -> std::optional<std::pair<double, double>> {
+    if (!cube.wcs) return std::nullopt;
+    const Wcs::Sky sky = cube.wcs->pixelToSky(x, y);
+    return std::make_pair(sky.raDeg, sky.decDeg);
+  };
+  if (cudaCompiledIn()) s.gpuNames.push_back("CUDA");
+  return s;
+}
+
+}  // namespace st::app

@@ -1,0 +1,31 @@
+#pragma once
+// Search results as JSON and CSV (ARCHITECTURE.md: units in the keys). Shared by `synthtrack-cli search`,
+// the demo and the GUI's export, so every output names the same quantities the same way.
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "st/search/types.hpp"
+
+namespace st::report {
+
+/// One candidate: x, y (0-based, at t_ref), vx_px_s, vy_px_s (in the frames), snr, n_frames, fap, sum,
+/// cluster_cells, ivx, ivy; and, when a plate scale or WCS is known, rate_deg_day and pa_deg of the motion
+/// on the sky, i.e. of v - skyRate (the stars' motion in the frames is taken out: for a scanning telescope
+/// the frame velocity is mostly the scan).
+nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::Candidate& candidate);
+
+/// The whole result: inputs, backend, method, t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid,
+/// trial counts, threshold, elapsed time and the candidates.
+nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& result,
+                                  const std::vector<std::string>& inputs);
+
+/// Writes the candidates of a searchResultToJson() object as CSV (one header line; empty fields where a
+/// quantity is unknown). Throws st::InputError naming the path when it cannot be written.
+void writeCandidatesCsv(const std::string& path, const nlohmann::json& result);
+
+/// Writes JSON atomically (temporary file in the same folder + rename), pretty-printed.
+void writeJsonFile(const std::string& path, const nlohmann::json& json);
+
+}  // namespace st::report

@@ -1,0 +1,20 @@
+#pragma once
+// A candidate's motion on the sky, for reports: rate (deg/day) from the WCS at its position, or from the
+// plate scale alone; position angle of the motion (east of north) only when a WCS gives the orientation.
+#include <optional>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/units.hpp"
+
+namespace st::search {
+
+struct SkyMotion {
+  std::optional<double> rateDegPerDay;  ///< angular rate; empty when neither WCS nor plate scale is known
+  std::optional<double> paDeg;          ///< position angle of the motion, degrees east of north, [0, 360)
+};
+
+/// Motion of a source at pixel (x, y) moving at v px/s in `cube` (its WCS when present, else its plate
+/// scale: rate only). Never throws: a pixel without a sky position gives the plate-scale rate and no PA.
+SkyMotion skyMotion(const FrameCube& cube, double x, double y, Velocity v);
+
+}  // namespace st::search

@@ -1,0 +1,59 @@
+#pragma once
+// Device helpers shared by the search kernels (C++17, CUDA only): map keys, warp reductions, N_in from
+// frame spans, cell scoring and candidate append, cp.async copies.
+#include <cuda_runtime.h>
+
+#include "kernel_params.hpp"
+
+namespace st::gpu {
+
+__device__ __forceinline__ unsigned long long packKey(float snr, int pixel) {
+  unsigned int bits = __float_as_uint(snr);
+  bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+  return (static_cast<unsigned long long>(bits) << 32) | (0xFFFFFFFFull - static_cast<unsigned int>(pixel));
+}
+
+__device__ __forceinline__ unsigned long long warpMax(unsigned long long v) {
+  for (int o = 16; o > 0; o >>= 1) {
+    const unsigned long long other = __shfl_xor_sync(0xFFFFFFFFu, v, o);
+    v = other > v ? other : v;
+  }
+  return v;
+}
+
+__device__ __forceinline__ int framesInBoth(int2 a, int2 b) {
+  const int lo = max(a.x, b.x);
+  const int hi = min(a.y, b.y);
+  return hi >= lo ? hi - lo + 1 : 0;
+}
+
+/// Scores one cell; returns its map key (0 when the cell is ignored) and appends it when above threshold.
+__device__ __forceinline__ unsigned long long scoreCell(const SearchLaunch& p, float sum, int nIn, int x,
+                                                        int y, int ix, int iy) {
+  if (nIn <= 0 || nIn < p.minFrames) return 0ull;
+  const float snr = sum * p.invNorm[nIn];
+  if (snr > p.snrThreshold) {
+    const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
+    if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
+  }
+  return packKey(snr, y * p.width + x);
+}
+
+__device__ __forceinline__ void cpAsync4(float* dst, const float* src, bool inFrame) {
+  const unsigned int d = static_cast<unsigned int>(__cvta_generic_to_shared(dst));
+  const int srcBytes = inFrame ? 4 : 0;  // 0 bytes read: the 4 destination bytes are zero-filled
+  asm volatile("cp.async.ca.shared.global [%0], [%1], 4, %2;\n" ::"r"(d), "l"(src), "r"(srcBytes));
+}
+__device__ __forceinline__ void cpAsync16(float* dst, const float* src, bool inFrame) {
+  const unsigned int d = static_cast<unsigned int>(__cvta_generic_to_shared(dst));
+  const int srcBytes = inFrame ? 16 : 0;
+  asm volatile("cp.async.cg.shared.global [%0], [%1], 16, %2;\n" ::"r"(d), "l"(src), "r"(srcBytes));
+}
+__device__ __forceinline__ void cpAsyncCommit() {
+  asm volatile("cp.async.commit_group;\n" ::);
+}
+__device__ __forceinline__ void cpAsyncWaitOne() {
+  asm volatile("cp.async.wait_group 1;\n" ::);
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,101 @@
+// `synthtrack-cli search` end to end: a matched-filtered cube with a moving source written as FITS, searched
+// by the CLI; the JSON must carry the source at the right place, velocity and SNR, and the trial counts.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "../core/search_test_cubes.hpp"
+#include "st/io/fits_writer.hpp"
+#include "test_support.hpp"
+
+namespace st {
+namespace {
+
+std::filesystem::path cliPath() {
+  // Tests run in build/tests (WORKING_DIRECTORY of gtest_discover_tests); the CLI is build/app.
+  for (const char* p : {"../app/synthtrack-cli", "app/synthtrack-cli", "../../app/synthtrack-cli"}) {
+    if (std::filesystem::exists(p)) return std::filesystem::absolute(p);
+  }
+  return {};
+}
+
+/// Runs the CLI with `args` (already quoted where needed); returns its exit status. Built with append, not
+/// operator+, which trips GCC 12's -Wrestrict false positive.
+int runCli(const std::filesystem::path& cli, const std::string& args) {
+  std::string cmd;
+  cmd.append("\"").append(cli.string()).append("\" ").append(args);
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string quoted(const std::filesystem::path& p) {
+  std::string s;
+  s.append("\"").append(p.string()).append("\"");
+  return s;
+}
+
+TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
+  const auto cli = cliPath();
+  if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  const psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
+  const int r = 6;
+  FrameCube cube = test::noiseCube(64, 48, test::unevenTimes(30, 0.5, 8), 1.0, 8);
+  const double span = cube.timeSpanS();
+  const double p2 = test::sumP2(psf, r);
+  const Velocity truth{8.0 / span, -4.0 / span};  // a grid velocity: 8 and -4 steps of 1 px / span
+  test::injectMoffat(cube, psf, 20.0 / (std::sqrt(30.0) * std::sqrt(p2)), 30.0, 20.0, truth);
+  test::matchedFilter(cube, psf, r);
+  test::TempDir dir;
+  const auto fits = dir / "filtered.fits";
+  FitsHeader extra;
+  extra.setNumber("SIGMAF", std::sqrt(p2), "noise of one filtered frame");
+  extra.setNumber("PSFFWHM", psf.fwhm(), "px");
+  io::writeCube(fits.string(), cube, extra);
+  const auto json = dir / "out.json";
+  const auto csv = dir / "out.csv";
+  std::string args;
+  args.append("search ").append(quoted(fits)).append(" --preprocessed --vmax-px-s ");
+  args.append(std::to_string(10.0 / span)).append(" --backend cpu --json --out ").append(quoted(csv));
+  args.append(" > ").append(quoted(json)).append(" 2>/dev/null");
+  ASSERT_EQ(runCli(cli, args), 0) << args;
+  nlohmann::json j;
+  std::ifstream(json) >> j;
+  EXPECT_EQ(j["trials"]["nx"], 64);
+  EXPECT_EQ(j["trials"]["ny"], 48);
+  EXPECT_EQ(j["trials"]["nvx"], 21);
+  EXPECT_EQ(j["trials"]["nvy"], 21);
+  EXPECT_NEAR(j["t_ref_mjd"].get<double>(), cube.tRefMjd(), 1e-9);
+  EXPECT_DOUBLE_EQ(j["snr_threshold"].get<double>(), 7.0);
+  ASSERT_EQ(j["candidates"].size(), 1u) << j.dump(2);
+  const auto& c = j["candidates"][0];
+  EXPECT_NEAR(c["x"].get<int>(), 30, 1);
+  EXPECT_NEAR(c["y"].get<int>(), 20, 1);
+  EXPECT_NEAR(c["vx_px_s"].get<double>(), truth.vx, 1.01 / span);
+  EXPECT_NEAR(c["vy_px_s"].get<double>(), truth.vy, 1.01 / span);
+  EXPECT_GT(c["snr"].get<double>(), 0.8 * 20.0);
+  EXPECT_LT(c["snr"].get<double>(), 1.1 * 20.0);
+  EXPECT_EQ(c["n_frames"], 30);
+  EXPECT_FALSE(c.contains("rate_deg_day"));  // no plate scale in this file
+  std::ifstream in(csv);
+  std::string header, row;
+  std::getline(in, header);
+  std::getline(in, row);
+  EXPECT_EQ(header.rfind("x,y,vx_px_s,vy_px_s,snr,n_frames,fap", 0), 0u);
+  EXPECT_FALSE(row.empty());
+}
+
+TEST(SearchCli, BadInputIsAClearError) {
+  const auto cli = cliPath();
+  if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  // Raw input without --preprocessed: usage error (2); --snr and --fap together: usage error.
+  EXPECT_EQ(runCli(cli, "search x.fits 2>/dev/null"), 2);
+  EXPECT_EQ(runCli(cli, "search x.fits --preprocessed --snr 5 --fap 0.1 2>/dev/null"), 2);
+  // Missing file: input error (1).
+  EXPECT_EQ(runCli(cli, "search /nonexistent.fits --preprocessed 2>/dev/null"), 1);
+}
+
+}  // namespace
+}  // namespace st
