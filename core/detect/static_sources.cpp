@@ -8,18 +8,19 @@
 #include "st/common/parallel.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/stats/sigma_clip.hpp"
+#include "star_footprint.hpp"
 
 namespace st::detect {
 namespace {
 
-// Connected pixels (8-neighbours) with snr >= grow, reached from a seed with snr >= seed.
-std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, int h, double seed,
-                                         double grow) {
+// Connected pixels (8-neighbours) with grows[i], reached from a pixel with seeds[i].
+std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
+                                         const std::vector<std::uint8_t>& grows, int w, int h) {
   std::vector<std::vector<int>> out;
-  std::vector<std::uint8_t> seen(snr.size(), 0);
+  std::vector<std::uint8_t> seen(seeds.size(), 0);
   std::vector<int> stack;
-  for (int i = 0; i < static_cast<int>(snr.size()); ++i) {
-    if (seen[i] || !(snr[i] >= seed)) continue;
+  for (int i = 0; i < static_cast<int>(seeds.size()); ++i) {
+    if (seen[i] || !seeds[i]) continue;
     std::vector<int> comp;
     stack.push_back(i);
     seen[i] = 1;
@@ -33,7 +34,7 @@ std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, i
           const int qx = px + dx, qy = py + dy;
           if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
           const int q = qy * w + qx;
-          if (seen[q] || !(snr[q] >= grow)) continue;
+          if (seen[q] || !grows[q]) continue;
           seen[q] = 1;
           stack.push_back(q);
         }
@@ -44,7 +45,8 @@ std::vector<std::vector<int>> components(const std::vector<float>& snr, int w, i
 }
 
 Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr,
-              const SkyStack& s, const StaticSourceParams& params, double background) {
+              const std::vector<float>& snrF, const SkyStack& s, const StaticSourceParams& params,
+              double background) {
   Star st;
   double sw = 0.0, sx = 0.0, sy = 0.0;
   float peakMax = -1e30f;
@@ -54,6 +56,7 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
     st.flux += v;
     if (v > st.peak) st.peak = v;
     st.snr = std::max<double>(st.snr, snr[p]);
+    st.filteredSnr = std::max<double>(st.filteredSnr, snrF[p]);
     peakMax = std::max(peakMax, s.max.pixels[p]);
     if (v > 0) {
       sw += v;
@@ -97,28 +100,64 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
-  const Image local = meshBackground(s.mean, s.count, params.meshPx);
   Image resid(cw, ch);
-  std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
-  for (std::size_t i = 0; i < resid.size(); ++i) {
-    resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
-    if (s.count.pixels[i] > 0) scaled.push_back(resid.pixels[i] * std::sqrt(s.count.pixels[i]));
+  std::vector<float> snr(resid.size(), 0.0f), snrF(resid.size(), 0.0f);
+  stats::ClipStats noise;
+  // Two passes: the mesh background of the stack, then again with the sources of the first pass left out
+  // of it (the wings and arms of a bright star raise the clipped mean of its cells and hide faint stars
+  // next to it).
+  Image weight = s.count;
+  for (int pass = 0; pass < 2; ++pass) {
+    const Image local = meshBackground(s.mean, weight, params.meshPx);
+    std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
+    for (std::size_t i = 0; i < resid.size(); ++i) {
+      resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
+      if (s.count.pixels[i] > 0) scaled.push_back(resid.pixels[i] * std::sqrt(s.count.pixels[i]));
+    }
+    noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+    if (noise.sigma > 0) {
+      for (std::size_t i = 0; i < resid.size(); ++i)
+        snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
+    }
+    cancel.throwIfCancelled();
+    // Seeds: SNR >= threshold in the stack itself or in the stack filtered by the PSF (what the velocity
+    // search sees at the sky rate: faint stars below the threshold per pixel are above it after the
+    // matched filter). Growth: down to growSnr per pixel, or still above the threshold after the filter.
+    if (params.filteredDetection) snrF = detail::filteredSnr(resid, s.count, noise.sigma, params.psfFwhmPx);
+    if (pass == 0)
+      weight = detail::excludeSources(s.count, snr, snrF, params.growSnr + 1.0,
+                                      static_cast<int>(std::ceil(params.psfFwhmPx)));
   }
-  const stats::ClipStats noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
   out.stackNoise = noise.sigma;
-  std::vector<float> snr(resid.size(), 0.0f);
-  if (noise.sigma > 0) {
-    for (std::size_t i = 0; i < resid.size(); ++i)
-      snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
+  std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size());
+  for (std::size_t i = 0; i < resid.size(); ++i) {
+    seeds[i] = snr[i] >= params.snrThreshold || snrF[i] >= params.snrThreshold;
+    grows[i] = snr[i] >= params.growSnr || snrF[i] >= params.snrThreshold;
   }
-  cancel.throwIfCancelled();
-  const auto comps = components(snr, cw, ch, params.snrThreshold, params.growSnr);
+  const auto comps = components(seeds, grows, cw, ch);
+  double frames = 0.0;
+  for (float c : s.count.pixels)
+    frames = std::max<double>(frames, c);
+  const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
+  const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   for (const auto& comp : comps) {
-    out.stars.push_back(describe(comp, resid, snr, s, params, background));
+    Star st = describe(comp, resid, snr, snrF, s, params, background);
     for (int p : comp)
       out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+    // The Moffat wings down to one stack sigma per pixel (radius grows with the flux).
+    if (params.maskWings)
+      detail::setDisc(out.mask, st.x, st.y,
+                      detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
+    // Diffraction spikes along the detector axes and the column bleed of saturated (or very bright) stars.
+    if (st.saturated || st.snr >= params.spikeSnr) {
+      // Followed in the stack with only the global background removed: the mesh background is raised by
+      // the wings of such a star and would cut the arms short.
+      detail::maskSpikes(out.mask, s.mean, s.count, noise.sigma, s.x0, s.y0, st, 0, armHalf);
+      detail::maskBleed(out.mask, s.mean, s.count, noise.sigma, s.x0, s.y0, st, armHalf);
+    }
+    out.stars.push_back(std::move(st));
   }
-  out.mask.dilate(static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1);
+  out.mask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   progress.report(1.0, "static sources");
   return out;

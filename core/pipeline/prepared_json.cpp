@@ -38,9 +38,15 @@ nlohmann::json preparedToJson(const Prepared& p) {
                       {"bad_pixels", p.calibration.badPixels}};
   json stars = json::array();
   for (const auto& s : p.stars) {
-    json e = {
-        {"x_px", s.x},  {"y_px", s.y},        {"flux_counts", s.flux},    {"peak_counts", s.peak},
-        {"snr", s.snr}, {"pixels", s.pixels}, {"saturated", s.saturated}, {"bleed_columns", s.bleedColumns}};
+    json e = {{"x_px", s.x},
+              {"y_px", s.y},
+              {"flux_counts", s.flux},
+              {"peak_counts", s.peak},
+              {"snr", s.snr},
+              {"filtered_snr", s.filteredSnr},
+              {"pixels", s.pixels},
+              {"saturated", s.saturated},
+              {"bleed_columns", s.bleedColumns}};
     if (p.frames.wcs) {
       try {
         const auto sky = p.frames.wcs->pixelToSky(s.x, s.y);

@@ -21,17 +21,26 @@ struct StaticSourceParams {
   double dilateFwhm = 1.0;    ///< footprints are dilated by ceil(dilateFwhm * FWHM) + 1 px (sub-pixel motion)
   int meshPx = 32;            ///< cell of the local background of the stack
   std::optional<double> saturationLevel;  ///< calibrated counts; else a flat-topped peak counts as saturated
+  /// Also detect (and grow) in the stack filtered by a Moffat of psfFwhmPx: the search's matched filter
+  /// lifts stars that are below snrThreshold per pixel above it (N_in counted at the edges).
+  bool filteredDetection = true;
+  /// Mask every star out to where its Moffat wing (beta wingBeta) falls below one stack sigma per pixel.
+  bool maskWings = true;
+  double wingBeta = 4.0;  ///< paper §3.3: beta ~ 4 (the PSF is fitted after this stage)
+  /// Spikes and bleed trails are measured and masked for saturated stars and stars above this stack SNR.
+  double spikeSnr = 300.0;
 };
 
 /// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky
 /// drifts).
 struct Star {
-  double x = 0.0;     ///< flux-weighted centroid, column
-  double y = 0.0;     ///< row
-  double flux = 0.0;  ///< counts per frame summed over the footprint (background removed)
-  double peak = 0.0;  ///< highest stacked pixel, counts per frame
-  double snr = 0.0;   ///< peak SNR in the sky-rate stack
-  int pixels = 0;     ///< footprint size before dilation
+  double x = 0.0;            ///< flux-weighted centroid, column
+  double y = 0.0;            ///< row
+  double flux = 0.0;         ///< counts per frame summed over the footprint (background removed)
+  double peak = 0.0;         ///< highest stacked pixel, counts per frame
+  double snr = 0.0;          ///< peak SNR in the sky-rate stack
+  double filteredSnr = 0.0;  ///< peak SNR in the sky-rate stack filtered by the PSF (matched filter)
+  int pixels = 0;            ///< footprint size before dilation
   bool saturated = false;
   std::vector<int> bleedColumns;  ///< columns (0-based, at t_ref) with a vertical run of saturated pixels
 };
@@ -44,7 +53,12 @@ struct StaticSources {
 
 /// Finds static sources in the stack of `cube` at `skyRate` (px/s) with `background` (a scalar, e.g. the
 /// global clip mean) removed and a mesh background of the stack subtracted. Seeds are pixels with stack SNR
-/// >= snrThreshold, grown over connected pixels down to growSnr. Throws st::Cancelled.
+/// >= snrThreshold (per pixel, or after the PSF filter), grown over connected pixels down to growSnr. Each
+/// star's footprint is its pixels, a disc out to where its wings fall below one stack sigma (wingRadius),
+/// and for saturated/very bright stars the measured spike arms along the detector axes and the bleed
+/// columns followed up and down while significant (bleed columns are at t_ref; they move with the star, so
+/// in frame n they are the detector columns X + sx_n, i.e. only frames that see the star). The mask is then
+/// dilated by ceil(dilateFwhm * FWHM) + 1 px. Throws st::Cancelled.
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
                                 const StaticSourceParams& params, ProgressSink& progress,
                                 CancelToken& cancel);

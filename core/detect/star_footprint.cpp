@@ -1,0 +1,146 @@
+#include "star_footprint.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "st/common/parallel.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st::detect::detail {
+namespace {
+
+constexpr double kArmSignificance = 2.0;  // a spike/bleed sample counts while its SNR is at least this
+constexpr int kArmGapPx = 10;             // an arm ends after this many insignificant samples in a row
+
+}  // namespace
+
+std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx) {
+  const int w = resid.width, h = resid.height;
+  std::vector<float> out(resid.size(), 0.0f);
+  if (sigma <= 0 || w == 0) return out;
+  const psf::Moffat m = psf::Moffat::fromFwhm(fwhmPx, 4.0);
+  const int r = std::max(1, static_cast<int>(std::ceil(1.5 * fwhmPx)));
+  const int kw = 2 * r + 1;
+  std::vector<double> k(static_cast<std::size_t>(kw) * kw);
+  for (int j = -r; j <= r; ++j)
+    for (int i = -r; i <= r; ++i)
+      k[static_cast<std::size_t>(j + r) * kw + (i + r)] = m(i, j);
+  std::vector<float> rc(resid.size());
+  for (std::size_t i = 0; i < rc.size(); ++i)
+    rc[i] = resid.pixels[i] * count.pixels[i];
+  parallelFor(static_cast<std::size_t>(h), 16, [&](std::size_t y0, std::size_t y1) {
+    for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
+      for (int x = 0; x < w; ++x) {
+        double num = 0.0, den = 0.0;
+        for (int j = std::max(-r, -y); j <= std::min(r, h - 1 - y); ++j) {
+          const std::size_t row = static_cast<std::size_t>(y + j) * w;
+          const double* kr = &k[static_cast<std::size_t>(j + r) * kw + r];
+          for (int i = std::max(-r, -x); i <= std::min(r, w - 1 - x); ++i) {
+            num += kr[i] * rc[row + x + i];
+            den += kr[i] * kr[i] * count.pixels[row + x + i];
+          }
+        }
+        if (den > 0)
+          out[static_cast<std::size_t>(y) * w + x] = static_cast<float>(num / (sigma * std::sqrt(den)));
+      }
+  });
+  return out;
+}
+
+Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,
+                     double level, int growPx) {
+  const int w = count.width, h = count.height;
+  std::vector<std::uint8_t> src(count.size()), rows(count.size(), 0);
+  for (std::size_t i = 0; i < src.size(); ++i)
+    src[i] = snr[i] >= level || snrF[i] >= level;
+  for (int y = 0; y < h; ++y)  // grow along rows, then along columns
+    for (int x = 0; x < w; ++x)
+      if (src[static_cast<std::size_t>(y) * w + x])
+        for (int i = std::max(0, x - growPx); i <= std::min(w - 1, x + growPx); ++i)
+          rows[static_cast<std::size_t>(y) * w + i] = 1;
+  Image out = count;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      if (rows[static_cast<std::size_t>(y) * w + x])
+        for (int j = std::max(0, y - growPx); j <= std::min(h - 1, y + growPx); ++j)
+          out.pixels[static_cast<std::size_t>(j) * w + x] = 0.0f;
+  return out;
+}
+
+double wingRadiusPx(double flux, double fwhmPx, double beta, double frames, double sigma) {
+  if (flux <= 0 || sigma <= 0 || frames <= 0) return 0.0;
+  const psf::Moffat m = psf::Moffat::fromFwhm(fwhmPx, beta);
+  const double peak = flux / m.integral();                // counts per frame at the centre
+  const double ratio = peak * std::sqrt(frames) / sigma;  // peak over one stack sigma
+  if (ratio <= 1.0) return 0.0;
+  return m.radius * std::sqrt(std::pow(ratio, 1.0 / beta) - 1.0);
+}
+
+void setDisc(MovingMask& mask, double x, double y, double r) {
+  const int ri = static_cast<int>(std::ceil(r));
+  const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));
+  for (int dy = -ri; dy <= ri; ++dy)
+    for (int dx = -ri; dx <= ri; ++dx)
+      if (dx * dx + dy * dy <= r * r) mask.set(cx + dx, cy + dy);
+}
+
+int maskSpikes(MovingMask& mask, const Image& resid, const Image& count, double sigma, int x0, int y0,
+               const Star& star, int coreRadiusPx, int halfWidthPx) {
+  const int w = resid.width, h = resid.height;
+  const int cx = static_cast<int>(std::lround(star.x)) - x0, cy = static_cast<int>(std::lround(star.y)) - y0;
+  const int dirs[4][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}};
+  int longest = 0;
+  for (const auto& d : dirs) {
+    int last = 0;
+    for (int s = 1; s - last <= kArmGapPx; ++s) {
+      double sum = 0.0, n = 0.0;
+      bool inside = false;
+      for (int q = -1; q <= 1; ++q) {  // a 3 px band across the arm
+        const int x = cx + d[0] * s + d[1] * q, y = cy + d[1] * s + d[0] * q;
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        inside = true;
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        sum += resid.pixels[i] * count.pixels[i];
+        n += count.pixels[i];
+      }
+      if (!inside) break;
+      if (n > 0 && sum / (sigma * std::sqrt(n)) >= kArmSignificance) last = s;
+    }
+    const int len = std::max(last + halfWidthPx, coreRadiusPx);
+    longest = std::max(longest, len);
+    for (int s = 0; s <= len; ++s)
+      for (int q = -halfWidthPx; q <= halfWidthPx; ++q)
+        mask.set(cx + x0 + d[0] * s + d[1] * q, cy + y0 + d[1] * s + d[0] * q);
+  }
+  return longest;
+}
+
+int maskBleed(MovingMask& mask, const Image& resid, const Image& count, double sigma, int x0, int y0,
+              const Star& star, int halfWidthPx) {
+  const int w = resid.width, h = resid.height;
+  const int cy = static_cast<int>(std::lround(star.y)) - y0;
+  int longest = 0;
+  for (int col : star.bleedColumns) {
+    const int x = col - x0;
+    if (x < 0 || x >= w || cy < 0 || cy >= h) continue;
+    int lo = cy, hi = cy;
+    for (int dir : {1, -1}) {
+      int last = 0;
+      for (int s = 1; s - last <= kArmGapPx; ++s) {
+        const int y = cy + dir * s;
+        if (y < 0 || y >= h) break;
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        if (count.pixels[i] > 0 && resid.pixels[i] * std::sqrt(count.pixels[i]) / sigma >= kArmSignificance)
+          last = s;
+      }
+      (dir > 0 ? hi : lo) = cy + dir * (last + halfWidthPx);
+    }
+    longest = std::max(longest, hi - lo + 1);
+    for (int y = lo; y <= hi; ++y)
+      for (int q = -halfWidthPx; q <= halfWidthPx; ++q)
+        mask.set(col + q, y + y0);
+  }
+  return longest;
+}
+
+}  // namespace st::detect::detail

@@ -1,0 +1,41 @@
+#pragma once
+// Private helpers of findStaticSources: the matched-filtered SNR of the sky-rate stack (what the velocity
+// search sees at the sky rate) and the extra footprint of bright and saturated stars (Moffat wings,
+// diffraction spikes along the detector axes, column bleed trails), all in canvas coordinates of the sky-rate
+// stack.
+#include <vector>
+
+#include "st/common/image.hpp"
+#include "st/detect/moving_mask.hpp"
+#include "st/detect/static_sources.hpp"
+
+namespace st::detect::detail {
+
+/// SNR of the stack filtered by a Moffat kernel (FWHM fwhmPx, beta 4): sum K r c / (sigma sqrt(sum K^2 c)),
+/// with r the background-subtracted stack mean, c the count of contributing frames and sigma the single-frame
+/// noise. This is the matched-filter SNR of a point source seen in c frames (partial N_in at the edges).
+std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx);
+
+/// `count` with 0 wherever snr or snrF is at least `level`, dilated by a square of +-growPx: the weight of
+/// a background that leaves the sources out.
+Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,
+                     double level, int growPx);
+
+/// Radius (px) beyond which a Moffat star (FWHM fwhmPx, beta) of `flux` counts per frame stacked over
+/// `frames` frames is fainter than one stack sigma per pixel (sigma / sqrt(frames)).
+double wingRadiusPx(double flux, double fwhmPx, double beta, double frames, double sigma);
+
+/// Measures the four diffraction-spike arms of `star` along +-x and +-y (canvas coordinates via x0/y0) in the
+/// stack and sets them in `mask` with a half-width of halfWidthPx. Returns the longest arm (px).
+int maskSpikes(MovingMask& mask, const Image& resid, const Image& count, double sigma, int x0, int y0,
+               const Star& star, int coreRadiusPx, int halfWidthPx);
+
+/// Follows each of the star's bleed columns up and down in the stack while it stays significant and sets
+/// those columns (+- halfWidthPx) in `mask`. Returns the number of rows set in the longest trail.
+int maskBleed(MovingMask& mask, const Image& resid, const Image& count, double sigma, int x0, int y0,
+              const Star& star, int halfWidthPx);
+
+/// Sets a disc of radius r around (x, y) (reference positions) in `mask`.
+void setDisc(MovingMask& mask, double x, double y, double r);
+
+}  // namespace st::detect::detail
