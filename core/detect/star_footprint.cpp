@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "st/common/parallel.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/psf/moffat.hpp"
 
 namespace st::detect::detail {
@@ -45,6 +46,43 @@ std::vector<float> filteredSnr(const Image& resid, const Image& count, double si
       }
   });
   return out;
+}
+
+HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
+                      double sigma, double fwhmPx, CancelToken& cancel) {
+  HalfStacks out;
+  const std::size_t half = cube.frameCount() / 2;
+  NullProgress none;
+  for (int k = 0; k < 2; ++k) {
+    const SkyStack h = k == 0 ? stackAtSkyRate(cube, skyRate, background, none, cancel, 0, half)
+                              : stackAtSkyRate(cube, skyRate, background, none, cancel, half, 0);
+    Image resid(h.mean.width, h.mean.height);
+    for (std::size_t i = 0; i < resid.size(); ++i)
+      resid.pixels[i] = h.count.pixels[i] > 0 ? h.mean.pixels[i] - local.pixels[i] : 0.0f;
+    (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx);
+    (k == 0 ? out.countFirst : out.countSecond) = h.count;
+  }
+  return out;
+}
+
+double HalfStacks::shiftPx(const std::vector<int>& comp, int cw, int marginPx) const {
+  const int ch = static_cast<int>(first.size()) / cw;
+  int xa = cw, xb = -1, ya = ch, yb = -1;
+  for (int p : comp) {
+    xa = std::min(xa, p % cw), xb = std::max(xb, p % cw);
+    ya = std::min(ya, p / cw), yb = std::max(yb, p / cw);
+  }
+  xa = std::max(0, xa - marginPx), xb = std::min(cw - 1, xb + marginPx);
+  ya = std::max(0, ya - marginPx), yb = std::min(ch - 1, yb + marginPx);
+  int pa = -1, pb = -1;
+  for (int y = ya; y <= yb; ++y)
+    for (int x = xa; x <= xb; ++x) {
+      const int i = y * cw + x;
+      if (countFirst.pixels[i] > 0 && (pa < 0 || first[i] > first[pa])) pa = i;
+      if (countSecond.pixels[i] > 0 && (pb < 0 || second[i] > second[pb])) pb = i;
+    }
+  if (pa < 0 || pb < 0) return 0.0;
+  return std::hypot(pa % cw - pb % cw, pa / cw - pb / cw);
 }
 
 Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,

@@ -5,7 +5,9 @@
 // stack.
 #include <vector>
 
+#include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
+#include "st/common/progress.hpp"
 #include "st/detect/moving_mask.hpp"
 #include "st/detect/static_sources.hpp"
 
@@ -15,6 +17,18 @@ namespace st::detect::detail {
 /// with r the background-subtracted stack mean, c the count of contributing frames and sigma the single-frame
 /// noise. This is the matched-filter SNR of a point source seen in c frames (partial N_in at the edges).
 std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx);
+
+/// Filtered SNR maps of the sky-rate stacks of the first and second halves of the frames (same canvas).
+struct HalfStacks {
+  std::vector<float> first, second;
+  Image countFirst, countSecond;
+  [[nodiscard]] bool empty() const noexcept { return first.empty(); }
+  /// Distance (px) between the peaks of the two halves within the bounding box of `comp` (canvas indices,
+  /// canvas width cw) grown by marginPx; 0 when a half does not see the source (stars at the edges).
+  [[nodiscard]] double shiftPx(const std::vector<int>& comp, int cw, int marginPx) const;
+};
+HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
+                      double sigma, double fwhmPx, CancelToken& cancel);
 
 /// `count` with 0 wherever snr or snrF is at least `level`, dilated by a square of +-growPx: the weight of
 /// a background that leaves the sources out.

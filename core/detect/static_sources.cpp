@@ -106,9 +106,9 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // Two passes: the mesh background of the stack, then again with the sources of the first pass left out
   // of it (the wings and arms of a bright star raise the clipped mean of its cells and hide faint stars
   // next to it).
-  Image weight = s.count;
+  Image weight = s.count, local;
   for (int pass = 0; pass < 2; ++pass) {
-    const Image local = meshBackground(s.mean, weight, params.meshPx);
+    local = meshBackground(s.mean, weight, params.meshPx);
     std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
     for (std::size_t i = 0; i < resid.size(); ++i) {
       resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
@@ -131,7 +131,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   out.stackNoise = noise.sigma;
   std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size());
   for (std::size_t i = 0; i < resid.size(); ++i) {
-    seeds[i] = snr[i] >= params.snrThreshold || snrF[i] >= params.snrThreshold;
+    seeds[i] = snr[i] >= params.snrThreshold || snrF[i] >= params.weakSnr;
     grows[i] = snr[i] >= params.growSnr || snrF[i] >= params.snrThreshold;
   }
   const auto comps = components(seeds, grows, cw, ch);
@@ -140,8 +140,17 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
+  detail::HalfStacks halves;
   for (const auto& comp : comps) {
     Star st = describe(comp, resid, snr, snrF, s, params, background);
+    // Weak (weakSnr <= filtered SNR < snrThreshold): a static source only if it stays put between the
+    // stacks of the first and second halves of the frames (a slow moving object is a streak that shifts).
+    if (st.snr < params.snrThreshold && st.filteredSnr < params.snrThreshold) {
+      if (halves.empty())
+        halves = detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cancel);
+      if (halves.shiftPx(comp, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 2) > params.maxHalfShiftPx)
+        continue;
+    }
     for (int p : comp)
       out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
     // The Moffat wings down to one stack sigma per pixel (radius grows with the flux).

@@ -153,11 +153,6 @@ TEST(PipelineResiduals, ObjectPixelsUntouchedStarArtefactsZeroed) {
   const detect::Star* star = nullptr;
   for (const auto& s : r.prep.stars)
     if (std::hypot(s.x - kStarX, s.y - kStarY) < 2.0) star = &s;
-  for (const auto& s : r.prep.stars)
-    std::printf("star %.1f %.1f flux %.3g snr %.1f fsnr %.1f pix %d sat %d bleed %zu\n", s.x, s.y, s.flux,
-                s.snr, s.filteredSnr, s.pixels, s.saturated, s.bleedColumns.size());
-  std::printf("object sky-stack SNR %.2f expected %.2f\n", r.truth.objects.front().skyStackSnr,
-              r.truth.objects.front().expectedSnr);
   ASSERT_NE(star, nullptr) << "saturated star not in the catalog";
   EXPECT_TRUE(star->saturated);
   EXPECT_FALSE(star->bleedColumns.empty());

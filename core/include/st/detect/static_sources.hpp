@@ -24,6 +24,13 @@ struct StaticSourceParams {
   /// Also detect (and grow) in the stack filtered by a Moffat of psfFwhmPx: the search's matched filter
   /// lifts stars that are below snrThreshold per pixel above it (N_in counted at the edges).
   bool filteredDetection = true;
+  /// Filtered-stack seeds between weakSnr and snrThreshold are static sources only when their peak in the
+  /// stack of the first half of the frames and in that of the second half are within maxHalfShiftPx (a
+  /// moving object slow enough to look like a star in the sky-rate stack is a streak whose halves shift by
+  /// |v - sky rate| * span / 2). The margin catches stars that the search, maximising over velocities and
+  /// positions, lifts just above its threshold.
+  double weakSnr = 5.0;
+  double maxHalfShiftPx = 2.5;
   /// Mask every star out to where its Moffat wing (beta wingBeta) falls below one stack sigma per pixel.
   bool maskWings = true;
   double wingBeta = 4.0;  ///< paper §3.3: beta ~ 4 (the PSF is fitted after this stage)
