@@ -122,7 +122,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     cancel.throwIfCancelled();
     // Seeds: SNR >= threshold in the stack itself or in the stack filtered by the PSF (what the velocity
     // search sees at the sky rate: faint stars below the threshold per pixel are above it after the
-    // matched filter). Growth: down to growSnr per pixel, or still above the threshold after the filter.
+    // matched filter). Growth: down to growSnr per pixel, or down to weakSnr after the filter.
     if (params.filteredDetection) snrF = detail::filteredSnr(resid, s.count, noise.sigma, params.psfFwhmPx);
     if (pass == 0)
       weight = detail::excludeSources(s.count, snr, snrF, params.growSnr + 1.0,
@@ -132,7 +132,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size());
   for (std::size_t i = 0; i < resid.size(); ++i) {
     seeds[i] = snr[i] >= params.snrThreshold || snrF[i] >= params.weakSnr;
-    grows[i] = snr[i] >= params.growSnr || snrF[i] >= params.snrThreshold;
+    grows[i] = snr[i] >= params.growSnr || snrF[i] >= params.weakSnr;
   }
   const auto comps = components(seeds, grows, cw, ch);
   double frames = 0.0;
