@@ -65,24 +65,21 @@ HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background
   return out;
 }
 
-double HalfStacks::shiftPx(const std::vector<int>& comp, int cw, int marginPx) const {
-  const int ch = static_cast<int>(first.size()) / cw;
-  int xa = cw, xb = -1, ya = ch, yb = -1;
-  for (int p : comp) {
-    xa = std::min(xa, p % cw), xb = std::max(xb, p % cw);
-    ya = std::min(ya, p / cw), yb = std::max(yb, p / cw);
-  }
-  xa = std::max(0, xa - marginPx), xb = std::min(cw - 1, xb + marginPx);
-  ya = std::max(0, ya - marginPx), yb = std::min(ch - 1, yb + marginPx);
-  int pa = -1, pb = -1;
-  for (int y = ya; y <= yb; ++y)
-    for (int x = xa; x <= xb; ++x) {
+bool HalfStacks::isStatic(int peak, int cw, int radiusPx, double maxShiftPx) const {
+  const double ca = countFirst.pixels[peak], cb = countSecond.pixels[peak];
+  if (std::min(ca, cb) < 0.2 * (ca + cb)) return true;
+  const double z = (first[peak] * std::sqrt(cb) - second[peak] * std::sqrt(ca)) / std::sqrt(ca + cb);
+  if (std::abs(z) > 3.0) return false;
+  const int ch = static_cast<int>(first.size()) / cw, px = peak % cw, py = peak / cw;
+  int pa = peak, pb = peak;
+  for (int y = std::max(0, py - radiusPx); y <= std::min(ch - 1, py + radiusPx); ++y)
+    for (int x = std::max(0, px - radiusPx); x <= std::min(cw - 1, px + radiusPx); ++x) {
+      if ((x - px) * (x - px) + (y - py) * (y - py) > radiusPx * radiusPx) continue;
       const int i = y * cw + x;
-      if (countFirst.pixels[i] > 0 && (pa < 0 || first[i] > first[pa])) pa = i;
-      if (countSecond.pixels[i] > 0 && (pb < 0 || second[i] > second[pb])) pb = i;
+      if (first[i] > first[pa]) pa = i;
+      if (second[i] > second[pb]) pb = i;
     }
-  if (pa < 0 || pb < 0) return 0.0;
-  return std::hypot(pa % cw - pb % cw, pa / cw - pb / cw);
+  return std::hypot(pa % cw - pb % cw, pa / cw - pb / cw) <= maxShiftPx;
 }
 
 Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,

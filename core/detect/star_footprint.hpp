@@ -23,9 +23,13 @@ struct HalfStacks {
   std::vector<float> first, second;
   Image countFirst, countSecond;
   [[nodiscard]] bool empty() const noexcept { return first.empty(); }
-  /// Distance (px) between the peaks of the two halves within the bounding box of `comp` (canvas indices,
-  /// canvas width cw) grown by marginPx; 0 when a half does not see the source (stars at the edges).
-  [[nodiscard]] double shiftPx(const std::vector<int>& comp, int cw, int marginPx) const;
+  /// Whether the source whose full-stack filtered peak is canvas pixel `peak` (canvas width cw) is static:
+  /// where both halves see it in at least a fifth of its frames, (1) its filtered SNRs in the halves agree
+  /// with one flux (|Fa sqrt(cb) - Fb sqrt(ca)| / sqrt(ca + cb) <= 3: a piece of a streak is in one half
+  /// only) and (2) the halves' peaks within radiusPx of `peak` are within maxShiftPx (the centre of a
+  /// streak: each half peaks on its own half of the streak). Sources that one half barely sees (stars at
+  /// the edges) are static.
+  [[nodiscard]] bool isStatic(int peak, int cw, int radiusPx, double maxShiftPx) const;
 };
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
                       double sigma, double fwhmPx, CancelToken& cancel);

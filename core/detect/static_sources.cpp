@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <vector>
 
@@ -129,26 +130,53 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                       static_cast<int>(std::ceil(params.psfFwhmPx)));
   }
   out.stackNoise = noise.sigma;
-  std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size());
+  // Stars of the stack itself (SNR >= threshold per pixel, grown to growSnr), then sources seen only after
+  // the filter (SNR >= weakSnr there, grown over the filtered blob, outside the first ones: the filtered
+  // blobs of neighbouring stars merge, the per-pixel footprints do not).
+  std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size()), taken(resid.size(), 0);
   for (std::size_t i = 0; i < resid.size(); ++i) {
-    seeds[i] = snr[i] >= params.snrThreshold || snrF[i] >= params.weakSnr;
-    grows[i] = snr[i] >= params.growSnr || snrF[i] >= params.weakSnr;
+    seeds[i] = snr[i] >= params.snrThreshold;
+    grows[i] = snr[i] >= params.growSnr;
   }
-  const auto comps = components(seeds, grows, cw, ch);
+  auto comps = components(seeds, grows, cw, ch);
+  const std::size_t nPerPixel = comps.size();
+  if (params.filteredDetection) {
+    // The filtered blob of a star reaches a kernel radius beyond its per-pixel footprint: not a new source.
+    const int r = static_cast<int>(std::ceil(1.5 * params.psfFwhmPx)) + 1;
+    for (const auto& comp : comps)
+      for (int p : comp)
+        for (int dy = -r; dy <= r; ++dy)
+          for (int dx = -r; dx <= r; ++dx) {
+            const int x = p % cw + dx, y = p / cw + dy;
+            if (x >= 0 && y >= 0 && x < cw && y < ch && dx * dx + dy * dy <= r * r)
+              taken[static_cast<std::size_t>(y) * cw + x] = 1;
+          }
+    for (std::size_t i = 0; i < resid.size(); ++i) {
+      grows[i] = !taken[i] && snrF[i] >= params.weakSnr;
+      seeds[i] = grows[i];
+    }
+    auto more = components(seeds, grows, cw, ch);
+    comps.insert(comps.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+  }
   double frames = 0.0;
   for (float c : s.count.pixels)
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   detail::HalfStacks halves;
-  for (const auto& comp : comps) {
+  for (std::size_t k = 0; k < comps.size(); ++k) {
+    const auto& comp = comps[k];
     Star st = describe(comp, resid, snr, snrF, s, params, background);
-    // Weak (weakSnr <= filtered SNR < snrThreshold): a static source only if it stays put between the
-    // stacks of the first and second halves of the frames (a slow moving object is a streak that shifts).
-    if (st.snr < params.snrThreshold && st.filteredSnr < params.snrThreshold) {
+    // Seen only after the filter: a static source only if it stays put between the stacks of the first and
+    // second halves of the frames (a slow moving object is a streak there, and its halves shift).
+    if (k >= nPerPixel) {
       if (halves.empty())
         halves = detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cancel);
-      if (halves.shiftPx(comp, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 2) > params.maxHalfShiftPx)
+      int peak = comp.front();
+      for (int p : comp)
+        if (snrF[p] > snrF[peak]) peak = p;
+      if (!halves.isStatic(peak, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 1,
+                           params.maxHalfShiftPx))
         continue;
     }
     for (int p : comp)

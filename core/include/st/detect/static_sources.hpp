@@ -24,12 +24,12 @@ struct StaticSourceParams {
   /// Also detect (and grow) in the stack filtered by a Moffat of psfFwhmPx: the search's matched filter
   /// lifts stars that are below snrThreshold per pixel above it (N_in counted at the edges).
   bool filteredDetection = true;
-  /// Filtered-stack seeds between weakSnr and snrThreshold are static sources only when their peak in the
-  /// stack of the first half of the frames and in that of the second half are within maxHalfShiftPx (a
-  /// moving object slow enough to look like a star in the sky-rate stack is a streak whose halves shift by
-  /// |v - sky rate| * span / 2). The margin catches stars that the search, maximising over velocities and
-  /// positions, lifts just above its threshold.
-  double weakSnr = 5.0;
+  /// Sources seen only in the filtered stack (SNR >= weakSnr there, away from the per-pixel detections)
+  /// are static only when their peaks in the stacks of the first and of the second half of the frames are
+  /// within maxHalfShiftPx (a moving object slow enough to look like a star in the sky-rate stack is a
+  /// streak whose halves shift by |v - sky rate| * span / 2). weakSnr < snrThreshold: a margin for stars that
+  /// the search, maximising over velocities and positions, lifts just above its threshold.
+  double weakSnr = 6.0;
   double maxHalfShiftPx = 2.5;
   /// Mask every star out to where its Moffat wing (beta wingBeta) falls below one stack sigma per pixel.
   bool maskWings = true;
