@@ -65,7 +65,8 @@ HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background
   return out;
 }
 
-bool HalfStacks::isStatic(int peak, int cw, int radiusPx, double maxShiftPx) const {
+bool HalfStacks::isStatic(int peak, int cw, double fwhmPx, double maxShiftPx) const {
+  const int radiusPx = static_cast<int>(std::ceil(fwhmPx)) + 1;
   const double ca = countFirst.pixels[peak], cb = countSecond.pixels[peak];
   if (std::min(ca, cb) < 0.2 * (ca + cb)) return true;
   const double z = (first[peak] * std::sqrt(cb) - second[peak] * std::sqrt(ca)) / std::sqrt(ca + cb);
@@ -79,7 +80,9 @@ bool HalfStacks::isStatic(int peak, int cw, int radiusPx, double maxShiftPx) con
       if (first[i] > first[pa]) pa = i;
       if (second[i] > second[pb]) pb = i;
     }
-  return std::hypot(pa % cw - pb % cw, pa / cw - pb / cw) <= maxShiftPx;
+  // The peaks locate the source to about FWHM / SNR: the allowed shift grows for faint halves.
+  const double allowed = maxShiftPx + 1.5 * fwhmPx / std::max(1.0, std::min<double>(first[pa], second[pb]));
+  return std::hypot(pa % cw - pb % cw, pa / cw - pb / cw) <= allowed;
 }
 
 Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,

@@ -27,9 +27,10 @@ struct HalfStacks {
   /// where both halves see it in at least a fifth of its frames, (1) its filtered SNRs in the halves agree
   /// with one flux (|Fa sqrt(cb) - Fb sqrt(ca)| / sqrt(ca + cb) <= 3: a piece of a streak is in one half
   /// only) and (2) the halves' peaks within radiusPx of `peak` are within maxShiftPx (the centre of a
-  /// streak: each half peaks on its own half of the streak). Sources that one half barely sees (stars at
-  /// the edges) are static.
-  [[nodiscard]] bool isStatic(int peak, int cw, int radiusPx, double maxShiftPx) const;
+  /// streak: each half peaks on its own half of the streak), widened by 1.5 FWHM / (weaker half's SNR) for
+  /// the peak-location noise; radiusPx = ceil(FWHM) + 1. Sources that one half barely sees (stars at the
+  /// edges) are static.
+  [[nodiscard]] bool isStatic(int peak, int cw, double fwhmPx, double maxShiftPx) const;
 };
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
                       double sigma, double fwhmPx, CancelToken& cancel);
