@@ -159,5 +159,41 @@ TEST(SkyStack, CountsOnlyContributingFrames) {
   EXPECT_FLOAT_EQ(s.mean.at(0, 0), 1.0f);
 }
 
+// A star below SNR 7 per pixel in the sky-rate stack but far above it after the PSF filter (what the velocity
+// search sees): found and masked with filteredDetection (not without), while a moving object bright enough
+// to pass the filtered threshold in the sky-rate stack (a streak there) is not taken for a star (its halves
+// disagree) and stays unmasked. Oracle: per-pixel stack SNR = peak sqrt(N) / sigma = 5.4 and matched-filter
+// SNR = peak sqrt(N) sqrt(sum g^2) / sigma ~ 12 for a Gaussian of FWHM 3 (sum g^2 = pi s^2).
+TEST(StaticSources, FaintStarsFoundAfterThePsfFilterSlowObjectsNot) {
+  test::SynthScene sc;
+  sc.frames = 60;
+  sc.stars = {{60.0, 30.0, 3.5}};
+  sc.objPeak = 14.0;  // a 51 px streak in the stack: filtered SNR ~ 12 at its centre, moving
+  FrameCube cube = sc.make();
+  NullProgress p;
+  CancelToken c;
+  const stats::ClipStats global = stats::globalBackground(cube);
+  StaticSourceParams off;
+  off.filteredDetection = false;
+  EXPECT_EQ(nearest(findStaticSources(cube, {}, global.mean, off, p, c).stars, 60.0, 30.0), nullptr)
+      << "the star is above SNR 7 per pixel: the test does not test the filtered detection";
+  const StaticSources found = findStaticSources(cube, {}, global.mean, {}, p, c);
+  const Star* star = nearest(found.stars, 60.0, 30.0);
+  ASSERT_NE(star, nullptr) << "faint star not found after the PSF filter";
+  EXPECT_LT(star->snr, 7.0);
+  EXPECT_GT(star->filteredSnr, 8.0);
+  EXPECT_LT(star->filteredSnr, 16.0);
+  EXPECT_TRUE(found.mask.covers(0, 60, 30));
+  const auto dt = cube.timeOffsetsS();
+  std::size_t covered = 0;
+  for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+    const auto [ox, oy] = sc.objectAt(dt[n]);
+    const int x = static_cast<int>(std::lround(ox)), y = static_cast<int>(std::lround(oy));
+    if (x >= 0 && y >= 0 && x < sc.width && y < sc.height) covered += found.mask.covers(n, x, y);
+  }
+  EXPECT_EQ(covered, 0u) << "the moving object was taken for a static source";
+  EXPECT_EQ(found.stars.size(), 1u);
+}
+
 }  // namespace
 }  // namespace st::detect
