@@ -91,6 +91,45 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
   return st;
 }
 
+// The stack less its mesh background, its per-pixel SNR and its PSF-filtered SNR. Two passes: the mesh
+// background of the stack, then again with the sources of the first pass left out of it (the wings and arms
+// of a bright star raise the clipped mean of its cells and hide faint stars next to it).
+struct StackSnr {
+  Image resid, local;
+  std::vector<float> snr, snrF;
+  stats::ClipStats noise;
+};
+
+StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel) {
+  StackSnr a;
+  a.resid = Image(s.mean.width, s.mean.height);
+  a.snr.assign(a.resid.size(), 0.0f);
+  a.snrF.assign(a.resid.size(), 0.0f);
+  Image weight = s.count;
+  for (int pass = 0; pass < 2; ++pass) {
+    a.local = meshBackground(s.mean, weight, params.meshPx);
+    std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
+    for (std::size_t i = 0; i < a.resid.size(); ++i) {
+      a.resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - a.local.pixels[i] : 0.0f;
+      if (s.count.pixels[i] > 0) scaled.push_back(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]));
+    }
+    a.noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+    if (a.noise.sigma > 0) {
+      for (std::size_t i = 0; i < a.resid.size(); ++i)
+        a.snr[i] = static_cast<float>(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]) / a.noise.sigma);
+    }
+    cancel.throwIfCancelled();
+    // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
+    // after the matched filter.
+    if (params.filteredDetection)
+      a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx);
+    if (pass == 0)
+      weight = detail::excludeSources(s.count, a.snr, a.snrF, params.growSnr + 1.0,
+                                      static_cast<int>(std::ceil(params.psfFwhmPx)));
+  }
+  return a;
+}
+
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
@@ -101,34 +140,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
-  Image resid(cw, ch);
-  std::vector<float> snr(resid.size(), 0.0f), snrF(resid.size(), 0.0f);
-  stats::ClipStats noise;
-  // Two passes: the mesh background of the stack, then again with the sources of the first pass left out
-  // of it (the wings and arms of a bright star raise the clipped mean of its cells and hide faint stars
-  // next to it).
-  Image weight = s.count, local;
-  for (int pass = 0; pass < 2; ++pass) {
-    local = meshBackground(s.mean, weight, params.meshPx);
-    std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
-    for (std::size_t i = 0; i < resid.size(); ++i) {
-      resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
-      if (s.count.pixels[i] > 0) scaled.push_back(resid.pixels[i] * std::sqrt(s.count.pixels[i]));
-    }
-    noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
-    if (noise.sigma > 0) {
-      for (std::size_t i = 0; i < resid.size(); ++i)
-        snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
-    }
-    cancel.throwIfCancelled();
-    // Seeds: SNR >= threshold in the stack itself or in the stack filtered by the PSF (what the velocity
-    // search sees at the sky rate: faint stars below the threshold per pixel are above it after the
-    // matched filter). Growth: down to growSnr per pixel, or down to weakSnr after the filter.
-    if (params.filteredDetection) snrF = detail::filteredSnr(resid, s.count, noise.sigma, params.psfFwhmPx);
-    if (pass == 0)
-      weight = detail::excludeSources(s.count, snr, snrF, params.growSnr + 1.0,
-                                      static_cast<int>(std::ceil(params.psfFwhmPx)));
-  }
+  const StackSnr an = analyseStack(s, params, cancel);
+  const Image& resid = an.resid;
+  const std::vector<float>& snr = an.snr;
+  const std::vector<float>& snrF = an.snrF;
+  const stats::ClipStats& noise = an.noise;
+  const Image& local = an.local;
   out.stackNoise = noise.sigma;
   // Stars of the stack itself (SNR >= threshold per pixel, grown to growSnr), then sources seen only after
   // the filter (SNR >= weakSnr there, grown over the filtered blob, outside the first ones: the filtered
