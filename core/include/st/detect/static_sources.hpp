@@ -1,7 +1,11 @@
 #pragma once
-// Static sources (paper §4.3): stars and galaxies found in the stack at the sky rate (SNR >= 7) and bright
-// objects found in single frames (SNR >= 7), zeroed in every frame with their footprint dilated by the PSF
-// and carried along with the sky motion. The star catalog is kept for astrometry and vetting.
+// Static sources (paper §4.3): stars and galaxies found in the stack at the sky rate (SNR >= 7 per pixel, or
+// after the PSF filter, i.e. as the velocity search would see them; with the number of contributing frames
+// N_in so that stars entering or leaving the drifting field are found too) and bright objects found in
+// single frames (SNR >= 7), zeroed in every frame with their footprint dilated by the PSF and carried along
+// with the sky motion. Saturated stars also lose their Moffat wings (radius growing with the flux),
+// diffraction spikes and column bleed trails (charge leakage), measured in the stack: the paper's main false
+// positives. The star catalog (position, flux, saturated, bleed columns) is kept for astrometry and vetting.
 #include <cstddef>
 #include <optional>
 #include <vector>

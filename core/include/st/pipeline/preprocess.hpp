@@ -3,7 +3,8 @@
 //   calibrate (overscan, bias, dark, flat, trim, bad pixels)
 //   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
 //   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
-//   -> static sources in the sky-rate stack (SNR >= 7): star catalog and footprint mask
+//   -> static sources in the sky-rate stack (SNR >= 7 per pixel or after the PSF filter; wings, spikes and
+//      bleed trails of saturated stars): star catalog and footprint mask
 //   -> per-pixel background (<= 2000 frames, xi = 4, stars left out), sigma_n, subtraction (zero-biased)
 //   -> cosmic-ray pixels, static sources (along the sky motion) and single-frame sources (SNR >= 7) zeroed
 //   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing) -> matched filter.
