@@ -101,6 +101,11 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
 
 std::string kernelName(const HostPlan& plan, bool naive) {
   if (naive) return ", naive kernel";
+  if (plan.kernel == HostPlan::Kernel::Stair) {
+    return ", stair kernel (" + std::to_string(kStairVx) + " x " + std::to_string(kStairVy) +
+           " velocities per block, window " + std::to_string(plan.winRows) + " x " +
+           std::to_string(plan.pitch) + ", " + std::to_string(plan.framesPerStage) + " frames per stage)";
+  }
   if (plan.kernel == HostPlan::Kernel::Row) {
     return ", row kernel (" + std::to_string(plan.rowGroups * kRowVelocities) +
            " velocities per block, window " + std::to_string(plan.winRows) + " x " +
@@ -110,10 +115,12 @@ std::string kernelName(const HostPlan& plan, bool naive) {
 }
 
 std::size_t offsetInts(const HostPlan& plan) {
+  if (plan.kernel == HostPlan::Kernel::Stair) return stairOffsetInts();
   return plan.kernel == HostPlan::Kernel::Row ? rowOffsetInts() : static_cast<std::size_t>(kVelPerBlock + 2);
 }
 
 int tilesFor(const HostPlan& plan, int rows) {
+  if (plan.kernel == HostPlan::Kernel::Stair) return stairTileCount(plan.nvx, rows);
   if (plan.kernel == HostPlan::Kernel::Row) return rowTileCount(plan.nvx, rows, plan.rowGroups);
   return ((plan.nvx + plan.vtileX - 1) / plan.vtileX) * ((rows + plan.vtileY - 1) / plan.vtileY);
 }
@@ -127,7 +134,9 @@ class Launcher {
       const std::size_t n =
           static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
-      if (plan.kernel == HostPlan::Kernel::Row) {
+      if (plan.kernel == HostPlan::Kernel::Stair) {
+        configureStairKernel(stairSharedBytes(plan.pitch, plan.framesPerStage));
+      } else if (plan.kernel == HostPlan::Kernel::Row) {
         configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
       } else {
         configureTiledKernel(tiledSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
@@ -140,7 +149,9 @@ class Launcher {
     p.iy1 = iy1;
     if (m_naive) return;
     p.tileOffsets = m_offsets.get();
-    if (m_plan.kernel == HostPlan::Kernel::Row) {
+    if (m_plan.kernel == HostPlan::Kernel::Stair) {
+      launchStairOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+    } else if (m_plan.kernel == HostPlan::Kernel::Row) {
       launchRowOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
     } else {
       launchTileOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
@@ -151,6 +162,8 @@ class Launcher {
     m_timers.back().first->record(m_stream);
     if (m_naive) {
       launchNaiveSearch(p, m_stream);
+    } else if (m_plan.kernel == HostPlan::Kernel::Stair) {
+      launchStairSearch(p, m_stream);
     } else if (m_plan.kernel == HostPlan::Kernel::Row) {
       launchRowSearch(p, m_stream);
     } else {

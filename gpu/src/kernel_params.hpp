@@ -112,6 +112,23 @@ int rowTileCount(int nvx, int rows, int groups);
 /// Ints per (tile, frame) in the row kernel's offset table.
 std::size_t rowOffsetInts();
 
+/// The stair kernel (stair_search_kernel.cu): a block owns kStairVx consecutive vx x kStairVy consecutive
+/// vy and a (32 kStairCols) x kStairRows pixel tile; usable when the frame width is a multiple of 4 and, at
+/// every frame, neighbouring vy of the grid shift by at most 1 px relative to each other.
+inline constexpr int kStairVx = 8;
+inline constexpr int kStairVy = 4;
+inline constexpr int kStairRows = 8;
+inline constexpr int kStairCols = 2;
+void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
+void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
+/// Shared memory of the stair kernel for a window pitch (floats) and frames per stage.
+std::size_t stairSharedBytes(int pitch, int framesPerStage);
+void configureStairKernel(std::size_t sharedBytes);
+/// Velocity tiles of the stair kernel for `rows` grid rows.
+int stairTileCount(int nvx, int rows);
+/// Ints per (tile, frame) in the stair kernel's offset table.
+std::size_t stairOffsetInts();
+
 /// IPSA stack of frames [0, frameCount) at integer shifts.
 struct StackLaunch {
   const float* frames;

@@ -65,7 +65,27 @@ int maxSpread(const std::vector<int>& shifts, int nv, int n, int len) {
 
 }  // namespace
 
-void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow) {
+bool chooseStair(HostPlan& plan) {
+  if (plan.width % 4 != 0 || maxSpread(plan.shiftY, plan.nvy, plan.frameCount, 2) > 1) return false;
+  constexpr std::size_t kTwoBlocksShared = 100 * 1024;
+  // Columns a warp reads: its tile, its vx's offset from the 16-byte-aligned origin of the block's vx.
+  const int pitch =
+      (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
+  int fs = 16;
+  while (fs > 1 && stairSharedBytes(pitch, fs) > kTwoBlocksShared)
+    fs /= 2;
+  if (stairSharedBytes(pitch, fs) > kTwoBlocksShared) return false;
+  plan.kernel = HostPlan::Kernel::Stair;
+  plan.vtileX = kStairVx;
+  plan.vtileY = kStairVy;
+  plan.pitch = pitch;
+  plan.winRows = kStairRows + kStairVy - 1;
+  plan.framesPerStage = fs;
+  return true;
+}
+
+void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair) {
+  if (allowStair && chooseStair(plan)) return;
   plan.kernel = HostPlan::Kernel::Tiled;
   constexpr std::size_t kTwoBlocksShared = 100 * 1024;
   constexpr std::size_t kOneBlockShared = 220 * 1024;
@@ -155,7 +175,7 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
   }
   plan.snrThreshold = static_cast<float>(threshold);
   plan.minFrames = minFrames;
-  chooseTiling(plan, true, false);
+  chooseTiling(plan, true, false, true);
   return plan;
 }
 

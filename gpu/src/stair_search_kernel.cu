@@ -1,0 +1,277 @@
+// The stair kernel: the fast path of the exact IPSA search when neighbouring vy of the grid are at most
+// 1 px apart at every frame (the paper's grid design). A block owns a 64 x 8 pixel tile and 8 consecutive
+// vx (one per warp) x 4 consecutive vy. At one frame the 4 vy have row shifts that form a staircase
+// (each step 0 or 1 px, all up or all down: one of 15 patterns), and all 4 share the column shift of the
+// warp's vx. Each thread owns 2 columns (stride 32) x 8 rows: it loads the 8 + (staircase height) rows it
+// needs into registers once per frame (conflict-free 4-byte shared loads, any column offset) and adds
+// them into 4 velocities x 16 accumulators, the register of each addition fixed at compile time by a
+// switch on the pattern, uniform across the block. One shared-memory value thus feeds up to 4 additions
+// and there is one branch per frame, not one per velocity. The window (11 rows x tile + vx spread, 16-byte
+// aligned) is copied once per frame with 16-byte cp.async and serves all 32 velocities of the block.
+// Per cell the additions run frame by frame, as in the other kernels (same sums, bit for bit).
+#include <cuda_runtime.h>
+
+#include "cuda_check.hpp"
+#include "kernel_params.hpp"
+#include "search_device.cuh"
+
+namespace st::gpu {
+namespace {
+
+constexpr int kSVx = kStairVx;         // warps per block, one vx each
+constexpr int kSVy = kStairVy;         // vy per thread (staircase of 4)
+constexpr int kSR = kStairRows;        // pixel rows per thread (= per block)
+constexpr int kSC = kStairCols;        // columns per thread, stride 32
+constexpr int kSWin = kSR + kSVy - 1;  // window rows
+constexpr int kSOffs = 4 + kSVx;  // origin x, origin y, pattern, staircase height, column offset per warp
+constexpr int kSThreads = 32 * kSVx;
+
+__device__ __forceinline__ int floor4s(int v) {
+  return v - (((v % 4) + 4) % 4);
+}
+
+__global__ void stairOffsetsKernel(SearchLaunch p, int* out, int tileCount) {
+  const long long i = blockIdx.x * static_cast<long long>(blockDim.x) + threadIdx.x;
+  if (i >= static_cast<long long>(tileCount) * p.frameCount) return;
+  const int tile = static_cast<int>(i / p.frameCount);
+  const int n = static_cast<int>(i % p.frameCount);
+  const int tilesX = (p.nvx + kSVx - 1) / kSVx;
+  const int ixBase = (tile % tilesX) * kSVx;
+  const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
+  int sx[kSVx];
+  int ox = 1 << 30;
+  for (int k = 0; k < kSVx; ++k) {
+    sx[k] = p.shiftX[static_cast<long long>(min(ixBase + k, p.nvx - 1)) * p.frameCount + n];
+    ox = min(ox, sx[k]);
+  }
+  ox = floor4s(ox);
+  int sy[kSVy];
+  int oy = 1 << 30;
+  for (int k = 0; k < kSVy; ++k) {
+    sy[k] = p.shiftY[static_cast<long long>(min(iyBase + k, p.iy1 - 1)) * p.frameCount + n];
+    oy = min(oy, sy[k]);
+  }
+  // Pattern: rising staircase (steps a, b, c in {0, 1}) -> a + 2b + 4c; falling -> 7 + a + 2b + 4c.
+  const bool rising = sy[kSVy - 1] >= sy[0];
+  int id = 0;
+  for (int k = 0; k < kSVy - 1; ++k) {
+    const int step = rising ? sy[k + 1] - sy[k] : sy[k] - sy[k + 1];
+    id += step << k;
+  }
+  if (!rising) id += 7;
+  int* o = out + i * kSOffs;
+  o[0] = ox;
+  o[1] = oy;
+  o[2] = id;
+  o[3] = max(max(sy[0], sy[kSVy - 1]) - oy, 0);
+  for (int k = 0; k < kSVx; ++k)
+    o[4 + k] = sx[k] - ox;
+}
+
+__device__ void issueStairStage(const SearchLaunch& p, float* win, int* offs, int n0, int count, int tile,
+                                int x0, int y0) {
+  const int chunksPerRow = p.pitch / 4;
+  const int winSize = p.pitch * kSWin;
+  for (int i = 0; i < count; ++i) {
+    const int n = n0 + i;
+    const int* to = p.tileOffsets + (static_cast<long long>(tile) * p.frameCount + n) * kSOffs;
+    if (threadIdx.x < kSOffs) offs[i * kSOffs + threadIdx.x] = to[threadIdx.x];
+    const int gx0 = x0 + to[0];
+    const int gy0 = y0 + to[1];
+    const float* frame = p.frames + static_cast<long long>(n - p.frameBase) * p.width * p.height;
+    float* w = win + i * winSize;
+    for (int e = threadIdx.x; e < kSWin * chunksPerRow; e += kSThreads) {
+      const int r = e / chunksPerRow;
+      const int c = (e - r * chunksPerRow) * 4;
+      const int gy = gy0 + r;
+      const int gx = gx0 + c;
+      const bool in = gy >= 0 && gy < p.height && gx >= 0 && gx < p.width;  // width % 4 == 0: all 4 or none
+      cpAsync16(w + r * p.pitch + c, in ? frame + static_cast<long long>(gy) * p.width + gx : frame, in);
+    }
+  }
+  cpAsyncCommit();
+}
+
+/// Row offset of vy kK of the staircase with pattern kId (see stairOffsetsKernel), at compile time.
+template <int kId, int kK>
+struct StairRow {
+  static constexpr int bits = kId < 8 ? kId : kId - 7;
+  static constexpr int value =
+      kId < 8
+          ? ((kK > 0 ? (bits & 1) : 0) + (kK > 1 ? ((bits >> 1) & 1) : 0) + (kK > 2 ? ((bits >> 2) & 1) : 0))
+          : ((kK <= 0 ? (bits & 1) : 0) + (kK <= 1 ? ((bits >> 1) & 1) : 0) +
+             (kK <= 2 ? ((bits >> 2) & 1) : 0));
+};
+static_assert(kSVy == 4, "StairRow assumes staircases of 4 vy");
+
+template <int kId, int kK>
+__device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSWin][kSC]) {
+  constexpr int kD = StairRow<kId, kK>::value;
+#pragma unroll
+  for (int r = 0; r < kSR; ++r) {
+#pragma unroll
+    for (int j = 0; j < kSC; ++j)
+      acc[kK][r][j] += v[kD + r][j];
+  }
+}
+
+template <int kId>
+__device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSWin][kSC]) {
+  addStairRow<kId, 0>(acc, v);
+  addStairRow<kId, 1>(acc, v);
+  addStairRow<kId, 2>(acc, v);
+  addStairRow<kId, 3>(acc, v);
+}
+
+#define ST_STAIR_CASE(c) \
+  case c:                \
+    addStair<c>(acc, v); \
+    break;
+
+__global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p) {
+  extern __shared__ float smem[];
+  const int lane = threadIdx.x & 31;
+  const int warp = threadIdx.x >> 5;
+  const int tile = blockIdx.x;  // velocity tiles vary fastest: resident blocks share pixel tiles in L2
+  const int x0 = blockIdx.y * 32 * kSC;
+  const int y0 = blockIdx.z * kSR;
+  const int tilesX = (p.nvx + kSVx - 1) / kSVx;
+  const int ix = (tile % tilesX) * kSVx + warp;
+  const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
+  const int fs = p.framesPerStage;
+  const int winSize = p.pitch * kSWin;
+  float* wins = smem;
+  int* offs = reinterpret_cast<int*>(smem + 2 * fs * winSize);
+  const long long plane = static_cast<long long>(p.width) * p.height;
+  auto partialAt = [&](int k, int r, int j) {
+    return (static_cast<long long>(iyBase + k - p.iy0) * p.nvx + ix) * plane +
+           static_cast<long long>(y0 + r) * p.width + x0 + lane + 32 * j;
+  };
+  auto cellOk = [&](int k, int r, int j) {
+    return ix < p.nvx && iyBase + k < p.iy1 && x0 + lane + 32 * j < p.width && y0 + r < p.height;
+  };
+
+  float acc[kSVy][kSR][kSC];
+#pragma unroll
+  for (int k = 0; k < kSVy; ++k) {
+#pragma unroll
+    for (int r = 0; r < kSR; ++r) {
+#pragma unroll
+      for (int j = 0; j < kSC; ++j)
+        acc[k][r][j] = (p.loadPartial && cellOk(k, r, j)) ? p.partial[partialAt(k, r, j)] : 0.0f;
+    }
+  }
+
+  const int frames = p.f1 - p.f0;
+  const int stages = (frames + fs - 1) / fs;
+  if (stages > 0) issueStairStage(p, wins, offs, p.f0, min(fs, frames), tile, x0, y0);
+  for (int s = 0; s < stages; ++s) {
+    const int buf = s & 1;
+    if (s + 1 < stages) {
+      const int n0 = p.f0 + (s + 1) * fs;
+      issueStairStage(p, wins + (buf ^ 1) * fs * winSize, offs + (buf ^ 1) * fs * kSOffs, n0,
+                      min(fs, p.f1 - n0), tile, x0, y0);
+    } else {
+      cpAsyncCommit();  // an empty group keeps wait_group 1 meaning "stage s has landed"
+    }
+    cpAsyncWaitOne();
+    __syncthreads();
+    const int count = min(fs, frames - s * fs);
+    for (int i = 0; i < count; ++i) {
+      const int* o = offs + (buf * fs + i) * kSOffs;
+      const int pattern = o[2];
+      const int height = o[3];
+      const float* w = wins + (buf * fs + i) * winSize + o[4 + warp] + lane;
+      float v[kSWin][kSC];
+#pragma unroll
+      for (int r = 0; r < kSWin; ++r) {
+#pragma unroll
+        for (int j = 0; j < kSC; ++j)
+          v[r][j] = (r < kSR || r - kSR < height) ? w[r * p.pitch + 32 * j] : 0.0f;  // uniform
+      }
+      switch (pattern) {  // uniform across the block
+        ST_STAIR_CASE(0)
+        ST_STAIR_CASE(1)
+        ST_STAIR_CASE(2)
+        ST_STAIR_CASE(3)
+        ST_STAIR_CASE(4)
+        ST_STAIR_CASE(5)
+        ST_STAIR_CASE(6)
+        ST_STAIR_CASE(7)
+        ST_STAIR_CASE(8)
+        ST_STAIR_CASE(9)
+        ST_STAIR_CASE(10)
+        ST_STAIR_CASE(11)
+        ST_STAIR_CASE(12)
+        ST_STAIR_CASE(13)
+        ST_STAIR_CASE(14)
+        default:
+          break;
+      }
+    }
+    __syncthreads();
+  }
+
+#pragma unroll
+  for (int k = 0; k < kSVy; ++k) {
+    const int iy = iyBase + k;
+    if (ix >= p.nvx || iy >= p.iy1) continue;  // uniform across the warp
+    unsigned long long best = 0ull;
+#pragma unroll
+    for (int r = 0; r < kSR; ++r) {
+#pragma unroll
+      for (int j = 0; j < kSC; ++j) {
+        if (!cellOk(k, r, j)) continue;
+        if (!p.finalize) {
+          p.partial[partialAt(k, r, j)] = acc[k][r][j];
+          continue;
+        }
+        const int x = x0 + lane + 32 * j;
+        const int y = y0 + r;
+        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
+                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
+        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
+        best = key > best ? key : best;
+      }
+    }
+    if (p.finalize) {
+      best = warpMax(best);
+      if (lane == 0 && best != 0ull) atomicMax(p.mapKeys + static_cast<long long>(iy) * p.nvx + ix, best);
+    }
+  }
+}
+
+}  // namespace
+
+std::size_t stairSharedBytes(int pitch, int framesPerStage) {
+  return static_cast<std::size_t>(2) * framesPerStage *
+         (static_cast<std::size_t>(pitch) * kSWin * sizeof(float) + kSOffs * sizeof(int));
+}
+
+void configureStairKernel(std::size_t sharedBytes) {
+  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                     static_cast<int>(sharedBytes)));
+}
+
+int stairTileCount(int nvx, int rows) {
+  return ((nvx + kSVx - 1) / kSVx) * ((rows + kSVy - 1) / kSVy);
+}
+
+std::size_t stairOffsetInts() {
+  return kSOffs;
+}
+
+void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream) {
+  const long long total = static_cast<long long>(tileCount) * p.frameCount;
+  stairOffsetsKernel<<<static_cast<int>((total + 255) / 256), 256, 0, stream>>>(p, tileOffsets, tileCount);
+  checkLaunch("stairOffsetsKernel");
+}
+
+void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
+  const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
+                  (p.height + kSR - 1) / kSR);
+  stairSearchKernel<<<grid, kSThreads, stairSharedBytes(p.pitch, p.framesPerStage), stream>>>(p);
+  checkLaunch("stairSearchKernel");
+}
+
+}  // namespace st::gpu
