@@ -135,7 +135,7 @@ class Launcher {
           static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
       if (plan.kernel == HostPlan::Kernel::Stair) {
-        configureStairKernel(stairSharedBytes(plan.pitch, plan.framesPerStage));
+        configureStairKernel(stairSharedBytes(plan.framesPerStage));
       } else if (plan.kernel == HostPlan::Kernel::Row) {
         configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
       } else {

@@ -119,10 +119,14 @@ inline constexpr int kStairVx = 8;
 inline constexpr int kStairVy = 4;
 inline constexpr int kStairRows = 8;
 inline constexpr int kStairCols = 2;
+/// Shared-memory row stride (floats) of the stair kernel's window, a compile-time constant so that row
+/// addresses are immediate offsets: the kernel applies while the 8 vx of a block stay within
+/// kStairPitch - 32 kStairCols - 6 px of each other at every frame.
+inline constexpr int kStairPitch = 96;
 void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
-/// Shared memory of the stair kernel for a window pitch (floats) and frames per stage.
-std::size_t stairSharedBytes(int pitch, int framesPerStage);
+/// Shared memory of the stair kernel for `framesPerStage` frames per stage.
+std::size_t stairSharedBytes(int framesPerStage);
 void configureStairKernel(std::size_t sharedBytes);
 /// Velocity tiles of the stair kernel for `rows` grid rows.
 int stairTileCount(int nvx, int rows);

@@ -71,10 +71,10 @@ bool chooseStair(HostPlan& plan) {
   // Columns a warp reads: its tile, its vx's offset from the 16-byte-aligned origin of the block's vx.
   const int pitch =
       (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
+  if (pitch > kStairPitch) return false;
   int fs = 16;
-  while (fs > 1 && stairSharedBytes(pitch, fs) > kTwoBlocksShared)
+  while (fs > 1 && stairSharedBytes(fs) > kTwoBlocksShared)
     fs /= 2;
-  if (stairSharedBytes(pitch, fs) > kTwoBlocksShared) return false;
   plan.kernel = HostPlan::Kernel::Stair;
   plan.vtileX = kStairVx;
   plan.vtileY = kStairVy;

@@ -68,28 +68,51 @@ __global__ void stairOffsetsKernel(SearchLaunch p, int* out, int tileCount) {
     o[4 + k] = sx[k] - ox;
 }
 
-__device__ void issueStairStage(const SearchLaunch& p, float* win, int* offs, int n0, int count, int tile,
-                                int x0, int y0) {
-  const int chunksPerRow = p.pitch / 4;
-  const int winSize = p.pitch * kSWin;
-  for (int i = 0; i < count; ++i) {
-    const int n = n0 + i;
-    const int* to = p.tileOffsets + (static_cast<long long>(tile) * p.frameCount + n) * kSOffs;
-    if (threadIdx.x < kSOffs) offs[i * kSOffs + threadIdx.x] = to[threadIdx.x];
-    const int gx0 = x0 + to[0];
-    const int gy0 = y0 + to[1];
-    const float* frame = p.frames + static_cast<long long>(n - p.frameBase) * p.width * p.height;
-    float* w = win + i * winSize;
-    for (int e = threadIdx.x; e < kSWin * chunksPerRow; e += kSThreads) {
-      const int r = e / chunksPerRow;
-      const int c = (e - r * chunksPerRow) * 4;
-      const int gy = gy0 + r;
-      const int gx = gx0 + c;
-      const bool in = gy >= 0 && gy < p.height && gx >= 0 && gx < p.width;  // width % 4 == 0: all 4 or none
-      cpAsync16(w + r * p.pitch + c, in ? frame + static_cast<long long>(gy) * p.width + gx : frame, in);
-    }
+/// Issues the asynchronous copy of the offsets of frames [n0, n0 + count) into `offs`.
+__device__ void copyStairOffsets(const SearchLaunch& p, int* offs, int n0, int count, int tile) {
+  const int* to = p.tileOffsets + (static_cast<long long>(tile) * p.frameCount + n0) * kSOffs;
+  for (int e = threadIdx.x; e < count * kSOffs; e += kSThreads) {
+    const unsigned d = static_cast<unsigned>(__cvta_generic_to_shared(offs + e));
+    asm volatile("cp.async.ca.shared.global [%0], [%1], 4;\n" ::"r"(d), "l"(to + e));
   }
-  cpAsyncCommit();
+}
+
+/// The 16-byte chunks of a window a thread copies: up to kSWin x kStairPitch / 4 <= 2 kSThreads chunks, so
+/// two slots, each packed as (row << 16) | column, or -1 when unused. Computed once per block.
+__device__ __forceinline__ int stairSlot(const SearchLaunch& p, int e) {
+  const int chunksPerRow = p.pitch / 4;  // columns copied; the shared row stride is kStairPitch
+  if (e >= kSWin * chunksPerRow) return -1;
+  const int r = e / chunksPerRow;
+  return (r << 16) | ((e - r * chunksPerRow) * 4);
+}
+
+__device__ __forceinline__ void copyStairChunk(const SearchLaunch& p, float* w, const float* frame, int slot,
+                                               int gx0, int gy0) {
+  const int r = slot >> 16;
+  const int c = slot & 0xFFFF;
+  const int gy = gy0 + r;
+  const int gx = gx0 + c;
+  const bool in = gy >= 0 && gy < p.height && gx >= 0 && gx < p.width;  // width % 4 == 0: all 4 or none
+  cpAsync16(w + r * kStairPitch + c, in ? frame + static_cast<long long>(gy) * p.width + gx : frame, in);
+}
+
+/// Issues the asynchronous copies of the windows of frames [n0, n0 + count) into `win`, their origins read
+/// from `offs` (already in shared memory: no wait on global memory here).
+__device__ void copyStairWindows(const SearchLaunch& p, float* win, const int* offs, int n0, int count,
+                                 int x0, int y0, int slot0, int slot1) {
+  constexpr int winSize = kStairPitch * kSWin;
+  for (int i = 0; i < count; ++i) {
+    const int gx0 = x0 + offs[i * kSOffs];
+    const int gy0 = y0 + offs[i * kSOffs + 1];
+    const float* frame = p.frames + static_cast<long long>(n0 + i - p.frameBase) * p.width * p.height;
+    float* w = win + i * winSize;
+    if (slot0 >= 0) copyStairChunk(p, w, frame, slot0, gx0, gy0);
+    if (slot1 >= 0) copyStairChunk(p, w, frame, slot1, gx0, gy0);
+  }
+}
+
+__device__ __forceinline__ void cpAsyncWaitAll() {
+  asm volatile("cp.async.wait_group 0;\n" ::);
 }
 
 /// Row offset of vy kK of the staircase with pattern kId (see stairOffsetsKernel), at compile time.
@@ -103,6 +126,7 @@ struct StairRow {
              (kK <= 2 ? ((bits >> 2) & 1) : 0));
 };
 static_assert(kSVy == 4, "StairRow assumes staircases of 4 vy");
+static_assert(kSWin * kStairPitch / 4 <= 2 * kSThreads, "two copy slots per thread");
 
 template <int kId, int kK>
 __device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSWin][kSC]) {
@@ -139,7 +163,7 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
   const int ix = (tile % tilesX) * kSVx + warp;
   const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
   const int fs = p.framesPerStage;
-  const int winSize = p.pitch * kSWin;
+  constexpr int winSize = kStairPitch * kSWin;
   float* wins = smem;
   int* offs = reinterpret_cast<int*>(smem + 2 * fs * winSize);
   const long long plane = static_cast<long long>(p.width) * p.height;
@@ -162,23 +186,36 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
     }
   }
 
+  // Pipeline: the group committed in stage s - 1 holds the windows of stage s and the offsets of stage
+  // s + 1, so the window copies of stage s + 1 start from offsets already in shared memory (3 buffers).
   const int frames = p.f1 - p.f0;
   const int stages = (frames + fs - 1) / fs;
-  if (stages > 0) issueStairStage(p, wins, offs, p.f0, min(fs, frames), tile, x0, y0);
+  const int slot0 = stairSlot(p, threadIdx.x);
+  const int slot1 = stairSlot(p, threadIdx.x + kSThreads);
+  auto stageOffs = [&](int st) { return offs + (st % 3) * fs * kSOffs; };
+  auto stageCount = [&](int st) { return min(fs, frames - st * fs); };
+  if (stages > 0) {
+    copyStairOffsets(p, stageOffs(0), p.f0, stageCount(0), tile);
+    cpAsyncCommit();
+    cpAsyncWaitAll();
+    __syncthreads();
+    copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1);
+    if (stages > 1) copyStairOffsets(p, stageOffs(1), p.f0 + fs, stageCount(1), tile);
+    cpAsyncCommit();
+  }
   for (int s = 0; s < stages; ++s) {
     const int buf = s & 1;
+    cpAsyncWaitAll();
+    __syncthreads();  // stage s landed everywhere, and stage s - 1 is no longer read
     if (s + 1 < stages) {
-      const int n0 = p.f0 + (s + 1) * fs;
-      issueStairStage(p, wins + (buf ^ 1) * fs * winSize, offs + (buf ^ 1) * fs * kSOffs, n0,
-                      min(fs, p.f1 - n0), tile, x0, y0);
-    } else {
-      cpAsyncCommit();  // an empty group keeps wait_group 1 meaning "stage s has landed"
+      copyStairWindows(p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
+                       stageCount(s + 1), x0, y0, slot0, slot1);
+      if (s + 2 < stages) copyStairOffsets(p, stageOffs(s + 2), p.f0 + (s + 2) * fs, stageCount(s + 2), tile);
+      cpAsyncCommit();
     }
-    cpAsyncWaitOne();
-    __syncthreads();
     const int count = min(fs, frames - s * fs);
     for (int i = 0; i < count; ++i) {
-      const int* o = offs + (buf * fs + i) * kSOffs;
+      const int* o = stageOffs(s) + i * kSOffs;
       const int pattern = o[2];
       const int height = o[3];
       const float* w = wins + (buf * fs + i) * winSize + o[4 + warp] + lane;
@@ -187,7 +224,7 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
       for (int r = 0; r < kSWin; ++r) {
 #pragma unroll
         for (int j = 0; j < kSC; ++j)
-          v[r][j] = (r < kSR || r - kSR < height) ? w[r * p.pitch + 32 * j] : 0.0f;  // uniform
+          v[r][j] = (r < kSR || r - kSR < height) ? w[r * kStairPitch + 32 * j] : 0.0f;  // uniform
       }
       switch (pattern) {  // uniform across the block
         ST_STAIR_CASE(0)
@@ -205,11 +242,10 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
         ST_STAIR_CASE(12)
         ST_STAIR_CASE(13)
         ST_STAIR_CASE(14)
-        default:
+        default:  // never: the host takes this kernel only when every pattern is a staircase
           break;
       }
     }
-    __syncthreads();
   }
 
 #pragma unroll
@@ -243,9 +279,9 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
 
 }  // namespace
 
-std::size_t stairSharedBytes(int pitch, int framesPerStage) {
-  return static_cast<std::size_t>(2) * framesPerStage *
-         (static_cast<std::size_t>(pitch) * kSWin * sizeof(float) + kSOffs * sizeof(int));
+std::size_t stairSharedBytes(int framesPerStage) {
+  return static_cast<std::size_t>(framesPerStage) *
+         (2 * static_cast<std::size_t>(kStairPitch) * kSWin * sizeof(float) + 3 * kSOffs * sizeof(int));
 }
 
 void configureStairKernel(std::size_t sharedBytes) {
@@ -270,7 +306,7 @@ void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, 
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
   const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
                   (p.height + kSR - 1) / kSR);
-  stairSearchKernel<<<grid, kSThreads, stairSharedBytes(p.pitch, p.framesPerStage), stream>>>(p);
+  stairSearchKernel<<<grid, kSThreads, stairSharedBytes(p.framesPerStage), stream>>>(p);
   checkLaunch("stairSearchKernel");
 }
 
