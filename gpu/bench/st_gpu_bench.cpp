@@ -116,6 +116,18 @@ int run(int argc, char** argv) {
         r.candidates.empty() ? -1 : r.candidates.front().ivx,
         r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
   }
+  {
+    st::gpu::CudaOptions o16;
+    o16.kernelVariant = -4;
+    auto b16 = st::gpu::makeCudaSearchBackend(whyNot, o16);
+    for (int rep = 0; rep < 2; ++rep) {
+      const auto r = b16->search(cube, grid, params, quiet, cancel);
+      std::printf("search %d, stair kernel with 16-row tiles: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; "
+                  "%zu candidates\n  %s",
+                  rep, r.elapsedS, b16->lastKernelSeconds(), additions / b16->lastKernelSeconds(),
+                  r.candidates.size(), b16->lastNote().c_str());
+    }
+  }
   // Tiled vs naive on the same band of velocity rows.
   VelocityGrid band = grid;
   band.nvy = std::min(naiveRows, nv);
@@ -130,8 +142,9 @@ int run(int argc, char** argv) {
   }
   std::printf("band of %d x %d velocities: naive kernel %.4f s = %.3g additions/s\n", band.nvx, band.nvy,
               naiveS, bandAdds / naiveS);
-  for (const int variant : {-1, -3, -2, 0}) {
+  for (const int variant : {-1, -4, -3, -2, 0}) {
     const char* name = variant == -1   ? "auto (stair kernel)"
+                       : variant == -4 ? "stair kernel, 16-row tiles"
                        : variant == -3 ? "auto without the stair kernel"
                        : variant == -2 ? "row kernel"
                                        : "tiled, reuse by branches";

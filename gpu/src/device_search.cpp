@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "cuda_check.hpp"
+#include "st/common/parallel.hpp"
 
 namespace st::gpu {
 namespace {
@@ -23,7 +24,7 @@ DeviceBuffer<T> toDevice(const std::vector<T>& host) {
 }
 
 /// Copies frames from pageable host memory to the device through two pinned staging buffers, so that the
-/// host copy of one piece overlaps the DMA of the previous one.
+/// host copy of one piece (on every core) overlaps the DMA of the previous one.
 class Uploader {
  public:
   Uploader(const float* host, std::size_t plane, std::size_t totalFloats)
@@ -40,7 +41,12 @@ class Uploader {
       const int b = m_next;
       m_next ^= 1;
       m_free[b].sync();
-      std::memcpy(m_pinned[b].get(), src + off, piece * sizeof(float));
+      // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
+      float* dst0 = static_cast<float*>(m_pinned[b].get());
+      const float* src0 = src + off;
+      parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
+        std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
+      });
       ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_pinned[b].get(), piece * sizeof(float),
                                     cudaMemcpyHostToDevice, stream));
       m_free[b].record(stream);
@@ -96,6 +102,7 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.framesPerStage = plan.framesPerStage;
   p.variant = plan.tiledMode;
   p.groups = plan.rowGroups;
+  p.stairRows = plan.stairRows;
   return p;
 }
 
@@ -135,7 +142,7 @@ class Launcher {
           static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
       if (plan.kernel == HostPlan::Kernel::Stair) {
-        configureStairKernel(stairSharedBytes(plan.framesPerStage));
+        configureStairKernel(stairSharedBytes(plan.framesPerStage, plan.stairRows), plan.stairRows);
       } else if (plan.kernel == HostPlan::Kernel::Row) {
         configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
       } else {

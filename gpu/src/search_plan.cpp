@@ -65,21 +65,23 @@ int maxSpread(const std::vector<int>& shifts, int nv, int n, int len) {
 
 }  // namespace
 
-bool chooseStair(HostPlan& plan) {
+bool chooseStair(HostPlan& plan, int rows) {
   if (plan.width % 4 != 0 || maxSpread(plan.shiftY, plan.nvy, plan.frameCount, 2) > 1) return false;
   constexpr std::size_t kTwoBlocksShared = 100 * 1024;
   // Columns a warp reads: its tile, its vx's offset from the 16-byte-aligned origin of the block's vx.
   const int pitch =
       (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
   if (pitch > kStairPitch) return false;
+  const std::size_t limit = rows == 16 ? std::size_t{200} * 1024 : kTwoBlocksShared;
   int fs = 16;
-  while (fs > 1 && stairSharedBytes(fs) > kTwoBlocksShared)
+  while (fs > 1 && stairSharedBytes(fs, rows) > limit)
     fs /= 2;
+  plan.stairRows = rows;
   plan.kernel = HostPlan::Kernel::Stair;
   plan.vtileX = kStairVx;
   plan.vtileY = kStairVy;
   plan.pitch = pitch;
-  plan.winRows = kStairRows + kStairVy - 1;
+  plan.winRows = rows + kStairVy - 1;
   plan.framesPerStage = fs;
   return true;
 }

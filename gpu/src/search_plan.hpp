@@ -34,6 +34,7 @@ struct HostPlan {
   int winRows = 0;
   int framesPerStage = 1;
   int rowGroups = 1;  ///< row kernel: groups of 8 velocities per block
+  int stairRows = 8;  ///< stair kernel: pixel rows per block (8: two blocks per SM, 16: one)
   int tiledMode = 0;  ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 
@@ -48,8 +49,8 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
 void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair = false);
 
 /// True when the stair kernel applies to `plan`: width a multiple of 4 and neighbouring vy at most 1 px
-/// apart at every frame; sets its pitch and frames per stage.
-bool chooseStair(HostPlan& plan);
+/// apart at every frame; sets its pitch and frames per stage for `rows` (8 or 16) pixel rows per block.
+bool chooseStair(HostPlan& plan, int rows = 8);
 
 /// Checks what the CUDA backend needs beyond st::search::validateSearchInput (pixel buffer size, frame
 /// count); throws st::InputError naming the value.

@@ -20,9 +20,8 @@ namespace {
 
 constexpr int kSVx = kStairVx;         // warps per block, one vx each
 constexpr int kSVy = kStairVy;         // vy per thread (staircase of 4)
-constexpr int kSR = kStairRows;        // pixel rows per thread (= per block)
 constexpr int kSC = kStairCols;        // columns per thread, stride 32
-constexpr int kSWin = kSR + kSVy - 1;  // window rows
+constexpr int kSMaxWin = 16 + kSVy - 1;  // window rows at most (16 pixel rows)
 constexpr int kSOffs = 4 + kSVx;  // origin x, origin y, pattern, staircase height, column offset per warp
 constexpr int kSThreads = 32 * kSVx;
 
@@ -79,9 +78,9 @@ __device__ void copyStairOffsets(const SearchLaunch& p, int* offs, int n0, int c
 
 /// The 16-byte chunks of a window a thread copies: up to kSWin x kStairPitch / 4 <= 2 kSThreads chunks, so
 /// two slots, each packed as (row << 16) | column, or -1 when unused. Computed once per block.
-__device__ __forceinline__ int stairSlot(const SearchLaunch& p, int e) {
+__device__ __forceinline__ int stairSlot(const SearchLaunch& p, int e, int winRows) {
   const int chunksPerRow = p.pitch / 4;  // columns copied; the shared row stride is kStairPitch
-  if (e >= kSWin * chunksPerRow) return -1;
+  if (e >= winRows * chunksPerRow) return -1;
   const int r = e / chunksPerRow;
   return (r << 16) | ((e - r * chunksPerRow) * 4);
 }
@@ -99,8 +98,7 @@ __device__ __forceinline__ void copyStairChunk(const SearchLaunch& p, float* w, 
 /// Issues the asynchronous copies of the windows of frames [n0, n0 + count) into `win`, their origins read
 /// from `offs` (already in shared memory: no wait on global memory here).
 __device__ void copyStairWindows(const SearchLaunch& p, float* win, const int* offs, int n0, int count,
-                                 int x0, int y0, int slot0, int slot1) {
-  constexpr int winSize = kStairPitch * kSWin;
+                                 int x0, int y0, int slot0, int slot1, int winSize) {
   for (int i = 0; i < count; ++i) {
     const int gx0 = x0 + offs[i * kSOffs];
     const int gy0 = y0 + offs[i * kSOffs + 1];
@@ -126,10 +124,10 @@ struct StairRow {
              (kK <= 2 ? ((bits >> 2) & 1) : 0));
 };
 static_assert(kSVy == 4, "StairRow assumes staircases of 4 vy");
-static_assert(kSWin * kStairPitch / 4 <= 2 * kSThreads, "two copy slots per thread");
+static_assert(kSMaxWin * kStairPitch / 4 <= 2 * kSThreads, "two copy slots per thread");
 
-template <int kId, int kK>
-__device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSWin][kSC]) {
+template <int kId, int kK, int kSR>
+__device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSR + 3][kSC]) {
   constexpr int kD = StairRow<kId, kK>::value;
 #pragma unroll
   for (int r = 0; r < kSR; ++r) {
@@ -139,20 +137,24 @@ __device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const 
   }
 }
 
-template <int kId>
-__device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSWin][kSC]) {
-  addStairRow<kId, 0>(acc, v);
-  addStairRow<kId, 1>(acc, v);
-  addStairRow<kId, 2>(acc, v);
-  addStairRow<kId, 3>(acc, v);
+template <int kId, int kSR>
+__device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSR + 3][kSC]) {
+  addStairRow<kId, 0, kSR>(acc, v);
+  addStairRow<kId, 1, kSR>(acc, v);
+  addStairRow<kId, 2, kSR>(acc, v);
+  addStairRow<kId, 3, kSR>(acc, v);
 }
 
 #define ST_STAIR_CASE(c) \
   case c:                \
-    addStair<c>(acc, v); \
+    addStair<c, kSR>(acc, v); \
     break;
 
-__global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p) {
+/// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 16 (one block per SM, twice the
+/// additions per shared-memory load and per copied window row).
+template <int kSR>
+__global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1) stairSearchKernel(SearchLaunch p) {
+  constexpr int kSWin = kSR + kSVy - 1;
   extern __shared__ float smem[];
   const int lane = threadIdx.x & 31;
   const int warp = threadIdx.x >> 5;
@@ -190,8 +192,8 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
   // s + 1, so the window copies of stage s + 1 start from offsets already in shared memory (3 buffers).
   const int frames = p.f1 - p.f0;
   const int stages = (frames + fs - 1) / fs;
-  const int slot0 = stairSlot(p, threadIdx.x);
-  const int slot1 = stairSlot(p, threadIdx.x + kSThreads);
+  const int slot0 = stairSlot(p, threadIdx.x, kSWin);
+  const int slot1 = stairSlot(p, threadIdx.x + kSThreads, kSWin);
   auto stageOffs = [&](int st) { return offs + (st % 3) * fs * kSOffs; };
   auto stageCount = [&](int st) { return min(fs, frames - st * fs); };
   if (stages > 0) {
@@ -199,7 +201,7 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
     cpAsyncCommit();
     cpAsyncWaitAll();
     __syncthreads();
-    copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1);
+    copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1, winSize);
     if (stages > 1) copyStairOffsets(p, stageOffs(1), p.f0 + fs, stageCount(1), tile);
     cpAsyncCommit();
   }
@@ -209,7 +211,7 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
     __syncthreads();  // stage s landed everywhere, and stage s - 1 is no longer read
     if (s + 1 < stages) {
       copyStairWindows(p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
-                       stageCount(s + 1), x0, y0, slot0, slot1);
+                       stageCount(s + 1), x0, y0, slot0, slot1, winSize);
       if (s + 2 < stages) copyStairOffsets(p, stageOffs(s + 2), p.f0 + (s + 2) * fs, stageCount(s + 2), tile);
       cpAsyncCommit();
     }
@@ -279,14 +281,20 @@ __global__ void __launch_bounds__(kSThreads, 2) stairSearchKernel(SearchLaunch p
 
 }  // namespace
 
-std::size_t stairSharedBytes(int framesPerStage) {
+std::size_t stairSharedBytes(int framesPerStage, int rows) {
   return static_cast<std::size_t>(framesPerStage) *
-         (2 * static_cast<std::size_t>(kStairPitch) * kSWin * sizeof(float) + 3 * kSOffs * sizeof(int));
+         (2 * static_cast<std::size_t>(kStairPitch) * (rows + kSVy - 1) * sizeof(float) +
+          3 * kSOffs * sizeof(int));
 }
 
-void configureStairKernel(std::size_t sharedBytes) {
-  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                     static_cast<int>(sharedBytes)));
+void configureStairKernel(std::size_t sharedBytes, int rows) {
+  if (rows == 16) {
+    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<16>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                       static_cast<int>(sharedBytes)));
+  } else {
+    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<8>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                       static_cast<int>(sharedBytes)));
+  }
 }
 
 int stairTileCount(int nvx, int rows) {
@@ -304,9 +312,15 @@ void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, 
 }
 
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
+  const int rows = p.stairRows;
   const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
-                  (p.height + kSR - 1) / kSR);
-  stairSearchKernel<<<grid, kSThreads, stairSharedBytes(p.framesPerStage), stream>>>(p);
+                  (p.height + rows - 1) / rows);
+  const std::size_t shared = stairSharedBytes(p.framesPerStage, rows);
+  if (rows == 16) {
+    stairSearchKernel<16><<<grid, kSThreads, shared, stream>>>(p);
+  } else {
+    stairSearchKernel<8><<<grid, kSThreads, shared, stream>>>(p);
+  }
   checkLaunch("stairSearchKernel");
 }
 

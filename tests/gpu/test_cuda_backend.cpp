@@ -128,7 +128,7 @@ struct Problem {
 /// Width 61 runs the tiled kernel (vx in [-3, 9] px/s over ~3.3 s: shifts up to ~15 px out of the frame);
 /// width 64 with a finer grid (neighbours < 1 px apart) runs the row or the stair kernel (7 vy: one
 /// staircase of 4 and one cut short; 19 vx: a velocity tile cut short; 47 rows: a pixel tile cut short).
-enum class Kern { Tiled, Row, Stair };
+enum class Kern { Tiled, Row, Stair, Stair16 };
 
 Problem standardProblem(Kern kind = Kern::Tiled) {
   const bool rowKernel = kind != Kern::Tiled;
@@ -143,7 +143,7 @@ Problem standardProblem(Kern kind = Kern::Tiled) {
 
 gpu::CudaOptions kernelOptions(Kern kind) {
   gpu::CudaOptions o;
-  o.kernelVariant = kind == Kern::Row ? -2 : kind == Kern::Tiled ? 0 : -1;
+  o.kernelVariant = kind == Kern::Row ? -2 : kind == Kern::Tiled ? 0 : kind == Kern::Stair16 ? -4 : -1;
   return o;
 }
 
@@ -270,6 +270,14 @@ TEST(CudaBackend, StairKernelChunkedOverFramesAndVelocitiesEqualsResident) {
   checkChunkedEqualsResident(Kern::Stair);
 }
 
+TEST(CudaBackend, StairKernel16RowsMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(Kern::Stair16);
+}
+
+TEST(CudaBackend, StairKernel16RowsChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(Kern::Stair16);
+}
+
 TEST(CudaBackend, CandidateOverflowIsRecoveredNotTruncated) {
   gpu::CudaOptions o;
   o.cellCapacity = 8;
@@ -363,6 +371,10 @@ TEST(CudaBackend, RowKernelGivesTheCpuBackendsResult) {
 
 TEST(CudaBackend, StairKernelGivesTheCpuBackendsResult) {
   checkAgainstCpuBackend(Kern::Stair);
+}
+
+TEST(CudaBackend, StairKernel16RowsGivesTheCpuBackendsResult) {
+  checkAgainstCpuBackend(Kern::Stair16);
 }
 
 TEST(CudaBackend, CancelledSearchThrowsCancelled) {
