@@ -142,8 +142,9 @@ int run(int argc, char** argv) {
   }
   std::printf("band of %d x %d velocities: naive kernel %.4f s = %.3g additions/s\n", band.nvx, band.nvy,
               naiveS, bandAdds / naiveS);
-  for (const int variant : {-1, -4, -3, -2, 0}) {
+  for (const int variant : {-1, -5, -4, -3, -2, 0}) {
     const char* name = variant == -1   ? "auto (stair kernel)"
+                       : variant == -5 ? "stair kernel, cp.async windows"
                        : variant == -4 ? "stair kernel, 16-row tiles"
                        : variant == -3 ? "auto without the stair kernel"
                        : variant == -2 ? "row kernel"

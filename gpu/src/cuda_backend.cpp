@@ -66,6 +66,8 @@ class CudaBackend final : public CudaSearchBackend {
       chooseTiling(plan, false, false);
     } else if (m_options.kernelVariant == -2) {
       chooseTiling(plan, true, true);
+    } else if (m_options.kernelVariant == -5) {
+      plan.stairTma = false;
     } else if (m_options.kernelVariant == -4) {
       if (!chooseStair(plan, 16)) chooseTiling(plan, true, false);
     } else if (m_options.kernelVariant == -3) {

@@ -103,6 +103,7 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.variant = plan.tiledMode;
   p.groups = plan.rowGroups;
   p.stairRows = plan.stairRows;
+  p.stairTma = plan.stairTma;
   return p;
 }
 

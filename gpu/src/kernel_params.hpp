@@ -58,6 +58,7 @@ struct SearchLaunch {
   int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
                            ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
   int stairRows;           ///< stair kernel: pixel rows per block, 8 or 16
+  bool stairTma;           ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
 

@@ -35,6 +35,7 @@ struct HostPlan {
   int framesPerStage = 1;
   int rowGroups = 1;  ///< row kernel: groups of 8 velocities per block
   int stairRows = 8;  ///< stair kernel: pixel rows per block (8: two blocks per SM, 16: one)
+  bool stairTma = true;  ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
   int tiledMode = 0;  ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 

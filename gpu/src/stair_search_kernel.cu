@@ -9,6 +9,8 @@
 // and there is one branch per frame, not one per velocity. The window (11 rows x tile + vx spread, 16-byte
 // aligned) is copied once per frame with 16-byte cp.async and serves all 32 velocities of the block.
 // Per cell the additions run frame by frame, as in the other kernels (same sums, bit for bit).
+#include <cuda.h>
+#include <cudaTypedefs.h>
 #include <cuda_runtime.h>
 
 #include "cuda_check.hpp"
@@ -113,6 +115,43 @@ __device__ __forceinline__ void cpAsyncWaitAll() {
   asm volatile("cp.async.wait_group 0;\n" ::);
 }
 
+__device__ __forceinline__ unsigned smemAddr(const void* p) {
+  return static_cast<unsigned>(__cvta_generic_to_shared(p));
+}
+
+/// Thread 0 starts the tensor-memory-accelerator copies of the windows of frames [n0, n0 + count) (one
+/// instruction per frame; rows and columns outside the frame arrive as zeros) and tells `bar` how many
+/// bytes to expect.
+__device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, float* win, const int* offs,
+                                int n0, int count, int x0, int y0, unsigned long long* bar, int winSize) {
+  if (threadIdx.x != 0) return;
+  const unsigned b = smemAddr(bar);
+  const unsigned bytes = static_cast<unsigned>(count * winSize * sizeof(float));
+  asm volatile("mbarrier.arrive.expect_tx.shared::cta.b64 _, [%0], %1;\n" ::"r"(b), "r"(bytes) : "memory");
+  const unsigned long long m = reinterpret_cast<unsigned long long>(map);
+  for (int i = 0; i < count; ++i) {
+    const int gx = x0 + offs[i * kSOffs];
+    const int gy = y0 + offs[i * kSOffs + 1];
+    const int gz = n0 + i - p.frameBase;
+    asm volatile(
+        "cp.async.bulk.tensor.3d.shared::cluster.global.tile.mbarrier::complete_tx::bytes [%0], [%1, {%2, %3, "
+        "%4}], [%5];\n" ::"r"(smemAddr(win + i * winSize)),
+        "l"(m), "r"(gx), "r"(gy), "r"(gz), "r"(b)
+        : "memory");
+  }
+}
+
+__device__ __forceinline__ void mbarrierWait(unsigned long long* bar, int parity) {
+  unsigned done = 0;
+  do {
+    asm volatile(
+        "{\n .reg .pred q;\n mbarrier.try_wait.parity.shared::cta.b64 q, [%1], %2;\n selp.u32 %0, 1, 0, q;\n}\n"
+        : "=r"(done)
+        : "r"(smemAddr(bar)), "r"(parity)
+        : "memory");
+  } while (!done);
+}
+
 /// Row offset of vy kK of the staircase with pattern kId (see stairOffsetsKernel), at compile time.
 template <int kId, int kK>
 struct StairRow {
@@ -152,10 +191,19 @@ __device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const flo
 
 /// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 16 (one block per SM, twice the
 /// additions per shared-memory load and per copied window row).
-template <int kSR>
-__global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1) stairSearchKernel(SearchLaunch p) {
+/// kTma: windows copied by the tensor memory accelerator (`map`, one instruction per frame) instead of
+/// per-thread 16-byte cp.async.
+template <int kSR, bool kTma>
+__global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1)
+    stairSearchKernel(SearchLaunch p, const __grid_constant__ CUtensorMap map) {
   constexpr int kSWin = kSR + kSVy - 1;
-  extern __shared__ float smem[];
+  extern __shared__ __align__(128) float smem[];
+  __shared__ __align__(8) unsigned long long bars[2];
+  if (kTma && threadIdx.x == 0) {
+    asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;\n" ::"r"(smemAddr(&bars[0])) : "memory");
+    asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;\n" ::"r"(smemAddr(&bars[1])) : "memory");
+    asm volatile("fence.mbarrier_init.release.cluster;\n" ::: "memory");
+  }
   const int lane = threadIdx.x & 31;
   const int warp = threadIdx.x >> 5;
   const int tile = blockIdx.x;  // velocity tiles vary fastest: resident blocks share pixel tiles in L2
@@ -201,7 +249,11 @@ __global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1) stairSearchKernel
     cpAsyncCommit();
     cpAsyncWaitAll();
     __syncthreads();
-    copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1, winSize);
+    if (kTma) {
+      tmaStairWindows(&map, p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, &bars[0], winSize);
+    } else {
+      copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1, winSize);
+    }
     if (stages > 1) copyStairOffsets(p, stageOffs(1), p.f0 + fs, stageCount(1), tile);
     cpAsyncCommit();
   }
@@ -210,11 +262,17 @@ __global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1) stairSearchKernel
     cpAsyncWaitAll();
     __syncthreads();  // stage s landed everywhere, and stage s - 1 is no longer read
     if (s + 1 < stages) {
-      copyStairWindows(p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
-                       stageCount(s + 1), x0, y0, slot0, slot1, winSize);
+      if (kTma) {
+        tmaStairWindows(&map, p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
+                        stageCount(s + 1), x0, y0, &bars[buf ^ 1], winSize);
+      } else {
+        copyStairWindows(p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
+                         stageCount(s + 1), x0, y0, slot0, slot1, winSize);
+      }
       if (s + 2 < stages) copyStairOffsets(p, stageOffs(s + 2), p.f0 + (s + 2) * fs, stageCount(s + 2), tile);
       cpAsyncCommit();
     }
+    if (kTma) mbarrierWait(&bars[buf], (s >> 1) & 1);  // the k-th use of a buffer completes phase k
     const int count = min(fs, frames - s * fs);
     for (int i = 0; i < count; ++i) {
       const int* o = stageOffs(s) + i * kSOffs;
@@ -288,14 +346,54 @@ std::size_t stairSharedBytes(int framesPerStage, int rows) {
 }
 
 void configureStairKernel(std::size_t sharedBytes, int rows) {
+  const int bytes = static_cast<int>(sharedBytes);
   if (rows == 16) {
-    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<16>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                       static_cast<int>(sharedBytes)));
+    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<16, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
+                                       bytes));
   } else {
-    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<8>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                       static_cast<int>(sharedBytes)));
+    ST_CUDA_CHECK(
+        cudaFuncSetAttribute(stairSearchKernel<8, false>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
+    ST_CUDA_CHECK(
+        cudaFuncSetAttribute(stairSearchKernel<8, true>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
   }
 }
+
+namespace {
+
+/// cuTensorMapEncodeTiled from the driver (no link against libcuda), or null.
+PFN_cuTensorMapEncodeTiled_v12000 tensorMapEncoder() {
+  static const PFN_cuTensorMapEncodeTiled_v12000 fn = [] {
+    void* f = nullptr;
+    cudaDriverEntryPointQueryResult q{};
+    if (cudaGetDriverEntryPointByVersion("cuTensorMapEncodeTiled", &f, 12000, cudaEnableDefault, &q) !=
+            cudaSuccess ||
+        q != cudaDriverEntryPointSuccess) {
+      cudaGetLastError();
+      return static_cast<PFN_cuTensorMapEncodeTiled_v12000>(nullptr);
+    }
+    return reinterpret_cast<PFN_cuTensorMapEncodeTiled_v12000>(f);
+  }();
+  return fn;
+}
+
+/// The tensor map of the resident frames [frameBase, f1) with a box of one window; false when the driver
+/// cannot make one (the kernel then copies with cp.async).
+bool makeWindowMap(const SearchLaunch& p, int winRows, CUtensorMap& map) {
+  const auto encode = tensorMapEncoder();
+  if (encode == nullptr) return false;
+  const cuuint64_t dims[3] = {static_cast<cuuint64_t>(p.width), static_cast<cuuint64_t>(p.height),
+                              static_cast<cuuint64_t>(p.f1 - p.frameBase)};
+  const cuuint64_t strides[2] = {static_cast<cuuint64_t>(p.width) * sizeof(float),
+                                 static_cast<cuuint64_t>(p.width) * p.height * sizeof(float)};
+  const cuuint32_t box[3] = {static_cast<cuuint32_t>(kStairPitch), static_cast<cuuint32_t>(winRows), 1};
+  const cuuint32_t elementStrides[3] = {1, 1, 1};
+  return encode(&map, CU_TENSOR_MAP_DATA_TYPE_FLOAT32, 3, const_cast<float*>(p.frames), dims, strides, box,
+                elementStrides, CU_TENSOR_MAP_INTERLEAVE_NONE, CU_TENSOR_MAP_SWIZZLE_NONE,
+                CU_TENSOR_MAP_L2_PROMOTION_L2_128B, CU_TENSOR_MAP_FLOAT_OOB_FILL_NONE) == CUDA_SUCCESS;
+}
+
+}  // namespace
+
 
 int stairTileCount(int nvx, int rows) {
   return ((nvx + kSVx - 1) / kSVx) * ((rows + kSVy - 1) / kSVy);
@@ -316,10 +414,13 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
   const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
                   (p.height + rows - 1) / rows);
   const std::size_t shared = stairSharedBytes(p.framesPerStage, rows);
+  CUtensorMap map{};
   if (rows == 16) {
-    stairSearchKernel<16><<<grid, kSThreads, shared, stream>>>(p);
+    stairSearchKernel<16, false><<<grid, kSThreads, shared, stream>>>(p, map);
+  } else if (p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map)) {
+    stairSearchKernel<8, true><<<grid, kSThreads, shared, stream>>>(p, map);
   } else {
-    stairSearchKernel<8><<<grid, kSThreads, shared, stream>>>(p);
+    stairSearchKernel<8, false><<<grid, kSThreads, shared, stream>>>(p, map);
   }
   checkLaunch("stairSearchKernel");
 }
