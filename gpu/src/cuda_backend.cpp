@@ -69,7 +69,7 @@ class CudaBackend final : public CudaSearchBackend {
     } else if (m_options.kernelVariant == -5) {
       plan.stairTma = false;
     } else if (m_options.kernelVariant == -4) {
-      if (!chooseStair(plan, 16)) chooseTiling(plan, true, false);
+      if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
     } else if (m_options.kernelVariant == -3) {
       chooseTiling(plan, true, false);  // automatic choice without the stair kernel
     }

@@ -57,7 +57,7 @@ struct SearchLaunch {
   int groups;              ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
   int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
                            ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
-  int stairRows;           ///< stair kernel: pixel rows per block, 8 or 16
+  int stairRows;           ///< stair kernel: pixel rows per block, 8 or 4
   bool stairTma;           ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
@@ -115,7 +115,7 @@ int rowTileCount(int nvx, int rows, int groups);
 std::size_t rowOffsetInts();
 
 /// The stair kernel (stair_search_kernel.cu): a block owns kStairVx consecutive vx x kStairVy consecutive
-/// vy and a (32 kStairCols) x (8 or 16) pixel tile; usable when the frame width is a multiple of 4 and, at
+/// vy and a (32 kStairCols) x (8 or 4) pixel tile; usable when the frame width is a multiple of 4 and, at
 /// every frame, neighbouring vy of the grid shift by at most 1 px relative to each other.
 inline constexpr int kStairVx = 8;
 inline constexpr int kStairVy = 4;
@@ -126,7 +126,7 @@ inline constexpr int kStairCols = 2;
 inline constexpr int kStairPitch = 96;
 void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
-/// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 16) pixel rows.
+/// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 4) pixel rows.
 std::size_t stairSharedBytes(int framesPerStage, int rows);
 void configureStairKernel(std::size_t sharedBytes, int rows);
 /// Velocity tiles of the stair kernel for `rows` grid rows.

@@ -72,7 +72,7 @@ bool chooseStair(HostPlan& plan, int rows) {
   const int pitch =
       (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
   if (pitch > kStairPitch) return false;
-  const std::size_t limit = rows == 16 ? std::size_t{200} * 1024 : kTwoBlocksShared;
+  const std::size_t limit = rows == 4 ? std::size_t{52} * 1024 : kTwoBlocksShared;  // 4 or 2 blocks/SM
   int fs = 16;
   while (fs > 1 && stairSharedBytes(fs, rows) > limit)
     fs /= 2;

@@ -33,10 +33,10 @@ struct HostPlan {
   int pitch = 0;
   int winRows = 0;
   int framesPerStage = 1;
-  int rowGroups = 1;  ///< row kernel: groups of 8 velocities per block
-  int stairRows = 8;  ///< stair kernel: pixel rows per block (8: two blocks per SM, 16: one)
+  int rowGroups = 1;     ///< row kernel: groups of 8 velocities per block
+  int stairRows = 8;     ///< stair kernel: pixel rows per block (8: two blocks per SM, 4: four)
   bool stairTma = true;  ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
-  int tiledMode = 0;  ///< inner loop of the tiled kernel (SearchLaunch::variant)
+  int tiledMode = 0;     ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 
 /// Builds the tables for `cube` and `grid`. `threshold` is the SNR threshold actually used and
@@ -50,7 +50,7 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
 void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair = false);
 
 /// True when the stair kernel applies to `plan`: width a multiple of 4 and neighbouring vy at most 1 px
-/// apart at every frame; sets its pitch and frames per stage for `rows` (8 or 16) pixel rows per block.
+/// apart at every frame; sets its pitch and frames per stage for `rows` (8 or 4) pixel rows per block.
 bool chooseStair(HostPlan& plan, int rows = 8);
 
 /// Checks what the CUDA backend needs beyond st::search::validateSearchInput (pixel buffer size, frame

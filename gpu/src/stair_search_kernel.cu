@@ -20,9 +20,9 @@
 namespace st::gpu {
 namespace {
 
-constexpr int kSVx = kStairVx;         // warps per block, one vx each
-constexpr int kSVy = kStairVy;         // vy per thread (staircase of 4)
-constexpr int kSC = kStairCols;        // columns per thread, stride 32
+constexpr int kSVx = kStairVx;           // warps per block, one vx each
+constexpr int kSVy = kStairVy;           // vy per thread (staircase of 4)
+constexpr int kSC = kStairCols;          // columns per thread, stride 32
 constexpr int kSMaxWin = 16 + kSVy - 1;  // window rows at most (16 pixel rows)
 constexpr int kSOffs = 4 + kSVx;  // origin x, origin y, pattern, staircase height, column offset per warp
 constexpr int kSThreads = 32 * kSVx;
@@ -134,7 +134,8 @@ __device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, f
     const int gy = y0 + offs[i * kSOffs + 1];
     const int gz = n0 + i - p.frameBase;
     asm volatile(
-        "cp.async.bulk.tensor.3d.shared::cluster.global.tile.mbarrier::complete_tx::bytes [%0], [%1, {%2, %3, "
+        "cp.async.bulk.tensor.3d.shared::cluster.global.tile.mbarrier::complete_tx::bytes [%0], [%1, {%2, "
+        "%3, "
         "%4}], [%5];\n" ::"r"(smemAddr(win + i * winSize)),
         "l"(m), "r"(gx), "r"(gy), "r"(gz), "r"(b)
         : "memory");
@@ -145,7 +146,8 @@ __device__ __forceinline__ void mbarrierWait(unsigned long long* bar, int parity
   unsigned done = 0;
   do {
     asm volatile(
-        "{\n .reg .pred q;\n mbarrier.try_wait.parity.shared::cta.b64 q, [%1], %2;\n selp.u32 %0, 1, 0, q;\n}\n"
+        "{\n .reg .pred q;\n mbarrier.try_wait.parity.shared::cta.b64 q, [%1], %2;\n selp.u32 %0, 1, 0, "
+        "q;\n}\n"
         : "=r"(done)
         : "r"(smemAddr(bar)), "r"(parity)
         : "memory");
@@ -184,17 +186,17 @@ __device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const flo
   addStairRow<kId, 3, kSR>(acc, v);
 }
 
-#define ST_STAIR_CASE(c) \
-  case c:                \
+#define ST_STAIR_CASE(c)      \
+  case c:                     \
     addStair<c, kSR>(acc, v); \
     break;
 
-/// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 16 (one block per SM, twice the
-/// additions per shared-memory load and per copied window row).
+/// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 4 (four blocks per SM: more warps to
+/// hide latencies, fewer additions per shared-memory load).
 /// kTma: windows copied by the tensor memory accelerator (`map`, one instruction per frame) instead of
 /// per-thread 16-byte cp.async.
 template <int kSR, bool kTma>
-__global__ void __launch_bounds__(kSThreads, kSR == 8 ? 2 : 1)
+__global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     stairSearchKernel(SearchLaunch p, const __grid_constant__ CUtensorMap map) {
   constexpr int kSWin = kSR + kSVy - 1;
   extern __shared__ __align__(128) float smem[];
@@ -345,16 +347,19 @@ std::size_t stairSharedBytes(int framesPerStage, int rows) {
           3 * kSOffs * sizeof(int));
 }
 
+template <int kSR>
+void setStairShared(int bytes) {
+  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<kSR, false>,
+                                     cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
+  ST_CUDA_CHECK(
+      cudaFuncSetAttribute(stairSearchKernel<kSR, true>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
+}
+
 void configureStairKernel(std::size_t sharedBytes, int rows) {
-  const int bytes = static_cast<int>(sharedBytes);
-  if (rows == 16) {
-    ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<16, false>, cudaFuncAttributeMaxDynamicSharedMemorySize,
-                                       bytes));
+  if (rows == 4) {
+    setStairShared<4>(static_cast<int>(sharedBytes));
   } else {
-    ST_CUDA_CHECK(
-        cudaFuncSetAttribute(stairSearchKernel<8, false>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
-    ST_CUDA_CHECK(
-        cudaFuncSetAttribute(stairSearchKernel<8, true>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
+    setStairShared<8>(static_cast<int>(sharedBytes));
   }
 }
 
@@ -394,7 +399,6 @@ bool makeWindowMap(const SearchLaunch& p, int winRows, CUtensorMap& map) {
 
 }  // namespace
 
-
 int stairTileCount(int nvx, int rows) {
   return ((nvx + kSVx - 1) / kSVx) * ((rows + kSVy - 1) / kSVy);
 }
@@ -415,9 +419,14 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
                   (p.height + rows - 1) / rows);
   const std::size_t shared = stairSharedBytes(p.framesPerStage, rows);
   CUtensorMap map{};
-  if (rows == 16) {
-    stairSearchKernel<16, false><<<grid, kSThreads, shared, stream>>>(p, map);
-  } else if (p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map)) {
+  const bool tma = p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map);
+  if (rows == 4) {
+    if (tma) {
+      stairSearchKernel<4, true><<<grid, kSThreads, shared, stream>>>(p, map);
+    } else {
+      stairSearchKernel<4, false><<<grid, kSThreads, shared, stream>>>(p, map);
+    }
+  } else if (tma) {
     stairSearchKernel<8, true><<<grid, kSThreads, shared, stream>>>(p, map);
   } else {
     stairSearchKernel<8, false><<<grid, kSThreads, shared, stream>>>(p, map);
