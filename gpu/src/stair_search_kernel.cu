@@ -1,14 +1,17 @@
 // The stair kernel: the fast path of the exact IPSA search when neighbouring vy of the grid are at most
-// 1 px apart at every frame (the paper's grid design). A block owns a 64 x 8 pixel tile and 8 consecutive
-// vx (one per warp) x 4 consecutive vy. At one frame the 4 vy have row shifts that form a staircase
-// (each step 0 or 1 px, all up or all down: one of 15 patterns), and all 4 share the column shift of the
-// warp's vx. Each thread owns 2 columns (stride 32) x 8 rows: it loads the 8 + (staircase height) rows it
-// needs into registers once per frame (conflict-free 4-byte shared loads, any column offset) and adds
-// them into 4 velocities x 16 accumulators, the register of each addition fixed at compile time by a
-// switch on the pattern, uniform across the block. One shared-memory value thus feeds up to 4 additions
-// and there is one branch per frame, not one per velocity. The window (11 rows x tile + vx spread, 16-byte
-// aligned) is copied once per frame with 16-byte cp.async and serves all 32 velocities of the block.
-// Per cell the additions run frame by frame, as in the other kernels (same sums, bit for bit).
+// 1 px apart at every frame (the paper's grid design). A block owns a 64 x 8 pixel tile (or 64 x 4) and 8
+// consecutive vx (one per warp) x 4 consecutive vy. At one frame the 4 vy have row shifts that form a
+// staircase (each step 0 or 1 px, all up or all down: one of 15 patterns), and all 4 share the column
+// shift of the warp's vx. Each thread owns 2 columns (stride 32) x 8 rows: it loads the 8 + (staircase
+// height) rows it needs into registers once per frame (conflict-free 4-byte shared loads at any column
+// offset) and adds them into 4 velocities x 16 accumulators, the register of each addition fixed at compile
+// time by a switch on the pattern, uniform across the block. One shared-memory value thus feeds up to 4
+// additions and there is one branch per frame, not one per velocity. The window of a frame (11 rows x
+// kStairPitch columns from a 16-byte-aligned origin, zeros outside the frame) is copied once per frame by
+// the tensor memory accelerator (one instruction, completion on an mbarrier; 16-byte cp.async when the
+// driver cannot make a tensor map) and serves all 32 velocities of the block. The per-frame offsets table
+// is copied one stage ahead. Per cell the additions run frame by frame, as in the other kernels (same
+// sums, bit for bit).
 #include <cuda.h>
 #include <cudaTypedefs.h>
 #include <cuda_runtime.h>
