@@ -181,17 +181,29 @@ __device__ __forceinline__ void addStairRow(float (&acc)[kSVy][kSR][kSC], const 
   }
 }
 
+/// The additions of one frame for staircase kId: first loads the rows below the tile this staircase
+/// needs (its height, known here at compile time), then adds.
 template <int kId, int kSR>
-__device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], const float (&v)[kSR + 3][kSC]) {
+__device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], float (&v)[kSR + 3][kSC],
+                                         const float* w) {
+  constexpr int kA = StairRow<kId, 0>::value;
+  constexpr int kB = StairRow<kId, kSVy - 1>::value;
+  constexpr int kHeight = kA > kB ? kA : kB;
+#pragma unroll
+  for (int q = 0; q < kHeight; ++q) {
+#pragma unroll
+    for (int j = 0; j < kSC; ++j)
+      v[kSR + q][j] = w[(kSR + q) * kStairPitch + 32 * j];
+  }
   addStairRow<kId, 0, kSR>(acc, v);
   addStairRow<kId, 1, kSR>(acc, v);
   addStairRow<kId, 2, kSR>(acc, v);
   addStairRow<kId, 3, kSR>(acc, v);
 }
 
-#define ST_STAIR_CASE(c)      \
-  case c:                     \
-    addStair<c, kSR>(acc, v); \
+#define ST_STAIR_CASE(c)         \
+  case c:                        \
+    addStair<c, kSR>(acc, v, w); \
     break;
 
 /// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 4 (four blocks per SM: more warps to
@@ -282,14 +294,13 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     for (int i = 0; i < count; ++i) {
       const int* o = stageOffs(s) + i * kSOffs;
       const int pattern = o[2];
-      const int height = o[3];
       const float* w = wins + (buf * fs + i) * winSize + o[4 + warp] + lane;
       float v[kSWin][kSC];
 #pragma unroll
       for (int r = 0; r < kSWin; ++r) {
 #pragma unroll
         for (int j = 0; j < kSC; ++j)
-          v[r][j] = (r < kSR || r - kSR < height) ? w[r * kStairPitch + 32 * j] : 0.0f;  // uniform
+          v[r][j] = r < kSR ? w[r * kStairPitch + 32 * j] : 0.0f;  // rows below: loaded by the case
       }
       switch (pattern) {  // uniform across the block
         ST_STAIR_CASE(0)
