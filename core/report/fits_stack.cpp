@@ -29,6 +29,7 @@ void writeStackFits(const std::string& path, const Image& stack, const StackProv
   params.setNumber("TREFMJD", p.tRefMjd, "epoch of the pixel positions, MJD (UTC)");
   params.setNumber("NFRAMES", static_cast<double>(p.frames), "frames stacked");
   params.setString("STMODE", p.mode, "stack mode");
+  if (wcs != nullptr) params.setNumber("WCSEPOCH", p.tRefMjd, "MJD (UTC) the WCS maps pixel positions at");
   FitsHeader h = io::provenanceCards(p.what, params);
   for (const auto& in : p.inputs) h.cards.push_back(FitsCard{"HISTORY", "", "input " + in, false});
   if (wcs != nullptr) {

@@ -31,7 +31,7 @@ struct StackProvenance {
 
 /// Writes `stack` as a float32 FITS image (io::writeImage) with provenance cards (SOFTWARE, STEP, DATE,
 /// STVX/STVY px/s, SKYVX/SKYVY px/s, TREFMJD, NFRAMES, STMODE, one HISTORY card per input) and, when `wcs`
-/// is given, wcsCardsAtTRef. Throws st::FitsError.
+/// is given, wcsCardsAtTRef and WCSEPOCH = tRefMjd (the epoch the WCS maps pixels at; `report --wcs` reads it). Throws st::FitsError.
 void writeStackFits(const std::string& path, const Image& stack, const StackProvenance& provenance,
                     const Wcs* wcs, double mappingEpochOffsetS);
 

@@ -1,0 +1,178 @@
+// synthtrack-cli report CANDIDATES.json: vetting labels into a session file, and the reports of issue 8 —
+// DS9 regions of every candidate, ADES PSV and MPC 80-column astrometry of the candidates labelled real.
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli_args.hpp"
+#include "commands.hpp"
+#include "st/common/error.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/io/wcs.hpp"
+#include "st/report/session_report.hpp"
+#include "st/session/session.hpp"
+
+namespace st::app {
+namespace {
+
+constexpr const char* kHelp =
+    "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note N=TEXT]...\n"
+    "                             [--ds9 out.reg] [--ades out.psv] [--mpc out.txt] [--station CODE]\n"
+    "                             [--observer NAME] [--measurer NAME] [--ast-cat CAT] [--safe-snr S]\n"
+    "                             [--wcs FITS]\n"
+    "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
+    "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
+    "                    change is saved at once (atomically)\n"
+    "  --label N=LABEL   label candidate N (1-based): real, unsure, unvetted, artifact or\n"
+    "                    artifact:REASON (charge_leakage, diffraction, cosmic_ray, ghost, other)\n"
+    "  --note N=TEXT     a note on candidate N\n"
+    "  --ds9 FILE        DS9 regions of every candidate (fk5 with --wcs, else image coordinates)\n"
+    "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
+    "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to)\n"
+    "  --ades FILE       ADES PSV astrometry of the candidates labelled real (needs --station)\n"
+    "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real (needs --station)\n"
+    "  --station CODE    MPC observatory code (kept in the session's settings)\n"
+    "  --observer NAME   observer name(s), comma-separated (kept in the session's settings)\n"
+    "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
+    "  --safe-snr S      warn for detections below this SNR (default 7)\n";
+
+nlohmann::json readJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot read '" + path + "'");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("'" + path + "' is not valid JSON: " + e.what());
+  }
+}
+
+std::pair<std::size_t, std::string> indexed(const std::string& text, const char* option) {
+  const auto eq = text.find('=');
+  std::size_t pos = 0;
+  long long n = 0;
+  try {
+    n = std::stoll(text.substr(0, eq), &pos);
+  } catch (const std::exception&) {
+    pos = std::string::npos;
+  }
+  if (eq == std::string::npos || pos != eq || n < 1) {
+    throw UsageError(std::string("--") + option + " needs N=VALUE with N >= 1, got '" + text + "'");
+  }
+  return {static_cast<std::size_t>(n - 1), text.substr(eq + 1)};
+}
+
+void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
+  for (const auto& v : cli.values("label")) {
+    auto [i, text] = indexed(v, "label");
+    const auto colon = text.find(':');
+    const session::Label label = session::labelFromString(text.substr(0, colon));
+    const session::ArtifactReason reason =
+        colon == std::string::npos ? session::ArtifactReason::None : session::reasonFromString(text.substr(colon + 1));
+    ed.setLabel(i, label, reason);
+  }
+  for (const auto& v : cli.values("note")) {
+    auto [i, text] = indexed(v, "note");
+    ed.setNote(i, text);
+  }
+  nlohmann::json settings = ed.session().settings;
+  if (auto s = cli.value("station")) settings["station"] = *s;
+  if (auto s = cli.value("observer")) settings["observers"] = *s;
+  if (auto s = cli.value("measurer")) settings["measurer"] = *s;
+  if (auto s = cli.value("ast-cat")) settings["ast_cat"] = *s;
+  if (settings != ed.session().settings) ed.setSettings(settings);
+}
+
+report::SubmissionSettings submissionSettings(const nlohmann::json& s, const CliArgs& cli) {
+  report::SubmissionSettings out;
+  out.stationCode = s.value("station", std::string{});
+  out.observers = s.value("observers", std::string{});
+  out.measurer = s.value("measurer", std::string{});
+  out.astCat = s.value("ast_cat", std::string{});
+  out.safeSnr = cli.number("safe-snr", out.safeSnr);
+  if (out.stationCode.empty()) throw UsageError("ADES and MPC reports need --station CODE (MPC observatory code)");
+  return out;
+}
+
+void writeText(const std::string& path, const std::string& text) {
+  std::ofstream out(path);
+  if (!out) throw InputError("cannot write '" + path + "'");
+  out << text;
+  if (!out) throw InputError("error writing '" + path + "'");
+}
+
+void writeDs9(const std::string& path, const CliArgs& cli, const session::Session& s) {
+  const auto marks = report::regionMarks(s);
+  if (auto wcsFile = cli.value("wcs")) {
+    const FrameCube cube = io::loadFrames({*wcsFile});
+    if (!cube.wcs) throw InputError("'" + *wcsFile + "' has no usable celestial WCS");
+    const double epoch = cube.header.getDouble("WCSEPOCH").value_or(cube.info().front().mjdMid);
+    const double tRef = s.search.value("t_ref_mjd", epoch);
+    Velocity sky;
+    if (s.search.contains("sky_rate")) sky = {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+    report::writeDs9Regions(path, marks, report::skyMappingAtTRef(*cube.wcs, sky, (epoch - tRef) * 86400.0));
+  } else {
+    report::writeDs9Regions(path, marks, {});
+  }
+  std::printf("DS9 regions of %zu candidates: %s\n", marks.size(), path.c_str());
+}
+
+}  // namespace
+
+int cmdReport(const Args& args) {
+  const CliArgs cli(args,
+                    {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer", "ast-cat",
+                     "safe-snr", "wcs"},
+                    {"help"});
+  if (cli.flag("help")) {
+    std::printf("%s", kHelp);
+    return 0;
+  }
+  if (cli.positionals().size() != 1) throw UsageError("give one CANDIDATES.json");
+  const std::string candidatesPath = cli.positionals()[0];
+  session::Session s;
+  std::optional<session::SessionStore> store;
+  if (auto path = cli.value("session")) {
+    store.emplace(*path);
+    if (store->exists()) {
+      s = store->load();
+    } else {
+      s = session::fromSearchJson(readJson(candidatesPath));
+      store->save(s);
+      std::printf("new session %s (%zu candidates)\n", path->c_str(), s.candidates.size());
+    }
+  } else {
+    s = session::fromSearchJson(readJson(candidatesPath));
+    if (cli.has("label") || cli.has("note")) {
+      std::fprintf(stderr, "warning: without --session the labels and notes are not kept\n");
+    }
+  }
+  session::SessionEditor editor(store, std::move(s));
+  applyEdits(cli, editor);
+  const session::Session& cur = editor.session();
+  if (auto p = cli.value("ds9")) writeDs9(*p, cli, cur);
+  if (cli.has("ades") || cli.has("mpc")) {
+    const report::SubmissionSettings settings = submissionSettings(cur.settings, cli);
+    std::vector<std::string> warnings;
+    const auto detections = report::realDetections(cur, warnings);
+    if (detections.empty()) warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
+    if (auto p = cli.value("ades")) {
+      const auto t = report::formatAdesPsv(detections, settings);
+      writeText(*p, t.text);
+      warnings.insert(warnings.end(), t.warnings.begin(), t.warnings.end());
+      std::printf("ADES PSV, %zu detections: %s\n", detections.size(), p->c_str());
+    }
+    if (auto p = cli.value("mpc")) {
+      const auto t = report::formatMpc80(detections, settings);
+      writeText(*p, t.text);
+      for (const auto& w : t.warnings) {
+        if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
+      }
+      std::printf("MPC 80-column, %zu detections: %s\n", detections.size(), p->c_str());
+    }
+    for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+  }
+  return 0;
+}
+
+}  // namespace st::app
