@@ -2,6 +2,7 @@
 // DS9 regions of every candidate, ADES PSV and MPC 80-column astrometry of the candidates labelled real.
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -10,6 +11,9 @@
 #include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
+#include "st/report/fits_stack.hpp"
+#include "st/stack/ipsa.hpp"
+#include "terminal_progress.hpp"
 #include "st/report/session_report.hpp"
 #include "st/session/session.hpp"
 
@@ -35,7 +39,9 @@ constexpr const char* kHelp =
     "  --station CODE    MPC observatory code (kept in the session's settings)\n"
     "  --observer NAME   observer name(s), comma-separated (kept in the session's settings)\n"
     "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
-    "  --safe-snr S      warn for detections below this SNR (default 7)\n";
+    "  --safe-snr S      warn for detections below this SNR (default 7)\n"
+    "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
+    "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
 
 nlohmann::json readJson(const std::string& path) {
   std::ifstream in(path);
@@ -101,6 +107,11 @@ void writeText(const std::string& path, const std::string& text) {
   if (!out) throw InputError("error writing '" + path + "'");
 }
 
+Velocity skyRateOf(const session::Session& s) {
+  if (!s.search.contains("sky_rate")) return {};
+  return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+}
+
 void writeDs9(const std::string& path, const CliArgs& cli, const session::Session& s) {
   const auto marks = report::regionMarks(s);
   if (auto wcsFile = cli.value("wcs")) {
@@ -108,13 +119,38 @@ void writeDs9(const std::string& path, const CliArgs& cli, const session::Sessio
     if (!cube.wcs) throw InputError("'" + *wcsFile + "' has no usable celestial WCS");
     const double epoch = cube.header.getDouble("WCSEPOCH").value_or(cube.info().front().mjdMid);
     const double tRef = s.search.value("t_ref_mjd", epoch);
-    Velocity sky;
-    if (s.search.contains("sky_rate")) sky = {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
-    report::writeDs9Regions(path, marks, report::skyMappingAtTRef(*cube.wcs, sky, (epoch - tRef) * 86400.0));
+    report::writeDs9Regions(path, marks, report::skyMappingAtTRef(*cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0));
   } else {
     report::writeDs9Regions(path, marks, {});
   }
   std::printf("DS9 regions of %zu candidates: %s\n", marks.size(), path.c_str());
+}
+
+void writeStacks(const std::string& dir, const session::Session& s) {
+  if (s.inputs.empty()) throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
+  std::filesystem::create_directories(dir);
+  TerminalProgress progress;
+  const FrameCube cube = io::loadFrames(s.inputs, io::LoadOptions{}, progress, processCancelToken());
+  progress.finish();
+  const double firstOffsetS = cube.timeOffsetsS().front();
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    const auto& c = s.candidates[i];
+    if (c.label != session::Label::Real) continue;
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    const nlohmann::json& src = fitted ? c.fit : c.candidate;
+    report::StackProvenance p;
+    p.velocity = {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)};
+    p.what = "candidate " + std::to_string(i + 1) + ", IPSA at its " + (fitted ? "fitted" : "search") + " velocity";
+    p.skyRate = skyRateOf(s);
+    p.tRefMjd = cube.tRefMjd();
+    p.frames = cube.frameCount();
+    p.inputs = s.inputs;
+    char name[64];
+    std::snprintf(name, sizeof name, "stack_candidate%03zu.fits", i + 1);
+    const std::string path = (std::filesystem::path(dir) / name).string();
+    report::writeStackFits(path, stack::stackIpsa(cube, p.velocity).sum, p, cube.wcs.get(), firstOffsetS);
+    std::printf("FITS stack of candidate %zu: %s\n", i + 1, path.c_str());
+  }
 }
 
 }  // namespace
@@ -122,7 +158,7 @@ void writeDs9(const std::string& path, const CliArgs& cli, const session::Sessio
 int cmdReport(const Args& args) {
   const CliArgs cli(args,
                     {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer", "ast-cat",
-                     "safe-snr", "wcs"},
+                     "safe-snr", "wcs", "stacks"},
                     {"help"});
   if (cli.flag("help")) {
     std::printf("%s", kHelp);
@@ -151,6 +187,7 @@ int cmdReport(const Args& args) {
   applyEdits(cli, editor);
   const session::Session& cur = editor.session();
   if (auto p = cli.value("ds9")) writeDs9(*p, cli, cur);
+  if (auto p = cli.value("stacks")) writeStacks(*p, cur);
   if (cli.has("ades") || cli.has("mpc")) {
     const report::SubmissionSettings settings = submissionSettings(cur.settings, cli);
     std::vector<std::string> warnings;
