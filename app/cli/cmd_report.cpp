@@ -12,19 +12,20 @@
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
 #include "st/report/fits_stack.hpp"
-#include "st/stack/ipsa.hpp"
-#include "terminal_progress.hpp"
 #include "st/report/session_report.hpp"
 #include "st/session/session.hpp"
+#include "st/stack/ipsa.hpp"
+#include "terminal_progress.hpp"
 
 namespace st::app {
 namespace {
 
 constexpr const char* kHelp =
-    "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note N=TEXT]...\n"
+    "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note "
+    "N=TEXT]...\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--mpc out.txt] [--station CODE]\n"
     "                             [--observer NAME] [--measurer NAME] [--ast-cat CAT] [--safe-snr S]\n"
-    "                             [--wcs FITS]\n"
+    "                             [--mpc-cat C] [--wcs FITS] [--stacks DIR]\n"
     "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
     "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
     "                    change is saved at once (atomically)\n"
@@ -33,12 +34,15 @@ constexpr const char* kHelp =
     "  --note N=TEXT     a note on candidate N\n"
     "  --ds9 FILE        DS9 regions of every candidate (fk5 with --wcs, else image coordinates)\n"
     "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
-    "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to)\n"
+    "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to); also gives real "
+    "candidates\n"
+    "                    whose fit has no RA/Dec one, at the fitted position\n"
     "  --ades FILE       ADES PSV astrometry of the candidates labelled real (needs --station)\n"
     "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real (needs --station)\n"
     "  --station CODE    MPC observatory code (kept in the session's settings)\n"
     "  --observer NAME   observer name(s), comma-separated (kept in the session's settings)\n"
     "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
+    "  --mpc-cat C       80-column catalogue code of the WCS (column 72, e.g. W for Gaia DR3)\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
     "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
     "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
@@ -73,8 +77,9 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
     auto [i, text] = indexed(v, "label");
     const auto colon = text.find(':');
     const session::Label label = session::labelFromString(text.substr(0, colon));
-    const session::ArtifactReason reason =
-        colon == std::string::npos ? session::ArtifactReason::None : session::reasonFromString(text.substr(colon + 1));
+    const session::ArtifactReason reason = colon == std::string::npos
+                                               ? session::ArtifactReason::None
+                                               : session::reasonFromString(text.substr(colon + 1));
     ed.setLabel(i, label, reason);
   }
   for (const auto& v : cli.values("note")) {
@@ -86,6 +91,10 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (auto s = cli.value("observer")) settings["observers"] = *s;
   if (auto s = cli.value("measurer")) settings["measurer"] = *s;
   if (auto s = cli.value("ast-cat")) settings["ast_cat"] = *s;
+  if (auto s = cli.value("mpc-cat")) {
+    if (s->size() != 1) throw UsageError("--mpc-cat needs one character (column 72 of the 80-column format)");
+    settings["mpc_catalog_code"] = *s;
+  }
   if (settings != ed.session().settings) ed.setSettings(settings);
 }
 
@@ -95,8 +104,11 @@ report::SubmissionSettings submissionSettings(const nlohmann::json& s, const Cli
   out.observers = s.value("observers", std::string{});
   out.measurer = s.value("measurer", std::string{});
   out.astCat = s.value("ast_cat", std::string{});
+  if (const std::string c = s.value("mpc_catalog_code", std::string{}); c.size() == 1)
+    out.mpcCatalogCode = c[0];
   out.safeSnr = cli.number("safe-snr", out.safeSnr);
-  if (out.stationCode.empty()) throw UsageError("ADES and MPC reports need --station CODE (MPC observatory code)");
+  if (out.stationCode.empty())
+    throw UsageError("ADES and MPC reports need --station CODE (MPC observatory code)");
   return out;
 }
 
@@ -112,22 +124,50 @@ Velocity skyRateOf(const session::Session& s) {
   return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
 }
 
-void writeDs9(const std::string& path, const CliArgs& cli, const session::Session& s) {
-  const auto marks = report::regionMarks(s);
-  if (auto wcsFile = cli.value("wcs")) {
-    const FrameCube cube = io::loadFrames({*wcsFile});
-    if (!cube.wcs) throw InputError("'" + *wcsFile + "' has no usable celestial WCS");
-    const double epoch = cube.header.getDouble("WCSEPOCH").value_or(cube.info().front().mjdMid);
-    const double tRef = s.search.value("t_ref_mjd", epoch);
-    report::writeDs9Regions(path, marks, report::skyMappingAtTRef(*cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0));
-  } else {
-    report::writeDs9Regions(path, marks, {});
+/// The WCS of --wcs FILE, mapping pixels at t_ref (the file's WCSEPOCH, else its first frame's time, is the
+/// epoch its WCS belongs to). Holds the loaded cube so the mapping's Wcs stays alive.
+struct WcsMapping {
+  FrameCube cube;
+  astro::PixelToSky toSky;
+};
+
+std::optional<WcsMapping> loadWcs(const CliArgs& cli, const session::Session& s) {
+  const auto file = cli.value("wcs");
+  if (!file) return std::nullopt;
+  WcsMapping m;
+  m.cube = io::loadFrames({*file});
+  if (!m.cube.wcs) throw InputError("'" + *file + "' has no usable celestial WCS");
+  const double epoch = m.cube.header.getDouble("WCSEPOCH").value_or(m.cube.info().front().mjdMid);
+  const double tRef = s.search.value("t_ref_mjd", epoch);
+  m.toSky = report::skyMappingAtTRef(*m.cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0);
+  return m;
+}
+
+/// Real candidates whose converged fit has no sky position get one through the --wcs mapping (in memory).
+session::Session withSkyPositions(session::Session s, const std::optional<WcsMapping>& wcs) {
+  if (!wcs) return s;
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    auto& c = s.candidates[i];
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    if (c.label != session::Label::Real || !fitted || c.fit.contains("ra_deg")) continue;
+    const auto p = wcs->toSky(c.fit.value("x", 0.0), c.fit.value("y", 0.0));
+    c.fit["ra_deg"] = p.raDeg;
+    c.fit["dec_deg"] = p.decDeg;
+    std::fprintf(stderr, "note: candidate %zu: sky position from --wcs at its fitted position\n", i + 1);
   }
-  std::printf("DS9 regions of %zu candidates: %s\n", marks.size(), path.c_str());
+  return s;
+}
+
+void writeDs9(const std::string& path, const session::Session& s, const std::optional<WcsMapping>& wcs) {
+  const auto marks = report::regionMarks(s);
+  report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{});
+  std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), wcs ? "fk5" : "image coordinates",
+              path.c_str());
 }
 
 void writeStacks(const std::string& dir, const session::Session& s) {
-  if (s.inputs.empty()) throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
+  if (s.inputs.empty())
+    throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
   std::filesystem::create_directories(dir);
   TerminalProgress progress;
   const FrameCube cube = io::loadFrames(s.inputs, io::LoadOptions{}, progress, processCancelToken());
@@ -140,7 +180,8 @@ void writeStacks(const std::string& dir, const session::Session& s) {
     const nlohmann::json& src = fitted ? c.fit : c.candidate;
     report::StackProvenance p;
     p.velocity = {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)};
-    p.what = "candidate " + std::to_string(i + 1) + ", IPSA at its " + (fitted ? "fitted" : "search") + " velocity";
+    p.what = "candidate " + std::to_string(i + 1) + ", IPSA at its " + (fitted ? "fitted" : "search") +
+             " velocity";
     p.skyRate = skyRateOf(s);
     p.tRefMjd = cube.tRefMjd();
     p.frames = cube.frameCount();
@@ -157,8 +198,8 @@ void writeStacks(const std::string& dir, const session::Session& s) {
 
 int cmdReport(const Args& args) {
   const CliArgs cli(args,
-                    {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer", "ast-cat",
-                     "safe-snr", "wcs", "stacks"},
+                    {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer",
+                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat"},
                     {"help"});
   if (cli.flag("help")) {
     std::printf("%s", kHelp);
@@ -185,14 +226,16 @@ int cmdReport(const Args& args) {
   }
   session::SessionEditor editor(store, std::move(s));
   applyEdits(cli, editor);
-  const session::Session& cur = editor.session();
-  if (auto p = cli.value("ds9")) writeDs9(*p, cli, cur);
+  const std::optional<WcsMapping> wcs = loadWcs(cli, editor.session());
+  const session::Session cur = withSkyPositions(editor.session(), wcs);
+  if (auto p = cli.value("ds9")) writeDs9(*p, cur, wcs);
   if (auto p = cli.value("stacks")) writeStacks(*p, cur);
   if (cli.has("ades") || cli.has("mpc")) {
     const report::SubmissionSettings settings = submissionSettings(cur.settings, cli);
     std::vector<std::string> warnings;
     const auto detections = report::realDetections(cur, warnings);
-    if (detections.empty()) warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
+    if (detections.empty())
+      warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
     if (auto p = cli.value("ades")) {
       const auto t = report::formatAdesPsv(detections, settings);
       writeText(*p, t.text);
@@ -207,7 +250,8 @@ int cmdReport(const Args& args) {
       }
       std::printf("MPC 80-column, %zu detections: %s\n", detections.size(), p->c_str());
     }
-    for (const auto& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+    for (const auto& w : warnings)
+      std::fprintf(stderr, "warning: %s\n", w.c_str());
   }
   return 0;
 }

@@ -31,9 +31,11 @@ void writeStackFits(const std::string& path, const Image& stack, const StackProv
   params.setString("STMODE", p.mode, "stack mode");
   if (wcs != nullptr) params.setNumber("WCSEPOCH", p.tRefMjd, "MJD (UTC) the WCS maps pixel positions at");
   FitsHeader h = io::provenanceCards(p.what, params);
-  for (const auto& in : p.inputs) h.cards.push_back(FitsCard{"HISTORY", "", "input " + in, false});
+  for (const auto& in : p.inputs)
+    h.cards.push_back(FitsCard{"HISTORY", "", "input " + in, false});
   if (wcs != nullptr) {
-    for (const auto& c : wcsCardsAtTRef(*wcs, p.skyRate, mappingEpochOffsetS).cards) h.cards.push_back(c);
+    for (const auto& c : wcsCardsAtTRef(*wcs, p.skyRate, mappingEpochOffsetS).cards)
+      h.cards.push_back(c);
   }
   io::writeImage(path, stack, h);
 }

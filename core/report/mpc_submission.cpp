@@ -29,7 +29,9 @@ void civilFromMjdDay(long long mjdDay, int& year, int& month, int& day) {
   year = static_cast<int>(100 * (n - 49) + i + l);
 }
 
-long long floorDiv(long long a, long long b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0))); }
+long long floorDiv(long long a, long long b) {
+  return a / b - ((a % b != 0) && ((a < 0) != (b < 0)));
+}
 
 void checkSettings(const SubmissionSettings& s) {
   if (s.stationCode.size() != 3) {
@@ -41,9 +43,10 @@ void lowSnrWarnings(const std::vector<AstrometricDetection>& ds, const Submissio
                     std::vector<std::string>& warnings) {
   for (const auto& d : ds) {
     if (d.snr < s.safeSnr) {
-      warnings.push_back(fmt("%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections "
-                             "pulled out of the noise: confirm it before submitting",
-                             d.trkSub.c_str(), d.snr, s.safeSnr));
+      warnings.push_back(
+          fmt("%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections "
+              "pulled out of the noise: confirm it before submitting",
+              d.trkSub.c_str(), d.snr, s.safeSnr));
     }
   }
 }
@@ -118,10 +121,12 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
 
 SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
   SubmissionText out;
-  for (const auto& d : ds) out.text += mpc80Line(d, s) + "\n";
+  for (const auto& d : ds)
+    out.text += mpc80Line(d, s) + "\n";
   if (s.mpcCatalogCode == ' ') {
-    out.warnings.push_back("80-column: column 72 (astrometric catalogue code) is blank; set the catalogue of "
-                           "the WCS solution");
+    out.warnings.push_back(
+        "80-column: column 72 (astrometric catalogue code) is blank; set the catalogue of "
+        "the WCS solution");
   }
   lowSnrWarnings(ds, s, out.warnings);
   return out;
@@ -132,7 +137,8 @@ SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const 
   SubmissionText out;
   std::string& t = out.text;
   t += "# version=2017\n# observatory\n! mpcCode " + s.stationCode + "\n";
-  const std::string measurer = !s.measurer.empty() ? s.measurer : s.observers.substr(0, s.observers.find(','));
+  const std::string measurer =
+      !s.measurer.empty() ? s.measurer : s.observers.substr(0, s.observers.find(','));
   const std::string submitter = !s.submitter.empty() ? s.submitter : measurer;
   if (!submitter.empty()) t += "# submitter\n! name " + submitter + "\n";
   if (!s.observers.empty()) {
@@ -152,24 +158,29 @@ SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const 
   t += "# telescope\n! design " + s.telescopeDesign + "\n";
   if (s.apertureM > 0.0) t += fmt("! aperture %.2f\n", s.apertureM);
   t += "! detector " + s.detector + "\n";
-  if (s.astCat.empty()) out.warnings.push_back("ADES: astCat (catalogue of the WCS solution) is empty; ADES requires it");
+  if (s.astCat.empty())
+    out.warnings.push_back("ADES: astCat (catalogue of the WCS solution) is empty; ADES requires it");
 
-  const std::vector<std::string> names = {"trkSub", "mode", "stn",   "obsTime", "ra",     "dec",    "rmsRA",
+  const std::vector<std::string> names = {"trkSub", "mode",   "stn", "obsTime", "ra",     "dec",    "rmsRA",
                                           "rmsDec", "astCat", "mag", "band",    "logSNR", "remarks"};
   std::vector<std::vector<std::string>> rows;
   for (const auto& d : ds) {
-    if (d.trkSub.empty() || d.trkSub.size() > 8) throw InputError("ADES trkSub must be 1 to 8 characters, got '" + d.trkSub + "'");
+    if (d.trkSub.empty() || d.trkSub.size() > 8)
+      throw InputError("ADES trkSub must be 1 to 8 characters, got '" + d.trkSub + "'");
     const bool hasMag = d.mag && std::isfinite(*d.mag);
     rows.push_back({d.trkSub, s.detector, s.stationCode, isoUtcFromMjd(d.mjdUtc),
                     fmt("%.7f", std::fmod(std::fmod(d.raDeg, 360.0) + 360.0, 360.0)), fmt("%+.7f", d.decDeg),
-                    d.sigmaRaArcsec ? fmt("%.3f", *d.sigmaRaArcsec) : "", d.sigmaDecArcsec ? fmt("%.3f", *d.sigmaDecArcsec) : "",
-                    s.astCat, hasMag ? fmt("%.2f", *d.mag) : "", hasMag ? d.band : "",
-                    d.snr > 0.0 ? fmt("%.2f", std::log10(d.snr)) : "", "synthetic tracking (shift-and-stack)"});
+                    d.sigmaRaArcsec ? fmt("%.3f", *d.sigmaRaArcsec) : "",
+                    d.sigmaDecArcsec ? fmt("%.3f", *d.sigmaDecArcsec) : "", s.astCat,
+                    hasMag ? fmt("%.2f", *d.mag) : "", hasMag ? d.band : "",
+                    d.snr > 0.0 ? fmt("%.2f", std::log10(d.snr)) : "",
+                    "synthetic tracking (shift-and-stack)"});
   }
   std::vector<std::size_t> width(names.size());
   for (std::size_t i = 0; i < names.size(); ++i) {
     width[i] = names[i].size();
-    for (const auto& r : rows) width[i] = std::max(width[i], r[i].size());
+    for (const auto& r : rows)
+      width[i] = std::max(width[i], r[i].size());
   }
   auto emit = [&](const std::vector<std::string>& fields) {
     for (std::size_t i = 0; i < fields.size(); ++i) {
@@ -179,7 +190,8 @@ SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const 
     }
   };
   emit(names);
-  for (const auto& r : rows) emit(r);
+  for (const auto& r : rows)
+    emit(r);
   lowSnrWarnings(ds, s, out.warnings);
   return out;
 }

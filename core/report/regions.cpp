@@ -41,11 +41,13 @@ double localScaleArcsec(const astro::PixelToSky& toSky, double x, double y) {
 
 std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky) {
   std::string out = "# Region file format: DS9 version 4.1\n# written by synthtrack; positions at t_ref\n";
-  out += "global color=green width=1 font=\"helvetica 10 normal roman\" select=1 edit=1 move=1 delete=1 "
-         "include=1 source=1\n";
+  out +=
+      "global color=green width=1 font=\"helvetica 10 normal roman\" select=1 edit=1 move=1 delete=1 "
+      "include=1 source=1\n";
   out += toSky ? "fk5\n" : "image\n";
   for (const auto& m : marks) {
-    const std::string props = " # color=" + cleanText(m.color) + (m.text.empty() ? "" : " text={" + cleanText(m.text) + "}");
+    const std::string props =
+        " # color=" + cleanText(m.color) + (m.text.empty() ? "" : " text={" + cleanText(m.text) + "}");
     if (toSky) {
       const auto p = toSky(m.x, m.y);
       const double r = m.radiusPx * localScaleArcsec(toSky, m.x, m.y);
@@ -68,7 +70,8 @@ std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelT
   return out;
 }
 
-void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky) {
+void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
+                     const astro::PixelToSky& toSky) {
   const std::string text = ds9Regions(marks, toSky);
   std::ofstream out(path);
   if (!out) throw InputError("cannot write DS9 region file '" + path + "'");

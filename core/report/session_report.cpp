@@ -12,7 +12,8 @@ std::optional<double> number(const nlohmann::json& j, const char* key) {
 
 }  // namespace
 
-std::vector<AstrometricDetection> realDetections(const session::Session& s, std::vector<std::string>& warnings,
+std::vector<AstrometricDetection> realDetections(const session::Session& s,
+                                                 std::vector<std::string>& warnings,
                                                  const std::string& prefix) {
   std::vector<AstrometricDetection> out;
   const auto scale = number(s.search, "plate_scale_arcsec_px");
@@ -21,8 +22,9 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s, std:
     if (c.label != session::Label::Real) continue;
     const auto ra = number(c.fit, "ra_deg"), dec = number(c.fit, "dec_deg");
     if (!ra || !dec) {
-      warnings.push_back("candidate " + std::to_string(i + 1) +
-                         " is labelled real but has no fitted sky position (fit with a WCS first): not reported");
+      warnings.push_back(
+          "candidate " + std::to_string(i + 1) +
+          " is labelled real but has no fitted sky position (fit with a WCS first): not reported");
       continue;
     }
     AstrometricDetection d;
@@ -71,10 +73,18 @@ std::vector<RegionMark> regionMarks(const session::Session& s, double trackStart
       m.trackEndS = trackEndS;
     }
     switch (c.label) {
-      case session::Label::Real: m.color = "green"; break;
-      case session::Label::Artifact: m.color = "red"; break;
-      case session::Label::Unsure: m.color = "yellow"; break;
-      case session::Label::Unvetted: m.color = "cyan"; break;
+      case session::Label::Real:
+        m.color = "green";
+        break;
+      case session::Label::Artifact:
+        m.color = "red";
+        break;
+      case session::Label::Unsure:
+        m.color = "yellow";
+        break;
+      case session::Label::Unvetted:
+        m.color = "cyan";
+        break;
     }
     char buf[128];
     std::snprintf(buf, sizeof buf, "#%zu SNR %.1f %s", i + 1,

@@ -18,12 +18,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr std::pair<Label, const char*> kLabels[] = {
-    {Label::Unvetted, "unvetted"}, {Label::Real, "real"}, {Label::Artifact, "artifact"}, {Label::Unsure, "unsure"}};
+constexpr std::pair<Label, const char*> kLabels[] = {{Label::Unvetted, "unvetted"},
+                                                     {Label::Real, "real"},
+                                                     {Label::Artifact, "artifact"},
+                                                     {Label::Unsure, "unsure"}};
 constexpr std::pair<ArtifactReason, const char*> kReasons[] = {
-    {ArtifactReason::None, ""},         {ArtifactReason::ChargeLeakage, "charge_leakage"},
-    {ArtifactReason::Diffraction, "diffraction"}, {ArtifactReason::CosmicRay, "cosmic_ray"},
-    {ArtifactReason::Ghost, "ghost"},   {ArtifactReason::Other, "other"}};
+    {ArtifactReason::None, ""},
+    {ArtifactReason::ChargeLeakage, "charge_leakage"},
+    {ArtifactReason::Diffraction, "diffraction"},
+    {ArtifactReason::CosmicRay, "cosmic_ray"},
+    {ArtifactReason::Ghost, "ghost"},
+    {ArtifactReason::Other, "other"}};
 
 std::string utcStamp() {
   const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
@@ -34,13 +39,15 @@ std::string utcStamp() {
   return buf;
 }
 
-/// Copies the file to NAME.<tag>-<stamp>.json beside it (a numbered suffix when that exists); returns the copy.
+/// Copies the file to NAME.<tag>-<stamp>.json beside it (a numbered suffix when that exists); returns the
+/// copy.
 std::string backup(const std::string& path, const std::string& tag) {
   const fs::path p(path);
   const std::string stem = p.stem().string();
   const std::string base = (p.parent_path() / (stem + "." + tag + "-" + utcStamp())).string();
   std::string target = base + ".json";
-  for (int i = 2; fs::exists(target); ++i) target = base + "-" + std::to_string(i) + ".json";
+  for (int i = 2; fs::exists(target); ++i)
+    target = base + "-" + std::to_string(i) + ".json";
   std::error_code ec;
   fs::copy_file(path, target, ec);
   if (ec) throw InputError("session '" + path + "': could not copy it to '" + target + "': " + ec.message());
@@ -79,7 +86,8 @@ Label labelFromString(const std::string& text) {
 ArtifactReason reasonFromString(const std::string& text) {
   for (const auto& [r, s] : kReasons)
     if (text == s) return r;
-  throw InputError("unknown artifact reason '" + text + "' (charge_leakage, diffraction, cosmic_ray, ghost, other)");
+  throw InputError("unknown artifact reason '" + text +
+                   "' (charge_leakage, diffraction, cosmic_ray, ghost, other)");
 }
 
 Session fromSearchJson(const nlohmann::json& result) {
@@ -154,9 +162,13 @@ Session fromJson(const nlohmann::json& j, const std::string& where) {
   }
 }
 
-bool SessionStore::exists() const { return fs::exists(m_path); }
+bool SessionStore::exists() const {
+  return fs::exists(m_path);
+}
 
-std::string SessionStore::tempPath() const { return m_path + ".tmp-" + std::to_string(::getpid()); }
+std::string SessionStore::tempPath() const {
+  return m_path + ".tmp-" + std::to_string(::getpid());
+}
 
 Session SessionStore::load() const {
   std::ifstream in(m_path, std::ios::binary);
@@ -168,16 +180,16 @@ Session SessionStore::load() const {
     j = nlohmann::json::parse(buf.str());
   } catch (const nlohmann::json::exception& e) {
     const std::string copy = backup(m_path, "corrupt");
-    throw InputError("session '" + m_path + "' is corrupted (" + e.what() + "); it was left as it is and copied to '" +
-                     copy + "'");
+    throw InputError("session '" + m_path + "' is corrupted (" + e.what() +
+                     "); it was left as it is and copied to '" + copy + "'");
   }
   if (j.is_object() && j.contains("version") && j["version"].is_number_integer() &&
       j["version"].get<long long>() > kSessionFormatVersion) {
     const std::string copy = backup(m_path, "newer");
     throw InputError("session '" + m_path + "' was written by a newer synthtrack (session format version " +
                      std::to_string(j["version"].get<long long>()) + ", this build reads up to " +
-                     std::to_string(kSessionFormatVersion) + "); it was left as it is and copied to '" + copy +
-                     "': open it with a newer synthtrack");
+                     std::to_string(kSessionFormatVersion) + "); it was left as it is and copied to '" +
+                     copy + "': open it with a newer synthtrack");
   }
   try {
     return fromJson(j, m_path);
@@ -214,7 +226,8 @@ void SessionStore::save(Session& session) const {
     throw InputError("cannot rename '" + tmp + "' to '" + m_path + "': " + err);
   }
   // The rename is durable once the folder's entry is on disk.
-  const std::string dir = fs::path(m_path).parent_path().empty() ? "." : fs::path(m_path).parent_path().string();
+  const std::string dir =
+      fs::path(m_path).parent_path().empty() ? "." : fs::path(m_path).parent_path().string();
   const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (dfd >= 0) {
     ::fsync(dfd);

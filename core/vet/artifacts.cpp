@@ -21,33 +21,46 @@ double percent(std::size_t n, std::size_t total) {
   return total == 0 ? 0.0 : 100.0 * static_cast<double>(n) / static_cast<double>(total);
 }
 
-bool isBright(const detect::Star& s, const ArtifactParams& p) { return s.saturated || s.snr >= p.brightStarMinSnr; }
+bool isBright(const detect::Star& s, const ArtifactParams& p) {
+  return s.saturated || s.snr >= p.brightStarMinSnr;
+}
 
 void requireTimes(const ArtifactContext& ctx) {
   if (ctx.timesS.empty()) throw InputError("artifact checks: the context has no frame times");
 }
 
 /// Star position at frame time t (stars move with the sky rate).
-double starX(const ArtifactContext& ctx, const detect::Star& s, double t) { return s.x + ctx.skyRate.vx * t; }
-double starY(const ArtifactContext& ctx, const detect::Star& s, double t) { return s.y + ctx.skyRate.vy * t; }
+double starX(const ArtifactContext& ctx, const detect::Star& s, double t) {
+  return s.x + ctx.skyRate.vx * t;
+}
+double starY(const ArtifactContext& ctx, const detect::Star& s, double t) {
+  return s.y + ctx.skyRate.vy * t;
+}
 
 }  // namespace
 
 const char* toString(ArtifactKind kind) noexcept {
   switch (kind) {
-    case ArtifactKind::ChargeLeakage: return "charge_leakage";
-    case ArtifactKind::BrightStar: return "bright_star";
-    case ArtifactKind::Diffraction: return "diffraction";
-    case ArtifactKind::Edge: return "edge";
-    case ArtifactKind::Masked: return "masked";
-    case ArtifactKind::Transient: return "transient";
-    case ArtifactKind::KnownObject: return "known_object";
+    case ArtifactKind::ChargeLeakage:
+      return "charge_leakage";
+    case ArtifactKind::BrightStar:
+      return "bright_star";
+    case ArtifactKind::Diffraction:
+      return "diffraction";
+    case ArtifactKind::Edge:
+      return "edge";
+    case ArtifactKind::Masked:
+      return "masked";
+    case ArtifactKind::Transient:
+      return "transient";
+    case ArtifactKind::KnownObject:
+      return "known_object";
   }
   return "unknown";
 }
 
-ArtifactContext makeArtifactContext(const FrameCube& frames, std::vector<detect::Star> stars, Velocity skyRate,
-                                    double psfFwhmPx) {
+ArtifactContext makeArtifactContext(const FrameCube& frames, std::vector<detect::Star> stars,
+                                    Velocity skyRate, double psfFwhmPx) {
   ArtifactContext ctx;
   ctx.width = frames.width();
   ctx.height = frames.height();
@@ -68,12 +81,14 @@ ArtifactFlag checkChargeLeakage(const ArtifactContext& ctx, const Track& track, 
   for (const auto& s : ctx.stars) {
     if (!s.saturated) continue;
     std::vector<double> columns{s.x};
-    for (int c : s.bleedColumns) columns.push_back(c);
+    for (int c : s.bleedColumns)
+      columns.push_back(c);
     std::size_t onColumn = 0, onRow = 0, onAny = 0;
     for (double t : ctx.timesS) {
       const double tx = track.xAt(t), ty = track.yAt(t);
       bool col = false;
-      for (double c : columns) col = col || std::abs(tx - (c + ctx.skyRate.vx * t)) <= p.leakageHalfWidthPx;
+      for (double c : columns)
+        col = col || std::abs(tx - (c + ctx.skyRate.vx * t)) <= p.leakageHalfWidthPx;
       const bool row = std::abs(ty - starY(ctx, s, t)) <= p.leakageHalfWidthPx;
       onColumn += col;
       onRow += row;
@@ -111,8 +126,9 @@ ArtifactFlag checkBrightStar(const ArtifactContext& ctx, const Track& track, con
       best = dMin / radius;
       flag.value = dMin;
       flag.triggered = dMin <= radius;
-      flag.evidence = format("closest approach %.1f px to the %s star at (%.1f, %.1f) (SNR %.0f); radius %.1f px",
-                             dMin, s.saturated ? "saturated" : "bright", s.x, s.y, s.snr, radius);
+      flag.evidence =
+          format("closest approach %.1f px to the %s star at (%.1f, %.1f) (SNR %.0f); radius %.1f px", dMin,
+                 s.saturated ? "saturated" : "bright", s.x, s.y, s.snr, radius);
     }
   }
   return flag;
@@ -165,10 +181,12 @@ ArtifactFlag checkEdge(const ArtifactContext& ctx, const Track& track, const Art
   }
   flag.value = dMin;
   flag.triggered = dMin < margin;
-  flag.evidence = outside > 0 ? format("the track is outside the frame in %zu of %zu frames (%.1f px beyond the "
-                                       "edge at most); margin %.1f px",
-                                       outside, ctx.timesS.size(), -dMin, margin)
-                              : format("closest approach to the frame edge %.1f px; margin %.1f px", dMin, margin);
+  flag.evidence = outside > 0
+                      ? format(
+                            "the track is outside the frame in %zu of %zu frames (%.1f px beyond the "
+                            "edge at most); margin %.1f px",
+                            outside, ctx.timesS.size(), -dMin, margin)
+                      : format("closest approach to the frame edge %.1f px; margin %.1f px", dMin, margin);
   return flag;
 }
 
@@ -182,7 +200,8 @@ ArtifactFlag checkMasked(const ArtifactContext& ctx, const Track& track, const A
   std::size_t samples = 0, masked = 0;
   for (std::size_t f = 0; f < cube.frameCount(); ++f) {
     const double t = ctx.timesS[f];
-    const int cx = static_cast<int>(std::lround(track.xAt(t))), cy = static_cast<int>(std::lround(track.yAt(t)));
+    const int cx = static_cast<int>(std::lround(track.xAt(t))),
+              cy = static_cast<int>(std::lround(track.yAt(t)));
     for (int dy = -ir; dy <= ir; ++dy) {
       for (int dx = -ir; dx <= ir; ++dx) {
         const int x = cx + dx, y = cy + dy;
@@ -194,9 +213,10 @@ ArtifactFlag checkMasked(const ArtifactContext& ctx, const Track& track, const A
   }
   flag.value = samples == 0 ? 0.0 : static_cast<double>(masked) / static_cast<double>(samples);
   flag.triggered = samples > 0 && flag.value >= p.maskedMinFraction;
-  flag.evidence = format("%.1f%% of the pixels within %.1f px of the track are masked (%zu/%zu over %zu frames; "
-                         "threshold %.0f%%)",
-                         100.0 * flag.value, r, masked, samples, cube.frameCount(), 100.0 * p.maskedMinFraction);
+  flag.evidence = format(
+      "%.1f%% of the pixels within %.1f px of the track are masked (%zu/%zu over %zu frames; "
+      "threshold %.0f%%)",
+      100.0 * flag.value, r, masked, samples, cube.frameCount(), 100.0 * p.maskedMinFraction);
   return flag;
 }
 
@@ -215,11 +235,14 @@ ArtifactFlag checkTransient(const ArtifactContext& ctx, const Track& track, cons
       c.push_back(cube.frame(f)[static_cast<std::size_t>(y) * cube.width() + x]);
     }
     double sum = 0.0;
-    for (double v : c) sum += v;
-    const std::size_t k = std::min<std::size_t>(c.size(), static_cast<std::size_t>(std::max(1, p.transientTopFrames)));
+    for (double v : c)
+      sum += v;
+    const std::size_t k =
+        std::min<std::size_t>(c.size(), static_cast<std::size_t>(std::max(1, p.transientTopFrames)));
     std::partial_sort(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(k), c.end(), std::greater<>());
     double top = 0.0;
-    for (std::size_t i = 0; i < k; ++i) top += c[i];
+    for (std::size_t i = 0; i < k; ++i)
+      top += c[i];
     if (c.empty()) {
       flag.evidence = "the track has no unmasked sample inside the frames";
     } else if (!(sum > 0.0)) {
@@ -229,20 +252,22 @@ ArtifactFlag checkTransient(const ArtifactContext& ctx, const Track& track, cons
     } else {
       flag.value = top / sum;
       flag.triggered = flag.value >= p.transientMaxShare;
-      flag.evidence = format("the %zu largest single-frame samples carry %.0f%% of the track's sum over %zu frames "
-                             "(threshold %.0f%%)",
-                             k, 100.0 * flag.value, c.size(), 100.0 * p.transientMaxShare);
+      flag.evidence = format(
+          "the %zu largest single-frame samples carry %.0f%% of the track's sum over %zu frames "
+          "(threshold %.0f%%)",
+          k, 100.0 * flag.value, c.size(), 100.0 * p.transientMaxShare);
     }
   }
   if (segments != nullptr && (segments->missingSignal || segments->fluxInconsistent)) {
     flag.triggered = true;
-    for (const auto& r : segments->reasons) flag.evidence += "; segments: " + r;
+    for (const auto& r : segments->reasons)
+      flag.evidence += "; segments: " + r;
   }
   return flag;
 }
 
-std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track& track, const ArtifactParams& params,
-                                         const SegmentReport* segments) {
+std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track& track,
+                                         const ArtifactParams& params, const SegmentReport* segments) {
   return {checkChargeLeakage(ctx, track, params), checkBrightStar(ctx, track, params),
           checkDiffraction(ctx, track, params),   checkEdge(ctx, track, params),
           checkMasked(ctx, track, params),        checkTransient(ctx, track, params, segments)};

@@ -25,7 +25,8 @@ std::string trim(std::string s) {
 }
 
 std::string lower(std::string s) {
-  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (auto& c : s)
+    c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
 }
 
@@ -41,7 +42,8 @@ std::vector<std::string> splitCsv(const std::string& line) {
       out.back() += c;
     }
   }
-  for (auto& f : out) f = trim(f);
+  for (auto& f : out)
+    f = trim(f);
   return out;
 }
 
@@ -66,7 +68,8 @@ std::vector<KnownObject> readKnownObjects(const std::string& path) {
     ++lineNo;
     if (trim(line).empty() || trim(line)[0] == '#') continue;
     const auto names = splitCsv(line);
-    for (std::size_t i = 0; i < names.size(); ++i) col[lower(names[i])] = i;
+    for (std::size_t i = 0; i < names.size(); ++i)
+      col[lower(names[i])] = i;
     break;
   }
   const bool arcsec = col.count("ra_rate_arcsec_min") && col.count("dec_rate_arcsec_min");
@@ -103,7 +106,8 @@ std::vector<KnownObject> readKnownObjects(const std::string& path) {
     o.epochMjd = parseNumber(field("epoch_mjd"), where + " column epoch_mjd");
     o.raRateArcsecPerMin = rateScale * parseNumber(field(raRate), where + " column " + raRate);
     o.decRateArcsecPerMin = rateScale * parseNumber(field(decRate), where + " column " + decRate);
-    if (std::abs(o.decDeg) > 90.0) throw InputError(where + ": dec_deg " + field("dec_deg") + " is beyond +-90");
+    if (std::abs(o.decDeg) > 90.0)
+      throw InputError(where + ": dec_deg " + field("dec_deg") + " is beyond +-90");
     out.push_back(std::move(o));
   }
   return out;
@@ -155,11 +159,12 @@ ArtifactFlag knownObjectFlag(const std::vector<KnownObject>& objects, double raD
   flag.value = dMin;
   flag.triggered = dMin <= radiusArcsec;
   char buf[512];
-  std::snprintf(buf, sizeof buf,
-                "nearest known object '%s' predicted at RA %.6f Dec %+.6f (propagated %.3f h from its epoch) is "
-                "%.1f arcsec away; match radius %.1f arcsec",
-                nearest->name.c_str(), nearestAt.raDeg, nearestAt.decDeg, (mjd - nearest->epochMjd) * 24.0, dMin,
-                radiusArcsec);
+  std::snprintf(
+      buf, sizeof buf,
+      "nearest known object '%s' predicted at RA %.6f Dec %+.6f (propagated %.3f h from its epoch) is "
+      "%.1f arcsec away; match radius %.1f arcsec",
+      nearest->name.c_str(), nearestAt.raDeg, nearestAt.decDeg, (mjd - nearest->epochMjd) * 24.0, dMin,
+      radiusArcsec);
   flag.evidence = buf;
   return flag;
 }

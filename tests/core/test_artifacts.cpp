@@ -19,7 +19,8 @@ ArtifactContext baseContext() {
   ArtifactContext ctx;
   ctx.width = 200;
   ctx.height = 200;
-  for (int n = 0; n < kFrames; ++n) ctx.timesS.push_back(-10.0 + 20.0 * n / (kFrames - 1));
+  for (int n = 0; n < kFrames; ++n)
+    ctx.timesS.push_back(-10.0 + 20.0 * n / (kFrames - 1));
   ctx.skyRate = kSky;
   ctx.psfFwhmPx = 3.0;
   return ctx;
@@ -38,7 +39,8 @@ detect::Star star(double x, double y, double snr, bool saturated, std::vector<in
 
 FrameCube cubeFor(const ArtifactContext& ctx) {
   FrameCube cube(ctx.width, ctx.height, ctx.timesS.size());
-  for (std::size_t n = 0; n < ctx.timesS.size(); ++n) cube.info()[n].mjdMid = 60000.0 + ctx.timesS[n] / 86400.0;
+  for (std::size_t n = 0; n < ctx.timesS.size(); ++n)
+    cube.info()[n].mjdMid = 60000.0 + ctx.timesS[n] / 86400.0;
   return cube;
 }
 
@@ -64,7 +66,8 @@ TEST(Artifacts, ChargeLeakageIsJudgedAlongTheTrackNotOnlyAtTRef) {
   ArtifactContext ctx = baseContext();
   ctx.stars = {star(100.0, 50.0, 500.0, true, {100})};
   const ArtifactParams p;
-  // x - column(t) = 3 + 0.5 t: 3 px off the column at t_ref, within 1.5 px for t in [-9, -3] (30% of the span).
+  // x - column(t) = 3 + 0.5 t: 3 px off the column at t_ref, within 1.5 px for t in [-9, -3] (30% of the
+  // span).
   const Track track{103.0, 150.0, {kSky.vx + 0.5, 1.0}};
   const ArtifactFlag f = checkChargeLeakage(ctx, track, p);
   EXPECT_TRUE(f.triggered) << f.evidence;
@@ -140,7 +143,8 @@ TEST(Artifacts, MaskedPixelsAlongTheTrack) {
   FrameCube cube = cubeFor(ctx);
   cube.mask().assign(cube.pixels().size(), 0);
   for (std::size_t n = 0; n < cube.frameCount(); ++n) {
-    for (int y = 0; y < cube.height(); ++y) cube.mask()[n * cube.framePixels() + y * cube.width() + 50] = 1;
+    for (int y = 0; y < cube.height(); ++y)
+      cube.mask()[n * cube.framePixels() + y * cube.width() + 50] = 1;
   }
   ctx.frames = &cube;
   const ArtifactParams p;  // disc of 1 FWHM = 3 px: the masked column is 7 of 29 samples
@@ -159,7 +163,8 @@ TEST(Artifacts, TransientCarriedByOneFrameButNotASteadySource) {
   FrameCube steady = cubeFor(ctx);
   std::mt19937 rng(7);
   std::normal_distribution<float> noise(0.0f, 1.0f);
-  for (auto& v : steady.pixels()) v = noise(rng);
+  for (auto& v : steady.pixels())
+    v = noise(rng);
   FrameCube flash = steady;
   const Track track{100.0, 100.0, {1.2, -0.7}};
   // Steady source: SNR 10 over 51 frames (amplitude 10/sqrt(51) per frame at the IPSA samples).

@@ -11,7 +11,9 @@
 namespace st::vet {
 namespace {
 
-void write(const std::filesystem::path& p, const std::string& text) { std::ofstream(p) << text; }
+void write(const std::filesystem::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
 
 TEST(KnownObjects, SeparationOracle) {
   EXPECT_NEAR(separationArcsec(10.0, 20.0, 10.0, 20.0 + 1.0 / 3600.0), 1.0, 1e-9);
@@ -29,7 +31,8 @@ TEST(KnownObjects, ReadsBothRateUnitsAndPropagatesLinearly) {
         "\"2024 AB, test\",10.0,20.0,60.0,-30.0,60000.0,x\n"
         "\n"
         "(433) Eros,359.99,-5.0,-12.0,0.0,60000.5,y\n");
-  write(dir / "b.csv", "Epoch_MJD,Name,RA_deg,Dec_deg,RA_rate_deg_day,Dec_rate_deg_day\n60000.0,x,10.0,20.0,24.0,-12.0\n");
+  write(dir / "b.csv",
+        "Epoch_MJD,Name,RA_deg,Dec_deg,RA_rate_deg_day,Dec_rate_deg_day\n60000.0,x,10.0,20.0,24.0,-12.0\n");
   const auto a = readKnownObjects((dir / "a.csv").string());
   ASSERT_EQ(a.size(), 2u);
   EXPECT_EQ(a[0].name, "2024 AB, test");
@@ -50,7 +53,8 @@ TEST(KnownObjects, ReadsBothRateUnitsAndPropagatesLinearly) {
 }
 
 TEST(KnownObjects, MatchWithinTheRadiusOnly) {
-  const std::vector<KnownObject> list = {{"far", 11.0, 20.0, 0.0, 0.0, 60000.0}, {"mover", 10.0, 20.0, 60.0, 0.0, 60000.0}};
+  const std::vector<KnownObject> list = {{"far", 11.0, 20.0, 0.0, 0.0, 60000.0},
+                                         {"mover", 10.0, 20.0, 60.0, 0.0, 60000.0}};
   const double mjd = 60000.0 + 10.0 / 1440.0;  // 10 min: the mover went 600" east
   const SkyPosition at = propagate(list[1], mjd);
   const auto m = matchKnownObject(list, at.raDeg, at.decDeg + 3.0 / 3600.0, mjd, 5.0);
@@ -71,8 +75,10 @@ TEST(KnownObjects, MatchWithinTheRadiusOnly) {
 TEST(KnownObjects, ErrorsNameTheFileLineAndColumn) {
   test::TempDir dir;
   write(dir / "norate.csv", "name,ra_deg,dec_deg,epoch_mjd\nx,1,2,3\n");
-  write(dir / "bad.csv", "name,ra_deg,dec_deg,epoch_mjd,ra_rate_arcsec_min,dec_rate_arcsec_min\nx,1,2,3,4,5\ny,1,abc,3,4,5\n");
-  write(dir / "dec.csv", "name,ra_deg,dec_deg,epoch_mjd,ra_rate_arcsec_min,dec_rate_arcsec_min\nx,1,95,3,4,5\n");
+  write(dir / "bad.csv",
+        "name,ra_deg,dec_deg,epoch_mjd,ra_rate_arcsec_min,dec_rate_arcsec_min\nx,1,2,3,4,5\ny,1,abc,3,4,5\n");
+  write(dir / "dec.csv",
+        "name,ra_deg,dec_deg,epoch_mjd,ra_rate_arcsec_min,dec_rate_arcsec_min\nx,1,95,3,4,5\n");
   auto message = [](const std::filesystem::path& p) {
     try {
       (void)readKnownObjects(p.string());

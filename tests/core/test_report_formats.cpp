@@ -40,7 +40,9 @@ SubmissionSettings settings291() {
 }
 
 /// Columns first..last (1-based, inclusive) of a line.
-std::string cols(const std::string& line, int first, int last) { return line.substr(first - 1, last - first + 1); }
+std::string cols(const std::string& line, int first, int last) {
+  return line.substr(first - 1, last - first + 1);
+}
 
 TEST(Mpc80, ColumnsMatchThePublishedExample) {
   const std::string ours = mpc80Line(publishedDetection(), settings291());
@@ -48,13 +50,16 @@ TEST(Mpc80, ColumnsMatchThePublishedExample) {
   ASSERT_EQ(ours.size(), 80u);
   ASSERT_EQ(pub.size(), 80u);
   // Identical where both carry the same text: designation, notes, magnitude, band, catalogue, station.
-  for (int c : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15}) EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
-  for (int c = 57; c <= 80; ++c) EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+  for (int c : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15})
+    EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+  for (int c = 57; c <= 80; ++c)
+    EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
   // Date, RA and Dec: the same separators in the same columns; ours carries one more decimal.
   EXPECT_EQ(cols(ours, 16, 32), "2004 09 16.152060");
   EXPECT_EQ(cols(ours, 33, 44), "16 13 11.570");
   EXPECT_EQ(cols(ours, 45, 56), "+20 52 23.70");
-  for (int c : {20, 23, 26, 35, 38, 41, 48, 51, 54}) EXPECT_EQ(ours[c - 1], pub[c - 1]) << "separator column " << c;
+  for (int c : {20, 23, 26, 35, 38, 41, 48, 51, 54})
+    EXPECT_EQ(ours[c - 1], pub[c - 1]) << "separator column " << c;
   // Every field read back as a number equals the published value.
   EXPECT_DOUBLE_EQ(std::stod(cols(ours, 24, 32)), std::stod(cols(pub, 24, 32)));
   EXPECT_DOUBLE_EQ(std::stod(cols(ours, 40, 44)), std::stod(cols(pub, 40, 44)));
@@ -126,7 +131,8 @@ TEST(AdesPsv, HeaderBlocksAndFieldsOneByOne) {
   const SubmissionText t = formatAdesPsv({a, b}, settings291());
   std::vector<std::string> lines;
   std::stringstream ss(t.text);
-  for (std::string l; std::getline(ss, l);) lines.push_back(l);
+  for (std::string l; std::getline(ss, l);)
+    lines.push_back(l);
   ASSERT_GE(lines.size(), 5u);
   EXPECT_EQ(lines[0], "# version=2017");
   EXPECT_EQ(lines[1], "# observatory");
@@ -136,11 +142,13 @@ TEST(AdesPsv, HeaderBlocksAndFieldsOneByOne) {
   EXPECT_NE(all.find("# measurers\n! name A. Observer\n"), std::string::npos);
   EXPECT_NE(all.find("# telescope\n! design reflector\n"), std::string::npos);
   std::size_t h = 0;
-  while (h < lines.size() && (lines[h][0] == '#' || lines[h][0] == '!')) ++h;
+  while (h < lines.size() && (lines[h][0] == '#' || lines[h][0] == '!'))
+    ++h;
   ASSERT_EQ(lines.size(), h + 3);
   const auto names = split(lines[h]);
-  const std::vector<std::string> expected = {"trkSub", "mode",   "stn",  "obsTime", "ra",     "dec",    "rmsRA",
-                                             "rmsDec", "astCat", "mag",  "band",    "logSNR", "remarks"};
+  const std::vector<std::string> expected = {"trkSub", "mode",   "stn",    "obsTime", "ra",
+                                             "dec",    "rmsRA",  "rmsDec", "astCat",  "mag",
+                                             "band",   "logSNR", "remarks"};
   EXPECT_EQ(names, expected);
   const auto r1 = split(lines[h + 1]), r2 = split(lines[h + 2]);
   ASSERT_EQ(r1.size(), names.size());
@@ -195,7 +203,8 @@ TEST(Ds9, ImageCoordinatesAreOneBased) {
   m.trackEndS = 5.0;
   const std::string r = ds9Regions({m}, {});
   EXPECT_EQ(r.rfind("# Region file format: DS9 version 4.1\n", 0), 0u);
-  EXPECT_NE(r.find("\nimage\ncircle(11.000,21.500,4.000) # color=red text={#1 SNR 9}\n"), std::string::npos) << r;
+  EXPECT_NE(r.find("\nimage\ncircle(11.000,21.500,4.000) # color=red text={#1 SNR 9}\n"), std::string::npos)
+      << r;
   EXPECT_NE(r.find("line(6.000,31.500,16.000,11.500) # line=0 1 color=red\n"), std::string::npos) << r;
 }
 

@@ -33,7 +33,8 @@ TEST(FitsStack, WcsMovedToTRefAndProvenanceReadBack) {
   const auto wcs = tanWcs();
   ASSERT_NE(wcs, nullptr);
   Image img(64, 40);
-  for (std::size_t i = 0; i < img.size(); ++i) img.pixels[i] = static_cast<float>(i % 97) - 3.5f;
+  for (std::size_t i = 0; i < img.size(); ++i)
+    img.pixels[i] = static_cast<float>(i % 97) - 3.5f;
   StackProvenance p;
   p.what = "candidate 2, IPSA";
   p.velocity = {1.25, -0.5};
@@ -53,7 +54,8 @@ TEST(FitsStack, WcsMovedToTRefAndProvenanceReadBack) {
   const FrameCube back = io::loadFrames({path}, options, progress, cancel);
   ASSERT_EQ(back.frameCount(), 1u);
   ASSERT_EQ(back.width(), 64);
-  for (std::size_t i = 0; i < img.size(); ++i) ASSERT_EQ(back.frame(0)[i], img.pixels[i]) << i;
+  for (std::size_t i = 0; i < img.size(); ++i)
+    ASSERT_EQ(back.frame(0)[i], img.pixels[i]) << i;
   const FitsHeader& h = back.header;
   EXPECT_DOUBLE_EQ(*h.getDouble("STVX"), 1.25);
   EXPECT_DOUBLE_EQ(*h.getDouble("SKYVY"), 0.5);
@@ -63,7 +65,8 @@ TEST(FitsStack, WcsMovedToTRefAndProvenanceReadBack) {
   EXPECT_EQ(*h.getString("STMODE"), "IPSA");
   EXPECT_NE(h.getString("SOFTWARE")->find("synthtrack"), std::string::npos);
   int history = 0;
-  for (const auto& c : h.cards) history += c.key == "HISTORY" && (c.comment + c.value).find("/data/") != std::string::npos;
+  for (const auto& c : h.cards)
+    history += c.key == "HISTORY" && (c.comment + c.value).find("/data/") != std::string::npos;
   EXPECT_EQ(history, 2);
   // A star at stack pixel (x, y) (its t_ref position) was at (x, y) + skyRate * (-15 s) in the first frame.
   ASSERT_NE(back.wcs, nullptr);
@@ -81,10 +84,13 @@ session::Session labelled() {
   j["plate_scale_arcsec_px"] = 0.3;
   j["psf_fwhm_px"] = 3.0;
   j["candidates"] = nlohmann::json::array();
-  for (int i = 0; i < 4; ++i) j["candidates"].push_back({{"x", 10 * i}, {"y", 5}, {"vx_px_s", 1.0}, {"vy_px_s", 0.0}, {"snr", 8.0 + i}});
-  j["candidates"][0]["fit"] = {{"status", "converged"}, {"x", 0.25},         {"y", 5.5},           {"vx_px_s", 1.1},
-                               {"vy_px_s", 0.1},        {"ra_deg", 150.1}, {"dec_deg", -20.2},   {"snr", 9.5},
-                               {"sigma_x_px", 0.1},     {"sigma_y_px", 0.2}, {"mag", 22.95}};
+  for (int i = 0; i < 4; ++i)
+    j["candidates"].push_back(
+        {{"x", 10 * i}, {"y", 5}, {"vx_px_s", 1.0}, {"vy_px_s", 0.0}, {"snr", 8.0 + i}});
+  j["candidates"][0]["fit"] = {{"status", "converged"}, {"x", 0.25},      {"y", 5.5},
+                               {"vx_px_s", 1.1},        {"vy_px_s", 0.1}, {"ra_deg", 150.1},
+                               {"dec_deg", -20.2},      {"snr", 9.5},     {"sigma_x_px", 0.1},
+                               {"sigma_y_px", 0.2},     {"mag", 22.95}};
   j["candidates"][2]["fit"] = {{"status", "converged"}, {"x", 20.0}, {"y", 5.0}};
   session::Session s = session::fromSearchJson(j);
   s.candidates[0].label = session::Label::Real;

@@ -1,5 +1,5 @@
-// Sessions (issue 8 §6): exact round trip, atomic autosave (an interrupted save or a kill -9 loses at most the
-// change being written), clear errors with a backup copy for newer and corrupted files.
+// Sessions (issue 8 §6): exact round trip, atomic autosave (an interrupted save or a kill -9 loses at most
+// the change being written), clear errors with a backup copy for newer and corrupted files.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -26,7 +26,8 @@ nlohmann::json searchJson() {
   j["sky_rate"] = {{"vx_px_s", 0.1}, {"vy_px_s", -1e-17}};
   j["candidates"] = nlohmann::json::array();
   for (int i = 0; i < 3; ++i) {
-    nlohmann::json c{{"x", 100 + i}, {"y", 50}, {"vx_px_s", 1.0 / 3.0 + i}, {"vy_px_s", -2.5e-3}, {"snr", 7.123456789}};
+    nlohmann::json c{
+        {"x", 100 + i}, {"y", 50}, {"vx_px_s", 1.0 / 3.0 + i}, {"vy_px_s", -2.5e-3}, {"snr", 7.123456789}};
     if (i == 0) c["fit"] = {{"status", "converged"}, {"x", 100.123456789012345}, {"ra_deg", 150.00000001}};
     j["candidates"].push_back(c);
   }
@@ -80,7 +81,8 @@ TEST(Session, RoundTripIsExact) {
   s.candidates[1].note = "spike of the star at (20, 30)";
   s.candidates[2].label = Label::Unsure;
   s.candidates[0].label = Label::Real;
-  s.candidates[0].artifacts = nlohmann::json::array({{{"kind", "edge"}, {"triggered", false}, {"value", 12.5}}});
+  s.candidates[0].artifacts =
+      nlohmann::json::array({{{"kind", "edge"}, {"triggered", false}, {"value", 12.5}}});
   store.save(s);
   EXPECT_EQ(s.changes, 1);
   const Session back = store.load();
@@ -131,7 +133,8 @@ TEST(Session, KillMinus9WhileLabellingLosesAtMostTheLastChange) {
     // Label and note as fast as possible until killed; note k is written by change k + 1.
     const SessionStore store{path};
     SessionEditor ed{store, store.load()};
-    for (long k = 1;; ++k) ed.setNote(static_cast<std::size_t>(k % 3), "note " + std::to_string(k));
+    for (long k = 1;; ++k)
+      ed.setNote(static_cast<std::size_t>(k % 3), "note " + std::to_string(k));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ASSERT_EQ(kill(child, SIGKILL), 0);
@@ -144,7 +147,8 @@ TEST(Session, KillMinus9WhileLabellingLosesAtMostTheLastChange) {
   ASSERT_GE(last, 1) << "the child saved nothing in 300 ms";
   EXPECT_EQ(s.candidates[static_cast<std::size_t>(last % 3)].note, "note " + std::to_string(last));
   if (last >= 3) {
-    EXPECT_EQ(s.candidates[static_cast<std::size_t>((last - 1) % 3)].note, "note " + std::to_string(last - 1));
+    EXPECT_EQ(s.candidates[static_cast<std::size_t>((last - 1) % 3)].note,
+              "note " + std::to_string(last - 1));
   }
 }
 

@@ -17,24 +17,24 @@
 namespace st::report {
 
 struct SubmissionSettings {
-  std::string stationCode;    ///< MPC observatory code, 3 characters (required)
-  std::string observers;      ///< observer name(s), comma-separated ("A. Smith, B. Jones")
-  std::string measurer;       ///< measurer name; default: the first observer
-  std::string submitter;      ///< default: the measurer
+  std::string stationCode;  ///< MPC observatory code, 3 characters (required)
+  std::string observers;    ///< observer name(s), comma-separated ("A. Smith, B. Jones")
+  std::string measurer;     ///< measurer name; default: the first observer
+  std::string submitter;    ///< default: the measurer
   std::string telescopeDesign = "reflector";
-  double apertureM = 0.0;     ///< telescope aperture, metres (0 = not written)
+  double apertureM = 0.0;        ///< telescope aperture, metres (0 = not written)
   std::string detector = "CCD";  ///< ADES detector/mode: CCD or CMO
-  std::string astCat;         ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); required
+  std::string astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); required
   char mpcCatalogCode = ' ';  ///< column 72 of the 80-column format (e.g. 'V' Gaia DR2, 'W' Gaia DR3)
   double safeSnr = 7.0;       ///< below this SNR a line gets a warning (paper §4.4 threshold)
 };
 
 /// One measured position of a detection labelled real.
 struct AstrometricDetection {
-  std::string trkSub;  ///< observer's designation, up to 7 characters for the 80-column format (ADES: 8)
-  double mjdUtc = 0.0; ///< epoch of the position (t_ref, the mean of the frames' mid-times)
-  double raDeg = 0.0, decDeg = 0.0;  ///< ICRS
-  std::optional<double> sigmaRaArcsec;   ///< RA cos Dec
+  std::string trkSub;   ///< observer's designation, up to 7 characters for the 80-column format (ADES: 8)
+  double mjdUtc = 0.0;  ///< epoch of the position (t_ref, the mean of the frames' mid-times)
+  double raDeg = 0.0, decDeg = 0.0;     ///< ICRS
+  std::optional<double> sigmaRaArcsec;  ///< RA cos Dec
   std::optional<double> sigmaDecArcsec;
   std::optional<double> mag;
   std::string band = "G";
@@ -52,8 +52,9 @@ struct SubmissionText {
 /// The whole 80-column text: one line per detection.
 [[nodiscard]] SubmissionText formatMpc80(const std::vector<AstrometricDetection>& detections,
                                          const SubmissionSettings& settings);
-/// The ADES PSV text: header blocks and the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA, rmsDec, astCat,
-/// mag, band, logSNR, remarks. Columns are padded to a common width (PSV allows blanks around values).
+/// The ADES PSV text: header blocks and the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA, rmsDec,
+/// astCat, mag, band, logSNR, remarks. Columns are padded to a common width (PSV allows blanks around
+/// values).
 [[nodiscard]] SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& detections,
                                            const SubmissionSettings& settings);
 

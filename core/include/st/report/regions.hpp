@@ -32,12 +32,14 @@ struct RegionMark {
 [[nodiscard]] std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky);
 
 /// Writes ds9Regions to `path`. Throws st::InputError naming the path.
-void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky);
+void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
+                     const astro::PixelToSky& toSky);
 
 /// The mapping of pixels at t_ref through a WCS that belongs to the frame at `mappingEpochOffsetS` (seconds
 /// from t_ref; the first frame's for a cube's FITS WCS): a point at (x, y) at t_ref was at (x, y) +
 /// skyRate * mappingEpochOffsetS in that frame (the stars drift at skyRate), the convention of
 /// astro::skyMeasurement.
-[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS);
+[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate,
+                                                 double mappingEpochOffsetS);
 
 }  // namespace st::report

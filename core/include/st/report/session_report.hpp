@@ -21,8 +21,8 @@ namespace st::report {
                                                                const std::string& prefix = "st");
 
 /// One DS9 mark per candidate at its fitted position (else its search cell), radius 2 PSF FWHM (5 px when
-/// unknown), with its velocity as a track line over the observation's span when it is known, coloured by label
-/// (real green, artifact red, unsure yellow, unvetted cyan), text "#N SNR s label".
+/// unknown), with its velocity as a track line over the observation's span when it is known, coloured by
+/// label (real green, artifact red, unsure yellow, unvetted cyan), text "#N SNR s label".
 [[nodiscard]] std::vector<RegionMark> regionMarks(const session::Session& session, double trackStartS = 0.0,
                                                   double trackEndS = 0.0);
 

@@ -6,10 +6,10 @@
 // version, or one that cannot be parsed, is never overwritten silently: it is copied aside and the error
 // names the copy.
 //
-// Candidates, fits and parameters are kept as the JSON objects the other stages write (search_report.hpp keys,
-// the fit's keys), so nothing is lost between versions of those stages and a round trip is exact.
-#include <nlohmann/json.hpp>
+// Candidates, fits and parameters are kept as the JSON objects the other stages write (search_report.hpp
+// keys, the fit's keys), so nothing is lost between versions of those stages and a round trip is exact.
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -47,8 +47,8 @@ struct Session {
   nlohmann::json parameters = nlohmann::json::object();  ///< every parameter of every stage, by stage name
   nlohmann::json search = nlohmann::json::object();      ///< the search result without its candidates
   std::vector<CandidateState> candidates;
-  nlohmann::json settings = nlohmann::json::object();    ///< report settings (station code, observers, ...)
-  std::string notes;                                     ///< free text for the whole session
+  nlohmann::json settings = nlohmann::json::object();  ///< report settings (station code, observers, ...)
+  std::string notes;                                   ///< free text for the whole session
   std::int64_t changes = 0;  ///< number of changes saved so far (increments with every save)
   friend bool operator==(const Session&, const Session&) = default;
 };
@@ -68,10 +68,11 @@ class SessionStore {
   [[nodiscard]] const std::string& path() const noexcept { return m_path; }
 
   /// Reads the session. A leftover temporary file from an interrupted save is ignored (the file itself holds
-  /// the last complete save; the temporary file is left alone, another process may be writing it). Throws st::InputError when the file is missing; when it is not
-  /// valid JSON or not a session, or was written by a newer format version, the file is first copied to
-  /// NAME.corrupt-<UTC timestamp>.json (or NAME.newer-<UTC timestamp>.json) beside it and the message names
-  /// the problem and the copy. The original is left in place.
+  /// the last complete save; the temporary file is left alone, another process may be writing it). Throws
+  /// st::InputError when the file is missing; when it is not valid JSON or not a session, or was written by a
+  /// newer format version, the file is first copied to NAME.corrupt-<UTC timestamp>.json (or NAME.newer-<UTC
+  /// timestamp>.json) beside it and the message names the problem and the copy. The original is left in
+  /// place.
   [[nodiscard]] Session load() const;
   /// True when the file exists.
   [[nodiscard]] bool exists() const;

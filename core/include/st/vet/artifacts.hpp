@@ -54,9 +54,9 @@ struct ArtifactParams {
   /// Diffraction spikes: angles in degrees from the +x axis towards +y (0 and 90: along the detector axes,
   /// as the simulator draws them; each spike is a line through the star, both directions).
   std::vector<double> spikeAnglesDeg = {0.0, 90.0};
-  double spikeHalfWidthPx = 2.0;  ///< distance from the spike's line
-  double spikeLengthPx = 60.0;    ///< extent from the star's centre along the spike
-  double spikeMinFraction = 0.25; ///< fraction of frames on a spike
+  double spikeHalfWidthPx = 2.0;   ///< distance from the spike's line
+  double spikeLengthPx = 60.0;     ///< extent from the star's centre along the spike
+  double spikeMinFraction = 0.25;  ///< fraction of frames on a spike
   /// Edge: closer than this many PSF FWHM to the frame's border at some frame (or outside it).
   double edgeMarginFwhm = 2.0;
   /// Masked: a disc of this many FWHM around the track is sampled in every frame; fires when the masked
@@ -74,9 +74,9 @@ struct ArtifactParams {
 struct ArtifactContext {
   int width = 0;
   int height = 0;
-  std::vector<double> timesS;          ///< t_n - t_ref, seconds (FrameCube::timeOffsetsS)
-  std::vector<detect::Star> stars;     ///< positions at t_ref (Prepared::stars)
-  Velocity skyRate;                    ///< px/s, the stars' motion in the frames
+  std::vector<double> timesS;       ///< t_n - t_ref, seconds (FrameCube::timeOffsetsS)
+  std::vector<detect::Star> stars;  ///< positions at t_ref (Prepared::stars)
+  Velocity skyRate;                 ///< px/s, the stars' motion in the frames
   double psfFwhmPx = 3.0;
   /// Frames sampled for the mask and transient checks (may be null: those checks then do not fire and say
   /// so). Pass Prepared::filtered.frames to sample the search statistic's own summands, or Prepared::frames.
@@ -93,7 +93,8 @@ struct ArtifactContext {
                                            const ArtifactParams& params);
 [[nodiscard]] ArtifactFlag checkDiffraction(const ArtifactContext& ctx, const Track& track,
                                             const ArtifactParams& params);
-[[nodiscard]] ArtifactFlag checkEdge(const ArtifactContext& ctx, const Track& track, const ArtifactParams& params);
+[[nodiscard]] ArtifactFlag checkEdge(const ArtifactContext& ctx, const Track& track,
+                                     const ArtifactParams& params);
 [[nodiscard]] ArtifactFlag checkMasked(const ArtifactContext& ctx, const Track& track,
                                        const ArtifactParams& params);
 /// `segments` (may be null): the segment report of the candidate's fit; its missing-signal and

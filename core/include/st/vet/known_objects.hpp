@@ -12,7 +12,7 @@ namespace st::vet {
 
 struct KnownObject {
   std::string name;
-  double raDeg = 0.0;   ///< ICRS, at epochMjd
+  double raDeg = 0.0;  ///< ICRS, at epochMjd
   double decDeg = 0.0;
   double raRateArcsecPerMin = 0.0;   ///< dRA/dt * cos(Dec), arcsec/min (the convention of ephemeris services)
   double decRateArcsecPerMin = 0.0;  ///< dDec/dt, arcsec/min
@@ -49,7 +49,7 @@ struct KnownObjectMatch {
 
 /// The known-object artifact flag: fires when an object lies within `radiusArcsec`; value = separation to
 /// the nearest object (arcsec), or -1 when the list is empty.
-[[nodiscard]] ArtifactFlag knownObjectFlag(const std::vector<KnownObject>& objects, double raDeg, double decDeg,
-                                           double mjd, double radiusArcsec);
+[[nodiscard]] ArtifactFlag knownObjectFlag(const std::vector<KnownObject>& objects, double raDeg,
+                                           double decDeg, double mjd, double radiusArcsec);
 
 }  // namespace st::vet
