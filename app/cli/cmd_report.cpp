@@ -15,6 +15,8 @@
 #include "st/report/session_report.hpp"
 #include "st/session/session.hpp"
 #include "st/stack/ipsa.hpp"
+#include "st/vet/artifacts.hpp"
+#include "st/vet/known_objects.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -25,7 +27,8 @@ constexpr const char* kHelp =
     "N=TEXT]...\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--mpc out.txt] [--station CODE]\n"
     "                             [--observer NAME] [--measurer NAME] [--ast-cat CAT] [--safe-snr S]\n"
-    "                             [--mpc-cat C] [--wcs FITS] [--stacks DIR]\n"
+    "                             [--mpc-cat C] [--wcs FITS] [--stacks DIR] [--prepared P.json]\n"
+    "                             [--known K.csv [--known-radius ARCSEC]]\n"
     "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
     "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
     "                    change is saved at once (atomically)\n"
@@ -44,6 +47,11 @@ constexpr const char* kHelp =
     "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
     "  --mpc-cat C       80-column catalogue code of the WCS (column 72, e.g. W for Gaia DR3)\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
+    "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
+    "catalog\n"
+    "                    of the pre-processing sidecar and the input frames' times; kept in the session\n"
+    "  --known K.csv     known-object check: CSV of name, ra_deg, dec_deg, epoch_mjd and rates\n"
+    "                    (ra_rate_arcsec_min, dec_rate_arcsec_min or *_deg_day)  --known-radius ARCSEC (10)\n"
     "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
     "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
 
@@ -165,6 +173,51 @@ void writeDs9(const std::string& path, const session::Session& s, const std::opt
               path.c_str());
 }
 
+/// Artifact flags (and the known-object flag) of every candidate, saved into the session.
+void runVetting(const CliArgs& cli, session::SessionEditor& ed, const std::optional<WcsMapping>& wcs) {
+  const auto prepared = cli.value("prepared");
+  const auto known = cli.value("known");
+  if (!prepared && !known) return;
+  const session::Session& s = ed.session();
+  if (s.inputs.empty())
+    throw InputError("the candidates name no input frames (\"inputs\"): vetting needs their times");
+  const io::InputSummary frames = io::summarizeInputs(s.inputs);
+  std::optional<vet::ArtifactContext> ctx;
+  if (prepared) ctx = vet::artifactContextFromPrepared(readJson(*prepared), frames.mjdMid, *prepared);
+  const std::vector<vet::KnownObject> objects =
+      known ? vet::readKnownObjects(*known) : std::vector<vet::KnownObject>{};
+  const double radius = cli.number("known-radius", 10.0);
+  const double tRef = s.search.value("t_ref_mjd", frames.mjdMid.empty() ? 0.0 : frames.mjdMid.front());
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    const auto& c = s.candidates[i];
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    const nlohmann::json& src = fitted ? c.fit : c.candidate;
+    const vet::Track track{
+        src.value("x", 0.0), src.value("y", 0.0), {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)}};
+    std::vector<vet::ArtifactFlag> flags;
+    if (ctx) flags = vet::checkArtifacts(*ctx, track, vet::ArtifactParams{});
+    if (known) {
+      if (c.fit.is_object() && c.fit.contains("ra_deg")) {
+        flags.push_back(vet::knownObjectFlag(objects, c.fit["ra_deg"].get<double>(),
+                                             c.fit["dec_deg"].get<double>(), tRef, radius));
+      } else if (wcs) {
+        const auto p = wcs->toSky(track.x, track.y);
+        flags.push_back(vet::knownObjectFlag(objects, p.raDeg, p.decDeg, tRef, radius));
+      } else {
+        flags.push_back(
+            {vet::ArtifactKind::KnownObject, false, -1.0, "no sky position (no fitted RA/Dec, no --wcs)"});
+      }
+    }
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& f : flags) {
+      list.push_back(vet::toJson(f));
+      if (f.triggered)
+        std::printf("candidate %zu: %s: %s\n", i + 1, vet::toString(f.kind), f.evidence.c_str());
+    }
+    ed.setArtifacts(i, list);
+  }
+}
+
 void writeStacks(const std::string& dir, const session::Session& s) {
   if (s.inputs.empty())
     throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
@@ -199,7 +252,7 @@ void writeStacks(const std::string& dir, const session::Session& s) {
 int cmdReport(const Args& args) {
   const CliArgs cli(args,
                     {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer",
-                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat"},
+                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat", "prepared", "known", "known-radius"},
                     {"help"});
   if (cli.flag("help")) {
     std::printf("%s", kHelp);
@@ -227,6 +280,7 @@ int cmdReport(const Args& args) {
   session::SessionEditor editor(store, std::move(s));
   applyEdits(cli, editor);
   const std::optional<WcsMapping> wcs = loadWcs(cli, editor.session());
+  runVetting(cli, editor, wcs);
   const session::Session cur = withSkyPositions(editor.session(), wcs);
   if (auto p = cli.value("ds9")) writeDs9(*p, cur, wcs);
   if (auto p = cli.value("stacks")) writeStacks(*p, cur);

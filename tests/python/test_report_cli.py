@@ -12,7 +12,10 @@ DS9 regions and FITS stacks, and checks with astropy and by column:
   DS9: fk5 circles at astropy's sky position of the t_ref pixel moved to the WCS's epoch (1e-6 deg);
   FITS stack: astropy reads it; its WCS maps pixel (x, y) to the cube WCS at (x, y) + sky * (t_0 - t_ref)
     (1e-9 deg); provenance keywords present;
-  session: labels kept; a corrupted session exits 1 naming a backup copy that exists.
+  session: labels kept; a corrupted session exits 1 naming a backup copy that exists;
+  vetting on `synthtrack-cli demo --preset small`: a fake candidate along the saturated star's bleed column
+    gets the charge-leakage flag (from prepared.json's catalog), the simulated asteroid does not and matches a
+    known-object list holding its astropy position (< 0.01 arcsec).
 
 usage: test_report_cli.py PATH-TO-synthtrack-cli     (prints "N passed, N failed"; exit 1 on failure)
 """
@@ -173,8 +176,51 @@ def main():
         check(r.returncode == 1 and "corrupted" in r.stderr, "corrupted session: %d %s" % (r.returncode, r.stderr))
         backups = [n for n in os.listdir(tmp) if n.startswith("s.corrupt-") and n.endswith(".json")]
         check(len(backups) == 1 and backups[0] in r.stderr, "backup named: %s" % backups)
+    vetting_on_the_demo(cli)
     print("%d passed, %d failed" % (PASSED, FAILED))
     return 0 if FAILED == 0 else 1
+
+
+def vetting_on_the_demo(cli):
+    """The demo's small observation has a saturated star with bleed columns: a fake candidate moving along its
+    column with the sky must get the charge-leakage flag, the simulated asteroid must not; a known-object list
+    holding the asteroid's position (astropy, from the cube's WCS at the fitted position) must match it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        r = run(cli, ["demo", "--preset", "small", "--out", tmp, "--vmax-deg-day", "35", "--fits", "1"])
+        check(r.returncode == 0, "demo: " + r.stdout + r.stderr)
+        prep = json.load(open(os.path.join(tmp, "prepared.json")))
+        result = json.load(open(os.path.join(tmp, "candidates.json")))
+        sat = [s for s in prep["stars"] if s["saturated"] and s["bleed_columns"]]
+        check(len(sat) >= 1 and len(result["candidates"]) >= 1, "demo has a bleeding star and a candidate")
+        if not sat or not result["candidates"]:
+            return
+        star, real = sat[0], result["candidates"][0]
+        sky = prep["sky_rate_px_s"]
+        result["candidates"].append({"x": int(round(star["bleed_columns"][0])), "y": int(star["y_px"] + 50) % 128,
+                                     "vx_px_s": sky["vx"], "vy_px_s": 0.8, "snr": 8.0})
+        cpath = os.path.join(tmp, "c.json")
+        json.dump(result, open(cpath, "w"))
+        obs = os.path.join(tmp, "observation.fits")
+        with fits.open(obs) as hdul:
+            wcs = WCS(hdul[0].header, naxis=2)
+            mjd = np.array(hdul["FRAMES"].data["MJD_MID"], dtype=float)
+        t0 = (mjd[0] - mjd.mean()) * 86400.0
+        fx, fy = real["fit"]["x"], real["fit"]["y"]
+        ra, dec = wcs.all_pix2world([[fx + sky["vx"] * t0, fy + sky["vy"] * t0]], 0)[0]
+        known = os.path.join(tmp, "known.csv")
+        with open(known, "w") as f:
+            f.write("name,ra_deg,dec_deg,epoch_mjd,ra_rate_arcsec_min,dec_rate_arcsec_min\n")
+            f.write("asteroid,%.9f,%.9f,%.9f,0,0\n" % (ra, dec, result["t_ref_mjd"]))
+        session = os.path.join(tmp, "s.json")
+        r = run(cli, ["report", cpath, "--session", session, "--prepared", os.path.join(tmp, "prepared.json"),
+                      "--known", known, "--wcs", obs])
+        check(r.returncode == 0, "report --prepared --known: " + r.stderr)
+        s = json.load(open(session))
+        flags = [{f["kind"]: f for f in c["artifacts"]} for c in s["candidates"]]
+        check(flags[-1]["charge_leakage"]["triggered"], "bleed-column candidate flagged: %s" % flags[-1]["charge_leakage"])
+        check(not flags[0]["charge_leakage"]["triggered"], "asteroid not flagged for leakage")
+        check(flags[0]["known_object"]["triggered"] and flags[0]["known_object"]["value"] < 0.01,
+              "asteroid matches the known object: %s" % flags[0]["known_object"])
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@
 //   masked           on masked pixels (FrameCube::mask) along the track
 //   transient        signal carried by a few frames (top-k share of the track's sum, or the segment flags)
 //   known object     a catalogued object at the candidate's sky position (known_objects.hpp)
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -106,5 +107,16 @@ struct ArtifactContext {
 [[nodiscard]] std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track& track,
                                                        const ArtifactParams& params,
                                                        const SegmentReport* segments = nullptr);
+
+/// {"kind": "charge_leakage", "triggered": true, "value": 0.96, "evidence": "..."}.
+[[nodiscard]] nlohmann::json toJson(const ArtifactFlag& flag);
+
+/// A context from the pre-processing's sidecar (pipeline/prepared_json.hpp: width_px, height_px, stars with
+/// x_px, y_px, snr, saturated, bleed_columns, sky_rate_px_s {vx, vy}, psf {fwhm_px}) and the frames'
+/// mid-times (MJD; t_ref is their mean). No frames: the mask and transient checks say so and do not fire.
+/// Throws st::InputError naming the key at fault (`where` names the file).
+[[nodiscard]] ArtifactContext artifactContextFromPrepared(const nlohmann::json& prepared,
+                                                          const std::vector<double>& mjdMid,
+                                                          const std::string& where);
 
 }  // namespace st::vet
