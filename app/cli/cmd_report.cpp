@@ -188,6 +188,10 @@ void runVetting(const CliArgs& cli, session::SessionEditor& ed, const std::optio
       known ? vet::readKnownObjects(*known) : std::vector<vet::KnownObject>{};
   const double radius = cli.number("known-radius", 10.0);
   const double tRef = s.search.value("t_ref_mjd", frames.mjdMid.empty() ? 0.0 : frames.mjdMid.front());
+  ed.setParameters("vetting", {{"prepared", prepared.value_or("")},
+                               {"known_objects", known.value_or("")},
+                               {"known_radius_arcsec", radius},
+                               {"artifacts", vet::toJson(vet::ArtifactParams{})}});
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     const auto& c = s.candidates[i];
     const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";

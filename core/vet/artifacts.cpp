@@ -27,6 +27,10 @@ bool isBright(const detect::Star& s, const ArtifactParams& p) {
 
 void requireTimes(const ArtifactContext& ctx) {
   if (ctx.timesS.empty()) throw InputError("artifact checks: the context has no frame times");
+  if (ctx.frames != nullptr && ctx.frames->frameCount() != ctx.timesS.size()) {
+    throw InputError("artifact checks: " + std::to_string(ctx.frames->frameCount()) + " frames but " +
+                     std::to_string(ctx.timesS.size()) + " frame times");
+  }
 }
 
 /// Star position at frame time t (stars move with the sky rate).

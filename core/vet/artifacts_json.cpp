@@ -12,6 +12,22 @@ nlohmann::json toJson(const ArtifactFlag& flag) {
           {"evidence", flag.evidence}};
 }
 
+nlohmann::json toJson(const ArtifactParams& p) {
+  return {{"leakage_half_width_px", p.leakageHalfWidthPx},
+          {"leakage_min_fraction", p.leakageMinFraction},
+          {"bright_star_min_snr", p.brightStarMinSnr},
+          {"near_star_radius_fwhm", p.nearStarRadiusFwhm},
+          {"spike_angles_deg", p.spikeAnglesDeg},
+          {"spike_half_width_px", p.spikeHalfWidthPx},
+          {"spike_length_px", p.spikeLengthPx},
+          {"spike_min_fraction", p.spikeMinFraction},
+          {"edge_margin_fwhm", p.edgeMarginFwhm},
+          {"mask_radius_fwhm", p.maskRadiusFwhm},
+          {"masked_min_fraction", p.maskedMinFraction},
+          {"transient_top_frames", p.transientTopFrames},
+          {"transient_max_share", p.transientMaxShare}};
+}
+
 ArtifactContext artifactContextFromPrepared(const nlohmann::json& j, const std::vector<double>& mjdMid,
                                             const std::string& where) {
   if (mjdMid.empty()) throw InputError("artifact checks: no frame times for '" + where + "'");

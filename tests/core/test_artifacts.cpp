@@ -210,5 +210,46 @@ TEST(Artifacts, AllChecksInOrderWithEvidenceEvenWhenQuiet) {
   EXPECT_THROW((void)checkEdge(ctx, {}, ArtifactParams{}), InputError);
 }
 
+TEST(Artifacts, ContextFromThePreprocessingSidecar) {
+  const nlohmann::json prepared = {
+      {"width_px", 128},
+      {"height_px", 96},
+      {"psf", {{"fwhm_px", 2.5}}},
+      {"sky_rate_px_s", {{"vx", 0.25}, {"vy", -0.1}}},
+      {"stars",
+       {{{"x_px", 81.8}, {"y_px", 34.6}, {"snr", 12662.0}, {"saturated", true}, {"bleed_columns", {81, 82}}},
+        {{"x_px", 10.0}, {"y_px", 20.0}, {"snr", 30.0}}}}};
+  const std::vector<double> mjd = {60000.0, 60000.0 + 1.0 / 86400.0, 60000.0 + 2.0 / 86400.0};
+  const ArtifactContext ctx = artifactContextFromPrepared(prepared, mjd, "prepared.json");
+  EXPECT_EQ(ctx.width, 128);
+  EXPECT_EQ(ctx.height, 96);
+  EXPECT_DOUBLE_EQ(ctx.psfFwhmPx, 2.5);
+  EXPECT_DOUBLE_EQ(ctx.skyRate.vy, -0.1);
+  ASSERT_EQ(ctx.stars.size(), 2u);
+  EXPECT_TRUE(ctx.stars[0].saturated);
+  EXPECT_EQ(ctx.stars[0].bleedColumns, (std::vector<int>{81, 82}));
+  EXPECT_FALSE(ctx.stars[1].saturated);
+  ASSERT_EQ(ctx.timesS.size(), 3u);
+  EXPECT_NEAR(ctx.timesS[0], -1.0, 1e-6);  // MJD 6e4 carries ~1e-11 day of rounding
+  EXPECT_NEAR(ctx.timesS[2], 1.0, 1e-6);
+  EXPECT_TRUE(checkChargeLeakage(ctx, {82.0, 60.0, {0.25, 1.0}}, ArtifactParams{}).triggered);
+  nlohmann::json broken = prepared;
+  broken.erase("psf");
+  try {
+    (void)artifactContextFromPrepared(broken, mjd, "prepared.json");
+    FAIL() << "no error for a sidecar without psf";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("prepared.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("psf"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)artifactContextFromPrepared(prepared, {}, "prepared.json"), InputError);
+  // Frames that do not match the times are refused rather than read out of range.
+  ArtifactContext bad = baseContext();
+  FrameCube three(16, 16, 3);
+  bad.frames = &three;
+  EXPECT_THROW((void)checkTransient(bad, {8.0, 8.0, {}}, ArtifactParams{}, nullptr), InputError);
+  EXPECT_EQ(toJson(ArtifactParams{})["spike_angles_deg"], nlohmann::json({0.0, 90.0}));
+}
+
 }  // namespace
 }  // namespace st::vet

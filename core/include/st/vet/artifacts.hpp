@@ -88,6 +88,7 @@ struct ArtifactContext {
 [[nodiscard]] ArtifactContext makeArtifactContext(const FrameCube& frames, std::vector<detect::Star> stars,
                                                   Velocity skyRate, double psfFwhmPx);
 
+/// Each check throws st::InputError when ctx has no frame times, or frames whose count differs from them.
 [[nodiscard]] ArtifactFlag checkChargeLeakage(const ArtifactContext& ctx, const Track& track,
                                               const ArtifactParams& params);
 [[nodiscard]] ArtifactFlag checkBrightStar(const ArtifactContext& ctx, const Track& track,
@@ -107,6 +108,9 @@ struct ArtifactContext {
 [[nodiscard]] std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track& track,
                                                        const ArtifactParams& params,
                                                        const SegmentReport* segments = nullptr);
+
+/// Every threshold of `params`, with units in the keys (for the session's parameters).
+[[nodiscard]] nlohmann::json toJson(const ArtifactParams& params);
 
 /// {"kind": "charge_leakage", "triggered": true, "value": 0.96, "evidence": "..."}.
 [[nodiscard]] nlohmann::json toJson(const ArtifactFlag& flag);
