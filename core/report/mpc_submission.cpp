@@ -120,7 +120,24 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
 }
 
 SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
+  checkSettings(s);
   SubmissionText out;
+  // MPC1992 header lines (3-letter code, a blank, text; at most 80 characters each).
+  auto header = [&](const char* code, const std::string& text) {
+    if (!text.empty()) out.text += (std::string(code) + " " + text).substr(0, 80) + "\n";
+  };
+  const std::string measurer =
+      !s.measurer.empty() ? s.measurer : s.observers.substr(0, s.observers.find(','));
+  header("COD", s.stationCode);
+  header("OBS", s.observers);
+  header("MEA", measurer);
+  header("TEL", s.apertureM > 0.0
+                    ? fmt("%.2f-m %s + %s", s.apertureM, s.telescopeDesign.c_str(), s.detector.c_str())
+                    : s.telescopeDesign + " + " + s.detector);
+  header("NET", s.astCat);
+  header("ACK", "synthtrack astrometry, " + std::to_string(ds.size()) + " observation(s)");
+  if (s.observers.empty())
+    out.warnings.push_back("80-column: no observer name for the OBS line (set --observer)");
   for (const auto& d : ds)
     out.text += mpc80Line(d, s) + "\n";
   if (s.mpcCatalogCode == ' ') {

@@ -90,6 +90,23 @@ TEST(Mpc80, RoundingCarriesAndSigns) {
   EXPECT_DOUBLE_EQ(calendarFromMjd(60000.0).day, 25.0);
 }
 
+TEST(Mpc80, MessageHasTheHeaderLinesThenTheObservations) {
+  const SubmissionText t = formatMpc80({publishedDetection(), publishedDetection()}, settings291());
+  std::vector<std::string> lines;
+  std::stringstream ss(t.text);
+  for (std::string l; std::getline(ss, l);)
+    lines.push_back(l);
+  ASSERT_EQ(lines.size(), 8u);
+  EXPECT_EQ(lines[0], "COD 291");
+  EXPECT_EQ(lines[1], "OBS A. Observer, B. Second");
+  EXPECT_EQ(lines[2], "MEA A. Observer");
+  EXPECT_EQ(lines[3], "TEL reflector + CCD");
+  EXPECT_EQ(lines[4], "NET Gaia3");
+  EXPECT_EQ(lines[5].substr(0, 4), "ACK ");
+  EXPECT_EQ(lines[6], mpc80Line(publishedDetection(), settings291()));
+  EXPECT_TRUE(t.warnings.empty());  // SNR 12, catalogue code set, observers given
+}
+
 TEST(Mpc80, NoMagnitudeCmosAndBadInput) {
   AstrometricDetection d = publishedDetection();
   d.mag.reset();

@@ -97,7 +97,11 @@ def main():
         check("st00001: SNR" not in r.stderr, "no warning for the SNR-20 detection")
 
         # MPC 80-column, by column.
-        lines = open(mpc).read().splitlines()
+        all_lines = open(mpc).read().splitlines()
+        head = [l for l in all_lines if l[:4] in ("COD ", "OBS ", "MEA ", "TEL ", "NET ", "ACK ")]
+        check(head[:3] == ["COD X05", "OBS A. Observer, B. Second", "MEA A. Observer"] and "NET Gaia3" in head,
+              "MPC header lines %s" % head)
+        lines = all_lines[len(head):]
         check(len(lines) == 2, "two real detections in the MPC file, got %d" % len(lines))
         for line, c in zip(lines, cands[:2]):
             check(len(line) == 80, "80 columns: %r" % line)

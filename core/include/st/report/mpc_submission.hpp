@@ -49,7 +49,8 @@ struct SubmissionText {
 /// One 80-column line (exactly 80 characters, no newline). Throws st::InputError for a station code that is
 /// not 3 characters or a designation longer than 7.
 [[nodiscard]] std::string mpc80Line(const AstrometricDetection& d, const SubmissionSettings& settings);
-/// The whole 80-column text: one line per detection.
+/// The whole 80-column message: the MPC1992 header lines COD (station), OBS (observers), MEA (measurer), TEL
+/// (telescope), NET (astCat, when given), ACK, then one line per detection.
 [[nodiscard]] SubmissionText formatMpc80(const std::vector<AstrometricDetection>& detections,
                                          const SubmissionSettings& settings);
 /// The ADES PSV text: header blocks and the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA, rmsDec,
