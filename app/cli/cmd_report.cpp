@@ -167,7 +167,19 @@ session::Session withSkyPositions(session::Session s, const std::optional<WcsMap
 }
 
 void writeDs9(const std::string& path, const session::Session& s, const std::optional<WcsMapping>& wcs) {
-  const auto marks = report::regionMarks(s);
+  // Track lines over the observation's span, from the frames' times (headers only).
+  double startS = 0.0, endS = 0.0;
+  if (!s.inputs.empty() && s.search.contains("t_ref_mjd")) {
+    try {
+      const io::InputSummary frames = io::summarizeInputs(s.inputs);
+      const double tRef = s.search["t_ref_mjd"].get<double>();
+      startS = (frames.firstMjd - tRef) * 86400.0;
+      endS = (frames.lastMjd - tRef) * 86400.0;
+    } catch (const Error& e) {
+      std::fprintf(stderr, "note: no track lines in the regions (%s)\n", e.what());
+    }
+  }
+  const auto marks = report::regionMarks(s, startS, endS);
   report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{});
   std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), wcs ? "fk5" : "image coordinates",
               path.c_str());

@@ -149,6 +149,13 @@ def main():
             want = sky_at_tref(c["fit"]["x"], c["fit"]["y"])
             check(abs(float(ra) - want[0]) <= 1e-6 and abs(float(dec) - want[1]) <= 1e-6, "DS9 circle %s vs %s" % (l, want))
         check("color=red" in circles[2] and "ghost" in circles[2], "artifact drawn red with its reason")
+        tracks = [l for l in reg_lines if l.startswith("line(")]
+        check(len(tracks) == 3, "a track line per candidate")
+        if tracks:  # from the fitted velocity over the frames' span, mapped like the circles
+            a = [float(v) for v in tracks[0][len("line("):tracks[0].index(")")].split(",")]
+            f = cands[0]["fit"]
+            want = sky_at_tref(f["x"] + f["vx_px_s"] * t0, f["y"] + f["vy_px_s"] * t0)
+            check(abs(a[0] - want[0]) <= 1e-6 and abs(a[1] - want[1]) <= 1e-6, "track start %s vs %s" % (a, want))
 
         # FITS stacks of the real candidates.
         names = sorted(os.listdir(stacks)) if os.path.isdir(stacks) else []
