@@ -282,6 +282,17 @@ int cmdReport(const Args& args) {
     store.emplace(*path);
     if (store->exists()) {
       s = store->load();
+      // The session is the record; the candidates file only seeds a new one. Say so when they disagree.
+      const session::Session fresh = session::fromSearchJson(readJson(candidatesPath));
+      if (fresh.candidates.size() != s.candidates.size() ||
+          fresh.search.value("t_ref_mjd", 0.0) != s.search.value("t_ref_mjd", 0.0)) {
+        std::fprintf(
+            stderr,
+            "warning: session '%s' holds %zu candidates (t_ref %.8f) and '%s' %zu (t_ref %.8f): using the "
+            "session\n",
+            path->c_str(), s.candidates.size(), s.search.value("t_ref_mjd", 0.0), candidatesPath.c_str(),
+            fresh.candidates.size(), fresh.search.value("t_ref_mjd", 0.0));
+      }
     } else {
       s = session::fromSearchJson(readJson(candidatesPath));
       store->save(s);
