@@ -39,6 +39,15 @@ void checkSettings(const SubmissionSettings& s) {
   }
 }
 
+void checkDetection(const AstrometricDetection& d) {
+  if (!std::isfinite(d.raDeg) || !std::isfinite(d.decDeg) || std::abs(d.decDeg) > 90.0 ||
+      !std::isfinite(d.mjdUtc) || d.mjdUtc <= 0.0) {
+    throw InputError("detection '" + d.trkSub + "' has no valid position or epoch (RA " +
+                     std::to_string(d.raDeg) + ", Dec " + std::to_string(d.decDeg) + ", MJD " +
+                     std::to_string(d.mjdUtc) + ")");
+  }
+}
+
 void lowSnrWarnings(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s,
                     std::vector<std::string>& warnings) {
   for (const auto& d : ds) {
@@ -99,6 +108,7 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
   if (det.trkSub.empty() || det.trkSub.size() > 7) {
     throw InputError("80-column designation must be 1 to 7 characters, got '" + det.trkSub + "'");
   }
+  checkDetection(det);
   std::string line(80, ' ');
   auto put = [&](int col1, const std::string& text) { line.replace(col1 - 1, text.size(), text); };
   put(6, det.trkSub);
@@ -182,6 +192,7 @@ SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const 
                                           "rmsDec", "astCat", "mag", "band",    "logSNR", "remarks"};
   std::vector<std::vector<std::string>> rows;
   for (const auto& d : ds) {
+    checkDetection(d);
     if (d.trkSub.empty() || d.trkSub.size() > 8)
       throw InputError("ADES trkSub must be 1 to 8 characters, got '" + d.trkSub + "'");
     const bool hasMag = d.mag && std::isfinite(*d.mag);

@@ -117,6 +117,10 @@ TEST(Mpc80, NoMagnitudeCmosAndBadInput) {
   EXPECT_EQ(line[14], 'B');
   s.stationCode = "29";
   EXPECT_THROW((void)mpc80Line(d, s), InputError);
+  AstrometricDetection nan = publishedDetection();
+  nan.raDeg = std::nan("");
+  EXPECT_THROW((void)mpc80Line(nan, settings291()), InputError);
+  EXPECT_THROW((void)formatAdesPsv({nan}, settings291()), InputError);
   d.trkSub = "TOOLONG8";
   EXPECT_THROW((void)mpc80Line(d, settings291()), InputError);
 }
