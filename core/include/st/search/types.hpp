@@ -44,6 +44,7 @@ struct SearchParams {
   std::optional<double> targetFap;    ///< when set, the SNR threshold is derived from it and the trials
   std::size_t maxCandidates = 10000;  ///< raw cells kept before clustering (highest SNR first)
   double minFrameFraction = 0.5;      ///< cells whose N_in is below this fraction of N_f are ignored
+  std::string method = "exact";       ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).

@@ -1,0 +1,35 @@
+#pragma once
+// The hierarchical ("tree") velocity search on the CPU: the same SearchResult as the exact backend
+// (cpu_backend.hpp), computed in about a few N_pix x N_v + N_pix x N_f additions instead of
+// N_pix x N_f x N_v (plan and accuracy: tree_plan.hpp).
+//
+// Execution: the image is cut into tiles of rows; each tile is evaluated depth-first over the tree (a node's
+// partial stacks, one per node velocity, over the tile's rows plus the margins its parents read; a leaf's
+// stack is its frame(s), shifted by the grid centre's motion), the children's stacks freed once the parent's
+// are built. The root's stacks are not stored: each root velocity's sum over the tile is scanned at once for
+// the velocity map and the cells above threshold. Tiles are spread over st::workerCount() threads.
+// N_in: in closed form from the exact shifts round(v dt_k) (as the exact backend), so SNR = S / (sigma_F
+// sqrt(N_in)) uses the same normalisation; the tree's samples deviate from the exact ones by at most
+// TreePlan::maxAbsErr* px (tested <= 1).
+// Memory: per thread at most treeTileBytes(plan, width, tileRows) of partial stacks, tileRows chosen as the
+// largest <= 32 whose bound fits kTreeTileBudgetBytes (at least 1 row), plus 12 bytes per velocity for the
+// map and (width + height) x (nvx + nvy) x 8 bytes of N_in ranges.
+// Thresholds, minimum frames, capping and clustering: exactly the exact backend's (search_run.hpp,
+// candidates.hpp). Cancellation polled per node velocity; progress per tile.
+#include "st/search/tree_plan.hpp"
+#include "st/search/types.hpp"
+
+namespace st::search {
+
+/// Partial-stack budget of one thread's tile (bytes).
+inline constexpr std::size_t kTreeTileBudgetBytes = std::size_t{160} << 20;
+
+/// The row count of a tile for this plan (see above).
+int treeTileRows(const TreePlan& plan, int width);
+
+/// Runs the tree search. Validates like the exact backend (validateSearchInput); result.method = "tree",
+/// result.backend = "cpu". Throws st::InputError, st::Cancelled.
+SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                        ProgressSink& progress, CancelToken& cancel);
+
+}  // namespace st::search
