@@ -147,28 +147,44 @@ int planAxis(TreePlan& plan, int index, bool isX) {
   return static_cast<int>(std::lround(worst));
 }
 
-/// Margins: a child's stacks must cover every position its parent reads (parent range + offsets).
-void planExtents(TreePlan& plan, int index) {
-  const TreeNode& n = plan.nodes[index];
+/// Margins: a child's stacks must cover every position its parent reads. Tracked per axis velocity along the
+/// actual paths (reach[j] = the range of cumulative offsets of the root velocities that use velocity j), so
+/// the margins stay near the grid's range times the node's distance from t_ref.
+void planExtents(TreePlan& plan, int index, const std::vector<std::pair<int, int>>& reachX,
+                 const std::vector<std::pair<int, int>>& reachY) {
+  TreeNode& n = plan.nodes[index];
+  for (const bool isX : {true, false}) {
+    TreeAxis& a = isX ? n.x : n.y;
+    const auto& reach = isX ? reachX : reachY;
+    a.lo = std::numeric_limits<int>::max();
+    a.hi = std::numeric_limits<int>::min();
+    for (const auto& [lo, hi] : reach) {
+      if (lo > hi) continue;  // a velocity no root velocity uses
+      a.lo = std::min(a.lo, lo);
+      a.hi = std::max(a.hi, hi);
+    }
+    if (a.lo > a.hi) a.lo = a.hi = 0;
+  }
   if (n.leaf()) return;
   for (const bool isLeft : {true, false}) {
-    TreeNode& c = plan.nodes[isLeft ? n.left : n.right];
+    const int ci = isLeft ? n.left : n.right;
+    std::vector<std::pair<int, int>> childReach[2];
     for (const bool isX : {true, false}) {
       const TreeAxis& pa = isX ? n.x : n.y;
-      TreeAxis& ca = isX ? c.x : c.y;
+      const auto& reach = isX ? reachX : reachY;
+      const TreeAxis& ca = isX ? plan.nodes[ci].x : plan.nodes[ci].y;
+      auto& out = childReach[isX ? 0 : 1];
+      out.assign(ca.v.size(), {std::numeric_limits<int>::max(), std::numeric_limits<int>::min()});
       const auto& choices = isLeft ? pa.left : pa.right;
-      int lo = std::numeric_limits<int>::max();
-      int hi = std::numeric_limits<int>::min();
-      for (const TreeChoice& ch : choices) {
-        lo = std::min(lo, ch.offset);
-        hi = std::max(hi, ch.offset);
+      for (std::size_t i = 0; i < choices.size(); ++i) {
+        if (reach[i].first > reach[i].second) continue;
+        auto& r = out[static_cast<std::size_t>(choices[i].child)];
+        r.first = std::min(r.first, reach[i].first + choices[i].offset);
+        r.second = std::max(r.second, reach[i].second + choices[i].offset);
       }
-      ca.lo = pa.lo + lo;
-      ca.hi = pa.hi + hi;
     }
+    planExtents(plan, ci, childReach[0], childReach[1]);
   }
-  planExtents(plan, n.left);
-  planExtents(plan, n.right);
 }
 
 }  // namespace
@@ -192,7 +208,8 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid)
   buildNodes(plan, 0, static_cast<int>(dtS.size()), 0, grid);
   plan.maxAbsErrX = planAxis(plan, 0, true);
   plan.maxAbsErrY = planAxis(plan, 0, false);
-  planExtents(plan, 0);
+  planExtents(plan, 0, std::vector<std::pair<int, int>>(static_cast<std::size_t>(grid.nvx), {0, 0}),
+              std::vector<std::pair<int, int>>(static_cast<std::size_t>(grid.nvy), {0, 0}));
   return plan;
 }
 
@@ -221,14 +238,28 @@ double treeAdditions(const TreePlan& plan, int width, int height, int tileRows) 
   return perTile * tiles;
 }
 
+namespace {
+
+std::size_t nodeBytes(const TreeNode& n, int width, int tileRows) {
+  return n.velocities() * static_cast<std::size_t>(width + n.x.hi - n.x.lo) *
+         static_cast<std::size_t>(tileRows + n.y.hi - n.y.lo) * sizeof(float);
+}
+
+/// Peak bytes held while a node's stacks are built depth-first (its children's live until it is built).
+std::size_t peakBytes(const TreePlan& plan, int index, int width, int tileRows) {
+  const TreeNode& n = plan.nodes[static_cast<std::size_t>(index)];
+  const std::size_t own = index == 0 ? 0 : nodeBytes(n, width, tileRows);
+  if (n.leaf()) return own;
+  const std::size_t l = nodeBytes(plan.nodes[static_cast<std::size_t>(n.left)], width, tileRows);
+  const std::size_t r = nodeBytes(plan.nodes[static_cast<std::size_t>(n.right)], width, tileRows);
+  return std::max({peakBytes(plan, n.left, width, tileRows), l + peakBytes(plan, n.right, width, tileRows),
+                   l + r + own});
+}
+
+}  // namespace
+
 std::size_t treeTileBytes(const TreePlan& plan, int width, int tileRows) {
-  std::size_t bytes = 0;
-  for (std::size_t i = 1; i < plan.nodes.size(); ++i) {
-    const TreeNode& n = plan.nodes[i];
-    bytes += n.velocities() * static_cast<std::size_t>(width + n.x.hi - n.x.lo) *
-             static_cast<std::size_t>(tileRows + n.y.hi - n.y.lo) * sizeof(float);
-  }
-  return bytes;
+  return peakBytes(plan, 0, width, tileRows);
 }
 
 }  // namespace st::search

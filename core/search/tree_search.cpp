@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <atomic>
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -65,6 +68,35 @@ AxisRanges axisRanges(const std::vector<double>& axisV, const std::vector<double
   return r;
 }
 
+/// Buffers reused across nodes and tiles (best fit), so stacks are neither zeroed nor page-faulted anew.
+class BufferPool {
+ public:
+  std::vector<float> take(std::size_t n) {
+    std::size_t best = m_free.size();
+    for (std::size_t i = 0; i < m_free.size(); ++i) {
+      if (m_free[i].size() >= n && (best == m_free.size() || m_free[i].size() < m_free[best].size())) best = i;
+    }
+    if (best == m_free.size()) return std::vector<float>(n);
+    std::vector<float> v = std::move(m_free[best]);
+    m_free.erase(m_free.begin() + static_cast<std::ptrdiff_t>(best));
+    return v;
+  }
+  void give(std::vector<float>&& v) {
+    if (!v.empty()) m_free.push_back(std::move(v));
+  }
+
+ private:
+  std::vector<std::vector<float>> m_free;
+};
+
+struct Planes {
+  std::vector<float> data;
+  int pw = 0, ph = 0, nx = 0;
+  [[nodiscard]] const float* plane(int jx, int jy) const {
+    return data.data() + (static_cast<std::size_t>(jy) * nx + jx) * static_cast<std::size_t>(pw) * ph;
+  }
+};
+
 /// One worker's share of the output: best cell per velocity and the cells above threshold.
 struct WorkerState {
   std::vector<float> bestSnr;
@@ -73,14 +105,7 @@ struct WorkerState {
   std::int64_t hitsTotal = 0;
   float floor = 0.0f;
   std::vector<float> row;
-};
-
-struct Planes {
-  std::unique_ptr<float[]> data;
-  int pw = 0, ph = 0, nx = 0;
-  [[nodiscard]] const float* plane(int jx, int jy) const {
-    return data.get() + (static_cast<std::size_t>(jy) * nx + jx) * static_cast<std::size_t>(pw) * ph;
-  }
+  BufferPool pool;
 };
 
 struct Context {
@@ -96,22 +121,49 @@ struct Context {
   CancelToken& cancel;
 };
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+__attribute__((target("avx2"))) void addTwoAvx2(float* __restrict out, const float* __restrict a,
+                                                const float* __restrict b, int n) {
+  int i = 0;
+  for (; i + 32 <= n; i += 32) {
+    _mm256_storeu_ps(out + i, _mm256_add_ps(_mm256_loadu_ps(a + i), _mm256_loadu_ps(b + i)));
+    _mm256_storeu_ps(out + i + 8, _mm256_add_ps(_mm256_loadu_ps(a + i + 8), _mm256_loadu_ps(b + i + 8)));
+    _mm256_storeu_ps(out + i + 16, _mm256_add_ps(_mm256_loadu_ps(a + i + 16), _mm256_loadu_ps(b + i + 16)));
+    _mm256_storeu_ps(out + i + 24, _mm256_add_ps(_mm256_loadu_ps(a + i + 24), _mm256_loadu_ps(b + i + 24)));
+  }
+  for (; i + 8 <= n; i += 8)
+    _mm256_storeu_ps(out + i, _mm256_add_ps(_mm256_loadu_ps(a + i), _mm256_loadu_ps(b + i)));
+  for (; i < n; ++i)
+    out[i] = a[i] + b[i];
+}
+const bool kHaveAvx2 = __builtin_cpu_supports("avx2");
+#else
+const bool kHaveAvx2 = false;
+void addTwoAvx2(float*, const float*, const float*, int) {}
+#endif
+
+/// out[0, n) = a[0, n) + b[0, n). AVX2 when the CPU has it.
 void addTwo(float* __restrict out, const float* __restrict a, const float* __restrict b, int n) {
+  if (kHaveAvx2) {
+    addTwoAvx2(out, a, b, n);
+    return;
+  }
   for (int i = 0; i < n; ++i)
     out[i] = a[i] + b[i];
 }
 
-Planes leafPlanes(const Context& cx, const TreeNode& n, int y0) {
+/// A leaf's stacks: its frame(s) at the leaf's shifts, zero outside the image.
+Planes leafPlanes(const Context& cx, BufferPool& pool, const TreeNode& n, int y0) {
   Planes p;
   p.pw = cx.width + n.x.hi - n.x.lo;
   p.ph = cx.tileRows + n.y.hi - n.y.lo;
   p.nx = static_cast<int>(n.x.v.size());
   const std::size_t area = static_cast<std::size_t>(p.pw) * p.ph;
-  p.data = std::make_unique<float[]>(n.velocities() * area);  // zeroed: samples outside the image are 0
+  p.data = pool.take(n.velocities() * area);
   const int m = n.last - n.first;
   for (std::size_t jy = 0; jy < n.y.v.size(); ++jy) {
     for (std::size_t jx = 0; jx < n.x.v.size(); ++jx) {
-      float* out = p.data.get() + (jy * n.x.v.size() + jx) * area;
+      float* out = p.data.data() + (jy * n.x.v.size() + jx) * area;
       for (int k = 0; k < m; ++k) {
         const int f = n.first + k;
         const float* frame = cx.cube.frame(cx.plan.frame[f]);
@@ -121,11 +173,22 @@ Planes leafPlanes(const Context& cx, const TreeNode& n, int y0) {
         const int c1 = std::clamp(cx.width - sx, c0, p.pw);
         for (int r = 0; r < p.ph; ++r) {
           const int yi = r + sy;
-          if (yi < 0 || yi >= cx.height || c1 <= c0) continue;
-          const float* src = frame + static_cast<std::size_t>(yi) * cx.width + sx;
           float* dst = out + static_cast<std::size_t>(r) * p.pw;
-          for (int c = c0; c < c1; ++c)
-            dst[c] += src[c];
+          const bool inside = yi >= 0 && yi < cx.height && c1 > c0;
+          if (k == 0 && !inside) {
+            std::memset(dst, 0, sizeof(float) * p.pw);
+            continue;
+          }
+          if (!inside) continue;
+          const float* src = frame + static_cast<std::size_t>(yi) * cx.width + sx;
+          if (k == 0) {
+            std::memset(dst, 0, sizeof(float) * c0);
+            std::memcpy(dst + c0, src + c0, sizeof(float) * (c1 - c0));
+            std::memset(dst + c1, 0, sizeof(float) * (p.pw - c1));
+          } else {
+            for (int c = c0; c < c1; ++c)
+              dst[c] += src[c];
+          }
         }
       }
     }
@@ -148,19 +211,19 @@ void combineRow(const TreeNode& n, const TreeNode& l, const TreeNode& rn, const 
   addTwo(out, a, b, width);
 }
 
-Planes nodePlanes(const Context& cx, int index, int y0);
+Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0);
 
 /// Children's planes of an internal node, depth-first.
-std::pair<Planes, Planes> childPlanes(const Context& cx, const TreeNode& n, int y0) {
-  Planes l = nodePlanes(cx, n.left, y0);
-  Planes r = nodePlanes(cx, n.right, y0);
+std::pair<Planes, Planes> childPlanes(const Context& cx, BufferPool& pool, const TreeNode& n, int y0) {
+  Planes l = nodePlanes(cx, pool, n.left, y0);
+  Planes r = nodePlanes(cx, pool, n.right, y0);
   return {std::move(l), std::move(r)};
 }
 
-Planes nodePlanes(const Context& cx, int index, int y0) {
+Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0) {
   const TreeNode& n = cx.plan.nodes[index];
-  if (n.leaf()) return leafPlanes(cx, n, y0);
-  auto [lp, rp] = childPlanes(cx, n, y0);
+  if (n.leaf()) return leafPlanes(cx, pool, n, y0);
+  auto [lp, rp] = childPlanes(cx, pool, n, y0);
   const TreeNode& l = cx.plan.nodes[n.left];
   const TreeNode& rn = cx.plan.nodes[n.right];
   Planes p;
@@ -168,15 +231,17 @@ Planes nodePlanes(const Context& cx, int index, int y0) {
   p.ph = cx.tileRows + n.y.hi - n.y.lo;
   p.nx = static_cast<int>(n.x.v.size());
   const std::size_t area = static_cast<std::size_t>(p.pw) * p.ph;
-  p.data = std::make_unique_for_overwrite<float[]>(n.velocities() * area);
+  p.data = pool.take(n.velocities() * area);
   for (int jy = 0; jy < static_cast<int>(n.y.v.size()); ++jy) {
     cx.cancel.throwIfCancelled();
     for (int jx = 0; jx < p.nx; ++jx) {
-      float* out = p.data.get() + (static_cast<std::size_t>(jy) * p.nx + jx) * area;
+      float* out = p.data.data() + (static_cast<std::size_t>(jy) * p.nx + jx) * area;
       for (int r = 0; r < p.ph; ++r)
         combineRow(n, l, rn, lp, rp, jx, jy, r, p.pw, out + static_cast<std::size_t>(r) * p.pw);
     }
   }
+  pool.give(std::move(lp.data));
+  pool.give(std::move(rp.data));
   return p;
 }
 
@@ -234,7 +299,7 @@ void trimHits(WorkerState& ws, std::size_t cap) {
 /// One tile of rows [y0, y0 + rows): the root's sums per velocity, scanned at once.
 void runTile(const Context& cx, WorkerState& ws, int y0) {
   const TreeNode& root = cx.plan.nodes[0];
-  auto [lp, rp] = childPlanes(cx, root, y0);
+  auto [lp, rp] = childPlanes(cx, ws.pool, root, y0);
   const TreeNode& l = cx.plan.nodes[root.left];
   const TreeNode& rn = cx.plan.nodes[root.right];
   const int rows = std::min(cx.tileRows, cx.height - y0);
@@ -249,12 +314,14 @@ void runTile(const Context& cx, WorkerState& ws, int y0) {
     }
     trimHits(ws, cx.cap);
   }
+  ws.pool.give(std::move(lp.data));
+  ws.pool.give(std::move(rp.data));
 }
 
 }  // namespace
 
 int treeTileRows(const TreePlan& plan, int width) {
-  for (int rows = 32; rows > 1; --rows) {
+  for (int rows = 64; rows > 1; --rows) {
     if (treeTileBytes(plan, width, rows) <= kTreeTileBudgetBytes) return rows;
   }
   return 1;

@@ -80,8 +80,8 @@ std::vector<std::pair<int, int>> treeImpliedShifts(const TreePlan& plan, int ix,
 /// margins included: the operation count to compare with width x height x frames x velocities (exact).
 double treeAdditions(const TreePlan& plan, int width, int height, int tileRows);
 
-/// Bytes of partial stacks one tile of `tileRows` rows needs at most (every non-root node's stacks; the
-/// depth-first evaluation holds fewer).
+/// Peak bytes of partial stacks one tile of `tileRows` rows holds in the depth-first evaluation (a node's
+/// children's stacks live until its own are built; the root's are never stored).
 std::size_t treeTileBytes(const TreePlan& plan, int width, int tileRows);
 
 }  // namespace st::search

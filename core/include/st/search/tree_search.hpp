@@ -11,8 +11,9 @@
 // N_in: in closed form from the exact shifts round(v dt_k) (as the exact backend), so SNR = S / (sigma_F
 // sqrt(N_in)) uses the same normalisation; the tree's samples deviate from the exact ones by at most
 // TreePlan::maxAbsErr* px (tested <= 1).
-// Memory: per thread at most treeTileBytes(plan, width, tileRows) of partial stacks, tileRows chosen as the
-// largest <= 32 whose bound fits kTreeTileBudgetBytes (at least 1 row), plus 12 bytes per velocity for the
+// Memory: per thread about treeTileBytes(plan, width, tileRows) of partial stacks (the depth-first peak; held
+// in a per-thread pool of reused buffers, best fit, so a little more), tileRows chosen as the largest <= 64
+// whose peak fits kTreeTileBudgetBytes (at least 1 row), plus 12 bytes per velocity for the
 // map and (width + height) x (nvx + nvy) x 8 bytes of N_in ranges.
 // Thresholds, minimum frames, capping and clustering: exactly the exact backend's (search_run.hpp,
 // candidates.hpp). Cancellation polled per node velocity; progress per tile.
@@ -22,7 +23,7 @@
 namespace st::search {
 
 /// Partial-stack budget of one thread's tile (bytes).
-inline constexpr std::size_t kTreeTileBudgetBytes = std::size_t{160} << 20;
+inline constexpr std::size_t kTreeTileBudgetBytes = std::size_t{192} << 20;
 
 /// The row count of a tile for this plan (see above).
 int treeTileRows(const TreePlan& plan, int width);
