@@ -158,8 +158,11 @@ void planExtents(TreePlan& plan, int index, const std::vector<std::pair<int, int
     const auto& reach = isX ? reachX : reachY;
     a.lo = std::numeric_limits<int>::max();
     a.hi = std::numeric_limits<int>::min();
-    for (const auto& [lo, hi] : reach) {
-      if (lo > hi) continue;  // a velocity no root velocity uses
+    a.used.assign(reach.size(), 0);
+    for (std::size_t j = 0; j < reach.size(); ++j) {
+      const auto [lo, hi] = reach[j];
+      if (lo > hi) continue;  // a velocity no root velocity uses: its stacks are not built
+      a.used[j] = 1;
       a.lo = std::min(a.lo, lo);
       a.hi = std::max(a.hi, hi);
     }
@@ -233,7 +236,7 @@ double treeAdditions(const TreePlan& plan, int width, int height, int tileRows) 
     const double h = tileRows + n.y.hi - n.y.lo;
     // A leaf copies (or adds) each of its frames once; an internal node adds two stacks per velocity.
     perTile += n.leaf() ? static_cast<double>(n.last - n.first) * w * h
-                        : static_cast<double>(n.velocities()) * w * h;
+                        : static_cast<double>(n.usedVelocities()) * w * h;
   }
   return perTile * tiles;
 }

@@ -234,7 +234,9 @@ Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0) {
   p.data = pool.take(n.velocities() * area);
   for (int jy = 0; jy < static_cast<int>(n.y.v.size()); ++jy) {
     cx.cancel.throwIfCancelled();
+    if (!n.y.used[jy]) continue;
     for (int jx = 0; jx < p.nx; ++jx) {
+      if (!n.x.used[jx]) continue;
       float* out = p.data.data() + (static_cast<std::size_t>(jy) * p.nx + jx) * area;
       for (int r = 0; r < p.ph; ++r)
         combineRow(n, l, rn, lp, rp, jx, jy, r, p.pw, out + static_cast<std::size_t>(r) * p.pw);

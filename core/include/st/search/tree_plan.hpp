@@ -18,6 +18,7 @@
 // exposed (TreePlan::maxAbsErr*), and the tests check it is at most 1 px at every frame.
 // Shifts are computed relative to the grid centre's own motion P_k = round(c dt_k), so the margins the partial
 // stacks need are set by the grid's range, not by its centre (a sky rate).
+#include <algorithm>
 #include <cstddef>
 #include <utility>
 #include <vector>
@@ -42,6 +43,7 @@ struct TreeAxis {
   std::vector<double> v;               ///< axis velocities, px/s (absolute, not relative to the centre)
   std::vector<TreeChoice> left, right; ///< per velocity index; empty for a leaf
   std::vector<int> pattern;            ///< implied shifts minus P_k: [velocity][frame - node.first]
+  std::vector<char> used;              ///< per velocity: some root velocity's path goes through it
   int lo = 0;                          ///< stacks cover positions [lo, size + hi) (tile-relative)
   int hi = 0;
 };
@@ -56,6 +58,11 @@ struct TreeNode {
   TreeAxis x, y;
   [[nodiscard]] bool leaf() const noexcept { return left < 0; }
   [[nodiscard]] std::size_t velocities() const noexcept { return x.v.size() * y.v.size(); }
+  /// Velocities on some root velocity's path (only those stacks are built).
+  [[nodiscard]] std::size_t usedVelocities() const noexcept {
+    return static_cast<std::size_t>(std::count(x.used.begin(), x.used.end(), 1)) *
+           static_cast<std::size_t>(std::count(y.used.begin(), y.used.end(), 1));
+  }
 };
 
 struct TreePlan {
