@@ -159,10 +159,14 @@ void planExtents(TreePlan& plan, int index, const std::vector<std::pair<int, int
     a.lo = std::numeric_limits<int>::max();
     a.hi = std::numeric_limits<int>::min();
     a.used.assign(reach.size(), 0);
+    a.reachLo.assign(reach.size(), 0);
+    a.reachHi.assign(reach.size(), 0);
     for (std::size_t j = 0; j < reach.size(); ++j) {
       const auto [lo, hi] = reach[j];
       if (lo > hi) continue;  // a velocity no root velocity uses: its stacks are not built
       a.used[j] = 1;
+      a.reachLo[j] = lo;
+      a.reachHi[j] = hi;
       a.lo = std::min(a.lo, lo);
       a.hi = std::max(a.hi, hi);
     }
@@ -235,8 +239,16 @@ double treeAdditions(const TreePlan& plan, int width, int height, int tileRows) 
     const double w = width + n.x.hi - n.x.lo;
     const double h = tileRows + n.y.hi - n.y.lo;
     // A leaf copies (or adds) each of its frames once; an internal node adds two stacks per velocity.
-    perTile += n.leaf() ? static_cast<double>(n.last - n.first) * w * h
-                        : static_cast<double>(n.usedVelocities()) * w * h;
+    if (n.leaf()) {
+      perTile += static_cast<double>(n.last - n.first) * w * h;
+      continue;
+    }
+    double cols = 0.0, rows = 0.0;  // a stack is built only where its parents read it
+    for (std::size_t j = 0; j < n.x.v.size(); ++j)
+      cols += n.x.used[j] ? width + n.x.reachHi[j] - n.x.reachLo[j] : 0;
+    for (std::size_t j = 0; j < n.y.v.size(); ++j)
+      rows += n.y.used[j] ? tileRows + n.y.reachHi[j] - n.y.reachLo[j] : 0;
+    perTile += cols * rows;
   }
   return perTile * tiles;
 }

@@ -196,19 +196,21 @@ Planes leafPlanes(const Context& cx, BufferPool& pool, const TreeNode& n, int y0
   return p;
 }
 
-/// Row r of the sum of a node's two children for node velocity (jx, jy), into out[0, width).
+/// Row r, columns [c0, c0 + count) of the sum of a node's two children for node velocity (jx, jy), into
+/// out[0, count).
 void combineRow(const TreeNode& n, const TreeNode& l, const TreeNode& rn, const Planes& lp, const Planes& rp,
-                int jx, int jy, int r, int width, float* out) {
+                int jx, int jy, int r, int c0, int count, float* out) {
   const TreeChoice& lx = n.x.left[jx];
   const TreeChoice& ly = n.y.left[jy];
   const TreeChoice& rx = n.x.right[jx];
   const TreeChoice& ry = n.y.right[jy];
   const float* a = lp.plane(lx.child, ly.child) +
-                   static_cast<std::size_t>(n.y.lo + r + ly.offset - l.y.lo) * lp.pw + (n.x.lo + lx.offset - l.x.lo);
+                   static_cast<std::size_t>(n.y.lo + r + ly.offset - l.y.lo) * lp.pw +
+                   (n.x.lo + c0 + lx.offset - l.x.lo);
   const float* b = rp.plane(rx.child, ry.child) +
                    static_cast<std::size_t>(n.y.lo + r + ry.offset - rn.y.lo) * rp.pw +
-                   (n.x.lo + rx.offset - rn.x.lo);
-  addTwo(out, a, b, width);
+                   (n.x.lo + c0 + rx.offset - rn.x.lo);
+  addTwo(out, a, b, count);
 }
 
 Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0);
@@ -235,11 +237,16 @@ Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0) {
   for (int jy = 0; jy < static_cast<int>(n.y.v.size()); ++jy) {
     cx.cancel.throwIfCancelled();
     if (!n.y.used[jy]) continue;
+    // Only the window the parents read is built: rows and columns of this velocity's reach.
+    const int r0 = n.y.reachLo[jy] - n.y.lo;
+    const int r1 = cx.tileRows + n.y.reachHi[jy] - n.y.lo;
     for (int jx = 0; jx < p.nx; ++jx) {
       if (!n.x.used[jx]) continue;
+      const int c0 = n.x.reachLo[jx] - n.x.lo;
+      const int c1 = cx.width + n.x.reachHi[jx] - n.x.lo;
       float* out = p.data.data() + (static_cast<std::size_t>(jy) * p.nx + jx) * area;
-      for (int r = 0; r < p.ph; ++r)
-        combineRow(n, l, rn, lp, rp, jx, jy, r, p.pw, out + static_cast<std::size_t>(r) * p.pw);
+      for (int r = r0; r < r1; ++r)
+        combineRow(n, l, rn, lp, rp, jx, jy, r, c0, c1 - c0, out + static_cast<std::size_t>(r) * p.pw + c0);
     }
   }
   pool.give(std::move(lp.data));
@@ -310,7 +317,7 @@ void runTile(const Context& cx, WorkerState& ws, int y0) {
     cx.cancel.throwIfCancelled();
     for (int ix = 0; ix < static_cast<int>(root.x.v.size()); ++ix) {
       for (int r = 0; r < rows; ++r) {
-        combineRow(root, l, rn, lp, rp, ix, iy, r, cx.width, ws.row.data());
+        combineRow(root, l, rn, lp, rp, ix, iy, r, 0, cx.width, ws.row.data());
         scanRow(cx, ws, ws.row.data(), ix, iy, y0 + r);
       }
     }

@@ -44,6 +44,7 @@ struct TreeAxis {
   std::vector<TreeChoice> left, right; ///< per velocity index; empty for a leaf
   std::vector<int> pattern;            ///< implied shifts minus P_k: [velocity][frame - node.first]
   std::vector<char> used;              ///< per velocity: some root velocity's path goes through it
+  std::vector<int> reachLo, reachHi;   ///< per used velocity: its stack is needed at [reachLo, size + reachHi)
   int lo = 0;                          ///< stacks cover positions [lo, size + hi) (tile-relative)
   int hi = 0;
 };
