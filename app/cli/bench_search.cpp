@@ -42,8 +42,8 @@ struct Run {
   double cpuSeconds = 0.0;
 };
 
-Run timedSearch(search::SearchBackend& backend, const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                const search::SearchParams& params) {
+Run timedSearch(search::SearchBackend& backend, const search::FilteredCube& cube,
+                const search::VelocityGrid& grid, const search::SearchParams& params) {
   TerminalProgress progress;
   Run run;
   const double cpu0 = processCpuSeconds();
@@ -93,16 +93,17 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
         "\"tree_cpu_seconds\": %.4f, \"tree_candidates\": %zu, \"tree_max_shift_error_px\": %d, "
         "\"tree_tile_rows\": %d, \"tree_tile_mb_per_thread\": %.1f, \"exact_additions\": %.6g, "
         "\"exact_seconds\": %.4f, \"exact_candidates\": %zu, \"paper_tree_additions\": %.6g, "
-        "\"paper_tree_seconds\": %.2f, \"paper_exact_additions\": %.6g, \"paper_tree_tile_mb_per_thread\": %.1f, "
+        "\"paper_tree_seconds\": %.2f, \"paper_exact_additions\": %.6g, \"paper_tree_tile_mb_per_thread\": "
+        "%.1f, "
         "\"max_rss_mb\": %.0f}\n",
         workerCount(), frames, w, h, grid.nvx, grid.nvy, treeOps, tree.seconds, tree.cpuSeconds,
         tree.result.candidates.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, exactOps,
-        runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0}, paperTreeOps,
-        paperTreeS, paperExactOps, paperTileMb, rssMb);
+        runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0},
+        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb);
     return 0;
   }
-  std::printf("search tree vs exact  %s  %.0f frames x %d x %d px x %d x %d velocities\n", backend->name().c_str(),
-              frames, w, h, grid.nvx, grid.nvy);
+  std::printf("search tree vs exact  %s  %.0f frames x %d x %d px x %d x %d velocities\n",
+              backend->name().c_str(), frames, w, h, grid.nvx, grid.nvy);
   std::printf("  %-6s %14s %10s %10s %12s %11s\n", "method", "additions", "time s", "cpu s", "additions/s",
               "candidates");
   std::printf("  %-6s %14.4g %10.3f %10.3f %12.4g %11zu\n", "tree", treeOps, tree.seconds, tree.cpuSeconds,
@@ -113,16 +114,17 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
     std::printf("  speed-up %.1fx in time, %.1fx in operations\n", exact.seconds / tree.seconds,
                 exactOps / treeOps);
   }
-  std::printf("  tree: tree depth %d, %zu nodes, max |shift - round(v dt)| = %d px, tiles of %d rows, "
-              "<= %.1f MB of partial stacks per thread; peak RSS %.0f MB\n",
-              plan.depth, plan.nodes.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb,
-              rssMb);
+  std::printf(
+      "  tree: tree depth %d, %zu nodes, max |shift - round(v dt)| = %d px, tiles of %d rows, "
+      "<= %.1f MB of partial stacks per thread; peak RSS %.0f MB\n",
+      plan.depth, plan.nodes.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, rssMb);
   const bool isPaper = frames == 1500.0 && w == 512 && h == 512 && grid.nvx == 100 && grid.nvy == 100;
-  std::printf("  paper problem 1500 x 512^2 x 100 x 100: exact %.3g additions, tree %.3g (%.0fx fewer, tiles of "
-              "%d rows, <= %.0f MB per thread)\n    -> tree %s %.1f s%s\n",
-              paperExactOps, paperTreeOps, paperExactOps / paperTreeOps, paperRows, paperTileMb,
-              isPaper ? "measured" : "about", isPaper ? tree.seconds : paperTreeS,
-              isPaper ? " (this run)" : " at this run's tree rate (extrapolated from this problem, not measured)");
+  std::printf(
+      "  paper problem 1500 x 512^2 x 100 x 100: exact %.3g additions, tree %.3g (%.0fx fewer, tiles of "
+      "%d rows, <= %.0f MB per thread)\n    -> tree %s %.1f s%s\n",
+      paperExactOps, paperTreeOps, paperExactOps / paperTreeOps, paperRows, paperTileMb,
+      isPaper ? "measured" : "about", isPaper ? tree.seconds : paperTreeS,
+      isPaper ? " (this run)" : " at this run's tree rate (extrapolated from this problem, not measured)");
   return 0;
 }
 

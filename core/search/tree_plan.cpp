@@ -20,7 +20,8 @@ constexpr int kTreeNeighbours = 2;
 /// step, kTreeStepPx / span), K the fewest that leave every search-grid velocity within step / 2 of one.
 std::vector<double> nodeAxis(double centre, double gridStep, int gridCount, double spanS) {
   const double halfRange = 0.5 * (gridCount - 1) * gridStep;
-  const double step = spanS > 0.0 ? std::max(gridStep, kTreeStepPx / spanS) : std::numeric_limits<double>::max();
+  const double step =
+      spanS > 0.0 ? std::max(gridStep, kTreeStepPx / spanS) : std::numeric_limits<double>::max();
   const int k = step >= std::numeric_limits<double>::max() || halfRange <= 0.0
                     ? 0
                     : std::max(0, static_cast<int>(std::ceil(halfRange / step - 0.5 - 1e-9)));
@@ -53,8 +54,10 @@ int buildNodes(TreePlan& plan, int first, int last, int depth, const VelocityGri
   }
   TreeNode& n = plan.nodes[index];
   if (index == 0) {
-    for (int i = 0; i < grid.nvx; ++i) n.x.v.push_back(grid.at(i, 0).vx);
-    for (int i = 0; i < grid.nvy; ++i) n.y.v.push_back(grid.at(0, i).vy);
+    for (int i = 0; i < grid.nvx; ++i)
+      n.x.v.push_back(grid.at(i, 0).vx);
+    for (int i = 0; i < grid.nvy; ++i)
+      n.y.v.push_back(grid.at(0, i).vy);
   } else {
     n.x.v = nodeAxis(grid.centre.vx, grid.stepPxS, grid.nvx, span);
     n.y.v = nodeAxis(grid.centre.vy, grid.stepPxS, grid.nvy, span);
@@ -85,7 +88,8 @@ Pick pickChild(const TreePlan& plan, const TreeNode& child, const TreeAxis& ca, 
     target[k] = (root ? ipsaShift(v, plan.dt[f]) : v * plan.dt[f]) - pre[f];
   }
   Pick best;
-  for (int j = std::max(0, nearest - kTreeNeighbours); j <= std::min(nv - 1, nearest + kTreeNeighbours); ++j) {
+  for (int j = std::max(0, nearest - kTreeNeighbours); j <= std::min(nv - 1, nearest + kTreeNeighbours);
+       ++j) {
     const int* p = ca.pattern.data() + static_cast<std::size_t>(j) * m;
     double mn = std::numeric_limits<double>::max();
     double mx = std::numeric_limits<double>::lowest();
@@ -123,7 +127,8 @@ int planAxis(TreePlan& plan, int index, bool isX) {
     return 0;
   }
   double worst = 0;
-  for (const int c : {n.left, n.right}) planAxis(plan, c, isX);
+  for (const int c : {n.left, n.right})
+    planAxis(plan, c, isX);
   const TreeNode& l = plan.nodes[n.left];
   const TreeNode& r = plan.nodes[n.right];
   const TreeAxis& la = isX ? l.x : l.y;
@@ -139,7 +144,8 @@ int planAxis(TreePlan& plan, int index, bool isX) {
     const int ml = l.last - l.first;
     const int mr = r.last - r.first;
     for (int k = 0; k < ml; ++k)
-      a.pattern[i * m + k] = pl.choice.offset + la.pattern[static_cast<std::size_t>(pl.choice.child) * ml + k];
+      a.pattern[i * m + k] =
+          pl.choice.offset + la.pattern[static_cast<std::size_t>(pl.choice.child) * ml + k];
     for (int k = 0; k < mr; ++k)
       a.pattern[i * m + ml + k] =
           pr.choice.offset + ra.pattern[static_cast<std::size_t>(pr.choice.child) * mr + k];
@@ -267,8 +273,8 @@ std::size_t peakBytes(const TreePlan& plan, int index, int width, int tileRows) 
   if (n.leaf()) return own;
   const std::size_t l = nodeBytes(plan.nodes[static_cast<std::size_t>(n.left)], width, tileRows);
   const std::size_t r = nodeBytes(plan.nodes[static_cast<std::size_t>(n.right)], width, tileRows);
-  return std::max({peakBytes(plan, n.left, width, tileRows), l + peakBytes(plan, n.right, width, tileRows),
-                   l + r + own});
+  return std::max(
+      {peakBytes(plan, n.left, width, tileRows), l + peakBytes(plan, n.right, width, tileRows), l + r + own});
 }
 
 }  // namespace

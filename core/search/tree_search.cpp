@@ -74,7 +74,8 @@ class BufferPool {
   std::vector<float> take(std::size_t n) {
     std::size_t best = m_free.size();
     for (std::size_t i = 0; i < m_free.size(); ++i) {
-      if (m_free[i].size() >= n && (best == m_free.size() || m_free[i].size() < m_free[best].size())) best = i;
+      if (m_free[i].size() >= n && (best == m_free.size() || m_free[i].size() < m_free[best].size()))
+        best = i;
     }
     if (best == m_free.size()) return std::vector<float>(n);
     std::vector<float> v = std::move(m_free[best]);
@@ -289,7 +290,8 @@ void scanRow(const Context& cx, WorkerState& ws, const float* s, int ix, int iy,
   if (b > a && nIn >= cx.minFrames && nIn > 0) {
     const std::size_t iv = static_cast<std::size_t>(iy) * cx.plan.nodes[0].x.v.size() + ix;
     const float top = detail::maxOf(s + a, b - a) * cx.invNorm[nIn];
-    if (top > ws.bestSnr[iv] || top > cx.threshold) scanSpan(cx, ws, s, a, b, ix, iy, y, [nIn](int) { return nIn; });
+    if (top > ws.bestSnr[iv] || top > cx.threshold)
+      scanSpan(cx, ws, s, a, b, ix, iy, y, [nIn](int) { return nIn; });
   }
   scanSpan(cx, ws, s, b, w, ix, iy, y, edge);
 }
@@ -350,8 +352,8 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
   result.method = "tree";
 
   const TreePlan plan = buildTreePlan(cube.frames.timeOffsetsS(), grid);
-  Context cx{cube.frames, plan, params, cube.frames.width(), cube.frames.height(), 0, 0.0f, 1, 0, {}, {}, {},
-             cancel};
+  Context cx{cube.frames, plan, params, cube.frames.width(), cube.frames.height(), 0, 0.0f, 1, 0, {},
+             {},          {},   cancel};
   cx.tileRows = treeTileRows(plan, cx.width);
   cx.threshold = static_cast<float>(result.snrThreshold);
   cx.minFrames = result.minFrames;
@@ -404,9 +406,10 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
     for (std::size_t iv = 0; iv < nv; ++iv) {
       if (w->bestX[iv] < 0) continue;
       // Ties go to the lowest (y, x), as in the exact backend.
-      const bool better = map.argX[iv] < 0 || w->bestSnr[iv] > map.maxSnr[iv] ||
-                          (w->bestSnr[iv] == map.maxSnr[iv] &&
-                           (w->bestY[iv] < map.argY[iv] || (w->bestY[iv] == map.argY[iv] && w->bestX[iv] < map.argX[iv])));
+      const bool better =
+          map.argX[iv] < 0 || w->bestSnr[iv] > map.maxSnr[iv] ||
+          (w->bestSnr[iv] == map.maxSnr[iv] &&
+           (w->bestY[iv] < map.argY[iv] || (w->bestY[iv] == map.argY[iv] && w->bestX[iv] < map.argX[iv])));
       if (better) {
         map.maxSnr[iv] = w->bestSnr[iv];
         map.argX[iv] = w->bestX[iv];

@@ -20,10 +20,12 @@ namespace {
 
 std::vector<double> offsetsOf(const std::vector<double>& times) {
   double mean = 0.0;
-  for (double t : times) mean += t;
+  for (double t : times)
+    mean += t;
   mean /= static_cast<double>(times.size());
   std::vector<double> dt;
-  for (double t : times) dt.push_back(t - mean);
+  for (double t : times)
+    dt.push_back(t - mean);
   return dt;
 }
 
@@ -58,7 +60,8 @@ TEST(SearchTree, ImpliedShiftsWithinOnePixelPaperCadence) {
   // The paper's problem: 1500 frames at 16.7 Hz, 100 x 100 velocities 1 px / span apart (here every 4th
   // column of velocities is checked on x and all on y to keep the test fast: the axes are independent).
   std::vector<double> t(1500);
-  for (std::size_t n = 0; n < t.size(); ++n) t[n] = static_cast<double>(n) / 16.7;
+  for (std::size_t n = 0; n < t.size(); ++n)
+    t[n] = static_cast<double>(n) / 16.7;
   const std::vector<double> dt = offsetsOf(t);
   const double span = dt.back() - dt.front();
   const VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 100, 100};
@@ -69,18 +72,30 @@ TEST(SearchTree, ImpliedShiftsWithinOnePixelPaperCadence) {
   for (int i = 0; i < 100; i += 3) {
     const auto s = treeImpliedShifts(plan, i, 99 - i);
     for (std::size_t n = 0; n < dt.size(); ++n) {
-      off += (s[n].first != ipsaShift(grid.at(i, 0).vx, dt[n])) + (s[n].second != ipsaShift(grid.at(0, 99 - i).vy, dt[n]));
+      off += (s[n].first != ipsaShift(grid.at(i, 0).vx, dt[n])) +
+             (s[n].second != ipsaShift(grid.at(0, 99 - i).vy, dt[n]));
       all += 2;
       ASSERT_LE(std::abs(s[n].first - ipsaShift(grid.at(i, 0).vx, dt[n])), 1);
       ASSERT_LE(std::abs(s[n].second - ipsaShift(grid.at(0, 99 - i).vy, dt[n])), 1);
     }
   }
-  std::printf("paper cadence: %.1f%% of sampled (velocity, frame, axis) shifts differ (by 1 px) from round(v dt)\n",
-              100.0 * static_cast<double>(off) / static_cast<double>(all));
-  // Distinguishable velocities grow with the span: the root's children hold about a quarter of the grid.
-  const TreeNode& l = plan.nodes[static_cast<std::size_t>(plan.nodes[0].left)];
-  EXPECT_LE(l.velocities(), 53u * 53u);
-  EXPECT_GE(l.velocities(), 49u * 49u);
+  std::printf(
+      "paper cadence: %.1f%% of sampled (velocity, frame, axis) shifts differ (by 1 px) from round(v dt)\n",
+      100.0 * static_cast<double>(off) / static_cast<double>(all));
+  // Distinguishable velocities grow with the span: per axis 2 ceil(halfRange / step - 1/2) + 1 velocities,
+  // step = max(grid step, kTreeStepPx / node span); so the 2-D count goes with the span squared.
+  const double halfRange = 49.5 * grid.stepPxS;
+  for (std::size_t i = 1; i < plan.nodes.size(); ++i) {
+    const TreeNode& n = plan.nodes[i];
+    if (n.leaf()) continue;
+    const double step = std::max(grid.stepPxS, kTreeStepPx / n.spanS);
+    const std::size_t k = static_cast<std::size_t>(std::max(0.0, std::ceil(halfRange / step - 0.5 - 1e-9)));
+    ASSERT_EQ(n.x.v.size(), 2 * k + 1) << "node " << i;
+    ASSERT_EQ(n.y.v.size(), 2 * k + 1) << "node " << i;
+  }
+  const TreeNode& grandchild =
+      plan.nodes[static_cast<std::size_t>(plan.nodes[static_cast<std::size_t>(plan.nodes[0].left)].left)];
+  EXPECT_LE(grandchild.velocities(), 53u * 53u);
 }
 
 struct Injected {
@@ -95,7 +110,8 @@ FilteredCube injectedCube(const std::vector<Injected>& objects, const psf::Moffa
   const double p2 = test::sumP2(psf, r);
   const double alpha = snr / (std::sqrt(static_cast<double>(frames)) * std::sqrt(p2));
   grid.stepPxS = 1.0 / fc.frames.timeSpanS();
-  for (const Injected& o : objects) test::injectMoffat(fc.frames, psf, alpha, o.x, o.y, o.v);
+  for (const Injected& o : objects)
+    test::injectMoffat(fc.frames, psf, alpha, o.x, o.y, o.v);
   test::matchedFilter(fc.frames, psf, r);
   fc.sigmaF = std::sqrt(p2);
   fc.psfFwhmPx = psf.fwhm();
@@ -124,13 +140,15 @@ TEST(SearchTree, MatchesExactOnInjectedObjects) {
     std::uniform_real_distribution<double> uv(-14.0, 14.0);
     VelocityGrid grid{{0.0, 0.0}, 0.0, 31, 31};
     std::vector<Injected> objects;
-    for (int i = 0; i < 9; ++i) objects.push_back({6.0 + 42.0 * (i % 3), 6.0 + 42.0 * (i / 3), {uv(rng), uv(rng)}});
+    for (int i = 0; i < 9; ++i)
+      objects.push_back({6.0 + 42.0 * (i % 3), 6.0 + 42.0 * (i / 3), {uv(rng), uv(rng)}});
     // Velocities are in px over the span until the cube (and so the span) exists: rescale after.
     FilteredCube fc = [&] {
       FilteredCube probe;
       probe.frames = test::noiseCube(8, 8, test::unevenTimes(64, 0.4, cubeSeed + 1), 1.0, 1);
       const double span = probe.frames.timeSpanS();
-      for (auto& o : objects) o.v = {o.v.vx / span, o.v.vy / span};
+      for (auto& o : objects)
+        o.v = {o.v.vx / span, o.v.vy / span};
       return injectedCube(objects, psf, r, 14.0, 96, 96, 64, cubeSeed + 1, grid);
     }();
     SearchParams params;  // SNR 7
@@ -250,9 +268,10 @@ TEST(SearchTree, NoisePeaksAboveThresholdPlusOneMostlyKept) {
   for (std::size_t i = 0; i < grid.count(); ++i)
     diffs.push_back(std::abs(tree.map.maxSnr[i] / exact.map.maxSnr[i] - 1.0));
   std::sort(diffs.begin(), diffs.end());
-  std::printf("noise: %d exact candidates >= threshold + 1, %d without a tree candidate; map difference median "
-              "%.3f, worst %.3f\n",
-              checked, lost, diffs[diffs.size() / 2], diffs.back());
+  std::printf(
+      "noise: %d exact candidates >= threshold + 1, %d without a tree candidate; map difference median "
+      "%.3f, worst %.3f\n",
+      checked, lost, diffs[diffs.size() / 2], diffs.back());
   EXPECT_LE(diffs[diffs.size() / 2], 0.05);
 }
 
