@@ -237,26 +237,27 @@ std::vector<std::pair<int, int>> treeImpliedShifts(const TreePlan& plan, int ix,
   return out;
 }
 
+namespace {
+
+double nodeAdditions(const TreePlan& plan, int index, int width, int tileRows) {
+  const TreeNode& n = plan.nodes[static_cast<std::size_t>(index)];
+  const double w = width + n.x.hi - n.x.lo;
+  const double h = tileRows + n.y.hi - n.y.lo;
+  if (n.direct()) return static_cast<double>(n.last - n.first) * w * h;  // each frame copied or added once
+  double cols = 0.0, rows = 0.0;  // a stack is built only where its parents read it
+  for (std::size_t j = 0; j < n.x.v.size(); ++j)
+    cols += n.x.used[j] ? width + n.x.reachHi[j] - n.x.reachLo[j] : 0;
+  for (std::size_t j = 0; j < n.y.v.size(); ++j)
+    rows += n.y.used[j] ? tileRows + n.y.reachHi[j] - n.y.reachLo[j] : 0;
+  return cols * rows + nodeAdditions(plan, n.left, width, tileRows) +
+         nodeAdditions(plan, n.right, width, tileRows);
+}
+
+}  // namespace
+
 double treeAdditions(const TreePlan& plan, int width, int height, int tileRows) {
   const int tiles = (height + tileRows - 1) / tileRows;
-  double perTile = 0.0;
-  for (std::size_t i = 0; i < plan.nodes.size(); ++i) {
-    const TreeNode& n = plan.nodes[i];
-    const double w = width + n.x.hi - n.x.lo;
-    const double h = tileRows + n.y.hi - n.y.lo;
-    // A leaf copies (or adds) each of its frames once; an internal node adds two stacks per velocity.
-    if (n.leaf()) {
-      perTile += static_cast<double>(n.last - n.first) * w * h;
-      continue;
-    }
-    double cols = 0.0, rows = 0.0;  // a stack is built only where its parents read it
-    for (std::size_t j = 0; j < n.x.v.size(); ++j)
-      cols += n.x.used[j] ? width + n.x.reachHi[j] - n.x.reachLo[j] : 0;
-    for (std::size_t j = 0; j < n.y.v.size(); ++j)
-      rows += n.y.used[j] ? tileRows + n.y.reachHi[j] - n.y.reachLo[j] : 0;
-    perTile += cols * rows;
-  }
-  return perTile * tiles;
+  return nodeAdditions(plan, 0, width, tileRows) * tiles;
 }
 
 namespace {
@@ -270,7 +271,7 @@ std::size_t nodeBytes(const TreeNode& n, int width, int tileRows) {
 std::size_t peakBytes(const TreePlan& plan, int index, int width, int tileRows) {
   const TreeNode& n = plan.nodes[static_cast<std::size_t>(index)];
   const std::size_t own = index == 0 ? 0 : nodeBytes(n, width, tileRows);
-  if (n.leaf()) return own;
+  if (n.direct() && index != 0) return own;
   const std::size_t l = nodeBytes(plan.nodes[static_cast<std::size_t>(n.left)], width, tileRows);
   const std::size_t r = nodeBytes(plan.nodes[static_cast<std::size_t>(n.right)], width, tileRows);
   return std::max(

@@ -123,8 +123,8 @@ struct Context {
 };
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-__attribute__((target("avx2"))) void addTwoAvx2(float* __restrict out, const float* __restrict a,
-                                                const float* __restrict b, int n) {
+__attribute__((target("avx2"))) void addTwoAvx2(float* out, const float* a, const float* __restrict b,
+                                                int n) {
   int i = 0;
   for (; i + 32 <= n; i += 32) {
     _mm256_storeu_ps(out + i, _mm256_add_ps(_mm256_loadu_ps(a + i), _mm256_loadu_ps(b + i)));
@@ -143,8 +143,8 @@ const bool kHaveAvx2 = false;
 void addTwoAvx2(float*, const float*, const float*, int) {}
 #endif
 
-/// out[0, n) = a[0, n) + b[0, n). AVX2 when the CPU has it.
-void addTwo(float* __restrict out, const float* __restrict a, const float* __restrict b, int n) {
+/// out[0, n) = a[0, n) + b[0, n) (out may be a). AVX2 when the CPU has it.
+void addTwo(float* out, const float* a, const float* __restrict b, int n) {
   if (kHaveAvx2) {
     addTwoAvx2(out, a, b, n);
     return;
@@ -153,7 +153,8 @@ void addTwo(float* __restrict out, const float* __restrict a, const float* __res
     out[i] = a[i] + b[i];
 }
 
-/// A leaf's stacks: its frame(s) at the leaf's shifts, zero outside the image.
+/// A leaf's stacks, or those of a node with one velocity: its frames summed along the node's implied shifts
+/// (the same samples its subtree would add, without building the subtree), zero outside the image.
 Planes leafPlanes(const Context& cx, BufferPool& pool, const TreeNode& n, int y0) {
   Planes p;
   p.pw = cx.width + n.x.hi - n.x.lo;
@@ -187,8 +188,7 @@ Planes leafPlanes(const Context& cx, BufferPool& pool, const TreeNode& n, int y0
             std::memcpy(dst + c0, src + c0, sizeof(float) * (c1 - c0));
             std::memset(dst + c1, 0, sizeof(float) * (p.pw - c1));
           } else {
-            for (int c = c0; c < c1; ++c)
-              dst[c] += src[c];
+            addTwo(dst + c0, dst + c0, src + c0, c1 - c0);
           }
         }
       }
@@ -225,7 +225,7 @@ std::pair<Planes, Planes> childPlanes(const Context& cx, BufferPool& pool, const
 
 Planes nodePlanes(const Context& cx, BufferPool& pool, int index, int y0) {
   const TreeNode& n = cx.plan.nodes[index];
-  if (n.leaf()) return leafPlanes(cx, pool, n, y0);
+  if (n.direct()) return leafPlanes(cx, pool, n, y0);
   auto [lp, rp] = childPlanes(cx, pool, n, y0);
   const TreeNode& l = cx.plan.nodes[n.left];
   const TreeNode& rn = cx.plan.nodes[n.right];

@@ -59,6 +59,9 @@ struct TreeNode {
   int depth = 0;
   TreeAxis x, y;
   [[nodiscard]] bool leaf() const noexcept { return left < 0; }
+  /// Built directly from its frames (a leaf, or a node with one velocity: its subtree would add the same
+  /// samples in about twice the work).
+  [[nodiscard]] bool direct() const noexcept { return leaf() || (x.v.size() == 1 && y.v.size() == 1); }
   [[nodiscard]] std::size_t velocities() const noexcept { return x.v.size() * y.v.size(); }
   /// Velocities on some root velocity's path (only those stacks are built).
   [[nodiscard]] std::size_t usedVelocities() const noexcept {
