@@ -8,6 +8,7 @@
 #include <QLineEdit>
 #include <QTableView>
 #include <QVBoxLayout>
+#include <cmath>
 
 namespace st::ui {
 
@@ -44,7 +45,9 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
   const auto unit = m_obs->unit();
   const double vx = fromPxPerS(c.v.vx, unit, scale);
   const double vy = fromPxPerS(c.v.vy, unit, scale);
-  const double rate = fromPxPerS(c.v.norm(), unit, scale);
+  // The rate that matters to an astronomer is relative to the stars (the sky rate), as in the paper.
+  const Velocity sky = m_obs->skyRate();
+  const double rate = fromPxPerS(std::hypot(c.v.vx - sky.vx, c.v.vy - sky.vy), unit, scale);
   if (role == Qt::UserRole) {  // sort key
     switch (index.column()) {
       case Index:
@@ -122,7 +125,7 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
     case Vy:
       return "vy [" + u + "]";
     case Rate:
-      return "rate [" + u + "]";
+      return "rate vs sky [" + u + "]";
     case Snr:
       return "SNR";
     case Fap:

@@ -139,6 +139,12 @@ void ImageView::paintEvent(QPaintEvent*) {
     if (!m.label.isEmpty()) p.drawText(c + QPointF(r + 3, -r), m.label);
   }
   if (!m_overlay.isEmpty()) {
+    // A dark band under the caption keeps it readable over bright images.
+    const QRectF band = p.fontMetrics()
+                            .boundingRect(m_overlay)
+                            .adjusted(-6, -3, 6, 3)
+                            .translated(14, 10 + p.fontMetrics().ascent());
+    p.fillRect(band, QColor(0, 0, 0, 170));
     p.setPen(QColor(230, 230, 120));
     p.drawText(QRectF(8, 6, width() - 16, 20), Qt::AlignLeft | Qt::AlignTop, m_overlay);
   }

@@ -9,6 +9,7 @@
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QHBoxLayout>
+#include <QImage>
 #include <QLabel>
 #include <QMenuBar>
 #include <QMessageBox>
@@ -333,8 +334,11 @@ void MainWindow::showError(const QString& title, const QString& message) {
   QMessageBox::warning(this, title, message);
 }
 
-bool MainWindow::saveScreenshot(const QString& path) {
-  const bool ok = grab().save(path);
+bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
+  QImage image = grab().toImage();
+  if (maxWidth > 0 && image.width() > maxWidth)
+    image = image.scaledToWidth(maxWidth, Qt::SmoothTransformation);
+  const bool ok = image.save(path, nullptr, 0);
   if (!ok) showError("Screenshot", "could not write " + path);
   return ok;
 }

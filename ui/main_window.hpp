@@ -37,6 +37,7 @@ struct ScriptOptions {
   bool search = false;
   std::optional<int> select;  ///< 1-based candidate number
   QString screenshot;
+  int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
   bool quit = false;
 };
 
@@ -57,7 +58,8 @@ class MainWindow : public QMainWindow {
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
   void selectCandidate(int index);
   void showSource(Source source, int layer = 0);
-  bool saveScreenshot(const QString& path);
+  /// Saves the window as PNG (maximum compression), scaled down to `maxWidth` when it is > 0.
+  bool saveScreenshot(const QString& path, int maxWidth = 0);
   /// Runs the command-line script; with quit, the application exits when done (code 1 on failure).
   void runScript(const ScriptOptions& options);
 

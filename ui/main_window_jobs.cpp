@@ -210,6 +210,14 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
       finishScript(true, {});
   }
   if (finishedJob == "Searching") {
+    // Scripted runs list the candidates on stdout, so a figure's --select N can be chosen reproducibly.
+    const auto& result = m_obs->result();
+    for (std::size_t i = 0; result && i < result->candidates.size(); ++i) {
+      const auto& c = result->candidates[i];
+      std::printf("candidate %zu: x %d y %d vx %.4f vy %.4f px/s snr %.2f fap %.3g n_in %d\n", i + 1, c.x,
+                  c.y, c.v.vx, c.v.vy, c.snr, c.fap, c.nIn);
+    }
+    std::fflush(stdout);
     if (m_script->select) selectCandidate(*m_script->select - 1);
     finishScript(true, {});
   }
@@ -222,7 +230,10 @@ void MainWindow::finishScript(bool ok, const QString& message) {
   // Let the live stack arrive and the widgets lay out before the picture is taken.
   QTimer::singleShot(1200, this, [this, script, ok] {
     bool good = ok;
-    if (!script.screenshot.isEmpty()) good = saveScreenshot(script.screenshot) && good;
+    if (!script.screenshot.isEmpty())
+      good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
+    if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
+    std::fflush(stdout);
     m_script.reset();
     emit scriptFinished(good);
     if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);

@@ -17,6 +17,8 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_plot = new QCustomPlot(this);
   m_plot->setMinimumSize(260, 220);
   m_plot->setFocusPolicy(Qt::NoFocus);
+  m_plot->xAxis->ticker()->setTickCount(4);  // rates like 117.5 deg/day need room
+  m_plot->yAxis->ticker()->setTickCount(5);
   m_map = new QCPColorMap(m_plot->xAxis, m_plot->yAxis);
   m_scale = new QCPColorScale(m_plot);
   m_plot->plotLayout()->addElement(0, 1, m_scale);
@@ -53,7 +55,7 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_hint->position->setType(QCPItemPosition::ptAxisRectRatio);
   m_hint->position->setCoords(0.5, 0.12);
   m_hint->setColor(Qt::white);
-  m_hint->setText("no search yet: click to scrub");
+  m_hint->setText("no search yet");
   m_legend = new QLabel(
       "<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
       "<span style='color:#d4a000'>⊕</span> current velocity",

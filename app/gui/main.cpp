@@ -25,8 +25,9 @@ int main(int argc, char** argv) {
   const QCommandLineOption select("select", "Select candidate N (1-based) after the search.", "N");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window when done, then quit.",
                                       "FILE");
+  const QCommandLineOption width("screenshot-width", "Scale the screenshot down to this width.", "PIXELS");
   const QCommandLineOption quit("quit", "Quit when done.");
-  parser.addOptions({demo, search, select, screenshot, quit});
+  parser.addOptions({demo, search, select, screenshot, width, quit});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
     }
   }
   script.screenshot = parser.value(screenshot);
+  script.screenshotWidth = parser.value(width).toInt();
   script.quit = parser.isSet(quit);
 
   st::ui::MainWindow window(st::app::makeCoreServices());

@@ -21,10 +21,10 @@ class UnionFind {
     }
     return i;
   }
-  void unite(std::size_t a, std::size_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) m_parent[std::max(a, b)] = std::min(a, b);
+  /// Makes the cluster of `child` part of the cluster of `root` (root must be a root).
+  void attach(std::size_t child, std::size_t root) {
+    child = find(child);
+    if (child != root) m_parent[child] = root;
   }
 
  private:
@@ -83,23 +83,38 @@ std::vector<Candidate> clusterCells(const std::vector<CellHit>& cellsIn, const V
     return std::abs(a.x - b.x) <= radius && std::abs(a.y - b.y) <= radius &&
            std::abs(a.ivx - b.ivx) <= vRadius && std::abs(a.ivy - b.ivy) <= vRadius;
   };
+  auto bucketsLink = [&](std::size_t ba, std::size_t bb) {
+    for (const std::size_t i : buckets[ba])
+      for (const std::size_t j : buckets[bb])
+        if (links(cells[i], cells[j])) return true;
+    return false;
+  };
+  // Buckets were created in increasing index of their first (best) cell, so bucket order is decreasing
+  // peak SNR. Persistence merging over buckets (0-dimensional persistent homology): a bucket joins its best
+  // linked neighbour's cluster; when it also links another cluster, the bucket's peak is the saddle between
+  // the two, and the lower cluster is merged only when its peak rises less than the persistence above that
+  // saddle (a noise bump on the ridge of one object), so distinct objects stay distinct candidates.
+  auto peakOf = [&](std::size_t bucket) { return static_cast<double>(cells[buckets[bucket].front()].snr); };
+  auto persistent = [&](double peak, double saddle) {
+    return peak - saddle >= std::max(params.persistenceSnr, params.persistenceFraction * peak);
+  };
   UnionFind uf(buckets.size());
-  for (std::size_t ba = 0; ba < buckets.size(); ++ba) {
-    const CellHit& first = cells[buckets[ba].front()];
+  std::vector<std::size_t> roots;
+  for (std::size_t b = 0; b < buckets.size(); ++b) {
+    roots.clear();
+    const CellHit& first = cells[buckets[b].front()];
     for (int d = 0; d < 81; ++d) {
       const auto it = bucketIndex.find(keyOf(first, d % 3 - 1, d / 3 % 3 - 1, d / 9 % 3 - 1, d / 27 - 1));
-      if (it == bucketIndex.end() || it->second <= ba || uf.find(it->second) == uf.find(ba)) continue;
-      bool linked = false;
-      for (const std::size_t i : buckets[ba]) {
-        for (const std::size_t j : buckets[it->second]) {
-          if (links(cells[i], cells[j])) {
-            linked = true;
-            break;
-          }
-        }
-        if (linked) break;
-      }
-      if (linked) uf.unite(ba, it->second);
+      if (it == bucketIndex.end() || it->second >= b) continue;
+      const std::size_t root = uf.find(it->second);
+      if (std::find(roots.begin(), roots.end(), root) != roots.end()) continue;
+      if (bucketsLink(b, it->second)) roots.push_back(root);
+    }
+    if (roots.empty()) continue;  // a new peak
+    const std::size_t best = *std::min_element(roots.begin(), roots.end());
+    uf.attach(b, best);
+    for (const std::size_t r : roots) {
+      if (r != best && !persistent(peakOf(r), peakOf(b))) uf.attach(r, best);
     }
   }
   std::vector<Candidate> out;
@@ -111,7 +126,7 @@ std::vector<Candidate> clusterCells(const std::vector<CellHit>& cellsIn, const V
       ++out[it->second].clusterCells;
       continue;
     }
-    // Cells are in decreasing SNR, so the first cell met of a cluster is its best.
+    // Cells are in decreasing SNR and a root is its cluster's best bucket, so the first cell met is the peak.
     const CellHit& c = cells[i];
     Candidate cand;
     cand.x = c.x;

@@ -42,7 +42,10 @@ struct VelocityGrid {
 struct SearchParams {
   double snrThreshold = 7.0;          ///< paper §4.4: SNR 7 (FAP ~0.34% for 512^2 x 100^2 trials)
   std::optional<double> targetFap;    ///< when set, the SNR threshold is derived from it and the trials
-  std::size_t maxCandidates = 10000;  ///< raw cells kept before clustering (highest SNR first)
+  /// Cells above threshold kept before clustering (highest SNR first), a bound on memory (~30 bytes each).
+  /// Generous on purpose: the skirts of one bright star residual light up 1e5-1e6 cells, and a small cap
+  /// silently drops every fainter object (SearchResult::cellsAboveThreshold shows when it was reached).
+  std::size_t maxCandidates = 2'000'000;
   double minFrameFraction = 0.5;      ///< cells whose N_in is below this fraction of N_f are ignored
   std::string method = "exact";       ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
 };
