@@ -45,7 +45,9 @@ constexpr const char* kHelp =
     "  --sigma-f S           noise of one filtered frame (default: header SIGMAF, else measured: 1.4826 "
     "MAD)\n"
     "  --fwhm PX             PSF FWHM (default: header PSFFWHM, else 3)\n"
-    "  --backend auto|cpu|cuda  (default auto)   --method exact\n"
+    "  --backend auto|cpu|cuda  (default auto)\n"
+    "  --method exact|tree   exact IPSA (default) or the hierarchical tree search (CPU only; every sample\n"
+    "                        within 1 px of the exact shift)\n"
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
 
 struct Options {
@@ -94,8 +96,9 @@ Options parseOptions(const CliArgs& cli) {
   o.sigmaF = cli.number("sigma-f");
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;
-  if (auto m = cli.value("method"); m && *m != "exact") {
-    throw UsageError("--method must be 'exact' (the tree search is not available), got '" + *m + "'");
+  if (auto m = cli.value("method")) {
+    if (*m != "exact" && *m != "tree") throw UsageError("--method must be 'exact' or 'tree', got '" + *m + "'");
+    p.method = *m;
   }
   o.csv = cli.value("out");
   o.json = cli.flag("json");
@@ -174,7 +177,13 @@ int cmdSearch(const Args& args) {
     throw UsageError("--fit needs the unfiltered frames: give the raw INPUT without --preprocessed");
   }
   const Options o = parseOptions(cli);
-  BackendSelection sel = makeBackend(parseBackendChoice(o.backend));
+  BackendChoice choice = parseBackendChoice(o.backend);
+  if (o.request.params.method == "tree") {
+    // The tree search exists on the CPU backend only (the CUDA tree path is not written yet).
+    if (choice == BackendChoice::Cuda) throw UsageError("--method tree runs on the CPU only: use --backend cpu");
+    choice = BackendChoice::Cpu;
+  }
+  BackendSelection sel = makeBackend(choice);
   TerminalProgress progress;
   std::optional<pipeline::Prepared> prepared;
   if (!preprocessed) {
