@@ -10,6 +10,8 @@
 #include "commands.hpp"
 #include "st/common/parallel.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/search/tree_plan.hpp"
+#include "st/search/tree_search.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "terminal_progress.hpp"
 
@@ -25,16 +27,120 @@ double processCpuSeconds() {
          1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
+/// Paper-scale problem: 1500 frames at 16.7 Hz, 512^2 px, 100 x 100 velocities 1 px / span apart.
+search::TreePlan paperPlan() {
+  std::vector<double> dt(1500);
+  for (std::size_t n = 0; n < dt.size(); ++n)
+    dt[n] = (static_cast<double>(n) - 749.5) / 16.7;
+  const double span = dt.back() - dt.front();
+  return search::buildTreePlan(dt, search::VelocityGrid{{0.0, 0.0}, 1.0 / span, 100, 100});
+}
+
+struct Run {
+  search::SearchResult result;
+  double seconds = 0.0;
+  double cpuSeconds = 0.0;
+};
+
+Run timedSearch(search::SearchBackend& backend, const search::FilteredCube& cube,
+                const search::VelocityGrid& grid, const search::SearchParams& params) {
+  TerminalProgress progress;
+  Run run;
+  const double cpu0 = processCpuSeconds();
+  const auto t0 = std::chrono::steady_clock::now();
+  run.result = backend.search(cube, grid, params, progress, processCancelToken());
+  run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  run.cpuSeconds = processCpuSeconds() - cpu0;
+  progress.finish();
+  return run;
+}
+
+/// `bench search --method tree`: the tree search and (unless --no-exact) the exact search on the same cube,
+/// operation counts and times side by side, and the paper-scale extrapolation of both.
+int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid, bool runExact, bool json) {
+  auto backend = search::makeCpuBackend();
+  search::SearchParams params;
+  params.snrThreshold = 7.0;
+  const int w = cube.frames.width();
+  const int h = cube.frames.height();
+  const double frames = static_cast<double>(cube.frames.frameCount());
+  const search::TreePlan plan = search::buildTreePlan(cube.frames.timeOffsetsS(), grid);
+  const int tileRows = search::treeTileRows(plan, w);
+  const double treeOps = search::treeAdditions(plan, w, h, tileRows);
+  const double exactOps = static_cast<double>(w) * h * frames * grid.count();
+  params.method = "tree";
+  const Run tree = timedSearch(*backend, cube, grid, params);
+  Run exact;
+  if (runExact) {
+    params.method = "exact";
+    exact = timedSearch(*backend, cube, grid, params);
+  }
+  const search::TreePlan paper = paperPlan();
+  const int paperRows = search::treeTileRows(paper, 512);
+  const double paperTreeOps = search::treeAdditions(paper, 512, 512, paperRows);
+  const double paperExactOps = 1500.0 * 512.0 * 512.0 * 100.0 * 100.0;
+  const double treeRate = treeOps / tree.seconds;
+  const double paperTreeS = paperTreeOps / treeRate;
+  const double tileMb = static_cast<double>(search::treeTileBytes(plan, w, tileRows)) / 1048576.0;
+  const double paperTileMb = static_cast<double>(search::treeTileBytes(paper, 512, paperRows)) / 1048576.0;
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  const double rssMb = static_cast<double>(u.ru_maxrss) / 1024.0;
+  if (json) {
+    std::printf(
+        "{\"bench\": \"search-tree\", \"threads\": %u, \"frames\": %.0f, \"width\": %d, \"height\": %d, "
+        "\"nvx\": %d, \"nvy\": %d, \"tree_additions\": %.6g, \"tree_seconds\": %.4f, "
+        "\"tree_cpu_seconds\": %.4f, \"tree_candidates\": %zu, \"tree_max_shift_error_px\": %d, "
+        "\"tree_tile_rows\": %d, \"tree_tile_mb_per_thread\": %.1f, \"exact_additions\": %.6g, "
+        "\"exact_seconds\": %.4f, \"exact_candidates\": %zu, \"paper_tree_additions\": %.6g, "
+        "\"paper_tree_seconds\": %.2f, \"paper_exact_additions\": %.6g, \"paper_tree_tile_mb_per_thread\": "
+        "%.1f, "
+        "\"max_rss_mb\": %.0f}\n",
+        workerCount(), frames, w, h, grid.nvx, grid.nvy, treeOps, tree.seconds, tree.cpuSeconds,
+        tree.result.candidates.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, exactOps,
+        runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0},
+        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb);
+    return 0;
+  }
+  std::printf("search tree vs exact  %s  %.0f frames x %d x %d px x %d x %d velocities\n",
+              backend->name().c_str(), frames, w, h, grid.nvx, grid.nvy);
+  std::printf("  %-6s %14s %10s %10s %12s %11s\n", "method", "additions", "time s", "cpu s", "additions/s",
+              "candidates");
+  std::printf("  %-6s %14.4g %10.3f %10.3f %12.4g %11zu\n", "tree", treeOps, tree.seconds, tree.cpuSeconds,
+              treeRate, tree.result.candidates.size());
+  if (runExact) {
+    std::printf("  %-6s %14.4g %10.3f %10.3f %12.4g %11zu\n", "exact", exactOps, exact.seconds,
+                exact.cpuSeconds, exactOps / exact.seconds, exact.result.candidates.size());
+    std::printf("  speed-up %.1fx in time, %.1fx in operations\n", exact.seconds / tree.seconds,
+                exactOps / treeOps);
+  }
+  std::printf(
+      "  tree: tree depth %d, %zu nodes, max |shift - round(v dt)| = %d px, tiles of %d rows, "
+      "<= %.1f MB of partial stacks per thread; peak RSS %.0f MB\n",
+      plan.depth, plan.nodes.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, rssMb);
+  const bool isPaper = frames == 1500.0 && w == 512 && h == 512 && grid.nvx == 100 && grid.nvy == 100;
+  std::printf(
+      "  paper problem 1500 x 512^2 x 100 x 100: exact %.3g additions, tree %.3g (%.0fx fewer, tiles of "
+      "%d rows, <= %.0f MB per thread)\n    -> tree %s %.1f s%s\n",
+      paperExactOps, paperTreeOps, paperExactOps / paperTreeOps, paperRows, paperTileMb,
+      isPaper ? "measured" : "about", isPaper ? tree.seconds : paperTreeS,
+      isPaper ? " (this run)" : " at this run's tree rate (extrapolated from this problem, not measured)");
+  return 0;
+}
+
 }  // namespace
 
 int benchSearch(const Args& args) {
-  const CliArgs cli(args, {"frames", "size", "nv"}, {"json", "help"});
+  const CliArgs cli(args, {"frames", "size", "nv", "method"}, {"json", "help", "no-exact"});
   if (cli.flag("help")) {
     std::printf(
-        "usage: synthtrack-cli bench search [--frames N] [--size N] [--nv N] [--json]\n"
+        "usage: synthtrack-cli bench search [--frames N] [--size N] [--nv N] [--method exact|tree] "
+        "[--no-exact] [--json]\n"
         "  exact CPU search of N frames of size x size random pixels over nv x nv velocities\n"
         "  (defaults 500 frames, 512 px, 31 x 31: 1.26e11 additions), frames at 16.7 Hz like the paper,\n"
-        "  grid step 1 px over the span. Reports additions/s and the paper-scale extrapolation.\n");
+        "  grid step 1 px over the span. Reports additions/s and the paper-scale extrapolation.\n"
+        "  --method tree: the tree search, then the exact search on the same cube (not with --no-exact),\n"
+        "  operation counts and times side by side, and the tree's paper-scale extrapolation.\n");
     return 0;
   }
   const long long frames = cli.integer("frames").value_or(500);
@@ -55,6 +161,9 @@ int benchSearch(const Args& args) {
   cube.psfFwhmPx = 3.0;
   const double span = cube.frames.timeSpanS();
   const search::VelocityGrid grid{{0.0, 0.0}, 1.0 / span, static_cast<int>(nv), static_cast<int>(nv)};
+  const std::string method = cli.value("method").value_or("exact");
+  if (method == "tree") return benchTree(cube, grid, !cli.flag("no-exact"), cli.flag("json"));
+  if (method != "exact") throw UsageError("--method must be exact or tree, got '" + method + "'");
   search::SearchParams params;
   params.snrThreshold = 7.0;
   auto backend = search::makeCpuBackend();

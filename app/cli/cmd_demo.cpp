@@ -8,10 +8,9 @@
 #include <string>
 
 #include "backend_factory.hpp"
+#include "candidate_fit.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
-#include "st/astro/astrometry.hpp"
-#include "st/fit/comoving_fit.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
 #include "st/pipeline/prepared_json.hpp"
@@ -20,7 +19,6 @@
 #include "st/search/search_run.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/stack/ipsa.hpp"
-#include "st/vet/segments.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -95,48 +93,6 @@ const nlohmann::json* matchTruth(const nlohmann::json& result, const sim::TruthO
   return best;
 }
 
-nlohmann::json fitCandidate(const pipeline::Prepared& prepared, const search::Candidate& c, double gain) {
-  fit::FitOptions opt;
-  opt.psf = prepared.psf;
-  opt.sigmaN = prepared.sigmaN;
-  opt.gain = gain;
-  CancelToken& cancel = processCancelToken();
-  const fit::FitResult f = fit::fitComoving(prepared.frames, fit::startFromCandidate(c), opt, {}, cancel);
-  nlohmann::json j{{"status", fit::toString(f.status)},
-                   {"message", f.message},
-                   {"iterations", f.iterations},
-                   {"x", f.params.xc},
-                   {"y", f.params.yc},
-                   {"vx_px_s", f.params.v.vx},
-                   {"vy_px_s", f.params.v.vy},
-                   {"sigma_x_px", f.sigmaNoiseModel[fit::kXc]},
-                   {"sigma_y_px", f.sigmaNoiseModel[fit::kYc]},
-                   {"sigma_vx_px_s", f.sigmaNoiseModel[fit::kVx]},
-                   {"sigma_vy_px_s", f.sigmaNoiseModel[fit::kVy]},
-                   {"sigma_pos_paper_px", f.sigmaPosPaper},
-                   {"sigma_vel_paper_px_s", f.sigmaVelPaper},
-                   {"photons_per_frame", f.photonsPerFrame},
-                   {"snr", f.snr}};
-  if (f.sigmaN > 0.0) {
-    const vet::SegmentReport seg = vet::checkSegments(prepared.frames, f, opt, vet::SegmentOptions{}, cancel);
-    j["segments_flagged"] = seg.flagged();
-    j["segment_reasons"] = seg.reasons;
-    nlohmann::json snrs = nlohmann::json::array();
-    for (const auto& s : seg.segments) snrs.push_back(s.forcedSnr);
-    j["segment_snr"] = snrs;
-  }
-  if (f.ok() && prepared.frames.wcs) {
-    const double firstOffset = prepared.frames.timeOffsetsS().front();
-    const astro::SkyMeasurement sky = astro::skyMeasurement(*prepared.frames.wcs, f, prepared.skyRate, firstOffset);
-    j["ra_deg"] = sky.raDeg;
-    j["dec_deg"] = sky.decDeg;
-    j["rate_deg_day"] = sky.rateDegPerDay;
-    j["rate_arcsec_min"] = sky.rateArcsecPerMin;
-    j["pa_deg"] = sky.positionAngleDeg;
-  }
-  return j;
-}
-
 }  // namespace
 
 int cmdDemo(const Args& args) {
@@ -180,7 +136,7 @@ int cmdDemo(const Args& args) {
   const int nFits = std::min<int>(o.fits, static_cast<int>(result.candidates.size()));
   for (int i = 0; i < nFits; ++i) {
     progress.report(0.9 + 0.1 * i / std::max(1, nFits), "co-moving fits");
-    report["candidates"][i]["fit"] = fitCandidate(prepared, result.candidates[i], gain);
+    report["candidates"][i]["fit"] = fitCandidateJson(prepared, result.candidates[i], gain, cancel);
   }
   progress.finish();
   report::writeJsonFile(path("candidates.json"), report);

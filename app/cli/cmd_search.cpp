@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include "backend_factory.hpp"
+#include "candidate_fit.hpp"
+#include "st/pipeline/preprocess.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
 #include "st/report/search_report.hpp"
@@ -23,11 +25,14 @@ namespace st::app {
 namespace {
 
 constexpr const char* kHelp =
-    "usage: synthtrack-cli search INPUT... --preprocessed [options]\n"
-    "  Searches a matched-filtered cube over a grid of trial velocities (exact IPSA, paper §4.4).\n"
-    "  --preprocessed        INPUT is already pre-processed and matched-filtered (required until the\n"
-    "                        pipeline lands); sigma_F, PSF FWHM and sky rate come from the header keywords\n"
-    "                        SIGMAF, PSFFWHM, SKYVX/SKYVY (px/s) when present, else from the options below\n"
+    "usage: synthtrack-cli search INPUT... [--preprocessed] [--fit] [options]\n"
+    "  Searches the frames over a grid of trial velocities (exact IPSA, paper §4.4). Raw INPUT is\n"
+    "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults: no bias/flat frames).\n"
+    "  --preprocessed        INPUT is already pre-processed and matched-filtered; sigma_F, PSF FWHM and sky\n"
+    "                        rate come from the header keywords SIGMAF, PSFFWHM, SKYVX/SKYVY (px/s) when\n"
+    "                        present, else from the options below\n"
+    "  --fit                 refine every candidate (up to --fit-max, default 50) by the co-moving PSF fit\n"
+    "                        with segment checks (needs raw INPUT, not --preprocessed)\n"
     "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
     "                        half-width of the grid around its centre (default: 12 deg/day, the paper's,\n"
     "                        when the plate scale is known)\n"
@@ -36,11 +41,13 @@ constexpr const char* kHelp =
     "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
     "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all trials\n"
     "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
-    "  --max-candidates N    cells kept before clustering (default 10000)\n"
+    "  --max-candidates N    cells kept before clustering (default 2000000)\n"
     "  --sigma-f S           noise of one filtered frame (default: header SIGMAF, else measured: 1.4826 "
     "MAD)\n"
     "  --fwhm PX             PSF FWHM (default: header PSFFWHM, else 3)\n"
-    "  --backend auto|cpu|cuda  (default auto)   --method exact\n"
+    "  --backend auto|cpu|cuda  (default auto)\n"
+    "  --method exact|tree   exact IPSA (default) or the hierarchical tree search (CPU only; every sample\n"
+    "                        within 1 px of the exact shift)\n"
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
 
 struct Options {
@@ -89,8 +96,9 @@ Options parseOptions(const CliArgs& cli) {
   o.sigmaF = cli.number("sigma-f");
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;
-  if (auto m = cli.value("method"); m && *m != "exact") {
-    throw UsageError("--method must be 'exact' (the tree search is not available), got '" + *m + "'");
+  if (auto m = cli.value("method")) {
+    if (*m != "exact" && *m != "tree") throw UsageError("--method must be 'exact' or 'tree', got '" + *m + "'");
+    p.method = *m;
   }
   o.csv = cli.value("out");
   o.json = cli.flag("json");
@@ -154,24 +162,40 @@ int cmdSearch(const Args& args) {
                                   "fwhm",
                                   "backend",
                                   "method",
+                                  "fit-max",
                                   "out"};
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "help"});
+  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "fit", "help"});
   if (cli.flag("help")) {
     std::printf("%s%s", kHelp, loadOptionsHelp());
     return 0;
   }
   if (cli.positionals().empty()) throw UsageError("no INPUT given");
-  if (!cli.flag("preprocessed")) {
-    throw UsageError(
-        "raw frames need pre-processing, which this build cannot run inside 'search' yet: run "
-        "'synthtrack-cli preprocess' and pass its filtered cube with --preprocessed");
+  const bool preprocessed = cli.flag("preprocessed");
+  if (cli.flag("fit") && preprocessed) {
+    throw UsageError("--fit needs the unfiltered frames: give the raw INPUT without --preprocessed");
   }
   const Options o = parseOptions(cli);
-  BackendSelection sel = makeBackend(parseBackendChoice(o.backend));
+  BackendChoice choice = parseBackendChoice(o.backend);
+  if (o.request.params.method == "tree") {
+    // The tree search exists on the CPU backend only (the CUDA tree path is not written yet).
+    if (choice == BackendChoice::Cuda) throw UsageError("--method tree runs on the CPU only: use --backend cpu");
+    choice = BackendChoice::Cpu;
+  }
+  BackendSelection sel = makeBackend(choice);
   TerminalProgress progress;
-  const search::FilteredCube fc = loadFiltered(cli, o, progress);
+  std::optional<pipeline::Prepared> prepared;
+  if (!preprocessed) {
+    SubProgress loadProgress(progress, 0.0, 0.2);
+    FrameCube raw = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
+    SubProgress prepProgress(progress, 0.2, 0.5);
+    prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress, processCancelToken());
+    if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
+    if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;
+  }
+  const search::FilteredCube loaded = preprocessed ? loadFiltered(cli, o, progress) : search::FilteredCube{};
+  const search::FilteredCube& fc = preprocessed ? loaded : prepared->filtered;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
   const search::SearchEstimate e = search::estimateSearch(fc.frames.width(), fc.frames.height(),
                                                           fc.frames.frameCount(), grid, workerCount());
@@ -189,6 +213,15 @@ int cmdSearch(const Args& args) {
   j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
   j["min_frames"] = r.minFrames;
   j["cells_above_threshold"] = r.cellsAboveThreshold;
+  if (cli.flag("fit")) {
+    const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
+    const long long fitMax = cli.integer("fit-max").value_or(50);
+    for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < fitMax; ++i) {
+      progress.report(static_cast<double>(i) / static_cast<double>(r.candidates.size()), "co-moving fits");
+      j["candidates"][i]["fit"] = fitCandidateJson(*prepared, r.candidates[i], gain, processCancelToken());
+    }
+    progress.finish();
+  }
   if (o.csv) report::writeCandidatesCsv(*o.csv, j);
   if (o.json) {
     std::printf("%s\n", j.dump(2).c_str());

@@ -16,6 +16,7 @@ int cmdPreprocess(const Args& args);
 int cmdStack(const Args& args);
 int cmdSearch(const Args& args);
 int cmdFit(const Args& args);
+int cmdReport(const Args& args);
 int cmdDemo(const Args& args);
 int cmdBench(const Args& args);
 

@@ -27,6 +27,7 @@ constexpr Command kCommands[] = {
     {"stack", st::app::cmdStack, "IPSA or CSA stack at one velocity"},
     {"search", st::app::cmdSearch, "velocity search: candidates and the velocity map"},
     {"fit", st::app::cmdFit, "co-moving PSF fit of one candidate"},
+    {"report", st::app::cmdReport, "vetting session, DS9 regions, ADES PSV and MPC 80-column astrometry"},
     {"bench", st::app::cmdBench, "benchmarks (load, pre-processing, stacks, search)"},
 };
 

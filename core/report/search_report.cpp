@@ -1,5 +1,6 @@
 #include "st/report/search_report.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,7 +10,8 @@
 
 namespace st::report {
 
-nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::Candidate& c) {
+nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                               const search::Candidate& c) {
   nlohmann::json j;
   j["x"] = c.x;
   j["y"] = c.y;
@@ -23,6 +25,12 @@ nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::C
   j["ivx"] = c.ivx;
   j["ivy"] = c.ivy;
   const Velocity onSky{c.v.vx - cube.skyRate.vx, c.v.vy - cube.skyRate.vy};
+  nlohmann::json flags = nlohmann::json::array();
+  // Within one grid step of the stars' motion: a static source that pre-processing did not remove.
+  if (std::abs(onSky.vx) <= grid.stepPxS && std::abs(onSky.vy) <= grid.stepPxS) flags.push_back("at_sky_rate");
+  // Fewer frames than the cube has: the track leaves the frame (edge of the field).
+  if (static_cast<std::size_t>(c.nIn) < cube.frames.frameCount()) flags.push_back("partial");
+  j["flags"] = flags;
   const search::SkyMotion m = search::skyMotion(cube.frames, c.x, c.y, onSky);
   if (m.rateDegPerDay) j["rate_deg_day"] = *m.rateDegPerDay;
   if (m.paDeg) j["pa_deg"] = *m.paDeg;
@@ -54,14 +62,14 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["snr_threshold"] = r.snrThreshold;
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
-  for (const auto& c : r.candidates) j["candidates"].push_back(candidateToJson(cube, c));
+  for (const auto& c : r.candidates) j["candidates"].push_back(candidateToJson(cube, r.grid, c));
   return j;
 }
 
 void writeCandidatesCsv(const std::string& path, const nlohmann::json& result) {
   std::ofstream out(path);
   if (!out) throw InputError("cannot write '" + path + "'");
-  out << "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells\n";
+  out << "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells,flags\n";
   out.precision(10);
   auto optional = [&](const nlohmann::json& c, const char* key) {
     if (c.contains(key)) out << c[key].get<double>();
@@ -73,7 +81,16 @@ void writeCandidatesCsv(const std::string& path, const nlohmann::json& result) {
     optional(c, "rate_deg_day");
     out << ',';
     optional(c, "pa_deg");
-    out << ',' << c["cluster_cells"].get<int>() << '\n';
+    out << ',' << c["cluster_cells"].get<int>() << ',';
+    if (c.contains("flags")) {
+      std::string joined;
+      for (const auto& f : c["flags"]) {
+        if (!joined.empty()) joined += ' ';
+        joined += f.get<std::string>();
+      }
+      out << joined;
+    }
+    out << '\n';
   }
   if (!out) throw InputError("error writing '" + path + "'");
 }

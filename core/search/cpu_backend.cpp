@@ -10,6 +10,7 @@
 #include "st/search/candidates.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/search/search_run.hpp"
+#include "st/search/tree_search.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "st/stack/ipsa.hpp"
 
@@ -25,6 +26,10 @@ class CpuBackend final : public SearchBackend {
 
   SearchResult search(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                       ProgressSink& progress, CancelToken& cancel) override {
+    if (params.method == "tree") return treeSearch(cube, grid, params, progress, cancel);
+    if (params.method != "exact") {
+      throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+    }
     const auto start = std::chrono::steady_clock::now();
     validateSearchInput(cube, grid, params);
     SearchResult result;

@@ -77,7 +77,7 @@ int run(int argc, char** argv) {
   const int frames = argc > 1 ? std::atoi(argv[1]) : 1500;
   const int size = argc > 2 ? std::atoi(argv[2]) : 512;
   const int nv = argc > 3 ? std::atoi(argv[3]) : 100;
-  const int naiveRows = argc > 4 ? std::atoi(argv[4]) : 10;
+  const int naiveRows = argc > 4 ? std::atoi(argv[4]) : 12;
   const int stackFrames = argc > 5 ? std::atoi(argv[5]) : 500;
   const std::time_t now = std::time(nullptr);
   char date[64];
@@ -116,6 +116,19 @@ int run(int argc, char** argv) {
         r.candidates.empty() ? -1 : r.candidates.front().ivx,
         r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
   }
+  {
+    st::gpu::CudaOptions o16;
+    o16.kernelVariant = -4;
+    auto b16 = st::gpu::makeCudaSearchBackend(whyNot, o16);
+    for (int rep = 0; rep < 2; ++rep) {
+      const auto r = b16->search(cube, grid, params, quiet, cancel);
+      std::printf(
+          "search %d, stair kernel with 4-row tiles: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; "
+          "%zu candidates\n  %s",
+          rep, r.elapsedS, b16->lastKernelSeconds(), additions / b16->lastKernelSeconds(),
+          r.candidates.size(), b16->lastNote().c_str());
+    }
+  }
   // Tiled vs naive on the same band of velocity rows.
   VelocityGrid band = grid;
   band.nvy = std::min(naiveRows, nv);
@@ -130,12 +143,13 @@ int run(int argc, char** argv) {
   }
   std::printf("band of %d x %d velocities: naive kernel %.4f s = %.3g additions/s\n", band.nvx, band.nvy,
               naiveS, bandAdds / naiveS);
-  for (const int variant : {-1, -2, 0, 1, 2, 10}) {
-    const char* name = variant == -1       ? "auto"
-                       : variant == -2     ? "row kernel"
-                       : variant % 10 == 0 ? "tiled, reuse by branches"
-                       : variant % 10 == 1 ? "tiled, no reuse"
-                                           : "tiled, reuse by predicated loads";
+  for (const int variant : {-1, -5, -4, -3, -2, 0}) {
+    const char* name = variant == -1   ? "auto (stair kernel)"
+                       : variant == -5 ? "stair kernel, cp.async windows"
+                       : variant == -4 ? "stair kernel, 4-row tiles"
+                       : variant == -3 ? "auto without the stair kernel"
+                       : variant == -2 ? "row kernel"
+                                       : "tiled, reuse by branches";
     st::gpu::CudaOptions o;
     o.kernelVariant = variant;
     auto b = st::gpu::makeCudaSearchBackend(whyNot, o);
@@ -144,9 +158,8 @@ int run(int argc, char** argv) {
       b->search(cube, band, params, quiet, cancel);
       best = std::min(best, b->lastKernelSeconds());
     }
-    std::printf("band, %-34s %s %.4f s = %.3g additions/s, %.1fx naive\n  %s", name,
-                variant >= 10 ? "(64-wide tiles)" : "(128-wide)", best, bandAdds / best, naiveS / best,
-                b->lastNote().c_str());
+    std::printf("band, %-34s %.4f s = %.3g additions/s, %.1fx naive\n  %s", name, best, bandAdds / best,
+                naiveS / best, b->lastNote().c_str());
   }
 
   // stackAt, 500 x size^2: the first call uploads the cube, the next ones only stack.

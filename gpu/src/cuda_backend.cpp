@@ -66,6 +66,12 @@ class CudaBackend final : public CudaSearchBackend {
       chooseTiling(plan, false, false);
     } else if (m_options.kernelVariant == -2) {
       chooseTiling(plan, true, true);
+    } else if (m_options.kernelVariant == -5) {
+      plan.stairTma = false;
+    } else if (m_options.kernelVariant == -4) {
+      if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
+    } else if (m_options.kernelVariant == -3) {
+      chooseTiling(plan, true, false);  // automatic choice without the stair kernel
     }
     std::size_t capacity = m_options.cellCapacity > 0
                                ? m_options.cellCapacity

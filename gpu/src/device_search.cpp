@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "cuda_check.hpp"
+#include "st/common/parallel.hpp"
 
 namespace st::gpu {
 namespace {
@@ -23,7 +24,7 @@ DeviceBuffer<T> toDevice(const std::vector<T>& host) {
 }
 
 /// Copies frames from pageable host memory to the device through two pinned staging buffers, so that the
-/// host copy of one piece overlaps the DMA of the previous one.
+/// host copy of one piece (on every core) overlaps the DMA of the previous one.
 class Uploader {
  public:
   Uploader(const float* host, std::size_t plane, std::size_t totalFloats)
@@ -40,7 +41,12 @@ class Uploader {
       const int b = m_next;
       m_next ^= 1;
       m_free[b].sync();
-      std::memcpy(m_pinned[b].get(), src + off, piece * sizeof(float));
+      // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
+      float* dst0 = static_cast<float*>(m_pinned[b].get());
+      const float* src0 = src + off;
+      parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
+        std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
+      });
       ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_pinned[b].get(), piece * sizeof(float),
                                     cudaMemcpyHostToDevice, stream));
       m_free[b].record(stream);
@@ -96,11 +102,18 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.framesPerStage = plan.framesPerStage;
   p.variant = plan.tiledMode;
   p.groups = plan.rowGroups;
+  p.stairRows = plan.stairRows;
+  p.stairTma = plan.stairTma;
   return p;
 }
 
 std::string kernelName(const HostPlan& plan, bool naive) {
   if (naive) return ", naive kernel";
+  if (plan.kernel == HostPlan::Kernel::Stair) {
+    return ", stair kernel (" + std::to_string(kStairVx) + " x " + std::to_string(kStairVy) +
+           " velocities per block, window " + std::to_string(plan.winRows) + " x " +
+           std::to_string(plan.pitch) + ", " + std::to_string(plan.framesPerStage) + " frames per stage)";
+  }
   if (plan.kernel == HostPlan::Kernel::Row) {
     return ", row kernel (" + std::to_string(plan.rowGroups * kRowVelocities) +
            " velocities per block, window " + std::to_string(plan.winRows) + " x " +
@@ -110,10 +123,12 @@ std::string kernelName(const HostPlan& plan, bool naive) {
 }
 
 std::size_t offsetInts(const HostPlan& plan) {
+  if (plan.kernel == HostPlan::Kernel::Stair) return stairOffsetInts();
   return plan.kernel == HostPlan::Kernel::Row ? rowOffsetInts() : static_cast<std::size_t>(kVelPerBlock + 2);
 }
 
 int tilesFor(const HostPlan& plan, int rows) {
+  if (plan.kernel == HostPlan::Kernel::Stair) return stairTileCount(plan.nvx, rows);
   if (plan.kernel == HostPlan::Kernel::Row) return rowTileCount(plan.nvx, rows, plan.rowGroups);
   return ((plan.nvx + plan.vtileX - 1) / plan.vtileX) * ((rows + plan.vtileY - 1) / plan.vtileY);
 }
@@ -127,7 +142,9 @@ class Launcher {
       const std::size_t n =
           static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
-      if (plan.kernel == HostPlan::Kernel::Row) {
+      if (plan.kernel == HostPlan::Kernel::Stair) {
+        configureStairKernel(stairSharedBytes(plan.framesPerStage, plan.stairRows), plan.stairRows);
+      } else if (plan.kernel == HostPlan::Kernel::Row) {
         configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
       } else {
         configureTiledKernel(tiledSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
@@ -140,7 +157,9 @@ class Launcher {
     p.iy1 = iy1;
     if (m_naive) return;
     p.tileOffsets = m_offsets.get();
-    if (m_plan.kernel == HostPlan::Kernel::Row) {
+    if (m_plan.kernel == HostPlan::Kernel::Stair) {
+      launchStairOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
+    } else if (m_plan.kernel == HostPlan::Kernel::Row) {
       launchRowOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
     } else {
       launchTileOffsets(p, m_offsets.get(), tilesFor(m_plan, iy1 - iy0), m_stream);
@@ -151,6 +170,8 @@ class Launcher {
     m_timers.back().first->record(m_stream);
     if (m_naive) {
       launchNaiveSearch(p, m_stream);
+    } else if (m_plan.kernel == HostPlan::Kernel::Stair) {
+      launchStairSearch(p, m_stream);
     } else if (m_plan.kernel == HostPlan::Kernel::Row) {
       launchRowSearch(p, m_stream);
     } else {

@@ -57,6 +57,8 @@ struct SearchLaunch {
   int groups;              ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
   int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
                            ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
+  int stairRows;           ///< stair kernel: pixel rows per block, 8 or 4
+  bool stairTma;           ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
 
@@ -111,6 +113,26 @@ void configureRowKernel(std::size_t sharedBytes);
 int rowTileCount(int nvx, int rows, int groups);
 /// Ints per (tile, frame) in the row kernel's offset table.
 std::size_t rowOffsetInts();
+
+/// The stair kernel (stair_search_kernel.cu): a block owns kStairVx consecutive vx x kStairVy consecutive
+/// vy and a (32 kStairCols) x (8 or 4) pixel tile; usable when the frame width is a multiple of 4 and, at
+/// every frame, neighbouring vy of the grid shift by at most 1 px relative to each other.
+inline constexpr int kStairVx = 8;
+inline constexpr int kStairVy = 4;
+inline constexpr int kStairCols = 2;
+/// Shared-memory row stride (floats) of the stair kernel's window, a compile-time constant so that row
+/// addresses are immediate offsets: the kernel applies while the 8 vx of a block stay within
+/// kStairPitch - 32 kStairCols - 6 px of each other at every frame.
+inline constexpr int kStairPitch = 96;
+void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
+void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
+/// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 4) pixel rows.
+std::size_t stairSharedBytes(int framesPerStage, int rows);
+void configureStairKernel(std::size_t sharedBytes, int rows);
+/// Velocity tiles of the stair kernel for `rows` grid rows.
+int stairTileCount(int nvx, int rows);
+/// Ints per (tile, frame) in the stair kernel's offset table.
+std::size_t stairOffsetInts();
 
 /// IPSA stack of frames [0, frameCount) at integer shifts.
 struct StackLaunch {

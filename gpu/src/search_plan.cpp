@@ -65,7 +65,29 @@ int maxSpread(const std::vector<int>& shifts, int nv, int n, int len) {
 
 }  // namespace
 
-void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow) {
+bool chooseStair(HostPlan& plan, int rows) {
+  if (plan.width % 4 != 0 || maxSpread(plan.shiftY, plan.nvy, plan.frameCount, 2) > 1) return false;
+  constexpr std::size_t kTwoBlocksShared = 100 * 1024;
+  // Columns a warp reads: its tile, its vx's offset from the 16-byte-aligned origin of the block's vx.
+  const int pitch =
+      (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
+  if (pitch > kStairPitch) return false;
+  const std::size_t limit = rows == 4 ? std::size_t{52} * 1024 : kTwoBlocksShared;  // 4 or 2 blocks/SM
+  int fs = 16;
+  while (fs > 1 && stairSharedBytes(fs, rows) > limit)
+    fs /= 2;
+  plan.stairRows = rows;
+  plan.kernel = HostPlan::Kernel::Stair;
+  plan.vtileX = kStairVx;
+  plan.vtileY = kStairVy;
+  plan.pitch = pitch;
+  plan.winRows = rows + kStairVy - 1;
+  plan.framesPerStage = fs;
+  return true;
+}
+
+void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair) {
+  if (allowStair && chooseStair(plan)) return;
   plan.kernel = HostPlan::Kernel::Tiled;
   constexpr std::size_t kTwoBlocksShared = 100 * 1024;
   constexpr std::size_t kOneBlockShared = 220 * 1024;
@@ -155,7 +177,7 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
   }
   plan.snrThreshold = static_cast<float>(threshold);
   plan.minFrames = minFrames;
-  chooseTiling(plan, true, false);
+  chooseTiling(plan, true, false, true);
   return plan;
 }
 

@@ -24,7 +24,8 @@ struct HostPlan {
   int minFrames = 1;           ///< cells with fewer contributing frames are ignored
   /// Which search kernel runs: the row kernel when its conditions hold (kernel_params.hpp), else the tiled
   /// kernel, else (shift spread too large for shared memory) the naive kernel; same results, slower.
-  enum class Kernel { Row, Tiled, Naive };
+  /// The stair kernel (neighbouring vy at most 1 px apart at every frame) is preferred over both.
+  enum class Kernel { Stair, Row, Tiled, Naive };
   Kernel kernel = Kernel::Tiled;
   // Tiling of the tiled kernel.
   int vtileX = 8;
@@ -32,8 +33,10 @@ struct HostPlan {
   int pitch = 0;
   int winRows = 0;
   int framesPerStage = 1;
-  int rowGroups = 1;  ///< row kernel: groups of 8 velocities per block
-  int tiledMode = 0;  ///< inner loop of the tiled kernel (SearchLaunch::variant)
+  int rowGroups = 1;     ///< row kernel: groups of 8 velocities per block
+  int stairRows = 8;     ///< stair kernel: pixel rows per block (8: two blocks per SM, 4: four)
+  bool stairTma = true;  ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
+  int tiledMode = 0;     ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 
 /// Builds the tables for `cube` and `grid`. `threshold` is the SNR threshold actually used and
@@ -41,9 +44,14 @@ struct HostPlan {
 HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGrid& grid, double threshold,
                       int minFrames);
 
-/// Chooses the kernel and its tiling for `plan` (done by makeHostPlan with allowRow, !preferRow).
-/// allowRow false forces the tiled (or naive) kernel; preferRow takes the row kernel whenever it applies.
-void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow);
+/// Chooses the kernel and its tiling for `plan` (done by makeHostPlan with allowStair, allowRow,
+/// !preferRow). allowStair takes the stair kernel whenever it applies; otherwise allowRow false forces the
+/// tiled (or naive) kernel and preferRow takes the row kernel whenever it applies.
+void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair = false);
+
+/// True when the stair kernel applies to `plan`: width a multiple of 4 and neighbouring vy at most 1 px
+/// apart at every frame; sets its pitch and frames per stage for `rows` (8 or 4) pixel rows per block.
+bool chooseStair(HostPlan& plan, int rows = 8);
 
 /// Checks what the CUDA backend needs beyond st::search::validateSearchInput (pixel buffer size, frame
 /// count); throws st::InputError naming the value.

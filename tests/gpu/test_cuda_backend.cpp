@@ -126,8 +126,12 @@ struct Problem {
 };
 
 /// Width 61 runs the tiled kernel (vx in [-3, 9] px/s over ~3.3 s: shifts up to ~15 px out of the frame);
-/// width 64 with a finer grid (neighbours < 1 px apart) runs the row kernel.
-Problem standardProblem(bool rowKernel = false) {
+/// width 64 with a finer grid (neighbours < 1 px apart) runs the row or the stair kernel (7 vy: one
+/// staircase of 4 and one cut short; 19 vx: a velocity tile cut short; 47 rows: a pixel tile cut short).
+enum class Kern { Tiled, Row, Stair, Stair4, StairCpAsync };
+
+Problem standardProblem(Kern kind = Kern::Tiled) {
+  const bool rowKernel = kind != Kern::Tiled;
   Problem p;
   p.grid = rowKernel ? makeGrid(19, 7, 0.4) : makeGrid(9, 7, 1.5);
   p.cube = makeCube(rowKernel ? 64 : 61, 47, 37, p.grid.at(6, 2), 30, 20, 1.6f, 7u);
@@ -137,13 +141,21 @@ Problem standardProblem(bool rowKernel = false) {
   return p;
 }
 
-gpu::CudaOptions kernelOptions(bool rowKernel) {
+gpu::CudaOptions kernelOptions(Kern kind) {
   gpu::CudaOptions o;
-  o.kernelVariant = rowKernel ? -2 : 0;
+  o.kernelVariant = kind == Kern::Row            ? -2
+                    : kind == Kern::Tiled        ? 0
+                    : kind == Kern::Stair4       ? -4
+                    : kind == Kern::StairCpAsync ? -5
+                                                 : -1;
   return o;
 }
 
-void checkAgainstReference(bool rowKernel) {
+const char* kernelName(Kern kind) {
+  return kind == Kern::Row ? "row kernel" : kind == Kern::Tiled ? "tiled kernel" : "stair kernel";
+}
+
+void checkAgainstReference(Kern rowKernel) {
   ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
@@ -158,16 +170,15 @@ void checkAgainstReference(bool rowKernel) {
   EXPECT_EQ(r.method, "exact");
   EXPECT_EQ(r.trials.total(), double(p.cube.frames.width()) * 47 * p.grid.nvx * p.grid.nvy);
   EXPECT_NE(gpu->lastNote().find("resident"), std::string::npos) << gpu->lastNote();
-  EXPECT_NE(gpu->lastNote().find(rowKernel ? "row kernel" : "tiled kernel"), std::string::npos)
-      << gpu->lastNote();
+  EXPECT_NE(gpu->lastNote().find(kernelName(rowKernel)), std::string::npos) << gpu->lastNote();
 }
 
 TEST(CudaBackend, TiledKernelMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(false);
+  checkAgainstReference(Kern::Tiled);
 }
 
 TEST(CudaBackend, RowKernelMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(true);
+  checkAgainstReference(Kern::Row);
 }
 
 TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
@@ -180,7 +191,7 @@ TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
   expectMatchesReference(gpu->search(p.cube, p.grid, p.params, progress, cancel), p.cube, p.grid, p.params);
 }
 
-void checkChunkedEqualsResident(bool rowKernel) {
+void checkChunkedEqualsResident(Kern rowKernel) {
   ST_REQUIRE_GPU(resident, kernelOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
@@ -216,15 +227,18 @@ void checkChunkedEqualsResident(bool rowKernel) {
 }
 
 TEST(CudaBackend, TiledKernelChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(false);
+  checkChunkedEqualsResident(Kern::Tiled);
 }
 
 TEST(CudaBackend, RowKernelChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(true);
+  checkChunkedEqualsResident(Kern::Row);
 }
 
 void checkLongCube(double step, const char* kernel) {
-  ST_REQUIRE_GPU(gpu, kernelOptions(std::string(kernel) == "row kernel"));
+  const std::string name(kernel);
+  ST_REQUIRE_GPU(gpu, kernelOptions(name == "row kernel"     ? Kern::Row
+                                    : name == "stair kernel" ? Kern::Stair
+                                                             : Kern::Tiled));
   // 600 frames of 256 x 240 (141 MiB) upload in more than one chunk; the first velocity chunk is summed
   // chunk by chunk through device partial sums while the rest of the cube arrives.
   Problem p;
@@ -246,6 +260,34 @@ TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceTiledKernel) {
 
 TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceRowKernel) {
   checkLongCube(0.04, "row kernel");
+}
+
+TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceStairKernel) {
+  checkLongCube(0.04, "stair kernel");
+}
+
+TEST(CudaBackend, StairKernelMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(Kern::Stair);
+}
+
+TEST(CudaBackend, StairKernelChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(Kern::Stair);
+}
+
+TEST(CudaBackend, StairKernelCpAsyncWindowsMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(Kern::StairCpAsync);
+}
+
+TEST(CudaBackend, StairKernelCpAsyncWindowsChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(Kern::StairCpAsync);
+}
+
+TEST(CudaBackend, StairKernel4RowsMatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(Kern::Stair4);
+}
+
+TEST(CudaBackend, StairKernel4RowsChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(Kern::Stair4);
 }
 
 TEST(CudaBackend, CandidateOverflowIsRecoveredNotTruncated) {
@@ -300,7 +342,7 @@ TEST(CudaBackend, StackAtEqualsReference) {
   EXPECT_NEAR(g.pixels[5], r.pixels[5], 1e-3);
 }
 
-void checkAgainstCpuBackend(bool rowKernel) {
+void checkAgainstCpuBackend(Kern rowKernel) {
   ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
@@ -332,11 +374,19 @@ void checkAgainstCpuBackend(bool rowKernel) {
 }
 
 TEST(CudaBackend, TiledKernelGivesTheCpuBackendsResult) {
-  checkAgainstCpuBackend(false);
+  checkAgainstCpuBackend(Kern::Tiled);
 }
 
 TEST(CudaBackend, RowKernelGivesTheCpuBackendsResult) {
-  checkAgainstCpuBackend(true);
+  checkAgainstCpuBackend(Kern::Row);
+}
+
+TEST(CudaBackend, StairKernelGivesTheCpuBackendsResult) {
+  checkAgainstCpuBackend(Kern::Stair);
+}
+
+TEST(CudaBackend, StairKernel4RowsGivesTheCpuBackendsResult) {
+  checkAgainstCpuBackend(Kern::Stair4);
 }
 
 TEST(CudaBackend, CancelledSearchThrowsCancelled) {

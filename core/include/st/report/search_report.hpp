@@ -13,8 +13,10 @@ namespace st::report {
 /// One candidate: x, y (0-based, at t_ref), vx_px_s, vy_px_s (in the frames), snr, n_frames, fap, sum,
 /// cluster_cells, ivx, ivy; and, when a plate scale or WCS is known, rate_deg_day and pa_deg of the motion
 /// on the sky, i.e. of v - skyRate (the stars' motion in the frames is taken out: for a scanning telescope
-/// the frame velocity is mostly the scan).
-nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::Candidate& candidate);
+/// the frame velocity is mostly the scan); and "flags": "at_sky_rate" when v is within one grid step of the
+/// sky rate (a static source left by pre-processing), "partial" when the track leaves the frame.
+nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                               const search::Candidate& candidate);
 
 /// The whole result: inputs, backend, method, t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid,
 /// trial counts, threshold, elapsed time and the candidates.

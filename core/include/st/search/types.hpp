@@ -47,6 +47,7 @@ struct SearchParams {
   /// silently drops every fainter object (SearchResult::cellsAboveThreshold shows when it was reached).
   std::size_t maxCandidates = 2'000'000;
   double minFrameFraction = 0.5;      ///< cells whose N_in is below this fraction of N_f are ignored
+  std::string method = "exact";       ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).

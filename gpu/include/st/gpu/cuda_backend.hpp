@@ -26,9 +26,11 @@ struct CudaOptions {
   /// Use the naive one-thread-per-(pixel, velocity) reference kernel (benchmarks, tests). Needs the cube
   /// resident on the device.
   bool naiveKernel = false;
-  /// Tests and benchmarks: -1 = automatic (the kernel estimated fastest); -2 = the row kernel whenever it
-  /// applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform branches), 1 (no
-  /// reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
+  /// Tests and benchmarks: -1 = automatic (the stair kernel when it applies, else the kernel estimated
+  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -4 = the
+  /// stair kernel with 4-row tiles when it applies; -3 = automatic without the stair kernel; -2 = the row
+  /// kernel whenever it applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform
+  /// branches), 1 (no reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
   int kernelVariant = -1;
   /// Use at most this many devices (0 = all visible).
   int maxDevices = 0;

@@ -1,0 +1,340 @@
+// synthtrack-cli report CANDIDATES.json: vetting labels into a session file, and the reports of issue 8 —
+// DS9 regions of every candidate, ADES PSV and MPC 80-column astrometry of the candidates labelled real.
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli_args.hpp"
+#include "commands.hpp"
+#include "st/common/error.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/io/wcs.hpp"
+#include "st/report/fits_stack.hpp"
+#include "st/report/session_report.hpp"
+#include "st/session/session.hpp"
+#include "st/stack/ipsa.hpp"
+#include "st/vet/artifacts.hpp"
+#include "st/vet/known_objects.hpp"
+#include "terminal_progress.hpp"
+
+namespace st::app {
+namespace {
+
+constexpr const char* kHelp =
+    "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note "
+    "N=TEXT]...\n"
+    "                             [--ds9 out.reg] [--ades out.psv] [--mpc out.txt] [--station CODE]\n"
+    "                             [--observer NAME] [--measurer NAME] [--ast-cat CAT] [--safe-snr S]\n"
+    "                             [--mpc-cat C] [--wcs FITS] [--stacks DIR] [--prepared P.json]\n"
+    "                             [--known K.csv [--known-radius ARCSEC]]\n"
+    "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
+    "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
+    "                    change is saved at once (atomically)\n"
+    "  --label N=LABEL   label candidate N (1-based): real, unsure, unvetted, artifact or\n"
+    "                    artifact:REASON (charge_leakage, diffraction, cosmic_ray, ghost, other)\n"
+    "  --note N=TEXT     a note on candidate N\n"
+    "  --ds9 FILE        DS9 regions of every candidate (fk5 with --wcs, else image coordinates)\n"
+    "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
+    "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to); also gives real "
+    "candidates\n"
+    "                    whose fit has no RA/Dec one, at the fitted position\n"
+    "  --ades FILE       ADES PSV astrometry of the candidates labelled real (needs --station)\n"
+    "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real (needs --station)\n"
+    "  --station CODE    MPC observatory code (kept in the session's settings)\n"
+    "  --observer NAME   observer name(s), comma-separated (kept in the session's settings)\n"
+    "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
+    "  --mpc-cat C       80-column catalogue code of the WCS (column 72, e.g. W for Gaia DR3)\n"
+    "  --safe-snr S      warn for detections below this SNR (default 7)\n"
+    "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
+    "catalog\n"
+    "                    of the pre-processing sidecar and the input frames' times; kept in the session\n"
+    "  --known K.csv     known-object check: CSV of name, ra_deg, dec_deg, epoch_mjd and rates\n"
+    "                    (ra_rate_arcsec_min, dec_rate_arcsec_min or *_deg_day)  --known-radius ARCSEC (10)\n"
+    "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
+    "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
+
+nlohmann::json readJson(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot read '" + path + "'");
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("'" + path + "' is not valid JSON: " + e.what());
+  }
+}
+
+std::pair<std::size_t, std::string> indexed(const std::string& text, const char* option) {
+  const auto eq = text.find('=');
+  std::size_t pos = 0;
+  long long n = 0;
+  try {
+    n = std::stoll(text.substr(0, eq), &pos);
+  } catch (const std::exception&) {
+    pos = std::string::npos;
+  }
+  if (eq == std::string::npos || pos != eq || n < 1) {
+    throw UsageError(std::string("--") + option + " needs N=VALUE with N >= 1, got '" + text + "'");
+  }
+  return {static_cast<std::size_t>(n - 1), text.substr(eq + 1)};
+}
+
+void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
+  for (const auto& v : cli.values("label")) {
+    auto [i, text] = indexed(v, "label");
+    const auto colon = text.find(':');
+    const session::Label label = session::labelFromString(text.substr(0, colon));
+    const session::ArtifactReason reason = colon == std::string::npos
+                                               ? session::ArtifactReason::None
+                                               : session::reasonFromString(text.substr(colon + 1));
+    ed.setLabel(i, label, reason);
+  }
+  for (const auto& v : cli.values("note")) {
+    auto [i, text] = indexed(v, "note");
+    ed.setNote(i, text);
+  }
+  nlohmann::json settings = ed.session().settings;
+  if (auto s = cli.value("station")) settings["station"] = *s;
+  if (auto s = cli.value("observer")) settings["observers"] = *s;
+  if (auto s = cli.value("measurer")) settings["measurer"] = *s;
+  if (auto s = cli.value("ast-cat")) settings["ast_cat"] = *s;
+  if (auto s = cli.value("mpc-cat")) {
+    if (s->size() != 1) throw UsageError("--mpc-cat needs one character (column 72 of the 80-column format)");
+    settings["mpc_catalog_code"] = *s;
+  }
+  if (settings != ed.session().settings) ed.setSettings(settings);
+}
+
+report::SubmissionSettings submissionSettings(const nlohmann::json& s, const CliArgs& cli) {
+  report::SubmissionSettings out;
+  out.stationCode = s.value("station", std::string{});
+  out.observers = s.value("observers", std::string{});
+  out.measurer = s.value("measurer", std::string{});
+  out.astCat = s.value("ast_cat", std::string{});
+  if (const std::string c = s.value("mpc_catalog_code", std::string{}); c.size() == 1)
+    out.mpcCatalogCode = c[0];
+  out.safeSnr = cli.number("safe-snr", out.safeSnr);
+  if (out.stationCode.empty())
+    throw UsageError("ADES and MPC reports need --station CODE (MPC observatory code)");
+  return out;
+}
+
+void writeText(const std::string& path, const std::string& text) {
+  std::ofstream out(path);
+  if (!out) throw InputError("cannot write '" + path + "'");
+  out << text;
+  if (!out) throw InputError("error writing '" + path + "'");
+}
+
+Velocity skyRateOf(const session::Session& s) {
+  if (!s.search.contains("sky_rate")) return {};
+  return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+}
+
+/// The WCS of --wcs FILE, mapping pixels at t_ref (the file's WCSEPOCH, else its first frame's time, is the
+/// epoch its WCS belongs to). Holds the loaded cube so the mapping's Wcs stays alive.
+struct WcsMapping {
+  FrameCube cube;
+  astro::PixelToSky toSky;
+};
+
+std::optional<WcsMapping> loadWcs(const CliArgs& cli, const session::Session& s) {
+  const auto file = cli.value("wcs");
+  if (!file) return std::nullopt;
+  WcsMapping m;
+  m.cube = io::loadFrames({*file});
+  if (!m.cube.wcs) throw InputError("'" + *file + "' has no usable celestial WCS");
+  const double epoch = m.cube.header.getDouble("WCSEPOCH").value_or(m.cube.info().front().mjdMid);
+  const double tRef = s.search.value("t_ref_mjd", epoch);
+  m.toSky = report::skyMappingAtTRef(*m.cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0);
+  return m;
+}
+
+/// Real candidates whose converged fit has no sky position get one through the --wcs mapping (in memory).
+session::Session withSkyPositions(session::Session s, const std::optional<WcsMapping>& wcs) {
+  if (!wcs) return s;
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    auto& c = s.candidates[i];
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    if (c.label != session::Label::Real || !fitted || c.fit.contains("ra_deg")) continue;
+    const auto p = wcs->toSky(c.fit.value("x", 0.0), c.fit.value("y", 0.0));
+    c.fit["ra_deg"] = p.raDeg;
+    c.fit["dec_deg"] = p.decDeg;
+    std::fprintf(stderr, "note: candidate %zu: sky position from --wcs at its fitted position\n", i + 1);
+  }
+  return s;
+}
+
+void writeDs9(const std::string& path, const session::Session& s, const std::optional<WcsMapping>& wcs) {
+  // Track lines over the observation's span, from the frames' times (headers only).
+  double startS = 0.0, endS = 0.0;
+  if (!s.inputs.empty() && s.search.contains("t_ref_mjd")) {
+    try {
+      const io::InputSummary frames = io::summarizeInputs(s.inputs);
+      const double tRef = s.search["t_ref_mjd"].get<double>();
+      startS = (frames.firstMjd - tRef) * 86400.0;
+      endS = (frames.lastMjd - tRef) * 86400.0;
+    } catch (const Error& e) {
+      std::fprintf(stderr, "note: no track lines in the regions (%s)\n", e.what());
+    }
+  }
+  const auto marks = report::regionMarks(s, startS, endS);
+  report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{});
+  std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), wcs ? "fk5" : "image coordinates",
+              path.c_str());
+}
+
+/// Artifact flags (and the known-object flag) of every candidate, saved into the session.
+void runVetting(const CliArgs& cli, session::SessionEditor& ed, const std::optional<WcsMapping>& wcs) {
+  const auto prepared = cli.value("prepared");
+  const auto known = cli.value("known");
+  if (!prepared && !known) return;
+  const session::Session& s = ed.session();
+  if (s.inputs.empty())
+    throw InputError("the candidates name no input frames (\"inputs\"): vetting needs their times");
+  const io::InputSummary frames = io::summarizeInputs(s.inputs);
+  std::optional<vet::ArtifactContext> ctx;
+  if (prepared) ctx = vet::artifactContextFromPrepared(readJson(*prepared), frames.mjdMid, *prepared);
+  const std::vector<vet::KnownObject> objects =
+      known ? vet::readKnownObjects(*known) : std::vector<vet::KnownObject>{};
+  const double radius = cli.number("known-radius", 10.0);
+  const double tRef = s.search.value("t_ref_mjd", frames.mjdMid.empty() ? 0.0 : frames.mjdMid.front());
+  ed.setParameters("vetting", {{"prepared", prepared.value_or("")},
+                               {"known_objects", known.value_or("")},
+                               {"known_radius_arcsec", radius},
+                               {"artifacts", vet::toJson(vet::ArtifactParams{})}});
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    const auto& c = s.candidates[i];
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    const nlohmann::json& src = fitted ? c.fit : c.candidate;
+    const vet::Track track{
+        src.value("x", 0.0), src.value("y", 0.0), {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)}};
+    std::vector<vet::ArtifactFlag> flags;
+    if (ctx) flags = vet::checkArtifacts(*ctx, track, vet::ArtifactParams{});
+    if (known) {
+      if (c.fit.is_object() && c.fit.contains("ra_deg")) {
+        flags.push_back(vet::knownObjectFlag(objects, c.fit["ra_deg"].get<double>(),
+                                             c.fit["dec_deg"].get<double>(), tRef, radius));
+      } else if (wcs) {
+        const auto p = wcs->toSky(track.x, track.y);
+        flags.push_back(vet::knownObjectFlag(objects, p.raDeg, p.decDeg, tRef, radius));
+      } else {
+        flags.push_back(
+            {vet::ArtifactKind::KnownObject, false, -1.0, "no sky position (no fitted RA/Dec, no --wcs)"});
+      }
+    }
+    nlohmann::json list = nlohmann::json::array();
+    for (const auto& f : flags) {
+      list.push_back(vet::toJson(f));
+      if (f.triggered)
+        std::printf("candidate %zu: %s: %s\n", i + 1, vet::toString(f.kind), f.evidence.c_str());
+    }
+    ed.setArtifacts(i, list);
+  }
+}
+
+void writeStacks(const std::string& dir, const session::Session& s) {
+  if (s.inputs.empty())
+    throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
+  std::filesystem::create_directories(dir);
+  TerminalProgress progress;
+  const FrameCube cube = io::loadFrames(s.inputs, io::LoadOptions{}, progress, processCancelToken());
+  progress.finish();
+  const double firstOffsetS = cube.timeOffsetsS().front();
+  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
+    const auto& c = s.candidates[i];
+    if (c.label != session::Label::Real) continue;
+    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
+    const nlohmann::json& src = fitted ? c.fit : c.candidate;
+    report::StackProvenance p;
+    p.velocity = {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)};
+    p.what = "candidate " + std::to_string(i + 1) + ", IPSA at its " + (fitted ? "fitted" : "search") +
+             " velocity";
+    p.skyRate = skyRateOf(s);
+    p.tRefMjd = cube.tRefMjd();
+    p.frames = cube.frameCount();
+    p.inputs = s.inputs;
+    char name[64];
+    std::snprintf(name, sizeof name, "stack_candidate%03zu.fits", i + 1);
+    const std::string path = (std::filesystem::path(dir) / name).string();
+    report::writeStackFits(path, stack::stackIpsa(cube, p.velocity).sum, p, cube.wcs.get(), firstOffsetS);
+    std::printf("FITS stack of candidate %zu: %s\n", i + 1, path.c_str());
+  }
+}
+
+}  // namespace
+
+int cmdReport(const Args& args) {
+  const CliArgs cli(args,
+                    {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer",
+                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat", "prepared", "known", "known-radius"},
+                    {"help"});
+  if (cli.flag("help")) {
+    std::printf("%s", kHelp);
+    return 0;
+  }
+  if (cli.positionals().size() != 1) throw UsageError("give one CANDIDATES.json");
+  const std::string candidatesPath = cli.positionals()[0];
+  session::Session s;
+  std::optional<session::SessionStore> store;
+  if (auto path = cli.value("session")) {
+    store.emplace(*path);
+    if (store->exists()) {
+      s = store->load();
+      // The session is the record; the candidates file only seeds a new one. Say so when they disagree.
+      const session::Session fresh = session::fromSearchJson(readJson(candidatesPath));
+      if (fresh.candidates.size() != s.candidates.size() ||
+          fresh.search.value("t_ref_mjd", 0.0) != s.search.value("t_ref_mjd", 0.0)) {
+        std::fprintf(
+            stderr,
+            "warning: session '%s' holds %zu candidates (t_ref %.8f) and '%s' %zu (t_ref %.8f): using the "
+            "session\n",
+            path->c_str(), s.candidates.size(), s.search.value("t_ref_mjd", 0.0), candidatesPath.c_str(),
+            fresh.candidates.size(), fresh.search.value("t_ref_mjd", 0.0));
+      }
+    } else {
+      s = session::fromSearchJson(readJson(candidatesPath));
+      store->save(s);
+      std::printf("new session %s (%zu candidates)\n", path->c_str(), s.candidates.size());
+    }
+  } else {
+    s = session::fromSearchJson(readJson(candidatesPath));
+    if (cli.has("label") || cli.has("note")) {
+      std::fprintf(stderr, "warning: without --session the labels and notes are not kept\n");
+    }
+  }
+  session::SessionEditor editor(store, std::move(s));
+  applyEdits(cli, editor);
+  const std::optional<WcsMapping> wcs = loadWcs(cli, editor.session());
+  runVetting(cli, editor, wcs);
+  const session::Session cur = withSkyPositions(editor.session(), wcs);
+  if (auto p = cli.value("ds9")) writeDs9(*p, cur, wcs);
+  if (auto p = cli.value("stacks")) writeStacks(*p, cur);
+  if (cli.has("ades") || cli.has("mpc")) {
+    const report::SubmissionSettings settings = submissionSettings(cur.settings, cli);
+    std::vector<std::string> warnings;
+    const auto detections = report::realDetections(cur, warnings);
+    if (detections.empty())
+      warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
+    if (auto p = cli.value("ades")) {
+      const auto t = report::formatAdesPsv(detections, settings);
+      writeText(*p, t.text);
+      warnings.insert(warnings.end(), t.warnings.begin(), t.warnings.end());
+      std::printf("ADES PSV, %zu detections: %s\n", detections.size(), p->c_str());
+    }
+    if (auto p = cli.value("mpc")) {
+      const auto t = report::formatMpc80(detections, settings);
+      writeText(*p, t.text);
+      for (const auto& w : t.warnings) {
+        if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
+      }
+      std::printf("MPC 80-column, %zu detections: %s\n", detections.size(), p->c_str());
+    }
+    for (const auto& w : warnings)
+      std::fprintf(stderr, "warning: %s\n", w.c_str());
+  }
+  return 0;
+}
+
+}  // namespace st::app

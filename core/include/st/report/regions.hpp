@@ -1,0 +1,45 @@
+#pragma once
+// DS9 region files (DS9 region format version 4.1). With a pixel-to-sky mapping the regions are written in
+// fk5 (RA/Dec in degrees, radii in arcsec); without one in image coordinates, converted to DS9's 1-based
+// pixels here (ARCHITECTURE.md: 1-based at the writer, nowhere else).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/astro/astrometry.hpp"
+#include "st/common/units.hpp"
+
+namespace st {
+class Wcs;
+}
+
+namespace st::report {
+
+struct RegionMark {
+  double x = 0.0;  ///< 0-based column at t_ref
+  double y = 0.0;  ///< 0-based row at t_ref
+  double radiusPx = 5.0;
+  std::string text;             ///< label shown by DS9 (quotes and braces are removed)
+  std::string color = "green";  ///< a DS9 colour name
+  /// When set, a line from the track's position at trackStartS to trackEndS (seconds from t_ref) is added.
+  std::optional<Velocity> velocity;
+  double trackStartS = 0.0;
+  double trackEndS = 0.0;
+};
+
+/// The region file text. `toSky` (may be empty) maps 0-based pixels at t_ref to ICRS (see
+/// skyMappingAtTRef); with it, coordinates are fk5 degrees and radii arcsec from the local scale.
+[[nodiscard]] std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky);
+
+/// Writes ds9Regions to `path`. Throws st::InputError naming the path.
+void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
+                     const astro::PixelToSky& toSky);
+
+/// The mapping of pixels at t_ref through a WCS that belongs to the frame at `mappingEpochOffsetS` (seconds
+/// from t_ref; the first frame's for a cube's FITS WCS): a point at (x, y) at t_ref was at (x, y) +
+/// skyRate * mappingEpochOffsetS in that frame (the stars drift at skyRate), the convention of
+/// astro::skyMeasurement.
+[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate,
+                                                 double mappingEpochOffsetS);
+
+}  // namespace st::report

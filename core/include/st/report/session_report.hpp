@@ -1,0 +1,29 @@
+#pragma once
+// Reports from a session: the candidates a person labelled real become astrometric detections (ADES / MPC),
+// every candidate becomes a DS9 mark coloured by its label.
+#include <string>
+#include <vector>
+
+#include "st/report/mpc_submission.hpp"
+#include "st/report/regions.hpp"
+#include "st/session/session.hpp"
+
+namespace st::report {
+
+/// The detections of the candidates labelled real, in session order. A candidate contributes when its fit has
+/// ra_deg and dec_deg (astro::skyMeasurement at t_ref, as the demo and GUI write); the epoch is the fit's
+/// t_ref_mjd, else the search's t_ref_mjd; SNR the fit's, else the search's; sigmas from the fit's
+/// sigma_ra_arcsec/sigma_dec_arcsec, else sigma_x_px/sigma_y_px times the plate scale; magnitude from "mag".
+/// trkSub = `prefix` + the 1-based candidate number, zero-padded to 7 characters. A real candidate without a
+/// sky position is skipped with a warning in `warnings`.
+[[nodiscard]] std::vector<AstrometricDetection> realDetections(const session::Session& session,
+                                                               std::vector<std::string>& warnings,
+                                                               const std::string& prefix = "st");
+
+/// One DS9 mark per candidate at its fitted position (else its search cell), radius 2 PSF FWHM (5 px when
+/// unknown), with its velocity as a track line over the observation's span when it is known, coloured by
+/// label (real green, artifact red, unsure yellow, unvetted cyan), text "#N SNR s label".
+[[nodiscard]] std::vector<RegionMark> regionMarks(const session::Session& session, double trackStartS = 0.0,
+                                                  double trackEndS = 0.0);
+
+}  // namespace st::report

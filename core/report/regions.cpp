@@ -1,0 +1,89 @@
+#include "st/report/regions.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include "st/common/error.hpp"
+#include "st/io/wcs.hpp"
+
+namespace st::report {
+namespace {
+
+std::string cleanText(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    if (c != '{' && c != '}' && c != '"' && c != '\n') out += c;
+  }
+  return out;
+}
+
+std::string line(const char* fmt, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, fmt, args...);
+  return buf;
+}
+
+/// Local scale of the mapping at (x, y), arcsec per pixel (mean of the two axes).
+double localScaleArcsec(const astro::PixelToSky& toSky, double x, double y) {
+  const auto a = toSky(x - 0.5, y), b = toSky(x + 0.5, y), c = toSky(x, y - 0.5), d = toSky(x, y + 0.5);
+  const double cosDec = std::cos(toSky(x, y).decDeg * M_PI / 180.0);
+  auto sep = [&](const astro::SkyPoint& p, const astro::SkyPoint& q) {
+    double dra = q.raDeg - p.raDeg;
+    if (dra > 180.0) dra -= 360.0;
+    if (dra < -180.0) dra += 360.0;
+    return std::hypot(dra * cosDec, q.decDeg - p.decDeg) * 3600.0;
+  };
+  return 0.5 * (sep(a, b) + sep(c, d));
+}
+
+}  // namespace
+
+std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky) {
+  std::string out = "# Region file format: DS9 version 4.1\n# written by synthtrack; positions at t_ref\n";
+  out +=
+      "global color=green width=1 font=\"helvetica 10 normal roman\" select=1 edit=1 move=1 delete=1 "
+      "include=1 source=1\n";
+  out += toSky ? "fk5\n" : "image\n";
+  for (const auto& m : marks) {
+    const std::string props =
+        " # color=" + cleanText(m.color) + (m.text.empty() ? "" : " text={" + cleanText(m.text) + "}");
+    if (toSky) {
+      const auto p = toSky(m.x, m.y);
+      const double r = m.radiusPx * localScaleArcsec(toSky, m.x, m.y);
+      out += line("circle(%.7f,%+.7f,%.3f\")", p.raDeg, p.decDeg, r) + props + "\n";
+    } else {
+      out += line("circle(%.3f,%.3f,%.3f)", m.x + 1.0, m.y + 1.0, m.radiusPx) + props + "\n";
+    }
+    if (m.velocity) {
+      const double x0 = m.x + m.velocity->vx * m.trackStartS, y0 = m.y + m.velocity->vy * m.trackStartS;
+      const double x1 = m.x + m.velocity->vx * m.trackEndS, y1 = m.y + m.velocity->vy * m.trackEndS;
+      const std::string lprops = " # line=0 1 color=" + cleanText(m.color);
+      if (toSky) {
+        const auto a = toSky(x0, y0), b = toSky(x1, y1);
+        out += line("line(%.7f,%+.7f,%.7f,%+.7f)", a.raDeg, a.decDeg, b.raDeg, b.decDeg) + lprops + "\n";
+      } else {
+        out += line("line(%.3f,%.3f,%.3f,%.3f)", x0 + 1.0, y0 + 1.0, x1 + 1.0, y1 + 1.0) + lprops + "\n";
+      }
+    }
+  }
+  return out;
+}
+
+void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
+                     const astro::PixelToSky& toSky) {
+  const std::string text = ds9Regions(marks, toSky);
+  std::ofstream out(path);
+  if (!out) throw InputError("cannot write DS9 region file '" + path + "'");
+  out << text;
+  if (!out) throw InputError("error writing DS9 region file '" + path + "'");
+}
+
+astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS) {
+  return [&wcs, skyRate, mappingEpochOffsetS](double x, double y) {
+    const auto s = wcs.pixelToSky(x + skyRate.vx * mappingEpochOffsetS, y + skyRate.vy * mappingEpochOffsetS);
+    return astro::SkyPoint{s.raDeg, s.decDeg};
+  };
+}
+
+}  // namespace st::report

@@ -1,0 +1,133 @@
+// FITS stacks with a WCS moved to t_ref and provenance, read back through our reader; detections and DS9
+// marks from a session's labels.
+#include <gtest/gtest.h>
+
+#include "st/common/error.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/io/wcs.hpp"
+#include "st/report/fits_stack.hpp"
+#include "st/report/session_report.hpp"
+#include "test_support.hpp"
+
+namespace st::report {
+namespace {
+
+std::shared_ptr<const Wcs> tanWcs() {
+  FitsHeader h;
+  h.setString("CTYPE1", "RA---TAN");
+  h.setString("CTYPE2", "DEC--TAN");
+  h.setNumber("CRVAL1", 150.0);
+  h.setNumber("CRVAL2", 30.0);
+  h.setNumber("CRPIX1", 33.0);
+  h.setNumber("CRPIX2", 17.0);
+  h.setNumber("CD1_1", -0.3 / 3600.0);
+  h.setNumber("CD1_2", 0.01 / 3600.0);
+  h.setNumber("CD2_1", 0.02 / 3600.0);
+  h.setNumber("CD2_2", 0.3 / 3600.0);
+  std::vector<std::string> warnings;
+  return Wcs::fromHeader(h, &warnings);
+}
+
+TEST(FitsStack, WcsMovedToTRefAndProvenanceReadBack) {
+  test::TempDir dir;
+  const auto wcs = tanWcs();
+  ASSERT_NE(wcs, nullptr);
+  Image img(64, 40);
+  for (std::size_t i = 0; i < img.size(); ++i)
+    img.pixels[i] = static_cast<float>(i % 97) - 3.5f;
+  StackProvenance p;
+  p.what = "candidate 2, IPSA";
+  p.velocity = {1.25, -0.5};
+  p.skyRate = {2.0, 0.5};
+  p.tRefMjd = 60000.25;
+  p.frames = 500;
+  p.inputs = {"/data/a.fits", "/data/b.fits"};
+  const double firstOffsetS = -15.0;  // the WCS is the first frame's, 15 s before t_ref
+  const std::string path = (dir / "stack.fits").string();
+  writeStackFits(path, img, p, wcs.get(), firstOffsetS);
+
+  NullProgress progress;
+  CancelToken cancel;
+  io::LoadOptions options;
+  options.startMjd = 60000.0;
+  options.frameRateHz = 1.0;
+  const FrameCube back = io::loadFrames({path}, options, progress, cancel);
+  ASSERT_EQ(back.frameCount(), 1u);
+  ASSERT_EQ(back.width(), 64);
+  for (std::size_t i = 0; i < img.size(); ++i)
+    ASSERT_EQ(back.frame(0)[i], img.pixels[i]) << i;
+  const FitsHeader& h = back.header;
+  EXPECT_DOUBLE_EQ(*h.getDouble("STVX"), 1.25);
+  EXPECT_DOUBLE_EQ(*h.getDouble("SKYVY"), 0.5);
+  EXPECT_DOUBLE_EQ(*h.getDouble("TREFMJD"), 60000.25);
+  EXPECT_DOUBLE_EQ(*h.getDouble("WCSEPOCH"), 60000.25);
+  EXPECT_DOUBLE_EQ(*h.getDouble("NFRAMES"), 500.0);
+  EXPECT_EQ(*h.getString("STMODE"), "IPSA");
+  EXPECT_NE(h.getString("SOFTWARE")->find("synthtrack"), std::string::npos);
+  int history = 0;
+  for (const auto& c : h.cards)
+    history += c.key == "HISTORY" && (c.comment + c.value).find("/data/") != std::string::npos;
+  EXPECT_EQ(history, 2);
+  // A star at stack pixel (x, y) (its t_ref position) was at (x, y) + skyRate * (-15 s) in the first frame.
+  ASSERT_NE(back.wcs, nullptr);
+  for (const auto& [x, y] : {std::pair{0.0, 0.0}, {40.0, 12.5}, {63.0, 39.0}}) {
+    const auto a = back.wcs->pixelToSky(x, y);
+    const auto b = wcs->pixelToSky(x + p.skyRate.vx * firstOffsetS, y + p.skyRate.vy * firstOffsetS);
+    EXPECT_NEAR(a.raDeg, b.raDeg, 1e-10);
+    EXPECT_NEAR(a.decDeg, b.decDeg, 1e-10);
+  }
+}
+
+session::Session labelled() {
+  nlohmann::json j;
+  j["t_ref_mjd"] = 60000.5;
+  j["plate_scale_arcsec_px"] = 0.3;
+  j["psf_fwhm_px"] = 3.0;
+  j["candidates"] = nlohmann::json::array();
+  for (int i = 0; i < 4; ++i)
+    j["candidates"].push_back(
+        {{"x", 10 * i}, {"y", 5}, {"vx_px_s", 1.0}, {"vy_px_s", 0.0}, {"snr", 8.0 + i}});
+  j["candidates"][0]["fit"] = {{"status", "converged"}, {"x", 0.25},      {"y", 5.5},
+                               {"vx_px_s", 1.1},        {"vy_px_s", 0.1}, {"ra_deg", 150.1},
+                               {"dec_deg", -20.2},      {"snr", 9.5},     {"sigma_x_px", 0.1},
+                               {"sigma_y_px", 0.2},     {"mag", 22.95}};
+  j["candidates"][2]["fit"] = {{"status", "converged"}, {"x", 20.0}, {"y", 5.0}};
+  session::Session s = session::fromSearchJson(j);
+  s.candidates[0].label = session::Label::Real;
+  s.candidates[1].label = session::Label::Artifact;
+  s.candidates[1].reason = session::ArtifactReason::CosmicRay;
+  s.candidates[2].label = session::Label::Real;  // no sky position
+  return s;
+}
+
+TEST(SessionReport, OnlyRealCandidatesWithASkyPositionAreReported) {
+  std::vector<std::string> warnings;
+  const auto d = realDetections(labelled(), warnings);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].trkSub, "st00001");
+  EXPECT_DOUBLE_EQ(d[0].raDeg, 150.1);
+  EXPECT_DOUBLE_EQ(d[0].decDeg, -20.2);
+  EXPECT_DOUBLE_EQ(d[0].mjdUtc, 60000.5);
+  EXPECT_DOUBLE_EQ(d[0].snr, 9.5);
+  EXPECT_NEAR(*d[0].sigmaRaArcsec, 0.03, 1e-15);
+  EXPECT_NEAR(*d[0].sigmaDecArcsec, 0.06, 1e-15);
+  EXPECT_DOUBLE_EQ(*d[0].mag, 22.95);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("candidate 3"), std::string::npos) << warnings[0];
+}
+
+TEST(SessionReport, RegionMarksUseFitsAndLabelColours) {
+  const auto marks = regionMarks(labelled(), -5.0, 5.0);
+  ASSERT_EQ(marks.size(), 4u);
+  EXPECT_DOUBLE_EQ(marks[0].x, 0.25);  // the converged fit's position, not the search cell
+  EXPECT_DOUBLE_EQ(marks[0].velocity->vx, 1.1);
+  EXPECT_EQ(marks[0].color, "green");
+  EXPECT_EQ(marks[1].color, "red");
+  EXPECT_NE(marks[1].text.find("cosmic_ray"), std::string::npos);
+  EXPECT_EQ(marks[3].color, "cyan");
+  EXPECT_DOUBLE_EQ(marks[3].x, 30.0);
+  EXPECT_DOUBLE_EQ(marks[3].radiusPx, 6.0);
+}
+
+}  // namespace
+}  // namespace st::report
