@@ -90,11 +90,13 @@ TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
 TEST(SearchCli, BadInputIsAClearError) {
   const auto cli = cliPath();
   if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
-  // Raw input without --preprocessed: usage error (2); --snr and --fap together: usage error.
-  EXPECT_EQ(runCli(cli, "search x.fits 2>/dev/null"), 2);
+  // --fit with an already filtered cube: usage error (2); --snr and --fap together: usage error.
+  EXPECT_EQ(runCli(cli, "search x.fits --preprocessed --fit 2>/dev/null"), 2);
   EXPECT_EQ(runCli(cli, "search x.fits --preprocessed --snr 5 --fap 0.1 2>/dev/null"), 2);
   // Missing file: input error (1).
   EXPECT_EQ(runCli(cli, "search /nonexistent.fits --preprocessed 2>/dev/null"), 1);
+  // Raw input goes through pre-processing first: a missing raw file is an input error too.
+  EXPECT_EQ(runCli(cli, "search /nonexistent.fits 2>/dev/null"), 1);
 }
 
 }  // namespace
