@@ -21,7 +21,8 @@ int cmdBench(const Args& args) {
   };
   if (args.empty() || args[0] == "--help") {
     std::printf("usage: synthtrack-cli bench WHAT [options]\n\n");
-    for (const auto& b : kBenches) std::printf("  %-11s %s\n", b.name, b.summary);
+    for (const auto& b : kBenches)
+      std::printf("  %-11s %s\n", b.name, b.summary);
     return args.empty() ? 2 : 0;
   }
   for (const auto& b : kBenches) {

@@ -46,9 +46,9 @@ struct DemoOptions {
 };
 
 DemoOptions parseDemo(const Args& args) {
-  const CliArgs cli(args, {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits",
-                           "backend"},
-                    {"help"});
+  const CliArgs cli(
+      args, {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend"},
+      {"help"});
   if (!cli.positionals().empty()) throw UsageError("unexpected argument '" + cli.positionals()[0] + "'");
   DemoOptions o;
   if (auto v = cli.value("out")) o.out = *v;
@@ -66,11 +66,13 @@ DemoOptions parseDemo(const Args& args) {
   return o;
 }
 
-void writeStack(const std::filesystem::path& path, const FrameCube& cube, Velocity v, const std::string& what) {
+void writeStack(const std::filesystem::path& path, const FrameCube& cube, Velocity v,
+                const std::string& what) {
   const stack::StackResult s = stack::stackIpsa(cube, v);
   FitsHeader h = io::provenanceCards("demo stack: " + what);
   if (cube.wcs) {
-    for (const auto& card : cube.wcs->toHeader().cards) h.cards.push_back(card);
+    for (const auto& card : cube.wcs->toHeader().cards)
+      h.cards.push_back(card);
   }
   h.setNumber("STVX", v.vx, "stack velocity x [px/s]");
   h.setNumber("STVY", v.vy, "stack velocity y [px/s]");
@@ -84,7 +86,8 @@ const nlohmann::json* matchTruth(const nlohmann::json& result, const sim::TruthO
   double bestD = 1e300;
   for (const auto& c : result["candidates"]) {
     const double dPos = std::hypot(c["x"].get<double>() - t.xRefPx, c["y"].get<double>() - t.yRefPx);
-    const double dVel = std::hypot(c["vx_px_s"].get<double>() - t.vxPxPerS, c["vy_px_s"].get<double>() - t.vyPxPerS);
+    const double dVel =
+        std::hypot(c["vx_px_s"].get<double>() - t.vxPxPerS, c["vy_px_s"].get<double>() - t.vyPxPerS);
     if (dPos <= 3.0 && dVel <= 2.0 * stepPxS && dPos < bestD) {
       best = &c;
       bestD = dPos;
@@ -117,7 +120,8 @@ int cmdDemo(const Args& args) {
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
   SubProgress prepProgress(progress, 0.25, 0.5);
-  pipeline::Prepared prepared = pipeline::preprocess(std::move(sim.cube), pipeline::PreprocessParams{}, prepProgress, cancel);
+  pipeline::Prepared prepared =
+      pipeline::preprocess(std::move(sim.cube), pipeline::PreprocessParams{}, prepProgress, cancel);
   pipeline::writePreparedSidecar(path("prepared.json"), prepared);
 
   // 3. The velocity search, +-vmax deg/day around the sky rate.
@@ -129,7 +133,8 @@ int cmdDemo(const Args& args) {
   request.grid.stepPx = o.stepPx;
   request.params.snrThreshold = o.snr;
   SubProgress searchProgress(progress, 0.5, 0.9);
-  const search::SearchResult result = search::runSearch(*backend.backend, prepared.filtered, request, searchProgress, cancel);
+  const search::SearchResult result =
+      search::runSearch(*backend.backend, prepared.filtered, request, searchProgress, cancel);
   nlohmann::json report = report::searchResultToJson(prepared.filtered, result, {path("observation.fits")});
 
   // 4. Co-moving fits and segment checks of the best candidates.
@@ -143,40 +148,45 @@ int cmdDemo(const Args& args) {
   report::writeCandidatesCsv(path("candidates.csv"), report);
   writeStack(o.out / "stack_sky.fits", prepared.frames, prepared.skyRate, "tracking the sky");
   if (!result.candidates.empty()) {
-    writeStack(o.out / "stack_candidate1.fits", prepared.frames, result.candidates.front().v, "tracking candidate 1");
+    writeStack(o.out / "stack_candidate1.fits", prepared.frames, result.candidates.front().v,
+               "tracking candidate 1");
   }
 
   // 5. What was found, against the truth.
   std::printf("synthtrack demo: %s, %zu frames of %dx%d, seed %llu\n", o.preset.c_str(),
               prepared.frames.frameCount(), prepared.frames.width(), prepared.frames.height(),
               static_cast<unsigned long long>(o.seed));
-  std::printf("  pre-processing: sigma_n %.3f, PSF FWHM %.2f px (%s), sky rate (%.3f, %.3f) px/s, %zu stars, "
-              "%zu cosmic-ray pixels, %.1f s\n",
-              prepared.sigmaN, prepared.psf.fwhm(), prepared.psfFitted ? "fitted" : "fallback", prepared.skyRate.vx,
-              prepared.skyRate.vy, prepared.stars.size(), prepared.cosmicRays, prepared.elapsedS);
-  std::printf("  search: %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, %.1f s\n",
-              backend.message.c_str(), result.method.c_str(), result.grid.nvx, result.grid.nvy, result.grid.stepPxS,
-              result.snrThreshold, result.candidates.size(), result.elapsedS);
+  std::printf(
+      "  pre-processing: sigma_n %.3f, PSF FWHM %.2f px (%s), sky rate (%.3f, %.3f) px/s, %zu stars, "
+      "%zu cosmic-ray pixels, %.1f s\n",
+      prepared.sigmaN, prepared.psf.fwhm(), prepared.psfFitted ? "fitted" : "fallback", prepared.skyRate.vx,
+      prepared.skyRate.vy, prepared.stars.size(), prepared.cosmicRays, prepared.elapsedS);
+  std::printf(
+      "  search: %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, %.1f s\n",
+      backend.message.c_str(), result.method.c_str(), result.grid.nvx, result.grid.nvy, result.grid.stepPxS,
+      result.snrThreshold, result.candidates.size(), result.elapsedS);
   int found = 0;
   for (const auto& t : sim.truth.objects) {
     const nlohmann::json* c = matchTruth(report, t, result.grid.stepPxS);
     if (c != nullptr) ++found;
-    std::printf("  truth %s: x %.1f y %.1f v (%.3f, %.3f) px/s, %.2f deg/day, expected SNR %.1f -> %s", t.name.c_str(),
-                t.xRefPx, t.yRefPx, t.vxPxPerS, t.vyPxPerS, t.rateDegPerDay, t.expectedSnr,
+    std::printf("  truth %s: x %.1f y %.1f v (%.3f, %.3f) px/s, %.2f deg/day, expected SNR %.1f -> %s",
+                t.name.c_str(), t.xRefPx, t.yRefPx, t.vxPxPerS, t.vyPxPerS, t.rateDegPerDay, t.expectedSnr,
                 c != nullptr ? "FOUND" : "not found");
     if (c != nullptr) {
-      std::printf(" at x %d y %d, search SNR %.1f", (*c)["x"].get<int>(), (*c)["y"].get<int>(), (*c)["snr"].get<double>());
+      std::printf(" at x %d y %d, search SNR %.1f", (*c)["x"].get<int>(), (*c)["y"].get<int>(),
+                  (*c)["snr"].get<double>());
       if (c->contains("fit") && (*c)["fit"]["status"] == "converged") {
         const auto& f = (*c)["fit"];
-        std::printf(", fit x %.2f y %.2f, SNR %.1f", f["x"].get<double>(), f["y"].get<double>(), f["snr"].get<double>());
+        std::printf(", fit x %.2f y %.2f, SNR %.1f", f["x"].get<double>(), f["y"].get<double>(),
+                    f["snr"].get<double>());
         if (f.contains("rate_deg_day")) std::printf(", %.2f deg/day", f["rate_deg_day"].get<double>());
       }
     }
     std::printf("\n");
   }
   std::printf("outputs in %s:\n", std::filesystem::absolute(o.out).c_str());
-  for (const char* f : {"observation.fits", "observation.truth.json", "prepared.json", "candidates.json", "candidates.csv",
-                        "stack_sky.fits", "stack_candidate1.fits"}) {
+  for (const char* f : {"observation.fits", "observation.truth.json", "prepared.json", "candidates.json",
+                        "candidates.csv", "stack_sky.fits", "stack_candidate1.fits"}) {
     if (std::filesystem::exists(o.out / f)) std::printf("  %s\n", f);
   }
   return found == static_cast<int>(sim.truth.objects.size()) ? 0 : 1;

@@ -97,7 +97,8 @@ Options parseOptions(const CliArgs& cli) {
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;
   if (auto m = cli.value("method")) {
-    if (*m != "exact" && *m != "tree") throw UsageError("--method must be 'exact' or 'tree', got '" + *m + "'");
+    if (*m != "exact" && *m != "tree")
+      throw UsageError("--method must be 'exact' or 'tree', got '" + *m + "'");
     p.method = *m;
   }
   o.csv = cli.value("out");
@@ -180,7 +181,8 @@ int cmdSearch(const Args& args) {
   BackendChoice choice = parseBackendChoice(o.backend);
   if (o.request.params.method == "tree") {
     // The tree search exists on the CPU backend only (the CUDA tree path is not written yet).
-    if (choice == BackendChoice::Cuda) throw UsageError("--method tree runs on the CPU only: use --backend cpu");
+    if (choice == BackendChoice::Cuda)
+      throw UsageError("--method tree runs on the CPU only: use --backend cpu");
     choice = BackendChoice::Cpu;
   }
   BackendSelection sel = makeBackend(choice);
@@ -188,9 +190,11 @@ int cmdSearch(const Args& args) {
   std::optional<pipeline::Prepared> prepared;
   if (!preprocessed) {
     SubProgress loadProgress(progress, 0.0, 0.2);
-    FrameCube raw = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
+    FrameCube raw =
+        io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
     SubProgress prepProgress(progress, 0.2, 0.5);
-    prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress, processCancelToken());
+    prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress,
+                                    processCancelToken());
     if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
     if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;
   }

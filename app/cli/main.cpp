@@ -34,7 +34,8 @@ constexpr Command kCommands[] = {
 void printUsage(std::FILE* out) {
   std::fprintf(out, "synthtrack-cli %s - synthetic tracking of faint, fast-moving asteroids\n\n", ST_VERSION);
   std::fprintf(out, "usage: synthtrack-cli COMMAND [options]   (COMMAND --help for its options)\n\n");
-  for (const auto& c : kCommands) std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
+  for (const auto& c : kCommands)
+    std::fprintf(out, "  %-11s %s\n", c.name, c.summary);
 }
 
 }  // namespace
@@ -56,7 +57,8 @@ int main(int argc, char** argv) {
     try {
       return c.run(rest);
     } catch (const st::app::UsageError& e) {
-      std::fprintf(stderr, "synthtrack-cli %s: %s (see synthtrack-cli %s --help)\n", c.name, e.what(), c.name);
+      std::fprintf(stderr, "synthtrack-cli %s: %s (see synthtrack-cli %s --help)\n", c.name, e.what(),
+                   c.name);
       return 2;
     } catch (const st::Cancelled&) {
       std::fprintf(stderr, "synthtrack-cli %s: cancelled\n", c.name);

@@ -16,7 +16,9 @@ BackendChoice parseBackendChoice(const std::string& text) {
   throw InputError("backend must be auto, cpu or cuda, got '" + text + "'");
 }
 
-bool cudaCompiledIn() { return ST_HAVE_CUDA != 0; }
+bool cudaCompiledIn() {
+  return ST_HAVE_CUDA != 0;
+}
 
 BackendSelection makeBackend(BackendChoice choice) {
   BackendSelection out;

@@ -34,7 +34,8 @@ nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search
     j["segments_flagged"] = seg.flagged();
     j["segment_reasons"] = seg.reasons;
     nlohmann::json snrs = nlohmann::json::array();
-    for (const auto& s : seg.segments) snrs.push_back(s.forcedSnr);
+    for (const auto& s : seg.segments)
+      snrs.push_back(s.forcedSnr);
     j["segment_snr"] = snrs;
   }
   if (f.ok() && prepared.frames.wcs) {

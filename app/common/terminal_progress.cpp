@@ -13,7 +13,9 @@ namespace st::app {
 TerminalProgress::TerminalProgress()
     : m_enabled(isatty(STDERR_FILENO) != 0), m_start(std::chrono::steady_clock::now()) {}
 
-TerminalProgress::~TerminalProgress() { finish(); }
+TerminalProgress::~TerminalProgress() {
+  finish();
+}
 
 void TerminalProgress::report(double fraction, std::string_view stage) {
   if (!m_enabled) return;
@@ -53,6 +55,8 @@ void onSigint(int) {
 }
 }  // namespace
 
-void installSigintCancel() { std::signal(SIGINT, onSigint); }
+void installSigintCancel() {
+  std::signal(SIGINT, onSigint);
+}
 
 }  // namespace st::app

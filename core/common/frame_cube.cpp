@@ -29,7 +29,8 @@ double FrameCube::tRefMjd() const {
   // Sum offsets from the first epoch so MJDs of ~6e4 lose no precision.
   const double t0 = m_info.front().mjdMid;
   double sum = 0.0;
-  for (const auto& f : m_info) sum += f.mjdMid - t0;
+  for (const auto& f : m_info)
+    sum += f.mjdMid - t0;
   return t0 + sum / static_cast<double>(m_info.size());
 }
 
@@ -43,9 +44,8 @@ std::vector<double> FrameCube::timeOffsetsS() const {
 
 double FrameCube::timeSpanS() const {
   if (m_info.empty()) return 0.0;
-  const auto [lo, hi] = std::minmax_element(m_info.begin(), m_info.end(), [](const auto& a, const auto& b) {
-    return a.mjdMid < b.mjdMid;
-  });
+  const auto [lo, hi] = std::minmax_element(m_info.begin(), m_info.end(),
+                                            [](const auto& a, const auto& b) { return a.mjdMid < b.mjdMid; });
   return (hi->mjdMid - lo->mjdMid) * kSecondsPerDay;
 }
 

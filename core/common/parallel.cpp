@@ -18,13 +18,15 @@ unsigned workerCount() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std::size_t, std::size_t)>& body) {
+void parallelFor(std::size_t n, std::size_t chunk,
+                 const std::function<void(std::size_t, std::size_t)>& body) {
   if (n == 0) return;
   chunk = std::max<std::size_t>(1, chunk);
   const std::size_t chunks = (n + chunk - 1) / chunk;
   const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(workerCount(), chunks));
   if (threads <= 1) {
-    for (std::size_t b = 0; b < n; b += chunk) body(b, std::min(n, b + chunk));
+    for (std::size_t b = 0; b < n; b += chunk)
+      body(b, std::min(n, b + chunk));
     return;
   }
   std::atomic<std::size_t> next{0};
@@ -47,9 +49,11 @@ void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std:
   };
   std::vector<std::thread> pool;
   pool.reserve(threads - 1);
-  for (unsigned i = 1; i < threads; ++i) pool.emplace_back(worker);
+  for (unsigned i = 1; i < threads; ++i)
+    pool.emplace_back(worker);
   worker();
-  for (auto& t : pool) t.join();
+  for (auto& t : pool)
+    t.join();
   if (error) std::rethrow_exception(error);
 }
 

@@ -16,9 +16,9 @@ namespace st::io::detail {
 bool riceStreamIsSafe(const std::uint8_t* data, std::size_t length, std::size_t pixels, int bytePix,
                       int blockSize);
 
-/// For a tile-compressed image in the current HDU, checks that every tile lies inside the heap and, for RICE_1,
-/// that its stream is safe to decode; throws st::InputError naming the file, HDU and tile when one is corrupt.
-/// Does nothing for other HDUs.
+/// For a tile-compressed image in the current HDU, checks that every tile lies inside the heap and, for
+/// RICE_1, that its stream is safe to decode; throws st::InputError naming the file, HDU and tile when one is
+/// corrupt. Does nothing for other HDUs.
 void checkRiceTiles(const FitsFile& file);
 
 }  // namespace st::io::detail

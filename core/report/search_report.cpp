@@ -27,7 +27,8 @@ nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::V
   const Velocity onSky{c.v.vx - cube.skyRate.vx, c.v.vy - cube.skyRate.vy};
   nlohmann::json flags = nlohmann::json::array();
   // Within one grid step of the stars' motion: a static source that pre-processing did not remove.
-  if (std::abs(onSky.vx) <= grid.stepPxS && std::abs(onSky.vy) <= grid.stepPxS) flags.push_back("at_sky_rate");
+  if (std::abs(onSky.vx) <= grid.stepPxS && std::abs(onSky.vy) <= grid.stepPxS)
+    flags.push_back("at_sky_rate");
   // Fewer frames than the cube has: the track leaves the frame (edge of the field).
   if (static_cast<std::size_t>(c.nIn) < cube.frames.frameCount()) flags.push_back("partial");
   j["flags"] = flags;
@@ -62,7 +63,8 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["snr_threshold"] = r.snrThreshold;
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
-  for (const auto& c : r.candidates) j["candidates"].push_back(candidateToJson(cube, r.grid, c));
+  for (const auto& c : r.candidates)
+    j["candidates"].push_back(candidateToJson(cube, r.grid, c));
   return j;
 }
 

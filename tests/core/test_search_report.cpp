@@ -13,7 +13,8 @@ namespace {
 search::FilteredCube scanCube() {
   search::FilteredCube fc;
   fc.frames = FrameCube(64, 64, 10);
-  for (std::size_t n = 0; n < 10; ++n) fc.frames.info()[n].mjdMid = 60000.0 + n * 0.06 / kSecondsPerDay;
+  for (std::size_t n = 0; n < 10; ++n)
+    fc.frames.info()[n].mjdMid = 60000.0 + n * 0.06 / kSecondsPerDay;
   fc.frames.plateScaleArcsecPerPx = 0.305;
   fc.skyRate = {16.39, 0.0};  // a scanning telescope: the stars cross the frames at 5"/s
   fc.sigmaF = 2.0;

@@ -39,7 +39,9 @@ class FrameCube {
   [[nodiscard]] bool empty() const noexcept { return m_info.empty(); }
 
   float* frame(std::size_t n) noexcept { return m_pixels.data() + n * framePixels(); }
-  [[nodiscard]] const float* frame(std::size_t n) const noexcept { return m_pixels.data() + n * framePixels(); }
+  [[nodiscard]] const float* frame(std::size_t n) const noexcept {
+    return m_pixels.data() + n * framePixels();
+  }
   /// A copy of frame n as an Image.
   [[nodiscard]] Image frameImage(std::size_t n) const;
 

@@ -10,7 +10,9 @@ struct Velocity {
   double vx = 0.0;
   double vy = 0.0;
   [[nodiscard]] double norm() const noexcept { return std::hypot(vx, vy); }
-  friend bool operator==(const Velocity& a, const Velocity& b) noexcept { return a.vx == b.vx && a.vy == b.vy; }
+  friend bool operator==(const Velocity& a, const Velocity& b) noexcept {
+    return a.vx == b.vx && a.vy == b.vy;
+  }
 };
 
 inline constexpr double kSecondsPerDay = 86400.0;

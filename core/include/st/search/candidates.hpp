@@ -32,9 +32,9 @@ struct CellHit {
 };
 
 struct ClusterParams {
-  double positionRadiusPx = 6.0;  ///< max |dx|, |dy| at t_ref for two cells to link (default 2 x FWHM)
-  int velocityRadiusSteps = 2;    ///< max |d ivx|, |d ivy| for two cells to link
-  double persistenceSnr = 2.0;       ///< a peak this far (SNR units) above its saddle stays separate...
+  double positionRadiusPx = 6.0;      ///< max |dx|, |dy| at t_ref for two cells to link (default 2 x FWHM)
+  int velocityRadiusSteps = 2;        ///< max |d ivx|, |d ivy| for two cells to link
+  double persistenceSnr = 2.0;        ///< a peak this far (SNR units) above its saddle stays separate...
   double persistenceFraction = 0.15;  ///< ...or this fraction of its own SNR, whichever is larger
 };
 

@@ -16,10 +16,10 @@ namespace st::search {
 
 /// Frames ready for the search: zero-biased, static sources and cosmic rays zeroed, matched-filtered.
 struct FilteredCube {
-  FrameCube frames;       ///< filtered frames, masked pixels already 0
-  double sigmaF = 0.0;    ///< noise of one filtered frame, measured robustly from the data
-  Velocity skyRate;       ///< motion of the stars, px/s (zero for a tracked telescope)
-  double psfFwhmPx = 0.0; ///< FWHM of the PSF used for the matched filter
+  FrameCube frames;        ///< filtered frames, masked pixels already 0
+  double sigmaF = 0.0;     ///< noise of one filtered frame, measured robustly from the data
+  Velocity skyRate;        ///< motion of the stars, px/s (zero for a tracked telescope)
+  double psfFwhmPx = 0.0;  ///< FWHM of the PSF used for the matched filter
 };
 
 /// A regular 2-D grid of trial velocities (px/s), nvx x nvy points, index (ix, iy) at
@@ -40,14 +40,14 @@ struct VelocityGrid {
 
 /// Search thresholds and limits.
 struct SearchParams {
-  double snrThreshold = 7.0;          ///< paper §4.4: SNR 7 (FAP ~0.34% for 512^2 x 100^2 trials)
-  std::optional<double> targetFap;    ///< when set, the SNR threshold is derived from it and the trials
+  double snrThreshold = 7.0;        ///< paper §4.4: SNR 7 (FAP ~0.34% for 512^2 x 100^2 trials)
+  std::optional<double> targetFap;  ///< when set, the SNR threshold is derived from it and the trials
   /// Cells above threshold kept before clustering (highest SNR first), a bound on memory (~30 bytes each).
   /// Generous on purpose: the skirts of one bright star residual light up 1e5-1e6 cells, and a small cap
   /// silently drops every fainter object (SearchResult::cellsAboveThreshold shows when it was reached).
   std::size_t maxCandidates = 2'000'000;
-  double minFrameFraction = 0.5;      ///< cells whose N_in is below this fraction of N_f are ignored
-  std::string method = "exact";       ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
+  double minFrameFraction = 0.5;  ///< cells whose N_in is below this fraction of N_f are ignored
+  std::string method = "exact";   ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).
@@ -87,10 +87,10 @@ struct SearchResult {
   VelocityMap map;
   std::vector<Candidate> candidates;  ///< clustered, sorted by decreasing SNR
   TrialCounts trials;
-  double snrThreshold = 0.0;          ///< the threshold actually used
+  double snrThreshold = 0.0;  ///< the threshold actually used
   double tRefMjd = 0.0;
-  std::string backend;                ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
-  std::string method;                 ///< "exact" or "tree"
+  std::string backend;  ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
+  std::string method;   ///< "exact" or "tree"
   double elapsedS = 0.0;
   std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
   int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
