@@ -15,6 +15,7 @@
 #include <string>
 
 #include "cli_args.hpp"
+#include "bench_util.hpp"
 #include "commands.hpp"
 #include "st/common/parallel.hpp"
 #include "st/pipeline/preprocess.hpp"
@@ -23,27 +24,6 @@
 
 namespace st::app {
 namespace {
-
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown CPU";
-}
-
-std::string utcNow() {
-  const std::time_t t = std::time(nullptr);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-  return buf;
-}
-
-double cpuSeconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
 
 struct Score {
   double sigmaTruth = 0.0, skyTruth = 0.0, bias = 0.0;
@@ -124,9 +104,9 @@ int benchPreprocess(const Args& args) {
   if (a.flag("given-sky-rate")) pp.skyRate = Velocity{sim.truth.skyVxPxPerS, sim.truth.skyVyPxPerS};
   const std::size_t frames = sim.cube.frameCount();
   const int w = sim.cube.width(), h = sim.cube.height();
-  const double cpu0 = cpuSeconds();
+  const double cpu0 = processCpuSeconds();
   const pipeline::Prepared out = pipeline::preprocess(std::move(sim.cube), pp, progress, cancel);
-  const double cpu = cpuSeconds() - cpu0;
+  const double cpu = processCpuSeconds() - cpu0;
   progress.finish();
   const Score sc = score(sim, out);
   char host[256] = "unknown";

@@ -7,6 +7,7 @@
 #include <sys/resource.h>
 
 #include "cli_args.hpp"
+#include "bench_util.hpp"
 #include "commands.hpp"
 #include "st/common/parallel.hpp"
 #include "st/search/cpu_backend.hpp"
@@ -18,14 +19,6 @@
 namespace st::app {
 
 namespace {
-
-/// CPU seconds used by this process (all threads), to tell a slow machine from a busy one.
-double processCpuSeconds() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
-}
 
 /// Paper-scale problem: 1500 frames at 16.7 Hz, 512^2 px, 100 x 100 velocities 1 px / span apart.
 search::TreePlan paperPlan() {

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "cli_args.hpp"
+#include "bench_util.hpp"
 #include "commands.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/parallel.hpp"
@@ -22,38 +23,17 @@
 namespace st::app {
 namespace {
 
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown CPU";
-}
-
-std::string utcNow() {
-  const std::time_t t = std::time(nullptr);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
-  return buf;
-}
-
-double processCpuS() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
-}
-
 /// Wall-clock seconds of each run; *cpuS (optional) gets the CPU seconds of each run over all threads, which
 /// tells a busy machine (wall >> cpu / threads) from a slow program.
 template <class F>
 std::vector<double> timeRuns(int reps, F&& f, std::vector<double>* cpuS = nullptr) {
   std::vector<double> t;
   for (int i = 0; i < reps; ++i) {
-    const double c = processCpuS();
+    const double c = processCpuSeconds();
     const auto a = std::chrono::steady_clock::now();
     f();
     t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count());
-    if (cpuS) cpuS->push_back(processCpuS() - c);
+    if (cpuS) cpuS->push_back(processCpuSeconds() - c);
   }
   return t;
 }
