@@ -31,15 +31,7 @@ class CpuBackend final : public SearchBackend {
       throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
     }
     const auto start = std::chrono::steady_clock::now();
-    validateSearchInput(cube, grid, params);
-    SearchResult result;
-    result.grid = grid;
-    result.trials = trialCounts(cube.frames.width(), cube.frames.height(), grid);
-    result.snrThreshold = effectiveThreshold(params, result.trials);
-    result.minFrames = minFramesFor(params, cube.frames.frameCount());
-    result.tRefMjd = cube.frames.tRefMjd();
-    result.backend = "cpu";
-    result.method = "exact";
+    SearchResult result = startSearchResult(cube, grid, params, "cpu", "exact");
 
     detail::KernelParams kp;
     kp.sigmaF = cube.sigmaF;
@@ -49,10 +41,7 @@ class CpuBackend final : public SearchBackend {
     const detail::Roi roi{0, 0, cube.frames.width(), cube.frames.height()};
     detail::KernelOutput out = detail::runIpsaKernel(cube.frames, grid, roi, kp, progress, cancel);
 
-    std::sort(out.hits.begin(), out.hits.end(),
-              [](const CellHit& a, const CellHit& b) { return a.snr > b.snr; });
-    if (out.hits.size() > params.maxCandidates) out.hits.resize(params.maxCandidates);
-    result.candidates = clusterCells(out.hits, grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
+    setCandidates(result, std::move(out.hits), cube, params);
     result.map = std::move(out.map);
     result.cellsAboveThreshold = out.hitsTotal;
     result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

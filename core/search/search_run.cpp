@@ -1,5 +1,7 @@
 #include "st/search/search_run.hpp"
 
+#include <algorithm>
+
 #include <cmath>
 #include <sstream>
 
@@ -45,6 +47,27 @@ double effectiveThreshold(const SearchParams& params, const TrialCounts& trials)
 int minFramesFor(const SearchParams& params, std::size_t frames) {
   const double need = std::ceil(params.minFrameFraction * static_cast<double>(frames) - 1e-9);
   return std::max(1, static_cast<int>(need));
+}
+
+SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                               std::string backend, std::string method) {
+  validateSearchInput(cube, grid, params);
+  SearchResult result;
+  result.grid = grid;
+  result.trials = trialCounts(cube.frames.width(), cube.frames.height(), grid);
+  result.snrThreshold = effectiveThreshold(params, result.trials);
+  result.minFrames = minFramesFor(params, cube.frames.frameCount());
+  result.tRefMjd = cube.frames.tRefMjd();
+  result.backend = std::move(backend);
+  result.method = std::move(method);
+  return result;
+}
+
+void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
+                   const SearchParams& params) {
+  std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) { return a.snr > b.snr; });
+  if (hits.size() > params.maxCandidates) hits.resize(params.maxCandidates);
+  result.candidates = clusterCells(hits, result.grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

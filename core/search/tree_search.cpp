@@ -341,15 +341,7 @@ int treeTileRows(const TreePlan& plan, int width) {
 SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                         ProgressSink& progress, CancelToken& cancel) {
   const auto start = std::chrono::steady_clock::now();
-  validateSearchInput(cube, grid, params);
-  SearchResult result;
-  result.grid = grid;
-  result.trials = trialCounts(cube.frames.width(), cube.frames.height(), grid);
-  result.snrThreshold = effectiveThreshold(params, result.trials);
-  result.minFrames = minFramesFor(params, cube.frames.frameCount());
-  result.tRefMjd = cube.frames.tRefMjd();
-  result.backend = "cpu";
-  result.method = "tree";
+  SearchResult result = startSearchResult(cube, grid, params, "cpu", "tree");
 
   const TreePlan plan = buildTreePlan(cube.frames.timeOffsetsS(), grid);
   Context cx{cube.frames, plan, params, cube.frames.width(), cube.frames.height(), 0, 0.0f, 1, 0, {},
@@ -419,9 +411,7 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
     result.cellsAboveThreshold += w->hitsTotal;
     hits.insert(hits.end(), w->hits.begin(), w->hits.end());
   }
-  std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) { return a.snr > b.snr; });
-  if (hits.size() > params.maxCandidates) hits.resize(params.maxCandidates);
-  result.candidates = clusterCells(hits, grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
+  setCandidates(result, std::move(hits), cube, params);
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.report(1.0, "velocity search (tree)");
   return result;

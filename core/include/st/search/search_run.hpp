@@ -1,6 +1,10 @@
 #pragma once
 // The velocity search as one plain function (for the demo, the CLI and the GUI): grid from a GridSpec,
 // then backend.search(). Also the validation every backend applies to its inputs.
+#include <string>
+#include <vector>
+
+#include "st/search/candidates.hpp"
 #include "st/search/types.hpp"
 #include "st/search/velocity_grid.hpp"
 
@@ -27,5 +31,15 @@ double effectiveThreshold(const SearchParams& params, const TrialCounts& trials)
 
 /// N_in below this is ignored: ceil(minFrameFraction x frames), at least 1.
 int minFramesFor(const SearchParams& params, std::size_t frames);
+
+/// Validates the input (validateSearchInput) and returns a result with everything known before the search:
+/// grid, trial counts, threshold, minimum frames, t_ref, backend and method names.
+SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                               std::string backend, std::string method);
+
+/// Sorts `hits` by decreasing SNR, keeps at most params.maxCandidates and clusters them into
+/// result.candidates (clusterCells with the cube's PSF FWHM and result.trials).
+void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
+                   const SearchParams& params);
 
 }  // namespace st::search
