@@ -13,6 +13,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
+#include "st/pipeline/preprocess.hpp"
 #include "st/search/types.hpp"
 
 namespace st::ui {
@@ -48,6 +49,11 @@ struct PreparedView {
   std::vector<std::pair<std::string, Image>> layers;
   /// One-line summary: noise, PSF, number of masked stars, etc.
   std::string summary;
+  /// Everything else pre-processing produced: PSF, sigma_n, static-source catalog, sky rate, calibration
+  /// report, notes. Its `frames` and `filtered` cubes were moved into `unfiltered` and `filtered` above (the
+  /// cube is held once), and its background and noise images into `layers`, so those members are empty
+  /// here. Null when the pipeline did not run (test fakes).
+  std::shared_ptr<const pipeline::Prepared> products;
 };
 
 /// A radial profile at a point of an image with its Moffat fit (paper \label{MoffatPsf}).

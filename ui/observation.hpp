@@ -1,7 +1,8 @@
 #pragma once
 // The state of one analysis in the GUI: the raw cube, what pre-processing made, the search grid and result,
-// the current velocity and the selected candidate. Panels read it and listen to its signals; only the GUI
-// thread changes it (results arrive through JobRunner's apply closures).
+// the current velocity, the selected candidate and each candidate's vetting state (label, note, accepted fit,
+// artifact flags: st::session::CandidateState, the same record the session file keeps). Panels read it and
+// listen to its signals; only the GUI thread changes it (results arrive through JobRunner's apply closures).
 #include <QObject>
 #include <QString>
 #include <memory>
@@ -9,6 +10,7 @@
 
 #include "core_services.hpp"
 #include "st/search/types.hpp"
+#include "st/session/session.hpp"
 #include "velocity_units.hpp"
 
 namespace st::ui {
@@ -45,12 +47,55 @@ class Observation : public QObject {
     return &m_result->candidates[static_cast<std::size_t>(*m_selected)];
   }
 
+  /// Vetting state of every candidate of result(), in the same order (empty without a result). The
+  /// `candidate` JSON member is left for the session writer to fill; the GUI keeps search::Candidate.
+  [[nodiscard]] const std::vector<session::CandidateState>& candidateStates() const noexcept {
+    return m_states;
+  }
+  /// The state of candidate `index`, or null when out of range.
+  [[nodiscard]] const session::CandidateState* candidateState(int index) const {
+    return index >= 0 && index < static_cast<int>(m_states.size())
+               ? &m_states[static_cast<std::size_t>(index)]
+               : nullptr;
+  }
+
+  /// Vetting: the label (a reason only with Label::Artifact, else it is cleared).
+  void setCandidateLabel(int index, session::Label label,
+                         session::ArtifactReason reason = session::ArtifactReason::None) {
+    if (auto* s = mutableState(index)) {
+      s->label = label;
+      s->reason = label == session::Label::Artifact ? reason : session::ArtifactReason::None;
+      emit candidateStateChanged(index);
+    }
+  }
+  void setCandidateNote(int index, std::string note) {
+    if (auto* s = mutableState(index)) {
+      s->note = std::move(note);
+      emit candidateStateChanged(index);
+    }
+  }
+  /// An accepted co-moving fit (the JSON object app::fitCandidateJson makes).
+  void setCandidateFit(int index, nlohmann::json fit) {
+    if (auto* s = mutableState(index)) {
+      s->fit = std::move(fit);
+      emit candidateStateChanged(index);
+    }
+  }
+  /// Artifact flags (st::vet toJson(ArtifactFlag) objects).
+  void setCandidateArtifacts(int index, nlohmann::json flags) {
+    if (auto* s = mutableState(index)) {
+      s->artifacts = std::move(flags);
+      emit candidateStateChanged(index);
+    }
+  }
+
   /// A new observation: drops everything derived from the previous one.
   void setRaw(std::shared_ptr<const FrameCube> raw, const QString& label) {
     m_raw = std::move(raw);
     m_label = label;
     m_prepared.reset();
     m_result.reset();
+    m_states.clear();
     m_selected.reset();
     emit rawChanged();
     emit preparedChanged();
@@ -59,12 +104,18 @@ class Observation : public QObject {
   void setPrepared(std::shared_ptr<const PreparedView> prepared) {
     m_prepared = std::move(prepared);
     m_result.reset();
+    m_states.clear();
     m_selected.reset();
     emit preparedChanged();
     emit resultChanged();
   }
-  void setResult(std::shared_ptr<const search::SearchResult> result) {
+  /// A new search result; every candidate starts unvetted unless `states` (one per candidate, e.g. from a
+  /// session file) is given. A `states` of the wrong length is ignored.
+  void setResult(std::shared_ptr<const search::SearchResult> result,
+                 std::vector<session::CandidateState> states = {}) {
     m_result = std::move(result);
+    const std::size_t n = m_result ? m_result->candidates.size() : 0;
+    m_states = states.size() == n ? std::move(states) : std::vector<session::CandidateState>(n);
     m_selected.reset();
     if (m_result) setGrid(m_result->grid);
     emit resultChanged();
@@ -101,11 +152,20 @@ class Observation : public QObject {
   void stackModeChanged();
   void selectionChanged();
   void unitChanged();
+  /// A candidate's label, note, fit or artifact flags changed (the session autosaves on it).
+  void candidateStateChanged(int index);
 
  private:
   std::shared_ptr<const FrameCube> m_raw;
   std::shared_ptr<const PreparedView> m_prepared;
+  session::CandidateState* mutableState(int index) {
+    return index >= 0 && index < static_cast<int>(m_states.size())
+               ? &m_states[static_cast<std::size_t>(index)]
+               : nullptr;
+  }
+
   std::shared_ptr<const search::SearchResult> m_result;
+  std::vector<session::CandidateState> m_states;
   search::VelocityGrid m_grid;
   Velocity m_velocity;
   search::StackMode m_mode = search::StackMode::Ipsa;

@@ -9,11 +9,17 @@ namespace st::app {
 
 nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search::Candidate& c, double gain,
                                 CancelToken& cancel) {
+  return fitCandidateJson(prepared.frames, prepared, c, gain, cancel);
+}
+
+nlohmann::json fitCandidateJson(const FrameCube& frames, const pipeline::Prepared& prepared,
+                                const search::Candidate& c, double gain, CancelToken& cancel,
+                                const fit::IterationCallback& onIteration) {
   fit::FitOptions opt;
   opt.psf = prepared.psf;
   opt.sigmaN = prepared.sigmaN;
   opt.gain = gain;
-  const fit::FitResult f = fit::fitComoving(prepared.frames, fit::startFromCandidate(c), opt, {}, cancel);
+  const fit::FitResult f = fit::fitComoving(frames, fit::startFromCandidate(c), opt, onIteration, cancel);
   nlohmann::json j{{"status", fit::toString(f.status)},
                    {"message", f.message},
                    {"iterations", f.iterations},
@@ -30,7 +36,7 @@ nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search
                    {"photons_per_frame", f.photonsPerFrame},
                    {"snr", f.snr}};
   if (f.sigmaN > 0.0) {
-    const vet::SegmentReport seg = vet::checkSegments(prepared.frames, f, opt, vet::SegmentOptions{}, cancel);
+    const vet::SegmentReport seg = vet::checkSegments(frames, f, opt, vet::SegmentOptions{}, cancel);
     j["segments_flagged"] = seg.flagged();
     j["segment_reasons"] = seg.reasons;
     nlohmann::json snrs = nlohmann::json::array();
@@ -38,11 +44,10 @@ nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search
       snrs.push_back(s.forcedSnr);
     j["segment_snr"] = snrs;
   }
-  if (f.ok() && prepared.frames.wcs) {
+  if (f.ok() && frames.wcs) {
     // A FITS WCS belongs to the first frame; the stars have moved by the sky rate since then.
-    const double firstOffset = prepared.frames.timeOffsetsS().front();
-    const astro::SkyMeasurement sky =
-        astro::skyMeasurement(*prepared.frames.wcs, f, prepared.skyRate, firstOffset);
+    const double firstOffset = frames.timeOffsetsS().front();
+    const astro::SkyMeasurement sky = astro::skyMeasurement(*frames.wcs, f, prepared.skyRate, firstOffset);
     j["ra_deg"] = sky.raDeg;
     j["dec_deg"] = sky.decDeg;
     j["rate_deg_day"] = sky.rateDegPerDay;

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "st/common/progress.hpp"
+#include "st/fit/comoving_fit.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/types.hpp"
 
@@ -15,5 +16,12 @@ namespace st::app {
 /// and position angle when the frames have a WCS. Throws st::Cancelled.
 nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search::Candidate& candidate,
                                 double gain, CancelToken& cancel);
+
+/// The same with the zero-biased frames held apart from the other products (the GUI keeps them in its
+/// unfiltered cube; `products.frames` is not read). `onIteration` sees every accepted step of the fit (from
+/// the calling thread).
+nlohmann::json fitCandidateJson(const FrameCube& frames, const pipeline::Prepared& products,
+                                const search::Candidate& candidate, double gain, CancelToken& cancel,
+                                const fit::IterationCallback& onIteration = {});
 
 }  // namespace st::app

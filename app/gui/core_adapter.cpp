@@ -149,6 +149,7 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
     view.summary += "\n• " + note;
   view.filtered = std::move(filtered);
   view.unfiltered = std::move(unfiltered);
+  view.products = std::make_shared<const pipeline::Prepared>(std::move(prep));
   return view;
 }
 #endif
