@@ -29,13 +29,16 @@ class SearchPanel;
 class VelocityMapWidget;
 class CandidatePanel;
 class InspectorPanel;
+class CandidateInspector;
+class FitPanel;
 
-/// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE] [--quit]` asks for.
+/// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--fit] [--screenshot FILE] [--quit]` asks for.
 struct ScriptOptions {
   QStringList inputs;
   bool demo = false;
   bool search = false;
   std::optional<int> select;  ///< 1-based candidate number
+  bool fit = false;           ///< run the co-moving fit of the selected candidate before the screenshot
   QString screenshot;
   int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
   bool quit = false;
@@ -70,6 +73,8 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] VelocityMapWidget* velocityMap() const noexcept { return m_velocityMap; }
   [[nodiscard]] CandidatePanel* candidates() const noexcept { return m_candidates; }
   [[nodiscard]] InspectorPanel* inspector() const noexcept { return m_inspector; }
+  [[nodiscard]] CandidateInspector* candidateInspector() const noexcept { return m_candidateInspector; }
+  [[nodiscard]] FitPanel* fitPanel() const noexcept { return m_fitPanel; }
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
@@ -87,6 +92,8 @@ class MainWindow : public QMainWindow {
  private:
   void buildMenus();
   void buildDocks();
+  void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* besideVelocity);
+  void runScriptFit();
   QWidget* buildCentral();
   void buildStatusBar();
   void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
@@ -120,6 +127,8 @@ class MainWindow : public QMainWindow {
   VelocityMapWidget* m_velocityMap = nullptr;
   CandidatePanel* m_candidates = nullptr;
   InspectorPanel* m_inspector = nullptr;
+  CandidateInspector* m_candidateInspector = nullptr;
+  FitPanel* m_fitPanel = nullptr;
   QLabel* m_pixelLabel = nullptr;
   QLabel* m_stackLabel = nullptr;
   QLabel* m_jobLabel = nullptr;

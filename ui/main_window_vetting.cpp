@@ -1,0 +1,61 @@
+// MainWindow: the candidate inspector and co-moving fit docks, the fit's shortcut (F) and the candidates
+// table's context menu, and the scripted fit (--fit).
+#include <QAction>
+#include <QDockWidget>
+#include <QTableView>
+
+#include "candidate_inspector.hpp"
+#include "candidate_table.hpp"
+#include "fit_panel.hpp"
+#include "main_window.hpp"
+
+namespace st::ui {
+
+void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* besideVelocity) {
+  m_candidateInspector = new CandidateInspector(m_obs, &m_services, this);
+  m_fitPanel = new FitPanel(m_obs, &m_services, this);
+  auto* cand = new QDockWidget("Candidate", this);
+  cand->setObjectName("dock.candidate");
+  cand->setWidget(m_candidateInspector);
+  addDockWidget(Qt::RightDockWidgetArea, cand);
+  tabifyDockWidget(besideInspector, cand);
+  auto* fit = new QDockWidget("Co-moving fit", this);
+  fit->setObjectName("dock.fit");
+  fit->setWidget(m_fitPanel);
+  addDockWidget(Qt::RightDockWidgetArea, fit);
+  tabifyDockWidget(besideVelocity, fit);
+  cand->raise();
+  besideVelocity->raise();
+
+  // The fit is launched from the candidates table's context menu or with F anywhere in the window (the
+  // action lives on the table; buildMenus adds it to the Run menu, which makes the shortcut window-wide).
+  auto* fitAction = new QAction("Fit selected candidate (co-moving)", this);
+  fitAction->setShortcut(QKeySequence("F"));
+  connect(fitAction, &QAction::triggered, this, [this, fit] {
+    fit->show();
+    fit->raise();
+    m_fitPanel->fitSelected();
+  });
+  QTableView* table = m_candidates->table();
+  table->setContextMenuPolicy(Qt::ActionsContextMenu);
+  table->addAction(fitAction);
+}
+
+void MainWindow::runScriptFit() {
+  auto* conn = new QMetaObject::Connection;
+  *conn = connect(m_fitPanel, &FitPanel::fitFinished, this,
+                  [this, conn](bool ok, bool cancelled, const QString& message) {
+                    disconnect(*conn);
+                    delete conn;
+                    finishScript(ok && !cancelled, message);
+                  });
+  for (QDockWidget* d : findChildren<QDockWidget*>())
+    if (d->widget() == m_fitPanel) d->raise();
+  m_fitPanel->fitSelected();
+  if (m_fitPanel->running()) return;
+  disconnect(*conn);
+  delete conn;
+  finishScript(false, "the co-moving fit could not start: " + m_fitPanel->statusText());
+}
+
+}  // namespace st::ui
