@@ -56,10 +56,12 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_title->setWordWrap(true);
   m_stamps = new StampStrip(this);
   m_stamps->setPlaceholder("select a candidate");
+  m_stamps->setMinimumHeight(120);
   m_stamps->setToolTip(
       "Stacks around the candidate in SNR units, on one scale: at the sky rate (a moving "
       "source streaks) and at the candidate's velocity (it is a point).");
   m_segments = new StampStrip(this);
+  m_segments->setMinimumHeight(110);
   m_segments->setToolTip(
       "K = 4 equal-time stacks at the candidate's velocity (paper §4.4, fig_4epoch); a "
       "red frame marks a segment that misses the signal a steady source would give.");
@@ -82,6 +84,9 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_flags->header()->setSectionResizeMode(0, QHeaderView::ResizeToContents);
   m_flags->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
   m_flags->setMinimumHeight(120);
+  m_evidence = new QLabel(this);
+  m_evidence->setWordWrap(true);
+  m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);
   m_loadKnown = new QPushButton("Load known objects…", this);
   m_loadKnown->setToolTip("CSV with name, ra_deg, dec_deg, epoch_mjd and rates (arcsec/min or deg/day)");
   m_status = new QLabel(this);
@@ -104,6 +109,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   auto* flagBox = group("Artifact checks", this);
   auto* flagLayout = new QVBoxLayout(flagBox);
   flagLayout->addWidget(m_flags);
+  flagLayout->addWidget(m_evidence);
   auto* knownRow = new QHBoxLayout;
   knownRow->addWidget(m_loadKnown);
   knownRow->addStretch(1);
@@ -123,6 +129,9 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
           [this] { m_slider->setValue((m_slider->value() + 1) % (m_slider->maximum() + 1)); });
   connect(m_play, &QToolButton::toggled, this, &CandidateInspector::setPlaying);
   connect(m_slider, &QSlider::valueChanged, this, &CandidateInspector::showFrame);
+  connect(m_flags, &QTreeWidget::currentItemChanged, this, [this](QTreeWidgetItem* item) {
+    if (item) m_evidence->setText(item->text(0) + ": " + item->text(2));
+  });
   connect(m_loadKnown, &QPushButton::clicked, this, &CandidateInspector::chooseKnownObjects);
   connect(&m_watcher, &QFutureWatcher<Outcome>::finished, this, &CandidateInspector::onFinished);
   connect(m_obs, &Observation::selectionChanged, this, &CandidateInspector::refresh);
@@ -268,12 +277,16 @@ void CandidateInspector::show(const Inspection& in) {
   showFrame(0);
 
   m_flags->clear();
+  QStringList fired;
   for (const auto& f : in.flags) {
+    if (f.triggered) fired << "⚠ " + kindLabel(f.kind) + ": " + QString::fromStdString(f.evidence);
     auto* item = new QTreeWidgetItem(
         m_flags, {kindLabel(f.kind), f.triggered ? "⚠ flagged" : "ok", QString::fromStdString(f.evidence)});
     item->setToolTip(2, QString::fromStdString(f.evidence));
     if (f.triggered) item->setForeground(1, QColor(220, 40, 40));
   }
+  m_evidence->setText(fired.isEmpty() ? "Every check passed; select one for its evidence."
+                                      : fired.join('\n'));
 }
 
 void CandidateInspector::showFrame(int k) {

@@ -85,6 +85,7 @@ class CandidateInspector : public QWidget {
   QToolButton* m_play;
   QLabel* m_frameLabel;
   QTreeWidget* m_flags;
+  QLabel* m_evidence;
   QPushButton* m_loadKnown;
   QLabel* m_status;
   QTimer m_playTimer;

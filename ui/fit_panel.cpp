@@ -65,9 +65,8 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   m_cost->xAxis->setLabel("iteration");
   m_cost->yAxis->setLabel("cost C");
   m_cost->yAxis->setScaleType(QCPAxis::stLogarithmic);
-  m_cost->yAxis->setTicker(QSharedPointer<QCPAxisTickerLog>(new QCPAxisTickerLog));
-  m_cost->yAxis->setNumberFormat("eb");
-  m_cost->yAxis->setNumberPrecision(0);
+  m_cost->yAxis->setNumberFormat("g");
+  m_cost->yAxis->setNumberPrecision(6);
   m_residual = new StampStrip(this);
   m_residual->setMinimumHeight(130);
   m_residual->setPlaceholder("residual (data − model, summed along the track)");
@@ -81,14 +80,17 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   m_table->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   m_table->setEditTriggers(QAbstractItemView::NoEditTriggers);
 
-  auto* layout = new QVBoxLayout(this);
+  // Wide and short (a bottom dock): controls and cost | residual | parameters.
+  auto* left = new QVBoxLayout;
+  left->addWidget(m_title);
+  left->addLayout(buttons);
+  left->addWidget(m_status);
+  left->addWidget(m_cost, 1);
+  auto* layout = new QHBoxLayout(this);
   layout->setContentsMargins(2, 2, 2, 2);
-  layout->addWidget(m_title);
-  layout->addLayout(buttons);
-  layout->addWidget(m_status);
-  layout->addWidget(m_cost, 2);
-  layout->addWidget(m_residual, 2);
-  layout->addWidget(m_table, 3);
+  layout->addLayout(left, 3);
+  layout->addWidget(m_residual, 3);
+  layout->addWidget(m_table, 4);
 
   connect(m_fit, &QPushButton::clicked, this, &FitPanel::fitSelected);
   connect(m_cancel, &QPushButton::clicked, this, &FitPanel::cancel);
@@ -129,6 +131,21 @@ QString FitPanel::statusText() const {
 
 void FitPanel::cancel() {
   m_jobs->cancel();
+}
+
+void FitPanel::rescaleCost() {
+  m_cost->rescaleAxes();
+  // Log scale; decade ticks only when the cost spans a decade (a fit on noise-dominated data often changes
+  // C by a fraction of a per cent, where decade ticks would all read the same).
+  const QCPRange r = m_cost->yAxis->range();
+  const bool decades = r.lower > 0 && r.upper / r.lower > 10.0;
+  if (decades != m_logTicks) {
+    m_logTicks = decades;
+    m_cost->yAxis->setTicker(decades ? QSharedPointer<QCPAxisTicker>(new QCPAxisTickerLog)
+                                     : QSharedPointer<QCPAxisTicker>(new QCPAxisTicker));
+  }
+  m_cost->yAxis->scaleRange(1.05, m_cost->yAxis->range().center());
+  m_cost->xAxis->setRange(-0.3, std::max(2.0, m_cost->xAxis->range().upper + 0.3));
 }
 
 void FitPanel::resetPlots() {
@@ -199,7 +216,7 @@ void FitPanel::drainLive() {
   }
   for (const auto& [it, cost] : points)
     m_cost->graph(0)->addData(it, cost);
-  m_cost->rescaleAxes();
+  rescaleCost();
   m_cost->replot(QCustomPlot::rpQueuedReplot);
   if (residual) m_residual->setTiles({{residual, "residual (live)", false}});
   if (!points.empty())
@@ -218,7 +235,7 @@ void FitPanel::showOutcome(const FitOutcome& out) {
     y.push_back(r.costHistory[i]);
   }
   if (!r.costHistory.empty()) m_cost->graph(0)->setData(x, y, true);
-  m_cost->rescaleAxes();
+  rescaleCost();
   m_cost->replot();
   auto shared = [](const Image& im) { return std::make_shared<const Image>(im); };
   if (!r.residualStack.empty())

@@ -64,6 +64,7 @@ class FitPanel : public QWidget {
   void showOutcome(const FitOutcome& outcome);
   void fillTable(const FitOutcome& outcome);
   void resetPlots();
+  void rescaleCost();
 
   Observation* m_obs;
   const CoreServices* m_services;
@@ -80,6 +81,7 @@ class FitPanel : public QWidget {
   std::shared_ptr<const FitOutcome> m_outcome;
   int m_fittedIndex = -1;
   int m_runningIndex = -1;
+  bool m_logTicks = false;
 };
 
 }  // namespace st::ui

@@ -184,8 +184,8 @@ void MainWindow::buildDocks() {
   auto* vmap = dock("Velocity space", "dock.velocity", m_velocityMap, Qt::RightDockWidgetArea);
   auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea);
   splitDockWidget(vmap, insp, Qt::Vertical);
-  dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
-  buildVettingDocks(insp, vmap);
+  auto* cands = dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
+  buildVettingDocks(insp, cands);
   resizeDocks({proc}, {330}, Qt::Horizontal);
   resizeDocks({vmap}, {430}, Qt::Horizontal);
 

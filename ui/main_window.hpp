@@ -92,7 +92,7 @@ class MainWindow : public QMainWindow {
  private:
   void buildMenus();
   void buildDocks();
-  void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* besideVelocity);
+  void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
   void runScriptFit();
   QWidget* buildCentral();
   void buildStatusBar();

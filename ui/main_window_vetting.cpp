@@ -2,6 +2,7 @@
 // table's context menu, and the scripted fit (--fit).
 #include <QAction>
 #include <QDockWidget>
+#include <QScrollArea>
 #include <QTableView>
 
 #include "candidate_inspector.hpp"
@@ -11,21 +12,25 @@
 
 namespace st::ui {
 
-void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* besideVelocity) {
+void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates) {
   m_candidateInspector = new CandidateInspector(m_obs, &m_services, this);
   m_fitPanel = new FitPanel(m_obs, &m_services, this);
   auto* cand = new QDockWidget("Candidate", this);
   cand->setObjectName("dock.candidate");
-  cand->setWidget(m_candidateInspector);
+  auto* scroll = new QScrollArea(cand);  // the inspector scrolls when the dock is short
+  scroll->setWidgetResizable(true);
+  scroll->setFrameShape(QFrame::NoFrame);
+  scroll->setWidget(m_candidateInspector);
+  cand->setWidget(scroll);
   addDockWidget(Qt::RightDockWidgetArea, cand);
   tabifyDockWidget(besideInspector, cand);
   auto* fit = new QDockWidget("Co-moving fit", this);
   fit->setObjectName("dock.fit");
   fit->setWidget(m_fitPanel);
-  addDockWidget(Qt::RightDockWidgetArea, fit);
-  tabifyDockWidget(besideVelocity, fit);
+  addDockWidget(Qt::BottomDockWidgetArea, fit);
+  splitDockWidget(candidates, fit, Qt::Horizontal);
+  resizeDocks({candidates}, {250}, Qt::Vertical);
   cand->raise();
-  besideVelocity->raise();
 
   // The fit is launched from the candidates table's context menu or with F anywhere in the window (the
   // action lives on the table; buildMenus adds it to the Run menu, which makes the shortcut window-wide).
