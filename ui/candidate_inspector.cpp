@@ -251,7 +251,7 @@ void CandidateInspector::show(const Inspection& in) {
   std::vector<StampStrip::Tile> tiles;
   for (const auto& s : in.segments.segments)
     tiles.push_back({shared(s.stack),
-                     QString("#%1: SNR %2\nexpect %3")
+                     QString("#%1 SNR %2\nexp. %3")
                          .arg(s.index + 1)
                          .arg(s.forcedSnr, 0, 'f', 1)
                          .arg(s.expectedSnr, 0, 'f', 1),
@@ -291,12 +291,23 @@ void CandidateInspector::show(const Inspection& in) {
 
 void CandidateInspector::showFrame(int k) {
   if (!m_shown || k < 0 || k >= static_cast<int>(m_shown->movie.size())) return;
-  const auto i = static_cast<std::size_t>(k);
-  m_movie->setTiles(
-      {{std::make_shared<const Image>(m_shown->movie[i]),
-        QString("frame %1\nt %2 s").arg(m_shown->movieFrameIndex[i]).arg(m_shown->movieTimeS[i], 0, 'f', 2),
-        false}});
-  m_frameLabel->setText(QString("%1 / %2").arg(k + 1).arg(m_shown->movie.size()));
+  // A strip of kMovieTiles consecutive cutouts with frame k in it (in the middle away from the ends).
+  const int n = static_cast<int>(m_shown->movie.size());
+  const int count = std::min(n, kMovieTiles);
+  const int first = std::clamp(k - count / 2, 0, n - count);
+  std::vector<StampStrip::Tile> tiles;
+  for (int j = first; j < first + count; ++j) {
+    const auto i = static_cast<std::size_t>(j);
+    tiles.push_back({std::make_shared<const Image>(m_shown->movie[i]),
+                     QString("%1%2\n%3 s")
+                         .arg(j == k ? "▶ " : "")
+                         .arg(m_shown->movieFrameIndex[i])
+                         .arg(m_shown->movieTimeS[i], 0, 'f', 2),
+                     false});
+  }
+  m_movie->setTiles(std::move(tiles));
+  m_movieCurrent = k - first;
+  m_frameLabel->setText(QString("%1 / %2").arg(k + 1).arg(n));
 }
 
 void CandidateInspector::setPlaying(bool on) {

@@ -30,6 +30,9 @@ class StampStrip;
 class CandidateInspector : public QWidget {
   Q_OBJECT
  public:
+  /// Cutouts shown at once in the frame strip (the slider's frame among them).
+  static constexpr int kMovieTiles = 5;
+
   CandidateInspector(Observation* observation, const CoreServices* services, QWidget* parent = nullptr);
   ~CandidateInspector() override;
 
@@ -41,6 +44,8 @@ class CandidateInspector : public QWidget {
   [[nodiscard]] StampStrip* segmentStrip() const noexcept { return m_segments; }
   [[nodiscard]] StampStrip* movieView() const noexcept { return m_movie; }
   [[nodiscard]] QSlider* movieSlider() const noexcept { return m_slider; }
+  /// The tile of movieView() that shows the slider's frame.
+  [[nodiscard]] int movieCurrentTile() const noexcept { return m_movieCurrent; }
   [[nodiscard]] QTreeWidget* flagList() const noexcept { return m_flags; }
   /// The last inspection shown (null before the first), and the candidate it belongs to.
   [[nodiscard]] const std::shared_ptr<const Inspection>& inspection() const noexcept { return m_shown; }
@@ -89,6 +94,7 @@ class CandidateInspector : public QWidget {
   QPushButton* m_loadKnown;
   QLabel* m_status;
   QTimer m_playTimer;
+  int m_movieCurrent = 0;
   QFutureWatcher<Outcome> m_watcher;
   std::shared_ptr<CancelToken> m_cancel;
   bool m_restart = false;

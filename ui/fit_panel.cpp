@@ -77,6 +77,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   m_table = new QTableWidget(0, 5, this);
   m_table->setHorizontalHeaderLabels({"parameter", "value", "σ noise model", "σ Hessian", "σ paper"});
   m_table->verticalHeader()->hide();
+  m_table->verticalHeader()->setDefaultSectionSize(fontMetrics().height() + 6);
   m_table->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   m_table->setEditTriggers(QAbstractItemView::NoEditTriggers);
 

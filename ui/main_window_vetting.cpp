@@ -29,7 +29,8 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   fit->setWidget(m_fitPanel);
   addDockWidget(Qt::BottomDockWidgetArea, fit);
   splitDockWidget(candidates, fit, Qt::Horizontal);
-  resizeDocks({candidates}, {250}, Qt::Vertical);
+  resizeDocks({candidates}, {260}, Qt::Vertical);
+  resizeDocks({candidates, fit}, {560, 940}, Qt::Horizontal);
   cand->raise();
 
   // The fit is launched from the candidates table's context menu or with F anywhere in the window (the

@@ -89,10 +89,13 @@ void StampStrip::paintEvent(QPaintEvent*) {
   }
   const int n = tileCount();
   const int gap = 6;
+  QFont small = font();
+  small.setPointSizeF(std::max(6.0, small.pointSizeF() * 0.85));
+  p.setFont(small);
   int lines = 1;
   for (const Tile& t : m_tiles)
     lines = std::max(lines, static_cast<int>(t.caption.count('\n')) + 1);
-  const int captionH = lines * fontMetrics().height() + 2;
+  const int captionH = lines * QFontMetrics(small).height() + 2;
   const int side = std::max(16, std::min((width() - gap * (n + 1)) / n, height() - captionH - 4));
   const int x0 = (width() - (n * side + (n - 1) * gap)) / 2;
   for (int i = 0; i < n; ++i) {

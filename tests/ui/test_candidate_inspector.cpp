@@ -107,7 +107,11 @@ TEST(CandidateInspector, StampsSegmentsMovieAndFlagsOfAMovingDot) {
   for (const auto& cut : in.movie)
     EXPECT_FLOAT_EQ(cut.at(half, half), 1.0f);
   inspector.movieSlider()->setValue(7);
-  EXPECT_EQ(inspector.movieView()->tile(0).image->pixels, in.movie[7].pixels);
+  ASSERT_EQ(inspector.movieView()->tileCount(), CandidateInspector::kMovieTiles);
+  EXPECT_EQ(inspector.movieCurrentTile(), CandidateInspector::kMovieTiles / 2);
+  const auto& current = inspector.movieView()->tile(inspector.movieCurrentTile());
+  EXPECT_EQ(current.image->pixels, in.movie[7].pixels);
+  EXPECT_TRUE(current.caption.startsWith("▶ 7")) << current.caption.toStdString();
   inspector.setPlaying(true);
   EXPECT_TRUE(inspector.playing());
   EXPECT_TRUE(test::waitFor([&] { return inspector.movieSlider()->value() != 7; }, 3000));
@@ -189,8 +193,8 @@ TEST(CandidateInspector, KnownObjectsLoadMatchAndReportBadLines) {
   inspector.loadKnownObjects(QString::fromStdString(bad));
   ASSERT_TRUE(test::waitFor([&] { return !error.isEmpty(); }, 5000));
   EXPECT_TRUE(error.contains("bad.csv")) << error.toStdString();
-  EXPECT_TRUE(error.contains("3")) << error.toStdString();  // the line at fault
-  EXPECT_EQ(inspector.knownObjectCount(), 2u);              // the previous list is kept
+  EXPECT_TRUE(error.contains("line 3")) << error.toStdString();  // the line at fault
+  EXPECT_EQ(inspector.knownObjectCount(), 2u);                   // the previous list is kept
 }
 
 ST_UI_TEST_MAIN()
