@@ -123,7 +123,10 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   layout->addWidget(movieBox, 2);
   layout->addWidget(flagBox, 2);
   layout->addWidget(m_status);
+  connectSignals();
+}
 
+void CandidateInspector::connectSignals() {
   m_playTimer.setInterval(60);
   connect(&m_playTimer, &QTimer::timeout, this,
           [this] { m_slider->setValue((m_slider->value() + 1) % (m_slider->maximum() + 1)); });
@@ -145,6 +148,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
     m_slider->setEnabled(false);
     setPlaying(false);
     m_title->setText("No candidate selected.");
+    m_evidence->clear();
   });
 }
 
@@ -229,7 +233,7 @@ void CandidateInspector::onFinished() {
   if (!out.inspection || !m_obs->selected() || *m_obs->selected() != out.index) return;
   m_shown = out.inspection;
   m_shownIndex = out.index;
-  show(*m_shown);
+  showInspection(*m_shown);
   nlohmann::json flags = nlohmann::json::array();
   for (const auto& f : m_shown->flags)
     flags.push_back(vet::toJson(f));
@@ -243,7 +247,7 @@ void CandidateInspector::onFinished() {
   emit inspected(out.index);
 }
 
-void CandidateInspector::show(const Inspection& in) {
+void CandidateInspector::showInspection(const Inspection& in) {
   auto shared = [](const Image& im) { return std::make_shared<const Image>(im); };
   m_stamps->setTiles(
       {{shared(in.skyStamp), QString("sky rate\nSNR %1").arg(in.skySnr, 0, 'f', 1), false},

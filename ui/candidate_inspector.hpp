@@ -73,9 +73,10 @@ class CandidateInspector : public QWidget {
     bool cancelled = false;
     int index = -1;
   };
+  void connectSignals();
   void start();
   void onFinished();
-  void show(const Inspection& in);
+  void showInspection(const Inspection& in);
   void showFrame(int k);
   void chooseKnownObjects();
 
