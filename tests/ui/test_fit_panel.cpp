@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "fit_panel.hpp"
+#include "fit_residual.hpp"
 #include "st/fit/pixel_psf.hpp"
 #include "stamp_strip.hpp"
 #include "ui_test_support.hpp"
@@ -78,10 +79,11 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
     opt.psf = kPsf;
     opt.sigmaN = 1.0;
     FitOutcome out;
+    const int half = fit::defaultStampHalfSize(kPsf);
     out.result = fit::fitComoving(
         *cube, fit::startFromCandidate(c), opt,
         [&](const fit::FitIteration& it) {
-          onStep({it, nullptr});
+          onStep({it, std::make_shared<const Image>(residualAlongTrack(*cube, it.params, kPsf, half))});
         },
         cancel);
     out.json = {{"status", fit::toString(out.result.status)}, {"snr", out.result.snr}};
@@ -110,6 +112,13 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
   ASSERT_GE(panel.costPoints(), 2);
   EXPECT_LT(graph->data()->at(graph->dataCount() - 1)->value, graph->data()->at(0)->value);
   EXPECT_EQ(panel.costPlot()->yAxis->scaleType(), QCPAxis::stLogarithmic);
+  // The live residual at the final parameters is the core's residual stack (same grid and rounding; the
+  // PSF tables differ by < 3e-6 of the peak per sample).
+  const Image live = residualAlongTrack(*cube, r.params, kPsf, fit::defaultStampHalfSize(kPsf));
+  ASSERT_EQ(live.width, r.residualStack.width);
+  ASSERT_EQ(live.height, r.residualStack.height);
+  for (std::size_t k = 0; k < live.size(); ++k)
+    ASSERT_NEAR(live.pixels[k], r.residualStack.pixels[k], 1e-3) << k;
   ASSERT_EQ(panel.residualView()->tileCount(), 3);  // data | model | residual
   EXPECT_EQ(panel.residualView()->tile(2).image->width, r.residualStack.width);
 
