@@ -8,13 +8,18 @@
 
 #include <QElapsedTimer>
 #include <QPushButton>
+#include <QTableView>
 #include <QTableWidget>
+#include <QTest>
 #include <qcustomplot.h>
 #include <random>
 #include <thread>
 
 #include "fit_panel.hpp"
+#include "candidate_table.hpp"
 #include "fit_residual.hpp"
+#include "job_runner.hpp"
+#include "main_window.hpp"
 #include "st/fit/pixel_psf.hpp"
 #include "stamp_strip.hpp"
 #include "ui_test_support.hpp"
@@ -178,6 +183,52 @@ TEST(FitPanel, ShowsLivePointsAndCancelsWithinASecond) {
   EXPECT_TRUE(cancelled);
   EXPECT_FALSE(panel.acceptButton()->isEnabled());
   EXPECT_EQ(panel.outcome(), nullptr);
+}
+
+TEST(FitPanel, LaunchedFromTheMainWindowWithFAndTheCandidatesContextMenu) {
+  CoreServices services = test::fakeServices(test::movingDotCube(64, 64, 20, {4.0, 0.0}, 30, 30));
+  int fits = 0;
+  services.fitCandidate = [&fits](const PreparedView&, const search::Candidate& c, CancelToken&,
+                                  const FitStepCallback& onStep) {
+    ++fits;  // on the worker; read after the fit finished
+    FitOutcome out;
+    for (int it = 0; it < 3; ++it) {
+      fit::FitIteration step;
+      step.iteration = it;
+      step.cost = 10.0 - it;
+      onStep({step, nullptr});
+    }
+    out.result.costHistory = {10.0, 9.0, 8.0};
+    out.json = {{"x", c.x}};
+    return out;
+  };
+  MainWindow w(services);
+  w.resize(1200, 800);
+  w.show();
+  w.openDemo();
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() != nullptr && !w.jobs()->busy(); }));
+  auto result = std::make_shared<search::SearchResult>();
+  search::Candidate c;
+  c.x = 30;
+  c.y = 30;
+  c.v = {4.0, 0.0};
+  result->candidates.push_back(c);
+  w.observation()->setResult(result);
+  w.selectCandidate(0);
+
+  // The context menu of the candidates table holds the fit action, with shortcut F.
+  const auto actions = w.candidates()->table()->actions();
+  ASSERT_EQ(actions.size(), 1);
+  EXPECT_EQ(actions[0]->shortcut(), QKeySequence("F"));
+  EXPECT_EQ(w.candidates()->table()->contextMenuPolicy(), Qt::ActionsContextMenu);
+  bool finished = false;
+  QObject::connect(w.fitPanel(), &FitPanel::fitFinished, [&] { finished = true; });
+  w.activateWindow();
+  QTest::keyClick(&w, Qt::Key_F);
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 5000));
+  EXPECT_EQ(fits, 1);
+  EXPECT_EQ(w.fitPanel()->fittedIndex(), 0);
+  EXPECT_EQ(w.fitPanel()->costPoints(), 3);
 }
 
 ST_UI_TEST_MAIN()
