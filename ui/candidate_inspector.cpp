@@ -1,5 +1,6 @@
 #include "candidate_inspector.hpp"
 
+#include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QGroupBox>
@@ -89,6 +90,12 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);
   m_loadKnown = new QPushButton("Load known objects…", this);
   m_loadKnown->setToolTip("CSV with name, ra_deg, dec_deg, epoch_mjd and rates (arcsec/min or deg/day)");
+  m_radius = new QDoubleSpinBox(this);
+  m_radius->setRange(0.1, 3600.0);
+  m_radius->setDecimals(1);
+  m_radius->setValue(10.0);
+  m_radius->setSuffix(" arcsec");
+  m_radius->setToolTip("A known object closer than this to the candidate's sky position at t_ref flags it");
   m_status = new QLabel(this);
   m_status->setWordWrap(true);
 
@@ -112,6 +119,8 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   flagLayout->addWidget(m_evidence);
   auto* knownRow = new QHBoxLayout;
   knownRow->addWidget(m_loadKnown);
+  knownRow->addWidget(new QLabel("match within", this));
+  knownRow->addWidget(m_radius);
   knownRow->addStretch(1);
   flagLayout->addLayout(knownRow);
 
@@ -136,6 +145,9 @@ void CandidateInspector::connectSignals() {
     if (item) m_evidence->setText(item->text(0) + ": " + item->text(2));
   });
   connect(m_loadKnown, &QPushButton::clicked, this, &CandidateInspector::chooseKnownObjects);
+  connect(m_radius, &QDoubleSpinBox::valueChanged, this, [this] {
+    if (m_known) refresh();
+  });
   connect(&m_watcher, &QFutureWatcher<Outcome>::finished, this, &CandidateInspector::onFinished);
   connect(m_obs, &Observation::selectionChanged, this, &CandidateInspector::refresh);
   connect(m_obs, &Observation::resultChanged, this, [this] {
@@ -182,6 +194,7 @@ void CandidateInspector::start() {
   in.candidate = *c;
   if (prepared->products) in.stars = prepared->products->stars;
   in.knownObjects = m_known;
+  in.knownObjectRadiusArcsec = m_radius->value();
   // The sky position of the candidate at t_ref: a FITS WCS belongs to the first frame and the stars have
   // moved by the sky rate since then (as st::astro::skyMeasurement). One call: cheap on this thread.
   const auto& raw = m_obs->raw();
@@ -203,6 +216,7 @@ void CandidateInspector::start() {
                        .arg(c->v.vy, 0, 'g', 4)
                        .arg(c->snr, 0, 'f', 1));
   m_status->setText("Inspecting…");
+  m_clock.start();
   m_cancel = std::make_shared<CancelToken>();
   auto cancel = m_cancel;
   m_watcher.setFuture(QtConcurrent::run([in = std::move(in), cancel, index]() -> Outcome {
@@ -242,8 +256,9 @@ void CandidateInspector::onFinished() {
   int fired = 0;
   for (const auto& f : m_shown->flags)
     fired += f.triggered ? 1 : 0;
-  m_status->setText(fired ? QString("%1 artifact check(s) fired; stored on the candidate.").arg(fired)
-                          : QString("No artifact check fired."));
+  const QString took = QString(" (%1 s)").arg(m_clock.elapsed() / 1000.0, 0, 'f', 2);
+  m_status->setText(fired ? QString("%1 artifact check(s) fired; stored on the candidate.").arg(fired) + took
+                          : QString("No artifact check fired.") + took);
   emit inspected(out.index);
 }
 

@@ -6,6 +6,7 @@
 // and the artifact flags of st::vet with their evidence, which are stored on the candidate
 // (Observation::setCandidateArtifacts). "Load known objects…" reads a CSV (st::vet::readKnownObjects) and
 // adds the known-object check.
+#include <QElapsedTimer>
 #include <QFutureWatcher>
 #include <QString>
 #include <QTimer>
@@ -22,6 +23,7 @@ class QSlider;
 class QToolButton;
 class QPushButton;
 class QTreeWidget;
+class QDoubleSpinBox;
 
 namespace st::ui {
 
@@ -93,8 +95,10 @@ class CandidateInspector : public QWidget {
   QTreeWidget* m_flags;
   QLabel* m_evidence;
   QPushButton* m_loadKnown;
+  QDoubleSpinBox* m_radius;
   QLabel* m_status;
   QTimer m_playTimer;
+  QElapsedTimer m_clock;
   int m_movieCurrent = 0;
   QFutureWatcher<Outcome> m_watcher;
   std::shared_ptr<CancelToken> m_cancel;
