@@ -1,7 +1,8 @@
 // synthtrack: the desktop application.
-//   synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE.png] [--quit]
+//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--screenshot FILE.png] [--quit]
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
+// --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
 #include <QApplication>
 #include <QCommandLineParser>
 #include <cstdio>
@@ -21,18 +22,21 @@ int main(int argc, char** argv) {
   parser.addVersionOption();
   parser.addPositionalArgument("inputs", "FITS cubes, frames or folders to open", "[INPUT…]");
   const QCommandLineOption demo("demo", "Open the demo observation (simulated paper-neo).");
+  const QCommandLineOption session("session",
+                                   "Reopen a session file (result and labels restored, no search).", "FILE");
   const QCommandLineOption search("search", "Run the search after pre-processing.");
   const QCommandLineOption select("select", "Select candidate N (1-based) after the search.", "N");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window when done, then quit.",
                                       "FILE");
   const QCommandLineOption width("screenshot-width", "Scale the screenshot down to this width.", "PIXELS");
   const QCommandLineOption quit("quit", "Quit when done.");
-  parser.addOptions({demo, search, select, screenshot, width, quit});
+  parser.addOptions({demo, session, search, select, screenshot, width, quit});
   parser.process(app);
 
   st::ui::ScriptOptions script;
   script.inputs = parser.positionalArguments();
   script.demo = parser.isSet(demo);
+  script.session = parser.value(session);
   script.search = parser.isSet(search);
   if (parser.isSet(select)) {
     bool ok = false;
@@ -49,7 +53,8 @@ int main(int argc, char** argv) {
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();
-  if (script.demo || !script.inputs.isEmpty() || script.quit || !script.screenshot.isEmpty())
+  if (script.demo || !script.inputs.isEmpty() || !script.session.isEmpty() || script.quit ||
+      !script.screenshot.isEmpty())
     window.runScript(script);
   return QApplication::exec();
 }
