@@ -138,6 +138,13 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   o1->setSelected(0);
   QTest::keyClick(table, Qt::Key_R);
   QTest::keyClick(table, Qt::Key_D);
+  // C labels charge leakage in the table, although the View menu's C toggles IPSA/CSA elsewhere.
+  w1.activateWindow();
+  QApplication::setActiveWindow(&w1);
+  table->setFocus();
+  QTest::keyClick(table, Qt::Key_C);
+  EXPECT_EQ(o1->candidateState(2)->reason, session::ArtifactReason::ChargeLeakage);
+  EXPECT_EQ(o1->stackMode(), search::StackMode::Ipsa);
   o1->setCandidateNote(1, "spike of the star at (40, 12)");
   o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
   o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
