@@ -6,11 +6,37 @@
 #include <QApplication>
 #include <QCommandLineParser>
 #include <cstdio>
+#include <string>
 
 #include "core_adapter.hpp"
 #include "main_window.hpp"
 
+namespace {
+
+/// Takes `--session FILE` / `--session=FILE` out of argv before QApplication sees it: Qt reads "-session" as
+/// the X11 session-management id and removes it. Returns FILE ("" when absent).
+QString takeSessionOption(int& argc, char** argv) {
+  QString file;
+  int out = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if ((arg == "--session" || arg == "-session") && i + 1 < argc) {
+      file = QString::fromLocal8Bit(argv[++i]);
+    } else if (arg.rfind("--session=", 0) == 0) {
+      file = QString::fromLocal8Bit(arg.substr(10).c_str());
+    } else {
+      argv[out++] = argv[i];
+    }
+  }
+  argc = out;
+  argv[argc] = nullptr;
+  return file;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  const QString sessionFile = takeSessionOption(argc, argv);
   QApplication app(argc, argv);
   QApplication::setApplicationName("synthtrack");
   QApplication::setOrganizationName("synthtrack");
@@ -36,7 +62,7 @@ int main(int argc, char** argv) {
   st::ui::ScriptOptions script;
   script.inputs = parser.positionalArguments();
   script.demo = parser.isSet(demo);
-  script.session = parser.value(session);
+  script.session = sessionFile;
   script.search = parser.isSet(search);
   if (parser.isSet(select)) {
     bool ok = false;
