@@ -29,6 +29,7 @@ class SearchPanel;
 class VelocityMapWidget;
 class CandidatePanel;
 class InspectorPanel;
+class FigureDialog;
 
 /// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE] [--quit]` asks for.
 struct ScriptOptions {
@@ -71,6 +72,8 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] CandidatePanel* candidates() const noexcept { return m_candidates; }
   [[nodiscard]] InspectorPanel* inspector() const noexcept { return m_inspector; }
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
+  /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
+  FigureDialog* figureDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -86,6 +89,7 @@ class MainWindow : public QMainWindow {
 
  private:
   void buildMenus();
+  void buildExportMenu(QMenu* menu);
   void buildDocks();
   QWidget* buildCentral();
   void buildStatusBar();
@@ -127,6 +131,7 @@ class MainWindow : public QMainWindow {
   QPushButton* m_cancel = nullptr;
   QMenu* m_recentMenu = nullptr;
   std::optional<ScriptOptions> m_script;
+  FigureDialog* m_figureDialog = nullptr;
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;
