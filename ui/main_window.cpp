@@ -246,6 +246,8 @@ void MainWindow::buildMenus() {
     QMessageBox::information(this, "Layout", "The default layout is used at the next start.");
   });
 
+  buildExportMenu(menuBar()->addMenu("&Export"));
+
   QMenu* help = menuBar()->addMenu("&Help");
   help->addAction("&About synthtrack", this, [this] {
     QMessageBox::about(this, "synthtrack",

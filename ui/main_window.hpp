@@ -31,6 +31,7 @@ class CandidatePanel;
 class InspectorPanel;
 class SessionController;
 struct OpenedSession;
+class FigureDialog;
 
 /// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--screenshot FILE] [--quit]`
 /// asks for.
@@ -81,6 +82,8 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
   /// The session file and its autosave.
   [[nodiscard]] SessionController* session() const noexcept { return m_session; }
+  /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
+  FigureDialog* figureDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -96,6 +99,7 @@ class MainWindow : public QMainWindow {
 
  private:
   void buildMenus();
+  void buildExportMenu(QMenu* menu);
   void buildDocks();
   QWidget* buildCentral();
   void buildStatusBar();
@@ -146,6 +150,7 @@ class MainWindow : public QMainWindow {
   QLabel* m_sessionLabel = nullptr;
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   std::optional<ScriptOptions> m_script;
+  FigureDialog* m_figureDialog = nullptr;
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;
