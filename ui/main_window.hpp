@@ -30,6 +30,7 @@ class VelocityMapWidget;
 class CandidatePanel;
 class InspectorPanel;
 class FigureDialog;
+class ReportDialog;
 
 /// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE] [--quit]` asks for.
 struct ScriptOptions {
@@ -74,6 +75,8 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
   /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
   FigureDialog* figureDialog();
+  /// The "Reports…" dialog (made on first use; main_window_export.cpp).
+  ReportDialog* reportDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -132,6 +135,7 @@ class MainWindow : public QMainWindow {
   QMenu* m_recentMenu = nullptr;
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
+  ReportDialog* m_reportDialog = nullptr;
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;

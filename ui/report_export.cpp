@@ -73,9 +73,10 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, const std::string& st
   for (const bool object : {false, true}) {
     report::StackProvenance p;
     p.velocity = object ? Velocity{src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)} : sky;
-    p.what = "candidate " + std::to_string(i + 1) + ", IPSA " +
-             (object ? std::string("tracking the object at its ") + (fitted(c) ? "fitted" : "search") + " velocity"
-                     : std::string("tracking the sky (stars)"));
+    p.what =
+        "candidate " + std::to_string(i + 1) + ", IPSA " +
+        (object ? std::string("tracking the object at its ") + (fitted(c) ? "fitted" : "search") + " velocity"
+                : std::string("tracking the sky (stars)"));
     p.skyRate = sky;
     p.tRefMjd = cube.tRefMjd();
     p.frames = cube.frameCount();
@@ -91,9 +92,10 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, const std::string& st
 std::vector<std::size_t> stackCandidates(const ReportRequest& r) {
   std::vector<std::size_t> out;
   for (std::size_t i = 0; i < r.session.candidates.size(); ++i) {
-    const bool take = r.stackChoice == StackChoice::All ||
-                      (r.stackChoice == StackChoice::Real && r.session.candidates[i].label == session::Label::Real) ||
-                      (r.stackChoice == StackChoice::Selected && r.selected && *r.selected == static_cast<int>(i));
+    const bool take =
+        r.stackChoice == StackChoice::All ||
+        (r.stackChoice == StackChoice::Real && r.session.candidates[i].label == session::Label::Real) ||
+        (r.stackChoice == StackChoice::Selected && r.selected && *r.selected == static_cast<int>(i));
     if (take) out.push_back(i);
   }
   return out;
@@ -102,7 +104,8 @@ std::vector<std::size_t> stackCandidates(const ReportRequest& r) {
 void writeSubmission(const ReportRequest& r, const std::string& stem, ReportOutcome& out) {
   std::vector<std::string> warnings;
   const auto detections = report::realDetections(r.session, warnings);
-  if (detections.empty()) warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
+  if (detections.empty())
+    warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
   auto add = [&](const std::vector<std::string>& more) {
     for (const auto& w : more)
       if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
@@ -154,8 +157,8 @@ std::string candidatesCsv(const session::Session& s) {
         if (!flags.empty()) flags += ' ';
         flags += f.get<std::string>();
       }
-    std::vector<std::string> f = {std::to_string(i + 1), session::toString(c.label), session::toString(c.reason),
-                                  csvField(c.note)};
+    std::vector<std::string> f = {std::to_string(i + 1), session::toString(c.label),
+                                  session::toString(c.reason), csvField(c.note)};
     for (const char* k : {"x", "y", "vx_px_s", "vy_px_s", "snr", "n_frames", "fap", "rate_deg_day", "pa_deg"})
       f.push_back(numberField(c.candidate, k));
     f.push_back(csvField(flags));
@@ -194,7 +197,8 @@ report::SubmissionSettings submissionFromJson(const nlohmann::json& j) {
   s.apertureM = j.value("aperture_m", s.apertureM);
   s.detector = j.value("detector", s.detector);
   s.astCat = j.value("ast_cat", s.astCat);
-  if (const std::string c = j.value("mpc_catalog_code", std::string{}); c.size() == 1) s.mpcCatalogCode = c[0];
+  if (const std::string c = j.value("mpc_catalog_code", std::string{}); c.size() == 1)
+    s.mpcCatalogCode = c[0];
   s.safeSnr = j.value("safe_snr", s.safeSnr);
   return s;
 }
@@ -204,10 +208,11 @@ std::vector<std::string> submissionWarnings(const session::Session& s, double sa
   for (const auto& d : report::realDetections(s, warnings)) {
     if (d.snr >= safeSnr) continue;
     char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  "%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections pulled out "
-                  "of the noise: confirm it before submitting",
-                  d.trkSub.c_str(), d.snr, safeSnr);
+    std::snprintf(
+        buf, sizeof buf,
+        "%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections pulled out "
+        "of the noise: confirm it before submitting",
+        d.trkSub.c_str(), d.snr, safeSnr);
     warnings.emplace_back(buf);
   }
   return warnings;
