@@ -40,7 +40,8 @@ def ui_test_binary(cli):
 
 
 def run_gui_reports(binary, out):
-    env = dict(os.environ, ST_REPORT_OUT=out, QT_QPA_PLATFORM="offscreen")
+    # Its own settings folder: the QTest saves report settings, which must not meet a concurrent run's.
+    env = dict(os.environ, ST_REPORT_OUT=out, QT_QPA_PLATFORM="offscreen", XDG_CONFIG_HOME=os.path.join(out, "cfg"))
     r = subprocess.run([binary, "--gtest_filter=ReportDialogTest.OnlyReal*"], env=env, capture_output=True,
                        text=True, timeout=300)
     check(r.returncode == 0, "the Reports-dialog QTest failed:\n" + r.stdout[-3000:] + r.stderr[-2000:])

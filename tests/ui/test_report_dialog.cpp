@@ -83,7 +83,6 @@ nlohmann::json fitAt(const search::Candidate& c, const FrameCube& raw, double sn
 class ReportDialogTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    QSettings().remove("report");
     w = std::make_unique<MainWindow>(test::fakeServices(cubeWithWcs()));
     w->resize(1200, 800);
     w->show();
