@@ -34,6 +34,7 @@ struct OpenedSession;
 class FigureDialog;
 class CandidateInspector;
 class FitPanel;
+class ReportDialog;
 
 /// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE]
 /// [--quit]` asks for.
@@ -89,6 +90,8 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] SessionController* session() const noexcept { return m_session; }
   /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
   FigureDialog* figureDialog();
+  /// The "Reports…" dialog (made on first use; main_window_export.cpp).
+  ReportDialog* reportDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -160,6 +163,7 @@ class MainWindow : public QMainWindow {
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
+  ReportDialog* m_reportDialog = nullptr;
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;
