@@ -18,13 +18,15 @@ namespace st::report {
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                                const search::Candidate& candidate);
 
-/// The whole result: inputs, backend, method, t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid,
+/// The whole result: inputs, backend, method ("exact" or "tree") and method_reason (why: "requested" or
+/// "auto: ...", method_choice.hpp), t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid,
 /// trial counts, threshold, elapsed time and the candidates.
 nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& result,
                                   const std::vector<std::string>& inputs);
 
 /// Writes the candidates of a searchResultToJson() object as CSV (one header line; empty fields where a
-/// quantity is unknown). Throws st::InputError naming the path when it cannot be written.
+/// quantity is unknown; the last two columns, method and method_reason, repeat the run's on every row, the
+/// reason quoted). Throws st::InputError naming the path when it cannot be written.
 void writeCandidatesCsv(const std::string& path, const nlohmann::json& result);
 
 /// Writes JSON atomically (temporary file in the same folder + rename), pretty-printed.
