@@ -135,15 +135,21 @@ MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cub
   return chooseMethod(requested, e, treeSupported, backend.name());
 }
 
-SearchResult searchWithMethod(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
-                              const SearchParams& params, ProgressSink& progress, CancelToken& cancel) {
-  const MethodChoice choice = resolveMethod(backend, cube, grid, params.method);
+SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                              const SearchParams& params, const MethodChoice& choice, ProgressSink& progress,
+                              CancelToken& cancel) {
   SearchParams resolved = params;
   resolved.method = choice.method;
   SearchResult result = backend.search(cube, grid, resolved, progress, cancel);
   result.method = choice.method;
   result.methodReason = choice.reason;
   return result;
+}
+
+SearchResult searchWithMethod(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                              const SearchParams& params, ProgressSink& progress, CancelToken& cancel) {
+  const MethodChoice choice = resolveMethod(backend, cube, grid, params.method);
+  return searchWithChoice(backend, cube, grid, params, choice, progress, cancel);
 }
 
 }  // namespace st::search

@@ -90,9 +90,14 @@ MethodChoice chooseMethod(const std::string& requested, const MethodEstimate& es
 MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
                            const std::string& requested, MethodEstimate* estimate = nullptr);
 
-/// Resolves params.method (resolveMethod), runs backend.search() with the resolved method and records it and
-/// the reason in the result (SearchResult::method, methodReason). Throws what resolveMethod and the backend
-/// throw (st::InputError, st::Cancelled, st::GpuError).
+/// Runs backend.search() with choice.method and records the method and choice.reason in the result
+/// (SearchResult::method, methodReason). Throws what the backend throws.
+SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                              const SearchParams& params, const MethodChoice& choice, ProgressSink& progress,
+                              CancelToken& cancel);
+
+/// Resolves params.method (resolveMethod) and runs it (searchWithChoice). Throws what resolveMethod and the
+/// backend throw (st::InputError, st::Cancelled, st::GpuError).
 SearchResult searchWithMethod(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
                               const SearchParams& params, ProgressSink& progress, CancelToken& cancel);
 
