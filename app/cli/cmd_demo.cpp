@@ -17,7 +17,6 @@
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/search_report.hpp"
 #include "st/search/method_choice.hpp"
-#include "st/search/search_run.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/stack/ipsa.hpp"
@@ -90,6 +89,21 @@ void writeStack(const std::filesystem::path& path, const FrameCube& cube, Veloci
   io::writeImage(path.string(), s.sum, h);
 }
 
+/// The demo's search: +-vmax deg/day around the sky rate, steps of stepPx over the span, o.method.
+search::SearchResult demoSearch(const DemoOptions& o, const pipeline::Prepared& prepared,
+                                search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel) {
+  search::GridSpec spec;
+  spec.halfRange = o.vmaxDegDay;
+  spec.unit = search::VelocityUnit::DegPerDay;
+  spec.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
+  spec.stepPx = o.stepPx;
+  search::SearchParams params;
+  params.snrThreshold = o.snr;
+  params.method = o.method;
+  const search::VelocityGrid grid = search::makeVelocityGrid(spec, prepared.filtered);
+  return search::searchWithMethod(backend, prepared.filtered, grid, params, progress, cancel);
+}
+
 /// The candidate nearest the truth object in position and velocity, or nullptr.
 const nlohmann::json* matchTruth(const nlohmann::json& result, const sim::TruthObject& t, double stepPxS) {
   const nlohmann::json* best = nullptr;
@@ -136,17 +150,8 @@ int cmdDemo(const Args& args) {
 
   // 3. The velocity search, +-vmax deg/day around the sky rate.
   BackendSelection backend = makeBackendForMethod(o.backend, o.method);
-  search::SearchRequest request;
-  request.grid.halfRange = o.vmaxDegDay;
-  request.grid.unit = search::VelocityUnit::DegPerDay;
-  request.grid.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
-  request.grid.stepPx = o.stepPx;
-  request.params.snrThreshold = o.snr;
-  request.params.method = o.method;
   SubProgress searchProgress(progress, 0.5, 0.9);
-  const search::VelocityGrid grid = search::makeVelocityGrid(request.grid, prepared.filtered);
-  const search::SearchResult result = search::searchWithMethod(*backend.backend, prepared.filtered, grid,
-                                                               request.params, searchProgress, cancel);
+  const search::SearchResult result = demoSearch(o, prepared, *backend.backend, searchProgress, cancel);
   nlohmann::json report = report::searchResultToJson(prepared.filtered, result, {path("observation.fits")});
 
   // 4. Co-moving fits and segment checks of the best candidates.
