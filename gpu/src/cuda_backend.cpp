@@ -128,6 +128,7 @@ class CudaBackend final : public CudaSearchBackend {
                             job.device = m_devices[d].ordinal;
                             job.cellCapacity = cap;
                             job.profile = m_options.profileTree;
+                            job.treeRootShape = m_options.treeRootShape;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
                             return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
