@@ -180,7 +180,10 @@ class CudaBackend final : public CudaSearchBackend {
     const std::size_t cubeBytes = cube.frames.pixels().size() * sizeof(float);
     const int h = plan.height;
     std::size_t need = 0;
-    for (int parts = 1; parts <= h; parts = parts < 4 ? parts + 1 : parts * 3 / 2) {
+    // At least one tile per device, so that every device gets work.
+    const int first = std::min<int>(h, static_cast<int>(m_devices.size()));
+    for (int parts = first; parts <= h;
+         parts = parts == h ? h + 1 : std::min(h, parts < 4 ? parts + 1 : parts * 3 / 2)) {
       const int rows = m_options.treeTileRows > 0 ? m_options.treeTileRows : (h + parts - 1) / parts;
       TreeDevicePlan d = makeTreeDevicePlan(tree, plan.width, h, rows, cut);
       need = cubeBytes + treeDeviceBytes(d, plan, capacity);
