@@ -32,6 +32,7 @@
 #include "job_runner.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
 #include "stack_scrubber.hpp"
 #include "velocity_map_widget.hpp"
 
@@ -48,6 +49,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   m_scrubber = new StackScrubber(this);
   setCentralWidget(buildCentral());
   buildDocks();
+  buildSession();  // main_window_session.cpp
   buildMenus();
   buildStatusBar();
 
@@ -89,6 +91,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   restoreGeometry(settings.value("window/geometry").toByteArray());
   restoreState(settings.value("window/state").toByteArray());
   rebuildRecentMenu();
+  rebuildRecentSessionsMenu();
 }
 
 MainWindow::~MainWindow() = default;
@@ -209,6 +212,7 @@ void MainWindow::buildMenus() {
   });
   file->addAction("Open &demo observation", QKeySequence("Ctrl+D"), this, &MainWindow::openDemo);
   m_recentMenu = file->addMenu("Open &recent");
+  buildSessionMenu(file);
   file->addSeparator();
   file->addAction("&Header…", QKeySequence("Ctrl+H"), this, [this] {
     if (!m_obs->raw()) return;
@@ -247,6 +251,8 @@ void MainWindow::buildMenus() {
     QMessageBox::information(this, "Layout", "The default layout is used at the next start.");
   });
 
+  buildExportMenu(menuBar()->addMenu("&Export"));
+
   QMenu* help = menuBar()->addMenu("&Help");
   help->addAction("&About synthtrack", this, [this] {
     QMessageBox::about(this, "synthtrack",
@@ -269,6 +275,7 @@ void MainWindow::buildStatusBar() {
   m_cancel->hide();
   statusBar()->addWidget(m_pixelLabel);
   statusBar()->addWidget(m_stackLabel);
+  statusBar()->addPermanentWidget(m_sessionLabel);
   statusBar()->addPermanentWidget(m_jobLabel);
   statusBar()->addPermanentWidget(m_progress);
   statusBar()->addPermanentWidget(m_cancel);
@@ -290,6 +297,7 @@ void MainWindow::buildStatusBar() {
 
 void MainWindow::closeEvent(QCloseEvent* event) {
   m_jobs->cancel();
+  m_session->autosaver()->flush(5000);  // the last change reaches the disk before the window goes
   QSettings settings;
   settings.setValue("window/geometry", saveGeometry());
   settings.setValue("window/state", saveState());

@@ -35,41 +35,77 @@ void tuneMagnitudeForSnr(SimParams& p, double target) {
   }
 }
 
-SimParams paperNeo() {
+/// Frame size and cadence.
+struct Cadence {
+  int width = 0;
+  int height = 0;
+  int frames = 0;
+  double frameRateHz = 0.0;
+  double exposureS = 0.0;
+};
+
+/// The star field: random stars, the extra bright (saturated, spiked) ones, and spikes.
+struct StarField {
+  int count = 0;
+  double magMin = 0.0;
+  double magMax = 0.0;
+  int brightStars = 0;
+  double brightMagMin = 0.0;
+  double brightMagMax = 0.0;
+  double spikeMagLimit = 0.0;
+  double minSeparationPx = 0.0;  ///< from any moving object's path
+};
+
+/// A preset's name and cadence on top of the SimParams defaults.
+SimParams base(const char* name, const Cadence& c) {
   SimParams p;
-  p.presetName = "paper-neo";
-  p.width = 512;
-  p.height = 512;
-  p.frames = 500;
-  p.frameRateHz = 16.7;
-  p.exposureS = 1.0 / 16.7;        // frame-transfer EMCCD: no dead time
-  p.startMjd = 56546.29166666667;  // 2013-09-11 07:00 UTC, the paper's detection night
+  p.presetName = name;
+  p.width = c.width;
+  p.height = c.height;
+  p.frames = c.frames;
+  p.frameRateHz = c.frameRateHz;
+  p.exposureS = c.exposureS;
+  return p;
+}
+
+/// The paper's instrument (Palomar 200-inch, CHIMERA EMCCD, 0.305"/px): read noise 50 e-, 20 e-/ADU, bias
+/// 1000 ADU with a 3 ADU column pattern, a 1% flat, the paper's zero point. EM gain and full well differ
+/// between the two nights.
+void chimeraDetector(SimParams& p, double emGain, double fullWellE) {
   p.plateScaleArcsecPerPx = 0.305;
-  p.raDeg = 352.0;
-  p.decDeg = -2.0;
-  p.psf = psf::Moffat{kPaperNeoMoffatR, 4.0};
-  p.skyDriftXPxPerS = 5.0 / p.plateScaleArcsecPerPx;  // 5"/s scan
   p.readNoiseE = 50.0;
   p.gainEPerAdu = 20.0;
-  p.emGain = 200.0;
+  p.emGain = emGain;
   p.biasLevelAdu = 1000.0;
   p.biasColumnPatternAdu = 3.0;
   p.flatAmplitude = 0.01;
-  p.fullWellE = 6000.0;  // effective: the EM register and the ADC saturate near 6500 photo-electrons
-  p.saturationAdu = 65535.0;
+  p.fullWellE = fullWellE;
   p.zeroPointPhotonsPerS = paperZeroPointPhotonsPerS();
-  p.starCount = 40;
-  p.starMagMin = 14.0;
-  p.starMagMax = 23.5;
-  p.brightStars = 2;
-  p.brightStarMagMin = 10.0;
-  p.brightStarMagMax = 11.5;
-  p.spikeMagLimit = 13.0;
-  p.spikeFraction = 0.01;
-  p.starMinSeparationPx = 0.0;
+}
+
+void setStarField(SimParams& p, const StarField& s) {
+  p.starCount = s.count;
+  p.starMagMin = s.magMin;
+  p.starMagMax = s.magMax;
+  p.brightStars = s.brightStars;
+  p.brightStarMagMin = s.brightMagMin;
+  p.brightStarMagMax = s.brightMagMax;
+  p.spikeMagLimit = s.spikeMagLimit;
+  p.starMinSeparationPx = s.minSeparationPx;
+}
+
+SimParams paperNeo() {
+  // Frame-transfer EMCCD at 16.7 Hz: no dead time.
+  SimParams p = base("paper-neo", {512, 512, 500, 16.7, 1.0 / 16.7});
+  p.startMjd = 56546.29166666667;  // 2013-09-11 07:00 UTC, the paper's detection night
+  p.raDeg = 352.0;
+  p.decDeg = -2.0;
+  p.psf = psf::Moffat{kPaperNeoMoffatR, 4.0};
+  // Effective full well: the EM register and the ADC saturate near 6500 photo-electrons.
+  chimeraDetector(p, 200.0, 6000.0);
+  p.skyDriftXPxPerS = 5.0 / p.plateScaleArcsecPerPx;  // 5"/s scan
+  setStarField(p, {40, 14.0, 23.5, 2, 10.0, 11.5, 13.0, 0.0});
   p.cosmicRaysPerFrame = 0.05;
-  p.cosmicRayMinAdu = 300.0;
-  p.cosmicRayMaxAdu = 5000.0;
   p.hotPixels = 20;
   p.hotPixelMinAdu = 30.0;
   p.hotPixelMaxAdu = 1000.0;
@@ -80,35 +116,15 @@ SimParams paperNeo() {
 }
 
 SimParams knownPair() {
-  SimParams p;
-  p.presetName = "known-pair";
-  p.width = 256;
-  p.height = 256;
-  p.frames = 960;
-  p.frameRateHz = 2.0;
-  p.exposureS = 0.5;
+  SimParams p = base("known-pair", {256, 256, 960, 2.0, 0.5});
   p.startMjd = 56385.25;  // 2013-04-03 06:00 UTC (the paper's 2009 BL2 night)
-  p.plateScaleArcsecPerPx = 0.305;
   p.raDeg = 190.0;
   p.decDeg = 10.0;
   p.psf = psf::Moffat{3.3, 4.0};
-  p.readNoiseE = 50.0;
-  p.gainEPerAdu = 20.0;
-  p.emGain = 50.0;
-  p.biasLevelAdu = 1000.0;
-  p.biasColumnPatternAdu = 3.0;
-  p.flatAmplitude = 0.01;
-  p.fullWellE = 25000.0;
-  p.zeroPointPhotonsPerS = paperZeroPointPhotonsPerS();
+  chimeraDetector(p, 50.0, 25000.0);
   p.skyPhotonsPerPxPerFrame = 50.0;  // ~21.3 mag/arcsec^2, as in paper-neo
-  p.starCount = 15;
-  p.starMagMin = 17.0;
-  p.starMagMax = 23.0;
-  p.brightStars = 1;  // the paper's 16th-magnitude reference star
-  p.brightStarMagMin = 16.0;
-  p.brightStarMagMax = 16.0;
-  p.spikeMagLimit = 15.0;
-  p.starMinSeparationPx = 10.0;
+  // One bright star: the paper's 16th-magnitude reference star.
+  setStarField(p, {15, 17.0, 23.0, 1, 16.0, 16.0, 15.0, 10.0});
   p.cosmicRaysPerFrame = 0.05;
   p.hotPixels = 10;
   p.objects = {
@@ -117,13 +133,8 @@ SimParams knownPair() {
 }
 
 SimParams small() {
-  SimParams p;
-  p.presetName = "small";
-  p.width = 128;
-  p.height = 128;
-  p.frames = 64;
-  p.frameRateHz = 10.0;
-  p.exposureS = 0.09;
+  // A conventional CCD (the SimParams detector defaults: 5 e- read noise, no EM gain) at 10 Hz.
+  SimParams p = base("small", {128, 128, 64, 10.0, 0.09});
   p.psf = psf::Moffat{2.5, 3.5};
   p.readNoiseE = 5.0;
   p.gainEPerAdu = 2.0;
@@ -133,14 +144,7 @@ SimParams small() {
   p.flatAmplitude = 0.02;
   p.fullWellE = 60000.0;
   p.zeroPointPhotonsPerS = paperZeroPointPhotonsPerS();
-  p.starCount = 5;
-  p.starMagMin = 15.0;
-  p.starMagMax = 19.0;
-  p.starMinSeparationPx = 15.0;
-  p.brightStars = 1;
-  p.brightStarMagMin = 10.0;
-  p.brightStarMagMax = 10.5;
-  p.spikeMagLimit = 14.0;
+  setStarField(p, {5, 15.0, 19.0, 1, 10.0, 10.5, 14.0, 15.0});
   p.cosmicRaysPerFrame = 0.5;
   p.hotPixels = 5;
   p.objects = {MovingObject::fromRate("obj1", 60.0, 70.0, pxPerSecToDegPerDay(4.0, p.plateScaleArcsecPerPx),

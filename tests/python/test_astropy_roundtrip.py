@@ -11,39 +11,18 @@ usage: test_astropy_roundtrip.py PATH-TO-synthtrack-cli     (prints "N passed, N
 """
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
-try:
-    import numpy as np
-    from astropy.io import fits
-    from astropy.time import Time
-except ImportError:
-    # ctest may find a python3 (e.g. pyenv) without Debian's python3-astropy; use the system one.
-    if sys.executable != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    print("0 passed, 1 failed (astropy is not installed: apt-get install python3-astropy)")
-    sys.exit(1)
+import _support
 
-PASSED = 0
-FAILED = 0
+_support.require_astropy()
+import numpy as np  # noqa: E402
+from astropy.io import fits  # noqa: E402
+from astropy.time import Time  # noqa: E402
 
-
-def check(ok, what):
-    global PASSED, FAILED
-    if ok:
-        PASSED += 1
-    else:
-        FAILED += 1
-        print("FAIL:", what)
-
-
-def run(cli, *args):
-    r = subprocess.run([cli, *args], capture_output=True, text=True)
-    if r.returncode != 0:
-        raise SystemExit(f"{cli} {' '.join(args)} exited {r.returncode}: {r.stderr.strip()}")
-    return r.stdout
+from _support import check, finish, run_cli  # noqa: E402
+from _support import run_ok as run  # noqa: E402
 
 
 def write_frames(folder):
@@ -117,14 +96,13 @@ def main():
         check(any("sorted" in w for w in info["warnings"]), f"info warns about the time order: {info['warnings']}")
 
         # Usage and input errors: exit codes 2 and 1, one line on stderr.
-        r = subprocess.run([cli, "convert", inp], capture_output=True, text=True)
+        r = run_cli(cli, ["convert", inp])
         check(r.returncode == 2 and r.stderr.count("\n") == 1, f"convert without -o: rc {r.returncode}, {r.stderr!r}")
-        r = subprocess.run([cli, "info", os.path.join(tmp, "missing.fits")], capture_output=True, text=True)
+        r = run_cli(cli, ["info", os.path.join(tmp, "missing.fits")])
         check(r.returncode == 1 and "missing.fits" in r.stderr and r.stderr.count("\n") == 1,
               f"info on a missing file: rc {r.returncode}, {r.stderr!r}")
 
-    print(f"{PASSED} passed, {FAILED} failed")
-    return 0 if FAILED == 0 else 1
+    return finish()
 
 
 if __name__ == "__main__":

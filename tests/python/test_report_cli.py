@@ -22,37 +22,20 @@ usage: test_report_cli.py PATH-TO-synthtrack-cli     (prints "N passed, N failed
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 
-try:
-    import numpy as np
-    from astropy.coordinates import Angle
-    from astropy.io import fits
-    from astropy.time import Time
-    from astropy.wcs import WCS
-except ImportError:
-    if sys.executable != "/usr/bin/python3" and os.path.exists("/usr/bin/python3"):
-        os.execv("/usr/bin/python3", ["/usr/bin/python3"] + sys.argv)
-    print("0 passed, 1 failed (astropy is not installed: apt-get install python3-astropy)")
-    sys.exit(1)
+import _support
 
-PASSED = 0
-FAILED = 0
+_support.require_astropy()
+import numpy as np  # noqa: E402
+from astropy.coordinates import Angle  # noqa: E402
+from astropy.io import fits  # noqa: E402
+from astropy.time import Time  # noqa: E402
+from astropy.wcs import WCS  # noqa: E402
 
-
-def check(ok, what):
-    global PASSED, FAILED
-    if ok:
-        PASSED += 1
-    else:
-        FAILED += 1
-        print("FAIL:", what)
-
-
-def run(cli, args):
-    return subprocess.run([cli] + args, capture_output=True, text=True)
+from _support import check, finish  # noqa: E402
+from _support import run_cli as run  # noqa: E402
 
 
 def main():
@@ -188,8 +171,7 @@ def main():
         backups = [n for n in os.listdir(tmp) if n.startswith("s.corrupt-") and n.endswith(".json")]
         check(len(backups) == 1 and backups[0] in r.stderr, "backup named: %s" % backups)
     vetting_on_the_demo(cli)
-    print("%d passed, %d failed" % (PASSED, FAILED))
-    return 0 if FAILED == 0 else 1
+    return finish()
 
 
 def vetting_on_the_demo(cli):
