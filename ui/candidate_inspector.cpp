@@ -1,5 +1,6 @@
 #include "candidate_inspector.hpp"
 
+#include <QCheckBox>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFileInfo>
@@ -85,6 +86,11 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_flags->header()->setSectionResizeMode(0, QHeaderView::ResizeToContents);
   m_flags->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
   m_flags->setMinimumHeight(120);
+  m_store = new QCheckBox("Store on candidate", this);
+  m_store->setToolTip(
+      "Keep the flags of every inspected candidate with it (saved in the session). Off: the "
+      "flags are shown only, and inspecting changes nothing in the session.");
+  m_store->setChecked(QSettings().value("inspector/storeFlags", false).toBool());
   m_evidence = new QLabel(this);
   m_evidence->setWordWrap(true);
   m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);
@@ -122,6 +128,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   knownRow->addWidget(new QLabel("match within", this));
   knownRow->addWidget(m_radius);
   knownRow->addStretch(1);
+  knownRow->addWidget(m_store);
   flagLayout->addLayout(knownRow);
 
   auto* layout = new QVBoxLayout(this);
@@ -145,6 +152,10 @@ void CandidateInspector::connectSignals() {
     if (item) m_evidence->setText(item->text(0) + ": " + item->text(2));
   });
   connect(m_loadKnown, &QPushButton::clicked, this, &CandidateInspector::chooseKnownObjects);
+  connect(m_store, &QCheckBox::toggled, this, [this](bool on) {
+    QSettings().setValue("inspector/storeFlags", on);
+    if (on) storeFlags();
+  });
   connect(m_radius, &QDoubleSpinBox::valueChanged, this, [this] {
     if (m_known) refresh();
   });
@@ -248,18 +259,34 @@ void CandidateInspector::onFinished() {
   m_shown = out.inspection;
   m_shownIndex = out.index;
   showInspection(*m_shown);
-  nlohmann::json flags = nlohmann::json::array();
-  for (const auto& f : m_shown->flags)
-    flags.push_back(vet::toJson(f));
-  const auto* state = m_obs->candidateState(out.index);
-  if (state && state->artifacts != flags) m_obs->setCandidateArtifacts(out.index, flags);
+  const bool stored = m_store->isChecked() && storeFlags();
   int fired = 0;
   for (const auto& f : m_shown->flags)
     fired += f.triggered ? 1 : 0;
   const QString took = QString(" (%1 s)").arg(m_clock.elapsed() / 1000.0, 0, 'f', 2);
-  m_status->setText(fired ? QString("%1 artifact check(s) fired; stored on the candidate.").arg(fired) + took
-                          : QString("No artifact check fired.") + took);
+  m_status->setText(
+      (fired ? QString("%1 artifact check(s) fired").arg(fired) : QString("No artifact check fired")) +
+      (stored ? "; stored on the candidate" : "") + took);
   emit inspected(out.index);
+}
+
+bool CandidateInspector::storeFlags() {
+  if (!m_shown || m_shownIndex < 0) return false;
+  nlohmann::json flags = nlohmann::json::array();
+  for (const auto& f : m_shown->flags)
+    flags.push_back(vet::toJson(f));
+  const auto* state = m_obs->candidateState(m_shownIndex);
+  if (!state) return false;
+  if (state->artifacts != flags) m_obs->setCandidateArtifacts(m_shownIndex, flags);
+  return true;
+}
+
+void CandidateInspector::setStoreFlags(bool on) {
+  m_store->setChecked(on);
+}
+
+bool CandidateInspector::storesFlags() const {
+  return m_store->isChecked();
 }
 
 void CandidateInspector::showInspection(const Inspection& in) {

@@ -4,8 +4,8 @@
 // side by side on one scale, the segment strip (K = 4 equal-time stacks with their SNRs, flagged ones
 // framed in red), the frame-by-frame cutouts along the track as a scrubbable strip with a play/pause movie,
 // and the artifact flags of st::vet with their evidence, which are stored on the candidate
-// (Observation::setCandidateArtifacts). "Load known objects…" reads a CSV (st::vet::readKnownObjects) and
-// adds the known-object check.
+// (Observation::setCandidateArtifacts) when "Store on candidate" is checked. "Load known objects…" reads a
+// CSV (st::vet::readKnownObjects) and adds the known-object check.
 #include <QElapsedTimer>
 #include <QFutureWatcher>
 #include <QString>
@@ -24,6 +24,7 @@ class QToolButton;
 class QPushButton;
 class QTreeWidget;
 class QDoubleSpinBox;
+class QCheckBox;
 
 namespace st::ui {
 
@@ -56,6 +57,11 @@ class CandidateInspector : public QWidget {
   [[nodiscard]] std::size_t knownObjectCount() const { return m_known ? m_known->size() : 0; }
   [[nodiscard]] QString statusText() const;
   [[nodiscard]] bool playing() const { return m_playTimer.isActive(); }
+  /// Whether every inspection stores its flags on the candidate (Observation::setCandidateArtifacts, which
+  /// the session saves). Off by default (a setting): inspecting a candidate then changes nothing a person
+  /// did not ask for; turning it on stores the flags shown.
+  void setStoreFlags(bool on);
+  [[nodiscard]] bool storesFlags() const;
 
  public slots:
   /// Inspects the selected candidate again (cancels a running inspection).
@@ -79,6 +85,7 @@ class CandidateInspector : public QWidget {
   void start();
   void onFinished();
   void showInspection(const Inspection& in);
+  bool storeFlags();
   void showFrame(int k);
   void chooseKnownObjects();
 
@@ -96,6 +103,7 @@ class CandidateInspector : public QWidget {
   QLabel* m_evidence;
   QPushButton* m_loadKnown;
   QDoubleSpinBox* m_radius;
+  QCheckBox* m_store;
   QLabel* m_status;
   QTimer m_playTimer;
   QElapsedTimer m_clock;
