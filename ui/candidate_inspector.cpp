@@ -125,10 +125,10 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   flagLayout->addWidget(m_evidence);
   auto* knownRow = new QHBoxLayout;
   knownRow->addWidget(m_loadKnown);
-  knownRow->addWidget(new QLabel("match within", this));
+  knownRow->addWidget(new QLabel("within", this));
   knownRow->addWidget(m_radius);
   knownRow->addStretch(1);
-  knownRow->addWidget(m_store);
+  flagLayout->addWidget(m_store);
   flagLayout->addLayout(knownRow);
 
   auto* layout = new QVBoxLayout(this);

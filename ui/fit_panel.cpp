@@ -93,6 +93,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   layout->addWidget(m_residual, 3);
   layout->addWidget(m_table, 4);
 
+  resetPlots();
   connect(m_fit, &QPushButton::clicked, this, &FitPanel::fitSelected);
   connect(m_cancel, &QPushButton::clicked, this, &FitPanel::cancel);
   connect(m_accept, &QPushButton::clicked, this, &FitPanel::accept);
@@ -151,6 +152,8 @@ void FitPanel::rescaleCost() {
 
 void FitPanel::resetPlots() {
   m_cost->graph(0)->data()->clear();
+  m_cost->xAxis->setRange(0, 5);
+  m_cost->yAxis->setRange(1, 10);
   m_cost->replot();
   m_residual->clear();
   m_table->setRowCount(0);

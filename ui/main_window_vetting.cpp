@@ -19,6 +19,7 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   cand->setObjectName("dock.candidate");
   auto* scroll = new QScrollArea(cand);  // the inspector scrolls when the dock is short
   scroll->setWidgetResizable(true);
+  scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   scroll->setFrameShape(QFrame::NoFrame);
   scroll->setWidget(m_candidateInspector);
   cand->setWidget(scroll);
