@@ -78,6 +78,37 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_play->setCheckable(true);
   m_play->setToolTip("Play / pause the frames along the track");
   m_frameLabel = new QLabel(this);
+  m_status = new QLabel(this);
+  m_status->setWordWrap(true);
+
+  auto* stampBox = group("Sky rate | candidate velocity", this);
+  (new QVBoxLayout(stampBox))->addWidget(m_stamps);
+  auto* segBox = group("Segments", this);
+  auto* segLayout = new QVBoxLayout(segBox);
+  segLayout->addWidget(m_segments);
+  segLayout->addWidget(m_segmentLabel);
+  auto* movieBox = group("Frames along the track", this);
+  auto* movieLayout = new QVBoxLayout(movieBox);
+  movieLayout->addWidget(m_movie, 1);
+  auto* controls = new QHBoxLayout;
+  controls->addWidget(m_play);
+  controls->addWidget(m_slider, 1);
+  controls->addWidget(m_frameLabel);
+  movieLayout->addLayout(controls);
+  QGroupBox* flagBox = buildFlagBox();
+
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addWidget(m_title);
+  layout->addWidget(stampBox, 2);
+  layout->addWidget(segBox, 2);
+  layout->addWidget(movieBox, 2);
+  layout->addWidget(flagBox, 2);
+  layout->addWidget(m_status);
+  connectSignals();
+}
+
+QGroupBox* CandidateInspector::buildFlagBox() {
   m_flags = new QTreeWidget(this);
   m_flags->setColumnCount(3);
   m_flags->setHeaderLabels({"check", "result", "evidence"});
@@ -102,23 +133,6 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_radius->setValue(10.0);
   m_radius->setSuffix(" arcsec");
   m_radius->setToolTip("A known object closer than this to the candidate's sky position at t_ref flags it");
-  m_status = new QLabel(this);
-  m_status->setWordWrap(true);
-
-  auto* stampBox = group("Sky rate | candidate velocity", this);
-  (new QVBoxLayout(stampBox))->addWidget(m_stamps);
-  auto* segBox = group("Segments", this);
-  auto* segLayout = new QVBoxLayout(segBox);
-  segLayout->addWidget(m_segments);
-  segLayout->addWidget(m_segmentLabel);
-  auto* movieBox = group("Frames along the track", this);
-  auto* movieLayout = new QVBoxLayout(movieBox);
-  movieLayout->addWidget(m_movie, 1);
-  auto* controls = new QHBoxLayout;
-  controls->addWidget(m_play);
-  controls->addWidget(m_slider, 1);
-  controls->addWidget(m_frameLabel);
-  movieLayout->addLayout(controls);
   auto* flagBox = group("Artifact checks", this);
   auto* flagLayout = new QVBoxLayout(flagBox);
   flagLayout->addWidget(m_flags);
@@ -130,16 +144,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   knownRow->addStretch(1);
   flagLayout->addWidget(m_store);
   flagLayout->addLayout(knownRow);
-
-  auto* layout = new QVBoxLayout(this);
-  layout->setContentsMargins(2, 2, 2, 2);
-  layout->addWidget(m_title);
-  layout->addWidget(stampBox, 2);
-  layout->addWidget(segBox, 2);
-  layout->addWidget(movieBox, 2);
-  layout->addWidget(flagBox, 2);
-  layout->addWidget(m_status);
-  connectSignals();
+  return flagBox;
 }
 
 void CandidateInspector::connectSignals() {

@@ -25,6 +25,7 @@ class QPushButton;
 class QTreeWidget;
 class QDoubleSpinBox;
 class QCheckBox;
+class QGroupBox;
 
 namespace st::ui {
 
@@ -81,6 +82,7 @@ class CandidateInspector : public QWidget {
     bool cancelled = false;
     int index = -1;
   };
+  QGroupBox* buildFlagBox();
   void connectSignals();
   void start();
   void onFinished();
