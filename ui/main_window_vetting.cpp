@@ -1,12 +1,10 @@
-// MainWindow: the candidate inspector and co-moving fit docks, the fit's shortcut (F) and the candidates
-// table's context menu, and the scripted fit (--fit).
+// MainWindow: the candidate inspector and co-moving fit docks, the fit's action (F, Run menu), and the
+// scripted fit (--fit).
 #include <QAction>
 #include <QDockWidget>
 #include <QScrollArea>
-#include <QTableView>
 
 #include "candidate_inspector.hpp"
-#include "candidate_table.hpp"
 #include "fit_panel.hpp"
 #include "main_window.hpp"
 
@@ -34,18 +32,17 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   resizeDocks({candidates, fit}, {560, 940}, Qt::Horizontal);
   cand->raise();
 
-  // The fit is launched from the candidates table's context menu or with F anywhere in the window (the
-  // action lives on the table; buildMenus adds it to the Run menu, which makes the shortcut window-wide).
+  // The fit is launched with F anywhere in the window, from the Run menu (buildMenus adds this action) or
+  // from the panel's button. (The candidates table's context menu is the vetting menu; it does not list it.)
   auto* fitAction = new QAction("Fit selected candidate (co-moving)", this);
+  fitAction->setObjectName("action.fitCandidate");
   fitAction->setShortcut(QKeySequence("F"));
   connect(fitAction, &QAction::triggered, this, [this, fit] {
     fit->show();
     fit->raise();
     m_fitPanel->fitSelected();
   });
-  QTableView* table = m_candidates->table();
-  table->setContextMenuPolicy(Qt::ActionsContextMenu);
-  table->addAction(fitAction);
+  addAction(fitAction);
 }
 
 void MainWindow::runScriptFit() {
