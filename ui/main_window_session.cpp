@@ -8,6 +8,7 @@
 #include <QMessageBox>
 #include <QSettings>
 #include <QStatusBar>
+#include <filesystem>
 
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -17,6 +18,22 @@
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
+namespace {
+
+/// Inputs as the session names them; a relative path that does not exist from the working folder is taken
+/// relative to the session file's folder (sessions written by `synthtrack-cli` keep the paths as given).
+std::vector<std::string> resolveInputs(std::vector<std::string> inputs, const std::string& sessionFile) {
+  namespace fs = std::filesystem;
+  const fs::path base = fs::path(sessionFile).parent_path();
+  for (auto& in : inputs) {
+    std::error_code ec;
+    if (fs::path(in).is_relative() && !fs::exists(in, ec) && fs::exists(base / in, ec))
+      in = (base / in).lexically_normal().string();
+  }
+  return inputs;
+}
+
+}  // namespace
 
 /// What the "Opening session" job hands to the GUI thread.
 struct OpenedSession {
@@ -126,6 +143,7 @@ void MainWindow::openSession(const QString& path) {
         // copy.
         const session::Session s = session::SessionStore(file).load();
         opened->snapshot = restoreSnapshot(s, defaults, file);
+        opened->snapshot.inputs = resolveInputs(opened->snapshot.inputs, file);
         opened->changes = s.changes;
         opened->settings = s.settings;
         const auto& snap = opened->snapshot;

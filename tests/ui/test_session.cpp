@@ -223,6 +223,54 @@ TEST(Session, CorruptedAndNewerFilesGetAMessageNamingTheBackup) {
   }
 }
 
+TEST(Session, SaveAsMovesTheAutosaveAndAFailedSaveNamesThePath) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.show();
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  const QString first = w.session()->path();
+  const QString second = QString::fromStdString((dir / "elsewhere.json").string());
+  w.session()->saveAs(second);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_TRUE(QFile::exists(first));  // the first file stays as it was
+  EXPECT_EQ(session::SessionStore(second.toStdString()).load().inputs, std::vector<std::string>{input});
+  ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w) == "Session: " + second; }));
+
+  // A place that cannot be written: the status bar turns to an error naming the path, a (non-modal)
+  // message says so, and the GUI goes on.
+  const QString bad = QString::fromStdString((dir / "no" / "such" / "dir" / "s.json").string());
+  w.session()->saveAs(bad);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w).contains("NOT saved"); }));
+  EXPECT_TRUE(sessionStatus(w).contains(bad)) << sessionStatus(w).toStdString();
+  QMessageBox* box = nullptr;
+  for (auto* b : w.findChildren<QMessageBox*>())
+    if (b->isVisible()) box = b;
+  ASSERT_NE(box, nullptr);
+  EXPECT_TRUE(box->text().contains(bad)) << box->text().toStdString();
+  box->close();
+}
+
+TEST(Session, RelativeInputsAreFoundBesideTheSessionFile) {
+  test::TempDir dir;
+  std::ofstream((dir / "rel.fits").string()) << "fake";
+  session::Session s;
+  s.inputs = {"rel.fits"};  // as `synthtrack-cli` writes what it was given
+  session::SessionStore store((dir / "cli.json").string());
+  store.save(s);
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.openSession(QString::fromStdString(store.path()));
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  EXPECT_EQ(w.session()->inputs(), std::vector<std::string>{(dir / "rel.fits").string()});
+  EXPECT_EQ(w.observation()->result(), nullptr);  // a session without a search restores none
+}
+
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
   test::TempDir dir;
   const std::vector<std::string> inputs = {(dir / "frames.fits.fz").string()};
