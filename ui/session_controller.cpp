@@ -55,7 +55,7 @@ SessionController::SessionController(Observation* observation, std::function<Ses
   m_saver = new SessionAutosaver(this);
   connect(m_saver, &SessionAutosaver::saved, this, &SessionController::onSaved);
   connect(m_saver, &SessionAutosaver::failed, this, &SessionController::onFailed);
-  connect(m_obs, &Observation::rawChanged, this, &SessionController::onRawChanged);
+  connect(m_obs, &Observation::rawChanged, this, &SessionController::requestSave);
   for (auto signal : {&Observation::preparedChanged, &Observation::resultChanged,
                       &Observation::selectionChanged, &Observation::unitChanged})
     connect(m_obs, signal, this, &SessionController::requestSave);
@@ -74,6 +74,7 @@ void SessionController::prepareNew(std::vector<std::string> inputs, bool demo, c
 void SessionController::adopt(const QString& path, std::vector<std::string> inputs, bool demo,
                               std::int64_t changes, nlohmann::json settings) {
   m_next.reset();
+  m_sessionRaw = m_obs->raw().get();  // the restored frames arrive next (suspended), then are this session's
   m_path = path;
   m_inputs = std::move(inputs);
   m_demo = demo;
@@ -92,21 +93,20 @@ void SessionController::saveAs(const QString& path) {
   requestSave();
 }
 
-void SessionController::onRawChanged() {
-  if (!m_next) {
-    requestSave();
-    return;
-  }
+void SessionController::startNext() {
   const Next next = std::move(*m_next);
   m_next.reset();
   m_inputs = next.inputs;
   m_demo = next.demo;
-  m_path = next.path.isEmpty() ? freeSessionPath(defaultSessionPath(m_inputs, m_demo)) : next.path;
+  const QString preferred = next.path.isEmpty() ? defaultSessionPath(m_inputs, m_demo) : next.path;
+  m_path = freeSessionPath(preferred);
+  if (m_path != preferred)
+    emit notice("An earlier session of this observation is kept in " + preferred +
+                " (File > Open session… resumes it); this one is saved to " + m_path);
   m_settings = nlohmann::json::object();
   m_failing = false;
   m_saver->setChangeCount(m_path, 0);
   emit pathChanged(m_path);
-  requestSave();
 }
 
 session::Session SessionController::currentSession() const {
@@ -116,6 +116,19 @@ session::Session SessionController::currentSession() const {
 }
 
 void SessionController::requestSave() {
+  // A new observation: its session starts here, whichever of the Observation's listeners saves first (a
+  // panel reacting to rawChanged before us must not write the new observation over the old file).
+  if (m_obs->raw().get() != m_sessionRaw) {
+    m_sessionRaw = m_obs->raw().get();
+    if (m_next) {
+      startNext();
+    } else if (!m_suspended && !m_path.isEmpty()) {
+      // Frames that came without prepareNew() or a session being opened: never saved over this file.
+      emit notice("Autosave stopped: the observation changed outside a session (" + m_path + " is kept)");
+      m_path.clear();
+      emit statusChanged("Session: none", "Open a session or the observation again to save", false);
+    }
+  }
   if (m_path.isEmpty() || m_suspended) return;
   m_saver->request(m_path, currentSession());
 }

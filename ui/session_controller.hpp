@@ -45,7 +45,8 @@ class SessionController : public QObject {
   void setSettings(nlohmann::json settings);
 
   /// An observation is being opened: when its frames arrive (Observation::rawChanged) a new session starts
-  /// in a free file at defaultSessionPath() (or `path` when given).
+  /// in `path` (defaultSessionPath() when empty), or in the next free name when a file is already there
+  /// (notice() says so).
   void prepareNew(std::vector<std::string> inputs, bool demo, const QString& path = {});
   /// Continue in an opened session file (no save until the next change), counting on from `changes`.
   void adopt(const QString& path, std::vector<std::string> inputs, bool demo, std::int64_t changes,
@@ -64,11 +65,14 @@ class SessionController : public QObject {
   void statusChanged(const QString& text, const QString& tooltip, bool error);
   /// Changes go to a new file from now on (a new analysis, an opened session, Save as…).
   void pathChanged(const QString& path);
+  /// Something the person should know, for the status bar (e.g. an earlier session of these inputs kept).
+  void notice(const QString& text);
   /// A save failed for the first time after a success (the message names the path).
   void saveFailed(const QString& message);
 
  private:
-  void onRawChanged();
+  /// Starts the session prepared by prepareNew() (path, inputs, change count).
+  void startNext();
   void onSaved(const QString& path, qint64 changes, double ms);
   void onFailed(const QString& path, const QString& message);
 
@@ -85,6 +89,7 @@ class SessionController : public QObject {
     QString path;
   };
   std::optional<Next> m_next;
+  const FrameCube* m_sessionRaw = nullptr;  ///< the frames the current session belongs to
   bool m_suspended = false;
   bool m_failing = false;
 };

@@ -233,6 +233,16 @@ TEST(Session, SaveAsMovesTheAutosaveAndAFailedSaveNamesThePath) {
   w.openInputs({QString::fromStdString(input)});
   ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
   ASSERT_TRUE(w.session()->autosaver()->flush());
+  // Opening the same inputs again starts a new file beside the first, which is kept.
+  const QString earlier = w.session()->path();
+  const std::int64_t earlierChanges = session::SessionStore(earlier.toStdString()).load().changes;
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.session()->path() != earlier && idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(session::SessionStore(earlier.toStdString()).load().changes, earlierChanges);
+  EXPECT_TRUE(w.statusBar()->currentMessage().contains(earlier))
+      << w.statusBar()->currentMessage().toStdString();
   const QString first = w.session()->path();
   const QString second = QString::fromStdString((dir / "elsewhere.json").string());
   w.session()->saveAs(second);
@@ -269,6 +279,24 @@ TEST(Session, RelativeInputsAreFoundBesideTheSessionFile) {
   ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
   EXPECT_EQ(w.session()->inputs(), std::vector<std::string>{(dir / "rel.fits").string()});
   EXPECT_EQ(w.observation()->result(), nullptr);  // a session without a search restores none
+}
+
+TEST(Session, FramesFromOutsideASessionAreNeverSavedOverIt) {
+  test::TempDir dir;
+  const QString path = QString::fromStdString((dir / "s.json").string());
+  Observation obs;
+  SessionController controller(&obs, {});
+  controller.prepareNew({"a.fits"}, false, path);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1)), "a");
+  ASSERT_TRUE(controller.autosaver()->flush());
+  const session::Session before = session::SessionStore(path.toStdString()).load();
+  // A panel that saves while reacting to the new frames, before the controller heard of them.
+  QObject::connect(&obs, &Observation::rawChanged, &controller, &SessionController::requestSave);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 2, 2)), "b");
+  obs.setUnit(VelocityUnit::DegPerDay);
+  ASSERT_TRUE(controller.autosaver()->flush());
+  EXPECT_TRUE(controller.path().isEmpty());
+  EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);
 }
 
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
