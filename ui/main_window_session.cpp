@@ -8,6 +8,7 @@
 #include <QMessageBox>
 #include <QSettings>
 #include <QStatusBar>
+#include <QTimer>
 #include <filesystem>
 
 #include "job_runner.hpp"
@@ -68,8 +69,10 @@ void MainWindow::buildSession() {
             m_sessionLabel->setStyleSheet(error ? "color: #c00000; font-weight: bold" : QString());
           });
   connect(m_session, &SessionController::pathChanged, this, &MainWindow::addRecentSession);
-  connect(m_session, &SessionController::notice, this,
-          [this](const QString& text) { statusBar()->showMessage(text, 20000); });
+  connect(m_session, &SessionController::notice, this, [this](const QString& text) {
+    // After the job's own message (a search reports its result just after setResult).
+    QTimer::singleShot(0, this, [this, text] { statusBar()->showMessage(text, 20000); });
+  });
   connect(m_session, &SessionController::saveFailed, this, [this](const QString& message) {
     statusBar()->showMessage(message, 15000);
     if (m_script) return;

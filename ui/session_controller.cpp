@@ -2,6 +2,8 @@
 
 #include <QDir>
 #include <QFileInfo>
+#include <QRegularExpression>
+#include <algorithm>
 #include <QStandardPaths>
 #include <cstring>
 
@@ -75,6 +77,8 @@ void SessionController::adopt(const QString& path, std::vector<std::string> inpu
                               std::int64_t changes, nlohmann::json settings) {
   m_next.reset();
   m_sessionRaw = m_obs->raw().get();  // the restored frames arrive next (suspended), then are this session's
+  m_sessionResult = nullptr;
+  m_hadVetting = false;
   m_path = path;
   m_inputs = std::move(inputs);
   m_demo = demo;
@@ -105,8 +109,24 @@ void SessionController::startNext() {
                 " (File > Open session… resumes it); this one is saved to " + m_path);
   m_settings = nlohmann::json::object();
   m_failing = false;
+  m_sessionResult = nullptr;
+  m_hadVetting = false;
   m_saver->setChangeCount(m_path, 0);
   emit pathChanged(m_path);
+}
+
+void SessionController::forkFile() {
+  const QString kept = m_path;
+  QString base = kept;
+  // obs.synthtrack-session-3.json -> obs.synthtrack-session.json, then the first free name from there.
+  static const QRegularExpression numbered("-\\d+\\.json$");
+  base.replace(numbered, ".json");
+  m_path = freeSessionPath(base);
+  m_failing = false;
+  m_saver->setChangeCount(m_path, 0);
+  emit pathChanged(m_path);
+  emit notice("The vetted candidates were replaced by a new result; their session is kept in " + kept +
+              ", this analysis goes on in " + m_path);
 }
 
 session::Session SessionController::currentSession() const {
@@ -129,7 +149,19 @@ void SessionController::requestSave() {
       emit statusChanged("Session: none", "Open a session or the observation again to save", false);
     }
   }
-  if (m_path.isEmpty() || m_suspended) return;
+  if (m_path.isEmpty()) return;
+  // A new pre-processing run or search replaces the candidates: when some were vetted, that session is kept
+  // as it is and the analysis goes on in a new file.
+  const search::SearchResult* result = m_obs->result().get();
+  if (result != m_sessionResult) {
+    if (m_hadVetting && !m_suspended) forkFile();
+    m_sessionResult = result;
+  }
+  m_hadVetting =
+      std::any_of(m_obs->candidateStates().begin(), m_obs->candidateStates().end(), [](const auto& s) {
+        return s.label != session::Label::Unvetted || !s.note.empty() || !s.fit.is_null();
+      });
+  if (m_suspended) return;
   m_saver->request(m_path, currentSession());
 }
 

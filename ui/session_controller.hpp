@@ -3,7 +3,8 @@
 // after every change of the Observation (new observation, pre-processing, result, a candidate's label, note,
 // fit or artifact flags, the selection, the velocity unit). The state is gathered on the GUI thread
 // (makeSession) and written by SessionAutosaver's worker. The file of a new analysis is chosen by
-// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used).
+// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used),
+// nor are vetted candidates by a new pre-processing run or search (the analysis goes on in a new file).
 #include <QObject>
 #include <QString>
 #include <functional>
@@ -73,6 +74,8 @@ class SessionController : public QObject {
  private:
   /// Starts the session prepared by prepareNew() (path, inputs, change count).
   void startNext();
+  /// Leaves the current file as it is and continues in the next free name.
+  void forkFile();
   void onSaved(const QString& path, qint64 changes, double ms);
   void onFailed(const QString& path, const QString& message);
 
@@ -89,7 +92,9 @@ class SessionController : public QObject {
     QString path;
   };
   std::optional<Next> m_next;
-  const FrameCube* m_sessionRaw = nullptr;  ///< the frames the current session belongs to
+  const FrameCube* m_sessionRaw = nullptr;                ///< the frames the current session belongs to
+  const search::SearchResult* m_sessionResult = nullptr;  ///< the result of the last save
+  bool m_hadVetting = false;  ///< a candidate of that result had a label, note or fit
   bool m_suspended = false;
   bool m_failing = false;
 };

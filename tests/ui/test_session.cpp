@@ -241,7 +241,7 @@ TEST(Session, SaveAsMovesTheAutosaveAndAFailedSaveNamesThePath) {
   ASSERT_TRUE(w.session()->autosaver()->flush());
   EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
   EXPECT_EQ(session::SessionStore(earlier.toStdString()).load().changes, earlierChanges);
-  EXPECT_TRUE(w.statusBar()->currentMessage().contains(earlier))
+  EXPECT_TRUE(test::waitFor([&] { return w.statusBar()->currentMessage().contains(earlier); }, 2000))
       << w.statusBar()->currentMessage().toStdString();
   const QString first = w.session()->path();
   const QString second = QString::fromStdString((dir / "elsewhere.json").string());
@@ -297,6 +297,35 @@ TEST(Session, FramesFromOutsideASessionAreNeverSavedOverIt) {
   ASSERT_TRUE(controller.autosaver()->flush());
   EXPECT_TRUE(controller.path().isEmpty());
   EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);
+}
+
+TEST(Session, ANewSearchNeverOverwritesVettedCandidates) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  w.searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->result() && idle(w); }));
+  // A search without vetting is simply replaced by the next one, in the same file.
+  const QString first = w.session()->path();
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return idle(w); }));
+  EXPECT_EQ(w.session()->path(), first);
+  w.observation()->setCandidateLabel(0, session::Label::Real);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(session::SessionStore(first.toStdString()).load().candidates[0].label, session::Label::Real);
+  EXPECT_EQ(session::SessionStore(w.session()->path().toStdString()).load().candidates[0].label,
+            session::Label::Unvetted);
+  EXPECT_TRUE(test::waitFor([&] { return w.statusBar()->currentMessage().contains(first); }, 2000))
+      << w.statusBar()->currentMessage().toStdString();
 }
 
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
