@@ -19,10 +19,13 @@
 #include <QSettings>
 #include <QSpinBox>
 #include <QStatusBar>
+#include <QTableView>
 #include <QToolBar>
 #include <QVBoxLayout>
 
+#include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
+#include "fit_panel.hpp"
 #include "header_dialog.hpp"
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
@@ -184,7 +187,8 @@ void MainWindow::buildDocks() {
   auto* vmap = dock("Velocity space", "dock.velocity", m_velocityMap, Qt::RightDockWidgetArea);
   auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea);
   splitDockWidget(vmap, insp, Qt::Vertical);
-  dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
+  auto* cands = dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
+  buildVettingDocks(insp, cands);
   resizeDocks({proc}, {330}, Qt::Horizontal);
   resizeDocks({vmap}, {430}, Qt::Horizontal);
 
@@ -226,6 +230,7 @@ void MainWindow::buildMenus() {
   run->addAction("&Pre-process", QKeySequence("Ctrl+P"), this, &MainWindow::runPreprocess);
   run->addAction("&Search", QKeySequence("Ctrl+R"), this, &MainWindow::runSearch);
   run->addAction("&Cancel", QKeySequence("Esc"), m_jobs, &JobRunner::cancel);
+  run->addActions(m_candidates->table()->actions());  // "Fit selected candidate" (F), built with the docks
   auto* autoPre = run->addAction("Pre-process after loading");
   autoPre->setCheckable(true);
   autoPre->setChecked(m_autoPreprocess);

@@ -32,15 +32,19 @@ class InspectorPanel;
 class SessionController;
 struct OpenedSession;
 class FigureDialog;
+class CandidateInspector;
+class FitPanel;
+class ReportDialog;
 
-/// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--screenshot FILE] [--quit]`
-/// asks for.
+/// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE]
+/// [--quit]` asks for.
 struct ScriptOptions {
   QStringList inputs;
   QString session;  ///< a session file to reopen (its result is restored, never searched again)
   bool demo = false;
   bool search = false;
   std::optional<int> select;  ///< 1-based candidate number
+  bool fit = false;           ///< run the co-moving fit of the selected candidate before the screenshot
   QString screenshot;
   int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
   bool quit = false;
@@ -79,11 +83,15 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] VelocityMapWidget* velocityMap() const noexcept { return m_velocityMap; }
   [[nodiscard]] CandidatePanel* candidates() const noexcept { return m_candidates; }
   [[nodiscard]] InspectorPanel* inspector() const noexcept { return m_inspector; }
+  [[nodiscard]] CandidateInspector* candidateInspector() const noexcept { return m_candidateInspector; }
+  [[nodiscard]] FitPanel* fitPanel() const noexcept { return m_fitPanel; }
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
   /// The session file and its autosave.
   [[nodiscard]] SessionController* session() const noexcept { return m_session; }
   /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
   FigureDialog* figureDialog();
+  /// The "Reports…" dialog (made on first use; main_window_export.cpp).
+  ReportDialog* reportDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -101,6 +109,8 @@ class MainWindow : public QMainWindow {
   void buildMenus();
   void buildExportMenu(QMenu* menu);
   void buildDocks();
+  void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
+  void runScriptFit();
   QWidget* buildCentral();
   void buildStatusBar();
   void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
@@ -139,6 +149,8 @@ class MainWindow : public QMainWindow {
   VelocityMapWidget* m_velocityMap = nullptr;
   CandidatePanel* m_candidates = nullptr;
   InspectorPanel* m_inspector = nullptr;
+  CandidateInspector* m_candidateInspector = nullptr;
+  FitPanel* m_fitPanel = nullptr;
   QLabel* m_pixelLabel = nullptr;
   QLabel* m_stackLabel = nullptr;
   QLabel* m_jobLabel = nullptr;
@@ -151,6 +163,7 @@ class MainWindow : public QMainWindow {
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
+  ReportDialog* m_reportDialog = nullptr;
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;

@@ -230,6 +230,7 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
     }
     std::fflush(stdout);
     if (m_script->select) selectCandidate(*m_script->select - 1);
+    if (m_script->fit && m_obs->selectedCandidate()) return runScriptFit();
     finishScript(true, {});
   }
 }

@@ -1,5 +1,6 @@
 // synthtrack: the desktop application.
-//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--screenshot FILE.png] [--quit]
+//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
+//   [--quit]
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
 // --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
@@ -52,11 +53,12 @@ int main(int argc, char** argv) {
                                    "Reopen a session file (result and labels restored, no search).", "FILE");
   const QCommandLineOption search("search", "Run the search after pre-processing.");
   const QCommandLineOption select("select", "Select candidate N (1-based) after the search.", "N");
+  const QCommandLineOption fit("fit", "Run the co-moving fit of the selected candidate before finishing.");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window when done, then quit.",
                                       "FILE");
   const QCommandLineOption width("screenshot-width", "Scale the screenshot down to this width.", "PIXELS");
   const QCommandLineOption quit("quit", "Quit when done.");
-  parser.addOptions({demo, session, search, select, screenshot, width, quit});
+  parser.addOptions({demo, session, search, select, fit, screenshot, width, quit});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -73,6 +75,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  script.fit = parser.isSet(fit);
   script.screenshot = parser.value(screenshot);
   script.screenshotWidth = parser.value(width).toInt();
   script.quit = parser.isSet(quit);

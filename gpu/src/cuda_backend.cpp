@@ -128,6 +128,7 @@ class CudaBackend final : public CudaSearchBackend {
                             job.device = m_devices[d].ordinal;
                             job.cellCapacity = cap;
                             job.profile = m_options.profileTree;
+                            job.treeRootShape = m_options.treeRootShape;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
                             return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
@@ -179,7 +180,10 @@ class CudaBackend final : public CudaSearchBackend {
     const std::size_t cubeBytes = cube.frames.pixels().size() * sizeof(float);
     const int h = plan.height;
     std::size_t need = 0;
-    for (int parts = 1; parts <= h; parts = parts < 4 ? parts + 1 : parts * 3 / 2) {
+    // At least one tile per device, so that every device gets work.
+    const int first = std::min<int>(h, static_cast<int>(m_devices.size()));
+    for (int parts = first; parts <= h;
+         parts = parts == h ? h + 1 : std::min(h, parts < 4 ? parts + 1 : parts * 3 / 2)) {
       const int rows = m_options.treeTileRows > 0 ? m_options.treeTileRows : (h + parts - 1) / parts;
       TreeDevicePlan d = makeTreeDevicePlan(tree, plan.width, h, rows, cut);
       need = cubeBytes + treeDeviceBytes(d, plan, capacity);

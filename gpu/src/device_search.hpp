@@ -23,6 +23,7 @@ struct DeviceJob {
   std::size_t memoryLimitBytes = 0;  ///< 0: what the device has free (less a reserve)
   std::size_t cellCapacity = 0;      ///< candidate buffer, cells
   bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
+  int treeRootShape = 0;             ///< tree search: TreeRootLaunch::shape
   bool profile = false;              ///< tree search: time each level of the first tile (for the note)
 };
 

@@ -12,6 +12,11 @@ using search::TreeAxis;
 using search::TreeNode;
 using search::TreePlan;
 
+/// Mosaic rows start on 128-byte boundaries (the root kernel reads aligned 32-float chunks).
+int alignedPitch(int length) {
+  return (length + 31) / 32 * 32;
+}
+
 /// Mosaic segments of one axis of one node: segment start per velocity (-1 when unused) and total length.
 struct AxisLayout {
   std::vector<int> start;
@@ -29,22 +34,37 @@ AxisLayout layoutOf(const TreeAxis& a, int size) {
   return l;
 }
 
-/// Per mosaic index of a parent axis: the child's mosaic index for (choices into that child).
-void childIndices(const TreeAxis& pa, const AxisLayout& pl, const std::vector<search::TreeChoice>& choices,
-                  const TreeAxis& ca, const AxisLayout& cl, int size, std::vector<int>& out) {
-  out.assign(static_cast<std::size_t>(pl.length), 0);
+/// Per used velocity of a parent axis, the child's mosaic index of the parent's first position (the rest
+/// follow contiguously), or -1 for an unused velocity. Checks that the parent reads inside the child's
+/// stacks.
+std::vector<int> childStarts(const TreeAxis& pa, const AxisLayout& pl,
+                             const std::vector<search::TreeChoice>& choices, const TreeAxis& ca,
+                             const AxisLayout& cl, int size) {
+  std::vector<int> out(pa.v.size(), -1);
   for (std::size_t j = 0; j < pa.v.size(); ++j) {
     if (pl.start[j] < 0) continue;
     const search::TreeChoice ch = choices[j];
     const std::size_t cj = static_cast<std::size_t>(ch.child);
-    for (int q = pa.reachLo[j]; q < size + pa.reachHi[j]; ++q) {
-      const int cq = q + ch.offset;
-      if (cl.start[cj] < 0 || cq < ca.reachLo[cj] || cq >= size + ca.reachHi[cj]) {
-        throw GpuError("tree plan: a parent reads outside its child's stacks (velocity " + std::to_string(j) +
-                       ", position " + std::to_string(q) + ")");
-      }
-      out[static_cast<std::size_t>(pl.start[j] + q - pa.reachLo[j])] = cl.start[cj] + cq - ca.reachLo[cj];
+    const int lo = pa.reachLo[j] + ch.offset;
+    const int hi = size + pa.reachHi[j] + ch.offset;
+    if (cl.start[cj] < 0 || lo < ca.reachLo[cj] || hi > size + ca.reachHi[cj]) {
+      throw GpuError("tree plan: a parent reads outside its child's stacks (velocity " + std::to_string(j) +
+                     ")");
     }
+    out[j] = cl.start[cj] + lo - ca.reachLo[cj];
+  }
+  return out;
+}
+
+/// Per mosaic index of a parent axis: the child's mosaic index.
+void childIndices(const TreeAxis& pa, const AxisLayout& pl, const std::vector<search::TreeChoice>& choices,
+                  const TreeAxis& ca, const AxisLayout& cl, int size, std::vector<int>& out) {
+  const std::vector<int> starts = childStarts(pa, pl, choices, ca, cl, size);
+  out.assign(static_cast<std::size_t>(pl.length), 0);
+  for (std::size_t j = 0; j < pa.v.size(); ++j) {
+    if (pl.start[j] < 0) continue;
+    for (int i = 0; i < size + pa.reachHi[j] - pa.reachLo[j]; ++i)
+      out[static_cast<std::size_t>(pl.start[j] + i)] = starts[j] + i;
   }
 }
 
@@ -95,7 +115,8 @@ int treeCut(const TreePlan& plan, int wanted) {
 }
 
 std::size_t TreeDevicePlan::tableBytes() const {
-  return jobs.size() * sizeof(TreeJob) + (rowJobs.size() + colTab.size() + rowTab.size()) * sizeof(int2) +
+  return jobs.size() * sizeof(TreeJob) + (rowJobs.size() + rowTab.size()) * sizeof(int2) +
+         segTab.size() * sizeof(int4) +
          (shiftX.size() + shiftY.size() + frameIndex.size() + cutPitch.size() + colBase.size() +
           rowBase.size()) *
              sizeof(int) +
@@ -146,10 +167,10 @@ TreeDevicePlan makeTreeDevicePlan(const TreePlan& plan, int width, int height, i
       TreeJob j{};
       j.out = used;
       offset[i] = used;
-      j.pitch = lx[i].length;
+      j.pitch = alignedPitch(lx[i].length);
       const int rows = ly[i].length;
       used += static_cast<long long>(j.pitch) * rows;
-      j.colTable = static_cast<int>(d.colTab.size());
+      j.segTable = static_cast<int>(d.segTab.size());
       j.rowTable = static_cast<int>(d.rowTab.size());
       j.direct = n.direct() ? 1 : 0;
       if (j.direct) {
@@ -159,7 +180,11 @@ TreeDevicePlan makeTreeDevicePlan(const TreePlan& plan, int width, int height, i
         j.shiftY = static_cast<int>(d.shiftY.size());
         appendShifts(n.x, plan.preX, n, d.shiftX);
         appendShifts(n.y, plan.preY, n, d.shiftY);
-        directIndices(n.x, lx[i], width, d.colTab);
+        for (std::size_t jx = 0; jx < n.x.v.size(); ++jx) {
+          if (lx[i].start[jx] >= 0)
+            d.segTab.push_back(int4{lx[i].start[jx], width + n.x.reachHi[jx] - n.x.reachLo[jx],
+                                    static_cast<int>(jx), n.x.reachLo[jx]});
+        }
         directIndices(n.y, ly[i], tileRows, d.rowTab);
         d.additionsPerTile += static_cast<double>(j.pitch) * rows * (n.last - n.first);
       } else {
@@ -167,13 +192,17 @@ TreeDevicePlan makeTreeDevicePlan(const TreePlan& plan, int width, int height, i
         const std::size_t r = static_cast<std::size_t>(n.right);
         j.left = offset[l];
         j.right = offset[r];
-        j.leftPitch = lx[l].length;
-        j.rightPitch = lx[r].length;
+        j.leftPitch = alignedPitch(lx[l].length);
+        j.rightPitch = alignedPitch(lx[r].length);
         const TreeNode& ln = plan.nodes[l];
         const TreeNode& rn = plan.nodes[r];
-        childIndices(n.x, lx[i], n.x.left, ln.x, lx[l], width, a);
-        childIndices(n.x, lx[i], n.x.right, rn.x, lx[r], width, b);
-        appendPairs(a, b, d.colTab);
+        a = childStarts(n.x, lx[i], n.x.left, ln.x, lx[l], width);
+        b = childStarts(n.x, lx[i], n.x.right, rn.x, lx[r], width);
+        for (std::size_t jx = 0; jx < n.x.v.size(); ++jx) {
+          if (lx[i].start[jx] >= 0)
+            d.segTab.push_back(
+                int4{lx[i].start[jx], width + n.x.reachHi[jx] - n.x.reachLo[jx], a[jx], b[jx]});
+        }
         childIndices(n.y, ly[i], n.y.left, ln.y, ly[l], tileRows, a);
         childIndices(n.y, ly[i], n.y.right, rn.y, ly[r], tileRows, b);
         appendPairs(a, b, d.rowTab);
@@ -182,11 +211,13 @@ TreeDevicePlan makeTreeDevicePlan(const TreePlan& plan, int width, int height, i
       const int jobIndex = static_cast<int>(d.jobs.size());
       for (int row = 0; row < rows; ++row)
         d.rowJobs.push_back(int2{jobIndex, row});
+      j.segments = static_cast<int>(d.segTab.size()) - j.segTable;
       d.jobs.push_back(j);
     }
     level.jobEnd = static_cast<int>(d.jobs.size());
     level.rowEnd = static_cast<int>(d.rowJobs.size());
-    d.arenaFloats[level.arena] = std::max(d.arenaFloats[level.arena], static_cast<std::size_t>(used));
+    // 64 floats of slack: the root kernel's chunk reads may pass the end of a mosaic by up to 31 floats.
+    d.arenaFloats[level.arena] = std::max(d.arenaFloats[level.arena], static_cast<std::size_t>(used) + 64);
     d.levels.push_back(level);
   }
 
@@ -196,7 +227,7 @@ TreeDevicePlan makeTreeDevicePlan(const TreePlan& plan, int width, int height, i
   for (std::size_t c = 0; c < cuts.size(); ++c) {
     const std::size_t ci = static_cast<std::size_t>(cuts[c]);
     d.cutBase.push_back(offset[ci]);
-    d.cutPitch.push_back(lx[ci].length);
+    d.cutPitch.push_back(alignedPitch(lx[ci].length));
   }
   for (const bool isX : {true, false}) {
     std::vector<int>& base = isX ? d.colBase : d.rowBase;

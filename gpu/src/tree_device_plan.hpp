@@ -33,7 +33,7 @@ struct TreeDevicePlan {
   std::vector<TreeDeviceLevel> levels;  ///< deepest first; the last one is at depth `cut`
   std::vector<TreeJob> jobs;
   std::vector<int2> rowJobs;
-  std::vector<int2> colTab;
+  std::vector<int4> segTab;
   std::vector<int2> rowTab;
   std::vector<int> shiftX, shiftY;
   std::vector<int> frameIndex;

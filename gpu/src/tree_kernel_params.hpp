@@ -7,7 +7,7 @@
 // of that velocity, tree_plan.hpp) and whose rows are the y segments of its used y velocities, one above the
 // other (positions [reachLo, tileRows + reachHi), tile-relative). Stack (jx, jy) is the block where its
 // segments cross. Because every grid of the tree is a product grid, a parent's column and row of a child's
-// mosaic depend only on the parent's column and row: two small tables per node and axis.
+// mosaic depend only on the parent's column and row: per node, one segment list (columns) and one row table.
 #include <cuda_runtime.h>
 
 #include <cstddef>
@@ -25,7 +25,9 @@ struct TreeJob {
   int pitch;        ///< mosaic columns
   int leftPitch;    ///< combine: children's mosaic columns
   int rightPitch;
-  int colTable;  ///< offset in TreeLevelLaunch::colTab: per column (left col, right col) or, direct, (jx, x)
+  int segTable;  ///< offset in TreeLevelLaunch::segTab of this node's column segments (one per used x
+                 ///< velocity)
+  int segments;  ///< number of segments
   int rowTable;  ///< offset in TreeLevelLaunch::rowTab: per row (left row, right row) or, direct, (jy, y)
   int direct;    ///< 1: summed from its frames along its implied shifts
   int first;     ///< direct: time-ordered frames [first, last)
@@ -35,7 +37,8 @@ struct TreeJob {
   int shiftY;
 };
 
-/// One level of the tree over one tile of rows: every block builds one mosaic row of one job.
+/// One level of the tree over one tile of rows: every warp builds one mosaic row of one job, segment by
+/// segment.
 struct TreeLevelLaunch {
   const float* frames;    ///< the cube, resident, cube frame order
   const int* frameIndex;  ///< cube frame of the k-th frame in time order
@@ -45,7 +48,8 @@ struct TreeLevelLaunch {
   const TreeJob* jobs;
   const int2* rowJobs;  ///< [rows of this level] (job, mosaic row)
   int rows;
-  const int2* colTab;
+  const int4*
+      segTab;  ///< (out column, length, left column, right column) or, direct, (out column, length, jx, x)
   const int2* rowTab;
   const int* shiftX;
   const int* shiftY;
@@ -62,6 +66,7 @@ struct TreeRootLaunch {
   const int* colBase;        ///< [2^cut][nvx] mosaic column of image column 0 for root vx
   const int* rowBase;        ///< [2^cut][nvy] mosaic row of tile row 0 for root vy
   int cut;                   ///< 1..kTreeMaxCut
+  int shape;  ///< root velocities per block: 0 = 4 x 4, 1 = 8 x 8, 2 = 2 x 4, 3 = 4 x 8 (vx x vy)
   int width;
   int height;
   int y0;

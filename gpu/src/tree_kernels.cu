@@ -10,23 +10,25 @@ namespace st::gpu {
 namespace {
 
 constexpr int kLevelThreads = 256;
-constexpr int kRootThreads = 128;
-constexpr int kRootGx = 4;  // root velocities per block along vx
-constexpr int kRootGy = 4;  // and along vy
+constexpr int kLevelWarps = kLevelThreads / 32;
 
 __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch p) {
-  const int2 jr = p.rowJobs[blockIdx.x];
+  const int item = blockIdx.x * kLevelWarps + static_cast<int>(threadIdx.x / 32);
+  if (item >= p.rows) return;
+  const int lane = threadIdx.x & 31;
+  const int2 jr = p.rowJobs[item];
   const TreeJob& j = p.jobs[jr.x];
   const int row = jr.y;
   float* out = p.out + j.out + static_cast<long long>(row) * j.pitch;
   const int2 rr = p.rowTab[j.rowTable + row];
-  const int2* ct = p.colTab + j.colTable;
+  const int4* seg = p.segTab + j.segTable;
   if (!j.direct) {
     const float* a = p.in + j.left + static_cast<long long>(rr.x) * j.leftPitch;
     const float* b = p.in + j.right + static_cast<long long>(rr.y) * j.rightPitch;
-    for (int c = threadIdx.x; c < j.pitch; c += kLevelThreads) {
-      const int2 cc = ct[c];
-      out[c] = __ldg(a + cc.x) + __ldg(b + cc.y);
+    for (int s = 0; s < j.segments; ++s) {
+      const int4 g = seg[s];
+      for (int c = lane; c < g.y; c += 32)
+        out[g.x + c] = __ldg(a + g.z + c) + __ldg(b + g.w + c);
     }
     return;
   }
@@ -34,93 +36,128 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
   const int m = j.last - j.first;
   const int* sy = p.shiftY + j.shiftY + rr.x * m;
   const long long plane = static_cast<long long>(p.width) * p.height;
-  for (int c = threadIdx.x; c < j.pitch; c += kLevelThreads) {
-    const int2 cc = ct[c];
-    const int* sx = p.shiftX + j.shiftX + cc.x * m;
-    float s = 0.0f;
-    for (int k = 0; k < m; ++k) {
-      const int xi = cc.y + sx[k];
-      const int yi = p.y0 + rr.y + sy[k];
-      if (xi >= 0 && xi < p.width && yi >= 0 && yi < p.height) {
-        s += __ldg(p.frames + p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width + xi);
+  for (int s = 0; s < j.segments; ++s) {
+    const int4 g = seg[s];
+    const int* sx = p.shiftX + j.shiftX + g.z * m;
+    for (int c = lane; c < g.y; c += 32) {
+      float sum = 0.0f;
+      for (int k = 0; k < m; ++k) {
+        const int xi = g.w + c + sx[k];
+        const int yi = p.y0 + rr.y + sy[k];
+        if (xi >= 0 && xi < p.width && yi >= 0 && yi < p.height) {
+          sum +=
+              __ldg(p.frames + p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width + xi);
+        }
       }
+      out[g.x + c] = sum;
     }
-    out[c] = s;
   }
 }
 
-/// A block scans kRootGx x kRootGy root velocities over kRootThreads columns and kTreeRootRows rows, rows
-/// outermost: the cut stacks one row needs are shared by neighbouring root velocities (about 2 x 2 per cut
-/// stack), so after the first velocity of the group they come from L1, not L2.
-template <int kCut>
-__global__ void __launch_bounds__(kRootThreads) treeRootKernel(TreeRootLaunch p) {
+/// A block scans kGx x kGy root velocities over 32 columns and kTreeRootRows rows: warp w takes root vy
+/// iy0 + w and its kGx vx in turn, all warps on the same columns and row at about the same time. Each cut
+/// stack sample is read by about 2 x 2 neighbouring root velocities (the cut nodes' grids are about 2^cut /
+/// 4 times coarser per axis), so after the first one the lines come from L1 when the block's rows fit.
+/// Measured on the paper problem (H100, cut 4): 24.2 ms with 4 x 4, 24.8 ms with 8 x 8, 30 ms with 2 x 4 or
+/// 4 x 8 velocities per block, about 7 TB/s of L1/L2 traffic for 16 unaligned loads per cell. Tried and
+/// slower: staging each cut stack's 32-float chunks in shared memory per warp (plain 68 ms, cp.async
+/// double-buffered 85 ms: the cut stacks change every 2-4 root velocities, so the chunks rarely fit and the
+/// copies serialise), reusing a sample between neighbouring vx in registers (47 ms, a dependency chain).
+template <int kCut, int kGx, int kGy>
+__global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
   constexpr int kN = 1 << kCut;
-  constexpr int kG = kRootGx * kRootGy;
-  __shared__ long long base[kG][kN];
-  __shared__ int valid[kG];
-  const int colTiles = (p.width + kRootThreads - 1) / kRootThreads;
-  const int x0 = (blockIdx.x % colTiles) * kRootThreads;
-  const int ix0 = (blockIdx.x / colTiles) * kRootGx;
-  const int iy0 = blockIdx.y * kRootGy;
+  __shared__ int colOff[kGx][kN];
+  const int colTiles = (p.width + 31) / 32;
+  const int x0 = (blockIdx.x % colTiles) * 32;
+  const int ix0 = (blockIdx.x / colTiles) * kGx;
+  const int iy = blockIdx.y * kGy + static_cast<int>(threadIdx.x / 32);
   const int r0 = blockIdx.z * kTreeRootRows;
-  for (int i = threadIdx.x; i < kG * kN; i += kRootThreads) {
-    const int g = i / kN;
+  const int lane = threadIdx.x & 31;
+  for (int i = threadIdx.x; i < kGx * kN; i += 32 * kGy) {
+    const int gx = i / kN;
     const int c = i % kN;
-    const int ix = min(ix0 + g % kRootGx, p.nvx - 1);
-    const int iy = min(iy0 + g / kRootGx, p.nvy - 1);
-    base[g][c] = p.cutBase[c] + static_cast<long long>(p.rowBase[c * p.nvy + iy] + r0) * p.cutPitch[c] +
-                 p.colBase[c * p.nvx + ix] + x0;
-    if (c == 0) valid[g] = ix0 + g % kRootGx < p.nvx && iy0 + g / kRootGx < p.nvy;
+    colOff[gx][c] = p.colBase[c * p.nvx + min(ix0 + gx, p.nvx - 1)] + x0;
   }
   __syncthreads();
+  if (iy >= p.nvy) return;  // whole warps; no block barrier below
+  long long rowOff[kN];
   int pitch[kN];
 #pragma unroll
-  for (int c = 0; c < kN; ++c)
+  for (int c = 0; c < kN; ++c) {
     pitch[c] = p.cutPitch[c];
-  const int x = x0 + threadIdx.x;
+    rowOff[c] = p.cutBase[c] + static_cast<long long>(p.rowBase[c * p.nvy + iy] + r0) * pitch[c];
+  }
+  const int x = x0 + lane;
   const bool inImage = x < p.width;
-  int2 sx[kRootGx];
+  int2 sx[kGx];
 #pragma unroll
-  for (int gx = 0; gx < kRootGx; ++gx)
+  for (int gx = 0; gx < kGx; ++gx)
     sx[gx] = inImage ? p.spanX[static_cast<long long>(min(ix0 + gx, p.nvx - 1)) * p.width + x] : int2{0, -1};
-  unsigned long long best[kG];
+  unsigned long long best[kGx];
 #pragma unroll
-  for (int g = 0; g < kG; ++g)
-    best[g] = 0ull;
+  for (int gx = 0; gx < kGx; ++gx)
+    best[gx] = 0ull;
+  const int2* spanY = p.spanY + static_cast<long long>(iy) * p.height;
   const int rEnd = min(kTreeRootRows, min(p.tileRows - r0, p.height - p.y0 - r0));
   for (int r = 0; r < rEnd; ++r) {
     const int y = p.y0 + r0 + r;
+    const int2 sy = spanY[y];
 #pragma unroll
-    for (int g = 0; g < kG; ++g) {
-      if (!valid[g] || !inImage) continue;
-      const int ix = ix0 + g % kRootGx;
-      const int iy = iy0 + g / kRootGx;
+    for (int gx = 0; gx < kGx; ++gx) {
+      const int ix = ix0 + gx;
+      if (ix >= p.nvx || !inImage) continue;
       float v[kN];
 #pragma unroll
       for (int c = 0; c < kN; ++c)
-        v[c] = __ldg(p.in + base[g][c] + static_cast<long long>(r) * pitch[c] + threadIdx.x);
+        v[c] = __ldg(p.in + rowOff[c] + colOff[gx][c] + lane);
 #pragma unroll
       for (int s = 1; s < kN; s *= 2) {
 #pragma unroll
         for (int i = 0; i < kN; i += 2 * s)
           v[i] = v[i] + v[i + s];
       }
-      const int nIn = framesInBoth(sx[g % kRootGx], p.spanY[static_cast<long long>(iy) * p.height + y]);
+      const float sum = v[0];
+      const int nIn = framesInBoth(sx[gx], sy);
       if (nIn <= 0 || nIn < p.minFrames) continue;
-      const float snr = v[0] * p.invNorm[nIn];
+      const float snr = sum * p.invNorm[nIn];
       if (snr > p.snrThreshold) {
         const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
-        if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, v[0], snr, nIn, 0};
+        if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
       }
       const unsigned long long key = packKey(snr, y * p.width + x);
-      best[g] = key > best[g] ? key : best[g];
+      best[gx] = key > best[gx] ? key : best[gx];
     }
+#pragma unroll
+    for (int c = 0; c < kN; ++c)
+      rowOff[c] += pitch[c];
   }
 #pragma unroll
-  for (int g = 0; g < kG; ++g) {
-    const unsigned long long b = warpMax(best[g]);
-    if ((threadIdx.x & 31) == 0 && b != 0ull && valid[g])
-      atomicMax(p.mapKeys + (iy0 + g / kRootGx) * p.nvx + ix0 + g % kRootGx, b);
+  for (int gx = 0; gx < kGx; ++gx) {
+    const unsigned long long b = warpMax(best[gx]);
+    if (lane == 0 && b != 0ull) atomicMax(p.mapKeys + iy * p.nvx + ix0 + gx, b);
+  }
+}
+
+template <int kGx, int kGy>
+void launchRootShape(const TreeRootLaunch& p, cudaStream_t stream) {
+  const int colTiles = (p.width + 31) / 32;
+  const dim3 grid(colTiles * ((p.nvx + kGx - 1) / kGx), (p.nvy + kGy - 1) / kGy,
+                  (p.tileRows + kTreeRootRows - 1) / kTreeRootRows);
+  switch (p.cut) {
+    case 1:
+      treeRootKernel<1, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 2:
+      treeRootKernel<2, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 3:
+      treeRootKernel<3, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 4:
+      treeRootKernel<4, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    default:
+      throw GpuError("tree root kernel: cut " + std::to_string(p.cut) + " not compiled");
   }
 }
 
@@ -128,29 +165,23 @@ __global__ void __launch_bounds__(kRootThreads) treeRootKernel(TreeRootLaunch p)
 
 void launchTreeLevel(const TreeLevelLaunch& p, cudaStream_t stream) {
   if (p.rows <= 0) return;
-  treeLevelKernel<<<p.rows, kLevelThreads, 0, stream>>>(p);
+  treeLevelKernel<<<(p.rows + kLevelWarps - 1) / kLevelWarps, kLevelThreads, 0, stream>>>(p);
   checkLaunch("treeLevelKernel");
 }
 
 void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream) {
-  const int colTiles = (p.width + kRootThreads - 1) / kRootThreads;
-  const dim3 grid(colTiles * ((p.nvx + kRootGx - 1) / kRootGx), (p.nvy + kRootGy - 1) / kRootGy,
-                  (p.tileRows + kTreeRootRows - 1) / kTreeRootRows);
-  switch (p.cut) {
+  switch (p.shape) {
     case 1:
-      treeRootKernel<1><<<grid, kRootThreads, 0, stream>>>(p);
+      launchRootShape<8, 8>(p, stream);
       break;
     case 2:
-      treeRootKernel<2><<<grid, kRootThreads, 0, stream>>>(p);
+      launchRootShape<2, 4>(p, stream);
       break;
     case 3:
-      treeRootKernel<3><<<grid, kRootThreads, 0, stream>>>(p);
-      break;
-    case 4:
-      treeRootKernel<4><<<grid, kRootThreads, 0, stream>>>(p);
+      launchRootShape<4, 8>(p, stream);
       break;
     default:
-      throw GpuError("tree root kernel: cut " + std::to_string(p.cut) + " not compiled");
+      launchRootShape<4, 4>(p, stream);
   }
   checkLaunch("treeRootKernel");
 }

@@ -48,8 +48,8 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[0], 1)),
                                   DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[1], 1))};
   DeviceBuffer<TreeJob> jobs = toDevice(tree.jobs);
-  DeviceBuffer<int2> rowJobs = toDevice(tree.rowJobs), colTab = toDevice(tree.colTab),
-                     rowTab = toDevice(tree.rowTab);
+  DeviceBuffer<int4> segTab = toDevice(tree.segTab);
+  DeviceBuffer<int2> rowJobs = toDevice(tree.rowJobs), rowTab = toDevice(tree.rowTab);
   DeviceBuffer<int> shiftX = toDevice(tree.shiftX), shiftY = toDevice(tree.shiftY),
                     frameIndex = toDevice(tree.frameIndex), cutPitch = toDevice(tree.cutPitch),
                     colBase = toDevice(tree.colBase), rowBase = toDevice(tree.rowBase),
@@ -79,7 +79,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   lv.width = plan.width;
   lv.height = plan.height;
   lv.jobs = jobs.get();
-  lv.colTab = colTab.get();
+  lv.segTab = segTab.get();
   lv.rowTab = rowTab.get();
   lv.shiftX = shiftX.get();
   lv.shiftY = shiftY.get();
@@ -90,6 +90,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   rt.colBase = colBase.get();
   rt.rowBase = rowBase.get();
   rt.cut = tree.cut;
+  rt.shape = job.treeRootShape;
   rt.width = plan.width;
   rt.height = plan.height;
   rt.tileRows = tree.tileRows;

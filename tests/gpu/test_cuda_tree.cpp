@@ -142,6 +142,20 @@ TEST(CudaTree, SmallTilesAndEveryCutGiveTheCpuTreesResult) {
   }
 }
 
+TEST(CudaTree, EveryRootKernelShapeGivesTheCpuTreesResult) {
+  const Problem p = standardProblem();
+  for (const int shape : {1, 2, 3}) {
+    gpu::CudaOptions o;
+    o.treeRootShape = shape;
+    o.treeTileRows = 19;
+    ST_REQUIRE_GPU(gpu, o);
+    NullProgress progress;
+    CancelToken cancel;
+    SCOPED_TRACE("root shape " + std::to_string(shape));
+    expectSameAsCpuTree(gpu->search(p.cube, p.grid, p.params, progress, cancel), p);
+  }
+}
+
 TEST(CudaTree, MemoryLimitTilesTheRowsOrFailsClearly) {
   const Problem p = standardProblem();
   gpu::CudaOptions o;

@@ -40,6 +40,9 @@ struct CudaOptions {
   int treeTileRows = 0;
   /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
   bool profileTree = false;
+  /// Tree search, benchmarks: root velocities per block of the root kernel, 0 = 4 x 4 (default), 1 = 8 x 8,
+  /// 2 = 2 x 4, 3 = 4 x 8 (vx x vy).
+  int treeRootShape = 0;
 };
 
 /// Tree search default: the top 4 levels below the root are summed in registers (their stacks are used by
