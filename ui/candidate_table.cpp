@@ -254,6 +254,9 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->verticalHeader()->setVisible(false);
   m_table->verticalHeader()->setDefaultSectionSize(20);
   m_table->horizontalHeader()->setStretchLastSection(true);
+  // Vetting columns where the eye is when reviewing, even in a narrow dock: "#", label, reason, ... note.
+  m_table->horizontalHeader()->moveSection(CandidateModel::Label, 1);
+  m_table->horizontalHeader()->moveSection(CandidateModel::Reason, 2);
   m_table->setAlternatingRowColors(true);
   m_table->installEventFilter(this);  // the vetting keys (candidate_panel_vetting.cpp)
   m_table->setContextMenuPolicy(Qt::CustomContextMenu);
