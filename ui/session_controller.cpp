@@ -64,6 +64,10 @@ SessionController::SessionController(Observation* observation, std::function<Ses
   connect(m_obs, &Observation::candidateStateChanged, this, &SessionController::requestSave);
 }
 
+SessionController::~SessionController() {
+  m_saver->flush(10000);
+}
+
 void SessionController::setSettings(nlohmann::json settings) {
   m_settings = settings.is_object() ? std::move(settings) : nlohmann::json::object();
   requestSave();
@@ -79,22 +83,33 @@ void SessionController::adopt(const QString& path, std::vector<std::string> inpu
   m_sessionRaw = m_obs->raw().get();  // the restored frames arrive next (suspended), then are this session's
   m_sessionResult = nullptr;
   m_hadVetting = false;
-  m_path = path;
   m_inputs = std::move(inputs);
   m_demo = demo;
   m_settings = settings.is_object() ? std::move(settings) : nlohmann::json::object();
-  m_failing = false;
-  m_saver->setChangeCount(path, changes);
-  emit pathChanged(path);
-  emit statusChanged("Session: " + path, "Every change is saved to this file", false);
+  if (setPath(path, changes))
+    emit statusChanged("Session: " + path, "Every change is saved to this file", false);
 }
 
 void SessionController::saveAs(const QString& path) {
-  m_path = path;
-  m_saver->setChangeCount(path, 0);
+  if (setPath(path, 0)) requestSave();
+}
+
+bool SessionController::setPath(const QString& path, std::int64_t changes) {
   m_failing = false;
+  if (!m_lock.acquire(path)) {
+    m_path.clear();
+    const QString text =
+        "Session " + path +
+        " is open in another synthtrack window or process: changes made here are NOT saved to it "
+        "(File > Save session as… saves them elsewhere)";
+    emit statusChanged("Session NOT saved: " + path + " is open elsewhere", text, true);
+    emit saveFailed(text);
+    return false;
+  }
+  m_path = path;
+  m_saver->setChangeCount(path, changes);
   emit pathChanged(path);
-  requestSave();
+  return true;
 }
 
 void SessionController::startNext() {
@@ -103,16 +118,14 @@ void SessionController::startNext() {
   m_inputs = next.inputs;
   m_demo = next.demo;
   const QString preferred = next.path.isEmpty() ? defaultSessionPath(m_inputs, m_demo) : next.path;
-  m_path = freeSessionPath(preferred);
-  if (m_path != preferred)
+  const QString path = freeSessionPath(preferred);
+  if (path != preferred)
     emit notice("An earlier session of this observation is kept in " + preferred +
-                " (File > Open session… resumes it); this one is saved to " + m_path);
+                " (File > Open session… resumes it); this one is saved to " + path);
   m_settings = nlohmann::json::object();
-  m_failing = false;
   m_sessionResult = nullptr;
   m_hadVetting = false;
-  m_saver->setChangeCount(m_path, 0);
-  emit pathChanged(m_path);
+  setPath(path, 0);
 }
 
 void SessionController::forkFile() {
@@ -121,10 +134,7 @@ void SessionController::forkFile() {
   // obs.synthtrack-session-3.json -> obs.synthtrack-session.json, then the first free name from there.
   static const QRegularExpression numbered("-\\d+\\.json$");
   base.replace(numbered, ".json");
-  m_path = freeSessionPath(base);
-  m_failing = false;
-  m_saver->setChangeCount(m_path, 0);
-  emit pathChanged(m_path);
+  if (!setPath(freeSessionPath(base), 0)) return;
   emit notice("The vetted candidates were replaced by a new result; their session is kept in " + kept +
               ", this analysis goes on in " + m_path);
 }
@@ -146,6 +156,7 @@ void SessionController::requestSave() {
       // Frames that came without prepareNew() or a session being opened: never saved over this file.
       emit notice("Autosave stopped: the observation changed outside a session (" + m_path + " is kept)");
       m_path.clear();
+      m_lock.release();
       emit statusChanged("Session: none", "Open a session or the observation again to save", false);
     }
   }

@@ -16,6 +16,7 @@
 
 #include "observation.hpp"
 #include "session_autosaver.hpp"
+#include "session_lock.hpp"
 #include "session_snapshot.hpp"
 
 namespace st::ui {
@@ -35,6 +36,9 @@ class SessionController : public QObject {
   /// `parameters` gives the panels' settings at the time of a save (called on the GUI thread).
   SessionController(Observation* observation, std::function<SessionParameters()> parameters,
                     QObject* parent = nullptr);
+
+  /// Writes what is queued before the file's lock is released.
+  ~SessionController() override;
 
   [[nodiscard]] SessionAutosaver* autosaver() const noexcept { return m_saver; }
   /// The session file changes go to ("" before the first observation).
@@ -74,6 +78,9 @@ class SessionController : public QObject {
  private:
   /// Starts the session prepared by prepareNew() (path, inputs, change count).
   void startNext();
+  /// Changes go to `path` from now on, counting on from `changes`; false (and no file) when another window
+  /// or process holds the file's lock (saveFailed() says so).
+  bool setPath(const QString& path, std::int64_t changes);
   /// Leaves the current file as it is and continues in the next free name.
   void forkFile();
   void onSaved(const QString& path, qint64 changes, double ms);
@@ -82,6 +89,7 @@ class SessionController : public QObject {
   Observation* m_obs;
   std::function<SessionParameters()> m_parameters;
   SessionAutosaver* m_saver;
+  SessionLock m_lock;
   QString m_path;
   std::vector<std::string> m_inputs;
   bool m_demo = false;

@@ -339,6 +339,39 @@ TEST(Session, ANewSearchNeverOverwritesVettedCandidates) {
       << w.statusBar()->currentMessage().toStdString();
 }
 
+TEST(Session, ASecondWindowOnTheSameFileDoesNotWriteIt) {
+  test::TempDir dir;
+  const QString path = QString::fromStdString((dir / "s.json").string());
+  const auto cube = std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1));
+  Observation o1;
+  auto c1 = std::make_unique<SessionController>(&o1, std::function<SessionParameters()>{});
+  c1->prepareNew({"a.fits"}, false, path);
+  o1.setRaw(cube, "a");
+  ASSERT_TRUE(c1->autosaver()->flush());
+  const session::Session before = session::SessionStore(path.toStdString()).load();
+
+  Observation o2;
+  SessionController c2(&o2, {});
+  QString error;
+  QObject::connect(&c2, &SessionController::saveFailed, [&](const QString& m) { error = m; });
+  c2.setSuspended(true);
+  c2.adopt(path, {"a.fits"}, false, before.changes, {});
+  o2.setRaw(cube, "a");
+  c2.setSuspended(false);
+  EXPECT_TRUE(c2.path().isEmpty());
+  EXPECT_TRUE(error.contains(path) && error.contains("another")) << error.toStdString();
+  o2.setUnit(VelocityUnit::DegPerDay);
+  ASSERT_TRUE(c2.autosaver()->flush());
+  EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);
+
+  // Once the first window lets go (closed), another can take the file.
+  c1.reset();
+  EXPECT_FALSE(QFile::exists(SessionLock::lockPath(path)));
+  SessionController c3(&o2, {});
+  c3.adopt(path, {"a.fits"}, false, before.changes, {});
+  EXPECT_EQ(c3.path(), path);
+}
+
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
   test::TempDir dir;
   const std::vector<std::string> inputs = {(dir / "frames.fits.fz").string()};
