@@ -40,8 +40,8 @@ struct CudaOptions {
   int treeTileRows = 0;
   /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
   bool profileTree = false;
-  /// Tree search, benchmarks: root velocities per block of the root kernel, 0 = 4 x 4 (default), 1 = 8 x 8,
-  /// 2 = 2 x 4, 3 = 4 x 8 (vx x vy).
+  /// Tree search, benchmarks: root kernel shape (TreeRootLaunch::shape in gpu/src/tree_kernel_params.hpp),
+  /// 0 = the default.
   int treeRootShape = 0;
 };
 
