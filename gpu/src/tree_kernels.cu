@@ -27,6 +27,7 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
     const float* b = p.in + j.right + static_cast<long long>(rr.y) * j.rightPitch;
     for (int s = 0; s < j.segments; ++s) {
       const int4 g = seg[s];
+#pragma unroll 4
       for (int c = lane; c < g.y; c += 32)
         out[g.x + c] = __ldg(a + g.z + c) + __ldg(b + g.w + c);
     }
