@@ -70,7 +70,8 @@ struct TreeRootLaunch {
               ///< columns,
               ///< <= 128 registers (default); 1 = 8 x 8; 2 = 2 x 4; 3 = 4 x 8; 4 = 4 x 4 at <= 64 registers;
               ///< 5 = 4 x 4 unbounded; 6 = 4 x 4 at <= 80 registers; 7 = 4 x 4, 2 columns, <= 102 registers;
-              ///< 8 = 4 x 4, 4 columns; 9 = 8 x 4, 2 columns (1 column unless said)
+              ///< 8 = 4 x 4, 4 columns; 9 = 8 x 4, 2 columns; 10, 13 = 2 x 4, 2 columns, <= 80 or 64
+              ///< registers; 11 = 4 x 8, 2 columns; 12 = 4 x 2, 2 columns (1 column unless said)
   int width;
   int height;
   int y0;

@@ -61,7 +61,8 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
 /// same cut stacks a pixel or two apart) share L1 lines (ncu, 1-column version: L1 hit rate 72%; latency-
 /// bound at 30% occupancy, no unit above 45%). Measured on the paper problem (H100, cut 4): 1 column 24.2 ms
 /// (108 registers) / 21.8 ms (80), 2 columns 20.0 ms (105 registers, the default), 4 columns 21.5 ms;
-/// 8 x 8 or 4 x 8 velocities per block, or a persistent grid of 1-8 blocks per SM, no better. Tried and
+/// 2 x 4, 4 x 8, 4 x 2 velocities per block with 2 columns 19.8-20.8 ms; 8 x 8 or 4 x 8 with 1 column, or a
+/// persistent grid of 1-8 blocks per SM, no better. Tried and
 /// slower: staging each cut stack's 32-float chunks in shared memory per warp (plain 68 ms, cp.async
 /// double-buffered 85 ms: the cut stacks change every 2-4 root velocities, so the chunks rarely fit and the
 /// copies serialise), reusing a sample between neighbouring vx in registers (47 ms, a dependency chain),
@@ -213,6 +214,18 @@ void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream) {
       break;
     case 9:
       launchRootShape<8, 4, 4, 2>(p, stream);
+      break;
+    case 10:
+      launchRootShape<2, 4, 6, 2>(p, stream);
+      break;
+    case 11:
+      launchRootShape<4, 8, 2, 2>(p, stream);
+      break;
+    case 12:
+      launchRootShape<4, 2, 8, 2>(p, stream);
+      break;
+    case 13:
+      launchRootShape<2, 4, 8, 2>(p, stream);
       break;
     default:
       launchRootShape<4, 4, 4, 2>(p, stream);

@@ -144,7 +144,7 @@ TEST(CudaTree, SmallTilesAndEveryCutGiveTheCpuTreesResult) {
 
 TEST(CudaTree, EveryRootKernelShapeGivesTheCpuTreesResult) {
   const Problem p = standardProblem();
-  for (const int shape : {1, 2, 3, 4, 5, 6, 7, 8, 9}) {
+  for (const int shape : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13}) {
     gpu::CudaOptions o;
     o.treeRootShape = shape;
     o.treeTileRows = 19;
