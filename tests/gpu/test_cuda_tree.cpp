@@ -204,6 +204,10 @@ TEST(CudaTree, CancelledAndBadMethod) {
   CancelToken fresh;
   p.params.method = "fast";
   EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, fresh), InputError);
+  // The method choice (method_choice.hpp) and the backend factory route tree requests by this answer.
+  EXPECT_TRUE(gpu->supportsMethod("tree"));
+  EXPECT_TRUE(gpu->supportsMethod("exact"));
+  EXPECT_FALSE(gpu->supportsMethod("fast"));
 }
 
 }  // namespace

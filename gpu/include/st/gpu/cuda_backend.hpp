@@ -52,6 +52,10 @@ inline constexpr int kTreeDefaultCut = 4;
 /// The CUDA backend, with what its last search did about memory (tiling, devices) for the log.
 class CudaSearchBackend : public search::SearchBackend {
  public:
+  /// "exact" and "tree" (tree_search_device.hpp: the CPU tree's plan, bit-identical stacks).
+  [[nodiscard]] bool supportsMethod(const std::string& method) const override {
+    return method == "exact" || method == "tree";
+  }
   /// One line per device used by the last search: how the cube and the grid were tiled.
   [[nodiscard]] virtual std::string lastNote() const = 0;
   /// Device seconds spent in search kernels by the last search (summed over devices).
