@@ -79,8 +79,10 @@ CoreServices services(const std::shared_ptr<Calls>& calls) {
   return s;
 }
 
+// No job running, and the candidate inspector (which stores the artifact flags it computes on the
+// selected candidate, an autosaved change) done.
 bool idle(MainWindow& w) {
-  return !w.jobs()->busy();
+  return !w.jobs()->busy() && !w.candidateInspector()->busy();
 }
 
 QString sessionStatus(MainWindow& w) {
@@ -151,10 +153,12 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
   o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
   o1->setSelected(1);
-  // The candidate inspector computes the selected candidate's artifact flags in a worker and stores them:
-  // let it finish, so that this window's state is final, then close it (it must not write any more).
-  test::waitFor([&] { return !w1.candidateInspector()->busy() && !o1->candidateState(1)->artifacts.empty(); },
-                5000);
+  // The candidate inspector computes the selected candidate's artifact flags in a worker and stores them (its
+  // finished signal is queued after the worker stops): wait for them, so that this window's state is final
+  // and in the file, then close it (it must not write any more).
+  ASSERT_TRUE(test::waitFor([&] {
+    return idle(w1) && !w1.candidateInspector()->busy() && !o1->candidateState(1)->artifacts.empty();
+  }));
   ASSERT_TRUE(w1.session()->autosaver()->flush());
   ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w1).contains(path); }));
   const auto states1 = o1->candidateStates();
@@ -189,6 +193,7 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   EXPECT_EQ(w2.session()->path(), path);
 
   // Later changes keep going to the same file, counting on.
+  ASSERT_TRUE(w2.session()->autosaver()->flush());
   const std::int64_t before = session::SessionStore(path.toStdString()).load().changes;
   o2->setCandidateLabel(3, session::Label::Unsure);
   ASSERT_TRUE(w2.session()->autosaver()->flush());
