@@ -43,8 +43,7 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
     m_fitPanel->fitSelected();
   });
   QTableView* table = m_candidates->table();
-  table->setContextMenuPolicy(Qt::ActionsContextMenu);
-  table->addAction(fitAction);
+  table->addAction(fitAction);  // the candidates panel's context menu lists the table's actions
 }
 
 void MainWindow::runScriptFit() {
