@@ -121,7 +121,7 @@ QGroupBox* CandidateInspector::buildFlagBox() {
   m_store->setToolTip(
       "Keep the flags of every inspected candidate with it (saved in the session). Off: the "
       "flags are shown only, and inspecting changes nothing in the session.");
-  m_store->setChecked(QSettings().value("inspector/storeFlags", false).toBool());
+  m_store->setChecked(QSettings().value("inspector/storeFlags", true).toBool());
   m_evidence = new QLabel(this);
   m_evidence->setWordWrap(true);
   m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);

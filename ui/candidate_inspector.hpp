@@ -4,8 +4,8 @@
 // side by side on one scale, the segment strip (K = 4 equal-time stacks with their SNRs, flagged ones
 // framed in red), the frame-by-frame cutouts along the track as a scrubbable strip with a play/pause movie,
 // and the artifact flags of st::vet with their evidence, which are stored on the candidate
-// (Observation::setCandidateArtifacts) when "Store on candidate" is checked. "Load known objects…" reads a
-// CSV (st::vet::readKnownObjects) and adds the known-object check.
+// (Observation::setCandidateArtifacts) unless "Store on candidate" is unchecked. "Load known objects…" reads
+// a CSV (st::vet::readKnownObjects) and adds the known-object check.
 #include <QElapsedTimer>
 #include <QFutureWatcher>
 #include <QString>
@@ -59,8 +59,8 @@ class CandidateInspector : public QWidget {
   [[nodiscard]] QString statusText() const;
   [[nodiscard]] bool playing() const { return m_playTimer.isActive(); }
   /// Whether every inspection stores its flags on the candidate (Observation::setCandidateArtifacts, which
-  /// the session saves). Off by default (a setting): inspecting a candidate then changes nothing a person
-  /// did not ask for; turning it on stores the flags shown.
+  /// the session saves; unchanged flags are not stored again). On by default (a setting); off, inspecting
+  /// a candidate changes nothing in the session. Turning it on stores the flags shown.
   void setStoreFlags(bool on);
   [[nodiscard]] bool storesFlags() const;
 

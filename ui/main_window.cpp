@@ -230,7 +230,7 @@ void MainWindow::buildMenus() {
   run->addAction("&Pre-process", QKeySequence("Ctrl+P"), this, &MainWindow::runPreprocess);
   run->addAction("&Search", QKeySequence("Ctrl+R"), this, &MainWindow::runSearch);
   run->addAction("&Cancel", QKeySequence("Esc"), m_jobs, &JobRunner::cancel);
-  if (auto* fit = findChild<QAction*>("action.fitCandidate")) run->addAction(fit);  // F, made with the docks
+  run->addActions(m_candidates->table()->actions());  // "Fit selected candidate" (F), built with the docks
   auto* autoPre = run->addAction("Pre-process after loading");
   autoPre->setCheckable(true);
   autoPre->setChecked(m_autoPreprocess);

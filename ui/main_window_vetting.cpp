@@ -1,10 +1,12 @@
-// MainWindow: the candidate inspector and co-moving fit docks, the fit's action (F, Run menu), and the
-// scripted fit (--fit).
+// MainWindow: the candidate inspector and co-moving fit docks, the fit's action (F; Run menu and the
+// candidates table's context menu), and the scripted fit (--fit).
 #include <QAction>
 #include <QDockWidget>
 #include <QScrollArea>
+#include <QTableView>
 
 #include "candidate_inspector.hpp"
+#include "candidate_table.hpp"
 #include "fit_panel.hpp"
 #include "main_window.hpp"
 
@@ -32,8 +34,8 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   resizeDocks({candidates, fit}, {560, 940}, Qt::Horizontal);
   cand->raise();
 
-  // The fit is launched with F anywhere in the window, from the Run menu (buildMenus adds this action) or
-  // from the panel's button. (The candidates table's context menu is the vetting menu; it does not list it.)
+  // The fit is launched from the candidates table's context menu or with F anywhere in the window (the
+  // action lives on the table; buildMenus adds it to the Run menu, which makes the shortcut window-wide).
   auto* fitAction = new QAction("Fit selected candidate (co-moving)", this);
   fitAction->setObjectName("action.fitCandidate");
   fitAction->setShortcut(QKeySequence("F"));
@@ -42,7 +44,8 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
     fit->raise();
     m_fitPanel->fitSelected();
   });
-  addAction(fitAction);
+  QTableView* table = m_candidates->table();
+  table->addAction(fitAction);  // the candidates panel's context menu lists the table's actions
 }
 
 void MainWindow::runScriptFit() {
