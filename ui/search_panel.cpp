@@ -296,14 +296,14 @@ void SearchPanel::refresh() {
 
 QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
                                         std::optional<double> rate) {
-  const EstimateKey key{&raw,  raw.width(),      raw.height(), g.nvx,
-                        g.nvy, raw.frameCount(), g.stepPxS,    rate.value_or(0.0)};
+  const EstimateKey key{&raw, raw.width(), raw.height(), g.nvx, g.nvy, raw.frameCount(), g.stepPxS};
+  const search::MethodCostModel model = search::cpuCostModel(workerCount(), rate);
   if (!m_estimateCache || !(m_estimateCache->first == key)) {
-    const search::MethodCostModel model = search::cpuCostModel(workerCount(), rate);
     m_estimateCache.emplace(
         key, search::estimateMethods(raw.width(), raw.height(), raw.timeOffsetsS(), g, model, workerCount()));
   }
-  const search::MethodEstimate& e = m_estimateCache->second;
+  search::MethodEstimate& e = m_estimateCache->second;
+  search::priceMethods(e, model);
   const search::MethodChoice c = search::chooseMethod(method(), e, true, "cpu");
   const bool tree = c.method == "tree";
   QString text =

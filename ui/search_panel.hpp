@@ -83,12 +83,13 @@ class SearchPanel : public QWidget {
   QPushButton* m_cancel;
   QLabel* m_status;
   std::optional<double> m_stackSeconds;
-  /// The last method estimate and what it was computed for (building the tree plan takes milliseconds).
+  /// The last method estimate and what it was computed for (the tree plan takes milliseconds to build; a new
+  /// measured throughput only re-prices it).
   struct EstimateKey {
     const FrameCube* cube = nullptr;
     int width = 0, height = 0, nvx = 0, nvy = 0;
     std::size_t frames = 0;
-    double step = 0.0, rate = 0.0;
+    double step = 0.0;
     bool operator==(const EstimateKey&) const = default;
   };
   std::optional<std::pair<EstimateKey, search::MethodEstimate>> m_estimateCache;

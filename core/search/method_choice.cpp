@@ -72,16 +72,22 @@ MethodCostModel costModelFor(const SearchBackend& backend) {
   return cpuCostModel(workerCount());
 }
 
+void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
+  e.exactSeconds = model.exactFixedS + e.exactAdditions / model.exactAdditionsPerS;
+  e.treeSeconds = e.treeAdditions > 0.0
+                      ? model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS
+                      : std::numeric_limits<double>::infinity();
+}
+
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads) {
   MethodEstimate e;
   const SearchEstimate exact =
       estimateSearch(width, height, dtS.size(), grid, std::max(1u, threads), model.exactAdditionsPerS);
   e.exactAdditions = exact.additions;
-  e.exactSeconds = model.exactFixedS + exact.seconds;
   e.exactWorkingBytes = exact.workingBytes;
   e.cubeBytes = exact.cubeBytes;
-  e.treeSeconds = std::numeric_limits<double>::infinity();
+  priceMethods(e, model);
   const bool distinctTimes = dtS.size() >= 2 && *std::max_element(dtS.begin(), dtS.end()) >
                                                     *std::min_element(dtS.begin(), dtS.end());
   if (!distinctTimes || grid.count() == 0 || !(grid.stepPxS > 0.0) || width <= 0 || height <= 0) return e;
@@ -89,7 +95,7 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   e.treeTileRows = treeTileRows(plan, width);
   e.treeAdditions = treeAdditions(plan, width, height, e.treeTileRows);
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
-  e.treeSeconds = model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS;
+  priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.
   const std::size_t tiles = static_cast<std::size_t>((height + e.treeTileRows - 1) / e.treeTileRows);
   const std::size_t busy = std::min<std::size_t>(std::max(1u, threads), tiles);

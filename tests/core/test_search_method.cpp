@@ -148,6 +148,11 @@ TEST(SearchMethod, CostModelFollowsTheBackendAndTheMeasuredRate) {
   const MethodEstimate b = estimateMethods(256, 256, p.dt, p.grid, fast, 2);
   EXPECT_NEAR(a.exactSeconds - slow.exactFixedS, 2.0 * (b.exactSeconds - fast.exactFixedS), 1e-9);
   EXPECT_NEAR(a.treeSeconds - slow.treeFixedS, 2.0 * (b.treeSeconds - fast.treeFixedS), 1e-9);
+  // Re-pricing with the other rate gives the other estimate without rebuilding the plan.
+  MethodEstimate repriced = a;
+  priceMethods(repriced, fast);
+  EXPECT_DOUBLE_EQ(repriced.exactSeconds, b.exactSeconds);
+  EXPECT_DOUBLE_EQ(repriced.treeSeconds, b.treeSeconds);
   // On the GPU model the paper problem would go to the tree once a GPU backend supports it.
   const Problem paper = evenProblem(1500, 16.7, 100);
   const MethodEstimate g = estimateMethods(512, 512, paper.dt, paper.grid, cudaCostModel(), 1);

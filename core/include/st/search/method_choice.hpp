@@ -72,6 +72,10 @@ struct MethodEstimate {
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads);
 
+/// (Re)prices `estimate`'s additions with `model`: exactSeconds and treeSeconds (infinite without a tree
+/// plan). For a new measured throughput without rebuilding the tree plan.
+void priceMethods(MethodEstimate& estimate, const MethodCostModel& model);
+
 /// The resolved method and why.
 struct MethodChoice {
   std::string method;  ///< "exact" or "tree"
