@@ -104,6 +104,32 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   thr->addRow(m_bySnr, m_snr);
   thr->addRow(m_byFap, m_fap);
 
+  QGroupBox* runBox = makeRunBox(gpuNames);
+
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addWidget(gridBox);
+  layout->addWidget(thrBox);
+  layout->addWidget(runBox);
+  layout->addStretch(1);
+
+  connect(m_unit, &QComboBox::currentIndexChanged, this, &SearchPanel::onUnitChanged);
+  for (auto* s : {m_cx, m_cy, m_half, m_step})
+    connect(s, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
+  connect(m_snr, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
+  connect(m_fap, &QLineEdit::textChanged, this, &SearchPanel::refresh);
+  connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
+  connect(m_method, &QComboBox::currentIndexChanged, this, &SearchPanel::refresh);
+  connect(m_backend, &QComboBox::currentIndexChanged, this, &SearchPanel::refresh);
+  connect(m_obs, &Observation::resultChanged, this, &SearchPanel::onResultChanged);
+  connect(m_run, &QPushButton::clicked, this, &SearchPanel::runRequested);
+  connect(m_cancel, &QPushButton::clicked, this, &SearchPanel::cancelRequested);
+  connect(m_obs, &Observation::rawChanged, this, &SearchPanel::onRawChanged);
+  setGridPxS({}, 0.5, 0.01);
+  if (m_obs->raw()) onRawChanged();
+}
+
+QGroupBox* SearchPanel::makeRunBox(const std::vector<std::string>& gpuNames) {
   auto* runBox = new QGroupBox("Run", this);
   auto* run = new QFormLayout(runBox);
   m_method = new QComboBox(runBox);
@@ -139,28 +165,7 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   run->addRow("Estimate", m_estimate);
   run->addRow(buttons);
   run->addRow(m_status);
-
-  auto* layout = new QVBoxLayout(this);
-  layout->setContentsMargins(2, 2, 2, 2);
-  layout->addWidget(gridBox);
-  layout->addWidget(thrBox);
-  layout->addWidget(runBox);
-  layout->addStretch(1);
-
-  connect(m_unit, &QComboBox::currentIndexChanged, this, &SearchPanel::onUnitChanged);
-  for (auto* s : {m_cx, m_cy, m_half, m_step})
-    connect(s, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
-  connect(m_snr, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
-  connect(m_fap, &QLineEdit::textChanged, this, &SearchPanel::refresh);
-  connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
-  connect(m_method, &QComboBox::currentIndexChanged, this, &SearchPanel::refresh);
-  connect(m_backend, &QComboBox::currentIndexChanged, this, &SearchPanel::refresh);
-  connect(m_obs, &Observation::resultChanged, this, &SearchPanel::onResultChanged);
-  connect(m_run, &QPushButton::clicked, this, &SearchPanel::runRequested);
-  connect(m_cancel, &QPushButton::clicked, this, &SearchPanel::cancelRequested);
-  connect(m_obs, &Observation::rawChanged, this, &SearchPanel::onRawChanged);
-  setGridPxS({}, 0.5, 0.01);
-  if (m_obs->raw()) onRawChanged();
+  return runBox;
 }
 
 void SearchPanel::onRawChanged() {

@@ -14,6 +14,7 @@
 
 class QComboBox;
 class QDoubleSpinBox;
+class QGroupBox;
 class QSpinBox;
 class QLabel;
 class QLineEdit;
@@ -60,6 +61,8 @@ class SearchPanel : public QWidget {
   void refresh();
   void setSpinUnits();
   void onResultChanged();
+  /// The "Run" box: method, backend (with the GPUs' names), estimate, buttons, status.
+  QGroupBox* makeRunBox(const std::vector<std::string>& gpuNames);
   [[nodiscard]] QString methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
                                            std::optional<double> rate);
 
