@@ -302,14 +302,17 @@ void SearchPanel::refresh() {
 QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
                                         std::optional<double> rate) {
   const EstimateKey key{&raw, raw.width(), raw.height(), g.nvx, g.nvy, raw.frameCount(), g.stepPxS};
-  const search::MethodCostModel model = search::cpuCostModel(workerCount(), rate);
+  // The choice uses the CPU backend's own model, as the search will (searchWithMethod); the times shown use
+  // the live stack's measured throughput when there is one.
+  const search::MethodCostModel standard = search::cpuCostModel(workerCount());
   if (!m_estimateCache || !(m_estimateCache->first == key)) {
-    m_estimateCache.emplace(
-        key, search::estimateMethods(raw.width(), raw.height(), raw.timeOffsetsS(), g, model, workerCount()));
+    m_estimateCache.emplace(key, search::estimateMethods(raw.width(), raw.height(), raw.timeOffsetsS(), g,
+                                                         standard, workerCount()));
   }
   search::MethodEstimate& e = m_estimateCache->second;
-  search::priceMethods(e, model);
+  search::priceMethods(e, standard);
   const search::MethodChoice c = search::chooseMethod(method(), e, true, "cpu");
+  search::priceMethods(e, search::cpuCostModel(workerCount(), rate));
   const bool tree = c.method == "tree";
   QString text =
       method() == "auto" ? "Auto → " + QString::fromStdString(c.method) : QString::fromStdString(c.method);
