@@ -10,7 +10,7 @@ packages=(
   qt6-base-dev qt6-svg-dev libqcustomplot-dev libgl-dev
   libgtest-dev libgmock-dev
   python3-astropy python3-numpy
-  xvfb xauth
+  xvfb xauth saods9
 )
 
 missing=()

@@ -1,5 +1,6 @@
 #include "candidate_table.hpp"
 
+#include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QDoubleValidator>
 #include <QHBoxLayout>
@@ -9,6 +10,8 @@
 #include <QTableView>
 #include <QVBoxLayout>
 #include <cmath>
+
+#include "candidate_vetting.hpp"
 
 namespace st::ui {
 
@@ -38,8 +41,49 @@ QString CandidateModel::flagsOf(const search::Candidate& c) const {
   return flags.join(", ");
 }
 
+QVariant CandidateModel::vettingData(const session::CandidateState& state, int column, int role) const {
+  if (role == Qt::BackgroundRole) {
+    const QColor tint = labelColour(state.label, column == Label);
+    return tint.isValid() ? QVariant(tint) : QVariant();
+  }
+  if (role == Qt::ToolTipRole && column == Note && !state.note.empty())
+    return QString::fromStdString(state.note);
+  if (role == Qt::ToolTipRole) return vettingShortcutHelp();
+  if (role != Qt::DisplayRole && role != Qt::UserRole && role != Qt::EditRole) return {};
+  switch (column) {
+    case Label:
+      return labelText(state.label);
+    case Reason:
+      return reasonText(state.reason);
+    case Note:
+      return QString::fromStdString(state.note);
+    default:
+      return {};
+  }
+}
+
+Qt::ItemFlags CandidateModel::flags(const QModelIndex& index) const {
+  Qt::ItemFlags f = QAbstractTableModel::flags(index);
+  if (index.isValid() && index.column() == Note) f |= Qt::ItemIsEditable;
+  return f;
+}
+
+bool CandidateModel::setData(const QModelIndex& index, const QVariant& value, int role) {
+  if (!index.isValid() || index.column() != Note || role != Qt::EditRole) return false;
+  m_obs->setCandidateNote(index.row(), value.toString().toStdString());  // candidateStateChanged -> reloadRow
+  return true;
+}
+
+void CandidateModel::reloadRow(int row) {
+  if (row < 0 || row >= rowCount()) return;
+  emit dataChanged(index(row, 0), index(row, ColumnCount - 1));
+}
+
 QVariant CandidateModel::data(const QModelIndex& index, int role) const {
   if (!index.isValid() || !m_obs->result()) return {};
+  if (const auto* state = m_obs->candidateState(index.row());
+      state && (index.column() >= Label || role == Qt::BackgroundRole || role == Qt::ToolTipRole))
+    return vettingData(*state, index.column(), role);
   const auto& c = m_obs->result()->candidates[static_cast<std::size_t>(index.row())];
   const auto scale = m_obs->plateScale();
   const auto unit = m_obs->unit();
@@ -136,6 +180,12 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
       return "cells";
     case Flags:
       return "flags";
+    case Label:
+      return "label";
+    case Reason:
+      return "reason";
+    case Note:
+      return "note";
     default:
       return {};
   }
@@ -158,11 +208,23 @@ void CandidateFilter::setFlagText(const QString& text) {
   m_flagText = text.trimmed();
   invalidateFilter();
 }
+void CandidateFilter::setLabelFilter(LabelFilter filter) {
+  m_label = filter;
+  invalidateFilter();
+}
 
 bool CandidateFilter::filterAcceptsRow(int row, const QModelIndex& parent) const {
   auto value = [&](int column) { return sourceModel()->index(row, column, parent).data(Qt::UserRole); };
   if (value(CandidateModel::Snr).toDouble() < m_minSnr) return false;
   if (value(CandidateModel::Fap).toDouble() > m_maxFap) return false;
+  if (m_label != LabelFilter::All) {
+    const QString label = value(CandidateModel::Label).toString();
+    const char* wanted = m_label == LabelFilter::Real       ? "real"
+                         : m_label == LabelFilter::Artifact ? "artifact"
+                         : m_label == LabelFilter::Unsure   ? "unsure"
+                                                            : "";
+    if (label != QLatin1String(wanted)) return false;
+  }
   if (!m_flagText.isEmpty()) {
     const QString flags = value(CandidateModel::Flags).toString();
     if (m_flagText == "-") return flags.isEmpty();  // "-" keeps only unflagged candidates
@@ -183,52 +245,22 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->sortByColumn(CandidateModel::Snr, Qt::DescendingOrder);
   m_table->setSelectionBehavior(QAbstractItemView::SelectRows);
   m_table->setSelectionMode(QAbstractItemView::SingleSelection);
+  m_table->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);
   m_table->verticalHeader()->setVisible(false);
   m_table->verticalHeader()->setDefaultSectionSize(20);
   m_table->horizontalHeader()->setStretchLastSection(true);
   m_table->setAlternatingRowColors(true);
+  m_table->installEventFilter(this);  // the vetting keys (candidate_panel_vetting.cpp)
+  m_table->setContextMenuPolicy(Qt::CustomContextMenu);
+  connect(m_table, &QWidget::customContextMenuRequested, this, &CandidatePanel::showVettingMenu);
+  buildFilterBar();
 
-  m_minSnr = new QDoubleSpinBox(this);
-  m_minSnr->setRange(0, 1000);
-  m_minSnr->setDecimals(1);
-  m_minSnr->setPrefix("SNR ≥ ");
-  m_maxFap = new QLineEdit("1", this);
-  m_maxFap->setValidator(new QDoubleValidator(0, 1, 20, m_maxFap));
-  m_maxFap->setMaximumWidth(80);
-  m_maxFap->setToolTip("Show candidates whose false-alarm probability is at most this");
-  m_flags = new QLineEdit(this);
-  m_flags->setPlaceholderText("flag contains… ('-' = none)");
-  m_count = new QLabel(this);
-  auto* bar = new QHBoxLayout;
-  bar->addWidget(m_minSnr);
-  bar->addWidget(new QLabel("FAP ≤", this));
-  bar->addWidget(m_maxFap);
-  bar->addWidget(m_flags, 1);
-  bar->addWidget(m_count);
-  auto* layout = new QVBoxLayout(this);
-  layout->setContentsMargins(2, 2, 2, 2);
-  layout->addLayout(bar);
-  layout->addWidget(m_table, 1);
-
-  auto updateCount = [this] {
-    m_count->setText(QString("%1 of %2").arg(m_filter->rowCount()).arg(m_model->rowCount()));
-  };
-  connect(m_minSnr, &QDoubleSpinBox::valueChanged, this, [this, updateCount](double v) {
-    m_filter->setMinSnr(v);
-    updateCount();
-  });
-  connect(m_maxFap, &QLineEdit::textChanged, this, [this, updateCount](const QString& t) {
-    bool ok = false;
-    const double v = t.toDouble(&ok);
-    m_filter->setMaxFap(ok ? v : 1.0);
-    updateCount();
-  });
-  connect(m_flags, &QLineEdit::textChanged, this, [this, updateCount](const QString& t) {
-    m_filter->setFlagText(t);
-    updateCount();
-  });
-  connect(m_obs, &Observation::resultChanged, this, [this, updateCount] {
+  connect(m_obs, &Observation::resultChanged, this, [this] {
     onResult();
+    updateCount();
+  });
+  connect(m_obs, &Observation::candidateStateChanged, this, [this](int index) {
+    m_model->reloadRow(index);
     updateCount();
   });
   connect(m_obs, &Observation::unitChanged, m_model, &CandidateModel::reload);
@@ -239,6 +271,64 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
             m_obs->setSelected(m_filter->mapToSource(current).row());
           });
   updateCount();
+}
+
+void CandidatePanel::buildFilterBar() {
+  m_minSnr = new QDoubleSpinBox(this);
+  m_minSnr->setRange(0, 1000);
+  m_minSnr->setDecimals(1);
+  m_minSnr->setPrefix("SNR ≥ ");
+  m_maxFap = new QLineEdit("1", this);
+  m_maxFap->setValidator(new QDoubleValidator(0, 1, 20, m_maxFap));
+  m_maxFap->setMaximumWidth(80);
+  m_maxFap->setToolTip("Show candidates whose false-alarm probability is at most this");
+  m_flags = new QLineEdit(this);
+  m_flags->setPlaceholderText("flag contains… ('-' = none)");
+  m_labelFilter = new QComboBox(this);
+  m_labelFilter->addItems({"All", "Unvetted", "Real", "Artifact", "Unsure"});
+  m_labelFilter->setToolTip("Show candidates with this label");
+  auto* keys = new QLabel("⌨ keys", this);
+  keys->setToolTip(vettingShortcutHelp());
+  m_count = new QLabel(this);
+  auto* bar = new QHBoxLayout;
+  bar->addWidget(m_minSnr);
+  bar->addWidget(new QLabel("FAP ≤", this));
+  bar->addWidget(m_maxFap);
+  bar->addWidget(m_flags, 1);
+  bar->addWidget(m_labelFilter);
+  bar->addWidget(keys);
+  bar->addWidget(m_count);
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addLayout(bar);
+  layout->addWidget(m_table, 1);
+
+  connect(m_minSnr, &QDoubleSpinBox::valueChanged, this, [this](double v) {
+    m_filter->setMinSnr(v);
+    updateCount();
+  });
+  connect(m_maxFap, &QLineEdit::textChanged, this, [this](const QString& t) {
+    bool ok = false;
+    const double v = t.toDouble(&ok);
+    m_filter->setMaxFap(ok ? v : 1.0);
+    updateCount();
+  });
+  connect(m_flags, &QLineEdit::textChanged, this, [this](const QString& t) {
+    m_filter->setFlagText(t);
+    updateCount();
+  });
+  connect(m_labelFilter, &QComboBox::currentIndexChanged, this, [this](int i) {
+    m_filter->setLabelFilter(static_cast<CandidateFilter::LabelFilter>(i));
+    updateCount();
+  });
+}
+
+void CandidatePanel::updateCount() {
+  int vetted = 0;
+  for (const auto& s : m_obs->candidateStates())
+    vetted += s.label != session::Label::Unvetted ? 1 : 0;
+  m_count->setText(
+      QString("%1 of %2, %3 vetted").arg(m_filter->rowCount()).arg(m_model->rowCount()).arg(vetted));
 }
 
 void CandidatePanel::onResult() {

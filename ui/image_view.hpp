@@ -40,7 +40,9 @@ class ImageView : public QWidget {
   [[nodiscard]] const QImage& rendered() const noexcept { return m_rendered; }
 
   void setMarkers(std::vector<ImageMarker> markers);
+  [[nodiscard]] const std::vector<ImageMarker>& markers() const noexcept { return m_markers; }
   void setOverlayText(const QString& text);
+  [[nodiscard]] const QString& overlayText() const noexcept { return m_overlay; }
   /// Text shown while there is no image.
   void setPlaceholder(const QString& text);
 

@@ -33,6 +33,12 @@ long long floorDiv(long long a, long long b) {
   return a / b - ((a % b != 0) && ((a < 0) != (b < 0)));
 }
 
+// ADES ra: decimal degrees in [0, 360), 7 decimals; a value that rounds up to 360 is written as 0.
+std::string adesRa(double raDeg) {
+  const std::string text = fmt("%.7f", std::fmod(std::fmod(raDeg, 360.0) + 360.0, 360.0));
+  return text == "360.0000000" ? "0.0000000" : text;
+}
+
 void checkSettings(const SubmissionSettings& s) {
   if (s.stationCode.size() != 3) {
     throw InputError("MPC station code must be 3 characters, got '" + s.stationCode + "' (set --station)");
@@ -196,9 +202,8 @@ SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const 
     if (d.trkSub.empty() || d.trkSub.size() > 8)
       throw InputError("ADES trkSub must be 1 to 8 characters, got '" + d.trkSub + "'");
     const bool hasMag = d.mag && std::isfinite(*d.mag);
-    rows.push_back({d.trkSub, s.detector, s.stationCode, isoUtcFromMjd(d.mjdUtc),
-                    fmt("%.7f", std::fmod(std::fmod(d.raDeg, 360.0) + 360.0, 360.0)), fmt("%+.7f", d.decDeg),
-                    d.sigmaRaArcsec ? fmt("%.3f", *d.sigmaRaArcsec) : "",
+    rows.push_back({d.trkSub, s.detector, s.stationCode, isoUtcFromMjd(d.mjdUtc), adesRa(d.raDeg),
+                    fmt("%+.7f", d.decDeg), d.sigmaRaArcsec ? fmt("%.3f", *d.sigmaRaArcsec) : "",
                     d.sigmaDecArcsec ? fmt("%.3f", *d.sigmaDecArcsec) : "", s.astCat,
                     hasMag ? fmt("%.2f", *d.mag) : "", hasMag ? d.band : "",
                     d.snr > 0.0 ? fmt("%.2f", std::log10(d.snr)) : "",

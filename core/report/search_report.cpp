@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "st/common/error.hpp"
 #include "st/search/sky_motion.hpp"
@@ -77,11 +78,112 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
                  {"nvy", r.trials.nvy},
                  {"total", r.trials.total()}};
   j["snr_threshold"] = r.snrThreshold;
+  j["cells_above_threshold"] = r.cellsAboveThreshold;
+  j["min_frames"] = r.minFrames;
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : r.candidates)
     j["candidates"].push_back(candidateToJson(cube, r.grid, c));
   return j;
+}
+
+namespace {
+
+/// json[key] as T; throws st::InputError naming the key when it is missing or of the wrong type.
+template <typename T>
+T required(const nlohmann::json& json, const char* key, const char* what) {
+  if (!json.is_object() || !json.contains(key))
+    throw InputError(std::string(what) + ": missing key '" + key + "'");
+  try {
+    return json.at(key).get<T>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(std::string(what) + ": key '" + key + "' has the wrong type: " + e.what());
+  }
+}
+
+template <typename T>
+T optionalKey(const nlohmann::json& json, const char* key, T fallback, const char* what) {
+  return json.contains(key) ? required<T>(json, key, what) : fallback;
+}
+
+}  // namespace
+
+search::Candidate candidateFromJson(const nlohmann::json& j) {
+  constexpr const char* kWhat = "candidate";
+  search::Candidate c;
+  c.x = required<int>(j, "x", kWhat);
+  c.y = required<int>(j, "y", kWhat);
+  c.v = {required<double>(j, "vx_px_s", kWhat), required<double>(j, "vy_px_s", kWhat)};
+  c.snr = required<double>(j, "snr", kWhat);
+  c.nIn = required<int>(j, "n_frames", kWhat);
+  c.fap = required<double>(j, "fap", kWhat);
+  c.sum = required<double>(j, "sum", kWhat);
+  c.clusterCells = required<int>(j, "cluster_cells", kWhat);
+  c.ivx = required<int>(j, "ivx", kWhat);
+  c.ivy = required<int>(j, "ivy", kWhat);
+  return c;
+}
+
+nlohmann::json velocityMapToJson(const search::VelocityMap& map) {
+  nlohmann::json snr = nlohmann::json::array();
+  for (const float v : map.maxSnr) {
+    if (std::isfinite(v))
+      snr.push_back(static_cast<double>(v));
+    else
+      snr.push_back(nullptr);
+  }
+  return {{"nvx", map.nvx}, {"nvy", map.nvy}, {"max_snr", snr}, {"arg_x", map.argX}, {"arg_y", map.argY}};
+}
+
+search::VelocityMap velocityMapFromJson(const nlohmann::json& j) {
+  constexpr const char* kWhat = "velocity map";
+  search::VelocityMap map;
+  map.nvx = required<int>(j, "nvx", kWhat);
+  map.nvy = required<int>(j, "nvy", kWhat);
+  const auto snr = required<nlohmann::json>(j, "max_snr", kWhat);
+  map.argX = required<std::vector<int>>(j, "arg_x", kWhat);
+  map.argY = required<std::vector<int>>(j, "arg_y", kWhat);
+  const auto n =
+      static_cast<std::size_t>(std::max(map.nvx, 0)) * static_cast<std::size_t>(std::max(map.nvy, 0));
+  if (!snr.is_array() || snr.size() != n || map.argX.size() != n || map.argY.size() != n)
+    throw InputError("velocity map: max_snr, arg_x and arg_y must hold nvx * nvy = " + std::to_string(n) +
+                     " values");
+  for (const auto& v : snr) {
+    if (!v.is_null() && !v.is_number()) throw InputError("velocity map: max_snr holds a non-number");
+    map.maxSnr.push_back(v.is_null() ? std::numeric_limits<float>::quiet_NaN()
+                                     : static_cast<float>(v.get<double>()));
+  }
+  return map;
+}
+
+search::SearchResult searchResultFromJson(const nlohmann::json& j) {
+  constexpr const char* kWhat = "search result";
+  search::SearchResult r;
+  const auto grid = required<nlohmann::json>(j, "grid", kWhat);
+  r.grid.centre = {required<double>(grid, "centre_vx_px_s", "grid"),
+                   required<double>(grid, "centre_vy_px_s", "grid")};
+  r.grid.stepPxS = required<double>(grid, "step_px_s", "grid");
+  r.grid.nvx = required<int>(grid, "nvx", "grid");
+  r.grid.nvy = required<int>(grid, "nvy", "grid");
+  const auto trials = required<nlohmann::json>(j, "trials", kWhat);
+  r.trials = {required<std::int64_t>(trials, "nx", "trials"), required<std::int64_t>(trials, "ny", "trials"),
+              required<std::int64_t>(trials, "nvx", "trials"),
+              required<std::int64_t>(trials, "nvy", "trials")};
+  r.snrThreshold = required<double>(j, "snr_threshold", kWhat);
+  r.tRefMjd = required<double>(j, "t_ref_mjd", kWhat);
+  r.backend = required<std::string>(j, "backend", kWhat);
+  r.method = required<std::string>(j, "method", kWhat);
+  r.methodReason = optionalKey<std::string>(j, "method_reason", std::string(), kWhat);
+  r.elapsedS = optionalKey<double>(j, "elapsed_s", 0.0, kWhat);
+  r.cellsAboveThreshold = optionalKey<std::int64_t>(j, "cells_above_threshold", 0, kWhat);
+  r.minFrames = optionalKey<int>(j, "min_frames", 0, kWhat);
+  if (j.contains("velocity_map")) r.map = velocityMapFromJson(j["velocity_map"]);
+  if (j.contains("candidates")) {
+    if (!j["candidates"].is_array()) throw InputError("search result: 'candidates' is not an array");
+    for (const auto& c : j["candidates"])
+      r.candidates.push_back(candidateFromJson(c));
+  }
+  return r;
 }
 
 void writeCandidatesCsv(const std::string& path, const nlohmann::json& result) {

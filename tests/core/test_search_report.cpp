@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "st/common/units.hpp"
@@ -83,6 +85,107 @@ TEST(SearchReport, CsvHasOneRowPerCandidateWithFlags) {
     EXPECT_EQ(row.substr(row.size() - tail.size()), tail);
   }
   EXPECT_THROW(writeCandidatesCsv((dir / "no/such/dir/c.csv").string(), j), InputError);
+}
+
+/// Fields compared one by one (search::Candidate and SearchResult have no operator==).
+void expectSameCandidate(const search::Candidate& a, const search::Candidate& b) {
+  EXPECT_EQ(a.x, b.x);
+  EXPECT_EQ(a.y, b.y);
+  EXPECT_EQ(a.v.vx, b.v.vx);  // exact: the JSON text must carry every bit of the double
+  EXPECT_EQ(a.v.vy, b.v.vy);
+  EXPECT_EQ(a.ivx, b.ivx);
+  EXPECT_EQ(a.ivy, b.ivy);
+  EXPECT_EQ(a.sum, b.sum);
+  EXPECT_EQ(a.nIn, b.nIn);
+  EXPECT_EQ(a.snr, b.snr);
+  EXPECT_EQ(a.fap, b.fap);
+  EXPECT_EQ(a.clusterCells, b.clusterCells);
+}
+
+/// A result whose numbers need all 17 significant digits (1/3, 0.1 + 0.2, a denormal-range FAP).
+search::SearchResult awkwardResult() {
+  search::SearchResult r = twoCandidates();
+  r.grid = {{16.39 + 1.0 / 3.0, -0.1 - 0.2}, 2.0 / 3.0, 3, 2};
+  r.candidates[0].sum = 1.0 / 7.0;
+  r.candidates[0].snr = 15.000000000000002;
+  r.candidates[0].fap = 4.9e-324;
+  r.candidates[0].ivx = 2;
+  r.candidates[0].ivy = 1;
+  r.candidates[0].clusterCells = 17;
+  r.candidates[1].fap = 0.1 + 0.2;
+  r.candidates[1].x = -3;  // a track that starts off the frame
+  r.map = {3, 2, {1.0f / 3.0f, 7.25f, 0.0f, 1e-30f, 12.5f, 3.0f}, {1, 2, 3, 4, 5, 6}, {6, 5, 4, 3, 2, 1}};
+  r.snrThreshold = 6.999999999999999;
+  r.tRefMjd = 60000.123456789012;
+  r.backend = "cpu (2 threads)";
+  r.method = "tree";
+  r.elapsedS = 0.1234567;
+  r.cellsAboveThreshold = 123456789012;
+  r.minFrames = 5;
+  return r;
+}
+
+TEST(SearchReport, ResultRoundTripsExactlyThroughJsonText) {
+  const auto fc = scanCube();
+  const search::SearchResult r = awkwardResult();
+  nlohmann::json j = searchResultToJson(fc, r, {"obs.fits"});
+  j["velocity_map"] = velocityMapToJson(r.map);
+  const search::SearchResult back = searchResultFromJson(nlohmann::json::parse(j.dump()));
+  EXPECT_EQ(back.grid.centre.vx, r.grid.centre.vx);
+  EXPECT_EQ(back.grid.centre.vy, r.grid.centre.vy);
+  EXPECT_EQ(back.grid.stepPxS, r.grid.stepPxS);
+  EXPECT_EQ(back.grid.nvx, 3);
+  EXPECT_EQ(back.grid.nvy, 2);
+  EXPECT_EQ(back.trials.total(), r.trials.total());
+  EXPECT_EQ(back.snrThreshold, r.snrThreshold);
+  EXPECT_EQ(back.tRefMjd, r.tRefMjd);
+  EXPECT_EQ(back.backend, r.backend);
+  EXPECT_EQ(back.method, r.method);
+  EXPECT_EQ(back.methodReason, r.methodReason);
+  EXPECT_EQ(back.elapsedS, r.elapsedS);
+  EXPECT_EQ(back.cellsAboveThreshold, r.cellsAboveThreshold);
+  EXPECT_EQ(back.minFrames, 5);
+  ASSERT_EQ(back.candidates.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i)
+    expectSameCandidate(back.candidates[i], r.candidates[i]);
+  EXPECT_EQ(back.map.nvx, 3);
+  EXPECT_EQ(back.map.maxSnr, r.map.maxSnr);
+  EXPECT_EQ(back.map.argX, r.map.argX);
+  EXPECT_EQ(back.map.argY, r.map.argY);
+}
+
+TEST(SearchReport, CandidateRoundTripsAndMissingKeysAreNamed) {
+  const auto fc = scanCube();
+  const search::SearchResult r = awkwardResult();
+  const nlohmann::json c = candidateToJson(fc, r.grid, r.candidates[0]);
+  expectSameCandidate(candidateFromJson(nlohmann::json::parse(c.dump())), r.candidates[0]);
+  nlohmann::json broken = c;
+  broken.erase("fap");
+  try {
+    (void)candidateFromJson(broken);
+    FAIL() << "a candidate without fap was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'fap'"), std::string::npos) << e.what();
+  }
+  broken = c;
+  broken["snr"] = "high";
+  EXPECT_THROW((void)candidateFromJson(broken), InputError);
+}
+
+TEST(SearchReport, VelocityMapOfTheWrongSizeAndNonFiniteSnr) {
+  search::VelocityMap map{2, 1, {std::numeric_limits<float>::infinity(), 2.0f}, {0, 1}, {0, 0}};
+  const search::VelocityMap back = velocityMapFromJson(nlohmann::json::parse(velocityMapToJson(map).dump()));
+  EXPECT_TRUE(std::isnan(back.maxSnr[0]));  // documented: non-finite values come back as NaN
+  EXPECT_EQ(back.maxSnr[1], 2.0f);
+  nlohmann::json j = velocityMapToJson(map);
+  j["nvx"] = 3;
+  EXPECT_THROW((void)velocityMapFromJson(j), InputError);
+  // A result without a map or candidates (a session's "search" member) reads with both empty.
+  nlohmann::json noCandidates = searchResultToJson(scanCube(), awkwardResult(), {});
+  noCandidates.erase("candidates");
+  const auto result = searchResultFromJson(noCandidates);
+  EXPECT_TRUE(result.candidates.empty());
+  EXPECT_TRUE(result.map.maxSnr.empty());
 }
 
 TEST(SearchReport, JsonFileIsWrittenAtomically) {

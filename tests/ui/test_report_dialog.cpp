@@ -1,0 +1,222 @@
+// The Reports dialog on the main window, offscreen, on a moving-dot cube with a TAN WCS (1"/px, north up,
+// east left): only candidates labelled real reach ADES and MPC; the low-SNR one shows a visible warning;
+// JSON/CSV carry every candidate with its label; DS9 regions are fk5; the FITS stacks carry a WCS and
+// provenance and the object-tracked one has all frames of the dot on the candidate's pixel; the settings
+// persist; errors name the path. With ST_REPORT_OUT set, the outputs stay there for the DS9 and astropy
+// checks of tests/python/test_gui_reports.py.
+#include <gtest/gtest.h>
+
+#include <QFile>
+#include <QSettings>
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "job_runner.hpp"
+#include "main_window.hpp"
+#include "report_dialog.hpp"
+#include "search_panel.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/io/wcs.hpp"
+#include "test_support.hpp"
+#include "ui_test_support.hpp"
+
+using namespace st;
+using namespace st::ui;
+
+namespace {
+
+constexpr Velocity kDotV{8.0, -4.0};
+
+FrameCube cubeWithWcs() {
+  FrameCube cube = test::movingDotCube(96, 96, 40, kDotV, 40, 50);
+  FitsHeader& h = cube.header;
+  h.setString("CTYPE1", "RA---TAN");
+  h.setString("CTYPE2", "DEC--TAN");
+  h.setNumber("CRPIX1", 48.5);
+  h.setNumber("CRPIX2", 48.5);
+  h.setNumber("CRVAL1", 150.0);
+  h.setNumber("CRVAL2", 30.0);
+  h.setNumber("CD1_1", -1.0 / 3600.0);
+  h.setNumber("CD1_2", 0.0);
+  h.setNumber("CD2_1", 0.0);
+  h.setNumber("CD2_2", 1.0 / 3600.0);
+  h.setString("RADESYS", "ICRS");
+  h.setNumber("EQUINOX", 2000.0);
+  cube.wcs = Wcs::fromHeader(h, nullptr);
+  cube.plateScaleArcsecPerPx = 1.0;
+  return cube;
+}
+
+std::vector<std::string> readLines(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);)
+    lines.push_back(l);
+  return lines;
+}
+
+std::string readAll(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A converged fit at the candidate's cell with its sky position through the cube's WCS.
+nlohmann::json fitAt(const search::Candidate& c, const FrameCube& raw, double snr) {
+  const auto sky = raw.wcs->pixelToSky(c.x, c.y);
+  return {{"status", "converged"},
+          {"x", c.x},
+          {"y", c.y},
+          {"vx_px_s", c.v.vx},
+          {"vy_px_s", c.v.vy},
+          {"snr", snr},
+          {"ra_deg", sky.raDeg},
+          {"dec_deg", sky.decDeg},
+          {"t_ref_mjd", raw.tRefMjd()},
+          {"sigma_ra_arcsec", 0.1},
+          {"sigma_dec_arcsec", 0.1}};
+}
+
+class ReportDialogTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    w = std::make_unique<MainWindow>(test::fakeServices(cubeWithWcs()));
+    w->resize(1200, 800);
+    w->show();
+    w->openDemo();
+    ASSERT_TRUE(test::waitFor([&] { return w->observation()->prepared() && !w->jobs()->busy(); }));
+    w->searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+    w->runSearch();
+    ASSERT_TRUE(test::waitFor([&] { return w->observation()->result() && !w->jobs()->busy(); }));
+    ASSERT_GE(w->observation()->result()->candidates.size(), 3u);
+  }
+  std::unique_ptr<MainWindow> w;
+};
+
+}  // namespace
+
+TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
+  Observation* obs = w->observation();
+  const auto& cands = obs->result()->candidates;
+  const FrameCube& raw = *obs->raw();
+  obs->setCandidateFit(0, fitAt(cands[0], raw, 14.0));
+  obs->setCandidateFit(1, fitAt(cands[1], raw, 5.0));  // below the safe SNR 7
+  obs->setCandidateFit(2, fitAt(cands[2], raw, 20.0));
+  obs->setCandidateLabel(0, session::Label::Real);
+  obs->setCandidateLabel(1, session::Label::Real);
+  obs->setCandidateLabel(2, session::Label::Artifact, session::ArtifactReason::Ghost);
+  obs->setSelected(0);
+
+  ReportDialog* d = w->reportDialog();
+  report::SubmissionSettings s;
+  s.stationCode = "291";
+  s.observers = "A. Observer";
+  s.astCat = "Gaia3";
+  s.mpcCatalogCode = 'W';
+  d->setSubmissionSettings(s);
+  d->show();
+  d->refreshWarnings();
+  EXPECT_TRUE(d->warningVisible());
+  EXPECT_TRUE(d->warningText().contains("st00002: SNR 5.00")) << d->warningText().toStdString();
+  EXPECT_FALSE(d->warningText().contains("st00001"));
+
+  test::TempDir tmp;
+  const char* keep = std::getenv("ST_REPORT_OUT");
+  const std::string folder = keep && *keep ? std::string(keep) : (tmp / "out").string();
+  d->setOutput(QString::fromStdString(folder), "run");
+  d->setOutputs(true, true, true, true, true, true);
+  d->setStackChoice(StackChoice::Real);
+  bool done = false, ok = false;
+  QObject::connect(d, &ReportDialog::exportFinished, [&](bool good, const QString&) {
+    done = true;
+    ok = good;
+  });
+  ASSERT_TRUE(d->exportReports());
+  ASSERT_TRUE(test::waitFor([&] { return done; }));
+  ASSERT_TRUE(ok) << d->resultText().toStdString();
+  EXPECT_TRUE(d->resultText().contains("st00002: SNR 5.00 is below the safe 7.0"));
+
+  // ADES: header blocks, the field-name line, then exactly the two real candidates.
+  std::vector<std::string> data;
+  for (const auto& l : readLines(folder + "/run.psv"))
+    if (!l.empty() && l[0] != '#' && l[0] != '!' && l.find("trkSub") == std::string::npos) data.push_back(l);
+  ASSERT_EQ(data.size(), 2u);
+  EXPECT_EQ(data[0].substr(0, 7), "st00001");
+  EXPECT_EQ(data[1].substr(0, 7), "st00002");
+  EXPECT_NE(readAll(folder + "/run.psv").find("! mpcCode 291"), std::string::npos);
+  // MPC 80-column: header lines (COD, OBS, ...) then the two observations, 80 columns, station in 78-80.
+  std::vector<std::string> obsLines;
+  for (const auto& l : readLines(folder + "/run_mpc.txt"))
+    if (l.size() == 80 && l.substr(77, 3) == "291" && l.substr(0, 4) != "COD ") obsLines.push_back(l);
+  ASSERT_EQ(obsLines.size(), 2u);
+  EXPECT_EQ(obsLines[0].substr(5, 7), "st00001");
+  EXPECT_EQ(obsLines[1].substr(5, 7), "st00002");
+  EXPECT_EQ(readAll(folder + "/run_mpc.txt").find("st00003"), std::string::npos);
+
+  // JSON and CSV: every candidate, with its label.
+  const auto json = nlohmann::json::parse(readAll(folder + "/run_candidates.json"));
+  ASSERT_EQ(json["candidates"].size(), cands.size());
+  EXPECT_EQ(json["candidates"][2]["label"], "artifact");
+  EXPECT_EQ(json["candidates"][2]["reason"], "ghost");
+  EXPECT_EQ(session::fromSearchJson(json).candidates[0].fit, obs->candidateState(0)->fit);
+  const auto csv = readLines(folder + "/run_candidates.csv");
+  ASSERT_EQ(csv.size(), cands.size() + 1);
+  EXPECT_EQ(csv[1].substr(0, 7), "1,real,");
+  // DS9: fk5 through the WCS, one circle per candidate.
+  const std::string reg = readAll(folder + "/run.reg");
+  EXPECT_NE(reg.find("fk5"), std::string::npos);
+  std::size_t circles = 0;
+  for (auto p = reg.find("circle("); p != std::string::npos; p = reg.find("circle(", p + 1))
+    ++circles;
+  EXPECT_EQ(circles, cands.size());
+
+  // FITS stacks of the two real candidates, tracking the sky and the object.
+  // (A stack has one epoch, TREFMJD, and no DATE-OBS: the reader is given a time.)
+  io::LoadOptions opts;
+  opts.startMjd = 60000.0;
+  opts.frameRateHz = 1.0;
+  NullProgress progress;
+  CancelToken cancel;
+  const FrameCube object = io::loadFrames({folder + "/run_c001_object.fits"}, opts, progress, cancel);
+  const FrameCube sky = io::loadFrames({folder + "/run_c001_sky.fits"}, opts, progress, cancel);
+  ASSERT_TRUE(object.wcs);
+  EXPECT_EQ(object.header.getString("STMODE").value_or(""), "IPSA");
+  EXPECT_NEAR(object.header.getDouble("STVX").value_or(0), cands[0].v.vx, 1e-9);
+  EXPECT_NEAR(sky.header.getDouble("STVX").value_or(1), 0.0, 1e-12);
+  EXPECT_FLOAT_EQ(object.frame(0)[static_cast<std::size_t>(cands[0].y) * 96 + cands[0].x], 40.0f);
+  EXPECT_TRUE(QFile::exists(QString::fromStdString(folder + "/run_c002_object.fits")));
+  EXPECT_FALSE(QFile::exists(QString::fromStdString(folder + "/run_c003_object.fits")));
+  // The stack's WCS at t_ref maps the candidate's pixel where the cube's does (sky rate 0 here).
+  const auto a = object.wcs->pixelToSky(cands[0].x, cands[0].y),
+             b = raw.wcs->pixelToSky(cands[0].x, cands[0].y);
+  EXPECT_NEAR(a.raDeg, b.raDeg, 1e-9);
+  EXPECT_NEAR(a.decDeg, b.decDeg, 1e-9);
+
+  // The settings persist for the next dialog.
+  ReportDialog again({obs, {}});
+  EXPECT_EQ(again.submissionSettings().stationCode, "291");
+  EXPECT_EQ(again.submissionSettings().mpcCatalogCode, 'W');
+}
+
+TEST_F(ReportDialogTest, ErrorsNameThePath) {
+  ReportDialog* d = w->reportDialog();
+  d->setOutput("/proc/st-cannot-create", "x");
+  d->setOutputs(true, false, false, false, false, false);
+  bool done = false, ok = true;
+  QObject::connect(d, &ReportDialog::exportFinished, [&](bool good, const QString&) {
+    done = true;
+    ok = good;
+  });
+  ASSERT_TRUE(d->exportReports());
+  ASSERT_TRUE(test::waitFor([&] { return done; }));
+  EXPECT_FALSE(ok);
+  EXPECT_TRUE(d->resultText().contains("/proc/st-cannot-create")) << d->resultText().toStdString();
+  // No real candidate: nothing to warn about.
+  d->refreshWarnings();
+  EXPECT_FALSE(d->warningVisible());
+}
+
+ST_UI_TEST_MAIN()

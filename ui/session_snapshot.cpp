@@ -1,0 +1,180 @@
+#include "session_snapshot.hpp"
+
+#include "st/common/error.hpp"
+#include "st/report/search_report.hpp"
+
+namespace st::ui {
+namespace {
+
+using nlohmann::json;
+
+constexpr std::pair<VelocityUnit, const char*> kUnits[] = {{VelocityUnit::PxPerS, "px_s"},
+                                                           {VelocityUnit::ArcsecPerMin, "arcsec_min"},
+                                                           {VelocityUnit::DegPerDay, "deg_day"}};
+
+json gridToJson(const search::VelocityGrid& g) {
+  return {{"centre_vx_px_s", g.centre.vx},
+          {"centre_vy_px_s", g.centre.vy},
+          {"step_px_s", g.stepPxS},
+          {"nvx", g.nvx},
+          {"nvy", g.nvy}};
+}
+
+json stagesToJson(const std::vector<StageSpec>& stages) {
+  json out = json::object();
+  for (const auto& stage : stages) {
+    json params = json::object();
+    for (const auto& p : stage.params)
+      params[p.key] = p.value;
+    out[stage.name] = {{"enabled", stage.enabled}, {"parameters", params}};
+  }
+  return out;
+}
+
+json searchParametersToJson(const SessionParameters& p) {
+  return {{"grid", gridToJson(p.grid)},
+          {"snr_threshold", p.search.snrThreshold},
+          {"target_fap", p.search.targetFap ? json(*p.search.targetFap) : json(nullptr)},
+          {"max_candidates", p.search.maxCandidates},
+          {"min_frame_fraction", p.search.minFrameFraction},
+          {"method", p.search.method},
+          {"backend", toString(p.backend)}};
+}
+
+/// `json[key]` as T when present, else `fallback`; throws st::InputError naming the key when mistyped.
+template <typename T>
+T valueOr(const json& j, const char* key, T fallback, const std::string& where) {
+  if (!j.is_object() || !j.contains(key) || j[key].is_null()) return fallback;
+  try {
+    return j[key].get<T>();
+  } catch (const json::exception&) {
+    throw InputError(where + ": parameter '" + key + "' has the wrong type");
+  }
+}
+
+std::vector<StageSpec> restoreStages(const json& saved, std::vector<StageSpec> stages,
+                                     const std::string& where) {
+  if (!saved.is_object()) return stages;
+  for (auto& stage : stages) {
+    if (!saved.contains(stage.name)) continue;
+    const json& s = saved[stage.name];
+    stage.enabled = !stage.optional || valueOr<bool>(s, "enabled", stage.enabled, where);
+    const json params = s.is_object() && s.contains("parameters") ? s["parameters"] : json::object();
+    for (auto& p : stage.params)
+      p.value = valueOr<double>(params, p.key.c_str(), p.value, where);
+  }
+  return stages;
+}
+
+search::VelocityGrid gridFromJson(const json& j, const std::string& where) {
+  search::VelocityGrid g;
+  g.centre = {valueOr<double>(j, "centre_vx_px_s", 0.0, where),
+              valueOr<double>(j, "centre_vy_px_s", 0.0, where)};
+  g.stepPxS = valueOr<double>(j, "step_px_s", 0.0, where);
+  g.nvx = valueOr<int>(j, "nvx", 0, where);
+  g.nvy = valueOr<int>(j, "nvy", 0, where);
+  return g;
+}
+
+void restoreSearchParameters(const json& s, SessionParameters& p, const std::string& where) {
+  if (!s.is_object()) return;
+  if (s.contains("grid")) p.grid = gridFromJson(s["grid"], where);
+  p.search.snrThreshold = valueOr<double>(s, "snr_threshold", p.search.snrThreshold, where);
+  if (s.contains("target_fap") && !s["target_fap"].is_null())
+    p.search.targetFap = valueOr<double>(s, "target_fap", 0.0, where);
+  p.search.maxCandidates = valueOr<std::size_t>(s, "max_candidates", p.search.maxCandidates, where);
+  p.search.minFrameFraction = valueOr<double>(s, "min_frame_fraction", p.search.minFrameFraction, where);
+  p.search.method = valueOr<std::string>(s, "method", p.search.method, where);
+  p.backend = backendKindFromString(valueOr<std::string>(s, "backend", "auto", where));
+}
+
+}  // namespace
+
+const char* toString(BackendKind kind) noexcept {
+  switch (kind) {
+    case BackendKind::Cpu:
+      return "cpu";
+    case BackendKind::Gpu:
+      return "gpu";
+    default:
+      return "auto";
+  }
+}
+
+BackendKind backendKindFromString(const std::string& text) noexcept {
+  if (text == "cpu") return BackendKind::Cpu;
+  if (text == "gpu") return BackendKind::Gpu;
+  return BackendKind::Auto;
+}
+
+session::Session makeSession(const Observation& obs, const std::vector<std::string>& inputs,
+                             const SessionParameters& parameters, const json& settings) {
+  session::Session s;
+  s.inputs = inputs;
+  s.settings = settings.is_object() ? settings : json::object();
+  s.parameters["observation"] = {{"demo", parameters.demo}, {"label", obs.label().toStdString()}};
+  s.parameters["preprocess"] = stagesToJson(parameters.stages);
+  s.parameters["search"] = searchParametersToJson(parameters);
+  const char* unit = "px_s";
+  for (const auto& [u, key] : kUnits)
+    if (u == obs.unit()) unit = key;
+  s.parameters["view"] = {{"selected", obs.selected() ? json(*obs.selected()) : json(nullptr)},
+                          {"velocity_unit", unit}};
+  const auto& result = obs.result();
+  if (!result) return s;
+  // The cube gives the sky rate, frame count and WCS the candidate keys need; without one (never in the app,
+  // a search needs it) the keys that depend on it are left out.
+  const auto& prepared = obs.prepared();
+  const search::FilteredCube empty;
+  const search::FilteredCube& cube = prepared && prepared->filtered ? *prepared->filtered : empty;
+  s.search = report::searchResultToJson(cube, *result, inputs);
+  s.search.erase("candidates");
+  s.search["velocity_map"] = report::velocityMapToJson(result->map);
+  const auto& states = obs.candidateStates();
+  for (std::size_t i = 0; i < result->candidates.size(); ++i) {
+    session::CandidateState state = i < states.size() ? states[i] : session::CandidateState{};
+    state.candidate = report::candidateToJson(cube, result->grid, result->candidates[i]);
+    s.candidates.push_back(std::move(state));
+  }
+  return s;
+}
+
+SessionSnapshot restoreSnapshot(const session::Session& session, const std::vector<StageSpec>& defaults,
+                                const std::string& where) {
+  SessionSnapshot snap;
+  snap.inputs = session.inputs;
+  const json& p = session.parameters;
+  const json observation = p.contains("observation") ? p["observation"] : json::object();
+  snap.parameters.demo = valueOr<bool>(observation, "demo", false, where);
+  snap.label = QString::fromStdString(valueOr<std::string>(observation, "label", "", where));
+  snap.parameters.stages =
+      restoreStages(p.contains("preprocess") ? p["preprocess"] : json(), defaults, where);
+  restoreSearchParameters(p.contains("search") ? p["search"] : json(), snap.parameters, where);
+  const json view = p.contains("view") ? p["view"] : json::object();
+  const std::string unit = valueOr<std::string>(view, "velocity_unit", "px_s", where);
+  for (const auto& [u, key] : kUnits)
+    if (unit == key) snap.unit = u;
+  if (!session.search.is_object() || session.search.empty()) {
+    if (!session.candidates.empty())
+      throw InputError(where + ": candidates without a search result (the 'search' member is empty)");
+    return snap;
+  }
+  search::SearchResult result;
+  try {
+    result = report::searchResultFromJson(session.search);
+    for (const auto& state : session.candidates)
+      result.candidates.push_back(report::candidateFromJson(state.candidate));
+  } catch (const InputError& e) {
+    throw InputError(where + ": " + e.what());
+  }
+  snap.states = session.candidates;
+  for (auto& state : snap.states)
+    state.candidate = json::object();
+  const int selected = valueOr<int>(view, "selected", -1, where);
+  if (selected >= 0 && selected < static_cast<int>(result.candidates.size())) snap.selected = selected;
+  snap.parameters.grid = snap.parameters.grid.count() > 0 ? snap.parameters.grid : result.grid;
+  snap.result = std::make_shared<const search::SearchResult>(std::move(result));
+  return snap;
+}
+
+}  // namespace st::ui
