@@ -187,6 +187,7 @@ class CudaBackend final : public CudaSearchBackend {
       const int rows = m_options.treeTileRows > 0 ? m_options.treeTileRows : (h + parts - 1) / parts;
       TreeDevicePlan d = makeTreeDevicePlan(tree, plan.width, h, rows, cut);
       need = cubeBytes + treeDeviceBytes(d, plan, capacity);
+      if (std::max(d.arenaFloats[0], d.arenaFloats[1]) > kTreeMaxArenaFloats) continue;  // 32-bit offsets
       if (need <= budget || m_options.treeTileRows > 0) {
         if (need > budget) break;
         return d;

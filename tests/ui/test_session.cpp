@@ -19,6 +19,7 @@
 
 #include <unistd.h>
 
+#include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -78,8 +79,10 @@ CoreServices services(const std::shared_ptr<Calls>& calls) {
   return s;
 }
 
+// No job running, and the candidate inspector (which stores the artifact flags it computes on the
+// selected candidate, an autosaved change) done.
 bool idle(MainWindow& w) {
-  return !w.jobs()->busy();
+  return !w.jobs()->busy() && !w.candidateInspector()->busy();
 }
 
 QString sessionStatus(MainWindow& w) {
@@ -149,6 +152,9 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
   o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
   o1->setSelected(1);
+  // The inspector stores the flags it computes on the selected candidate (its finished signal is queued
+  // after the worker stops): wait for them, so the file holds them.
+  ASSERT_TRUE(test::waitFor([&] { return idle(w1) && !o1->candidateState(1)->artifacts.empty(); }));
   ASSERT_TRUE(w1.session()->autosaver()->flush());
   ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w1).contains(path); }));
 
@@ -178,6 +184,7 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   EXPECT_EQ(w2.session()->path(), path);
 
   // Later changes keep going to the same file, counting on.
+  ASSERT_TRUE(w2.session()->autosaver()->flush());
   const std::int64_t before = session::SessionStore(path.toStdString()).load().changes;
   o2->setCandidateLabel(3, session::Label::Unsure);
   ASSERT_TRUE(w2.session()->autosaver()->flush());

@@ -40,8 +40,8 @@ struct CudaOptions {
   int treeTileRows = 0;
   /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
   bool profileTree = false;
-  /// Tree search, benchmarks: root velocities per block of the root kernel, 0 = 4 x 4 (default), 1 = 8 x 8,
-  /// 2 = 2 x 4, 3 = 4 x 8 (vx x vy).
+  /// Tree search, benchmarks: root kernel shape (TreeRootLaunch::shape in gpu/src/tree_kernel_params.hpp),
+  /// 0 = the default.
   int treeRootShape = 0;
 };
 
@@ -52,6 +52,10 @@ inline constexpr int kTreeDefaultCut = 4;
 /// The CUDA backend, with what its last search did about memory (tiling, devices) for the log.
 class CudaSearchBackend : public search::SearchBackend {
  public:
+  /// "exact" and "tree" (tree_search_device.hpp: the CPU tree's plan, bit-identical stacks).
+  [[nodiscard]] bool supportsMethod(const std::string& method) const override {
+    return method == "exact" || method == "tree";
+  }
   /// One line per device used by the last search: how the cube and the grid were tiled.
   [[nodiscard]] virtual std::string lastNote() const = 0;
   /// Device seconds spent in search kernels by the last search (summed over devices).
