@@ -13,8 +13,8 @@
 // 30 x 128^2 x 9^2 to 1500 x 512^2 x 100^2 on the 2-core development VM (AMD EPYC, AVX2, shared, load 5-6),
 // 2026-11-22 05:12-05:17 UTC, in CPU seconds: exact 1.35e10 additions per CPU-second, tree 0.013 s + 9.6
 // exact-equivalent additions per tree addition (rms error 29%, worst 56%; per-pixel-frame and
-// per-pixel-velocity terms did not improve the fit). The CUDA ones are the measured exact rate and, for the
-// tree, the target until the CUDA tree is measured.
+// per-pixel-velocity terms did not improve the fit). The CUDA ones are the H100's measured end-to-end times
+// of both methods on the paper problem (README).
 //
 // Decision for "auto": tree when the backend supports it (SearchBackend::supportsMethod), it is estimated at
 // least kAutoTreeMinSpeedup times faster than exact AND it saves at least kAutoTreeMinSavingS seconds;
@@ -46,8 +46,8 @@ struct MethodCostModel {
 /// kCpuAdditionsPerSecondPerThread x threads (velocity_grid.hpp), or a measured rate (the GUI's live stack).
 MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditionsPerS = std::nullopt);
 
-/// The CUDA model: exact 9.5e12 additions/s (README, H100/H200 stair kernel) plus 0.05 s; tree priced at
-/// the target (the paper problem's 1.2e10 tree additions in 30 ms) until it is measured.
+/// The CUDA model (README, H100): exact 9.5e12 additions/s plus 0.05 s; tree ~0.12 s (upload, set-up) plus
+/// the CPU plan's additions at 1.4e11/s (the paper problem in 0.2 s end to end).
 MethodCostModel cudaCostModel();
 
 /// cudaCostModel() for a backend whose name() starts with "cuda", else cpuCostModel(st::workerCount()).
