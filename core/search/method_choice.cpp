@@ -19,6 +19,7 @@ namespace {
 constexpr double kCpuTreeOpsWeight = 9.6;
 constexpr double kCpuTreeFixedS = 0.013;
 constexpr double kCpuExactFixedS = 0.003;
+constexpr double kCpuExactWidthPx = 128.0;
 
 // CUDA, H100 (README): exact 9.8e12 additions/s of the stair kernel, 0.45-0.47 s end to end for the paper
 // problem (4e12 additions); tree 36 ms of kernels + ~80 ms upload, 0.20-0.21 s end to end for the same
@@ -55,6 +56,7 @@ MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditi
   m.exactAdditionsPerS = exactAdditionsPerS.value_or(kCpuAdditionsPerSecondPerThread *
                                                      static_cast<double>(std::max(1u, threads)));
   m.exactFixedS = kCpuExactFixedS;
+  m.exactWidthPx = kCpuExactWidthPx;
   m.treeOpsWeight = kCpuTreeOpsWeight;
   m.treeFixedS = kCpuTreeFixedS;
   return m;
@@ -75,7 +77,12 @@ MethodCostModel costModelFor(const SearchBackend& backend) {
 }
 
 void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
-  e.exactSeconds = model.exactFixedS + e.exactAdditions / model.exactAdditionsPerS;
+  double efficiency = 1.0;
+  if (model.exactWidthPx > 0.0 && e.width > 0) {
+    const double w = static_cast<double>(e.width);
+    efficiency = std::min(1.0, (512.0 + model.exactWidthPx) / 512.0 * w / (w + model.exactWidthPx));
+  }
+  e.exactSeconds = model.exactFixedS + e.exactAdditions / (model.exactAdditionsPerS * efficiency);
   e.treeSeconds = e.treeAdditions > 0.0
                       ? model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS
                       : std::numeric_limits<double>::infinity();
@@ -89,6 +96,7 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   e.exactAdditions = exact.additions;
   e.exactWorkingBytes = exact.workingBytes;
   e.cubeBytes = exact.cubeBytes;
+  e.width = width;
   priceMethods(e, model);
   const bool distinctTimes = dtS.size() >= 2 && *std::max_element(dtS.begin(), dtS.end()) >
                                                     *std::min_element(dtS.begin(), dtS.end());

@@ -11,10 +11,11 @@
 //   stack), plus a fixed start-up time (plan, tile buffers, threads).
 // CPU coefficients: least squares over 13 `synthtrack-cli bench search --method tree` problems from
 // 30 x 128^2 x 9^2 to 1500 x 512^2 x 100^2 on the 2-core development VM (AMD EPYC, AVX2, shared, load 5-6),
-// 2026-11-22 05:12-05:17 UTC, in CPU seconds: exact 1.35e10 additions per CPU-second, tree 0.013 s + 9.6
-// exact-equivalent additions per tree addition (rms error 29%, worst 56%; per-pixel-frame and
-// per-pixel-velocity terms did not improve the fit). The CUDA ones are the H100's measured end-to-end times
-// of both methods on the paper problem (README).
+// 2026-11-22 05:12-05:17 UTC, in CPU seconds: exact 1.8e10 x width / (width + 128) additions per CPU-second
+// (1.44e10 at 512 px, 0.9e10 at 128 px; within 13% except the smallest problem), tree 0.013 s + 9.6
+// exact-equivalent additions (at 1.35e10 per CPU-second) per tree addition (rms error 29%, worst 56%;
+// per-pixel-frame and per-pixel-velocity terms did not improve the fit). The CUDA ones are the H100's
+// measured end-to-end times of both methods on the paper problem (README).
 //
 // Decision for "auto": tree when the backend supports it (SearchBackend::supportsMethod), it is estimated at
 // least kAutoTreeMinSpeedup times faster than exact AND it saves at least kAutoTreeMinSavingS seconds;
@@ -38,8 +39,11 @@ inline constexpr double kAutoTreeMinSavingS = 1.0;
 struct MethodCostModel {
   double exactAdditionsPerS = 0.0;  ///< exact search, additions per second
   double exactFixedS = 0.0;         ///< exact search start-up, s
-  double treeOpsWeight = 1.0;       ///< one tree addition (treeAdditions) in exact-equivalent additions
-  double treeFixedS = 0.0;          ///< tree search start-up (plan, tile buffers), s
+  /// Narrow images run the exact kernel slower (row tiles, edges): its rate is scaled by
+  /// min(1, (512 + w0) / 512 x width / (width + w0)) with w0 = exactWidthPx (0: no scaling).
+  double exactWidthPx = 0.0;
+  double treeOpsWeight = 1.0;  ///< one tree addition (treeAdditions) in exact-equivalent additions
+  double treeFixedS = 0.0;     ///< tree search start-up (plan, tile buffers), s
 };
 
 /// The CPU model for `threads` workers; `exactAdditionsPerS` defaults to
@@ -62,6 +66,7 @@ struct MethodEstimate {
   std::size_t exactWorkingBytes = 0;  ///< on top of the cube (estimateSearch)
   std::size_t treeWorkingBytes = 0;   ///< partial stacks of every thread's tile, map and N_in ranges
   std::size_t cubeBytes = 0;          ///< the cube, already held
+  int width = 0;                      ///< image width, px (for priceMethods)
   int treeTileRows = 0;               ///< rows per tile (treeTileRows)
   int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
 };
