@@ -314,6 +314,8 @@ QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::Velo
   const search::MethodChoice c = search::chooseMethod(method(), e, true, "cpu");
   search::priceMethods(e, search::cpuCostModel(workerCount(), rate));
   const bool tree = c.method == "tree";
+  if (tree && !(e.treeAdditions > 0.0))
+    return "tree: no tree plan for these frames (they need 2 distinct times)";
   QString text =
       method() == "auto" ? "Auto → " + QString::fromStdString(c.method) : QString::fromStdString(c.method);
   text += QString(": %1 additions · %2 (+%3 cube) · ~%4")
