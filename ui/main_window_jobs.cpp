@@ -20,6 +20,7 @@
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
+#include "st/search/method_choice.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -98,8 +99,8 @@ void MainWindow::runSearch() {
     if (!makeBackend) throwMissingService("search backend");
     std::string message;
     std::unique_ptr<search::SearchBackend> backend = makeBackend(kind, message);
-    auto result =
-        std::make_shared<const search::SearchResult>(backend->search(*cube, grid, params, progress, cancel));
+    auto result = std::make_shared<const search::SearchResult>(
+        search::searchWithMethod(*backend, *cube, grid, params, progress, cancel));
     return std::function<void()>([this, result, message] {
       m_search->setBackendMessage(QString::fromStdString(message));
       m_obs->setResult(result);
@@ -107,7 +108,7 @@ void MainWindow::runSearch() {
                                    .arg(result->candidates.size())
                                    .arg(result->snrThreshold, 0, 'f', 2)
                                    .arg(result->elapsedS, 0, 'f', 1)
-                                   .arg(QString::fromStdString(result->backend)),
+                                   .arg(QString::fromStdString(result->method + " on " + result->backend)),
                                15000);
       if (!result->candidates.empty()) selectCandidate(0);
     });

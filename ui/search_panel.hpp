@@ -1,15 +1,20 @@
 #pragma once
 // Search parameters with units (px/s, "/min, deg/day), a live estimate of trials, memory and time, the
-// threshold by SNR or by false-alarm probability (estimate and FAP from st::search / st::stats), the backend
-// (auto/CPU/GPU), and Run/Cancel. The search itself runs in the main window's JobRunner.
+// threshold by SNR or by false-alarm probability (estimate and FAP from st::search / st::stats), the method
+// (auto/exact/tree, st/search/method_choice.hpp: the estimate follows it), the backend (auto/CPU/GPU with
+// the device's name), Run/Cancel, and what the last search ran (method, why, backend). The search itself
+// runs in the main window's JobRunner (through st::search::searchWithMethod).
 #include <QWidget>
 #include <optional>
+#include <string>
 
 #include "core_services.hpp"
+#include "st/search/method_choice.hpp"
 #include "observation.hpp"
 
 class QComboBox;
 class QDoubleSpinBox;
+class QGroupBox;
 class QSpinBox;
 class QLabel;
 class QLineEdit;
@@ -26,6 +31,14 @@ class SearchPanel : public QWidget {
   [[nodiscard]] search::VelocityGrid grid() const;
   [[nodiscard]] search::SearchParams params() const;
   [[nodiscard]] BackendKind backendKind() const;
+  /// The method selected: "auto" (default), "exact" or "tree" (also in params().method).
+  [[nodiscard]] std::string method() const;
+  /// Selects "auto", "exact" or "tree" (anything else is ignored).
+  void setMethod(const std::string& method);
+  /// The estimate text shown (for tests and the status bar).
+  [[nodiscard]] QString estimateText() const;
+  /// The summary of the last search shown under Run (method, reason, backend, candidates, time).
+  [[nodiscard]] QString statusText() const;
   void setRunning(bool running);
   void setReady(bool ready);
   void setProgress(double fraction, const QString& stage, double elapsedS);
@@ -47,6 +60,11 @@ class SearchPanel : public QWidget {
   void onRawChanged();
   void refresh();
   void setSpinUnits();
+  void onResultChanged();
+  /// The "Run" box: method, backend (with the GPUs' names), estimate, buttons, status.
+  QGroupBox* makeRunBox(const std::vector<std::string>& gpuNames);
+  [[nodiscard]] QString methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
+                                           std::optional<double> rate);
 
   Observation* m_obs;
   VelocityUnit m_shownUnit = VelocityUnit::PxPerS;
@@ -60,6 +78,7 @@ class SearchPanel : public QWidget {
   QRadioButton* m_byFap;
   QDoubleSpinBox* m_snr;
   QLineEdit* m_fap;
+  QComboBox* m_method;
   QComboBox* m_backend;
   QLabel* m_backendInfo;
   QLabel* m_estimate;
@@ -67,7 +86,18 @@ class SearchPanel : public QWidget {
   QPushButton* m_cancel;
   QLabel* m_status;
   std::optional<double> m_stackSeconds;
+  /// The last method estimate and what it was computed for (the tree plan takes milliseconds to build; a new
+  /// measured throughput only re-prices it).
+  struct EstimateKey {
+    const FrameCube* cube = nullptr;
+    int width = 0, height = 0, nvx = 0, nvy = 0;
+    std::size_t frames = 0;
+    double step = 0.0;
+    bool operator==(const EstimateKey&) const = default;
+  };
+  std::optional<std::pair<EstimateKey, search::MethodEstimate>> m_estimateCache;
   bool m_ready = false;
+  bool m_hasGpu = false;
 };
 
 }  // namespace st::ui
