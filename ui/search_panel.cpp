@@ -12,6 +12,7 @@
 #include <QRadioButton>
 #include <QStandardItemModel>
 #include <QVBoxLayout>
+#include <QtConcurrent/QtConcurrentRun>
 #include <cmath>
 
 #include "st/common/parallel.hpp"
@@ -64,6 +65,8 @@ QString gpuLabel(const std::vector<std::string>& names) {
 
 SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string>& gpuNames, QWidget* parent)
     : QWidget(parent), m_obs(observation) {
+  connect(&m_estimateWatcher, &QFutureWatcher<KeyedEstimate>::finished, this,
+          &SearchPanel::onEstimateFinished);
   auto* gridBox = new QGroupBox("Velocity grid", this);
   gridBox->setToolTip(kGridHelp);
   auto* form = new QFormLayout(gridBox);
@@ -306,8 +309,8 @@ QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::Velo
   // the live stack's measured throughput when there is one.
   const search::MethodCostModel standard = search::cpuCostModel(workerCount());
   if (!m_estimateCache || !(m_estimateCache->first == key)) {
-    m_estimateCache.emplace(key, search::estimateMethods(raw.width(), raw.height(), raw.timeOffsetsS(), g,
-                                                         standard, workerCount()));
+    startEstimate(raw, g, key);
+    return "estimating both methods…";
   }
   search::MethodEstimate& e = m_estimateCache->second;
   search::priceMethods(e, standard);
@@ -333,6 +336,24 @@ QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::Velo
   if (m_hasGpu && backendKind() != BackendKind::Cpu)
     text += "\nCPU figures; on a GPU the method is resolved when the search starts";
   return text;
+}
+
+void SearchPanel::startEstimate(const FrameCube& raw, const search::VelocityGrid& g, const EstimateKey& key) {
+  m_estimatePending = true;
+  if (m_estimateWatcher.isRunning()) return;  // onEstimateFinished refreshes, which starts the latest
+  // The worker gets copies (frame times, grid, sizes): the cube may be replaced while it runs; the key
+  // then no longer matches and the result is only cached, never shown for the new cube.
+  m_estimateWatcher.setFuture(QtConcurrent::run(
+      [key, g, width = raw.width(), height = raw.height(), dt = raw.timeOffsetsS()]() -> KeyedEstimate {
+        const unsigned threads = workerCount();
+        return {key, search::estimateMethods(width, height, dt, g, search::cpuCostModel(threads), threads)};
+      }));
+}
+
+void SearchPanel::onEstimateFinished() {
+  m_estimateCache = m_estimateWatcher.result();
+  m_estimatePending = false;
+  refresh();  // starts the latest request when the grid or cube changed meanwhile
 }
 
 void SearchPanel::onResultChanged() {

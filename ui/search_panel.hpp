@@ -4,6 +4,7 @@
 // (auto/exact/tree, st/search/method_choice.hpp: the estimate follows it), the backend (auto/CPU/GPU with
 // the device's name), Run/Cancel, and what the last search ran (method, why, backend). The search itself
 // runs in the main window's JobRunner (through st::search::searchWithMethod).
+#include <QFutureWatcher>
 #include <QWidget>
 #include <optional>
 #include <string>
@@ -37,6 +38,8 @@ class SearchPanel : public QWidget {
   void setMethod(const std::string& method);
   /// The estimate text shown (for tests and the status bar).
   [[nodiscard]] QString estimateText() const;
+  /// True while the method estimate (its tree plan) is being computed in a worker.
+  [[nodiscard]] bool estimating() const { return m_estimatePending; }
   /// The summary of the last search shown under Run (method, reason, backend, candidates, time).
   [[nodiscard]] QString statusText() const;
   void setRunning(bool running);
@@ -56,6 +59,17 @@ class SearchPanel : public QWidget {
   void cancelRequested();
 
  private:
+  /// The last method estimate and what it was computed for (the tree plan takes milliseconds to build; a new
+  /// measured throughput only re-prices it).
+  struct EstimateKey {
+    const FrameCube* cube = nullptr;
+    int width = 0, height = 0, nvx = 0, nvy = 0;
+    std::size_t frames = 0;
+    double step = 0.0;
+    bool operator==(const EstimateKey&) const = default;
+  };
+  using KeyedEstimate = std::pair<EstimateKey, search::MethodEstimate>;
+
   void onUnitChanged();
   void onRawChanged();
   void refresh();
@@ -65,6 +79,10 @@ class SearchPanel : public QWidget {
   QGroupBox* makeRunBox(const std::vector<std::string>& gpuNames);
   [[nodiscard]] QString methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
                                            std::optional<double> rate);
+  /// Starts the worker that estimates both methods for the current cube and grid (while one is running, a
+  /// new request waits: the refresh after it finishes starts the latest).
+  void startEstimate(const FrameCube& raw, const search::VelocityGrid& g, const EstimateKey& key);
+  void onEstimateFinished();
 
   Observation* m_obs;
   VelocityUnit m_shownUnit = VelocityUnit::PxPerS;
@@ -86,16 +104,11 @@ class SearchPanel : public QWidget {
   QPushButton* m_cancel;
   QLabel* m_status;
   std::optional<double> m_stackSeconds;
-  /// The last method estimate and what it was computed for (the tree plan takes milliseconds to build; a new
-  /// measured throughput only re-prices it).
-  struct EstimateKey {
-    const FrameCube* cube = nullptr;
-    int width = 0, height = 0, nvx = 0, nvy = 0;
-    std::size_t frames = 0;
-    double step = 0.0;
-    bool operator==(const EstimateKey&) const = default;
-  };
-  std::optional<std::pair<EstimateKey, search::MethodEstimate>> m_estimateCache;
+  std::optional<KeyedEstimate> m_estimateCache;
+  /// The tree plan behind an estimate is built in a worker (tens of ms for a paper-sized grid); the text
+  /// says "estimating…" until it is back.
+  QFutureWatcher<KeyedEstimate> m_estimateWatcher;
+  bool m_estimatePending = false;  ///< started and its result not yet taken (finished is a queued signal)
   bool m_ready = false;
   bool m_hasGpu = false;
 };

@@ -29,8 +29,10 @@ QComboBox* backendCombo(SearchPanel& panel) {
   return nullptr;
 }
 
-/// The estimate's method line (the one after the trial count).
+/// The estimate's method line (the one after the trial count), once the worker that builds the tree plan
+/// is done.
 QString methodLine(const SearchPanel& panel) {
+  EXPECT_TRUE(test::waitFor([&] { return !panel.estimating(); }, 10000));
   const QStringList lines = panel.estimateText().split('\n');
   return lines.size() > 1 ? lines[1] : QString();
 }
@@ -92,6 +94,7 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
   ASSERT_NE(backend, nullptr);
   EXPECT_EQ(backend->itemText(2), "GPU: NVIDIA H100 80GB HBM3, 79.1 GiB");
   // With a GPU possible the estimate says its figures are the CPU's.
+  ASSERT_TRUE(test::waitFor([&] { return !panel.estimating(); }, 10000));
   EXPECT_TRUE(panel.estimateText().contains("CPU figures")) << panel.estimateText().toStdString();
   backend->setCurrentIndex(1);  // CPU
   EXPECT_FALSE(panel.estimateText().contains("CPU figures")) << panel.estimateText().toStdString();
