@@ -17,6 +17,7 @@
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
+#include "st/sim/simulator.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
@@ -167,11 +168,11 @@ void MainWindow::onPreparedChanged() {
       m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
       const auto& raw = *m_obs->raw();
       if (m_demoGrid && raw.plateScaleArcsecPerPx) {
-        // The paper's object moves at ~6 deg/day: +-7 deg/day around the sky rate, 2 px over the span per
-        // step (the paper notes 1 px is finer than the ~3 px PSF needs).
+        // The demo grid (st/sim/simulator.hpp), the same as `synthtrack-cli demo`'s.
         const double span = std::max(raw.timeSpanS(), 1e-3);
         m_search->setGridPxS(prepared->filtered->skyRate,
-                             degPerDayToPxPerSec(7.0, *raw.plateScaleArcsecPerPx), 2.0 / span);
+                             degPerDayToPxPerSec(sim::kDemoHalfRangeDegPerDay, *raw.plateScaleArcsecPerPx),
+                             sim::kDemoGridStepPx / span);
       }
       m_obs->setVelocity(prepared->filtered->skyRate);
     }

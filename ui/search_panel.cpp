@@ -47,13 +47,12 @@ const char* const kMethodHelp =
     "Tree: hierarchical search, about N_pix·N_v work instead of N_pix·N_f·N_v (the paper's 1500 frames × "
     "512² px × 100² velocities: 322× fewer additions). Every sample stays within 1 px of the exact shift; "
     "SNR loss on injected objects: median ~1%, worst ~5%.\n"
-    "The backend must support the method (the CPU has both; a GPU without the tree runs exact under Auto).";
+    "The backend must support the method (the CPU and CUDA backends have both).";
 
 const char* const kGridHelp =
     "Defaults for an opened observation: the paper's grid (§4.4), ±12 deg/day around the sky rate in steps "
     "of 1 px of motion over the time span, as synthtrack-cli search uses. The demo observation opens with a "
-    "coarser demo setting so that it runs quickly (±7 deg/day in 2 px steps here; synthtrack-cli demo uses "
-    "±8 deg/day in 1.5 px steps).";
+    "coarser demo setting so that it runs quickly: ±8 deg/day in 1.5 px steps, as synthtrack-cli demo.";
 
 QString gpuLabel(const std::vector<std::string>& names) {
   if (names.empty()) return "GPU (none found)";
