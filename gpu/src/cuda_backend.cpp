@@ -71,6 +71,10 @@ class CudaBackend final : public CudaSearchBackend {
       chooseTiling(plan, true, true);
     } else if (m_options.kernelVariant == -5) {
       plan.stairTma = false;
+    } else if (m_options.kernelVariant == -6) {
+      plan.stairPipe = true;
+    } else if (m_options.kernelVariant == -7 && plan.kernel == HostPlan::Kernel::Stair) {
+      plan.framesPerStage = std::min(plan.framesPerStage, 8);  // the sizing before 2026-11-22 06:30
     } else if (m_options.kernelVariant == -4) {
       if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
     } else if (m_options.kernelVariant == -3) {

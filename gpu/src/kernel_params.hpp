@@ -54,11 +54,12 @@ struct SearchLaunch {
   int pitch;    ///< shared-memory row pitch (floats) of one frame window
   int winRows;  ///< rows of one frame window
   int framesPerStage;
-  int groups;              ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
-  int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
-                           ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
-  int stairRows;           ///< stair kernel: pixel rows per block, 8 or 4
-  bool stairTma;           ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
+  int groups;      ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
+  int variant;     ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
+                   ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
+  int stairRows;   ///< stair kernel: pixel rows per block, 8 or 4
+  bool stairTma;   ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
+  bool stairPipe;  ///< stair kernel, 8 rows, TMA: next frame's rows loaded during this frame's additions
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
 

@@ -27,7 +27,9 @@ struct CudaOptions {
   /// resident on the device.
   bool naiveKernel = false;
   /// Tests and benchmarks: -1 = automatic (the stair kernel when it applies, else the kernel estimated
-  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -4 = the
+  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -6 = the
+  /// stair kernel with a software-pipelined frame loop (measured slower; benchmarks); -7 = the stair
+  /// kernel with at most 8 frames per stage (the earlier sizing; benchmarks); -4 = the
   /// stair kernel with 4-row tiles when it applies; -3 = automatic without the stair kernel; -2 = the row
   /// kernel whenever it applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform
   /// branches), 1 (no reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
