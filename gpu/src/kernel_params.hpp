@@ -123,8 +123,10 @@ inline constexpr int kStairVy = 4;
 inline constexpr int kStairCols = 2;
 /// Shared-memory row stride (floats) of the stair kernel's window, a compile-time constant so that row
 /// addresses are immediate offsets: the kernel applies while the 8 vx of a block stay within
-/// kStairPitch - 32 kStairCols - 6 px of each other at every frame.
-inline constexpr int kStairPitch = 96;
+/// kStairPitch - 32 kStairCols - 6 = 10 px of each other at every frame (always so when neighbouring
+/// vy, hence vx on the grid's common step, are at most 1 px apart: the stair kernel's own condition).
+/// 80 rather than 96: smaller windows, 16 frames per stage instead of 13 (H100, 2026-11-22).
+inline constexpr int kStairPitch = 80;
 void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
 /// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 4) pixel rows.

@@ -30,6 +30,12 @@ constexpr int kSMaxWin = 16 + kSVy - 1;  // window rows at most (16 pixel rows)
 constexpr int kSOffs = 4 + kSVx;  // origin x, origin y, pattern, staircase height, column offset per warp
 constexpr int kSThreads = 32 * kSVx;
 
+/// Floats of one frame's window (kSR + 3 rows of kStairPitch), rounded up to 128 bytes: the TMA writes
+/// each window at a 128-byte-aligned address.
+constexpr int stairWinSize(int rows) {
+  return (kStairPitch * (rows + kSVy - 1) + 31) / 32 * 32;
+}
+
 __device__ __forceinline__ int floor4s(int v) {
   return v - (((v % 4) + 4) % 4);
 }
@@ -126,9 +132,10 @@ __device__ __forceinline__ unsigned smemAddr(const void* p) {
 /// instruction per frame; rows and columns outside the frame arrive as zeros) and tells `bar` how many
 /// bytes to expect.
 __device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, float* win, const int* offs,
-                                int n0, int count, int x0, int y0, unsigned long long* bar, int winSize) {
+                                int n0, int count, int x0, int y0, unsigned long long* bar, int winSize,
+                                int boxFloats) {
   const unsigned b = smemAddr(bar);
-  const unsigned bytes = static_cast<unsigned>(count * winSize * sizeof(float));
+  const unsigned bytes = static_cast<unsigned>(count * boxFloats * sizeof(float));  // the boxes, no padding
   asm volatile("mbarrier.arrive.expect_tx.shared::cta.b64 _, [%0], %1;\n" ::"r"(b), "r"(bytes) : "memory");
   const unsigned long long m = reinterpret_cast<unsigned long long>(map);
   for (int i = 0; i < count; ++i) {
@@ -278,7 +285,7 @@ __device__ __forceinline__ void addStairPipe(float (&acc)[kSVy][kSR][kSC], float
 template <int kSR>
 __device__ __forceinline__ void stairStage(float (&acc)[kSVy][kSR][kSC], const float* wins, const int* offs,
                                            int count, int warp) {
-  constexpr int winSize = kStairPitch * (kSR + kSVy - 1);
+  constexpr int winSize = stairWinSize(kSR);
   for (int i = 0; i < count; ++i) {
     const int* o = offs + i * kSOffs;
     const int pattern = o[2];
@@ -300,7 +307,7 @@ __device__ __forceinline__ void stairStage(float (&acc)[kSVy][kSR][kSC], const f
 template <int kSR>
 __device__ __forceinline__ void stairStagePipe(float (&acc)[kSVy][kSR][kSC], const float* wins,
                                                const int* offs, int count, int warp) {
-  constexpr int winSize = kStairPitch * (kSR + kSVy - 1);
+  constexpr int winSize = stairWinSize(kSR);
   if (count <= 0) return;
   float v[kSR + kSVy - 1][kSC];
   int pattern = offs[2];
@@ -352,7 +359,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
   const int ix = (tile % tilesX) * kSVx + warp;
   const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
   const int fs = p.framesPerStage;
-  constexpr int winSize = kStairPitch * kSWin;
+  constexpr int winSize = stairWinSize(kSR);
   float* wins = smem;
   int* offs = reinterpret_cast<int*>(smem + 2 * fs * winSize);
   const long long plane = static_cast<long long>(p.width) * p.height;
@@ -389,7 +396,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     if (kTma) {
       if (threadIdx.x == 0)
         tmaStairWindows(&map, p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, &bars[st & 1],
-                        winSize);
+                        winSize, kStairPitch * kSWin);
     } else {
       copyStairWindows(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1, winSize);
     }
@@ -445,8 +452,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
 
 std::size_t stairSharedBytes(int framesPerStage, int rows) {
   return static_cast<std::size_t>(framesPerStage) *
-         (2 * static_cast<std::size_t>(kStairPitch) * (rows + kSVy - 1) * sizeof(float) +
-          3 * kSOffs * sizeof(int));
+         (2 * static_cast<std::size_t>(stairWinSize(rows)) * sizeof(float) + 3 * kSOffs * sizeof(int));
 }
 
 template <int kSR, bool kTma, bool kPipe>
