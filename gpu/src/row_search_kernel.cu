@@ -206,15 +206,8 @@ __global__ void __launch_bounds__(kThreads, 2) rowSearchKernel(SearchLaunch p) {
 #pragma unroll
       for (int j = 0; j < kRCols; ++j) {
         if (!inImage(r, j)) continue;
-        if (!p.finalize) {
-          p.partial[partialAt(k, r, j)] = acc[k][r][j];
-          continue;
-        }
-        const int x = xBase + j;
-        const int y = yBase + r;
-        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
-                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
-        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
+        const unsigned long long key =
+            finishCell(p, acc[k][r][j], partialAt(k, r, j), xBase + j, yBase + r, ix, iy);
         best = key > best ? key : best;
       }
     }

@@ -39,6 +39,20 @@ __device__ __forceinline__ unsigned long long scoreCell(const SearchLaunch& p, f
   return packKey(snr, y * p.width + x);
 }
 
+/// One cell at the end of a launch: stores `sum` at partial[partialIndex] when this is not the last frame
+/// chunk (returns 0), else scores it with N_in from the frame spans and returns its map key (scoreCell).
+__device__ __forceinline__ unsigned long long finishCell(const SearchLaunch& p, float sum,
+                                                         long long partialIndex, int x, int y, int ix,
+                                                         int iy) {
+  if (!p.finalize) {
+    p.partial[partialIndex] = sum;
+    return 0ull;
+  }
+  const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
+                               p.spanY[static_cast<long long>(iy) * p.height + y]);
+  return scoreCell(p, sum, nIn, x, y, ix, iy);
+}
+
 __device__ __forceinline__ void cpAsync4(float* dst, const float* src, bool inFrame) {
   const unsigned int d = static_cast<unsigned int>(__cvta_generic_to_shared(dst));
   const int srcBytes = inFrame ? 4 : 0;  // 0 bytes read: the 4 destination bytes are zero-filled

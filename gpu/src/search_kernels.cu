@@ -207,14 +207,9 @@ __global__ void __launch_bounds__(kThreads, kCx == 4 ? 2 : 3) tiledSearchKernel(
         const int x = x0 + lane + 32 * j;
         const int y = y0 + warp + 8 * r;
         if (x >= p.width || y >= p.height) continue;
-        if (!p.finalize) {
-          p.partial[(static_cast<long long>(iy - p.iy0) * p.nvx + ix) * plane +
-                    static_cast<long long>(y) * p.width + x] = acc[k][r][j];
-          continue;
-        }
-        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
-                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
-        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
+        const long long at = (static_cast<long long>(iy - p.iy0) * p.nvx + ix) * plane +
+                             static_cast<long long>(y) * p.width + x;
+        const unsigned long long key = finishCell(p, acc[k][r][j], at, x, y, ix, iy);
         best = key > best ? key : best;
       }
     }
