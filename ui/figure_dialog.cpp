@@ -320,15 +320,19 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
 }
 
 bool FigureDialog::exportTo(const QString& path) {
-  if (busy()) return false;
   const int i = m_source->currentIndex();
-  if (i < 0 || i >= static_cast<int>(m_sources.size())) return false;
   QString error;
   std::function<void()> job;
-  try {
-    job = makeJob(m_sources[static_cast<std::size_t>(i)], path, error);
-  } catch (const std::exception& e) {
-    error = QString::fromStdString(e.what());
+  if (busy()) {
+    error = "An export is running.";
+  } else if (i < 0 || i >= static_cast<int>(m_sources.size())) {
+    error = "Nothing to export.";
+  } else {
+    try {
+      job = makeJob(m_sources[static_cast<std::size_t>(i)], path, error);
+    } catch (const std::exception& e) {
+      error = QString::fromStdString(e.what());
+    }
   }
   if (!job) {
     m_status->setText("⚠ " + error);

@@ -41,6 +41,12 @@ struct ScriptOptions {
   QString screenshot;
   int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
   bool quit = false;
+  /// Figure written when done: the paper's sky/object preset for the selected candidate, else the central view
+  /// (format from the suffix; 7 in wide at figureDpi).
+  QString exportFigure;
+  int figureDpi = 150;
+  QString exportReports;  ///< folder for the candidates JSON/CSV and DS9 regions, written when done
+  QString dialog;         ///< "figure" or "reports": that dialog is opened, and shown on the screenshot
 };
 
 class MainWindow : public QMainWindow {
@@ -110,6 +116,8 @@ class MainWindow : public QMainWindow {
   void rebuildRecentMenu();
   void advanceScript(const QString& finishedJob, bool ok);
   void finishScript(bool ok, const QString& message);
+  /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.
+  void runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done);
   void showError(const QString& title, const QString& message);
 
   CoreServices m_services;
@@ -136,6 +144,7 @@ class MainWindow : public QMainWindow {
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;
+  QWidget* m_screenshotOverlay = nullptr;  ///< a dialog drawn over the window on screenshots
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;

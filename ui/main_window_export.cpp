@@ -1,5 +1,7 @@
 // MainWindow: the Export menu (figures and reports). The dialogs do the work in workers.
 #include <QMenu>
+#include <QTimer>
+#include <cstdio>
 #include <set>
 
 #include "figure_dialog.hpp"
@@ -60,6 +62,63 @@ ReportDialog* MainWindow::reportDialog() {
     m_reportDialog = new ReportDialog(std::move(ctx), this);
   }
   return m_reportDialog;
+}
+
+namespace {
+
+// Connects `signal` of `sender` for one emission only.
+template <typename Sender, typename Signal, typename Slot>
+void once(Sender* sender, Signal signal, QObject* context, Slot slot) {
+  auto connection = std::make_shared<QMetaObject::Connection>();
+  *connection = QObject::connect(sender, signal, context, [connection, slot](auto&&... args) {
+    QObject::disconnect(*connection);
+    slot(args...);
+  });
+}
+
+}  // namespace
+
+void MainWindow::runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done) {
+  auto ok = std::make_shared<bool>(true);
+  auto showDialog = [this, script, done, ok] {
+    if (script.dialog.isEmpty()) return done(*ok);
+    if (script.dialog != "figure" && script.dialog != "reports") {
+      std::fprintf(stderr, "synthtrack: --dialog takes figure or reports, got '%s'\n",
+                   qPrintable(script.dialog));
+      return done(false);
+    }
+    QDialog* d = script.dialog == "figure" ? static_cast<QDialog*>(figureDialog()) : reportDialog();
+    d->show();
+    d->adjustSize();
+    m_screenshotOverlay = d;
+    QTimer::singleShot(300, this, [done, ok] { done(*ok); });
+  };
+  auto report = [ok](const char* what, bool good, const QString& message) {
+    std::printf("%s: %s\n", what, qPrintable(message));
+    std::fflush(stdout);
+    *ok = *ok && good;
+  };
+  auto reports = [this, script, showDialog, report] {
+    if (script.exportReports.isEmpty()) return showDialog();
+    ReportDialog* r = reportDialog();
+    r->setOutput(script.exportReports, "synthtrack");
+    r->setOutputs(true, true, true, false, false, false);
+    once(r, &ReportDialog::exportFinished, this, [=](bool good, const QString& message) {
+      report("reports", good, message);
+      showDialog();
+    });
+    r->exportReports();  // emits exportFinished, also when it cannot start
+  };
+  if (script.exportFigure.isEmpty()) return reports();
+  FigureDialog* f = figureDialog();
+  f->refreshSources();
+  f->setSource(m_obs->selectedCandidate() ? f->presetIndex() : 0);
+  f->setFigureSize({7.0, 0.0, static_cast<double>(script.figureDpi)});
+  once(f, &FigureDialog::exportFinished, this, [=](const QString&, bool good, const QString& message) {
+    report("figure", good, message);
+    reports();
+  });
+  f->exportTo(script.exportFigure);  // emits exportFinished, also when it cannot start
 }
 
 }  // namespace st::ui
