@@ -19,6 +19,7 @@
 #include <qcustomplot.h>
 
 #include "figure_preset.hpp"
+#include "st/common/error.hpp"
 #include "image_view.hpp"
 
 namespace st::ui {
@@ -294,12 +295,21 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
   const FigureFormat format = figureFormatForPath(path);
   FigureSize size = figureSize();
   if (source.plot) {
-    if (size.heightIn <= 0)
-      size.heightIn = size.widthIn * source.plot->height() / std::max(source.plot->width(), 1);
-    const QSizeF pt(size.widthIn * kPt, size.heightIn * kPt);
-    auto paint = paintPicture(capturePlot(*source.plot, pt, m_title->text()), pt);
-    return [path, format, size, paint, title = m_title->text()] {
-      exportFigure(path, format, size, paint, title);
+    // A plot is a widget: it paints itself here, on the GUI thread (milliseconds), at the screen's DPI its
+    // layout was measured at; the worker only reports the outcome.
+    QCustomPlot& plot = *source.plot;
+    if (size.heightIn <= 0) size.heightIn = size.widthIn * plot.height() / std::max(plot.width(), 1);
+    const QString title = m_title->text();
+    std::string failure;
+    try {
+      exportFigure(
+          path, format, size, [&](QCPPainter& p, const QSizeF& s) { paintPlot(p, s, plot, title); }, title,
+          plot.logicalDpiX());
+    } catch (const std::exception& e) {
+      failure = e.what();
+    }
+    return [failure] {
+      if (!failure.empty()) throw InputError(failure);
     };
   }
   std::function<ImageFigure()> build;
@@ -314,7 +324,7 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
     const ImageFigure fig = build();
     if (size.heightIn <= 0) size.heightIn = naturalFigureSize(fig, size.widthIn * kPt).height() / kPt;
     exportFigure(
-        path, format, size, [&fig](QPainter& p, const QSizeF& pt) { paintImageFigure(p, pt, fig); },
+        path, format, size, [&fig](QCPPainter& p, const QSizeF& pt) { paintImageFigure(p, pt, fig); },
         fig.title);
   };
 }

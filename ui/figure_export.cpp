@@ -15,8 +15,6 @@
 namespace st::ui {
 namespace {
 
-constexpr double kPointsPerInch = 72.0;
-
 [[noreturn]] void fail(const QString& path, const QString& why) {
   throw InputError("cannot write figure " + path.toStdString() + ": " + why.toStdString());
 }
@@ -26,51 +24,61 @@ void checkFolder(const QString& path) {
   if (!info.absoluteDir().exists()) fail(path, "folder " + info.absolutePath() + " does not exist");
 }
 
-void writePng(const QString& path, const FigureSize& size, const FigurePainter& paint) {
+void writePng(const QString& path, const FigureSize& size, const FigurePainter& paint, double logicalDpi) {
   const int w = static_cast<int>(std::lround(size.widthIn * size.dpi));
   const int h = static_cast<int>(std::lround(size.heightIn * size.dpi));
   if (w <= 0 || h <= 0 || w > 30000 || h > 30000)
     fail(path, QString("bad pixel size %1 x %2 (size or DPI out of range)").arg(w).arg(h));
   QImage image(w, h, QImage::Format_ARGB32_Premultiplied);
   image.fill(Qt::white);
-  const int dotsPerMetre = static_cast<int>(std::lround(size.dpi / 0.0254));
-  image.setDotsPerMeterX(dotsPerMetre);
-  image.setDotsPerMeterY(dotsPerMetre);
+  // While painting the image resolves point sizes at the logical DPI; the chosen DPI is recorded after.
+  const auto setDpi = [&image](double dpi) {
+    const int dotsPerMetre = static_cast<int>(std::lround(dpi / 0.0254));
+    image.setDotsPerMeterX(dotsPerMetre);
+    image.setDotsPerMeterY(dotsPerMetre);
+  };
+  setDpi(logicalDpi);
   {
-    QPainter painter(&image);
-    painter.scale(size.dpi / kPointsPerInch, size.dpi / kPointsPerInch);
-    paint(painter, QSizeF(size.widthIn * kPointsPerInch, size.heightIn * kPointsPerInch));
+    QCPPainter painter(&image);
+    painter.setMode(QCPPainter::pmNoCaching);
+    painter.scale(size.dpi / logicalDpi, size.dpi / logicalDpi);
+    paint(painter, QSizeF(size.widthIn * logicalDpi, size.heightIn * logicalDpi));
   }
+  setDpi(size.dpi);
   if (!image.convertToFormat(QImage::Format_RGB32).save(path, "PNG")) fail(path, "the PNG writer failed");
 }
 
-void writeSvg(const QString& path, const FigureSize& size, const FigurePainter& paint, const QString& title) {
-  const QSizeF pt(size.widthIn * kPointsPerInch, size.heightIn * kPointsPerInch);
+void writeSvg(const QString& path, const FigureSize& size, const FigurePainter& paint, const QString& title,
+              double logicalDpi) {
+  const QSizeF canvas(size.widthIn * logicalDpi, size.heightIn * logicalDpi);
   QSvgGenerator svg;
   svg.setFileName(path);
-  svg.setSize(pt.toSize());
-  svg.setViewBox(QRectF(QPointF(0, 0), pt));
-  svg.setResolution(static_cast<int>(kPointsPerInch));
+  svg.setSize(canvas.toSize());
+  svg.setViewBox(QRectF(QPointF(0, 0), canvas));
+  svg.setResolution(static_cast<int>(std::lround(logicalDpi)));
   svg.setTitle(title);
   svg.setDescription("synthtrack figure");
-  QPainter painter;
+  QCPPainter painter;
   if (!painter.begin(&svg)) fail(path, "the SVG writer could not open it");
-  paint(painter, pt);
+  painter.setMode(QCPPainter::pmVectorized);
+  painter.setMode(QCPPainter::pmNoCaching);
+  paint(painter, canvas);
   painter.end();
 }
 
-void writePdf(const QString& path, const FigureSize& size, const FigurePainter& paint, const QString& title) {
+void writePdf(const QString& path, const FigureSize& size, const FigurePainter& paint, const QString& title,
+              double logicalDpi) {
   QPdfWriter pdf(path);
   pdf.setTitle(title);
   pdf.setCreator("synthtrack");
   pdf.setPageSize(QPageSize(QSizeF(size.widthIn, size.heightIn), QPageSize::Inch));
   pdf.setPageMargins(QMarginsF(0, 0, 0, 0));
-  pdf.setResolution(static_cast<int>(std::lround(std::max(size.dpi, 72.0))));
-  QPainter painter;
+  pdf.setResolution(static_cast<int>(std::lround(logicalDpi)));
+  QCPPainter painter;
   if (!painter.begin(&pdf)) fail(path, "the PDF writer could not open it");
-  const double s = pdf.resolution() / kPointsPerInch;
-  painter.scale(s, s);
-  paint(painter, QSizeF(size.widthIn * kPointsPerInch, size.heightIn * kPointsPerInch));
+  painter.setMode(QCPPainter::pmVectorized);
+  painter.setMode(QCPPainter::pmNoCaching);
+  paint(painter, QSizeF(size.widthIn * logicalDpi, size.heightIn * logicalDpi));
   painter.end();
 }
 
@@ -86,18 +94,19 @@ FigureFormat figureFormatForPath(const QString& path) {
 }
 
 void exportFigure(const QString& path, FigureFormat format, const FigureSize& size,
-                  const FigurePainter& paint, const QString& title) {
+                  const FigurePainter& paint, const QString& title, double logicalDpi) {
   if (!(size.widthIn > 0) || !(size.heightIn > 0)) fail(path, "the figure size must be positive");
+  if (!(logicalDpi > 0)) fail(path, "the logical DPI must be positive");
   checkFolder(path);
   switch (format) {
     case FigureFormat::Png:
-      writePng(path, size, paint);
+      writePng(path, size, paint, logicalDpi);
       break;
     case FigureFormat::Svg:
-      writeSvg(path, size, paint, title);
+      writeSvg(path, size, paint, title, logicalDpi);
       break;
     case FigureFormat::Pdf:
-      writePdf(path, size, paint, title);
+      writePdf(path, size, paint, title, logicalDpi);
       break;
   }
   // QSvgGenerator and QPdfWriter report no errors: check the file is there and not empty.
@@ -105,35 +114,21 @@ void exportFigure(const QString& path, FigureFormat format, const FigureSize& si
   if (!written.exists() || written.size() == 0) fail(path, "nothing was written (permissions or disk full?)");
 }
 
-QPicture capturePlot(QCustomPlot& plot, const QSizeF& sizePt, const QString& title) {
-  QPicture picture;
+void paintPlot(QCPPainter& painter, const QSizeF& size, QCustomPlot& plot, const QString& title) {
   const double titleH = title.isEmpty() ? 0.0 : 18.0;
-  QCPPainter painter(&picture);
-  painter.setMode(QCPPainter::pmVectorized);
-  painter.setMode(QCPPainter::pmNoCaching);
-  painter.fillRect(QRectF(QPointF(0, 0), sizePt), Qt::white);
+  painter.save();
+  painter.fillRect(QRectF(QPointF(0, 0), size), Qt::white);
   if (!title.isEmpty()) {
     QFont f("DejaVu Sans");
     f.setPixelSize(11);
     f.setBold(true);
     painter.setFont(f);
     painter.setPen(Qt::black);
-    painter.drawText(QRectF(0, 0, sizePt.width(), titleH), Qt::AlignCenter, title);
+    painter.drawText(QRectF(0, 0, size.width(), titleH), Qt::AlignCenter, title);
     painter.translate(0, titleH);
   }
-  plot.toPainter(&painter, static_cast<int>(sizePt.width()), static_cast<int>(sizePt.height() - titleH));
-  painter.end();
-  return picture;
-}
-
-FigurePainter paintPicture(QPicture picture, QSizeF recordedPt) {
-  return [picture = std::move(picture), recordedPt](QPainter& painter, const QSizeF& sizePt) {
-    painter.save();
-    painter.fillRect(QRectF(QPointF(0, 0), sizePt), Qt::white);
-    painter.scale(sizePt.width() / recordedPt.width(), sizePt.height() / recordedPt.height());
-    painter.drawPicture(0, 0, picture);
-    painter.restore();
-  };
+  plot.toPainter(&painter, static_cast<int>(size.width()), static_cast<int>(size.height() - titleH));
+  painter.restore();
 }
 
 }  // namespace st::ui

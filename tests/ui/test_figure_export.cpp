@@ -10,6 +10,7 @@
 #include <QSvgRenderer>
 #include <QXmlStreamReader>
 #include <cmath>
+#include <qcustomplot.h>
 
 #include "figure_dialog.hpp"
 #include "figure_export.hpp"
@@ -64,7 +65,7 @@ ImageFigure gradientFigure() {
 void exportGradient(const QString& path, FigureFormat format, double dpi) {
   const ImageFigure fig = gradientFigure();
   exportFigure(path, format, {4.0, 3.0, dpi},
-               [&](QPainter& p, const QSizeF& s) { paintImageFigure(p, s, fig); });
+               [&](QCPPainter& p, const QSizeF& s) { paintImageFigure(p, s, fig); });
 }
 
 }  // namespace
@@ -232,6 +233,8 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   EXPECT_EQ(QImage(run(0, "central.png", {5.0, 4.0, 120})).size(), QSize(600, 480));
   const int plot = static_cast<int>(names.indexOf(names.filter("Velocity space: plot").front()));
   EXPECT_TRUE(QSvgRenderer(run(plot, "vmap.svg", {5.0, 4.0, 300})).isValid());
+  const QImage vmap(run(plot, "vmap.png", {5.0, 4.0, 100}));
+  EXPECT_EQ(vmap.size(), QSize(500, 400));
   const QImage preset(run(d->presetIndex(), "preset.png", {7.0, 0.0, 100}));
   EXPECT_EQ(preset.width(), 700);
   EXPECT_GT(preset.height(), 200);  // height from the two square panels: ~330 pt
@@ -239,6 +242,7 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   QDir().mkpath("ui_screens");
   preset.save("ui_screens/figure_preset.png");
   QImage(qpath(dir, "central.png")).save("ui_screens/figure_central.png");
+  vmap.save("ui_screens/figure_vmap.png");
 
   // A folder that does not exist: the message names the path.
   d->setSource(0);
