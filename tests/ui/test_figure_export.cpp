@@ -257,4 +257,28 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   EXPECT_TRUE(message.contains("/nonexistent-st-folder/x.pdf")) << message.toStdString();
 }
 
+TEST(FigureDialog, ScriptOptionsExportTheFigureAndReports) {
+  MainWindow w(test::fakeServices(test::movingDotCube(96, 96, 40, {8.0, -4.0}, 40, 50)));
+  w.resize(1200, 800);
+  w.show();
+  test::TempDir dir;
+  ScriptOptions script;
+  script.demo = true;
+  script.exportFigure = qpath(dir, "script.svg");
+  script.exportReports = qpath(dir, "reports");
+  script.dialog = "reports";
+  bool finished = false, good = false;
+  QObject::connect(&w, &MainWindow::scriptFinished, [&](bool ok) {
+    finished = true;
+    good = ok;
+  });
+  w.runScript(script);
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 30000));
+  EXPECT_TRUE(good);
+  EXPECT_TRUE(QSvgRenderer(script.exportFigure).isValid());  // no candidate selected: the central view
+  // No search ran: the reports hold no candidates, but are written.
+  EXPECT_TRUE(QFile::exists(qpath(dir, "reports/synthtrack_candidates.json")));
+  EXPECT_TRUE(QFile::exists(qpath(dir, "reports/synthtrack.reg")));
+}
+
 ST_UI_TEST_MAIN()
