@@ -2,6 +2,7 @@
 // (Observation::setCandidateLabel), which the session autosaver listens to.
 #include <QEvent>
 #include <QKeyEvent>
+#include <QMenu>
 #include <QTableView>
 
 #include "candidate_table.hpp"
@@ -47,6 +48,30 @@ bool CandidatePanel::editSelectedNote() {
   m_table->scrollTo(proxy);
   m_table->edit(proxy);
   return true;
+}
+
+void CandidatePanel::showVettingMenu(const QPoint& pos) {
+  const QModelIndex proxy = m_table->indexAt(pos);
+  if (!proxy.isValid()) return;
+  m_obs->setSelected(m_filter->mapToSource(proxy).row());
+  QMenu menu(this);
+  const auto add = [&](QMenu* into, const QString& text, int key) {
+    const auto v = vettingKeyFor(key);
+    into->addAction(text + "\t" + QKeySequence(key).toString(), this,
+                    [this, v] { labelSelected(v->label, v->reason); });
+  };
+  add(&menu, "Real", Qt::Key_R);
+  add(&menu, "Unsure", Qt::Key_U);
+  QMenu* artifact = menu.addMenu("Artifact");
+  add(artifact, "Charge leakage", Qt::Key_C);
+  add(artifact, "Diffraction", Qt::Key_D);
+  add(artifact, "Cosmic ray", Qt::Key_X);
+  add(artifact, "Ghost", Qt::Key_G);
+  add(artifact, "Other", Qt::Key_O);
+  add(&menu, "Clear label", Qt::Key_0);
+  menu.addSeparator();
+  menu.addAction("Edit note…\tN", this, [this] { editSelectedNote(); });
+  menu.exec(m_table->viewport()->mapToGlobal(pos));
 }
 
 bool CandidatePanel::eventFilter(QObject* watched, QEvent* event) {

@@ -251,6 +251,8 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->horizontalHeader()->setStretchLastSection(true);
   m_table->setAlternatingRowColors(true);
   m_table->installEventFilter(this);  // the vetting keys (candidate_panel_vetting.cpp)
+  m_table->setContextMenuPolicy(Qt::CustomContextMenu);
+  connect(m_table, &QWidget::customContextMenuRequested, this, &CandidatePanel::showVettingMenu);
   buildFilterBar();
 
   connect(m_obs, &Observation::resultChanged, this, [this] {

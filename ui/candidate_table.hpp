@@ -90,6 +90,8 @@ class CandidatePanel : public QWidget {
 
  private:
   void buildFilterBar();
+  /// Right click on a row: the same labels as the keys, for the mouse.
+  void showVettingMenu(const QPoint& pos);
   void onResult();
   void onSelectionFromObservation();
   void updateCount();

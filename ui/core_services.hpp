@@ -4,6 +4,7 @@
 // them behind one struct lets tests inject small fakes and keeps st_ui free of st_gpu (a backend is made by
 // the application's factory and handed in).
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <memory>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
+#include "st/fit/comoving_fit.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/types.hpp"
 
@@ -72,6 +74,21 @@ struct ProfileFit {
 
 enum class BackendKind { Auto, Cpu, Gpu };
 
+/// One accepted step of a running co-moving fit, for the live plots (called on the fit's worker thread).
+struct FitStep {
+  fit::FitIteration iteration;  ///< iteration number, cost C, lambda, parameters
+  /// Data - model summed along the step's track (FitResult::residualStack's layout); null when skipped
+  /// (the adapter computes it at most a few times per second).
+  std::shared_ptr<const Image> residual;
+};
+
+/// A finished co-moving fit of one candidate.
+struct FitOutcome {
+  nlohmann::json json;    ///< what "Accept" stores on the candidate (app::fitCandidateJson's object)
+  fit::FitResult result;  ///< every number: Hessian and noise-model sigmas, the paper's formulas, stacks
+};
+using FitStepCallback = std::function<void(const FitStep&)>;
+
 struct CoreServices {
   /// Loads files and/or folders into one cube (st::io::loadFrames).
   std::function<FrameCube(const std::vector<std::string>& inputs, ProgressSink&, CancelToken&)> loadFrames;
@@ -90,6 +107,11 @@ struct CoreServices {
   /// 0-based pixel -> (RA, Dec) in degrees through the cube's WCS (st::Wcs); nullopt without a WCS.
   std::function<std::optional<std::pair<double, double>>(const FrameCube& cube, double x, double y)>
       pixelToSky;
+  /// Co-moving PSF fit of a candidate on the unfiltered frames with the pre-processing's PSF and sigma_n
+  /// (app::fitCandidateJson); `onStep` sees every accepted iteration. Throws st::Cancelled.
+  std::function<FitOutcome(const PreparedView& prepared, const search::Candidate& candidate,
+                           CancelToken& cancel, const FitStepCallback& onStep)>
+      fitCandidate;
   /// Names of the available GPUs, for the backend selector (empty when none).
   std::vector<std::string> gpuNames;
 };

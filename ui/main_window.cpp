@@ -20,16 +20,20 @@
 #include <QSettings>
 #include <QSpinBox>
 #include <QStatusBar>
+#include <QTableView>
 #include <QToolBar>
 #include <QVBoxLayout>
 
+#include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
+#include "fit_panel.hpp"
 #include "header_dialog.hpp"
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
 #include "stack_scrubber.hpp"
 #include "velocity_map_widget.hpp"
 
@@ -46,6 +50,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   m_scrubber = new StackScrubber(this);
   setCentralWidget(buildCentral());
   buildDocks();
+  buildSession();  // main_window_session.cpp
   buildMenus();
   buildStatusBar();
 
@@ -87,6 +92,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   restoreGeometry(settings.value("window/geometry").toByteArray());
   restoreState(settings.value("window/state").toByteArray());
   rebuildRecentMenu();
+  rebuildRecentSessionsMenu();
 }
 
 MainWindow::~MainWindow() = default;
@@ -182,7 +188,8 @@ void MainWindow::buildDocks() {
   auto* vmap = dock("Velocity space", "dock.velocity", m_velocityMap, Qt::RightDockWidgetArea);
   auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea);
   splitDockWidget(vmap, insp, Qt::Vertical);
-  dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
+  auto* cands = dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
+  buildVettingDocks(insp, cands);
   resizeDocks({proc}, {330}, Qt::Horizontal);
   resizeDocks({vmap}, {430}, Qt::Horizontal);
 
@@ -206,6 +213,7 @@ void MainWindow::buildMenus() {
   });
   file->addAction("Open &demo observation", QKeySequence("Ctrl+D"), this, &MainWindow::openDemo);
   m_recentMenu = file->addMenu("Open &recent");
+  buildSessionMenu(file);
   file->addSeparator();
   file->addAction("&Header…", QKeySequence("Ctrl+H"), this, [this] {
     if (!m_obs->raw()) return;
@@ -223,6 +231,7 @@ void MainWindow::buildMenus() {
   run->addAction("&Pre-process", QKeySequence("Ctrl+P"), this, &MainWindow::runPreprocess);
   run->addAction("&Search", QKeySequence("Ctrl+R"), this, &MainWindow::runSearch);
   run->addAction("&Cancel", QKeySequence("Esc"), m_jobs, &JobRunner::cancel);
+  run->addActions(m_candidates->table()->actions());  // "Fit selected candidate" (F), built with the docks
   auto* autoPre = run->addAction("Pre-process after loading");
   autoPre->setCheckable(true);
   autoPre->setChecked(m_autoPreprocess);
@@ -267,6 +276,7 @@ void MainWindow::buildStatusBar() {
   m_cancel->hide();
   statusBar()->addWidget(m_pixelLabel);
   statusBar()->addWidget(m_stackLabel);
+  statusBar()->addPermanentWidget(m_sessionLabel);
   statusBar()->addPermanentWidget(m_jobLabel);
   statusBar()->addPermanentWidget(m_progress);
   statusBar()->addPermanentWidget(m_cancel);
@@ -288,6 +298,7 @@ void MainWindow::buildStatusBar() {
 
 void MainWindow::closeEvent(QCloseEvent* event) {
   m_jobs->cancel();
+  m_session->autosaver()->flush(5000);  // the last change reaches the disk before the window goes
   QSettings settings;
   settings.setValue("window/geometry", saveGeometry());
   settings.setValue("window/state", saveState());

@@ -29,15 +29,22 @@ class SearchPanel;
 class VelocityMapWidget;
 class CandidatePanel;
 class InspectorPanel;
+class SessionController;
+struct OpenedSession;
 class FigureDialog;
+class CandidateInspector;
+class FitPanel;
 class ReportDialog;
 
-/// What `synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE] [--quit]` asks for.
+/// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE]
+/// [--quit]` asks for.
 struct ScriptOptions {
   QStringList inputs;
+  QString session;  ///< a session file to reopen (its result is restored, never searched again)
   bool demo = false;
   bool search = false;
   std::optional<int> select;  ///< 1-based candidate number
+  bool fit = false;           ///< run the co-moving fit of the selected candidate before the screenshot
   QString screenshot;
   int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
   bool quit = false;
@@ -61,6 +68,10 @@ class MainWindow : public QMainWindow {
 
   void openInputs(const QStringList& paths);
   void openDemo();
+  /// Reopens a session file (main_window_session.cpp): reloads its inputs, pre-processes them with the saved
+  /// parameters in a worker, then restores the result, the candidates' labels, notes, fits and flags and the
+  /// selection without searching again. A corrupted or newer file gets a message naming the backup copy.
+  void openSession(const QString& path);
   void runPreprocess();
   void runSearch();
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
@@ -78,7 +89,11 @@ class MainWindow : public QMainWindow {
   [[nodiscard]] VelocityMapWidget* velocityMap() const noexcept { return m_velocityMap; }
   [[nodiscard]] CandidatePanel* candidates() const noexcept { return m_candidates; }
   [[nodiscard]] InspectorPanel* inspector() const noexcept { return m_inspector; }
+  [[nodiscard]] CandidateInspector* candidateInspector() const noexcept { return m_candidateInspector; }
+  [[nodiscard]] FitPanel* fitPanel() const noexcept { return m_fitPanel; }
   [[nodiscard]] SearchPanel* searchPanel() const noexcept { return m_search; }
+  /// The session file and its autosave.
+  [[nodiscard]] SessionController* session() const noexcept { return m_session; }
   /// The "Export figure…" dialog (made on first use; main_window_export.cpp).
   FigureDialog* figureDialog();
   /// The "Reports…" dialog (made on first use; main_window_export.cpp).
@@ -100,6 +115,8 @@ class MainWindow : public QMainWindow {
   void buildMenus();
   void buildExportMenu(QMenu* menu);
   void buildDocks();
+  void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
+  void runScriptFit();
   QWidget* buildCentral();
   void buildStatusBar();
   void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
@@ -119,6 +136,11 @@ class MainWindow : public QMainWindow {
   /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.
   void runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done);
   void showError(const QString& title, const QString& message);
+  void buildSessionMenu(QMenu* file);
+  void buildSession();
+  void applyOpenedSession(const OpenedSession& opened);
+  void addRecentSession(const QString& path);
+  void rebuildRecentSessionsMenu();
 
   CoreServices m_services;
   Observation* m_obs;
@@ -135,12 +157,18 @@ class MainWindow : public QMainWindow {
   VelocityMapWidget* m_velocityMap = nullptr;
   CandidatePanel* m_candidates = nullptr;
   InspectorPanel* m_inspector = nullptr;
+  CandidateInspector* m_candidateInspector = nullptr;
+  FitPanel* m_fitPanel = nullptr;
   QLabel* m_pixelLabel = nullptr;
   QLabel* m_stackLabel = nullptr;
   QLabel* m_jobLabel = nullptr;
   QProgressBar* m_progress = nullptr;
   QPushButton* m_cancel = nullptr;
   QMenu* m_recentMenu = nullptr;
+  QMenu* m_recentSessionsMenu = nullptr;
+  SessionController* m_session = nullptr;
+  QLabel* m_sessionLabel = nullptr;
+  std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;

@@ -19,6 +19,7 @@
 #include "main_window.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -33,6 +34,7 @@ void MainWindow::openInputs(const QStringList& paths) {
       paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
   addRecent(paths);
   m_demoGrid = false;
+  m_session->prepareNew(inputs, false);
   startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
     if (!load) throwMissingService("FITS reader");
     return load(inputs, progress, cancel);
@@ -42,6 +44,7 @@ void MainWindow::openInputs(const QStringList& paths) {
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
   m_demoGrid = true;
+  m_session->prepareNew({}, true);
   startLoad("demo observation (simulated paper-neo)",
             [simulate](ProgressSink& progress, CancelToken& cancel) {
               if (!simulate) throwMissingService("simulator");
@@ -72,7 +75,8 @@ void MainWindow::runPreprocess() {
     std::string message;
     std::shared_ptr<search::SearchBackend> backend;
     if (makeBackend) backend = makeBackend(kind, message);  // the live-stack backend, its own instance
-    return std::function<void()>([this, prepared, backend, message] {
+    return std::function<void()>([this, prepared, backend, message, stages] {
+      m_preparedStages = stages;
       m_stackBackend = backend;
       m_scrubber->setBackend(backend);
       if (!message.empty()) m_search->setBackendMessage("stacks: " + QString::fromStdString(message));
@@ -192,7 +196,9 @@ void MainWindow::onSelection() {
 
 void MainWindow::runScript(const ScriptOptions& options) {
   m_script = options;
-  if (options.demo)
+  if (!options.session.isEmpty())
+    openSession(options.session);
+  else if (options.demo)
     openDemo();
   else if (!options.inputs.isEmpty())
     openInputs(options.inputs);
@@ -202,6 +208,11 @@ void MainWindow::runScript(const ScriptOptions& options) {
 
 void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
   if (!ok) return;
+  if (finishedJob == "Opening session") {  // restored without searching again
+    if (m_script->select) selectCandidate(*m_script->select - 1);
+    finishScript(true, {});
+    return;
+  }
   if (finishedJob == "Loading" && !m_autoPreprocess) runPreprocess();
   if (finishedJob == "Pre-processing") {
     if (m_script->search)
@@ -219,6 +230,7 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
     }
     std::fflush(stdout);
     if (m_script->select) selectCandidate(*m_script->select - 1);
+    if (m_script->fit && m_obs->selectedCandidate()) return runScriptFit();
     finishScript(true, {});
   }
 }

@@ -82,6 +82,15 @@ void ProcessingPanel::resetDefaults() {
   }
 }
 
+void ProcessingPanel::setStages(const std::vector<StageSpec>& stages) {
+  for (std::size_t s = 0; s < m_defaults.size() && s < stages.size(); ++s) {
+    if (stages[s].name != m_defaults[s].name || stages[s].params.size() != m_spins[s].size()) continue;
+    if (m_boxes[s]->isCheckable()) m_boxes[s]->setChecked(stages[s].enabled);
+    for (std::size_t p = 0; p < m_spins[s].size(); ++p)
+      m_spins[s][p]->setValue(stages[s].params[p].value);
+  }
+}
+
 void ProcessingPanel::setRunEnabled(bool enabled) {
   m_run->setEnabled(enabled);
 }

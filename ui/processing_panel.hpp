@@ -22,6 +22,8 @@ class ProcessingPanel : public QWidget {
   [[nodiscard]] std::vector<StageSpec> stages() const;
   void setRunEnabled(bool enabled);
   void setSummary(const QString& text);
+  /// Shows these stages (same names and order as the panel's, e.g. from a session); others are ignored.
+  void setStages(const std::vector<StageSpec>& stages);
   /// Back to the paper's defaults.
   void resetDefaults();
 

@@ -11,6 +11,7 @@
 #include "commands.hpp"
 #include "st/common/parallel.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/search/method_choice.hpp"
 #include "st/search/tree_plan.hpp"
 #include "st/search/tree_search.hpp"
 #include "st/search/velocity_grid.hpp"
@@ -79,6 +80,10 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
   const double rssMb = static_cast<double>(u.ru_maxrss) / 1024.0;
+  // What `--method auto` would choose here (method_choice.hpp), to compare with the measured winner.
+  const search::MethodEstimate est = search::estimateMethods(w, h, cube.frames.timeOffsetsS(), grid,
+                                                             search::costModelFor(*backend), workerCount());
+  const search::MethodChoice autoChoice = search::chooseMethod("auto", est, true, backend->name());
   if (json) {
     std::printf(
         "{\"bench\": \"search-tree\", \"threads\": %u, \"frames\": %.0f, \"width\": %d, \"height\": %d, "
@@ -88,11 +93,13 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
         "\"exact_seconds\": %.4f, \"exact_candidates\": %zu, \"paper_tree_additions\": %.6g, "
         "\"paper_tree_seconds\": %.2f, \"paper_exact_additions\": %.6g, \"paper_tree_tile_mb_per_thread\": "
         "%.1f, "
-        "\"max_rss_mb\": %.0f}\n",
+        "\"max_rss_mb\": %.0f, \"auto_method\": \"%s\", \"auto_exact_estimate_s\": %.4g, "
+        "\"auto_tree_estimate_s\": %.4g}\n",
         workerCount(), frames, w, h, grid.nvx, grid.nvy, treeOps, tree.seconds, tree.cpuSeconds,
         tree.result.candidates.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, exactOps,
         runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0},
-        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb);
+        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb, autoChoice.method.c_str(),
+        est.exactSeconds, est.treeSeconds);
     return 0;
   }
   std::printf("search tree vs exact  %s  %.0f frames x %d x %d px x %d x %d velocities\n",
@@ -107,6 +114,10 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
     std::printf("  speed-up %.1fx in time, %.1fx in operations\n", exact.seconds / tree.seconds,
                 exactOps / treeOps);
   }
+  std::printf("  --method auto: %s (%s)%s\n", autoChoice.method.c_str(), autoChoice.reason.c_str(),
+              runExact
+                  ? (exact.seconds < tree.seconds ? "; measured: exact faster" : "; measured: tree faster")
+                  : "");
   std::printf(
       "  tree: tree depth %d, %zu nodes, max |shift - round(v dt)| = %d px, tiles of %d rows, "
       "<= %.1f MB of partial stacks per thread; peak RSS %.0f MB\n",
@@ -133,7 +144,8 @@ int benchSearch(const Args& args) {
         "  (defaults 500 frames, 512 px, 31 x 31: 1.26e11 additions), frames at 16.7 Hz like the paper,\n"
         "  grid step 1 px over the span. Reports additions/s and the paper-scale extrapolation.\n"
         "  --method tree: the tree search, then the exact search on the same cube (not with --no-exact),\n"
-        "  operation counts and times side by side, and the tree's paper-scale extrapolation.\n");
+        "  operation counts and times side by side, what --method auto would choose (method_choice.hpp),\n"
+        "  and the tree's paper-scale extrapolation.\n");
     return 0;
   }
   const long long frames = cli.integer("frames").value_or(500);

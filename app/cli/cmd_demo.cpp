@@ -16,7 +16,8 @@
 #include "st/pipeline/prepared_json.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/search_report.hpp"
-#include "st/search/search_run.hpp"
+#include "st/search/method_choice.hpp"
+#include "st/search/velocity_grid.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/stack/ipsa.hpp"
 #include "terminal_progress.hpp"
@@ -27,11 +28,14 @@ namespace {
 constexpr const char* kHelp =
     "usage: synthtrack-cli demo [--out DIR] [--preset NAME] [--seed N] [--frames N]\n"
     "                           [--vmax-deg-day D] [--grid-step-px P] [--snr S] [--fits K]\n"
-    "                           [--backend auto|cpu|cuda]\n"
+    "                           [--backend auto|cpu|cuda] [--method auto|exact|tree]\n"
     "Simulates the demo observation (default paper-neo: the paper's V~23 asteroid at 5.97 deg/day, 500\n"
     "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s), pre-processes it, searches +-D deg/day around the\n"
-    "sky rate (default 8), fits the K best candidates (default 40) and writes everything to DIR\n"
-    "(default ./demo-output).\n";
+    "sky rate (default 8) in steps of P px over the span (default 1.5; both demo settings, coarser than the\n"
+    "paper's +-12 deg/day and 1 px that 'synthtrack-cli search' uses), with --method (default auto: exact "
+    "or\n"
+    "tree, whichever is estimated to win), fits the K best candidates (default 40) and writes everything to\n"
+    "DIR (default ./demo-output).\n";
 
 struct DemoOptions {
   std::filesystem::path out = "demo-output";
@@ -43,11 +47,13 @@ struct DemoOptions {
   double snr = 7.0;
   int fits = 40;
   BackendChoice backend = BackendChoice::Auto;
+  std::string method = "auto";
 };
 
 DemoOptions parseDemo(const Args& args) {
   const CliArgs cli(
-      args, {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend"},
+      args,
+      {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend", "method"},
       {"help"});
   if (!cli.positionals().empty()) throw UsageError("unexpected argument '" + cli.positionals()[0] + "'");
   DemoOptions o;
@@ -60,6 +66,9 @@ DemoOptions parseDemo(const Args& args) {
   o.snr = cli.number("snr", o.snr);
   if (auto v = cli.integer("fits")) o.fits = static_cast<int>(*v);
   if (auto v = cli.value("backend")) o.backend = parseBackendChoice(*v);
+  if (auto v = cli.value("method")) o.method = *v;
+  if (o.method != "auto" && o.method != "exact" && o.method != "tree")
+    throw UsageError("--method must be auto, exact or tree, got '" + o.method + "'");
   if (!(o.vmaxDegDay > 0.0)) throw UsageError("--vmax-deg-day must be > 0");
   if (!(o.stepPx > 0.0)) throw UsageError("--grid-step-px must be > 0");
   if (o.fits < 0) throw UsageError("--fits must be >= 0");
@@ -78,6 +87,21 @@ void writeStack(const std::filesystem::path& path, const FrameCube& cube, Veloci
   h.setNumber("STVY", v.vy, "stack velocity y [px/s]");
   h.setNumber("TREFMJD", cube.tRefMjd(), "reference epoch, MJD (UTC), mean mid-time");
   io::writeImage(path.string(), s.sum, h);
+}
+
+/// The demo's search: +-vmax deg/day around the sky rate, steps of stepPx over the span, o.method.
+search::SearchResult demoSearch(const DemoOptions& o, const pipeline::Prepared& prepared,
+                                search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel) {
+  search::GridSpec spec;
+  spec.halfRange = o.vmaxDegDay;
+  spec.unit = search::VelocityUnit::DegPerDay;
+  spec.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
+  spec.stepPx = o.stepPx;
+  search::SearchParams params;
+  params.snrThreshold = o.snr;
+  params.method = o.method;
+  const search::VelocityGrid grid = search::makeVelocityGrid(spec, prepared.filtered);
+  return search::searchWithMethod(backend, prepared.filtered, grid, params, progress, cancel);
 }
 
 /// The candidate nearest the truth object in position and velocity, or nullptr.
@@ -125,16 +149,9 @@ int cmdDemo(const Args& args) {
   pipeline::writePreparedSidecar(path("prepared.json"), prepared);
 
   // 3. The velocity search, +-vmax deg/day around the sky rate.
-  BackendSelection backend = makeBackend(o.backend);
-  search::SearchRequest request;
-  request.grid.halfRange = o.vmaxDegDay;
-  request.grid.unit = search::VelocityUnit::DegPerDay;
-  request.grid.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
-  request.grid.stepPx = o.stepPx;
-  request.params.snrThreshold = o.snr;
+  BackendSelection backend = makeBackendForMethod(o.backend, o.method);
   SubProgress searchProgress(progress, 0.5, 0.9);
-  const search::SearchResult result =
-      search::runSearch(*backend.backend, prepared.filtered, request, searchProgress, cancel);
+  const search::SearchResult result = demoSearch(o, prepared, *backend.backend, searchProgress, cancel);
   nlohmann::json report = report::searchResultToJson(prepared.filtered, result, {path("observation.fits")});
 
   // 4. Co-moving fits and segment checks of the best candidates.
@@ -162,9 +179,10 @@ int cmdDemo(const Args& args) {
       prepared.sigmaN, prepared.psf.fwhm(), prepared.psfFitted ? "fitted" : "fallback", prepared.skyRate.vx,
       prepared.skyRate.vy, prepared.stars.size(), prepared.cosmicRays, prepared.elapsedS);
   std::printf(
-      "  search: %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, %.1f s\n",
-      backend.message.c_str(), result.method.c_str(), result.grid.nvx, result.grid.nvy, result.grid.stepPxS,
-      result.snrThreshold, result.candidates.size(), result.elapsedS);
+      "  search: %s, method %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, "
+      "%.1f s\n",
+      backend.message.c_str(), result.method.c_str(), result.methodReason.c_str(), result.grid.nvx,
+      result.grid.nvy, result.grid.stepPxS, result.snrThreshold, result.candidates.size(), result.elapsedS);
   int found = 0;
   for (const auto& t : sim.truth.objects) {
     const nlohmann::json* c = matchTruth(report, t, result.grid.stepPxS);

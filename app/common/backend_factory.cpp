@@ -41,4 +41,42 @@ BackendSelection makeBackend(BackendChoice choice) {
   return out;
 }
 
+BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method) {
+  BackendSelection sel = makeBackend(choice);
+  if (method != "tree" || sel.backend->supportsMethod("tree")) return sel;
+  if (choice == BackendChoice::Cuda) {
+    throw InputError("the tree search is not available on " + sel.backend->name() +
+                     ": use the CPU backend, or method auto or exact");
+  }
+  const std::string gpu = sel.backend->name();
+  sel = makeBackend(BackendChoice::Cpu);
+  sel.message = "method tree: " + gpu + " has no tree search; " + sel.message;
+  return sel;
+}
+
+std::vector<std::string> parseDeviceSummary(const std::string& summary) {
+  std::vector<std::string> names;
+  std::size_t start = 0;
+  while (start < summary.size()) {
+    std::size_t end = summary.find('\n', start);
+    if (end == std::string::npos) end = summary.size();
+    const std::string line = summary.substr(start, end - start);
+    start = end + 1;
+    const std::size_t colon = line.find(": ");
+    const std::size_t sm = line.rfind(", sm_");
+    if (colon == std::string::npos || sm == std::string::npos || sm <= colon + 2) continue;
+    if (line.find_first_not_of("0123456789") != colon) continue;  // "N: ..." only
+    names.push_back(line.substr(colon + 2, sm - colon - 2));
+  }
+  return names;
+}
+
+std::vector<std::string> gpuNames() {
+#if ST_HAVE_CUDA
+  return parseDeviceSummary(gpu::deviceSummary());
+#else
+  return {};
+#endif
+}
+
 }  // namespace st::app

@@ -2,6 +2,7 @@
 // The one place a search backend is chosen (ARCHITECTURE.md): the GUI and the CLI both call this.
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "st/search/types.hpp"
 
@@ -20,6 +21,20 @@ struct BackendSelection {
 /// Auto: CUDA when a usable device is there, else the CPU with the reason in `message`. Cuda: the CUDA
 /// backend, or st::GpuError when it cannot be had. Cpu: the CPU backend.
 BackendSelection makeBackend(BackendChoice choice);
+
+/// makeBackend(choice) for a search with SearchParams::method `method` ("auto", "exact", "tree"): a tree
+/// request on a backend without the tree (SearchBackend::supportsMethod) gets the CPU backend when the
+/// backend was chosen automatically (the message says why), and st::InputError naming the backend when it was
+/// named.
+BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method);
+
+/// The names of the visible GPUs for a backend selector ("NVIDIA H100 80GB HBM3, 79.1 GiB"), empty without
+/// CUDA or a device.
+std::vector<std::string> gpuNames();
+
+/// The device names in the text of st::gpu::deviceSummary() (lines "0: NAME, 79.1 GiB, sm_90"): "NAME, 79.1
+/// GiB" per device line; lines of another form (e.g. "no CUDA device: ...") are skipped.
+std::vector<std::string> parseDeviceSummary(const std::string& summary);
 
 /// Whether this build has the CUDA backend compiled in.
 bool cudaCompiledIn();

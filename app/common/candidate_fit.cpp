@@ -14,7 +14,7 @@ nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search
 
 nlohmann::json fitCandidateJson(const FrameCube& frames, const pipeline::Prepared& prepared,
                                 const search::Candidate& c, double gain, CancelToken& cancel,
-                                const fit::IterationCallback& onIteration) {
+                                const fit::IterationCallback& onIteration, fit::FitResult* result) {
   fit::FitOptions opt;
   opt.psf = prepared.psf;
   opt.sigmaN = prepared.sigmaN;
@@ -54,6 +54,7 @@ nlohmann::json fitCandidateJson(const FrameCube& frames, const pipeline::Prepare
     j["rate_arcsec_min"] = sky.rateArcsecPerMin;
     j["pa_deg"] = sky.positionAngleDeg;
   }
+  if (result != nullptr) *result = f;
   return j;
 }
 

@@ -19,9 +19,10 @@ nlohmann::json fitCandidateJson(const pipeline::Prepared& prepared, const search
 
 /// The same with the zero-biased frames held apart from the other products (the GUI keeps them in its
 /// unfiltered cube; `products.frames` is not read). `onIteration` sees every accepted step of the fit (from
-/// the calling thread).
+/// the calling thread). `result` (may be null) receives the whole fit (covariances, stacks, cost history).
 nlohmann::json fitCandidateJson(const FrameCube& frames, const pipeline::Prepared& products,
                                 const search::Candidate& candidate, double gain, CancelToken& cancel,
-                                const fit::IterationCallback& onIteration = {});
+                                const fit::IterationCallback& onIteration = {},
+                                fit::FitResult* result = nullptr);
 
 }  // namespace st::app

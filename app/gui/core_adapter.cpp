@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "backend_factory.hpp"
+#include "fit_service.hpp"
 #include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
@@ -198,6 +199,7 @@ ui::CoreServices makeCoreServices() {
 #ifdef ST_GUI_HAVE_PIPELINE
   s.preprocessStages = stageSpecs();
   s.preprocess = runPreprocess;
+  s.fitCandidate = fitCandidate;
 #endif
   s.makeBackend = [](ui::BackendKind kind, std::string& message) {
     const BackendChoice choice = kind == ui::BackendKind::Cpu   ? BackendChoice::Cpu

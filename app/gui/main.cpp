@@ -1,16 +1,43 @@
 // synthtrack: the desktop application.
-//   synthtrack [INPUT…] [--demo] [--search] [--select N] [--screenshot FILE.png] [--quit]
-//              [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
+//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
+//   [--quit] [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
+// --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
 #include <QApplication>
 #include <QCommandLineParser>
 #include <cstdio>
+#include <string>
 
 #include "core_adapter.hpp"
 #include "main_window.hpp"
 
+namespace {
+
+/// Takes `--session FILE` / `--session=FILE` out of argv before QApplication sees it: Qt reads "-session" as
+/// the X11 session-management id and removes it. Returns FILE ("" when absent).
+QString takeSessionOption(int& argc, char** argv) {
+  QString file;
+  int out = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if ((arg == "--session" || arg == "-session") && i + 1 < argc) {
+      file = QString::fromLocal8Bit(argv[++i]);
+    } else if (arg.rfind("--session=", 0) == 0) {
+      file = QString::fromLocal8Bit(arg.substr(10).c_str());
+    } else {
+      argv[out++] = argv[i];
+    }
+  }
+  argc = out;
+  argv[argc] = nullptr;
+  return file;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  const QString sessionFile = takeSessionOption(argc, argv);
   QApplication app(argc, argv);
   QApplication::setApplicationName("synthtrack");
   QApplication::setOrganizationName("synthtrack");
@@ -22,8 +49,11 @@ int main(int argc, char** argv) {
   parser.addVersionOption();
   parser.addPositionalArgument("inputs", "FITS cubes, frames or folders to open", "[INPUT…]");
   const QCommandLineOption demo("demo", "Open the demo observation (simulated paper-neo).");
+  const QCommandLineOption session("session",
+                                   "Reopen a session file (result and labels restored, no search).", "FILE");
   const QCommandLineOption search("search", "Run the search after pre-processing.");
   const QCommandLineOption select("select", "Select candidate N (1-based) after the search.", "N");
+  const QCommandLineOption fit("fit", "Run the co-moving fit of the selected candidate before finishing.");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window when done, then quit.",
                                       "FILE");
   const QCommandLineOption width("screenshot-width", "Scale the screenshot down to this width.", "PIXELS");
@@ -37,12 +67,14 @@ int main(int argc, char** argv) {
                                    "DIR");
   const QCommandLineOption dialog("dialog", "Open a dialog (figure or reports), shown on the screenshot.",
                                   "NAME");
-  parser.addOptions({demo, search, select, screenshot, width, quit, figure, dpi, reports, dialog});
+  parser.addOptions(
+      {demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports, dialog});
   parser.process(app);
 
   st::ui::ScriptOptions script;
   script.inputs = parser.positionalArguments();
   script.demo = parser.isSet(demo);
+  script.session = sessionFile;
   script.search = parser.isSet(search);
   if (parser.isSet(select)) {
     bool ok = false;
@@ -53,6 +85,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  script.fit = parser.isSet(fit);
   script.screenshot = parser.value(screenshot);
   script.screenshotWidth = parser.value(width).toInt();
   script.quit = parser.isSet(quit);
@@ -70,7 +103,8 @@ int main(int argc, char** argv) {
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();
-  if (script.demo || !script.inputs.isEmpty() || script.quit || !script.screenshot.isEmpty())
+  if (script.demo || !script.inputs.isEmpty() || !script.session.isEmpty() || script.quit ||
+      !script.screenshot.isEmpty())
     window.runScript(script);
   return QApplication::exec();
 }

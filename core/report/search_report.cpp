@@ -11,6 +11,21 @@
 
 namespace st::report {
 
+namespace {
+
+/// `text` as one CSV field: in double quotes, inner quotes doubled, when it holds a comma, quote or newline.
+std::string csvQuoted(const std::string& text) {
+  if (text.find_first_of(",\"\n\r") == std::string::npos) return text;
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"') out += '"';
+    out += c;
+  }
+  return out + '"';
+}
+
+}  // namespace
+
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                                const search::Candidate& c) {
   nlohmann::json j;
@@ -45,6 +60,7 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["inputs"] = inputs;
   j["backend"] = r.backend;
   j["method"] = r.method;
+  j["method_reason"] = r.methodReason;
   j["t_ref_mjd"] = r.tRefMjd;
   j["frames"] = cube.frames.frameCount();
   j["sigma_f"] = cube.sigmaF;
@@ -157,6 +173,7 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
   r.tRefMjd = required<double>(j, "t_ref_mjd", kWhat);
   r.backend = required<std::string>(j, "backend", kWhat);
   r.method = required<std::string>(j, "method", kWhat);
+  r.methodReason = optionalKey<std::string>(j, "method_reason", std::string(), kWhat);
   r.elapsedS = optionalKey<double>(j, "elapsed_s", 0.0, kWhat);
   r.cellsAboveThreshold = optionalKey<std::int64_t>(j, "cells_above_threshold", 0, kWhat);
   r.minFrames = optionalKey<int>(j, "min_frames", 0, kWhat);
@@ -172,7 +189,12 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
 void writeCandidatesCsv(const std::string& path, const nlohmann::json& result) {
   std::ofstream out(path);
   if (!out) throw InputError("cannot write '" + path + "'");
-  out << "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells,flags\n";
+  out << "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells,flags,method,method_"
+         "reason\n";
+  // The search method is a property of the whole run; every row carries it so a row read alone says how it
+  // was found. The reason holds commas: quoted (RFC 4180).
+  const std::string method = result.value("method", std::string());
+  const std::string reason = csvQuoted(result.value("method_reason", std::string()));
   out.precision(10);
   auto optional = [&](const nlohmann::json& c, const char* key) {
     if (c.contains(key)) out << c[key].get<double>();
@@ -193,7 +215,7 @@ void writeCandidatesCsv(const std::string& path, const nlohmann::json& result) {
       }
       out << joined;
     }
-    out << '\n';
+    out << ',' << method << ',' << reason << '\n';
   }
   if (!out) throw InputError("error writing '" + path + "'");
 }

@@ -49,6 +49,10 @@ class CpuBackend final : public SearchBackend {
     return result;
   }
 
+  [[nodiscard]] bool supportsMethod(const std::string& method) const override {
+    return method == "exact" || method == "tree";
+  }
+
   Image stackAt(const FilteredCube& cube, Velocity v, StackMode mode) override {
     // CSA (sub-pixel shifts, paper §2.2) is not part of st::stack yet.
     if (mode == StackMode::Csa) throw InputError("CSA not supported by this backend");

@@ -65,8 +65,21 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params) {
-  std::sort(hits.begin(), hits.end(), [](const CellHit& a, const CellHit& b) { return a.snr > b.snr; });
-  if (hits.size() > params.maxCandidates) hits.resize(params.maxCandidates);
+  // Total order (SNR descending, then y, x, ivy, ivx ascending): the cells kept at the cap and the
+  // representative cell of a cluster do not depend on the order in which a backend found them.
+  const auto before = [](const CellHit& a, const CellHit& b) {
+    if (a.snr != b.snr) return a.snr > b.snr;
+    if (a.y != b.y) return a.y < b.y;
+    if (a.x != b.x) return a.x < b.x;
+    if (a.ivy != b.ivy) return a.ivy < b.ivy;
+    return a.ivx < b.ivx;
+  };
+  if (hits.size() > params.maxCandidates) {
+    std::nth_element(hits.begin(), hits.begin() + static_cast<std::ptrdiff_t>(params.maxCandidates),
+                     hits.end(), before);
+    hits.resize(params.maxCandidates);
+  }
+  std::sort(hits.begin(), hits.end(), before);
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
 }
 

@@ -4,7 +4,8 @@
 //   - additions/s of the tiled kernel, and of the naive one-thread-per-(pixel, velocity) kernel on the
 //     same cube (a band of velocity rows, so the naive run stays short), both timed with device events;
 //   - stackAt for 500 x 512^2 (device time of the kernels, and the whole call).
-// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames]
+//   - the tree search (method "tree") on the same cube: end-to-end, upload, kernels, operation count;
+// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames] [all|tree]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -79,6 +80,7 @@ int run(int argc, char** argv) {
   const int nv = argc > 3 ? std::atoi(argv[3]) : 100;
   const int naiveRows = argc > 4 ? std::atoi(argv[4]) : 12;
   const int stackFrames = argc > 5 ? std::atoi(argv[5]) : 500;
+  const bool treeOnly = argc > 6 && std::string(argv[6]) == "tree";  // exact end-to-end + tree only
   const std::time_t now = std::time(nullptr);
   char date[64];
   std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
@@ -116,6 +118,34 @@ int run(int argc, char** argv) {
         r.candidates.empty() ? -1 : r.candidates.front().ivx,
         r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
   }
+  // The tree search (method "tree") on the same cube, side by side with the exact search above.
+  for (const auto& [cut, shape] :
+       {std::pair{0, 0}, std::pair{3, 0}, std::pair{0, 1}, std::pair{0, 2}, std::pair{0, 3}}) {
+    st::gpu::CudaOptions to;
+    to.treeCut = cut;
+    to.treeRootShape = shape;
+    to.profileTree = true;
+    auto tree = st::gpu::makeCudaSearchBackend(whyNot, to);
+    st::search::SearchParams tp = params;
+    tp.method = "tree";
+    for (int rep = 0; rep < 2; ++rep) {
+      const auto r = tree->search(cube, grid, tp, quiet, cancel);
+      std::printf(
+          "tree search %d (cut %d, root shape %d): end-to-end %.3f s, upload %.1f ms, kernels %.1f ms; %.3g "
+          "additions "
+          "(%.0fx "
+          "fewer than exact) = %.3g additions/s; %zu candidates, best SNR %.2f at (%d, %d) v[%d,%d]\n  %s",
+          rep, cut == 0 ? st::gpu::kTreeDefaultCut : cut, shape, r.elapsedS, 1e3 * tree->lastUploadSeconds(),
+          1e3 * tree->lastKernelSeconds(), tree->lastTreeAdditions(), additions / tree->lastTreeAdditions(),
+          tree->lastTreeAdditions() / tree->lastKernelSeconds(), r.candidates.size(),
+          r.candidates.empty() ? 0.0 : r.candidates.front().snr,
+          r.candidates.empty() ? -1 : r.candidates.front().x,
+          r.candidates.empty() ? -1 : r.candidates.front().y,
+          r.candidates.empty() ? -1 : r.candidates.front().ivx,
+          r.candidates.empty() ? -1 : r.candidates.front().ivy, tree->lastNote().c_str());
+    }
+  }
+  if (treeOnly) return 0;
   {
     st::gpu::CudaOptions o16;
     o16.kernelVariant = -4;

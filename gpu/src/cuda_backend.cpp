@@ -18,16 +18,13 @@
 #include "st/search/search_run.hpp"
 #include "st/stack/csa.hpp"
 #include "stack_engine.hpp"
+#include "st/search/tree_plan.hpp"
+#include "tree_search_device.hpp"
+#include "cuda_check.hpp"
+#include <functional>
 
 namespace st::gpu {
 namespace {
-
-/// A cell above threshold on the host, before capping and clustering.
-struct HostCell {
-  float snr;
-  float sum;
-  int x, y, ivx, ivy, nIn;
-};
 
 class CudaBackend final : public CudaSearchBackend {
  public:
@@ -45,6 +42,8 @@ class CudaBackend final : public CudaSearchBackend {
   }
   [[nodiscard]] std::string lastNote() const override { return m_note; }
   [[nodiscard]] double lastKernelSeconds() const override { return m_kernelSeconds; }
+  [[nodiscard]] double lastUploadSeconds() const override { return m_uploadSeconds; }
+  [[nodiscard]] double lastTreeAdditions() const override { return m_treeAdditions; }
 
   search::SearchResult search(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                               const search::SearchParams& params, ProgressSink& progress,
@@ -52,6 +51,10 @@ class CudaBackend final : public CudaSearchBackend {
     const auto start = std::chrono::steady_clock::now();
     search::validateSearchInput(cube, grid, params);
     validateForGpu(cube);
+    if (params.method == "tree") return searchTree(cube, grid, params, progress, cancel, start);
+    if (params.method != "exact") {
+      throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+    }
     search::SearchResult result;
     result.grid = grid;
     result.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
@@ -93,7 +96,7 @@ class CudaBackend final : public CudaSearchBackend {
     }
     mergeMap(outcomes, plan, result);
     result.cellsAboveThreshold = static_cast<std::int64_t>(above);
-    result.candidates = makeCandidates(outcomes, cube, grid, params, result.trials);
+    search::setCandidates(result, collectCells(outcomes), cube, params);
     m_note.clear();
     m_kernelSeconds = 0.0;
     for (std::size_t i = 0; i < outcomes.size(); ++i) {
@@ -103,6 +106,155 @@ class CudaBackend final : public CudaSearchBackend {
     result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.report(1.0, "velocity search (" + name() + ")");
     return result;
+  }
+
+  /// The tree search (tree_device_plan.hpp): tiles of rows spread over the devices, each holding the cube.
+  search::SearchResult searchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                                  const search::SearchParams& params, ProgressSink& progress,
+                                  CancelToken& cancel, std::chrono::steady_clock::time_point start) {
+    search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "tree");
+    const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
+    const search::TreePlan tree = search::buildTreePlan(cube.frames.timeOffsetsS(), grid);
+    std::size_t capacity = m_options.cellCapacity > 0
+                               ? m_options.cellCapacity
+                               : std::max<std::size_t>(4 * params.maxCandidates, 65536);
+    const int cut = m_options.treeCut > 0 ? m_options.treeCut : kTreeDefaultCut;
+    const TreeDevicePlan dplan = chooseTreeTiles(tree, plan, cube, capacity, cut);
+    progress.report(0.0, "velocity search, tree (" + name() + ")");
+    auto runTiles = [&](std::size_t cap) {
+      return runOnDevices(std::min<int>(static_cast<int>(m_devices.size()), dplan.tiles), progress, cancel,
+                          "velocity search, tree (" + name() + ")", [&](int d, int used, auto report) {
+                            DeviceJob job;
+                            job.device = m_devices[d].ordinal;
+                            job.cellCapacity = cap;
+                            job.profile = m_options.profileTree;
+                            job.treeRootShape = m_options.treeRootShape;
+                            const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
+                            const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
+                            return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
+                                                   report, cancel, m_abort);
+                          });
+    };
+    std::vector<DeviceOutcome> outcomes = runTiles(capacity);
+    std::uint64_t above = 0;
+    for (const auto& o : outcomes)
+      above += o.cellsAbove;
+    if (above > capacity) {
+      capacity = checkedCapacity(above, result.snrThreshold);
+      outcomes = runTiles(capacity);
+    }
+    // Every device covers the whole grid (its own rows of pixels): the map is the maximum over devices.
+    std::vector<unsigned long long> keys(grid.count(), 0ull);
+    for (const auto& o : outcomes) {
+      for (std::size_t i = 0; i < keys.size(); ++i)
+        keys[i] = std::max(keys[i], o.mapKeys[i]);
+    }
+    DeviceOutcome merged;
+    merged.mapKeys = std::move(keys);
+    mergeMap({merged}, plan, result);
+    result.cellsAboveThreshold = static_cast<std::int64_t>(above);
+    search::setCandidates(result, collectCells(outcomes), cube, params);
+    m_note.clear();
+    m_kernelSeconds = 0.0;
+    m_uploadSeconds = 0.0;
+    for (std::size_t i = 0; i < outcomes.size(); ++i) {
+      m_note += "device " + std::to_string(m_devices[i].ordinal) + ": " + outcomes[i].note + "\n";
+      m_kernelSeconds = std::max(m_kernelSeconds, outcomes[i].kernelSeconds);
+      m_uploadSeconds = std::max(m_uploadSeconds, outcomes[i].uploadSeconds);
+    }
+    m_treeAdditions = dplan.additionsPerTile * dplan.tiles;
+    result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    progress.report(1.0, "velocity search, tree (" + name() + ")");
+    return result;
+  }
+
+  /// Tiles of as many rows as fit in the memory allowed (whole image first), for the first device.
+  TreeDevicePlan chooseTreeTiles(const search::TreePlan& tree, const HostPlan& plan,
+                                 const search::FilteredCube& cube, std::size_t capacity, int cut) {
+    ST_CUDA_CHECK(cudaSetDevice(m_devices.front().ordinal));
+    std::size_t freeBytes = 0, totalBytes = 0;
+    ST_CUDA_CHECK(cudaMemGetInfo(&freeBytes, &totalBytes));
+    constexpr std::size_t kReserve = std::size_t{256} << 20;
+    std::size_t budget = freeBytes > kReserve ? freeBytes - kReserve : 0;
+    if (m_options.deviceMemoryLimitBytes > 0) budget = std::min(budget, m_options.deviceMemoryLimitBytes);
+    const std::size_t cubeBytes = cube.frames.pixels().size() * sizeof(float);
+    const int h = plan.height;
+    std::size_t need = 0;
+    // At least one tile per device, so that every device gets work.
+    const int first = std::min<int>(h, static_cast<int>(m_devices.size()));
+    for (int parts = first; parts <= h;
+         parts = parts == h ? h + 1 : std::min(h, parts < 4 ? parts + 1 : parts * 3 / 2)) {
+      const int rows = m_options.treeTileRows > 0 ? m_options.treeTileRows : (h + parts - 1) / parts;
+      TreeDevicePlan d = makeTreeDevicePlan(tree, plan.width, h, rows, cut);
+      need = cubeBytes + treeDeviceBytes(d, plan, capacity);
+      if (need <= budget || m_options.treeTileRows > 0) {
+        if (need > budget) break;
+        return d;
+      }
+    }
+    throw GpuError("not enough device memory for the tree search: the cube (" +
+                   std::to_string(cubeBytes >> 20) + " MiB) and partial stacks need " +
+                   std::to_string(need >> 20) + " MiB, " + std::to_string(budget >> 20) + " MiB allowed");
+  }
+
+  static std::size_t checkedCapacity(std::uint64_t above, double threshold) {
+    constexpr std::uint64_t kMaxCells = std::uint64_t{1} << 27;  // 4 GiB of cells
+    if (above > kMaxCells) {
+      throw GpuError(std::to_string(above) + " cells exceed SNR " + std::to_string(threshold) +
+                     ": too many to collect on the GPU (raise the threshold)");
+    }
+    return static_cast<std::size_t>(above);
+  }
+
+  /// Runs `work(d, used, report)` on devices [0, used), one host thread each; rethrows the first real error.
+  template <class Work>
+  std::vector<DeviceOutcome> runOnDevices(int used, ProgressSink& progress, CancelToken& cancel,
+                                          const std::string& stage, Work work) {
+    (void)cancel;
+    std::vector<DeviceOutcome> outcomes(static_cast<std::size_t>(used));
+    std::vector<std::exception_ptr> errors(static_cast<std::size_t>(used));
+    std::vector<double> fractions(static_cast<std::size_t>(used), 0.0);
+    std::mutex progressMutex;
+    m_abort.store(false);
+    auto body = [&](int d) {
+      try {
+        outcomes[d] = work(d, used, std::function<void(double)>([&, d](double f) {
+                             std::lock_guard lock(progressMutex);
+                             fractions[d] = f;
+                             double sum = 0.0;
+                             for (double x : fractions)
+                               sum += x;
+                             progress.report(sum / used, stage);
+                           }));
+      } catch (...) {
+        errors[d] = std::current_exception();
+        m_abort.store(true);
+      }
+    };
+    std::vector<std::thread> threads;
+    for (int d = 1; d < used; ++d)
+      threads.emplace_back(body, d);
+    body(0);
+    for (auto& t : threads)
+      t.join();
+    rethrowFirst(errors);
+    return outcomes;
+  }
+
+  /// Rethrows a real error in preference to the Cancelled it caused on the other devices.
+  static void rethrowFirst(const std::vector<std::exception_ptr>& errors) {
+    std::exception_ptr first;
+    for (const auto& e : errors) {
+      if (!e) continue;
+      try {
+        std::rethrow_exception(e);
+      } catch (const Cancelled&) {
+        if (!first) first = e;
+      } catch (...) {
+        std::rethrow_exception(e);
+      }
+    }
+    if (first) std::rethrow_exception(first);
   }
 
   /// IPSA on the first device; CSA (spectral sub-pixel shifts, st::stack::stackCsa) on the CPU, so both
@@ -195,27 +347,14 @@ class CudaBackend final : public CudaSearchBackend {
     }
   }
 
-  /// Cells above threshold, highest SNR first, capped at maxCandidates, then clustered exactly as the CPU
-  /// backend does (st::search::clusterCells with the default radii for the PSF).
-  static std::vector<search::Candidate> makeCandidates(const std::vector<DeviceOutcome>& outcomes,
-                                                       const search::FilteredCube& cube,
-                                                       const search::VelocityGrid& grid,
-                                                       const search::SearchParams& params,
-                                                       const search::TrialCounts& trials) {
+  /// Cells above threshold, as the CPU's search::CellHit (capped and clustered by search::setCandidates).
+  static std::vector<search::CellHit> collectCells(const std::vector<DeviceOutcome>& outcomes) {
     std::vector<search::CellHit> cells;
     for (const auto& o : outcomes) {
       for (const DeviceCell& c : o.cells)
         cells.push_back(search::CellHit{c.snr, c.sum, c.x, c.y, c.ivx, c.ivy, c.nIn});
     }
-    std::sort(cells.begin(), cells.end(), [](const search::CellHit& a, const search::CellHit& b) {
-      if (a.snr != b.snr) return a.snr > b.snr;
-      if (a.y != b.y) return a.y < b.y;
-      if (a.x != b.x) return a.x < b.x;
-      if (a.ivy != b.ivy) return a.ivy < b.ivy;
-      return a.ivx < b.ivx;
-    });
-    if (cells.size() > params.maxCandidates) cells.resize(params.maxCandidates);
-    return search::clusterCells(cells, grid, search::defaultClusterParams(cube.psfFwhmPx), trials);
+    return cells;
   }
 
   std::vector<DeviceInfo> m_devices;
@@ -223,6 +362,9 @@ class CudaBackend final : public CudaSearchBackend {
   StackEngine m_stack;
   std::string m_note;
   double m_kernelSeconds = 0.0;
+  double m_uploadSeconds = 0.0;
+  double m_treeAdditions = 0.0;
+  std::atomic<bool> m_abort{false};
 };
 
 }  // namespace

@@ -23,6 +23,8 @@ struct DeviceJob {
   std::size_t memoryLimitBytes = 0;  ///< 0: what the device has free (less a reserve)
   std::size_t cellCapacity = 0;      ///< candidate buffer, cells
   bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
+  int treeRootShape = 0;             ///< tree search: TreeRootLaunch::shape
+  bool profile = false;              ///< tree search: time each level of the first tile (for the note)
 };
 
 struct DeviceOutcome {
@@ -31,6 +33,7 @@ struct DeviceOutcome {
   std::uint64_t cellsAbove = 0;             ///< all cells above threshold (> cells.size() on overflow)
   std::string note;                         ///< how the work was tiled, for the log
   double kernelSeconds = 0.0;               ///< device time of the search kernels (events)
+  double uploadSeconds = 0.0;               ///< device time of the cube's upload (tree search; events)
 };
 
 /// Runs `job` for `plan` over `frames` (N_f * W * H floats, host). `progress(fraction)` is called from

@@ -38,6 +38,8 @@ search::SearchResult twoCandidates() {
   star.nIn = 7;
   r.candidates = {moving, star};
   r.trials = {64, 64, 21, 21};
+  r.method = "tree";
+  r.methodReason = "auto: tree, clearly faster (estimated exact 9 s, tree 1 s; \"9x\")";
   return r;
 }
 
@@ -55,6 +57,8 @@ TEST(SearchReport, RatesAreOnTheSkyRelativeToTheStarsAndFlagsStatics) {
   EXPECT_EQ(s["flags"], nlohmann::json({"at_sky_rate", "partial"}));
   EXPECT_EQ(j["trials"]["total"].get<double>(), 64.0 * 64 * 21 * 21);
   EXPECT_NEAR(j["sky_rate"]["vx_px_s"].get<double>(), 16.39, 1e-12);
+  EXPECT_EQ(j["method"], "tree");
+  EXPECT_EQ(j["method_reason"], twoCandidates().methodReason);
 }
 
 TEST(SearchReport, CsvHasOneRowPerCandidateWithFlags) {
@@ -69,9 +73,17 @@ TEST(SearchReport, CsvHasOneRowPerCandidateWithFlags) {
   std::getline(in, row1);
   std::getline(in, row2);
   EXPECT_FALSE(std::getline(in, extra));
-  EXPECT_EQ(header, "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells,flags");
+  EXPECT_EQ(
+      header,
+      "x,y,vx_px_s,vy_px_s,snr,n_frames,fap,rate_deg_day,pa_deg,cluster_cells,flags,method,method_reason");
   EXPECT_EQ(row1.substr(0, 6), "30,20,");
   EXPECT_NE(row2.find("at_sky_rate partial"), std::string::npos);
+  // Every row ends with the method and its reason, quoted (it holds commas and quotes, doubled).
+  const std::string tail = ",tree,\"auto: tree, clearly faster (estimated exact 9 s, tree 1 s; \"\"9x\"\")\"";
+  for (const std::string& row : {row1, row2}) {
+    ASSERT_GE(row.size(), tail.size());
+    EXPECT_EQ(row.substr(row.size() - tail.size()), tail);
+  }
   EXPECT_THROW(writeCandidatesCsv((dir / "no/such/dir/c.csv").string(), j), InputError);
 }
 
@@ -129,6 +141,7 @@ TEST(SearchReport, ResultRoundTripsExactlyThroughJsonText) {
   EXPECT_EQ(back.tRefMjd, r.tRefMjd);
   EXPECT_EQ(back.backend, r.backend);
   EXPECT_EQ(back.method, r.method);
+  EXPECT_EQ(back.methodReason, r.methodReason);
   EXPECT_EQ(back.elapsedS, r.elapsedS);
   EXPECT_EQ(back.cellsAboveThreshold, r.cellsAboveThreshold);
   EXPECT_EQ(back.minFrames, 5);

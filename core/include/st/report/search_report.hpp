@@ -18,8 +18,9 @@ namespace st::report {
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                                const search::Candidate& candidate);
 
-/// The whole result: inputs, backend, method, t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid,
-/// trial counts, threshold, cells above threshold, minimum frames, elapsed time and the candidates.
+/// The whole result: inputs, backend, method ("exact" or "tree") and method_reason (why: "requested" or
+/// "auto: ...", method_choice.hpp), t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid, trial counts,
+/// threshold, cells above threshold, minimum frames, elapsed time and the candidates.
 nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& result,
                                   const std::vector<std::string>& inputs);
 
@@ -35,13 +36,14 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
 [[nodiscard]] search::VelocityMap velocityMapFromJson(const nlohmann::json& json);
 
 /// The inverse of searchResultToJson() (plus a "velocity_map" member when present, see velocityMapToJson):
-/// grid, trials, snr_threshold, t_ref_mjd, backend, method, elapsed_s, cells_above_threshold, min_frames and
+/// grid, trials, snr_threshold, t_ref_mjd, backend, method, method_reason, elapsed_s, cells_above_threshold, min_frames and
 /// the candidates (an absent "candidates" gives none; an absent velocity map an empty one). Round trip exact.
 /// Throws st::InputError naming the key at fault.
 [[nodiscard]] search::SearchResult searchResultFromJson(const nlohmann::json& json);
 
 /// Writes the candidates of a searchResultToJson() object as CSV (one header line; empty fields where a
-/// quantity is unknown). Throws st::InputError naming the path when it cannot be written.
+/// quantity is unknown; the last two columns, method and method_reason, repeat the run's on every row, the
+/// reason quoted). Throws st::InputError naming the path when it cannot be written.
 void writeCandidatesCsv(const std::string& path, const nlohmann::json& result);
 
 /// Writes JSON atomically (temporary file in the same folder + rename), pretty-printed.

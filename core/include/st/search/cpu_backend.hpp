@@ -15,6 +15,7 @@
 // Memory: the cube is read in place; per thread ~0.5 MB of tiles and accumulators, plus 12 bytes per
 // velocity for the map (estimateSearch in velocity_grid.hpp).
 //
+// supportsMethod(): "exact" and "tree" (params.method "tree" runs treeSearch, tree_search.hpp).
 // stackAt(): the IPSA sum image at one velocity (st::stack::stackIpsa); CSA throws st::InputError
 // "CSA not supported by this backend".
 #include <memory>

@@ -37,7 +37,8 @@ int minFramesFor(const SearchParams& params, std::size_t frames);
 SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                                std::string backend, std::string method);
 
-/// Sorts `hits` by decreasing SNR, keeps at most params.maxCandidates and clusters them into
+/// Sorts `hits` by decreasing SNR (ties: increasing y, x, ivy, ivx, so every backend keeps the same cells
+/// and picks the same representative cell), keeps at most params.maxCandidates and clusters them into
 /// result.candidates (clusterCells with the cube's PSF FWHM and result.trials).
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params);

@@ -47,7 +47,9 @@ struct SearchParams {
   /// silently drops every fainter object (SearchResult::cellsAboveThreshold shows when it was reached).
   std::size_t maxCandidates = 2'000'000;
   double minFrameFraction = 0.5;  ///< cells whose N_in is below this fraction of N_f are ignored
-  std::string method = "exact";   ///< "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp)
+  /// "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp); "auto" is resolved to one of
+  /// them by searchWithMethod (method_choice.hpp) before a backend sees it.
+  std::string method = "exact";
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).
@@ -89,8 +91,9 @@ struct SearchResult {
   TrialCounts trials;
   double snrThreshold = 0.0;  ///< the threshold actually used
   double tRefMjd = 0.0;
-  std::string backend;  ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
-  std::string method;   ///< "exact" or "tree"
+  std::string backend;       ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
+  std::string method;        ///< "exact" or "tree"
+  std::string methodReason;  ///< why that method: "requested", or "auto: ..." (method_choice.hpp)
   double elapsedS = 0.0;
   std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
   int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
@@ -110,6 +113,9 @@ class SearchBackend {
   /// The stack of the cube at one velocity (sum over frames, out-of-frame samples excluded), for live
   /// scrubbing in the GUI.
   virtual Image stackAt(const FilteredCube& cube, Velocity v, StackMode mode) = 0;
+  /// Whether search() implements SearchParams::method `method` ("exact", "tree"). A backend that does not
+  /// say supports the exact search only.
+  [[nodiscard]] virtual bool supportsMethod(const std::string& method) const { return method == "exact"; }
 };
 
 }  // namespace st::search

@@ -34,7 +34,20 @@ struct CudaOptions {
   int kernelVariant = -1;
   /// Use at most this many devices (0 = all visible).
   int maxDevices = 0;
+  /// Tree search: levels summed in registers by the root kernel (0 = kTreeDefaultCut; at most 4).
+  int treeCut = 0;
+  /// Tree search: rows per tile (0 = as many as fit in the device memory allowed).
+  int treeTileRows = 0;
+  /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
+  bool profileTree = false;
+  /// Tree search, benchmarks: root velocities per block of the root kernel, 0 = 4 x 4 (default), 1 = 8 x 8,
+  /// 2 = 2 x 4, 3 = 4 x 8 (vx x vy).
+  int treeRootShape = 0;
 };
+
+/// Tree search default: the top 4 levels below the root are summed in registers (their stacks are used by
+/// about one root velocity each, so storing them would only add memory traffic).
+inline constexpr int kTreeDefaultCut = 4;
 
 /// The CUDA backend, with what its last search did about memory (tiling, devices) for the log.
 class CudaSearchBackend : public search::SearchBackend {
@@ -43,6 +56,10 @@ class CudaSearchBackend : public search::SearchBackend {
   [[nodiscard]] virtual std::string lastNote() const = 0;
   /// Device seconds spent in search kernels by the last search (summed over devices).
   [[nodiscard]] virtual double lastKernelSeconds() const = 0;
+  /// Device seconds of the cube's upload in the last tree search (the slowest device).
+  [[nodiscard]] virtual double lastUploadSeconds() const = 0;
+  /// Additions and copies of the last tree search (levels and root, margins included).
+  [[nodiscard]] virtual double lastTreeAdditions() const = 0;
 };
 
 /// A CUDA backend over every visible device, or nullptr with `whyNot` set (no device, no driver, a device

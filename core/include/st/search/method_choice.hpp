@@ -1,0 +1,104 @@
+#pragma once
+// Which search method to run: "exact" (IPSA at every frame, the reference) or "tree" (hierarchical,
+// tree_search.hpp), and, for method "auto", which of the two wins for this problem on this backend.
+//
+// Cost model (pure arithmetic, tested): both methods are priced in seconds on the backend's throughput.
+// - exact: N_pix x N_f x N_v additions (velocity_grid.hpp estimateSearch) at the exact kernel's rate, plus a
+//   fixed start-up time;
+// - tree: treeAdditions() of the plan (tree_plan.hpp), each weighted as `treeOpsWeight` exact additions (a
+//   tree addition reads and writes scattered partial stacks, an exact one streams through registers), at the
+//   same rate, so that one measured throughput prices both methods (the GUI measures it from its live
+//   stack), plus a fixed start-up time (plan, tile buffers, threads).
+// CPU coefficients: least squares over 13 `synthtrack-cli bench search --method tree` problems from
+// 30 x 128^2 x 9^2 to 1500 x 512^2 x 100^2 on the 2-core development VM (AMD EPYC, AVX2, shared, load 5-6),
+// 2026-11-22 05:12-05:17 UTC, in CPU seconds: exact 1.35e10 additions per CPU-second, tree 0.013 s + 9.6
+// exact-equivalent additions per tree addition (rms error 29%, worst 56%; per-pixel-frame and
+// per-pixel-velocity terms did not improve the fit). The CUDA ones are the measured exact rate and, for the
+// tree, the target until the CUDA tree is measured.
+//
+// Decision for "auto": tree when the backend supports it (SearchBackend::supportsMethod), it is estimated at
+// least kAutoTreeMinSpeedup times faster than exact AND it saves at least kAutoTreeMinSavingS seconds;
+// otherwise exact. The tree's samples stay within 1 px of the exact shifts and lose some SNR (median ~1%,
+// worst ~5% on injected objects, README): exact is kept wherever the time saved does not pay for that.
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/search/types.hpp"
+
+namespace st::search {
+
+/// "auto" picks the tree only when it is at least this many times faster than exact (estimated)...
+inline constexpr double kAutoTreeMinSpeedup = 2.0;
+/// ...and saves at least this many seconds (a sub-second search is not worth any SNR loss).
+inline constexpr double kAutoTreeMinSavingS = 1.0;
+
+/// Throughputs and fixed costs of one backend. Rates are for the whole backend (all threads or devices).
+struct MethodCostModel {
+  double exactAdditionsPerS = 0.0;  ///< exact search, additions per second
+  double exactFixedS = 0.0;         ///< exact search start-up, s
+  double treeOpsWeight = 1.0;       ///< one tree addition (treeAdditions) in exact-equivalent additions
+  double treeFixedS = 0.0;          ///< tree search start-up (plan, tile buffers), s
+};
+
+/// The CPU model for `threads` workers; `exactAdditionsPerS` defaults to
+/// kCpuAdditionsPerSecondPerThread x threads (velocity_grid.hpp), or a measured rate (the GUI's live stack).
+MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditionsPerS = std::nullopt);
+
+/// The CUDA model: exact 9.5e12 additions/s (README, H100/H200 stair kernel) plus 0.05 s; tree priced at
+/// the target (the paper problem's 1.2e10 tree additions in 30 ms) until it is measured.
+MethodCostModel cudaCostModel();
+
+/// cudaCostModel() for a backend whose name() starts with "cuda", else cpuCostModel(st::workerCount()).
+MethodCostModel costModelFor(const SearchBackend& backend);
+
+/// What each method would cost on one problem.
+struct MethodEstimate {
+  double exactAdditions = 0.0;        ///< N_pix x N_f x N_v
+  double treeAdditions = 0.0;         ///< treeAdditions() of the plan (0 when no plan could be built)
+  double exactSeconds = 0.0;          ///< estimated wall time
+  double treeSeconds = 0.0;           ///< estimated wall time (infinite when no plan could be built)
+  std::size_t exactWorkingBytes = 0;  ///< on top of the cube (estimateSearch)
+  std::size_t treeWorkingBytes = 0;   ///< partial stacks of every thread's tile, map and N_in ranges
+  std::size_t cubeBytes = 0;          ///< the cube, already held
+  int treeTileRows = 0;               ///< rows per tile (treeTileRows)
+  int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
+};
+
+/// Estimates both methods for frames of width x height at offsets `dtS` (t_n - t_ref, s) over `grid`, with
+/// `threads` workers. The tree is priced only when a plan can be built (at least 2 distinct times, a
+/// non-empty grid); otherwise treeSeconds is infinite. Never throws for such input.
+MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
+                               const VelocityGrid& grid, const MethodCostModel& model, unsigned threads);
+
+/// The resolved method and why.
+struct MethodChoice {
+  std::string method;  ///< "exact" or "tree"
+  std::string reason;  ///< one line for people: "requested", or "auto: ..." with the estimates behind it
+};
+
+/// Resolves `requested` ("auto", "exact" or "tree") for a backend that does (or does not) support the tree,
+/// from `estimate` (see the decision rule above). "exact" and "tree" are returned as requested (reason
+/// "requested"); a requested tree on a backend without it throws st::InputError naming the backend. Any
+/// other text throws st::InputError naming it.
+MethodChoice chooseMethod(const std::string& requested, const MethodEstimate& estimate, bool treeSupported,
+                          const std::string& backendName);
+
+/// chooseMethod() for `backend` on `cube` and `grid`, pricing with costModelFor(backend). `estimate`, when
+/// given, receives the estimate used.
+MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                           const std::string& requested, MethodEstimate* estimate = nullptr);
+
+/// Runs backend.search() with choice.method and records the method and choice.reason in the result
+/// (SearchResult::method, methodReason). Throws what the backend throws.
+SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                              const SearchParams& params, const MethodChoice& choice, ProgressSink& progress,
+                              CancelToken& cancel);
+
+/// Resolves params.method (resolveMethod) and runs it (searchWithChoice). Throws what resolveMethod and the
+/// backend throw (st::InputError, st::Cancelled, st::GpuError).
+SearchResult searchWithMethod(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
+                              const SearchParams& params, ProgressSink& progress, CancelToken& cancel);
+
+}  // namespace st::search

@@ -1,0 +1,189 @@
+// Kernels of the CUDA tree search (tree_kernel_params.hpp): one launch per level of the tree per tile (every
+// node of the level, combine or direct), then the root kernel that sums the top `cut` levels in registers and
+// scans the root's stacks (velocity map, cells above threshold). Sums are formed in exactly the CPU tree's
+// order (core/search/tree_search.cpp), so the stacks are bit-identical to the CPU's.
+#include "cuda_check.hpp"
+#include "search_device.cuh"
+#include "tree_kernel_params.hpp"
+
+namespace st::gpu {
+namespace {
+
+constexpr int kLevelThreads = 256;
+constexpr int kLevelWarps = kLevelThreads / 32;
+
+__global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch p) {
+  const int item = blockIdx.x * kLevelWarps + static_cast<int>(threadIdx.x / 32);
+  if (item >= p.rows) return;
+  const int lane = threadIdx.x & 31;
+  const int2 jr = p.rowJobs[item];
+  const TreeJob& j = p.jobs[jr.x];
+  const int row = jr.y;
+  float* out = p.out + j.out + static_cast<long long>(row) * j.pitch;
+  const int2 rr = p.rowTab[j.rowTable + row];
+  const int4* seg = p.segTab + j.segTable;
+  if (!j.direct) {
+    const float* a = p.in + j.left + static_cast<long long>(rr.x) * j.leftPitch;
+    const float* b = p.in + j.right + static_cast<long long>(rr.y) * j.rightPitch;
+    for (int s = 0; s < j.segments; ++s) {
+      const int4 g = seg[s];
+      for (int c = lane; c < g.y; c += 32)
+        out[g.x + c] = __ldg(a + g.z + c) + __ldg(b + g.w + c);
+    }
+    return;
+  }
+  // Direct: frames in time order, samples outside the image skipped (the CPU's zeros).
+  const int m = j.last - j.first;
+  const int* sy = p.shiftY + j.shiftY + rr.x * m;
+  const long long plane = static_cast<long long>(p.width) * p.height;
+  for (int s = 0; s < j.segments; ++s) {
+    const int4 g = seg[s];
+    const int* sx = p.shiftX + j.shiftX + g.z * m;
+    for (int c = lane; c < g.y; c += 32) {
+      float sum = 0.0f;
+      for (int k = 0; k < m; ++k) {
+        const int xi = g.w + c + sx[k];
+        const int yi = p.y0 + rr.y + sy[k];
+        if (xi >= 0 && xi < p.width && yi >= 0 && yi < p.height) {
+          sum +=
+              __ldg(p.frames + p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width + xi);
+        }
+      }
+      out[g.x + c] = sum;
+    }
+  }
+}
+
+/// A block scans kGx x kGy root velocities over 32 columns and kTreeRootRows rows: warp w takes root vy
+/// iy0 + w and its kGx vx in turn, all warps on the same columns and row at about the same time. Each cut
+/// stack sample is read by about 2 x 2 neighbouring root velocities (the cut nodes' grids are about 2^cut /
+/// 4 times coarser per axis), so after the first one the lines come from L1 when the block's rows fit.
+/// Measured on the paper problem (H100, cut 4): 24.2 ms with 4 x 4, 24.8 ms with 8 x 8, 30 ms with 2 x 4 or
+/// 4 x 8 velocities per block, about 7 TB/s of L1/L2 traffic for 16 unaligned loads per cell. Tried and
+/// slower: staging each cut stack's 32-float chunks in shared memory per warp (plain 68 ms, cp.async
+/// double-buffered 85 ms: the cut stacks change every 2-4 root velocities, so the chunks rarely fit and the
+/// copies serialise), reusing a sample between neighbouring vx in registers (47 ms, a dependency chain).
+template <int kCut, int kGx, int kGy>
+__global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
+  constexpr int kN = 1 << kCut;
+  __shared__ int colOff[kGx][kN];
+  const int colTiles = (p.width + 31) / 32;
+  const int x0 = (blockIdx.x % colTiles) * 32;
+  const int ix0 = (blockIdx.x / colTiles) * kGx;
+  const int iy = blockIdx.y * kGy + static_cast<int>(threadIdx.x / 32);
+  const int r0 = blockIdx.z * kTreeRootRows;
+  const int lane = threadIdx.x & 31;
+  for (int i = threadIdx.x; i < kGx * kN; i += 32 * kGy) {
+    const int gx = i / kN;
+    const int c = i % kN;
+    colOff[gx][c] = p.colBase[c * p.nvx + min(ix0 + gx, p.nvx - 1)] + x0;
+  }
+  __syncthreads();
+  if (iy >= p.nvy) return;  // whole warps; no block barrier below
+  long long rowOff[kN];
+  int pitch[kN];
+#pragma unroll
+  for (int c = 0; c < kN; ++c) {
+    pitch[c] = p.cutPitch[c];
+    rowOff[c] = p.cutBase[c] + static_cast<long long>(p.rowBase[c * p.nvy + iy] + r0) * pitch[c];
+  }
+  const int x = x0 + lane;
+  const bool inImage = x < p.width;
+  int2 sx[kGx];
+#pragma unroll
+  for (int gx = 0; gx < kGx; ++gx)
+    sx[gx] = inImage ? p.spanX[static_cast<long long>(min(ix0 + gx, p.nvx - 1)) * p.width + x] : int2{0, -1};
+  unsigned long long best[kGx];
+#pragma unroll
+  for (int gx = 0; gx < kGx; ++gx)
+    best[gx] = 0ull;
+  const int2* spanY = p.spanY + static_cast<long long>(iy) * p.height;
+  const int rEnd = min(kTreeRootRows, min(p.tileRows - r0, p.height - p.y0 - r0));
+  for (int r = 0; r < rEnd; ++r) {
+    const int y = p.y0 + r0 + r;
+    const int2 sy = spanY[y];
+#pragma unroll
+    for (int gx = 0; gx < kGx; ++gx) {
+      const int ix = ix0 + gx;
+      if (ix >= p.nvx || !inImage) continue;
+      float v[kN];
+#pragma unroll
+      for (int c = 0; c < kN; ++c)
+        v[c] = __ldg(p.in + rowOff[c] + colOff[gx][c] + lane);
+#pragma unroll
+      for (int s = 1; s < kN; s *= 2) {
+#pragma unroll
+        for (int i = 0; i < kN; i += 2 * s)
+          v[i] = v[i] + v[i + s];
+      }
+      const float sum = v[0];
+      const int nIn = framesInBoth(sx[gx], sy);
+      if (nIn <= 0 || nIn < p.minFrames) continue;
+      const float snr = sum * p.invNorm[nIn];
+      if (snr > p.snrThreshold) {
+        const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
+        if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
+      }
+      const unsigned long long key = packKey(snr, y * p.width + x);
+      best[gx] = key > best[gx] ? key : best[gx];
+    }
+#pragma unroll
+    for (int c = 0; c < kN; ++c)
+      rowOff[c] += pitch[c];
+  }
+#pragma unroll
+  for (int gx = 0; gx < kGx; ++gx) {
+    const unsigned long long b = warpMax(best[gx]);
+    if (lane == 0 && b != 0ull) atomicMax(p.mapKeys + iy * p.nvx + ix0 + gx, b);
+  }
+}
+
+template <int kGx, int kGy>
+void launchRootShape(const TreeRootLaunch& p, cudaStream_t stream) {
+  const int colTiles = (p.width + 31) / 32;
+  const dim3 grid(colTiles * ((p.nvx + kGx - 1) / kGx), (p.nvy + kGy - 1) / kGy,
+                  (p.tileRows + kTreeRootRows - 1) / kTreeRootRows);
+  switch (p.cut) {
+    case 1:
+      treeRootKernel<1, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 2:
+      treeRootKernel<2, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 3:
+      treeRootKernel<3, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    case 4:
+      treeRootKernel<4, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      break;
+    default:
+      throw GpuError("tree root kernel: cut " + std::to_string(p.cut) + " not compiled");
+  }
+}
+
+}  // namespace
+
+void launchTreeLevel(const TreeLevelLaunch& p, cudaStream_t stream) {
+  if (p.rows <= 0) return;
+  treeLevelKernel<<<(p.rows + kLevelWarps - 1) / kLevelWarps, kLevelThreads, 0, stream>>>(p);
+  checkLaunch("treeLevelKernel");
+}
+
+void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream) {
+  switch (p.shape) {
+    case 1:
+      launchRootShape<8, 8>(p, stream);
+      break;
+    case 2:
+      launchRootShape<2, 4>(p, stream);
+      break;
+    case 3:
+      launchRootShape<4, 8>(p, stream);
+      break;
+    default:
+      launchRootShape<4, 4>(p, stream);
+  }
+  checkLaunch("treeRootKernel");
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,174 @@
+#include "tree_search_device.hpp"
+
+#include <cstdio>
+#include <string>
+
+#include "cuda_check.hpp"
+#include "uploader.hpp"
+
+namespace st::gpu {
+namespace {
+
+template <class T>
+DeviceBuffer<T> toDevice(const std::vector<T>& host) {
+  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
+  if (!host.empty())
+    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+  return d;
+}
+
+float elapsedSeconds(const Event& a, const Event& b) {
+  float ms = 0.0f;
+  ST_CUDA_CHECK(cudaEventElapsedTime(&ms, a.get(), b.get()));
+  return ms * 1e-3f;
+}
+
+}  // namespace
+
+std::size_t treeDeviceBytes(const TreeDevicePlan& tree, const HostPlan& plan, std::size_t cellCapacity) {
+  return tree.arenaBytes() + tree.tableBytes() + (plan.spanX.size() + plan.spanY.size()) * sizeof(int) +
+         plan.invNorm.size() * sizeof(float) + static_cast<std::size_t>(plan.nvx) * plan.nvy * 8 +
+         cellCapacity * sizeof(DeviceCell) + 4096;
+}
+
+DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, const float* frames,
+                              const DeviceJob& job, int tileBegin, int tileEnd,
+                              const std::function<void(double)>& progress, const CancelToken& cancel,
+                              const std::atomic<bool>& abort) {
+  auto poll = [&] {
+    cancel.throwIfCancelled();
+    if (abort.load(std::memory_order_relaxed)) throw Cancelled();
+  };
+  ST_CUDA_CHECK(cudaSetDevice(job.device));
+  const std::size_t plane = static_cast<std::size_t>(plan.width) * plan.height;
+  const std::size_t cubeFloats = plane * static_cast<std::size_t>(plan.frameCount);
+  Stream compute;
+  Stream copy;
+  DeviceBuffer<float> cube(cubeFloats);
+  DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[0], 1)),
+                                  DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[1], 1))};
+  DeviceBuffer<TreeJob> jobs = toDevice(tree.jobs);
+  DeviceBuffer<int4> segTab = toDevice(tree.segTab);
+  DeviceBuffer<int2> rowJobs = toDevice(tree.rowJobs), rowTab = toDevice(tree.rowTab);
+  DeviceBuffer<int> shiftX = toDevice(tree.shiftX), shiftY = toDevice(tree.shiftY),
+                    frameIndex = toDevice(tree.frameIndex), cutPitch = toDevice(tree.cutPitch),
+                    colBase = toDevice(tree.colBase), rowBase = toDevice(tree.rowBase),
+                    spanX = toDevice(plan.spanX), spanY = toDevice(plan.spanY);
+  DeviceBuffer<long long> cutBase = toDevice(tree.cutBase);
+  DeviceBuffer<float> invNorm = toDevice(plan.invNorm);
+  const std::size_t nv = static_cast<std::size_t>(plan.nvx) * plan.nvy;
+  DeviceBuffer<unsigned long long> mapKeys(nv), count(1);
+  DeviceBuffer<DeviceCell> cells(std::max<std::size_t>(job.cellCapacity, 1));
+  ST_CUDA_CHECK(cudaMemsetAsync(mapKeys.get(), 0, nv * 8, compute.get()));
+  ST_CUDA_CHECK(cudaMemsetAsync(count.get(), 0, 8, compute.get()));
+
+  Event up0(true), up1(true), k0(true), k1(true);
+  up0.record(copy.get());
+  {
+    Uploader uploader(frames, plane, cubeFloats);
+    uploader.upload(cube.get(), 0, plan.frameCount, copy.get());
+    up1.record(copy.get());
+    copy.sync();
+  }
+  poll();
+  ST_CUDA_CHECK(cudaStreamWaitEvent(compute.get(), up1.get(), 0));
+
+  TreeLevelLaunch lv{};
+  lv.frames = cube.get();
+  lv.frameIndex = frameIndex.get();
+  lv.width = plan.width;
+  lv.height = plan.height;
+  lv.jobs = jobs.get();
+  lv.segTab = segTab.get();
+  lv.rowTab = rowTab.get();
+  lv.shiftX = shiftX.get();
+  lv.shiftY = shiftY.get();
+  TreeRootLaunch rt{};
+  rt.in = arena[tree.cut & 1].get();
+  rt.cutBase = cutBase.get();
+  rt.cutPitch = cutPitch.get();
+  rt.colBase = colBase.get();
+  rt.rowBase = rowBase.get();
+  rt.cut = tree.cut;
+  rt.shape = job.treeRootShape;
+  rt.width = plan.width;
+  rt.height = plan.height;
+  rt.tileRows = tree.tileRows;
+  rt.nvx = plan.nvx;
+  rt.nvy = plan.nvy;
+  rt.spanX = reinterpret_cast<const int2*>(spanX.get());
+  rt.spanY = reinterpret_cast<const int2*>(spanY.get());
+  rt.invNorm = invNorm.get();
+  rt.snrThreshold = plan.snrThreshold;
+  rt.minFrames = plan.minFrames;
+  rt.mapKeys = mapKeys.get();
+  rt.cells = cells.get();
+  rt.cellCount = count.get();
+  rt.cellCapacity = job.cellCapacity;
+
+  std::vector<Event> marks;
+  const bool profile = job.profile && tileBegin < tileEnd;
+  if (profile) {
+    for (std::size_t i = 0; i <= tree.levels.size() + 1; ++i)
+      marks.emplace_back(true);
+  }
+  k0.record(compute.get());
+  for (int t = tileBegin; t < tileEnd; ++t) {
+    const int y0 = t * tree.tileRows;
+    const bool timed = profile && t == tileBegin;
+    if (timed) marks[0].record(compute.get());
+    for (std::size_t l = 0; l < tree.levels.size(); ++l) {
+      const TreeDeviceLevel& level = tree.levels[l];
+      lv.y0 = y0;
+      lv.rowJobs = rowJobs.get() + level.rowBegin;
+      lv.rows = level.rowEnd - level.rowBegin;
+      lv.in = arena[level.arena ^ 1].get();
+      lv.out = arena[level.arena].get();
+      launchTreeLevel(lv, compute.get());
+      if (timed) marks[l + 1].record(compute.get());
+    }
+    rt.y0 = y0;
+    launchTreeRoot(rt, compute.get());
+    if (timed) marks.back().record(compute.get());
+    // Bounded queue: wait for the previous tile so cancellation is prompt.
+    compute.sync();
+    poll();
+    progress(static_cast<double>(t - tileBegin + 1) / std::max(1, tileEnd - tileBegin));
+  }
+  k1.record(compute.get());
+  compute.sync();
+
+  DeviceOutcome out;
+  out.kernelSeconds = elapsedSeconds(k0, k1);
+  out.uploadSeconds = elapsedSeconds(up0, up1);
+  out.mapKeys.resize(nv);
+  ST_CUDA_CHECK(cudaMemcpy(out.mapKeys.data(), mapKeys.get(), nv * 8, cudaMemcpyDeviceToHost));
+  unsigned long long n = 0;
+  ST_CUDA_CHECK(cudaMemcpy(&n, count.get(), sizeof(n), cudaMemcpyDeviceToHost));
+  out.cellsAbove = n;
+  out.cells.resize(std::min<std::size_t>(n, job.cellCapacity));
+  if (!out.cells.empty()) {
+    ST_CUDA_CHECK(cudaMemcpy(out.cells.data(), cells.get(), out.cells.size() * sizeof(DeviceCell),
+                             cudaMemcpyDeviceToHost));
+  }
+  std::string levels;
+  if (profile) {
+    levels = "; first tile, ms per level (depth):";
+    for (std::size_t l = 0; l + 1 < marks.size(); ++l) {
+      const std::string depth = l < tree.levels.size() ? std::to_string(tree.levels[l].depth) : "root";
+      char buf[48];
+      std::snprintf(buf, sizeof(buf), " %s %.2f", depth.c_str(),
+                    1e3 * elapsedSeconds(marks[l], marks[l + 1]));
+      levels += buf;
+    }
+  }
+  out.note =
+      "tree: cube resident (" + std::to_string(cubeFloats * 4 >> 20) + " MiB, upload " +
+      std::to_string(static_cast<int>(out.uploadSeconds * 1e3)) + " ms), tiles " + std::to_string(tileBegin) +
+      ".." + std::to_string(tileEnd - 1) + " of " + std::to_string(tree.tileRows) + " rows, partial stacks " +
+      std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " + std::to_string(tree.tableBytes() >> 20) +
+      " MiB, top " + std::to_string(tree.cut) + " levels in registers" + levels;
+  return out;
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,213 @@
+// Method choice (method_choice.hpp): "auto" resolves to exact for small problems and to the tree for the
+// paper's, following the crossover measured with `bench search --method tree`; a backend without the tree
+// gets exact with the reason; explicit requests are kept or refused with the backend named; searchWithMethod
+// records the method and the reason in the result, and they reach the JSON report.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "search_test_cubes.hpp"
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+#include "st/report/search_report.hpp"
+#include "st/search/cpu_backend.hpp"
+#include "st/search/method_choice.hpp"
+#include "st/search/tree_search.hpp"
+#include "st/stack/ipsa.hpp"
+
+namespace st::search {
+namespace {
+
+/// Frame offsets from t_ref of `frames` frames at `rateHz`, and the grid of nv x nv velocities 1 px over the
+/// span apart (the paper's spacing), as `synthtrack-cli bench search` builds them.
+struct Problem {
+  std::vector<double> dt;
+  VelocityGrid grid;
+};
+
+Problem evenProblem(int frames, double rateHz, int nv) {
+  Problem p;
+  p.dt.resize(static_cast<std::size_t>(frames));
+  for (int n = 0; n < frames; ++n)
+    p.dt[static_cast<std::size_t>(n)] = (n - 0.5 * (frames - 1)) / rateHz;
+  p.grid = {{0.0, 0.0}, 1.0 / (p.dt.back() - p.dt.front()), nv, nv};
+  return p;
+}
+
+MethodChoice autoOnCpu(int size, int frames, int nv, MethodEstimate* out = nullptr) {
+  const Problem p = evenProblem(frames, 16.7, nv);
+  const MethodEstimate e = estimateMethods(size, size, p.dt, p.grid, cpuCostModel(2), 2);
+  if (out) *out = e;
+  return chooseMethod("auto", e, true, "cpu (2 threads)");
+}
+
+/// A backend that says nothing about methods (so: exact only), recording what it was asked to run.
+class ExactOnlyBackend final : public SearchBackend {
+ public:
+  std::string asked;
+  [[nodiscard]] std::string name() const override { return "cuda: Fake GPU"; }
+  SearchResult search(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                      ProgressSink&, CancelToken&) override {
+    asked = params.method;
+    SearchResult r;
+    r.grid = grid;
+    r.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
+    r.backend = name();
+    r.method = "exact";
+    return r;
+  }
+  Image stackAt(const FilteredCube& cube, Velocity v, StackMode) override {
+    return stack::stackIpsa(cube.frames, v).sum;
+  }
+};
+
+FilteredCube tinyCube() {
+  FilteredCube fc;
+  fc.frames = test::noiseCube(32, 24, test::unevenTimes(20, 0.1, 3), 1.0, 5);
+  fc.sigmaF = 1.0;
+  fc.psfFwhmPx = 3.0;
+  return fc;
+}
+
+struct NullProgress final : ProgressSink {
+  void report(double, std::string_view) override {}
+};
+
+TEST(SearchMethod, ExplicitRequestsAreKeptOrRefusedNamingTheBackend) {
+  const MethodEstimate none;
+  EXPECT_EQ(chooseMethod("exact", none, true, "cpu").method, "exact");
+  EXPECT_EQ(chooseMethod("exact", none, true, "cpu").reason, "requested");
+  EXPECT_EQ(chooseMethod("tree", none, true, "cpu").method, "tree");
+  EXPECT_EQ(chooseMethod("tree", none, true, "cpu").reason, "requested");
+  try {
+    (void)chooseMethod("tree", none, false, "cuda: Fake GPU");
+    ADD_FAILURE() << "tree on a backend without it must throw";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cuda: Fake GPU"), std::string::npos) << e.what();
+  }
+  try {
+    (void)chooseMethod("fastest", none, true, "cpu");
+    ADD_FAILURE() << "an unknown method must throw";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'fastest'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SearchMethod, SmallProblemResolvesToExact) {
+  // 64 x 128^2 x 21^2: the tree needs 20x fewer additions but was slower in the bench (0.13 s vs 0.105 s).
+  MethodEstimate e;
+  const MethodChoice c = autoOnCpu(128, 64, 21, &e);
+  EXPECT_EQ(c.method, "exact") << c.reason;
+  EXPECT_EQ(c.reason.rfind("auto: exact", 0), 0u) << c.reason;
+  EXPECT_DOUBLE_EQ(e.exactAdditions, 128.0 * 128.0 * 64.0 * 21.0 * 21.0);
+  EXPECT_GT(e.treeAdditions, 0.0);
+  EXPECT_LT(e.treeAdditions, e.exactAdditions);
+}
+
+TEST(SearchMethod, PaperProblemResolvesToTree) {
+  MethodEstimate e;
+  const MethodChoice c = autoOnCpu(512, 1500, 100, &e);
+  EXPECT_EQ(c.method, "tree") << c.reason;
+  EXPECT_EQ(c.reason.rfind("auto: tree", 0), 0u) << c.reason;
+  EXPECT_DOUBLE_EQ(e.exactAdditions, 1500.0 * 512.0 * 512.0 * 100.0 * 100.0);
+  // bench search --method tree, paper problem: 1.21e10-1.22e10 tree additions, tiles of 6 rows.
+  EXPECT_NEAR(e.treeAdditions, 1.215e10, 0.02e10);
+  EXPECT_EQ(e.treeTileRows, 6);
+  EXPECT_LE(e.treeMaxShiftErrorPx, 1);
+  EXPECT_GT(e.exactSeconds, 20.0 * e.treeSeconds);
+  // Two threads' tiles within the tile budget, plus the map and N_in ranges.
+  EXPECT_LE(e.treeWorkingBytes, 2 * kTreeTileBudgetBytes + (std::size_t{8} << 20));
+  EXPECT_GT(e.treeWorkingBytes, kTreeTileBudgetBytes);
+  EXPECT_EQ(e.cubeBytes, std::size_t{1500} * 512 * 512 * 4);
+}
+
+TEST(SearchMethod, MidSizedProblemsFollowTheMeasuredCrossover) {
+  // Measured on the 2-core VM (README): 500 x 512^2 x 15^2 exact 2.6 s, tree 0.45 s -> the tree pays;
+  // 200 x 256^2 x 11^2 exact 0.24 s, tree 0.09 s -> under a second saved, exact keeps the full SNR.
+  EXPECT_EQ(autoOnCpu(512, 500, 15).method, "tree");
+  EXPECT_EQ(autoOnCpu(256, 200, 11).method, "exact");
+  EXPECT_EQ(autoOnCpu(128, 30, 9).method, "exact");
+  // A larger grid only helps the tree: exact grows with N_v, the tree's top level about as N_v too.
+  MethodEstimate small, large;
+  (void)autoOnCpu(256, 500, 11, &small);
+  (void)autoOnCpu(256, 500, 31, &large);
+  EXPECT_GT(large.exactSeconds / large.treeSeconds, small.exactSeconds / small.treeSeconds);
+}
+
+TEST(SearchMethod, CostModelFollowsTheBackendAndTheMeasuredRate) {
+  ExactOnlyBackend gpu;
+  EXPECT_DOUBLE_EQ(costModelFor(gpu).exactAdditionsPerS, cudaCostModel().exactAdditionsPerS);
+  auto cpu = makeCpuBackend();
+  EXPECT_DOUBLE_EQ(costModelFor(*cpu).exactAdditionsPerS, cpuCostModel(workerCount()).exactAdditionsPerS);
+  // A measured throughput (the GUI's live stack) prices both methods: twice the rate, half the times.
+  const Problem p = evenProblem(500, 16.7, 31);
+  const MethodCostModel slow = cpuCostModel(2, 1e10);
+  const MethodCostModel fast = cpuCostModel(2, 2e10);
+  const MethodEstimate a = estimateMethods(256, 256, p.dt, p.grid, slow, 2);
+  const MethodEstimate b = estimateMethods(256, 256, p.dt, p.grid, fast, 2);
+  EXPECT_NEAR(a.exactSeconds - slow.exactFixedS, 2.0 * (b.exactSeconds - fast.exactFixedS), 1e-9);
+  EXPECT_NEAR(a.treeSeconds - slow.treeFixedS, 2.0 * (b.treeSeconds - fast.treeFixedS), 1e-9);
+  // On the GPU model the paper problem would go to the tree once a GPU backend supports it.
+  const Problem paper = evenProblem(1500, 16.7, 100);
+  const MethodEstimate g = estimateMethods(512, 512, paper.dt, paper.grid, cudaCostModel(), 1);
+  EXPECT_EQ(chooseMethod("auto", g, true, "cuda").method, "exact");  // 0.46 s: under a second to save
+  EXPECT_EQ(chooseMethod("auto", g, false, "cuda").method, "exact");
+}
+
+TEST(SearchMethod, NoTreePlanWithoutDistinctTimes) {
+  const MethodEstimate e = estimateMethods(64, 64, {0.0, 0.0, 0.0}, {{0, 0}, 0.1, 5, 5}, cpuCostModel(2), 2);
+  EXPECT_EQ(e.treeAdditions, 0.0);
+  const MethodChoice c = chooseMethod("auto", e, true, "cpu");
+  EXPECT_EQ(c.method, "exact");
+  EXPECT_NE(c.reason.find("no tree plan"), std::string::npos) << c.reason;
+}
+
+TEST(SearchMethod, BackendWithoutTreeGetsExactWithTheReason) {
+  ExactOnlyBackend gpu;
+  EXPECT_TRUE(gpu.supportsMethod("exact"));
+  EXPECT_FALSE(gpu.supportsMethod("tree"));
+  const FilteredCube fc = tinyCube();
+  const VelocityGrid grid{{0.0, 0.0}, 0.5, 5, 5};
+  const MethodChoice c = resolveMethod(gpu, fc, grid, "auto");
+  EXPECT_EQ(c.method, "exact");
+  EXPECT_NE(c.reason.find("cuda: Fake GPU"), std::string::npos) << c.reason;
+  EXPECT_NE(c.reason.find("no tree search"), std::string::npos) << c.reason;
+
+  NullProgress progress;
+  CancelToken cancel;
+  SearchParams params;
+  params.method = "auto";
+  const SearchResult r = searchWithMethod(gpu, fc, grid, params, progress, cancel);
+  EXPECT_EQ(gpu.asked, "exact");  // the backend never sees "auto"
+  EXPECT_EQ(r.method, "exact");
+  EXPECT_EQ(r.methodReason, c.reason);
+  params.method = "tree";
+  EXPECT_THROW((void)searchWithMethod(gpu, fc, grid, params, progress, cancel), InputError);
+}
+
+TEST(SearchMethod, CpuBackendRunsBothAndTheReportSaysWhich) {
+  auto cpu = makeCpuBackend();
+  EXPECT_TRUE(cpu->supportsMethod("exact"));
+  EXPECT_TRUE(cpu->supportsMethod("tree"));
+  EXPECT_FALSE(cpu->supportsMethod("auto"));
+  const FilteredCube fc = tinyCube();
+  const VelocityGrid grid{{0.0, 0.0}, 0.5, 7, 7};
+  NullProgress progress;
+  CancelToken cancel;
+  SearchParams params;
+  params.method = "auto";
+  const SearchResult a = searchWithMethod(*cpu, fc, grid, params, progress, cancel);
+  EXPECT_EQ(a.method, "exact");
+  EXPECT_EQ(a.methodReason.rfind("auto: exact", 0), 0u) << a.methodReason;
+  params.method = "tree";
+  const SearchResult t = searchWithMethod(*cpu, fc, grid, params, progress, cancel);
+  EXPECT_EQ(t.method, "tree");
+  EXPECT_EQ(t.methodReason, "requested");
+  const nlohmann::json j = report::searchResultToJson(fc, a, {"tiny.fits"});
+  EXPECT_EQ(j["method"], "exact");
+  EXPECT_EQ(j["method_reason"], a.methodReason);
+}
+
+}  // namespace
+}  // namespace st::search

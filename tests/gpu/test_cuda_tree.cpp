@@ -1,0 +1,210 @@
+// The CUDA tree search (method "tree") against the CPU tree search (core/search/tree_search.cpp) on the same
+// cubes: the GPU forms every partial stack in the CPU's order, so the velocity map must be equal (SNR within
+// 1e-6 relative, same argmax), the count of cells above threshold equal, and the candidates the same cells
+// with SNR within 1e-4 relative and the same N_in and cluster sizes. Cubes have uneven, unsorted frame times
+// with a gap, sources moving out of the frame (N_in below N_f), and are run whole, in small tiles of rows
+// (tile height not dividing the image), and with 1 to 4 top levels summed in registers. Every test skips
+// when no CUDA device is usable.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "st/common/error.hpp"
+#include "st/gpu/cuda_backend.hpp"
+#include "st/search/ipsa.hpp"
+#include "st/search/tree_search.hpp"
+
+namespace st {
+namespace {
+
+using search::FilteredCube;
+using search::SearchParams;
+using search::SearchResult;
+using search::VelocityGrid;
+
+std::unique_ptr<gpu::CudaSearchBackend> gpuOrNull(const gpu::CudaOptions& options = {}) {
+  std::string whyNot;
+  return gpu::makeCudaSearchBackend(whyNot, options);
+}
+
+#define ST_REQUIRE_GPU(var, ...)     \
+  auto var = gpuOrNull(__VA_ARGS__); \
+  if (!var) GTEST_SKIP() << "no usable CUDA device";
+
+/// Noise (sigma 1), uneven cadence with a gap, two frames out of time order, and sources moving across
+/// (one of them leaves the frame half-way).
+FilteredCube makeCube(int w, int h, int n, unsigned seed) {
+  FilteredCube c;
+  c.frames = FrameCube(w, h, static_cast<std::size_t>(n));
+  c.sigmaF = 1.0;
+  c.psfFwhmPx = 2.0;
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  std::uniform_real_distribution<double> jitter(-0.03, 0.03);
+  for (auto& p : c.frames.pixels())
+    p = noise(rng);
+  for (int k = 0; k < n; ++k) {
+    const double t = 0.1 * k + jitter(rng) + (k > n / 3 ? 0.8 : 0.0);
+    c.frames.info()[k].mjdMid = 60000.0 + t / kSecondsPerDay;
+  }
+  std::swap(c.frames.info()[2], c.frames.info()[5]);
+  const std::vector<double> dt = c.frames.timeOffsetsS();
+  const struct {
+    int x, y;
+    Velocity v;
+    float amp;
+  } src[] = {{30, 40, {4.0, -3.0}, 1.5f}, {w - 6, 10, {9.0, 2.5}, 2.0f}, {50, 20, {-1.0, 5.5}, 1.2f}};
+  for (const auto& s : src) {
+    for (int k = 0; k < n; ++k) {
+      const int x = s.x + search::ipsaShift(s.v.vx, dt[k]);
+      const int y = s.y + search::ipsaShift(s.v.vy, dt[k]);
+      if (x >= 0 && y >= 0 && x < w && y < h) c.frames.frame(k)[static_cast<std::size_t>(y) * w + x] += s.amp;
+    }
+  }
+  return c;
+}
+
+struct Problem {
+  FilteredCube cube;
+  VelocityGrid grid;
+  SearchParams params;
+};
+
+Problem standardProblem() {
+  Problem p{makeCube(96, 70, 64, 11), VelocityGrid{{3.0, 1.0}, 0.35, 37, 31}, {}};
+  p.params.method = "tree";
+  p.params.snrThreshold = 4.5;
+  p.params.minFrameFraction = 0.3;
+  return p;
+}
+
+void expectSameAsCpuTree(const SearchResult& g, const Problem& p) {
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult c = search::treeSearch(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_EQ(g.method, "tree");
+  ASSERT_EQ(g.map.maxSnr.size(), c.map.maxSnr.size());
+  for (std::size_t iv = 0; iv < c.map.maxSnr.size(); ++iv) {
+    EXPECT_NEAR(g.map.maxSnr[iv], c.map.maxSnr[iv], 1e-6 * std::max(1.0f, std::abs(c.map.maxSnr[iv]))) << iv;
+    EXPECT_EQ(g.map.argX[iv], c.map.argX[iv]) << iv;
+    EXPECT_EQ(g.map.argY[iv], c.map.argY[iv]) << iv;
+  }
+  EXPECT_EQ(g.cellsAboveThreshold, c.cellsAboveThreshold);
+  EXPECT_GT(c.cellsAboveThreshold, 0);
+  EXPECT_EQ(g.minFrames, c.minFrames);
+  EXPECT_EQ(g.snrThreshold, c.snrThreshold);
+  ASSERT_EQ(g.candidates.size(), c.candidates.size());
+  bool partial = false;
+  for (std::size_t i = 0; i < c.candidates.size(); ++i) {
+    const auto& a = g.candidates[i];
+    const auto& b = c.candidates[i];
+    EXPECT_EQ(a.x, b.x) << i;
+    EXPECT_EQ(a.y, b.y) << i;
+    EXPECT_EQ(a.ivx, b.ivx) << i;
+    EXPECT_EQ(a.ivy, b.ivy) << i;
+    EXPECT_EQ(a.nIn, b.nIn) << i;
+    EXPECT_EQ(a.clusterCells, b.clusterCells) << i;
+    EXPECT_NEAR(a.snr, b.snr, 1e-4 * std::abs(b.snr)) << i;
+    partial = partial || b.nIn < static_cast<int>(p.cube.frames.frameCount());
+  }
+  EXPECT_TRUE(partial) << "no candidate at a frame edge: the test does not exercise N_in";
+}
+
+TEST(CudaTree, WholeImageGivesTheCpuTreesResult) {
+  ST_REQUIRE_GPU(gpu);
+  const Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  expectSameAsCpuTree(g, p);
+  EXPECT_NE(gpu->lastNote().find("tree"), std::string::npos) << gpu->lastNote();
+  EXPECT_GT(gpu->lastTreeAdditions(), 0.0);
+  // The brightest injected source is the best candidate, at its position and near its velocity.
+  ASSERT_FALSE(g.candidates.empty());
+  EXPECT_NEAR(g.candidates.front().x, 30, 2);
+  EXPECT_NEAR(g.candidates.front().y, 40, 2);
+}
+
+TEST(CudaTree, SmallTilesAndEveryCutGiveTheCpuTreesResult) {
+  const Problem p = standardProblem();
+  for (const int cut : {1, 2, 4}) {
+    for (const int rows : {0, 7, 1}) {
+      gpu::CudaOptions o;
+      o.treeCut = cut;
+      o.treeTileRows = rows;
+      ST_REQUIRE_GPU(gpu, o);
+      NullProgress progress;
+      CancelToken cancel;
+      SCOPED_TRACE("cut " + std::to_string(cut) + ", tile rows " + std::to_string(rows));
+      expectSameAsCpuTree(gpu->search(p.cube, p.grid, p.params, progress, cancel), p);
+    }
+  }
+}
+
+TEST(CudaTree, EveryRootKernelShapeGivesTheCpuTreesResult) {
+  const Problem p = standardProblem();
+  for (const int shape : {1, 2, 3}) {
+    gpu::CudaOptions o;
+    o.treeRootShape = shape;
+    o.treeTileRows = 19;
+    ST_REQUIRE_GPU(gpu, o);
+    NullProgress progress;
+    CancelToken cancel;
+    SCOPED_TRACE("root shape " + std::to_string(shape));
+    expectSameAsCpuTree(gpu->search(p.cube, p.grid, p.params, progress, cancel), p);
+  }
+}
+
+TEST(CudaTree, MemoryLimitTilesTheRowsOrFailsClearly) {
+  const Problem p = standardProblem();
+  gpu::CudaOptions o;
+  o.cellCapacity = 65536;  // 2 MiB of cells; with 3 levels in registers the whole image's partial stacks
+  o.treeCut = 3;           // need ~42 MB, tiles of 12 rows ~8 MB
+  o.deviceMemoryLimitBytes = p.cube.frames.pixels().size() * 4 + (std::size_t{14} << 20);
+  ST_REQUIRE_GPU(gpu, o);
+  NullProgress progress;
+  CancelToken cancel;
+  expectSameAsCpuTree(gpu->search(p.cube, p.grid, p.params, progress, cancel), p);
+  EXPECT_EQ(gpu->lastNote().find("tiles 0..0 "), std::string::npos) << gpu->lastNote();
+  gpu::CudaOptions tiny;
+  tiny.cellCapacity = 65536;
+  tiny.deviceMemoryLimitBytes = 1 << 20;
+  auto small = gpuOrNull(tiny);
+  EXPECT_THROW(small->search(p.cube, p.grid, p.params, progress, cancel), GpuError);
+}
+
+TEST(CudaTree, CoarseGridsWithDirectNodesNearTheRoot) {
+  // One or three velocities: nodes just below the root hold a single velocity and are summed from their
+  // frames, so fewer levels can be summed in registers.
+  for (const auto& grid : {VelocityGrid{{2.0, 1.0}, 0.5, 1, 1}, VelocityGrid{{2.0, 1.0}, 0.5, 3, 1}}) {
+    ST_REQUIRE_GPU(gpu);
+    Problem p = standardProblem();
+    p.grid = grid;
+    p.params.snrThreshold = 3.0;
+    NullProgress progress;
+    CancelToken cancel;
+    const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+    const SearchResult c = search::treeSearch(p.cube, p.grid, p.params, progress, cancel);
+    ASSERT_EQ(g.map.maxSnr, c.map.maxSnr);
+    EXPECT_EQ(g.map.argX, c.map.argX);
+    EXPECT_EQ(g.map.argY, c.map.argY);
+    EXPECT_EQ(g.cellsAboveThreshold, c.cellsAboveThreshold);
+    EXPECT_EQ(g.candidates.size(), c.candidates.size());
+  }
+}
+
+TEST(CudaTree, CancelledAndBadMethod) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  cancel.cancel();
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), Cancelled);
+  CancelToken fresh;
+  p.params.method = "fast";
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, fresh), InputError);
+}
+
+}  // namespace
+}  // namespace st

@@ -1,0 +1,174 @@
+// The co-moving fit panel: a real st::fit::fitComoving on a small noisy synthetic cube (a Moffat source
+// moving at a known velocity, started off by 0.2 px/s) through a CoreServices::fitCandidate stand-in. The
+// panel plots the cost per iteration (at least two points, decreasing), shows data | model | residual,
+// fills the parameter table with the fit's values and sigmas and the false-alarm probability, and "Accept"
+// stores the fit on the candidate. A slow fake fit shows live cost points while running and answers
+// Cancel within a second.
+#include <gtest/gtest.h>
+
+#include <QElapsedTimer>
+#include <QPushButton>
+#include <QTableWidget>
+#include <qcustomplot.h>
+#include <random>
+#include <thread>
+
+#include "fit_panel.hpp"
+#include "st/fit/pixel_psf.hpp"
+#include "stamp_strip.hpp"
+#include "ui_test_support.hpp"
+
+using namespace st;
+using namespace st::ui;
+
+namespace {
+
+const psf::Moffat kPsf{2.0, 4.0};
+constexpr Velocity kTrueV{1.0, 0.5};
+
+/// 30 frames 1 s apart, 48 x 48, a source of peak 40 moving at kTrueV through (24, 24) at t_ref, Gaussian
+/// noise sigma 1 (fixed seed).
+FrameCube sourceCube() {
+  FrameCube cube(48, 48, 30);
+  for (std::size_t n = 0; n < cube.frameCount(); ++n)
+    cube.info()[n].mjdMid = 60000.0 + static_cast<double>(n) / 86400.0;
+  const auto t = cube.timeOffsetsS();
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+    const double sx = 24.0 + kTrueV.vx * t[n];
+    const double sy = 24.0 + kTrueV.vy * t[n];
+    for (int y = 0; y < cube.height(); ++y)
+      for (int x = 0; x < cube.width(); ++x)
+        cube.frame(n)[static_cast<std::size_t>(y) * cube.width() + x] =
+            static_cast<float>(40.0 * fit::pixelPsfValue(kPsf, x - sx, y - sy)) + noise(rng);
+  }
+  return cube;
+}
+
+/// An observation with one candidate at (24, 24), velocity (1.2, 0.3) px/s, selected, and trial counts.
+void setUp(Observation& obs) {
+  obs.setRaw(std::make_shared<const FrameCube>(FrameCube(48, 48, 30)), "synthetic");
+  obs.setPrepared(std::make_shared<PreparedView>());
+  auto result = std::make_shared<search::SearchResult>();
+  search::Candidate c;
+  c.x = 24;
+  c.y = 24;
+  c.v = {1.2, 0.3};
+  result->candidates.push_back(c);
+  result->trials = {48, 48, 21, 21};
+  obs.setResult(result);
+  obs.setSelected(0);
+}
+
+QString cell(QTableWidget* table, const QString& name, int column) {
+  for (int r = 0; r < table->rowCount(); ++r)
+    if (table->item(r, 0)->text().startsWith(name)) return table->item(r, column)->text();
+  return {};
+}
+
+}  // namespace
+
+TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
+  auto cube = std::make_shared<const FrameCube>(sourceCube());
+  CoreServices services;
+  services.fitCandidate = [cube](const PreparedView&, const search::Candidate& c, CancelToken& cancel,
+                                 const FitStepCallback& onStep) {
+    fit::FitOptions opt;
+    opt.psf = kPsf;
+    opt.sigmaN = 1.0;
+    FitOutcome out;
+    out.result = fit::fitComoving(
+        *cube, fit::startFromCandidate(c), opt,
+        [&](const fit::FitIteration& it) {
+          onStep({it, nullptr});
+        },
+        cancel);
+    out.json = {{"status", fit::toString(out.result.status)}, {"snr", out.result.snr}};
+    return out;
+  };
+  Observation obs;
+  setUp(obs);
+  FitPanel panel(&obs, &services);
+  bool finished = false;
+  bool ok = false;
+  QObject::connect(&panel, &FitPanel::fitFinished, [&](bool good, bool, const QString&) {
+    finished = true;
+    ok = good;
+  });
+  panel.fitSelected();
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 15000));
+  ASSERT_TRUE(ok) << panel.statusText().toStdString();
+  const fit::FitResult& r = panel.outcome()->result;
+  ASSERT_TRUE(r.ok()) << r.message;
+  // The fit found the true velocity (to a few sigma) from a start 0.2 px/s off.
+  EXPECT_NEAR(r.params.v.vx, kTrueV.vx, 4 * r.sigmaNoiseModel[fit::kVx] + 1e-3);
+  EXPECT_NEAR(r.params.v.vy, kTrueV.vy, 4 * r.sigmaNoiseModel[fit::kVy] + 1e-3);
+
+  // The cost plot: at least two points, the last below the first.
+  auto* graph = panel.costPlot()->graph(0);
+  ASSERT_GE(panel.costPoints(), 2);
+  EXPECT_LT(graph->data()->at(graph->dataCount() - 1)->value, graph->data()->at(0)->value);
+  EXPECT_EQ(panel.costPlot()->yAxis->scaleType(), QCPAxis::stLogarithmic);
+  ASSERT_EQ(panel.residualView()->tileCount(), 3);  // data | model | residual
+  EXPECT_EQ(panel.residualView()->tile(2).image->width, r.residualStack.width);
+
+  // The table shows the fit's numbers: value, noise-model sigma, Hessian sigma, and the FAP row.
+  QTableWidget* table = panel.parameterTable();
+  EXPECT_NEAR(cell(table, "vx", 1).toDouble(), r.params.v.vx, 1e-5);
+  EXPECT_NEAR(cell(table, "vx", 2).toDouble(), r.sigmaNoiseModel[fit::kVx],
+              1e-3 * r.sigmaNoiseModel[fit::kVx]);
+  EXPECT_NEAR(cell(table, "vx", 3).toDouble(), r.sigma[fit::kVx], 1e-3 * r.sigma[fit::kVx]);
+  EXPECT_NEAR(cell(table, "SNR", 1).toDouble(), r.snr, 1e-3 * r.snr);
+  EXPECT_FALSE(cell(table, "FAP", 1).isEmpty());
+
+  // Accept stores the fit's JSON on the candidate.
+  ASSERT_TRUE(panel.acceptButton()->isEnabled());
+  EXPECT_TRUE(obs.candidateState(0)->fit.is_null());
+  panel.acceptButton()->click();
+  EXPECT_EQ(obs.candidateState(0)->fit, panel.outcome()->json);
+  EXPECT_EQ(obs.candidateState(0)->fit["status"], "converged");
+}
+
+TEST(FitPanel, ShowsLivePointsAndCancelsWithinASecond) {
+  CoreServices services;
+  services.fitCandidate = [](const PreparedView&, const search::Candidate&, CancelToken& cancel,
+                             const FitStepCallback& onStep) -> FitOutcome {
+    // An endless, slow "fit": one step every 20 ms, polling cancel in 1 ms slices.
+    for (int it = 0;; ++it) {
+      fit::FitIteration step;
+      step.iteration = it;
+      step.cost = 1000.0 / (1.0 + it);
+      onStep({step, std::make_shared<const Image>(9, 9, static_cast<float>(it))});
+      for (int ms = 0; ms < 20; ++ms) {
+        cancel.throwIfCancelled();
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      }
+    }
+  };
+  Observation obs;
+  setUp(obs);
+  FitPanel panel(&obs, &services);
+  bool finished = false;
+  bool cancelled = false;
+  QObject::connect(&panel, &FitPanel::fitFinished, [&](bool, bool c, const QString&) {
+    finished = true;
+    cancelled = c;
+  });
+  panel.fitSelected();
+  ASSERT_TRUE(panel.running());
+  // Live: cost points and the residual arrive while the fit runs.
+  ASSERT_TRUE(
+      test::waitFor([&] { return panel.costPoints() >= 3 && panel.residualView()->tileCount() == 1; }, 5000));
+  EXPECT_TRUE(panel.running());
+  QElapsedTimer clock;
+  clock.start();
+  panel.cancel();
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 5000));
+  EXPECT_LT(clock.elapsed(), 1000);
+  EXPECT_TRUE(cancelled);
+  EXPECT_FALSE(panel.acceptButton()->isEnabled());
+  EXPECT_EQ(panel.outcome(), nullptr);
+}
+
+ST_UI_TEST_MAIN()

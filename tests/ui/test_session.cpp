@@ -1,0 +1,255 @@
+// Sessions in the main window (issue 8 §6): label, note, fit and flags autosave beside the inputs; a new
+// window that opens the file gets the identical state (result, grid, velocity map, vetting, selection, the
+// pre-processing parameters) without searching again; later changes keep saving to it; a corrupted or newer
+// file gets a dialog naming the problem and the backup copy, and nothing is overwritten.
+#include <gtest/gtest.h>
+
+#include <QFile>
+#include <QLabel>
+#include <QMessageBox>
+#include <QStandardPaths>
+#include <QStatusBar>
+#include <QTableView>
+#include <QTest>
+#include <QTimer>
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+
+#include <unistd.h>
+
+#include "candidate_table.hpp"
+#include "job_runner.hpp"
+#include "main_window.hpp"
+#include "processing_panel.hpp"
+#include "search_panel.hpp"
+#include "session_controller.hpp"
+#include "test_support.hpp"
+#include "ui_test_support.hpp"
+
+using namespace st;
+using namespace st::ui;
+
+namespace {
+
+/// What the fakes saw: searches run, the stages pre-processing was given.
+struct Calls {
+  std::atomic<int> searches{0};
+  std::mutex mutex;
+  std::vector<StageSpec> lastStages;
+};
+
+class CountingBackend : public test::FakeBackend {
+ public:
+  explicit CountingBackend(Calls* calls) : m_calls(calls) {}
+  search::SearchResult search(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                              const search::SearchParams& params, ProgressSink& progress,
+                              CancelToken& cancel) override {
+    ++m_calls->searches;
+    return FakeBackend::search(cube, grid, params, progress, cancel);
+  }
+
+ private:
+  Calls* m_calls;
+};
+
+CoreServices services(const std::shared_ptr<Calls>& calls) {
+  CoreServices s = test::fakeServices(test::movingDotCube(64, 64, 20, {8.0, -4.0}, 30, 35));
+  auto cube = std::make_shared<const FrameCube>(test::movingDotCube(64, 64, 20, {8.0, -4.0}, 30, 35));
+  s.loadFrames = [cube](const std::vector<std::string>& inputs, ProgressSink&, CancelToken&) {
+    for (const auto& p : inputs)
+      if (!std::filesystem::exists(p)) throw InputError("no such file '" + p + "'");
+    return *cube;
+  };
+  auto preprocess = s.preprocess;
+  s.preprocess = [preprocess, calls](std::shared_ptr<const FrameCube> raw,
+                                     const std::vector<StageSpec>& stages, ProgressSink& p, CancelToken& c) {
+    {
+      std::lock_guard lock(calls->mutex);
+      calls->lastStages = stages;
+    }
+    return preprocess(raw, stages, p, c);
+  };
+  s.makeBackend = [calls](BackendKind, std::string& message) {
+    message = "fake cpu";
+    return std::make_unique<CountingBackend>(calls.get());
+  };
+  return s;
+}
+
+bool idle(MainWindow& w) {
+  return !w.jobs()->busy();
+}
+
+QString sessionStatus(MainWindow& w) {
+  for (auto* label : w.statusBar()->findChildren<QLabel*>())
+    if (label->text().startsWith("Session")) return label->text();
+  return {};
+}
+
+/// Closes the next modal message box and returns its text (polls; the box runs its own event loop).
+std::shared_ptr<QString> catchMessageBox() {
+  auto text = std::make_shared<QString>();
+  auto* timer = new QTimer;
+  timer->setInterval(20);
+  QObject::connect(timer, &QTimer::timeout, [timer, text] {
+    if (auto* box = qobject_cast<QMessageBox*>(QApplication::activeModalWidget())) {
+      *text = box->text();
+      box->done(QMessageBox::Ok);
+      timer->stop();
+      timer->deleteLater();
+    }
+  });
+  timer->start();
+  return text;
+}
+
+}  // namespace
+
+TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  MainWindow w1(services(calls));
+  w1.resize(1200, 800);
+  w1.show();
+  w1.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w1.observation()->prepared() && idle(w1); }));
+  // A non-default pre-processing parameter, used for the cube the search runs on.
+  auto* processing = w1.findChild<ProcessingPanel*>();
+  auto stages = processing->stages();
+  stages[0].params[0].value = 3.25;
+  processing->setStages(stages);
+  w1.runPreprocess();
+  ASSERT_TRUE(test::waitFor([&] { return calls->lastStages[0].params[0].value == 3.25 && idle(w1); }));
+  w1.searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+  w1.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return w1.observation()->result() && idle(w1); }));
+  Observation* o1 = w1.observation();
+  ASSERT_GE(o1->result()->candidates.size(), 3u);
+  const QString path = w1.session()->path();
+  EXPECT_EQ(path.toStdString(), (dir / "obs.synthtrack-session.json").string());
+
+  // Vetting by keyboard, a note, an accepted fit and artifact flags.
+  QTableView* table = w1.candidates()->table();
+  table->setFocus();
+  o1->setSelected(0);
+  QTest::keyClick(table, Qt::Key_R);
+  QTest::keyClick(table, Qt::Key_D);
+  // C labels charge leakage in the table, although the View menu's C toggles IPSA/CSA elsewhere.
+  w1.activateWindow();
+  QApplication::setActiveWindow(&w1);
+  table->setFocus();
+  QTest::keyClick(table, Qt::Key_C);
+  EXPECT_EQ(o1->candidateState(2)->reason, session::ArtifactReason::ChargeLeakage);
+  EXPECT_EQ(o1->stackMode(), search::StackMode::Ipsa);
+  o1->setCandidateNote(1, "spike of the star at (40, 12)");
+  o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
+  o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
+  o1->setSelected(1);
+  ASSERT_TRUE(w1.session()->autosaver()->flush());
+  ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w1).contains(path); }));
+
+  const int searches = calls->searches;
+  calls->lastStages.clear();
+  MainWindow w2(services(calls));
+  w2.openSession(path);
+  ASSERT_TRUE(test::waitFor([&] { return w2.observation()->result() && idle(w2); }));
+  Observation* o2 = w2.observation();
+  EXPECT_EQ(calls->searches, searches) << "reopening searched again";
+  EXPECT_EQ(calls->lastStages[0].params[0].value, 3.25);  // pre-processed with the saved parameters
+  EXPECT_EQ(o2->candidateStates(), o1->candidateStates());
+  const auto& r1 = *o1->result();
+  const auto& r2 = *o2->result();
+  ASSERT_EQ(r2.candidates.size(), r1.candidates.size());
+  for (std::size_t i = 0; i < r1.candidates.size(); ++i) {
+    EXPECT_EQ(r2.candidates[i].x, r1.candidates[i].x);
+    EXPECT_EQ(r2.candidates[i].v, r1.candidates[i].v);
+    EXPECT_EQ(r2.candidates[i].snr, r1.candidates[i].snr);
+  }
+  EXPECT_EQ(r2.map.maxSnr, r1.map.maxSnr);
+  EXPECT_EQ(o2->grid().stepPxS, o1->grid().stepPxS);
+  EXPECT_EQ(o2->grid().centre, o1->grid().centre);
+  EXPECT_EQ(o2->selected(), std::optional<int>(1));
+  EXPECT_EQ(o2->candidateState(0)->label, session::Label::Real);
+  EXPECT_EQ(o2->candidateState(1)->reason, session::ArtifactReason::Diffraction);
+  EXPECT_EQ(w2.session()->path(), path);
+
+  // Later changes keep going to the same file, counting on.
+  const std::int64_t before = session::SessionStore(path.toStdString()).load().changes;
+  o2->setCandidateLabel(3, session::Label::Unsure);
+  ASSERT_TRUE(w2.session()->autosaver()->flush());
+  const session::Session s = session::SessionStore(path.toStdString()).load();
+  EXPECT_GT(s.changes, before);
+  EXPECT_EQ(s.candidates[3].label, session::Label::Unsure);
+  EXPECT_EQ(s.candidates[1].note, "spike of the star at (40, 12)");
+}
+
+TEST(Session, CorruptedAndNewerFilesGetAMessageNamingTheBackup) {
+  test::TempDir dir;
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.show();
+  struct Case {
+    const char* file;
+    const char* text;
+    const char* problem;
+    const char* tag;
+  };
+  const Case cases[] = {
+      {"bad.json", "{\"format\": \"synthtrack-session\", \"version\": 1, \"inputs\": [", "corrupted",
+       ".corrupt-"},
+      {"new.json", "{\"format\": \"synthtrack-session\", \"version\": 99}", "newer", ".newer-"}};
+  for (const Case& c : cases) {
+    const std::string path = (dir / c.file).string();
+    std::ofstream(path) << c.text;
+    auto message = catchMessageBox();
+    w.openSession(QString::fromStdString(path));
+    ASSERT_TRUE(test::waitFor([&] { return !message->isEmpty() && idle(w); })) << c.file;
+    EXPECT_TRUE(message->contains(c.problem)) << message->toStdString();
+    EXPECT_TRUE(message->contains(QString::fromStdString(path))) << message->toStdString();
+    const int at = message->indexOf(c.tag);
+    ASSERT_GE(at, 0) << message->toStdString();
+    // The copy named in the message exists and the original is untouched.
+    const int start = message->lastIndexOf('\'', at) + 1;
+    const QString copy = message->mid(start, message->indexOf('\'', at) - start);
+    EXPECT_TRUE(QFile::exists(copy)) << copy.toStdString();
+    std::ifstream in(path);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), c.text);
+    EXPECT_EQ(w.observation()->raw(), nullptr);
+    EXPECT_TRUE(w.session()->path().isEmpty());  // nothing will be written over it
+  }
+}
+
+TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
+  test::TempDir dir;
+  const std::vector<std::string> inputs = {(dir / "frames.fits.fz").string()};
+  const QString first = defaultSessionPath(inputs, false);
+  EXPECT_EQ(first.toStdString(), (dir / "frames.synthtrack-session.json").string());
+  std::ofstream(first.toStdString()) << "{}";
+  EXPECT_EQ(freeSessionPath(first).toStdString(), (dir / "frames.synthtrack-session-2.json").string());
+  const QString demo = defaultSessionPath({}, true);
+  EXPECT_TRUE(demo.startsWith(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)))
+      << demo.toStdString();
+  // A folder that cannot be written to sends the session to the fallback folder (not testable as root).
+  if (geteuid() != 0) {
+    std::filesystem::create_directory(dir / "ro");
+    std::filesystem::permissions(dir / "ro",
+                                 std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    const QString fallback = defaultSessionPath({(dir / "ro" / "a.fits").string()}, false,
+                                                QString::fromStdString((dir / "fb").string()));
+    EXPECT_EQ(fallback.toStdString(), (dir / "fb" / "a.synthtrack-session.json").string());
+    std::filesystem::permissions(dir / "ro", std::filesystem::perms::owner_all);
+  }
+}
+
+int main(int argc, char** argv) {
+  qputenv("QT_QPA_PLATFORM", "offscreen");
+  QCoreApplication::setOrganizationName("synthtrack-tests");
+  QStandardPaths::setTestModeEnabled(true);  // AppDataLocation and settings under ~/.qttest
+  QApplication app(argc, argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

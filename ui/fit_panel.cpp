@@ -1,0 +1,304 @@
+#include "fit_panel.hpp"
+
+#include <qcustomplot.h>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QPushButton>
+#include <QTableWidget>
+#include <QVBoxLayout>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <vector>
+
+#include "job_runner.hpp"
+#include "stamp_strip.hpp"
+#include "st/fit/uncertainty.hpp"
+#include "st/stats/false_alarm.hpp"
+
+namespace st::ui {
+
+/// What the worker hands to the GUI while the fit runs: guarded by a mutex, drained on the GUI thread.
+struct FitPanel::Live {
+  std::mutex mutex;
+  std::vector<std::pair<int, double>> points;  ///< (iteration, cost) not yet plotted
+  std::shared_ptr<const Image> residual;       ///< latest, not yet shown
+  std::chrono::steady_clock::time_point lastPost{};
+  bool posted = false;  ///< a drain is queued
+};
+
+namespace {
+
+QString num(double v, int precision = 4) {
+  if (!std::isfinite(v)) return "—";
+  return QString::number(v, 'g', precision);
+}
+
+}  // namespace
+
+FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidget* parent)
+    : QWidget(parent), m_obs(observation), m_services(services) {
+  m_jobs = new JobRunner(this);
+  m_title = new QLabel("Select a candidate and press Fit (F).", this);
+  m_title->setWordWrap(true);
+  m_fit = new QPushButton("Fit (F)", this);
+  m_fit->setToolTip("Co-moving PSF fit of the selected candidate (paper §3.2)");
+  m_cancel = new QPushButton("Cancel", this);
+  m_cancel->setEnabled(false);
+  m_accept = new QPushButton("Accept", this);
+  m_accept->setEnabled(false);
+  m_accept->setToolTip("Store this fit on the candidate (saved with the session)");
+  m_status = new QLabel(this);
+  m_status->setWordWrap(true);
+  auto* buttons = new QHBoxLayout;
+  buttons->addWidget(m_fit);
+  buttons->addWidget(m_cancel);
+  buttons->addWidget(m_accept);
+  buttons->addStretch(1);
+
+  m_cost = new QCustomPlot(this);
+  m_cost->setMinimumHeight(150);
+  m_cost->addGraph();
+  m_cost->graph(0)->setPen(QPen(QColor(40, 90, 200), 2));
+  m_cost->graph(0)->setScatterStyle(QCPScatterStyle(QCPScatterStyle::ssDisc, 5));
+  m_cost->xAxis->setLabel("iteration");
+  m_cost->yAxis->setLabel("cost C");
+  m_cost->yAxis->setScaleType(QCPAxis::stLogarithmic);
+  m_cost->yAxis->setNumberFormat("g");
+  m_cost->yAxis->setNumberPrecision(6);
+  m_residual = new StampStrip(this);
+  m_residual->setMinimumHeight(130);
+  m_residual->setPlaceholder("residual (data − model, summed along the track)");
+  DisplaySettings d;
+  d.limits = LimitsMode::MinMax;
+  d.colormap = Colormap::Viridis;
+  m_residual->setDisplaySettings(d);
+  m_table = new QTableWidget(0, 5, this);
+  m_table->setHorizontalHeaderLabels({"parameter", "value", "σ noise model", "σ Hessian", "σ paper"});
+  m_table->verticalHeader()->hide();
+  m_table->verticalHeader()->setDefaultSectionSize(fontMetrics().height() + 6);
+  m_table->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
+  m_table->setEditTriggers(QAbstractItemView::NoEditTriggers);
+
+  // Wide and short (a bottom dock): controls and cost | residual | parameters.
+  auto* left = new QVBoxLayout;
+  left->addWidget(m_title);
+  left->addLayout(buttons);
+  left->addWidget(m_status);
+  left->addWidget(m_cost, 1);
+  auto* layout = new QHBoxLayout(this);
+  layout->setContentsMargins(2, 2, 2, 2);
+  layout->addLayout(left, 3);
+  layout->addWidget(m_residual, 3);
+  layout->addWidget(m_table, 4);
+
+  connect(m_fit, &QPushButton::clicked, this, &FitPanel::fitSelected);
+  connect(m_cancel, &QPushButton::clicked, this, &FitPanel::cancel);
+  connect(m_accept, &QPushButton::clicked, this, &FitPanel::accept);
+  connect(m_jobs, &JobRunner::finished, this,
+          [this](const QString&, bool ok, bool cancelled, const QString& message, double elapsedS) {
+            m_fit->setEnabled(true);
+            m_cancel->setEnabled(false);
+            m_runningIndex = -1;
+            if (cancelled) m_status->setText("Fit cancelled.");
+            if (!ok && !cancelled) m_status->setText("Fit failed: " + message);
+            if (ok) m_status->setText(m_status->text() + QString(" (%1 s)").arg(elapsedS, 0, 'f', 1));
+            emit fitFinished(ok, cancelled, message);
+          });
+  connect(m_obs, &Observation::resultChanged, this, [this] {
+    m_outcome.reset();
+    m_fittedIndex = -1;
+    m_accept->setEnabled(false);
+  });
+}
+
+FitPanel::~FitPanel() {
+  // The runner joins its thread: the worker ends (cancelled) before the members it posts to go away.
+  delete m_jobs;
+}
+
+bool FitPanel::running() const {
+  return m_jobs->busy();
+}
+
+int FitPanel::costPoints() const {
+  return m_cost->graph(0)->dataCount();
+}
+
+QString FitPanel::statusText() const {
+  return m_status->text();
+}
+
+void FitPanel::cancel() {
+  m_jobs->cancel();
+}
+
+void FitPanel::rescaleCost() {
+  m_cost->rescaleAxes();
+  // Log scale; decade ticks only when the cost spans a decade (a fit on noise-dominated data often changes
+  // C by a fraction of a per cent, where decade ticks would all read the same).
+  const QCPRange r = m_cost->yAxis->range();
+  const bool decades = r.lower > 0 && r.upper / r.lower > 10.0;
+  if (decades != m_logTicks) {
+    m_logTicks = decades;
+    m_cost->yAxis->setTicker(decades ? QSharedPointer<QCPAxisTicker>(new QCPAxisTickerLog)
+                                     : QSharedPointer<QCPAxisTicker>(new QCPAxisTicker));
+  }
+  m_cost->yAxis->scaleRange(1.05, m_cost->yAxis->range().center());
+  m_cost->xAxis->setRange(-0.3, std::max(2.0, m_cost->xAxis->range().upper + 0.3));
+}
+
+void FitPanel::resetPlots() {
+  m_cost->graph(0)->data()->clear();
+  m_cost->replot();
+  m_residual->clear();
+  m_table->setRowCount(0);
+}
+
+void FitPanel::fitSelected() {
+  const auto* c = m_obs->selectedCandidate();
+  const auto prepared = m_obs->prepared();
+  if (!c || !prepared || m_jobs->busy()) return;
+  if (!m_services || !m_services->fitCandidate) {
+    m_status->setText("This build has no co-moving fit.");
+    return;
+  }
+  m_runningIndex = *m_obs->selected();
+  m_title->setText(QString("Candidate %1: start (%2, %3) px, v (%4, %5) px/s")
+                       .arg(m_runningIndex + 1)
+                       .arg(c->x)
+                       .arg(c->y)
+                       .arg(c->v.vx, 0, 'g', 4)
+                       .arg(c->v.vy, 0, 'g', 4));
+  m_status->setText("Fitting…");
+  resetPlots();
+  m_accept->setEnabled(false);
+  m_fit->setEnabled(false);
+  m_cancel->setEnabled(true);
+  m_live = std::make_shared<Live>();
+  auto live = m_live;
+  const auto fn = m_services->fitCandidate;
+  const search::Candidate candidate = *c;
+  const int index = m_runningIndex;
+  // Called on the worker for every accepted iteration: store, and queue one drain per kLiveIntervalMs.
+  FitStepCallback onStep = [this, live](const FitStep& step) {
+    std::lock_guard lock(live->mutex);
+    live->points.emplace_back(step.iteration.iteration, step.iteration.cost);
+    if (step.residual) live->residual = step.residual;
+    const auto now = std::chrono::steady_clock::now();
+    if (live->posted || now - live->lastPost < std::chrono::milliseconds(kLiveIntervalMs)) return;
+    live->posted = true;
+    live->lastPost = now;
+    QMetaObject::invokeMethod(
+        this, [this] { drainLive(); }, Qt::QueuedConnection);
+  };
+  m_jobs->start("Fitting",
+                [this, fn, prepared, candidate, index, onStep](ProgressSink&, CancelToken& cancel) {
+                  auto outcome = std::make_shared<const FitOutcome>(fn(*prepared, candidate, cancel, onStep));
+                  return std::function<void()>([this, outcome, index] {
+                    m_outcome = outcome;
+                    m_fittedIndex = index;
+                    showOutcome(*outcome);
+                  });
+                });
+}
+
+void FitPanel::drainLive() {
+  if (!m_live) return;
+  std::vector<std::pair<int, double>> points;
+  std::shared_ptr<const Image> residual;
+  {
+    std::lock_guard lock(m_live->mutex);
+    points.swap(m_live->points);
+    residual = std::move(m_live->residual);
+    m_live->residual.reset();
+    m_live->posted = false;
+  }
+  for (const auto& [it, cost] : points)
+    m_cost->graph(0)->addData(it, cost);
+  rescaleCost();
+  m_cost->replot(QCustomPlot::rpQueuedReplot);
+  if (residual) m_residual->setTiles({{residual, "residual (live)", false}});
+  if (!points.empty())
+    m_status->setText(
+        QString("Fitting… iteration %1, cost %2").arg(points.back().first).arg(num(points.back().second)));
+}
+
+void FitPanel::showOutcome(const FitOutcome& out) {
+  drainLive();
+  m_live.reset();
+  const fit::FitResult& r = out.result;
+  // The complete history (the live points were throttled, never dropped, but this is the reference).
+  QVector<double> x, y;
+  for (std::size_t i = 0; i < r.costHistory.size(); ++i) {
+    x.push_back(static_cast<double>(i));
+    y.push_back(r.costHistory[i]);
+  }
+  if (!r.costHistory.empty()) m_cost->graph(0)->setData(x, y, true);
+  rescaleCost();
+  m_cost->replot();
+  auto shared = [](const Image& im) { return std::make_shared<const Image>(im); };
+  if (!r.residualStack.empty())
+    m_residual->setTiles({{shared(r.dataStack), "data", false},
+                          {shared(r.modelStack), "model", false},
+                          {shared(r.residualStack), "residual", false}});
+  fillTable(out);
+  m_status->setText(QString("%1 after %2 iterations%3")
+                        .arg(fit::toString(r.status))
+                        .arg(r.iterations)
+                        .arg(r.message.empty() ? QString() : ": " + QString::fromStdString(r.message)));
+  m_accept->setEnabled(true);
+}
+
+void FitPanel::fillTable(const FitOutcome& out) {
+  const fit::FitResult& r = out.result;
+  const auto& p = r.params;
+  m_table->setRowCount(0);
+  auto row = [this](const QString& name, const QString& value, const QString& nm = {},
+                    const QString& hess = {}, const QString& paper = {}) {
+    const int i = m_table->rowCount();
+    m_table->insertRow(i);
+    const QString cells[] = {name, value, nm, hess, paper};
+    for (int c = 0; c < 5; ++c)
+      m_table->setItem(i, c, new QTableWidgetItem(cells[c]));
+  };
+  const auto& nm = r.sigmaNoiseModel;
+  const auto& h = r.sigma;
+  row("vx [px/s]", num(p.v.vx, 6), num(nm[fit::kVx]), num(h[fit::kVx]), num(r.sigmaVelPaper) + " (vel_snr)");
+  row("vy [px/s]", num(p.v.vy, 6), num(nm[fit::kVy]), num(h[fit::kVy]), num(r.sigmaVelPaper) + " (vel_snr)");
+  row("x [px] at t_ref", num(p.xc, 7), num(nm[fit::kXc]), num(h[fit::kXc]),
+      num(r.sigmaPosPaper) + " (eq:sig)");
+  row("y [px] at t_ref", num(p.yc, 7), num(nm[fit::kYc]), num(h[fit::kYc]),
+      num(r.sigmaPosPaper) + " (eq:sig)");
+  row("α [counts/frame]", num(p.alpha), num(nm[fit::kAlpha]), num(h[fit::kAlpha]));
+  row("I0 [counts]", num(p.i0), num(nm[fit::kI0]), num(h[fit::kI0]));
+  row("σ_xy from SNR [px]", "", "", "", num(r.sigmaPosSnr) + " (cent_snr)");
+  row("photons / frame", num(r.photonsPerFrame));
+  row("SNR (detection_snr)", num(r.snr));
+  const auto& result = m_obs->result();
+  if (result && result->trials.total() > 0) {
+    const auto& t = result->trials;
+    row(QString("FAP (Prob_false, %1 trials)").arg(t.total(), 0, 'g', 3),
+        num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3));
+  }
+  row("frames inside / used", QString("%1 / %2").arg(r.framesInside).arg(r.framesUsed));
+  row("reduced χ²", num(r.reducedChi2));
+  if (out.json.contains("segments_flagged"))
+    row("segments (K = 4)", out.json["segments_flagged"].get<bool>() ? "flagged" : "consistent");
+  if (out.json.contains("ra_deg"))
+    row("RA, Dec [deg]", QString("%1, %2")
+                             .arg(out.json["ra_deg"].get<double>(), 0, 'f', 6)
+                             .arg(out.json["dec_deg"].get<double>(), 0, 'f', 6));
+  for (const auto& w : r.warnings)
+    row("warning", QString::fromStdString(w));
+}
+
+void FitPanel::accept() {
+  if (!m_outcome || m_fittedIndex < 0) return;
+  m_obs->setCandidateFit(m_fittedIndex, m_outcome->json);
+  m_status->setText(QString("Fit stored on candidate %1.").arg(m_fittedIndex + 1));
+  emit accepted(m_fittedIndex);
+}
+
+}  // namespace st::ui

@@ -1,0 +1,184 @@
+// MainWindow: the session file (issue 8 §6). Every change autosaves through SessionController; File >
+// New/Open session…, Save session as… and the recent sessions; reopening a session reloads and pre-processes
+// its inputs in a worker, then puts the saved result and vetting back without searching again.
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QLabel>
+#include <QMenu>
+#include <QMessageBox>
+#include <QSettings>
+#include <QStatusBar>
+
+#include "job_runner.hpp"
+#include "main_window.hpp"
+#include "processing_panel.hpp"
+#include "search_panel.hpp"
+#include "session_controller.hpp"
+#include "stack_scrubber.hpp"
+
+namespace st::ui {
+
+/// What the "Opening session" job hands to the GUI thread.
+struct OpenedSession {
+  QString path;
+  SessionSnapshot snapshot;
+  std::int64_t changes = 0;
+  nlohmann::json settings;
+  std::shared_ptr<const FrameCube> raw;
+  std::shared_ptr<const PreparedView> prepared;
+  std::shared_ptr<search::SearchBackend> backend;
+  std::string backendMessage;
+};
+
+void MainWindow::buildSession() {
+  m_session = new SessionController(
+      m_obs,
+      [this] {
+        SessionParameters p;
+        // The stages the current cube was made with (the panel may have been edited since).
+        p.stages = m_obs->prepared() && !m_preparedStages.empty() ? m_preparedStages : m_processing->stages();
+        p.grid = m_search->grid();
+        p.search = m_search->params();
+        p.backend = m_search->backendKind();
+        return p;
+      },
+      this);
+  m_sessionLabel = new QLabel("Session: none", this);
+  connect(m_session, &SessionController::statusChanged, this,
+          [this](const QString& text, const QString& tooltip, bool error) {
+            m_sessionLabel->setText(text);
+            m_sessionLabel->setToolTip(tooltip);
+            m_sessionLabel->setStyleSheet(error ? "color: #c00000; font-weight: bold" : QString());
+          });
+  connect(m_session, &SessionController::pathChanged, this, &MainWindow::addRecentSession);
+  connect(m_session, &SessionController::saveFailed, this, [this](const QString& message) {
+    statusBar()->showMessage(message, 15000);
+    if (m_script) return;
+    auto* box = new QMessageBox(QMessageBox::Warning, "Session not saved", message, QMessageBox::Ok, this);
+    box->setAttribute(Qt::WA_DeleteOnClose);
+    box->setModal(false);  // the GUI goes on; the next change tries again
+    box->show();
+  });
+}
+
+void MainWindow::buildSessionMenu(QMenu* file) {
+  file->addSeparator();
+  file->addAction("&New session for this observation", this,
+                  [this] {
+                    if (m_session->demo()) {
+                      openDemo();
+                    } else if (!m_session->inputs().empty()) {
+                      QStringList paths;
+                      for (const auto& p : m_session->inputs())
+                        paths << QString::fromStdString(p);
+                      openInputs(paths);
+                    }
+                  })
+      ->setToolTip("Reopen the observation in a new session file (the current file is kept)");
+  file->addAction("Open sess&ion…", QKeySequence("Ctrl+Shift+S"), this, [this] {
+    const QString path =
+        QFileDialog::getOpenFileName(this, "Open session", QFileInfo(m_session->path()).path(),
+                                     "synthtrack sessions (*.json);;All files (*)");
+    if (!path.isEmpty()) openSession(path);
+  });
+  file->addAction("Save session &as…", this, [this] {
+    const QString path = QFileDialog::getSaveFileName(this, "Save session as", m_session->path(),
+                                                      "synthtrack sessions (*.json)");
+    if (!path.isEmpty()) m_session->saveAs(path);
+  });
+  m_recentSessionsMenu = file->addMenu("Recent sess&ions");
+}
+
+void MainWindow::addRecentSession(const QString& path) {
+  QSettings settings;
+  QStringList recent = settings.value("recentSessions").toStringList();
+  recent.removeAll(path);
+  recent.prepend(path);
+  while (recent.size() > 10)
+    recent.removeLast();
+  settings.setValue("recentSessions", recent);
+  rebuildRecentSessionsMenu();
+}
+
+void MainWindow::rebuildRecentSessionsMenu() {
+  if (!m_recentSessionsMenu) return;
+  m_recentSessionsMenu->clear();
+  const QStringList recent = QSettings().value("recentSessions").toStringList();
+  for (const QString& path : recent)
+    m_recentSessionsMenu->addAction(QFileInfo(path).fileName(), this, [this, path] { openSession(path); })
+        ->setToolTip(path);
+  m_recentSessionsMenu->setEnabled(!recent.isEmpty());
+}
+
+void MainWindow::openSession(const QString& path) {
+  auto load = m_services.loadFrames;
+  auto simulate = m_services.simulateDemo;
+  auto preprocess = m_services.preprocess;
+  auto makeBackend = m_services.makeBackend;
+  const auto defaults = m_services.preprocessStages;
+  const BackendKind kind = m_search->backendKind();
+  const std::string file = QFileInfo(path).absoluteFilePath().toStdString();
+  const bool started =
+      m_jobs->start("Opening session", [=, this](ProgressSink& progress, CancelToken& cancel) {
+        auto opened = std::make_shared<OpenedSession>();
+        opened->path = QString::fromStdString(file);
+        // A corrupted or newer file throws here, after SessionStore copied it aside; the message names the
+        // copy.
+        const session::Session s = session::SessionStore(file).load();
+        opened->snapshot = restoreSnapshot(s, defaults, file);
+        opened->changes = s.changes;
+        opened->settings = s.settings;
+        const auto& snap = opened->snapshot;
+        if (snap.parameters.demo) {
+          if (!simulate) throwMissingService("simulator");
+          opened->raw = std::make_shared<const FrameCube>(simulate(progress, cancel));
+        } else {
+          if (!load) throwMissingService("FITS reader");
+          if (snap.inputs.empty()) throw InputError("session '" + file + "' names no input files");
+          opened->raw = std::make_shared<const FrameCube>(load(snap.inputs, progress, cancel));
+        }
+        if (!preprocess) throwMissingService("pre-processing pipeline");
+        opened->prepared = std::make_shared<const PreparedView>(
+            preprocess(opened->raw, snap.parameters.stages, progress, cancel));
+        if (makeBackend) opened->backend = makeBackend(kind, opened->backendMessage);
+        return std::function<void()>([this, opened] { applyOpenedSession(*opened); });
+      });
+  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+}
+
+void MainWindow::applyOpenedSession(const OpenedSession& opened) {
+  const SessionSnapshot& snap = opened.snapshot;
+  // Nothing is saved while the state is rebuilt: the file already holds it.
+  m_session->setSuspended(true);
+  m_session->adopt(opened.path, snap.inputs, snap.parameters.demo, opened.changes, opened.settings);
+  m_demoGrid = snap.parameters.demo;
+  m_processing->setStages(snap.parameters.stages);
+  m_preparedStages = snap.parameters.stages;
+  QString label = snap.label;
+  if (label.isEmpty()) label = QFileInfo(opened.path).fileName();
+  m_obs->setRaw(opened.raw, label);
+  m_stackBackend = opened.backend;
+  m_scrubber->setBackend(opened.backend);
+  if (!opened.backendMessage.empty())
+    m_search->setBackendMessage("stacks: " + QString::fromStdString(opened.backendMessage));
+  m_obs->setPrepared(opened.prepared);
+  const search::VelocityGrid& g = snap.parameters.grid;
+  if (g.count() > 0)
+    m_search->setGridPxS(g.centre, 0.5 * (std::max(g.nvx, g.nvy) - 1) * g.stepPxS, g.stepPxS);
+  m_obs->setUnit(snap.unit);
+  int vetted = 0;
+  if (snap.result) {
+    m_obs->setResult(snap.result, snap.states);
+    for (const auto& s : snap.states)
+      vetted += s.label != session::Label::Unvetted ? 1 : 0;
+    if (snap.selected) selectCandidate(*snap.selected);
+  }
+  m_session->setSuspended(false);
+  statusBar()->showMessage(QString("Session restored from %1: %2 candidates, %3 vetted (not searched again)")
+                               .arg(opened.path)
+                               .arg(snap.result ? snap.result->candidates.size() : 0)
+                               .arg(vetted),
+                           15000);
+}
+
+}  // namespace st::ui

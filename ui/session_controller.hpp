@@ -1,0 +1,92 @@
+#pragma once
+// The session of the main window (issue 8 §6): which file the current analysis is saved to, and an autosave
+// after every change of the Observation (new observation, pre-processing, result, a candidate's label, note,
+// fit or artifact flags, the selection, the velocity unit). The state is gathered on the GUI thread
+// (makeSession) and written by SessionAutosaver's worker. The file of a new analysis is chosen by
+// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used).
+#include <QObject>
+#include <QString>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "observation.hpp"
+#include "session_autosaver.hpp"
+#include "session_snapshot.hpp"
+
+namespace st::ui {
+
+/// Where a new analysis of `inputs` keeps its session: beside the first input when that folder is writable
+/// (NAME.synthtrack-session.json, NAME = the input's file name without its FITS extensions, or the folder's
+/// name), else in `fallbackDir` (QStandardPaths::AppDataLocation + "/sessions" when empty), which the demo
+/// always uses ("demo.synthtrack-session.json").
+[[nodiscard]] QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo,
+                                         const QString& fallbackDir = {});
+/// `path` when no file is there, else the first of NAME-2.EXT, NAME-3.EXT, ... that is free.
+[[nodiscard]] QString freeSessionPath(const QString& path);
+
+class SessionController : public QObject {
+  Q_OBJECT
+ public:
+  /// `parameters` gives the panels' settings at the time of a save (called on the GUI thread).
+  SessionController(Observation* observation, std::function<SessionParameters()> parameters,
+                    QObject* parent = nullptr);
+
+  [[nodiscard]] SessionAutosaver* autosaver() const noexcept { return m_saver; }
+  /// The session file changes go to ("" before the first observation).
+  [[nodiscard]] const QString& path() const noexcept { return m_path; }
+  [[nodiscard]] const std::vector<std::string>& inputs() const noexcept { return m_inputs; }
+  [[nodiscard]] bool demo() const noexcept { return m_demo; }
+  /// Report settings kept in the session (station code, observers, ...); setting them saves.
+  [[nodiscard]] const nlohmann::json& settings() const noexcept { return m_settings; }
+  void setSettings(nlohmann::json settings);
+
+  /// An observation is being opened: when its frames arrive (Observation::rawChanged) a new session starts
+  /// in a free file at defaultSessionPath() (or `path` when given).
+  void prepareNew(std::vector<std::string> inputs, bool demo, const QString& path = {});
+  /// Continue in an opened session file (no save until the next change), counting on from `changes`.
+  void adopt(const QString& path, std::vector<std::string> inputs, bool demo, std::int64_t changes,
+             nlohmann::json settings);
+  /// Save the current state to `path` from now on (File > Save session as…).
+  void saveAs(const QString& path);
+  /// While restoring a session, the intermediate states are not saved.
+  void setSuspended(bool suspended) { m_suspended = suspended; }
+  /// Builds the current session and queues it (nothing without a path or while suspended).
+  void requestSave();
+  /// The session as it would be saved now.
+  [[nodiscard]] session::Session currentSession() const;
+
+ signals:
+  /// Text for the status bar: the path and the state of the last save; `error` for a failed save.
+  void statusChanged(const QString& text, const QString& tooltip, bool error);
+  /// Changes go to a new file from now on (a new analysis, an opened session, Save as…).
+  void pathChanged(const QString& path);
+  /// A save failed for the first time after a success (the message names the path).
+  void saveFailed(const QString& message);
+
+ private:
+  void onRawChanged();
+  void onSaved(const QString& path, qint64 changes, double ms);
+  void onFailed(const QString& path, const QString& message);
+
+  Observation* m_obs;
+  std::function<SessionParameters()> m_parameters;
+  SessionAutosaver* m_saver;
+  QString m_path;
+  std::vector<std::string> m_inputs;
+  bool m_demo = false;
+  nlohmann::json m_settings = nlohmann::json::object();
+  struct Next {
+    std::vector<std::string> inputs;
+    bool demo = false;
+    QString path;
+  };
+  std::optional<Next> m_next;
+  bool m_suspended = false;
+  bool m_failing = false;
+};
+
+}  // namespace st::ui
