@@ -2,15 +2,12 @@
 #include <QMenu>
 #include <QTimer>
 #include <cstdio>
-#include <set>
 
 #include "figure_dialog.hpp"
 #include "inspector_panel.hpp"
 #include "main_window.hpp"
-#include "processing_panel.hpp"
 #include "report_dialog.hpp"
-#include "search_panel.hpp"
-#include "session_snapshot.hpp"
+#include "session_controller.hpp"
 
 namespace st::ui {
 
@@ -44,22 +41,24 @@ ReportDialog* MainWindow::reportDialog() {
   if (!m_reportDialog) {
     ReportDialog::Context ctx;
     ctx.observation = m_obs;
+    // The same record the session file keeps, with the dialog's report settings.
     ctx.makeSession = [this](const nlohmann::json& settings) {
-      SessionParameters p;
-      p.stages = m_processing->stages();
-      p.grid = m_search->grid();
-      p.search = m_search->params();
-      p.backend = m_search->backendKind();
-      p.demo = m_demoGrid;
-      // The input files, in frame order, once each (empty for the simulated demo).
-      std::vector<std::string> inputs;
-      std::set<std::string> seen;
-      if (m_obs->raw())
-        for (const auto& f : m_obs->raw()->info())
-          if (!f.file.empty() && seen.insert(f.file).second) inputs.push_back(f.file);
-      return makeSession(*m_obs, inputs, p, settings);
+      session::Session s = m_session->currentSession();
+      s.settings = settings;
+      return s;
     };
     m_reportDialog = new ReportDialog(std::move(ctx), this);
+    // A session's own settings win over those remembered in QSettings (a reopened session keeps its station);
+    // edits go into the session (and autosave).
+    const auto adopt = [this] {
+      if (m_session->settings().contains("station"))
+        m_reportDialog->setSubmissionSettings(submissionFromJson(m_session->settings()));
+    };
+    adopt();
+    connect(m_session, &SessionController::pathChanged, m_reportDialog, adopt);
+    connect(m_reportDialog, &ReportDialog::settingsChanged, this, [this](const nlohmann::json& settings) {
+      if (settings != m_session->settings()) m_session->setSettings(settings);
+    });
   }
   return m_reportDialog;
 }
