@@ -7,7 +7,10 @@
 #include <QPainter>
 #include <QPdfWriter>
 #include <QSvgGenerator>
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <vector>
 #include <qcustomplot.h>
 
 #include "st/common/error.hpp"
@@ -112,6 +115,66 @@ void exportFigure(const QString& path, FigureFormat format, const FigureSize& si
   // QSvgGenerator and QPdfWriter report no errors: check the file is there and not empty.
   const QFileInfo written(path);
   if (!written.exists() || written.size() == 0) fail(path, "nothing was written (permissions or disk full?)");
+}
+
+QImage reduceToPalette(const QImage& image, int colours) {
+  colours = std::clamp(colours, 2, 256);
+  const QImage rgb = image.convertToFormat(QImage::Format_RGB32);
+  const auto bin = [](QRgb c) { return ((qRed(c) >> 2) << 12) | ((qGreen(c) >> 2) << 6) | (qBlue(c) >> 2); };
+  struct Bin {
+    std::int64_t n = 0, r = 0, g = 0, b = 0;
+  };
+  std::vector<Bin> bins(1 << 18);
+  for (int y = 0; y < rgb.height(); ++y) {
+    const auto* line = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
+    for (int x = 0; x < rgb.width(); ++x) {
+      Bin& b = bins[static_cast<std::size_t>(bin(line[x]))];
+      ++b.n;
+      b.r += qRed(line[x]);
+      b.g += qGreen(line[x]);
+      b.b += qBlue(line[x]);
+    }
+  }
+  std::vector<int> used;
+  for (int i = 0; i < static_cast<int>(bins.size()); ++i)
+    if (bins[static_cast<std::size_t>(i)].n > 0) used.push_back(i);
+  std::vector<int> top = used;
+  const auto count = [&](int i) { return bins[static_cast<std::size_t>(i)].n; };
+  const auto keep = std::min<std::size_t>(top.size(), static_cast<std::size_t>(colours));
+  std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
+                    [&](int a, int b) { return count(a) > count(b); });
+  QList<QRgb> palette;
+  for (std::size_t k = 0; k < keep; ++k) {
+    const Bin& b = bins[static_cast<std::size_t>(top[k])];
+    palette.push_back(
+        qRgb(static_cast<int>(b.r / b.n), static_cast<int>(b.g / b.n), static_cast<int>(b.b / b.n)));
+  }
+  std::vector<std::uint8_t> lut(bins.size(), 0);
+  for (int i : used) {
+    const Bin& b = bins[static_cast<std::size_t>(i)];
+    const double r = static_cast<double>(b.r) / b.n, g = static_cast<double>(b.g) / b.n,
+                 bl = static_cast<double>(b.b) / b.n;
+    double best = 1e300;
+    for (int k = 0; k < palette.size(); ++k) {
+      const double d = std::pow(qRed(palette[k]) - r, 2) + std::pow(qGreen(palette[k]) - g, 2) +
+                       std::pow(qBlue(palette[k]) - bl, 2);
+      if (d < best) {
+        best = d;
+        lut[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(k);
+      }
+    }
+  }
+  QImage out(rgb.size(), QImage::Format_Indexed8);
+  out.setColorTable(palette);
+  out.setDotsPerMeterX(image.dotsPerMeterX());
+  out.setDotsPerMeterY(image.dotsPerMeterY());
+  for (int y = 0; y < rgb.height(); ++y) {
+    const auto* line = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
+    std::uint8_t* dst = out.scanLine(y);
+    for (int x = 0; x < rgb.width(); ++x)
+      dst[x] = lut[static_cast<std::size_t>(bin(line[x]))];
+  }
+  return out;
 }
 
 void paintPlot(QCPPainter& painter, const QSizeF& size, QCustomPlot& plot, const QString& title) {

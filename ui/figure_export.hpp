@@ -5,6 +5,7 @@
 // on screen, so the device must resolve points as the screen does). The size in inches is fixed by the
 // caller; a PNG is round(width_in * dpi) x round(height_in * dpi) pixels and records its DPI.
 // exportFigure may run on a worker thread when the painter touches no widget; paintPlot is GUI-thread only.
+#include <QImage>
 #include <QSizeF>
 #include <QString>
 #include <functional>
@@ -36,6 +37,12 @@ using FigurePainter = std::function<void(QCPPainter& painter, const QSizeF& size
 /// folder, no permission, full disk).
 void exportFigure(const QString& path, FigureFormat format, const FigureSize& size,
                   const FigurePainter& paint, const QString& title = {}, double logicalDpi = 72.0);
+
+/// `image` with an adaptive palette of at most `colours` (2..256) entries, for small PNG screenshots: the
+/// colours are binned at 6 bits per channel, the most frequent bins become the palette (each the mean of its
+/// pixels), every pixel takes the nearest entry. An image with no more distinct bins than `colours` keeps its
+/// colours to within the binning (4 levels per channel).
+[[nodiscard]] QImage reduceToPalette(const QImage& image, int colours = 256);
 
 /// Paints `plot` into (0, 0, size) with an optional title above it (11 px bold). GUI thread only.
 void paintPlot(QCPPainter& painter, const QSizeF& size, QCustomPlot& plot, const QString& title = {});

@@ -26,6 +26,7 @@
 
 #include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
+#include "figure_export.hpp"
 #include "fit_panel.hpp"
 #include "header_dialog.hpp"
 #include "image_view.hpp"
@@ -360,6 +361,8 @@ bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
   }
   if (maxWidth > 0 && image.width() > maxWidth)
     image = image.scaledToWidth(maxWidth, Qt::SmoothTransformation);
+  if (m_script && m_script->screenshotColours > 0)
+    image = reduceToPalette(image, m_script->screenshotColours);
   const bool ok = image.save(path, nullptr, 0);
   if (!ok) showError("Screenshot", "could not write " + path);
   return ok;

@@ -4,10 +4,12 @@
 #include <cstdio>
 
 #include "figure_dialog.hpp"
+#include "fit_panel.hpp"
 #include "inspector_panel.hpp"
 #include "main_window.hpp"
 #include "report_dialog.hpp"
 #include "session_controller.hpp"
+#include "st/common/error.hpp"
 
 namespace st::ui {
 
@@ -77,8 +79,32 @@ void once(Sender* sender, Signal signal, QObject* context, Slot slot) {
 
 }  // namespace
 
+bool MainWindow::applyScriptVetting(const ScriptOptions& script) {
+  if (script.acceptFit) m_fitPanel->accept();
+  for (const QString& entry : script.labels) {
+    const auto eq = entry.indexOf('=');
+    bool number = false;
+    const int n = entry.left(eq).toInt(&number);
+    try {
+      if (eq < 0 || !number || !m_obs->candidateState(n - 1))
+        throw InputError("--label needs N=LABEL with N a candidate number, got '" + entry.toStdString() +
+                         "'");
+      const QStringList parts = entry.mid(eq + 1).split(':');
+      const session::Label label = session::labelFromString(parts[0].toStdString());
+      const session::ArtifactReason reason = parts.size() > 1
+                                                 ? session::reasonFromString(parts[1].toStdString())
+                                                 : session::ArtifactReason::None;
+      m_obs->setCandidateLabel(n - 1, label, reason);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "synthtrack: %s\n", e.what());
+      return false;
+    }
+  }
+  return true;
+}
+
 void MainWindow::runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done) {
-  auto ok = std::make_shared<bool>(true);
+  auto ok = std::make_shared<bool>(applyScriptVetting(script));
   auto showDialog = [this, script, done, ok] {
     if (script.dialog.isEmpty()) return done(*ok);
     if (script.dialog != "figure" && script.dialog != "reports") {

@@ -1,6 +1,7 @@
 // synthtrack: the desktop application.
 //   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
 //   [--quit] [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
+//   [--accept-fit] [--label N=LABEL]...
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
 // --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
@@ -67,8 +68,13 @@ int main(int argc, char** argv) {
                                    "DIR");
   const QCommandLineOption dialog("dialog", "Open a dialog (figure or reports), shown on the screenshot.",
                                   "NAME");
-  parser.addOptions(
-      {demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports, dialog});
+  const QCommandLineOption colours("screenshot-colours", "Reduce the screenshot to N colours (small PNGs).",
+                                   "N");
+  const QCommandLineOption acceptFit("accept-fit", "Accept the --fit result into the selected candidate.");
+  const QCommandLineOption label("label", "Label candidate N: real, unsure, unvetted or artifact[:REASON].",
+                                 "N=LABEL");
+  parser.addOptions({demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports,
+                     dialog, acceptFit, label, colours});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -100,6 +106,9 @@ int main(int argc, char** argv) {
   }
   script.exportReports = parser.value(reports);
   script.dialog = parser.value(dialog);
+  script.screenshotColours = parser.value(colours).toInt();
+  script.acceptFit = parser.isSet(acceptFit);
+  script.labels = parser.values(label);
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();

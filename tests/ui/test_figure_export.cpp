@@ -130,6 +130,32 @@ TEST(FigureExport, ErrorsNameThePath) {
   EXPECT_EQ(figureFormatForPath("a/B.SVG"), FigureFormat::Svg);
 }
 
+TEST(FigureExport, PaletteReductionKeepsFewColoursAndBoundsTheError) {
+  QImage three(40, 30, QImage::Format_RGB32);
+  three.fill(qRgb(200, 10, 10));
+  for (int x = 0; x < 40; ++x) {
+    three.setPixel(x, 5, qRgb(0, 0, 0));
+    three.setPixel(x, 20, qRgb(255, 255, 255));
+  }
+  const QImage p3 = reduceToPalette(three, 256);
+  EXPECT_EQ(p3.format(), QImage::Format_Indexed8);
+  EXPECT_EQ(p3.colorCount(), 3);
+  for (int y : {0, 5, 20})
+    EXPECT_EQ(p3.pixel(7, y), three.pixel(7, y));
+  // A 256-level gray ramp: 6 bits per channel make 64 bins of 4 levels, each drawn as their mean (error <=
+  // 2).
+  QImage ramp(256, 8, QImage::Format_RGB32);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 256; ++x)
+      ramp.setPixel(x, y, qRgb(x, x, x));
+  const QImage p64 = reduceToPalette(ramp, 256);
+  EXPECT_EQ(p64.colorCount(), 64);
+  int worst = 0;
+  for (int x = 0; x < 256; ++x)
+    worst = std::max(worst, std::abs(qGray(p64.pixel(x, 3)) - x));
+  EXPECT_LE(worst, 2);
+}
+
 TEST(FigureRender, ScaleBarLengthsAndTicksAreRound) {
   EXPECT_DOUBLE_EQ(scaleBarArcsec(1.0, 100), 20.0);    // quarter: 25"
   EXPECT_DOUBLE_EQ(scaleBarArcsec(0.5, 1000), 120.0);  // quarter: 125"
