@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 #include <qcustomplot.h>
 
@@ -117,18 +118,61 @@ void exportFigure(const QString& path, FigureFormat format, const FigureSize& si
   if (!written.exists() || written.size() == 0) fail(path, "nothing was written (permissions or disk full?)");
 }
 
+namespace {
+
+struct ColourBin {
+  std::int64_t n = 0, r = 0, g = 0, b = 0;
+  [[nodiscard]] QRgb mean() const {
+    return qRgb(static_cast<int>(r / n), static_cast<int>(g / n), static_cast<int>(b / n));
+  }
+};
+
+int binOf(QRgb c) {
+  return ((qRed(c) >> 2) << 12) | ((qGreen(c) >> 2) << 6) | (qBlue(c) >> 2);
+}
+
+int distance2(QRgb a, QRgb b) {
+  const int dr = qRed(a) - qRed(b), dg = qGreen(a) - qGreen(b), db = qBlue(a) - qBlue(b);
+  return dr * dr + dg * dg + db * db;
+}
+
+// The most frequent three quarters of the palette, then the colours farthest from it (greedy), so rare but
+// distinct colours (a yellow marker, the top of a colour bar) keep a colour of their own.
+QList<QRgb> choosePalette(const std::vector<ColourBin>& bins, std::vector<int> used, int colours) {
+  const auto count = [&](int i) { return bins[static_cast<std::size_t>(i)].n; };
+  std::sort(used.begin(), used.end(), [&](int a, int b) { return count(a) > count(b); });
+  const std::size_t frequent = used.size() <= static_cast<std::size_t>(colours)
+                                   ? used.size()
+                                   : static_cast<std::size_t>(colours * 3 / 4);
+  QList<QRgb> palette;
+  for (std::size_t k = 0; k < frequent; ++k)
+    palette.push_back(bins[static_cast<std::size_t>(used[k])].mean());
+  std::vector<int> rest(used.begin() + static_cast<std::ptrdiff_t>(frequent), used.end());
+  std::vector<int> nearest(rest.size(), std::numeric_limits<int>::max());
+  for (std::size_t k = 0; k < rest.size(); ++k)
+    for (QRgb c : palette)
+      nearest[k] = std::min(nearest[k], distance2(c, bins[static_cast<std::size_t>(rest[k])].mean()));
+  while (palette.size() < colours && !rest.empty()) {
+    const auto far =
+        static_cast<std::size_t>(std::max_element(nearest.begin(), nearest.end()) - nearest.begin());
+    const QRgb c = bins[static_cast<std::size_t>(rest[far])].mean();
+    palette.push_back(c);
+    for (std::size_t k = 0; k < rest.size(); ++k)
+      nearest[k] = std::min(nearest[k], distance2(c, bins[static_cast<std::size_t>(rest[k])].mean()));
+  }
+  return palette;
+}
+
+}  // namespace
+
 QImage reduceToPalette(const QImage& image, int colours) {
   colours = std::clamp(colours, 2, 256);
   const QImage rgb = image.convertToFormat(QImage::Format_RGB32);
-  const auto bin = [](QRgb c) { return ((qRed(c) >> 2) << 12) | ((qGreen(c) >> 2) << 6) | (qBlue(c) >> 2); };
-  struct Bin {
-    std::int64_t n = 0, r = 0, g = 0, b = 0;
-  };
-  std::vector<Bin> bins(1 << 18);
+  std::vector<ColourBin> bins(1 << 18);
   for (int y = 0; y < rgb.height(); ++y) {
     const auto* line = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
     for (int x = 0; x < rgb.width(); ++x) {
-      Bin& b = bins[static_cast<std::size_t>(bin(line[x]))];
+      ColourBin& b = bins[static_cast<std::size_t>(binOf(line[x]))];
       ++b.n;
       b.r += qRed(line[x]);
       b.g += qGreen(line[x]);
@@ -138,31 +182,16 @@ QImage reduceToPalette(const QImage& image, int colours) {
   std::vector<int> used;
   for (int i = 0; i < static_cast<int>(bins.size()); ++i)
     if (bins[static_cast<std::size_t>(i)].n > 0) used.push_back(i);
-  std::vector<int> top = used;
-  const auto count = [&](int i) { return bins[static_cast<std::size_t>(i)].n; };
-  const auto keep = std::min<std::size_t>(top.size(), static_cast<std::size_t>(colours));
-  std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
-                    [&](int a, int b) { return count(a) > count(b); });
-  QList<QRgb> palette;
-  for (std::size_t k = 0; k < keep; ++k) {
-    const Bin& b = bins[static_cast<std::size_t>(top[k])];
-    palette.push_back(
-        qRgb(static_cast<int>(b.r / b.n), static_cast<int>(b.g / b.n), static_cast<int>(b.b / b.n)));
-  }
+  const QList<QRgb> palette = choosePalette(bins, used, colours);
   std::vector<std::uint8_t> lut(bins.size(), 0);
   for (int i : used) {
-    const Bin& b = bins[static_cast<std::size_t>(i)];
-    const double r = static_cast<double>(b.r) / b.n, g = static_cast<double>(b.g) / b.n,
-                 bl = static_cast<double>(b.b) / b.n;
-    double best = 1e300;
-    for (int k = 0; k < palette.size(); ++k) {
-      const double d = std::pow(qRed(palette[k]) - r, 2) + std::pow(qGreen(palette[k]) - g, 2) +
-                       std::pow(qBlue(palette[k]) - bl, 2);
-      if (d < best) {
+    const QRgb c = bins[static_cast<std::size_t>(i)].mean();
+    int best = std::numeric_limits<int>::max();
+    for (int k = 0; k < palette.size(); ++k)
+      if (const int d = distance2(palette[k], c); d < best) {
         best = d;
         lut[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(k);
       }
-    }
   }
   QImage out(rgb.size(), QImage::Format_Indexed8);
   out.setColorTable(palette);
@@ -172,7 +201,7 @@ QImage reduceToPalette(const QImage& image, int colours) {
     const auto* line = reinterpret_cast<const QRgb*>(rgb.constScanLine(y));
     std::uint8_t* dst = out.scanLine(y);
     for (int x = 0; x < rgb.width(); ++x)
-      dst[x] = lut[static_cast<std::size_t>(bin(line[x]))];
+      dst[x] = lut[static_cast<std::size_t>(binOf(line[x]))];
   }
   return out;
 }

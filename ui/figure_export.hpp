@@ -39,9 +39,10 @@ void exportFigure(const QString& path, FigureFormat format, const FigureSize& si
                   const FigurePainter& paint, const QString& title = {}, double logicalDpi = 72.0);
 
 /// `image` with an adaptive palette of at most `colours` (2..256) entries, for small PNG screenshots: the
-/// colours are binned at 6 bits per channel, the most frequent bins become the palette (each the mean of its
-/// pixels), every pixel takes the nearest entry. An image with no more distinct bins than `colours` keeps its
-/// colours to within the binning (4 levels per channel).
+/// colours are binned at 6 bits per channel (each bin drawn as the mean of its pixels); the most frequent
+/// bins fill three quarters of the palette, the bins farthest from it the rest (so a small yellow marker
+/// keeps its colour); every pixel takes the nearest entry. An image with no more bins than `colours` keeps
+/// its colours to within the binning (4 levels per channel).
 [[nodiscard]] QImage reduceToPalette(const QImage& image, int colours = 256);
 
 /// Paints `plot` into (0, 0, size) with an optional title above it (11 px bold). GUI thread only.
