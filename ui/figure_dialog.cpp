@@ -209,6 +209,7 @@ void FigureDialog::onSourceChanged() {
   m_stampHalf->setEnabled(s.preset);
   const auto& raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
   const QString bunit = raw ? QString::fromStdString(raw->header.getString("BUNIT").value_or("ADU")) : "ADU";
+  m_title->setPlaceholderText(s.preset ? "default: Synthetic tracking of candidate #N (SNR …)" : QString());
   if (s.preset) {
     m_title->clear();
     m_units->setText("IPSA sum of " + bunit);
@@ -354,6 +355,7 @@ bool FigureDialog::exportTo(const QString& path) {
   settings.setValue("figure/widthIn", m_width->value());
   settings.setValue("figure/dpi", m_dpi->value());
   m_runningPath = path;
+  m_path->setText(path);
   m_export->setEnabled(false);
   m_status->setText("Exporting " + path + "…");
   m_watcher.setFuture(QtConcurrent::run([job]() -> QString {
