@@ -1,5 +1,7 @@
 #include "candidate_inspector.hpp"
 
+#include <QCheckBox>
+#include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QGroupBox>
@@ -76,19 +78,6 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_play->setCheckable(true);
   m_play->setToolTip("Play / pause the frames along the track");
   m_frameLabel = new QLabel(this);
-  m_flags = new QTreeWidget(this);
-  m_flags->setColumnCount(3);
-  m_flags->setHeaderLabels({"check", "result", "evidence"});
-  m_flags->setRootIsDecorated(false);
-  m_flags->setWordWrap(true);
-  m_flags->header()->setSectionResizeMode(0, QHeaderView::ResizeToContents);
-  m_flags->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
-  m_flags->setMinimumHeight(120);
-  m_evidence = new QLabel(this);
-  m_evidence->setWordWrap(true);
-  m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);
-  m_loadKnown = new QPushButton("Load known objects…", this);
-  m_loadKnown->setToolTip("CSV with name, ra_deg, dec_deg, epoch_mjd and rates (arcsec/min or deg/day)");
   m_status = new QLabel(this);
   m_status->setWordWrap(true);
 
@@ -106,14 +95,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   controls->addWidget(m_slider, 1);
   controls->addWidget(m_frameLabel);
   movieLayout->addLayout(controls);
-  auto* flagBox = group("Artifact checks", this);
-  auto* flagLayout = new QVBoxLayout(flagBox);
-  flagLayout->addWidget(m_flags);
-  flagLayout->addWidget(m_evidence);
-  auto* knownRow = new QHBoxLayout;
-  knownRow->addWidget(m_loadKnown);
-  knownRow->addStretch(1);
-  flagLayout->addLayout(knownRow);
+  QGroupBox* flagBox = buildFlagBox();
 
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(2, 2, 2, 2);
@@ -123,7 +105,49 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   layout->addWidget(movieBox, 2);
   layout->addWidget(flagBox, 2);
   layout->addWidget(m_status);
+  connectSignals();
+}
 
+QGroupBox* CandidateInspector::buildFlagBox() {
+  m_flags = new QTreeWidget(this);
+  m_flags->setColumnCount(3);
+  m_flags->setHeaderLabels({"check", "result", "evidence"});
+  m_flags->setRootIsDecorated(false);
+  m_flags->setWordWrap(true);
+  m_flags->header()->setSectionResizeMode(0, QHeaderView::ResizeToContents);
+  m_flags->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
+  m_flags->setMinimumHeight(120);
+  m_store = new QCheckBox("Store on candidate", this);
+  m_store->setToolTip(
+      "Keep the flags of every inspected candidate with it (saved in the session). Off: the "
+      "flags are shown only, and inspecting changes nothing in the session.");
+  m_store->setChecked(QSettings().value("inspector/storeFlags", true).toBool());
+  m_evidence = new QLabel(this);
+  m_evidence->setWordWrap(true);
+  m_evidence->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  m_loadKnown = new QPushButton("Load known objects…", this);
+  m_loadKnown->setToolTip("CSV with name, ra_deg, dec_deg, epoch_mjd and rates (arcsec/min or deg/day)");
+  m_radius = new QDoubleSpinBox(this);
+  m_radius->setRange(0.1, 3600.0);
+  m_radius->setDecimals(1);
+  m_radius->setValue(10.0);
+  m_radius->setSuffix(" arcsec");
+  m_radius->setToolTip("A known object closer than this to the candidate's sky position at t_ref flags it");
+  auto* flagBox = group("Artifact checks", this);
+  auto* flagLayout = new QVBoxLayout(flagBox);
+  flagLayout->addWidget(m_flags);
+  flagLayout->addWidget(m_evidence);
+  auto* knownRow = new QHBoxLayout;
+  knownRow->addWidget(m_loadKnown);
+  knownRow->addWidget(new QLabel("within", this));
+  knownRow->addWidget(m_radius);
+  knownRow->addStretch(1);
+  flagLayout->addWidget(m_store);
+  flagLayout->addLayout(knownRow);
+  return flagBox;
+}
+
+void CandidateInspector::connectSignals() {
   m_playTimer.setInterval(60);
   connect(&m_playTimer, &QTimer::timeout, this,
           [this] { m_slider->setValue((m_slider->value() + 1) % (m_slider->maximum() + 1)); });
@@ -133,6 +157,13 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
     if (item) m_evidence->setText(item->text(0) + ": " + item->text(2));
   });
   connect(m_loadKnown, &QPushButton::clicked, this, &CandidateInspector::chooseKnownObjects);
+  connect(m_store, &QCheckBox::toggled, this, [this](bool on) {
+    QSettings().setValue("inspector/storeFlags", on);
+    if (on) storeFlags();
+  });
+  connect(m_radius, &QDoubleSpinBox::valueChanged, this, [this] {
+    if (m_known) refresh();
+  });
   connect(&m_watcher, &QFutureWatcher<Outcome>::finished, this, &CandidateInspector::onFinished);
   connect(m_obs, &Observation::selectionChanged, this, &CandidateInspector::refresh);
   connect(m_obs, &Observation::resultChanged, this, [this] {
@@ -145,6 +176,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
     m_slider->setEnabled(false);
     setPlaying(false);
     m_title->setText("No candidate selected.");
+    m_evidence->clear();
   });
 }
 
@@ -178,6 +210,7 @@ void CandidateInspector::start() {
   in.candidate = *c;
   if (prepared->products) in.stars = prepared->products->stars;
   in.knownObjects = m_known;
+  in.knownObjectRadiusArcsec = m_radius->value();
   // The sky position of the candidate at t_ref: a FITS WCS belongs to the first frame and the stars have
   // moved by the sky rate since then (as st::astro::skyMeasurement). One call: cheap on this thread.
   const auto& raw = m_obs->raw();
@@ -199,6 +232,7 @@ void CandidateInspector::start() {
                        .arg(c->v.vy, 0, 'g', 4)
                        .arg(c->snr, 0, 'f', 1));
   m_status->setText("Inspecting…");
+  m_clock.start();
   m_cancel = std::make_shared<CancelToken>();
   auto cancel = m_cancel;
   m_watcher.setFuture(QtConcurrent::run([in = std::move(in), cancel, index]() -> Outcome {
@@ -229,21 +263,38 @@ void CandidateInspector::onFinished() {
   if (!out.inspection || !m_obs->selected() || *m_obs->selected() != out.index) return;
   m_shown = out.inspection;
   m_shownIndex = out.index;
-  show(*m_shown);
-  nlohmann::json flags = nlohmann::json::array();
-  for (const auto& f : m_shown->flags)
-    flags.push_back(vet::toJson(f));
-  const auto* state = m_obs->candidateState(out.index);
-  if (state && state->artifacts != flags) m_obs->setCandidateArtifacts(out.index, flags);
+  showInspection(*m_shown);
+  const bool stored = m_store->isChecked() && storeFlags();
   int fired = 0;
   for (const auto& f : m_shown->flags)
     fired += f.triggered ? 1 : 0;
-  m_status->setText(fired ? QString("%1 artifact check(s) fired; stored on the candidate.").arg(fired)
-                          : QString("No artifact check fired."));
+  const QString took = QString(" (%1 s)").arg(m_clock.elapsed() / 1000.0, 0, 'f', 2);
+  m_status->setText(
+      (fired ? QString("%1 artifact check(s) fired").arg(fired) : QString("No artifact check fired")) +
+      (stored ? "; stored on the candidate" : "") + took);
   emit inspected(out.index);
 }
 
-void CandidateInspector::show(const Inspection& in) {
+bool CandidateInspector::storeFlags() {
+  if (!m_shown || m_shownIndex < 0) return false;
+  nlohmann::json flags = nlohmann::json::array();
+  for (const auto& f : m_shown->flags)
+    flags.push_back(vet::toJson(f));
+  const auto* state = m_obs->candidateState(m_shownIndex);
+  if (!state) return false;
+  if (state->artifacts != flags) m_obs->setCandidateArtifacts(m_shownIndex, flags);
+  return true;
+}
+
+void CandidateInspector::setStoreFlags(bool on) {
+  m_store->setChecked(on);
+}
+
+bool CandidateInspector::storesFlags() const {
+  return m_store->isChecked();
+}
+
+void CandidateInspector::showInspection(const Inspection& in) {
   auto shared = [](const Image& im) { return std::make_shared<const Image>(im); };
   m_stamps->setTiles(
       {{shared(in.skyStamp), QString("sky rate\nSNR %1").arg(in.skySnr, 0, 'f', 1), false},

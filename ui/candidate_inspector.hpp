@@ -4,8 +4,9 @@
 // side by side on one scale, the segment strip (K = 4 equal-time stacks with their SNRs, flagged ones
 // framed in red), the frame-by-frame cutouts along the track as a scrubbable strip with a play/pause movie,
 // and the artifact flags of st::vet with their evidence, which are stored on the candidate
-// (Observation::setCandidateArtifacts). "Load known objects…" reads a CSV (st::vet::readKnownObjects) and
-// adds the known-object check.
+// (Observation::setCandidateArtifacts) unless "Store on candidate" is unchecked. "Load known objects…" reads
+// a CSV (st::vet::readKnownObjects) and adds the known-object check.
+#include <QElapsedTimer>
 #include <QFutureWatcher>
 #include <QString>
 #include <QTimer>
@@ -22,6 +23,9 @@ class QSlider;
 class QToolButton;
 class QPushButton;
 class QTreeWidget;
+class QDoubleSpinBox;
+class QCheckBox;
+class QGroupBox;
 
 namespace st::ui {
 
@@ -54,6 +58,11 @@ class CandidateInspector : public QWidget {
   [[nodiscard]] std::size_t knownObjectCount() const { return m_known ? m_known->size() : 0; }
   [[nodiscard]] QString statusText() const;
   [[nodiscard]] bool playing() const { return m_playTimer.isActive(); }
+  /// Whether every inspection stores its flags on the candidate (Observation::setCandidateArtifacts, which
+  /// the session saves; unchanged flags are not stored again). On by default (a setting); off, inspecting
+  /// a candidate changes nothing in the session. Turning it on stores the flags shown.
+  void setStoreFlags(bool on);
+  [[nodiscard]] bool storesFlags() const;
 
  public slots:
   /// Inspects the selected candidate again (cancels a running inspection).
@@ -73,9 +82,12 @@ class CandidateInspector : public QWidget {
     bool cancelled = false;
     int index = -1;
   };
+  QGroupBox* buildFlagBox();
+  void connectSignals();
   void start();
   void onFinished();
-  void show(const Inspection& in);
+  void showInspection(const Inspection& in);
+  bool storeFlags();
   void showFrame(int k);
   void chooseKnownObjects();
 
@@ -92,8 +104,11 @@ class CandidateInspector : public QWidget {
   QTreeWidget* m_flags;
   QLabel* m_evidence;
   QPushButton* m_loadKnown;
+  QDoubleSpinBox* m_radius;
+  QCheckBox* m_store;
   QLabel* m_status;
   QTimer m_playTimer;
+  QElapsedTimer m_clock;
   int m_movieCurrent = 0;
   QFutureWatcher<Outcome> m_watcher;
   std::shared_ptr<CancelToken> m_cancel;

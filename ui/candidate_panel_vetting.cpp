@@ -71,6 +71,10 @@ void CandidatePanel::showVettingMenu(const QPoint& pos) {
   add(&menu, "Clear label", Qt::Key_0);
   menu.addSeparator();
   menu.addAction("Edit note…\tN", this, [this] { editSelectedNote(); });
+  if (!m_table->actions().isEmpty()) {  // what others put on the table (e.g. the co-moving fit, F)
+    menu.addSeparator();
+    menu.addActions(m_table->actions());
+  }
   menu.exec(m_table->viewport()->mapToGlobal(pos));
 }
 

@@ -46,6 +46,10 @@ QVariant CandidateModel::vettingData(const session::CandidateState& state, int c
     const QColor tint = labelColour(state.label, column == Label);
     return tint.isValid() ? QVariant(tint) : QVariant();
   }
+  if (role == Qt::DecorationRole && column == Label) {  // a swatch that stays visible on a selected row
+    const QColor swatch = labelColour(state.label, true);
+    return swatch.isValid() ? QVariant(swatch) : QVariant();
+  }
   if (role == Qt::ToolTipRole && column == Note && !state.note.empty())
     return QString::fromStdString(state.note);
   if (role == Qt::ToolTipRole) return vettingShortcutHelp();
@@ -82,7 +86,8 @@ void CandidateModel::reloadRow(int row) {
 QVariant CandidateModel::data(const QModelIndex& index, int role) const {
   if (!index.isValid() || !m_obs->result()) return {};
   if (const auto* state = m_obs->candidateState(index.row());
-      state && (index.column() >= Label || role == Qt::BackgroundRole || role == Qt::ToolTipRole))
+      state && (index.column() >= Label || role == Qt::BackgroundRole || role == Qt::ToolTipRole ||
+                role == Qt::DecorationRole))
     return vettingData(*state, index.column(), role);
   const auto& c = m_obs->result()->candidates[static_cast<std::size_t>(index.row())];
   const auto scale = m_obs->plateScale();
@@ -249,6 +254,9 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->verticalHeader()->setVisible(false);
   m_table->verticalHeader()->setDefaultSectionSize(20);
   m_table->horizontalHeader()->setStretchLastSection(true);
+  // Vetting columns where the eye is when reviewing, even in a narrow dock: "#", label, reason, ... note.
+  m_table->horizontalHeader()->moveSection(CandidateModel::Label, 1);
+  m_table->horizontalHeader()->moveSection(CandidateModel::Reason, 2);
   m_table->setAlternatingRowColors(true);
   m_table->installEventFilter(this);  // the vetting keys (candidate_panel_vetting.cpp)
   m_table->setContextMenuPolicy(Qt::CustomContextMenu);

@@ -90,7 +90,7 @@ class CandidatePanel : public QWidget {
 
  private:
   void buildFilterBar();
-  /// Right click on a row: the same labels as the keys, for the mouse.
+  /// Right click on a row: the same labels as the keys, for the mouse, then the table's own actions.
   void showVettingMenu(const QPoint& pos);
   void onResult();
   void onSelectionFromObservation();

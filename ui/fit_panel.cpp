@@ -93,6 +93,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   layout->addWidget(m_residual, 3);
   layout->addWidget(m_table, 4);
 
+  resetPlots();
   connect(m_fit, &QPushButton::clicked, this, &FitPanel::fitSelected);
   connect(m_cancel, &QPushButton::clicked, this, &FitPanel::cancel);
   connect(m_accept, &QPushButton::clicked, this, &FitPanel::accept);
@@ -151,6 +152,8 @@ void FitPanel::rescaleCost() {
 
 void FitPanel::resetPlots() {
   m_cost->graph(0)->data()->clear();
+  m_cost->xAxis->setRange(0, 5);
+  m_cost->yAxis->setRange(1, 10);
   m_cost->replot();
   m_residual->clear();
   m_table->setRowCount(0);
@@ -244,10 +247,11 @@ void FitPanel::showOutcome(const FitOutcome& out) {
                           {shared(r.modelStack), "model", false},
                           {shared(r.residualStack), "residual", false}});
   fillTable(out);
-  m_status->setText(QString("%1 after %2 iterations%3")
-                        .arg(fit::toString(r.status))
-                        .arg(r.iterations)
-                        .arg(r.message.empty() ? QString() : ": " + QString::fromStdString(r.message)));
+  QString status = QString("%1 after %2 iterations").arg(fit::toString(r.status)).arg(r.iterations);
+  if (!r.message.empty()) status += ": " + QString::fromStdString(r.message);
+  for (const auto& w : r.warnings)
+    status += "\n⚠ " + QString::fromStdString(w);
+  m_status->setText(status);
   m_accept->setEnabled(true);
 }
 
@@ -279,19 +283,18 @@ void FitPanel::fillTable(const FitOutcome& out) {
   const auto& result = m_obs->result();
   if (result && result->trials.total() > 0) {
     const auto& t = result->trials;
-    row(QString("FAP (Prob_false, %1 trials)").arg(t.total(), 0, 'g', 3),
-        num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3));
+    row("FAP (Prob_false)", num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3), "", "",
+        QString("%1 trials").arg(t.total(), 0, 'g', 3));
   }
   row("frames inside / used", QString("%1 / %2").arg(r.framesInside).arg(r.framesUsed));
   row("reduced χ²", num(r.reducedChi2));
   if (out.json.contains("segments_flagged"))
     row("segments (K = 4)", out.json["segments_flagged"].get<bool>() ? "flagged" : "consistent");
-  if (out.json.contains("ra_deg"))
-    row("RA, Dec [deg]", QString("%1, %2")
-                             .arg(out.json["ra_deg"].get<double>(), 0, 'f', 6)
-                             .arg(out.json["dec_deg"].get<double>(), 0, 'f', 6));
-  for (const auto& w : r.warnings)
-    row("warning", QString::fromStdString(w));
+  if (out.json.contains("ra_deg")) {
+    row("RA [deg] at t_ref", QString::number(out.json["ra_deg"].get<double>(), 'f', 6));
+    row("Dec [deg] at t_ref", QString::number(out.json["dec_deg"].get<double>(), 'f', 6));
+    row("rate [arcsec/min]", num(out.json["rate_arcsec_min"].get<double>()));
+  }
 }
 
 void FitPanel::accept() {

@@ -17,9 +17,11 @@
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
+#include "st/sim/simulator.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
+#include "st/search/method_choice.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -98,8 +100,8 @@ void MainWindow::runSearch() {
     if (!makeBackend) throwMissingService("search backend");
     std::string message;
     std::unique_ptr<search::SearchBackend> backend = makeBackend(kind, message);
-    auto result =
-        std::make_shared<const search::SearchResult>(backend->search(*cube, grid, params, progress, cancel));
+    auto result = std::make_shared<const search::SearchResult>(
+        search::searchWithMethod(*backend, *cube, grid, params, progress, cancel));
     return std::function<void()>([this, result, message] {
       m_search->setBackendMessage(QString::fromStdString(message));
       m_obs->setResult(result);
@@ -107,7 +109,7 @@ void MainWindow::runSearch() {
                                    .arg(result->candidates.size())
                                    .arg(result->snrThreshold, 0, 'f', 2)
                                    .arg(result->elapsedS, 0, 'f', 1)
-                                   .arg(QString::fromStdString(result->backend)),
+                                   .arg(QString::fromStdString(result->method + " on " + result->backend)),
                                15000);
       if (!result->candidates.empty()) selectCandidate(0);
     });
@@ -166,11 +168,11 @@ void MainWindow::onPreparedChanged() {
       m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
       const auto& raw = *m_obs->raw();
       if (m_demoGrid && raw.plateScaleArcsecPerPx) {
-        // The paper's object moves at ~6 deg/day: +-7 deg/day around the sky rate, 2 px over the span per
-        // step (the paper notes 1 px is finer than the ~3 px PSF needs).
+        // The demo grid (st/sim/simulator.hpp), the same as `synthtrack-cli demo`'s.
         const double span = std::max(raw.timeSpanS(), 1e-3);
         m_search->setGridPxS(prepared->filtered->skyRate,
-                             degPerDayToPxPerSec(7.0, *raw.plateScaleArcsecPerPx), 2.0 / span);
+                             degPerDayToPxPerSec(sim::kDemoHalfRangeDegPerDay, *raw.plateScaleArcsecPerPx),
+                             sim::kDemoGridStepPx / span);
       }
       m_obs->setVelocity(prepared->filtered->skyRate);
     }

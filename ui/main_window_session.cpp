@@ -8,6 +8,8 @@
 #include <QMessageBox>
 #include <QSettings>
 #include <QStatusBar>
+#include <QTimer>
+#include <filesystem>
 
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -17,6 +19,22 @@
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
+namespace {
+
+/// Inputs as the session names them; a relative path that does not exist from the working folder is taken
+/// relative to the session file's folder (sessions written by `synthtrack-cli` keep the paths as given).
+std::vector<std::string> resolveInputs(std::vector<std::string> inputs, const std::string& sessionFile) {
+  namespace fs = std::filesystem;
+  const fs::path base = fs::path(sessionFile).parent_path();
+  for (auto& in : inputs) {
+    std::error_code ec;
+    if (fs::path(in).is_relative() && !fs::exists(in, ec) && fs::exists(base / in, ec))
+      in = (base / in).lexically_normal().string();
+  }
+  return inputs;
+}
+
+}  // namespace
 
 /// What the "Opening session" job hands to the GUI thread.
 struct OpenedSession {
@@ -51,6 +69,10 @@ void MainWindow::buildSession() {
             m_sessionLabel->setStyleSheet(error ? "color: #c00000; font-weight: bold" : QString());
           });
   connect(m_session, &SessionController::pathChanged, this, &MainWindow::addRecentSession);
+  connect(m_session, &SessionController::notice, this, [this](const QString& text) {
+    // After the job's own message (a search reports its result just after setResult).
+    QTimer::singleShot(0, this, [this, text] { statusBar()->showMessage(text, 20000); });
+  });
   connect(m_session, &SessionController::saveFailed, this, [this](const QString& message) {
     statusBar()->showMessage(message, 15000);
     if (m_script) return;
@@ -126,6 +148,7 @@ void MainWindow::openSession(const QString& path) {
         // copy.
         const session::Session s = session::SessionStore(file).load();
         opened->snapshot = restoreSnapshot(s, defaults, file);
+        opened->snapshot.inputs = resolveInputs(opened->snapshot.inputs, file);
         opened->changes = s.changes;
         opened->settings = s.settings;
         const auto& snap = opened->snapshot;

@@ -1,5 +1,5 @@
-// MainWindow: the candidate inspector and co-moving fit docks, the fit's shortcut (F) and the candidates
-// table's context menu, and the scripted fit (--fit).
+// MainWindow: the candidate inspector and co-moving fit docks, the fit's action (F; Run menu and the
+// candidates table's context menu), and the scripted fit (--fit).
 #include <QAction>
 #include <QDockWidget>
 #include <QScrollArea>
@@ -19,6 +19,7 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   cand->setObjectName("dock.candidate");
   auto* scroll = new QScrollArea(cand);  // the inspector scrolls when the dock is short
   scroll->setWidgetResizable(true);
+  scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   scroll->setFrameShape(QFrame::NoFrame);
   scroll->setWidget(m_candidateInspector);
   cand->setWidget(scroll);
@@ -36,6 +37,7 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   // The fit is launched from the candidates table's context menu or with F anywhere in the window (the
   // action lives on the table; buildMenus adds it to the Run menu, which makes the shortcut window-wide).
   auto* fitAction = new QAction("Fit selected candidate (co-moving)", this);
+  fitAction->setObjectName("action.fitCandidate");
   fitAction->setShortcut(QKeySequence("F"));
   connect(fitAction, &QAction::triggered, this, [this, fit] {
     fit->show();
@@ -43,8 +45,7 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
     m_fitPanel->fitSelected();
   });
   QTableView* table = m_candidates->table();
-  table->setContextMenuPolicy(Qt::ActionsContextMenu);
-  table->addAction(fitAction);
+  table->addAction(fitAction);  // the candidates panel's context menu lists the table's actions
 }
 
 void MainWindow::runScriptFit() {

@@ -1,15 +1,21 @@
 #pragma once
 // Search parameters with units (px/s, "/min, deg/day), a live estimate of trials, memory and time, the
-// threshold by SNR or by false-alarm probability (estimate and FAP from st::search / st::stats), the backend
-// (auto/CPU/GPU), and Run/Cancel. The search itself runs in the main window's JobRunner.
+// threshold by SNR or by false-alarm probability (estimate and FAP from st::search / st::stats), the method
+// (auto/exact/tree, st/search/method_choice.hpp: the estimate follows it), the backend (auto/CPU/GPU with
+// the device's name), Run/Cancel, and what the last search ran (method, why, backend). The search itself
+// runs in the main window's JobRunner (through st::search::searchWithMethod).
+#include <QFutureWatcher>
 #include <QWidget>
 #include <optional>
+#include <string>
 
 #include "core_services.hpp"
+#include "st/search/method_choice.hpp"
 #include "observation.hpp"
 
 class QComboBox;
 class QDoubleSpinBox;
+class QGroupBox;
 class QSpinBox;
 class QLabel;
 class QLineEdit;
@@ -26,6 +32,16 @@ class SearchPanel : public QWidget {
   [[nodiscard]] search::VelocityGrid grid() const;
   [[nodiscard]] search::SearchParams params() const;
   [[nodiscard]] BackendKind backendKind() const;
+  /// The method selected: "auto" (default), "exact" or "tree" (also in params().method).
+  [[nodiscard]] std::string method() const;
+  /// Selects "auto", "exact" or "tree" (anything else is ignored).
+  void setMethod(const std::string& method);
+  /// The estimate text shown (for tests and the status bar).
+  [[nodiscard]] QString estimateText() const;
+  /// True while the method estimate (its tree plan) is being computed in a worker.
+  [[nodiscard]] bool estimating() const { return m_estimatePending; }
+  /// The summary of the last search shown under Run (method, reason, backend, candidates, time).
+  [[nodiscard]] QString statusText() const;
   void setRunning(bool running);
   void setReady(bool ready);
   void setProgress(double fraction, const QString& stage, double elapsedS);
@@ -43,10 +59,30 @@ class SearchPanel : public QWidget {
   void cancelRequested();
 
  private:
+  /// The last method estimate and what it was computed for (the tree plan takes milliseconds to build; a new
+  /// measured throughput only re-prices it).
+  struct EstimateKey {
+    const FrameCube* cube = nullptr;
+    int width = 0, height = 0, nvx = 0, nvy = 0;
+    std::size_t frames = 0;
+    double step = 0.0;
+    bool operator==(const EstimateKey&) const = default;
+  };
+  using KeyedEstimate = std::pair<EstimateKey, search::MethodEstimate>;
+
   void onUnitChanged();
   void onRawChanged();
   void refresh();
   void setSpinUnits();
+  void onResultChanged();
+  /// The "Run" box: method, backend (with the GPUs' names), estimate, buttons, status.
+  QGroupBox* makeRunBox(const std::vector<std::string>& gpuNames);
+  [[nodiscard]] QString methodEstimateText(const FrameCube& raw, const search::VelocityGrid& g,
+                                           std::optional<double> rate);
+  /// Starts the worker that estimates both methods for the current cube and grid (while one is running, a
+  /// new request waits: the refresh after it finishes starts the latest).
+  void startEstimate(const FrameCube& raw, const search::VelocityGrid& g, const EstimateKey& key);
+  void onEstimateFinished();
 
   Observation* m_obs;
   VelocityUnit m_shownUnit = VelocityUnit::PxPerS;
@@ -60,6 +96,7 @@ class SearchPanel : public QWidget {
   QRadioButton* m_byFap;
   QDoubleSpinBox* m_snr;
   QLineEdit* m_fap;
+  QComboBox* m_method;
   QComboBox* m_backend;
   QLabel* m_backendInfo;
   QLabel* m_estimate;
@@ -67,7 +104,13 @@ class SearchPanel : public QWidget {
   QPushButton* m_cancel;
   QLabel* m_status;
   std::optional<double> m_stackSeconds;
+  std::optional<KeyedEstimate> m_estimateCache;
+  /// The tree plan behind an estimate is built in a worker (tens of ms for a paper-sized grid); the text
+  /// says "estimating…" until it is back.
+  QFutureWatcher<KeyedEstimate> m_estimateWatcher;
+  bool m_estimatePending = false;  ///< started and its result not yet taken (finished is a queued signal)
   bool m_ready = false;
+  bool m_hasGpu = false;
 };
 
 }  // namespace st::ui

@@ -2,6 +2,8 @@
 
 #include <QDir>
 #include <QFileInfo>
+#include <QRegularExpression>
+#include <algorithm>
 #include <QStandardPaths>
 #include <cstring>
 
@@ -55,11 +57,15 @@ SessionController::SessionController(Observation* observation, std::function<Ses
   m_saver = new SessionAutosaver(this);
   connect(m_saver, &SessionAutosaver::saved, this, &SessionController::onSaved);
   connect(m_saver, &SessionAutosaver::failed, this, &SessionController::onFailed);
-  connect(m_obs, &Observation::rawChanged, this, &SessionController::onRawChanged);
+  connect(m_obs, &Observation::rawChanged, this, &SessionController::requestSave);
   for (auto signal : {&Observation::preparedChanged, &Observation::resultChanged,
                       &Observation::selectionChanged, &Observation::unitChanged})
     connect(m_obs, signal, this, &SessionController::requestSave);
   connect(m_obs, &Observation::candidateStateChanged, this, &SessionController::requestSave);
+}
+
+SessionController::~SessionController() {
+  m_saver->flush(10000);
 }
 
 void SessionController::setSettings(nlohmann::json settings) {
@@ -74,39 +80,63 @@ void SessionController::prepareNew(std::vector<std::string> inputs, bool demo, c
 void SessionController::adopt(const QString& path, std::vector<std::string> inputs, bool demo,
                               std::int64_t changes, nlohmann::json settings) {
   m_next.reset();
-  m_path = path;
+  m_sessionRaw = m_obs->raw().get();  // the restored frames arrive next (suspended), then are this session's
+  m_sessionResult = nullptr;
+  m_hadVetting = false;
   m_inputs = std::move(inputs);
   m_demo = demo;
   m_settings = settings.is_object() ? std::move(settings) : nlohmann::json::object();
-  m_failing = false;
-  m_saver->setChangeCount(path, changes);
-  emit pathChanged(path);
-  emit statusChanged("Session: " + path, "Every change is saved to this file", false);
+  if (setPath(path, changes))
+    emit statusChanged("Session: " + path, "Every change is saved to this file", false);
 }
 
 void SessionController::saveAs(const QString& path) {
-  m_path = path;
-  m_saver->setChangeCount(path, 0);
-  m_failing = false;
-  emit pathChanged(path);
-  requestSave();
+  if (setPath(path, 0)) requestSave();
 }
 
-void SessionController::onRawChanged() {
-  if (!m_next) {
-    requestSave();
-    return;
+bool SessionController::setPath(const QString& path, std::int64_t changes) {
+  m_failing = false;
+  if (!m_lock.acquire(path)) {
+    m_path.clear();
+    const QString text =
+        "Session " + path +
+        " is open in another synthtrack window or process: changes made here are NOT saved to it "
+        "(File > Save session as… saves them elsewhere)";
+    emit statusChanged("Session NOT saved: " + path + " is open elsewhere", text, true);
+    emit saveFailed(text);
+    return false;
   }
+  m_path = path;
+  m_saver->setChangeCount(path, changes);
+  emit pathChanged(path);
+  return true;
+}
+
+void SessionController::startNext() {
   const Next next = std::move(*m_next);
   m_next.reset();
   m_inputs = next.inputs;
   m_demo = next.demo;
-  m_path = next.path.isEmpty() ? freeSessionPath(defaultSessionPath(m_inputs, m_demo)) : next.path;
+  const QString preferred = next.path.isEmpty() ? defaultSessionPath(m_inputs, m_demo) : next.path;
+  const QString path = freeSessionPath(preferred);
+  if (path != preferred)
+    emit notice("An earlier session of this observation is kept in " + preferred +
+                " (File > Open session… resumes it); this one is saved to " + path);
   m_settings = nlohmann::json::object();
-  m_failing = false;
-  m_saver->setChangeCount(m_path, 0);
-  emit pathChanged(m_path);
-  requestSave();
+  m_sessionResult = nullptr;
+  m_hadVetting = false;
+  setPath(path, 0);
+}
+
+void SessionController::forkFile() {
+  const QString kept = m_path;
+  QString base = kept;
+  // obs.synthtrack-session-3.json -> obs.synthtrack-session.json, then the first free name from there.
+  static const QRegularExpression numbered("-\\d+\\.json$");
+  base.replace(numbered, ".json");
+  if (!setPath(freeSessionPath(base), 0)) return;
+  emit notice("The vetted candidates were replaced by a new result; their session is kept in " + kept +
+              ", this analysis goes on in " + m_path);
 }
 
 session::Session SessionController::currentSession() const {
@@ -116,7 +146,33 @@ session::Session SessionController::currentSession() const {
 }
 
 void SessionController::requestSave() {
-  if (m_path.isEmpty() || m_suspended) return;
+  // A new observation: its session starts here, whichever of the Observation's listeners saves first (a
+  // panel reacting to rawChanged before us must not write the new observation over the old file).
+  if (m_obs->raw().get() != m_sessionRaw) {
+    m_sessionRaw = m_obs->raw().get();
+    if (m_next) {
+      startNext();
+    } else if (!m_suspended && !m_path.isEmpty()) {
+      // Frames that came without prepareNew() or a session being opened: never saved over this file.
+      emit notice("Autosave stopped: the observation changed outside a session (" + m_path + " is kept)");
+      m_path.clear();
+      m_lock.release();
+      emit statusChanged("Session: none", "Open a session or the observation again to save", false);
+    }
+  }
+  if (m_path.isEmpty()) return;
+  // A new pre-processing run or search replaces the candidates: when some were vetted, that session is kept
+  // as it is and the analysis goes on in a new file.
+  const search::SearchResult* result = m_obs->result().get();
+  if (result != m_sessionResult) {
+    if (m_hadVetting && !m_suspended) forkFile();
+    m_sessionResult = result;
+  }
+  m_hadVetting =
+      std::any_of(m_obs->candidateStates().begin(), m_obs->candidateStates().end(), [](const auto& s) {
+        return s.label != session::Label::Unvetted || !s.note.empty() || !s.fit.is_null();
+      });
+  if (m_suspended) return;
   m_saver->request(m_path, currentSession());
 }
 

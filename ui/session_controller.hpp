@@ -3,7 +3,8 @@
 // after every change of the Observation (new observation, pre-processing, result, a candidate's label, note,
 // fit or artifact flags, the selection, the velocity unit). The state is gathered on the GUI thread
 // (makeSession) and written by SessionAutosaver's worker. The file of a new analysis is chosen by
-// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used).
+// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used),
+// nor are vetted candidates by a new pre-processing run or search (the analysis goes on in a new file).
 #include <QObject>
 #include <QString>
 #include <functional>
@@ -15,6 +16,7 @@
 
 #include "observation.hpp"
 #include "session_autosaver.hpp"
+#include "session_lock.hpp"
 #include "session_snapshot.hpp"
 
 namespace st::ui {
@@ -35,6 +37,9 @@ class SessionController : public QObject {
   SessionController(Observation* observation, std::function<SessionParameters()> parameters,
                     QObject* parent = nullptr);
 
+  /// Writes what is queued before the file's lock is released.
+  ~SessionController() override;
+
   [[nodiscard]] SessionAutosaver* autosaver() const noexcept { return m_saver; }
   /// The session file changes go to ("" before the first observation).
   [[nodiscard]] const QString& path() const noexcept { return m_path; }
@@ -45,7 +50,8 @@ class SessionController : public QObject {
   void setSettings(nlohmann::json settings);
 
   /// An observation is being opened: when its frames arrive (Observation::rawChanged) a new session starts
-  /// in a free file at defaultSessionPath() (or `path` when given).
+  /// in `path` (defaultSessionPath() when empty), or in the next free name when a file is already there
+  /// (notice() says so).
   void prepareNew(std::vector<std::string> inputs, bool demo, const QString& path = {});
   /// Continue in an opened session file (no save until the next change), counting on from `changes`.
   void adopt(const QString& path, std::vector<std::string> inputs, bool demo, std::int64_t changes,
@@ -64,17 +70,26 @@ class SessionController : public QObject {
   void statusChanged(const QString& text, const QString& tooltip, bool error);
   /// Changes go to a new file from now on (a new analysis, an opened session, Save as…).
   void pathChanged(const QString& path);
+  /// Something the person should know, for the status bar (e.g. an earlier session of these inputs kept).
+  void notice(const QString& text);
   /// A save failed for the first time after a success (the message names the path).
   void saveFailed(const QString& message);
 
  private:
-  void onRawChanged();
+  /// Starts the session prepared by prepareNew() (path, inputs, change count).
+  void startNext();
+  /// Changes go to `path` from now on, counting on from `changes`; false (and no file) when another window
+  /// or process holds the file's lock (saveFailed() says so).
+  bool setPath(const QString& path, std::int64_t changes);
+  /// Leaves the current file as it is and continues in the next free name.
+  void forkFile();
   void onSaved(const QString& path, qint64 changes, double ms);
   void onFailed(const QString& path, const QString& message);
 
   Observation* m_obs;
   std::function<SessionParameters()> m_parameters;
   SessionAutosaver* m_saver;
+  SessionLock m_lock;
   QString m_path;
   std::vector<std::string> m_inputs;
   bool m_demo = false;
@@ -85,6 +100,9 @@ class SessionController : public QObject {
     QString path;
   };
   std::optional<Next> m_next;
+  const FrameCube* m_sessionRaw = nullptr;                ///< the frames the current session belongs to
+  const search::SearchResult* m_sessionResult = nullptr;  ///< the result of the last save
+  bool m_hadVetting = false;  ///< a candidate of that result had a label, note or fit
   bool m_suspended = false;
   bool m_failing = false;
 };

@@ -42,8 +42,8 @@ struct DemoOptions {
   std::string preset = "paper-neo";
   std::uint64_t seed = 1;
   int frames = 0;
-  double vmaxDegDay = 8.0;
-  double stepPx = 1.5;
+  double vmaxDegDay = sim::kDemoHalfRangeDegPerDay;
+  double stepPx = sim::kDemoGridStepPx;
   double snr = 7.0;
   int fits = 40;
   BackendChoice backend = BackendChoice::Auto;

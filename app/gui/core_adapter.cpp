@@ -215,7 +215,7 @@ ui::CoreServices makeCoreServices() {
     const Wcs::Sky sky = cube.wcs->pixelToSky(x, y);
     return std::make_pair(sky.raDeg, sky.decDeg);
   };
-  if (cudaCompiledIn()) s.gpuNames.push_back("CUDA");
+  s.gpuNames = gpuNames();  // the devices' names, e.g. "NVIDIA H100 80GB HBM3, 79.1 GiB"
   return s;
 }
 

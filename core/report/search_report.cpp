@@ -80,6 +80,7 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["snr_threshold"] = r.snrThreshold;
   j["cells_above_threshold"] = r.cellsAboveThreshold;
   j["min_frames"] = r.minFrames;
+  j["sidelobes_merged"] = r.sidelobesMerged;
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : r.candidates)
@@ -177,6 +178,7 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
   r.elapsedS = optionalKey<double>(j, "elapsed_s", 0.0, kWhat);
   r.cellsAboveThreshold = optionalKey<std::int64_t>(j, "cells_above_threshold", 0, kWhat);
   r.minFrames = optionalKey<int>(j, "min_frames", 0, kWhat);
+  r.sidelobesMerged = optionalKey<std::int64_t>(j, "sidelobes_merged", 0, kWhat);
   if (j.contains("velocity_map")) r.map = velocityMapFromJson(j["velocity_map"]);
   if (j.contains("candidates")) {
     if (!j["candidates"].is_array()) throw InputError("search result: 'candidates' is not an array");

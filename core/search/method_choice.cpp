@@ -19,12 +19,15 @@ namespace {
 constexpr double kCpuTreeOpsWeight = 9.6;
 constexpr double kCpuTreeFixedS = 0.013;
 constexpr double kCpuExactFixedS = 0.003;
+constexpr double kCpuExactWidthPx = 128.0;
 
-// CUDA: the stair kernel's measured rate (README), the tree at the target (not yet measured).
+// CUDA, H100 (README): exact 9.8e12 additions/s of the stair kernel, 0.45-0.47 s end to end for the paper
+// problem (4e12 additions); tree 36 ms of kernels + ~80 ms upload, 0.20-0.21 s end to end for the same
+// problem (1.22e10 additions of the CPU plan): ~0.12 s fixed + 1.22e10 additions in ~0.085 s.
 constexpr double kCudaExactAdditionsPerS = 9.5e12;
 constexpr double kCudaExactFixedS = 0.05;
-constexpr double kCudaTreeAdditionsPerS = 1.2e10 / 0.030;
-constexpr double kCudaTreeFixedS = 0.01;
+constexpr double kCudaTreeAdditionsPerS = 1.22e10 / 0.085;
+constexpr double kCudaTreeFixedS = 0.12;
 
 std::string formatSeconds(double s) {
   char text[32];
@@ -53,6 +56,7 @@ MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditi
   m.exactAdditionsPerS = exactAdditionsPerS.value_or(kCpuAdditionsPerSecondPerThread *
                                                      static_cast<double>(std::max(1u, threads)));
   m.exactFixedS = kCpuExactFixedS;
+  m.exactWidthPx = kCpuExactWidthPx;
   m.treeOpsWeight = kCpuTreeOpsWeight;
   m.treeFixedS = kCpuTreeFixedS;
   return m;
@@ -72,16 +76,28 @@ MethodCostModel costModelFor(const SearchBackend& backend) {
   return cpuCostModel(workerCount());
 }
 
+void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
+  double efficiency = 1.0;
+  if (model.exactWidthPx > 0.0 && e.width > 0) {
+    const double w = static_cast<double>(e.width);
+    efficiency = std::min(1.0, (512.0 + model.exactWidthPx) / 512.0 * w / (w + model.exactWidthPx));
+  }
+  e.exactSeconds = model.exactFixedS + e.exactAdditions / (model.exactAdditionsPerS * efficiency);
+  e.treeSeconds = e.treeAdditions > 0.0
+                      ? model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS
+                      : std::numeric_limits<double>::infinity();
+}
+
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads) {
   MethodEstimate e;
   const SearchEstimate exact =
       estimateSearch(width, height, dtS.size(), grid, std::max(1u, threads), model.exactAdditionsPerS);
   e.exactAdditions = exact.additions;
-  e.exactSeconds = model.exactFixedS + exact.seconds;
   e.exactWorkingBytes = exact.workingBytes;
   e.cubeBytes = exact.cubeBytes;
-  e.treeSeconds = std::numeric_limits<double>::infinity();
+  e.width = width;
+  priceMethods(e, model);
   const bool distinctTimes = dtS.size() >= 2 && *std::max_element(dtS.begin(), dtS.end()) >
                                                     *std::min_element(dtS.begin(), dtS.end());
   if (!distinctTimes || grid.count() == 0 || !(grid.stepPxS > 0.0) || width <= 0 || height <= 0) return e;
@@ -89,7 +105,7 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   e.treeTileRows = treeTileRows(plan, width);
   e.treeAdditions = treeAdditions(plan, width, height, e.treeTileRows);
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
-  e.treeSeconds = model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS;
+  priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.
   const std::size_t tiles = static_cast<std::size_t>((height + e.treeTileRows - 1) / e.treeTileRows);
   const std::size_t busy = std::min<std::size_t>(std::max(1u, threads), tiles);

@@ -1,11 +1,11 @@
 #include "st/search/search_run.hpp"
 
 #include <algorithm>
-
 #include <cmath>
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/search/sidelobes.hpp"
 #include "st/stats/false_alarm.hpp"
 
 namespace st::search {
@@ -81,6 +81,9 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, const Filter
   }
   std::sort(hits.begin(), hits.end(), before);
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
+  result.sidelobesMerged = static_cast<std::int64_t>(
+      mergeSidelobes(result.candidates, cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(),
+                     cube.psfFwhmPx, result.snrThreshold));
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

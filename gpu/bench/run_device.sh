@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs the GPU tests, compute-sanitizer memcheck and the benchmark on a machine with a GPU, from binaries
 # built elsewhere (build-gpu/, Debian 12: they need only glibc and libstdc++). Logs go to $OUT (or /tmp).
-# Usage: gpu/bench/run_device.sh [test|memcheck|bench|treebench|sass]...   (default: test memcheck bench)
+# Usage: gpu/bench/run_device.sh [test|memcheck|bench|treebench|exactbench|sass]...   (default: test memcheck bench)
 set -uo pipefail
 out=${OUT:-/tmp/st_gpu_out}
 mkdir -p "$out"
@@ -21,6 +21,7 @@ for s in "${steps[@]}"; do
               done ;;
     treebench) "$bin/gpu/st_gpu_bench" 1500 512 100 12 500 tree 2>&1 | tee "$out/treebench.log" ;;
     bench) "$bin/gpu/st_gpu_bench" 2>&1 | tee "$out/bench.log" ;;
+    exactbench) "$bin/gpu/st_gpu_bench" 1500 512 100 12 500 exact 2>&1 | tee "$out/exactbench.log" ;;
     sass) cuobjdump -sass "$bin/gpu/st_gpu_bench" >"$out/bench.sass" 2>&1; grep -c LDS "$out/bench.sass" ;;
   esac
 done

@@ -5,7 +5,7 @@
 //     same cube (a band of velocity rows, so the naive run stays short), both timed with device events;
 //   - stackAt for 500 x 512^2 (device time of the kernels, and the whole call).
 //   - the tree search (method "tree") on the same cube: end-to-end, upload, kernels, operation count;
-// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames] [all|tree]
+// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames] [all|tree|exact]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -80,7 +80,8 @@ int run(int argc, char** argv) {
   const int nv = argc > 3 ? std::atoi(argv[3]) : 100;
   const int naiveRows = argc > 4 ? std::atoi(argv[4]) : 12;
   const int stackFrames = argc > 5 ? std::atoi(argv[5]) : 500;
-  const bool treeOnly = argc > 6 && std::string(argv[6]) == "tree";  // exact end-to-end + tree only
+  const bool treeOnly = argc > 6 && std::string(argv[6]) == "tree";    // exact end-to-end + tree only
+  const bool exactOnly = argc > 6 && std::string(argv[6]) == "exact";  // exact search variants only
   const std::time_t now = std::time(nullptr);
   char date[64];
   std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
@@ -118,9 +119,25 @@ int run(int argc, char** argv) {
         r.candidates.empty() ? -1 : r.candidates.front().ivx,
         r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
   }
+  if (exactOnly) {  // the stair kernel's variants on the whole problem, twice each
+    for (const int variant : {-7, -6, -4, -1}) {
+      st::gpu::CudaOptions ov;
+      ov.kernelVariant = variant;
+      auto bv = st::gpu::makeCudaSearchBackend(whyNot, ov);
+      for (int rep = 0; rep < 2; ++rep) {
+        const auto r = bv->search(cube, grid, params, quiet, cancel);
+        std::printf(
+            "search %d, variant %d: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; %zu "
+            "candidates, best SNR %.2f\n  %s",
+            rep, variant, r.elapsedS, bv->lastKernelSeconds(), additions / bv->lastKernelSeconds(),
+            r.candidates.size(), r.candidates.empty() ? 0.0 : r.candidates.front().snr,
+            bv->lastNote().c_str());
+      }
+    }
+    return 0;
+  }
   // The tree search (method "tree") on the same cube, side by side with the exact search above.
-  for (const auto& [cut, shape] :
-       {std::pair{0, 0}, std::pair{3, 0}, std::pair{0, 1}, std::pair{0, 2}, std::pair{0, 3}}) {
+  for (const auto& [cut, shape] : {std::pair{0, 0}, std::pair{3, 0}, std::pair{0, 6}}) {
     st::gpu::CudaOptions to;
     to.treeCut = cut;
     to.treeRootShape = shape;
@@ -131,10 +148,12 @@ int run(int argc, char** argv) {
     for (int rep = 0; rep < 2; ++rep) {
       const auto r = tree->search(cube, grid, tp, quiet, cancel);
       std::printf(
-          "tree search %d (cut %d, root shape %d): end-to-end %.3f s, upload %.1f ms, kernels %.1f ms; %.3g "
+          "tree search %d (cut %d, root shape %d): end-to-end %.3f s, upload %.1f ms, kernels %.1f ms; "
+          "%.3g "
           "additions "
           "(%.0fx "
-          "fewer than exact) = %.3g additions/s; %zu candidates, best SNR %.2f at (%d, %d) v[%d,%d]\n  %s",
+          "fewer than exact) = %.3g additions/s; %zu candidates, best SNR %.2f at (%d, %d) v[%d,%d]\n  "
+          "%s",
           rep, cut == 0 ? st::gpu::kTreeDefaultCut : cut, shape, r.elapsedS, 1e3 * tree->lastUploadSeconds(),
           1e3 * tree->lastKernelSeconds(), tree->lastTreeAdditions(), additions / tree->lastTreeAdditions(),
           tree->lastTreeAdditions() / tree->lastKernelSeconds(), r.candidates.size(),
@@ -153,7 +172,8 @@ int run(int argc, char** argv) {
     for (int rep = 0; rep < 2; ++rep) {
       const auto r = b16->search(cube, grid, params, quiet, cancel);
       std::printf(
-          "search %d, stair kernel with 4-row tiles: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; "
+          "search %d, stair kernel with 4-row tiles: end-to-end %.3f s, kernels %.3f s = %.3g "
+          "additions/s; "
           "%zu candidates\n  %s",
           rep, r.elapsedS, b16->lastKernelSeconds(), additions / b16->lastKernelSeconds(),
           r.candidates.size(), b16->lastNote().c_str());

@@ -71,6 +71,10 @@ class CudaBackend final : public CudaSearchBackend {
       chooseTiling(plan, true, true);
     } else if (m_options.kernelVariant == -5) {
       plan.stairTma = false;
+    } else if (m_options.kernelVariant == -6) {
+      plan.stairPipe = true;
+    } else if (m_options.kernelVariant == -7 && plan.kernel == HostPlan::Kernel::Stair) {
+      plan.framesPerStage = std::min(plan.framesPerStage, 8);  // the sizing before 2026-11-22 06:30
     } else if (m_options.kernelVariant == -4) {
       if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
     } else if (m_options.kernelVariant == -3) {
@@ -187,6 +191,7 @@ class CudaBackend final : public CudaSearchBackend {
       const int rows = m_options.treeTileRows > 0 ? m_options.treeTileRows : (h + parts - 1) / parts;
       TreeDevicePlan d = makeTreeDevicePlan(tree, plan.width, h, rows, cut);
       need = cubeBytes + treeDeviceBytes(d, plan, capacity);
+      if (std::max(d.arenaFloats[0], d.arenaFloats[1]) > kTreeMaxArenaFloats) continue;  // 32-bit offsets
       if (need <= budget || m_options.treeTileRows > 0) {
         if (need > budget) break;
         return d;

@@ -65,6 +65,7 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.groups = plan.rowGroups;
   p.stairRows = plan.stairRows;
   p.stairTma = plan.stairTma;
+  p.stairPipe = plan.stairPipe;
   return p;
 }
 

@@ -54,11 +54,12 @@ struct SearchLaunch {
   int pitch;    ///< shared-memory row pitch (floats) of one frame window
   int winRows;  ///< rows of one frame window
   int framesPerStage;
-  int groups;              ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
-  int variant;             ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
-                           ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
-  int stairRows;           ///< stair kernel: pixel rows per block, 8 or 4
-  bool stairTma;           ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
+  int groups;      ///< row kernel: groups of kRowVelocities velocities per block (8, 4, 2, 1)
+  int variant;     ///< tiled kernel: inner loop 0 reuse by branch, 1 no reuse, 2 reuse by predicates;
+                   ///< + 10: 2 columns per thread (64-wide tiles, 4 blocks per SM)
+  int stairRows;   ///< stair kernel: pixel rows per block, 8 or 4
+  bool stairTma;   ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
+  bool stairPipe;  ///< stair kernel, 8 rows, TMA: next frame's rows loaded during this frame's additions
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
 };
 
@@ -122,8 +123,10 @@ inline constexpr int kStairVy = 4;
 inline constexpr int kStairCols = 2;
 /// Shared-memory row stride (floats) of the stair kernel's window, a compile-time constant so that row
 /// addresses are immediate offsets: the kernel applies while the 8 vx of a block stay within
-/// kStairPitch - 32 kStairCols - 6 px of each other at every frame.
-inline constexpr int kStairPitch = 96;
+/// kStairPitch - 32 kStairCols - 6 = 10 px of each other at every frame (always so when neighbouring
+/// vy, hence vx on the grid's common step, are at most 1 px apart: the stair kernel's own condition).
+/// 80 rather than 96: smaller windows, 16 frames per stage instead of 13 (H100, 2026-11-22).
+inline constexpr int kStairPitch = 80;
 void launchStairOffsets(const SearchLaunch& p, int* tileOffsets, int tileCount, cudaStream_t stream);
 void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
 /// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 4) pixel rows.

@@ -67,15 +67,19 @@ int maxSpread(const std::vector<int>& shifts, int nv, int n, int len) {
 
 bool chooseStair(HostPlan& plan, int rows) {
   if (plan.width % 4 != 0 || maxSpread(plan.shiftY, plan.nvy, plan.frameCount, 2) > 1) return false;
-  constexpr std::size_t kTwoBlocksShared = 100 * 1024;
+  // sm_90 (H100, H200): 228 KiB of shared memory per SM, 1 KiB of it reserved per block, plus the
+  // kernel's static barriers; as many frames per stage as fit with 2 (8 rows) or 4 (4 rows) blocks per SM
+  // (fewer block-wide barriers per frame: 13 frames instead of 8 for the paper's grid).
+  constexpr std::size_t kSmemPerSm = 228 * 1024;
+  constexpr std::size_t kPerBlockOverhead = 1024 + 128;
   // Columns a warp reads: its tile, its vx's offset from the 16-byte-aligned origin of the block's vx.
   const int pitch =
       (32 * kStairCols + maxSpread(plan.shiftX, plan.nvx, plan.frameCount, kStairVx) + 3 + 3) / 4 * 4;
   if (pitch > kStairPitch) return false;
-  const std::size_t limit = rows == 4 ? std::size_t{52} * 1024 : kTwoBlocksShared;  // 4 or 2 blocks/SM
+  const std::size_t limit = kSmemPerSm / (rows == 4 ? 4 : 2) - kPerBlockOverhead;
   int fs = 16;
   while (fs > 1 && stairSharedBytes(fs, rows) > limit)
-    fs /= 2;
+    --fs;
   plan.stairRows = rows;
   plan.kernel = HostPlan::Kernel::Stair;
   plan.vtileX = kStairVx;

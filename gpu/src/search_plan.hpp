@@ -33,10 +33,11 @@ struct HostPlan {
   int pitch = 0;
   int winRows = 0;
   int framesPerStage = 1;
-  int rowGroups = 1;     ///< row kernel: groups of 8 velocities per block
-  int stairRows = 8;     ///< stair kernel: pixel rows per block (8: two blocks per SM, 4: four)
-  bool stairTma = true;  ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
-  int tiledMode = 0;     ///< inner loop of the tiled kernel (SearchLaunch::variant)
+  int rowGroups = 1;       ///< row kernel: groups of 8 velocities per block
+  int stairRows = 8;       ///< stair kernel: pixel rows per block (8: two blocks per SM, 4: four)
+  bool stairTma = true;    ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
+  bool stairPipe = false;  ///< stair kernel, 8 rows, TMA: software-pipelined frame loop (slower, kept)
+  int tiledMode = 0;       ///< inner loop of the tiled kernel (SearchLaunch::variant)
 };
 
 /// Builds the tables for `cube` and `grid`. `threshold` is the SNR threshold actually used and

@@ -30,6 +30,12 @@ constexpr int kSMaxWin = 16 + kSVy - 1;  // window rows at most (16 pixel rows)
 constexpr int kSOffs = 4 + kSVx;  // origin x, origin y, pattern, staircase height, column offset per warp
 constexpr int kSThreads = 32 * kSVx;
 
+/// Floats of one frame's window (kSR + 3 rows of kStairPitch), rounded up to 128 bytes: the TMA writes
+/// each window at a 128-byte-aligned address.
+constexpr int stairWinSize(int rows) {
+  return (kStairPitch * (rows + kSVy - 1) + 31) / 32 * 32;
+}
+
 __device__ __forceinline__ int floor4s(int v) {
   return v - (((v % 4) + 4) % 4);
 }
@@ -126,10 +132,10 @@ __device__ __forceinline__ unsigned smemAddr(const void* p) {
 /// instruction per frame; rows and columns outside the frame arrive as zeros) and tells `bar` how many
 /// bytes to expect.
 __device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, float* win, const int* offs,
-                                int n0, int count, int x0, int y0, unsigned long long* bar, int winSize) {
-  if (threadIdx.x != 0) return;
+                                int n0, int count, int x0, int y0, unsigned long long* bar, int winSize,
+                                int boxFloats) {
   const unsigned b = smemAddr(bar);
-  const unsigned bytes = static_cast<unsigned>(count * winSize * sizeof(float));
+  const unsigned bytes = static_cast<unsigned>(count * boxFloats * sizeof(float));  // the boxes, no padding
   asm volatile("mbarrier.arrive.expect_tx.shared::cta.b64 _, [%0], %1;\n" ::"r"(b), "r"(bytes) : "memory");
   const unsigned long long m = reinterpret_cast<unsigned long long>(map);
   for (int i = 0; i < count; ++i) {
@@ -138,11 +144,17 @@ __device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, f
     const int gz = n0 + i - p.frameBase;
     asm volatile(
         "cp.async.bulk.tensor.3d.shared::cluster.global.tile.mbarrier::complete_tx::bytes [%0], [%1, {%2, "
-        "%3, "
-        "%4}], [%5];\n" ::"r"(smemAddr(win + i * winSize)),
+        "%3, %4}], [%5];\n" ::"r"(smemAddr(win + i * winSize)),
         "l"(m), "r"(gx), "r"(gy), "r"(gz), "r"(b)
         : "memory");
   }
+}
+
+/// Two barriers (one per window buffer), one arrival each (the expect_tx) plus the bytes.
+__device__ void initStairBarriers(unsigned long long* bars) {
+  for (int i = 0; i < 2; ++i)
+    asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;\n" ::"r"(smemAddr(bars + i)) : "memory");
+  asm volatile("fence.mbarrier_init.release.cluster;\n" ::: "memory");
 }
 
 __device__ __forceinline__ void mbarrierWait(unsigned long long* bar, int parity) {
@@ -201,26 +213,143 @@ __device__ __forceinline__ void addStair(float (&acc)[kSVy][kSR][kSC], float (&v
   addStairRow<kId, 3, kSR>(acc, v);
 }
 
+/// The pipelined form of addStair: the additions run row by row of the window (each v row feeds the up
+/// to 4 velocities that use it), and as soon as a tile row is no longer needed its register is refilled
+/// from the next frame's window `wn`, so those loads overlap this frame's additions without extra
+/// registers. Each accumulator still receives exactly one addition per frame, in frame order.
+template <int kId, int kSR>
+__device__ __forceinline__ void addStairPipe(float (&acc)[kSVy][kSR][kSC], float (&v)[kSR + 3][kSC],
+                                             const float* w, const float* wn) {
+  constexpr int kA = StairRow<kId, 0>::value;
+  constexpr int kB = StairRow<kId, kSVy - 1>::value;
+  constexpr int kHeight = kA > kB ? kA : kB;
+  constexpr int kD[kSVy] = {StairRow<kId, 0>::value, StairRow<kId, 1>::value, StairRow<kId, 2>::value,
+                            StairRow<kId, 3>::value};
+#pragma unroll
+  for (int q = 0; q < kHeight; ++q) {
+#pragma unroll
+    for (int j = 0; j < kSC; ++j)
+      v[kSR + q][j] = w[(kSR + q) * kStairPitch + 32 * j];
+  }
+#pragma unroll
+  for (int q = 0; q < kSR + kHeight; ++q) {
+#pragma unroll
+    for (int k = 0; k < kSVy; ++k) {
+      const int r = q - kD[k];
+      if (r < 0 || r >= kSR) continue;
+#pragma unroll
+      for (int j = 0; j < kSC; ++j)
+        acc[k][r][j] += v[q][j];
+    }
+    if (q < kSR) {
+#pragma unroll
+      for (int j = 0; j < kSC; ++j)
+        v[q][j] = wn[q * kStairPitch + 32 * j];
+    }
+  }
+}
+
+#define ST_STAIR_PIPE_CASE(c)            \
+  case c:                                \
+    addStairPipe<c, kSR>(acc, v, w, wn); \
+    break;
+
 #define ST_STAIR_CASE(c)         \
   case c:                        \
     addStair<c, kSR>(acc, v, w); \
     break;
 
+#define ST_STAIR_SWITCH(CASE) \
+  switch (pattern) {          \
+    CASE(0)                   \
+    CASE(1)                   \
+    CASE(2)                   \
+    CASE(3)                   \
+    CASE(4)                   \
+    CASE(5)                   \
+    CASE(6)                   \
+    CASE(7)                   \
+    CASE(8)                   \
+    CASE(9)                   \
+    CASE(10)                  \
+    CASE(11)                  \
+    CASE(12)                  \
+    CASE(13)                  \
+    CASE(14)                  \
+    default:                  \
+      break;                  \
+  }
+
+/// The additions of one stage's `count` frames (windows `wins` + lane, offsets `offs`), frame by frame:
+/// the tile rows are loaded, then one switch on the frame's staircase (uniform across the block).
+template <int kSR>
+__device__ __forceinline__ void stairStage(float (&acc)[kSVy][kSR][kSC], const float* wins, const int* offs,
+                                           int count, int warp) {
+  constexpr int winSize = stairWinSize(kSR);
+  for (int i = 0; i < count; ++i) {
+    const int* o = offs + i * kSOffs;
+    const int pattern = o[2];
+    const float* w = wins + i * winSize + o[4 + warp];
+    float v[kSR + kSVy - 1][kSC];
+#pragma unroll
+    for (int r = 0; r < kSR + kSVy - 1; ++r) {
+#pragma unroll
+      for (int j = 0; j < kSC; ++j)
+        v[r][j] = r < kSR ? w[r * kStairPitch + 32 * j] : 0.0f;  // rows below: loaded by the case
+    }
+    ST_STAIR_SWITCH(ST_STAIR_CASE)  // default never: the host checked every pattern is a staircase
+  }
+}
+
+/// stairStage, software-pipelined: the tile rows of frame i + 1 are loaded during frame i's additions
+/// (addStairPipe); the pattern and window of frame i + 1 are read before frame i's switch. The last frame
+/// of the stage refills from its own window (the next stage's window is not ready yet).
+template <int kSR>
+__device__ __forceinline__ void stairStagePipe(float (&acc)[kSVy][kSR][kSC], const float* wins,
+                                               const int* offs, int count, int warp) {
+  constexpr int winSize = stairWinSize(kSR);
+  if (count <= 0) return;
+  float v[kSR + kSVy - 1][kSC];
+  int pattern = offs[2];
+  const float* w = wins + offs[4 + warp];
+#pragma unroll
+  for (int r = 0; r < kSR + kSVy - 1; ++r) {
+#pragma unroll
+    for (int j = 0; j < kSC; ++j)
+      v[r][j] = r < kSR ? w[r * kStairPitch + 32 * j] : 0.0f;
+  }
+  for (int i = 0; i < count; ++i) {
+    const int next = i + 1 < count ? i + 1 : i;
+    const int* o = offs + next * kSOffs;
+    const int nextPattern = o[2];
+    const float* wn = wins + next * winSize + o[4 + warp];
+    ST_STAIR_SWITCH(ST_STAIR_PIPE_CASE)
+    pattern = nextPattern;
+    w = wn;
+  }
+}
+
+template <int kSR, bool kPipe>
+__device__ __forceinline__ void stairStageAny(float (&acc)[kSVy][kSR][kSC], const float* wins,
+                                              const int* offs, int count, int warp) {
+  if (kPipe) {
+    stairStagePipe<kSR>(acc, wins, offs, count, warp);
+  } else {
+    stairStage<kSR>(acc, wins, offs, count, warp);
+  }
+}
+
 /// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 4 (four blocks per SM: more warps to
 /// hide latencies, fewer additions per shared-memory load).
 /// kTma: windows copied by the tensor memory accelerator (`map`, one instruction per frame) instead of
 /// per-thread 16-byte cp.async.
-template <int kSR, bool kTma>
+template <int kSR, bool kTma, bool kPipe>
 __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     stairSearchKernel(SearchLaunch p, const __grid_constant__ CUtensorMap map) {
   constexpr int kSWin = kSR + kSVy - 1;
   extern __shared__ __align__(128) float smem[];
-  __shared__ __align__(8) unsigned long long bars[2];
-  if (kTma && threadIdx.x == 0) {
-    asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;\n" ::"r"(smemAddr(&bars[0])) : "memory");
-    asm volatile("mbarrier.init.shared::cta.b64 [%0], 1;\n" ::"r"(smemAddr(&bars[1])) : "memory");
-    asm volatile("fence.mbarrier_init.release.cluster;\n" ::: "memory");
-  }
+  __shared__ __align__(8) unsigned long long bars[2];  // TMA: windows of buffer 0 / 1 landed
+  if (kTma && threadIdx.x == 0) initStairBarriers(bars);
   const int lane = threadIdx.x & 31;
   const int warp = threadIdx.x >> 5;
   const int tile = blockIdx.x;  // velocity tiles vary fastest: resident blocks share pixel tiles in L2
@@ -230,7 +359,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
   const int ix = (tile % tilesX) * kSVx + warp;
   const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
   const int fs = p.framesPerStage;
-  constexpr int winSize = kStairPitch * kSWin;
+  constexpr int winSize = stairWinSize(kSR);
   float* wins = smem;
   int* offs = reinterpret_cast<int*>(smem + 2 * fs * winSize);
   const long long plane = static_cast<long long>(p.width) * p.height;
@@ -253,75 +382,41 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     }
   }
 
-  // Pipeline: the group committed in stage s - 1 holds the windows of stage s and the offsets of stage
-  // s + 1, so the window copies of stage s + 1 start from offsets already in shared memory (3 buffers).
   const int frames = p.f1 - p.f0;
   const int stages = (frames + fs - 1) / fs;
-  const int slot0 = stairSlot(p, threadIdx.x, kSWin);
-  const int slot1 = stairSlot(p, threadIdx.x + kSThreads, kSWin);
   auto stageOffs = [&](int st) { return offs + (st % 3) * fs * kSOffs; };
   auto stageCount = [&](int st) { return min(fs, frames - st * fs); };
+  // Pipeline: the copies issued at the start of stage s - 1 are the windows of stage s and the offsets of
+  // stage s + 1, so the window copies of stage s + 1 start from offsets already in shared memory (3 offset
+  // buffers, 2 window buffers). TMA windows complete on bars[buffer], the rest on cp.async groups.
+  const int slot0 = kTma ? -1 : stairSlot(p, threadIdx.x, kSWin);
+  const int slot1 = kTma ? -1 : stairSlot(p, threadIdx.x + kSThreads, kSWin);
+  auto issueStage = [&](int st) {  // windows of stage st, offsets of stage st + 1
+    float* w = wins + (st & 1) * fs * winSize;
+    if (kTma) {
+      if (threadIdx.x == 0)
+        tmaStairWindows(&map, p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, &bars[st & 1],
+                        winSize, kStairPitch * kSWin);
+    } else {
+      copyStairWindows(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1, winSize);
+    }
+    if (st + 1 < stages)
+      copyStairOffsets(p, stageOffs(st + 1), p.f0 + (st + 1) * fs, stageCount(st + 1), tile);
+    cpAsyncCommit();
+  };
   if (stages > 0) {
     copyStairOffsets(p, stageOffs(0), p.f0, stageCount(0), tile);
     cpAsyncCommit();
     cpAsyncWaitAll();
     __syncthreads();
-    if (kTma) {
-      tmaStairWindows(&map, p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, &bars[0], winSize);
-    } else {
-      copyStairWindows(p, wins, stageOffs(0), p.f0, stageCount(0), x0, y0, slot0, slot1, winSize);
-    }
-    if (stages > 1) copyStairOffsets(p, stageOffs(1), p.f0 + fs, stageCount(1), tile);
-    cpAsyncCommit();
+    issueStage(0);
   }
   for (int s = 0; s < stages; ++s) {
-    const int buf = s & 1;
     cpAsyncWaitAll();
-    __syncthreads();  // stage s landed everywhere, and stage s - 1 is no longer read
-    if (s + 1 < stages) {
-      if (kTma) {
-        tmaStairWindows(&map, p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
-                        stageCount(s + 1), x0, y0, &bars[buf ^ 1], winSize);
-      } else {
-        copyStairWindows(p, wins + (buf ^ 1) * fs * winSize, stageOffs(s + 1), p.f0 + (s + 1) * fs,
-                         stageCount(s + 1), x0, y0, slot0, slot1, winSize);
-      }
-      if (s + 2 < stages) copyStairOffsets(p, stageOffs(s + 2), p.f0 + (s + 2) * fs, stageCount(s + 2), tile);
-      cpAsyncCommit();
-    }
-    if (kTma) mbarrierWait(&bars[buf], (s >> 1) & 1);  // the k-th use of a buffer completes phase k
-    const int count = min(fs, frames - s * fs);
-    for (int i = 0; i < count; ++i) {
-      const int* o = stageOffs(s) + i * kSOffs;
-      const int pattern = o[2];
-      const float* w = wins + (buf * fs + i) * winSize + o[4 + warp] + lane;
-      float v[kSWin][kSC];
-#pragma unroll
-      for (int r = 0; r < kSWin; ++r) {
-#pragma unroll
-        for (int j = 0; j < kSC; ++j)
-          v[r][j] = r < kSR ? w[r * kStairPitch + 32 * j] : 0.0f;  // rows below: loaded by the case
-      }
-      switch (pattern) {  // uniform across the block
-        ST_STAIR_CASE(0)
-        ST_STAIR_CASE(1)
-        ST_STAIR_CASE(2)
-        ST_STAIR_CASE(3)
-        ST_STAIR_CASE(4)
-        ST_STAIR_CASE(5)
-        ST_STAIR_CASE(6)
-        ST_STAIR_CASE(7)
-        ST_STAIR_CASE(8)
-        ST_STAIR_CASE(9)
-        ST_STAIR_CASE(10)
-        ST_STAIR_CASE(11)
-        ST_STAIR_CASE(12)
-        ST_STAIR_CASE(13)
-        ST_STAIR_CASE(14)
-        default:  // never: the host takes this kernel only when every pattern is a staircase
-          break;
-      }
-    }
+    __syncthreads();  // stage s landed everywhere (but TMA windows), and stage s - 1 is no longer read
+    if (s + 1 < stages) issueStage(s + 1);
+    if (kTma) mbarrierWait(&bars[s & 1], (s >> 1) & 1);  // the k-th use of a buffer completes phase k
+    stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s), warp);
   }
 
 #pragma unroll
@@ -357,23 +452,24 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
 
 std::size_t stairSharedBytes(int framesPerStage, int rows) {
   return static_cast<std::size_t>(framesPerStage) *
-         (2 * static_cast<std::size_t>(kStairPitch) * (rows + kSVy - 1) * sizeof(float) +
-          3 * kSOffs * sizeof(int));
+         (2 * static_cast<std::size_t>(stairWinSize(rows)) * sizeof(float) + 3 * kSOffs * sizeof(int));
 }
 
-template <int kSR>
+template <int kSR, bool kTma, bool kPipe>
 void setStairShared(int bytes) {
-  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<kSR, false>,
+  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<kSR, kTma, kPipe>,
                                      cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
-  ST_CUDA_CHECK(
-      cudaFuncSetAttribute(stairSearchKernel<kSR, true>, cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
 }
 
 void configureStairKernel(std::size_t sharedBytes, int rows) {
+  const int bytes = static_cast<int>(sharedBytes);
   if (rows == 4) {
-    setStairShared<4>(static_cast<int>(sharedBytes));
+    setStairShared<4, false, false>(bytes);
+    setStairShared<4, true, false>(bytes);
   } else {
-    setStairShared<8>(static_cast<int>(sharedBytes));
+    setStairShared<8, false, false>(bytes);
+    setStairShared<8, true, false>(bytes);
+    setStairShared<8, true, true>(bytes);
   }
 }
 
@@ -436,14 +532,16 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
   const bool tma = p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map);
   if (rows == 4) {
     if (tma) {
-      stairSearchKernel<4, true><<<grid, kSThreads, shared, stream>>>(p, map);
+      stairSearchKernel<4, true, false><<<grid, kSThreads, shared, stream>>>(p, map);
     } else {
-      stairSearchKernel<4, false><<<grid, kSThreads, shared, stream>>>(p, map);
+      stairSearchKernel<4, false, false><<<grid, kSThreads, shared, stream>>>(p, map);
     }
+  } else if (tma && p.stairPipe) {
+    stairSearchKernel<8, true, true><<<grid, kSThreads, shared, stream>>>(p, map);
   } else if (tma) {
-    stairSearchKernel<8, true><<<grid, kSThreads, shared, stream>>>(p, map);
+    stairSearchKernel<8, true, false><<<grid, kSThreads, shared, stream>>>(p, map);
   } else {
-    stairSearchKernel<8, false><<<grid, kSThreads, shared, stream>>>(p, map);
+    stairSearchKernel<8, false, false><<<grid, kSThreads, shared, stream>>>(p, map);
   }
   checkLaunch("stairSearchKernel");
 }

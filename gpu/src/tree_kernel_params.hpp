@@ -66,7 +66,12 @@ struct TreeRootLaunch {
   const int* colBase;        ///< [2^cut][nvx] mosaic column of image column 0 for root vx
   const int* rowBase;        ///< [2^cut][nvy] mosaic row of tile row 0 for root vy
   int cut;                   ///< 1..kTreeMaxCut
-  int shape;  ///< root velocities per block: 0 = 4 x 4, 1 = 8 x 8, 2 = 2 x 4, 3 = 4 x 8 (vx x vy)
+  int shape;  ///< root velocities per block (vx x vy), columns per thread, register bound: 0 = 4 x 4, 2
+              ///< columns,
+              ///< <= 128 registers (default); 1 = 8 x 8; 2 = 2 x 4; 3 = 4 x 8; 4 = 4 x 4 at <= 64 registers;
+              ///< 5 = 4 x 4 unbounded; 6 = 4 x 4 at <= 80 registers; 7 = 4 x 4, 2 columns, <= 102 registers;
+              ///< 8 = 4 x 4, 4 columns; 9 = 8 x 4, 2 columns; 10, 13 = 2 x 4, 2 columns, <= 80 or 64
+              ///< registers; 11 = 4 x 8, 2 columns; 12 = 4 x 2, 2 columns (1 column unless said)
   int width;
   int height;
   int y0;
@@ -84,10 +89,13 @@ struct TreeRootLaunch {
   unsigned long long cellCapacity;
 };
 
+/// Floats one arena may hold: the root kernel indexes the cut level's arena with 32-bit offsets (tiles of
+/// fewer rows are taken when a level would need more).
+inline constexpr std::size_t kTreeMaxArenaFloats = (std::size_t{1} << 31) - 4096;
 /// Deepest level summed in registers by the root kernel.
 inline constexpr int kTreeMaxCut = 4;
 /// Rows of the tile one root block scans.
-inline constexpr int kTreeRootRows = 16;
+inline constexpr int kTreeRootRows = 32;
 
 void launchTreeLevel(const TreeLevelLaunch& p, cudaStream_t stream);
 void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream);

@@ -27,6 +27,7 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
     const float* b = p.in + j.right + static_cast<long long>(rr.y) * j.rightPitch;
     for (int s = 0; s < j.segments; ++s) {
       const int4 g = seg[s];
+#pragma unroll 4
       for (int c = lane; c < g.y; c += 32)
         out[g.x + c] = __ldg(a + g.z + c) + __ldg(b + g.w + c);
     }
@@ -54,21 +55,25 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
   }
 }
 
-/// A block scans kGx x kGy root velocities over 32 columns and kTreeRootRows rows: warp w takes root vy
-/// iy0 + w and its kGx vx in turn, all warps on the same columns and row at about the same time. Each cut
-/// stack sample is read by about 2 x 2 neighbouring root velocities (the cut nodes' grids are about 2^cut /
-/// 4 times coarser per axis), so after the first one the lines come from L1 when the block's rows fit.
-/// Measured on the paper problem (H100, cut 4): 24.2 ms with 4 x 4, 24.8 ms with 8 x 8, 30 ms with 2 x 4 or
-/// 4 x 8 velocities per block, about 7 TB/s of L1/L2 traffic for 16 unaligned loads per cell. Tried and
+/// A block scans kGx x kGy root velocities over 32 kCols columns and kTreeRootRows rows: warp w takes root vy
+/// iy0 + w and its kGx vx in turn, each lane kCols columns 32 apart (independent loads in flight), all warps
+/// on the same columns and row at about the same time, so neighbouring root velocities (which mostly read the
+/// same cut stacks a pixel or two apart) share L1 lines (ncu, 1-column version: L1 hit rate 72%; latency-
+/// bound at 30% occupancy, no unit above 45%). Measured on the paper problem (H100, cut 4): 1 column 24.2 ms
+/// (108 registers) / 21.8 ms (80), 2 columns 20.0 ms (105 registers, the default), 4 columns 21.5 ms;
+/// 2 x 4, 4 x 8, 4 x 2 velocities per block with 2 columns 19.8-20.8 ms; 8 x 8 or 4 x 8 with 1 column, or a
+/// persistent grid of 1-8 blocks per SM, no better. Tried and
 /// slower: staging each cut stack's 32-float chunks in shared memory per warp (plain 68 ms, cp.async
 /// double-buffered 85 ms: the cut stacks change every 2-4 root velocities, so the chunks rarely fit and the
-/// copies serialise), reusing a sample between neighbouring vx in registers (47 ms, a dependency chain).
-template <int kCut, int kGx, int kGy>
-__global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
+/// copies serialise), reusing a sample between neighbouring vx in registers (47 ms, a dependency chain),
+/// all of a thread's loads before its scoring (234 registers or spills, 23.6-26.6 ms).
+template <int kCut, int kGx, int kGy, int kMinBlocks, int kCols>
+__global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootLaunch p) {
   constexpr int kN = 1 << kCut;
   __shared__ int colOff[kGx][kN];
-  const int colTiles = (p.width + 31) / 32;
-  const int x0 = (blockIdx.x % colTiles) * 32;
+  __shared__ int pitch[kN];
+  const int colTiles = (p.width + 32 * kCols - 1) / (32 * kCols);
+  const int x0 = (blockIdx.x % colTiles) * 32 * kCols;
   const int ix0 = (blockIdx.x / colTiles) * kGx;
   const int iy = blockIdx.y * kGy + static_cast<int>(threadIdx.x / 32);
   const int r0 = blockIdx.z * kTreeRootRows;
@@ -77,22 +82,25 @@ __global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
     const int gx = i / kN;
     const int c = i % kN;
     colOff[gx][c] = p.colBase[c * p.nvx + min(ix0 + gx, p.nvx - 1)] + x0;
+    if (gx == 0) pitch[c] = p.cutPitch[c];
   }
   __syncthreads();
   if (iy >= p.nvy) return;  // whole warps; no block barrier below
-  long long rowOff[kN];
-  int pitch[kN];
+  // Float offsets in the arena: < 2^31, TreeDevicePlan keeps arenas below kTreeMaxArenaFloats.
+  int rowOff[kN];
 #pragma unroll
-  for (int c = 0; c < kN; ++c) {
-    pitch[c] = p.cutPitch[c];
-    rowOff[c] = p.cutBase[c] + static_cast<long long>(p.rowBase[c * p.nvy + iy] + r0) * pitch[c];
+  for (int c = 0; c < kN; ++c)
+    rowOff[c] = static_cast<int>(p.cutBase[c]) + (p.rowBase[c * p.nvy + iy] + r0) * pitch[c];
+  int2 sx[kGx][kCols];
+#pragma unroll
+  for (int gx = 0; gx < kGx; ++gx) {
+#pragma unroll
+    for (int k = 0; k < kCols; ++k) {
+      const int x = x0 + lane + 32 * k;
+      sx[gx][k] = x < p.width ? p.spanX[static_cast<long long>(min(ix0 + gx, p.nvx - 1)) * p.width + x]
+                              : int2{0, -1};  // no frame: the cell is skipped
+    }
   }
-  const int x = x0 + lane;
-  const bool inImage = x < p.width;
-  int2 sx[kGx];
-#pragma unroll
-  for (int gx = 0; gx < kGx; ++gx)
-    sx[gx] = inImage ? p.spanX[static_cast<long long>(min(ix0 + gx, p.nvx - 1)) * p.width + x] : int2{0, -1};
   unsigned long long best[kGx];
 #pragma unroll
   for (int gx = 0; gx < kGx; ++gx)
@@ -105,27 +113,36 @@ __global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
 #pragma unroll
     for (int gx = 0; gx < kGx; ++gx) {
       const int ix = ix0 + gx;
-      if (ix >= p.nvx || !inImage) continue;
-      float v[kN];
+      if (ix >= p.nvx) continue;
+      float v[kCols][kN];
 #pragma unroll
-      for (int c = 0; c < kN; ++c)
-        v[c] = __ldg(p.in + rowOff[c] + colOff[gx][c] + lane);
+      for (int k = 0; k < kCols; ++k) {
+        // Lanes past the image read a valid column of the row (their cells are skipped below).
+        const int col = min(lane + 32 * k, p.width - 1 - x0);
 #pragma unroll
-      for (int s = 1; s < kN; s *= 2) {
-#pragma unroll
-        for (int i = 0; i < kN; i += 2 * s)
-          v[i] = v[i] + v[i + s];
+        for (int c = 0; c < kN; ++c)
+          v[k][c] = __ldg(p.in + rowOff[c] + colOff[gx][c] + col);
       }
-      const float sum = v[0];
-      const int nIn = framesInBoth(sx[gx], sy);
-      if (nIn <= 0 || nIn < p.minFrames) continue;
-      const float snr = sum * p.invNorm[nIn];
-      if (snr > p.snrThreshold) {
-        const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
-        if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
+#pragma unroll
+      for (int k = 0; k < kCols; ++k) {
+#pragma unroll
+        for (int s = 1; s < kN; s *= 2) {
+#pragma unroll
+          for (int i = 0; i < kN; i += 2 * s)
+            v[k][i] = v[k][i] + v[k][i + s];
+        }
+        const float sum = v[k][0];
+        const int nIn = framesInBoth(sx[gx][k], sy);
+        if (nIn <= 0 || nIn < p.minFrames) continue;
+        const int x = x0 + lane + 32 * k;
+        const float snr = sum * p.invNorm[nIn];
+        if (snr > p.snrThreshold) {
+          const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
+          if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
+        }
+        const unsigned long long key = packKey(snr, y * p.width + x);
+        best[gx] = key > best[gx] ? key : best[gx];
       }
-      const unsigned long long key = packKey(snr, y * p.width + x);
-      best[gx] = key > best[gx] ? key : best[gx];
     }
 #pragma unroll
     for (int c = 0; c < kN; ++c)
@@ -138,23 +155,23 @@ __global__ void __launch_bounds__(32 * kGy) treeRootKernel(TreeRootLaunch p) {
   }
 }
 
-template <int kGx, int kGy>
+template <int kGx, int kGy, int kMinBlocks = 1, int kCols = 1>
 void launchRootShape(const TreeRootLaunch& p, cudaStream_t stream) {
-  const int colTiles = (p.width + 31) / 32;
+  const int colTiles = (p.width + 32 * kCols - 1) / (32 * kCols);
   const dim3 grid(colTiles * ((p.nvx + kGx - 1) / kGx), (p.nvy + kGy - 1) / kGy,
                   (p.tileRows + kTreeRootRows - 1) / kTreeRootRows);
   switch (p.cut) {
     case 1:
-      treeRootKernel<1, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      treeRootKernel<1, kGx, kGy, kMinBlocks, kCols><<<grid, 32 * kGy, 0, stream>>>(p);
       break;
     case 2:
-      treeRootKernel<2, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      treeRootKernel<2, kGx, kGy, kMinBlocks, kCols><<<grid, 32 * kGy, 0, stream>>>(p);
       break;
     case 3:
-      treeRootKernel<3, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      treeRootKernel<3, kGx, kGy, kMinBlocks, kCols><<<grid, 32 * kGy, 0, stream>>>(p);
       break;
     case 4:
-      treeRootKernel<4, kGx, kGy><<<grid, 32 * kGy, 0, stream>>>(p);
+      treeRootKernel<4, kGx, kGy, kMinBlocks, kCols><<<grid, 32 * kGy, 0, stream>>>(p);
       break;
     default:
       throw GpuError("tree root kernel: cut " + std::to_string(p.cut) + " not compiled");
@@ -180,8 +197,38 @@ void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream) {
     case 3:
       launchRootShape<4, 8>(p, stream);
       break;
-    default:
+    case 4:
+      launchRootShape<4, 4, 8>(p, stream);
+      break;
+    case 5:
       launchRootShape<4, 4>(p, stream);
+      break;
+    case 6:
+      launchRootShape<4, 4, 6>(p, stream);
+      break;
+    case 7:
+      launchRootShape<4, 4, 5, 2>(p, stream);
+      break;
+    case 8:
+      launchRootShape<4, 4, 3, 4>(p, stream);
+      break;
+    case 9:
+      launchRootShape<8, 4, 4, 2>(p, stream);
+      break;
+    case 10:
+      launchRootShape<2, 4, 6, 2>(p, stream);
+      break;
+    case 11:
+      launchRootShape<4, 8, 2, 2>(p, stream);
+      break;
+    case 12:
+      launchRootShape<4, 2, 8, 2>(p, stream);
+      break;
+    case 13:
+      launchRootShape<2, 4, 8, 2>(p, stream);
+      break;
+    default:
+      launchRootShape<4, 4, 4, 2>(p, stream);
   }
   checkLaunch("treeRootKernel");
 }

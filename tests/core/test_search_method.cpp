@@ -147,7 +147,17 @@ TEST(SearchMethod, CostModelFollowsTheBackendAndTheMeasuredRate) {
   const MethodEstimate a = estimateMethods(256, 256, p.dt, p.grid, slow, 2);
   const MethodEstimate b = estimateMethods(256, 256, p.dt, p.grid, fast, 2);
   EXPECT_NEAR(a.exactSeconds - slow.exactFixedS, 2.0 * (b.exactSeconds - fast.exactFixedS), 1e-9);
+  // The exact kernel is slower on narrow images (bench: 1.44e10 additions per CPU-second at 512 px, 1.2e10 at
+  // 256, 0.9e10 at 128): the same additions cost more at 256 px than at 512 px.
+  const MethodEstimate wide = estimateMethods(512, 128, p.dt, p.grid, slow, 2);
+  EXPECT_DOUBLE_EQ(wide.exactAdditions, a.exactAdditions);
+  EXPECT_NEAR((a.exactSeconds - slow.exactFixedS) / (wide.exactSeconds - slow.exactFixedS), 1.2, 1e-9);
   EXPECT_NEAR(a.treeSeconds - slow.treeFixedS, 2.0 * (b.treeSeconds - fast.treeFixedS), 1e-9);
+  // Re-pricing with the other rate gives the other estimate without rebuilding the plan.
+  MethodEstimate repriced = a;
+  priceMethods(repriced, fast);
+  EXPECT_DOUBLE_EQ(repriced.exactSeconds, b.exactSeconds);
+  EXPECT_DOUBLE_EQ(repriced.treeSeconds, b.treeSeconds);
   // On the GPU model the paper problem would go to the tree once a GPU backend supports it.
   const Problem paper = evenProblem(1500, 16.7, 100);
   const MethodEstimate g = estimateMethods(512, 512, paper.dt, paper.grid, cudaCostModel(), 1);

@@ -121,6 +121,7 @@ search::SearchResult awkwardResult() {
   r.method = "tree";
   r.elapsedS = 0.1234567;
   r.cellsAboveThreshold = 123456789012;
+  r.sidelobesMerged = 3;
   r.minFrames = 5;
   return r;
 }
@@ -144,6 +145,7 @@ TEST(SearchReport, ResultRoundTripsExactlyThroughJsonText) {
   EXPECT_EQ(back.methodReason, r.methodReason);
   EXPECT_EQ(back.elapsedS, r.elapsedS);
   EXPECT_EQ(back.cellsAboveThreshold, r.cellsAboveThreshold);
+  EXPECT_EQ(back.sidelobesMerged, r.sidelobesMerged);
   EXPECT_EQ(back.minFrames, 5);
   ASSERT_EQ(back.candidates.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i)

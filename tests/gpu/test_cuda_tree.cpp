@@ -144,7 +144,7 @@ TEST(CudaTree, SmallTilesAndEveryCutGiveTheCpuTreesResult) {
 
 TEST(CudaTree, EveryRootKernelShapeGivesTheCpuTreesResult) {
   const Problem p = standardProblem();
-  for (const int shape : {1, 2, 3}) {
+  for (const int shape : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13}) {
     gpu::CudaOptions o;
     o.treeRootShape = shape;
     o.treeTileRows = 19;
@@ -204,6 +204,10 @@ TEST(CudaTree, CancelledAndBadMethod) {
   CancelToken fresh;
   p.params.method = "fast";
   EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, fresh), InputError);
+  // The method choice (method_choice.hpp) and the backend factory route tree requests by this answer.
+  EXPECT_TRUE(gpu->supportsMethod("tree"));
+  EXPECT_TRUE(gpu->supportsMethod("exact"));
+  EXPECT_FALSE(gpu->supportsMethod("fast"));
 }
 
 }  // namespace

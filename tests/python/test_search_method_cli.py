@@ -43,6 +43,15 @@ def small_preset(cli, tmp):
     check(len(rows) == len(j["candidates"]) and len(rows) >= 1, "CSV rows %d" % len(rows))
     check(all(row["method"] == "exact" and row["method_reason"] == j["method_reason"] for row in rows),
           "CSV method columns equal the JSON's: %s" % (rows[:1],))
+    # The session made from the result keeps the method and why.
+    cpath, spath = os.path.join(tmp, "small.json"), os.path.join(tmp, "session.json")
+    with open(cpath, "w") as f:
+        f.write(r.stdout)
+    r = subprocess.run([cli, "report", cpath, "--session", spath], capture_output=True, text=True)
+    check(r.returncode == 0, "report --session: " + r.stderr)
+    session = json.load(open(spath)) if r.returncode == 0 else {"search": {}}
+    check(session["search"].get("method") == "exact" and
+          session["search"].get("method_reason") == j["method_reason"], "session: %s" % session["search"].keys())
     r = search(cli, [obs, "--backend", "cpu", "--method", "tree", "--json"])
     t = json.loads(r.stdout) if r.returncode == 0 else {}
     check(t.get("method") == "tree" and t.get("method_reason") == "requested", "--method tree kept: %s" % r.stderr)

@@ -73,6 +73,7 @@ TEST(CandidateInspector, StampsSegmentsMovieAndFlagsOfAMovingDot) {
   setUp(obs, test::movingDotCube(64, 64, kFrames, kV, 32, 32));
   CoreServices services;
   CandidateInspector inspector(&obs, &services);
+  inspector.setStoreFlags(false);  // a setting: the previous run may have left it on
   ASSERT_TRUE(inspect(obs, inspector)) << inspector.statusText().toStdString();
   const auto& in = *inspector.inspection();
   const int half = in.trackStamp.width / 2;
@@ -118,14 +119,24 @@ TEST(CandidateInspector, StampsSegmentsMovieAndFlagsOfAMovingDot) {
   inspector.setPlaying(false);
   EXPECT_FALSE(inspector.playing());
 
-  // Every check ran, nothing fired on a clean dot in the middle, and the flags are on the candidate.
+  // Every check ran and nothing fired on a clean dot in the middle. Inspecting changed nothing on the
+  // candidate until "Store on candidate" is checked; then the flags are on it.
   ASSERT_EQ(in.flags.size(), 7u);
   for (const auto& f : in.flags)
     EXPECT_FALSE(f.triggered) << vet::toString(f.kind) << ": " << f.evidence;
   ASSERT_EQ(inspector.flagList()->topLevelItemCount(), 7);
   const auto* state = obs.candidateState(0);
   ASSERT_TRUE(state);
+  EXPECT_TRUE(state->artifacts.empty());
+  int changes = 0;
+  QObject::connect(&obs, &Observation::candidateStateChanged, [&changes] { ++changes; });
+  inspector.setStoreFlags(true);
+  EXPECT_EQ(changes, 1);
   ASSERT_EQ(state->artifacts.size(), 7u);
+  inspector.refresh();  // the same flags again: stored, but no change signalled
+  ASSERT_TRUE(test::waitFor([&] { return !inspector.busy(); }, 5000));
+  QApplication::processEvents();
+  EXPECT_EQ(changes, 1);
   EXPECT_EQ(state->artifacts[3]["kind"], "edge");
 }
 
@@ -138,6 +149,7 @@ TEST(CandidateInspector, MarksTheSegmentsATransientMisses) {
   setUp(obs, std::move(cube));
   CoreServices services;
   CandidateInspector inspector(&obs, &services);
+  inspector.setStoreFlags(true);
   ASSERT_TRUE(inspect(obs, inspector));
   const auto& seg = inspector.inspection()->segments;
   ASSERT_EQ(seg.segments.size(), 4u);

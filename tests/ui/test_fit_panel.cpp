@@ -8,12 +8,19 @@
 
 #include <QElapsedTimer>
 #include <QPushButton>
+#include <QTableView>
+#include <QAction>
 #include <QTableWidget>
+#include <QTest>
 #include <qcustomplot.h>
 #include <random>
 #include <thread>
 
 #include "fit_panel.hpp"
+#include "candidate_table.hpp"
+#include "fit_residual.hpp"
+#include "job_runner.hpp"
+#include "main_window.hpp"
 #include "st/fit/pixel_psf.hpp"
 #include "stamp_strip.hpp"
 #include "ui_test_support.hpp"
@@ -78,10 +85,11 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
     opt.psf = kPsf;
     opt.sigmaN = 1.0;
     FitOutcome out;
+    const int half = fit::defaultStampHalfSize(kPsf);
     out.result = fit::fitComoving(
         *cube, fit::startFromCandidate(c), opt,
         [&](const fit::FitIteration& it) {
-          onStep({it, nullptr});
+          onStep({it, std::make_shared<const Image>(residualAlongTrack(*cube, it.params, kPsf, half))});
         },
         cancel);
     out.json = {{"status", fit::toString(out.result.status)}, {"snr", out.result.snr}};
@@ -110,6 +118,13 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
   ASSERT_GE(panel.costPoints(), 2);
   EXPECT_LT(graph->data()->at(graph->dataCount() - 1)->value, graph->data()->at(0)->value);
   EXPECT_EQ(panel.costPlot()->yAxis->scaleType(), QCPAxis::stLogarithmic);
+  // The live residual at the final parameters is the core's residual stack (same grid and rounding; the
+  // PSF tables differ by < 3e-6 of the peak per sample).
+  const Image live = residualAlongTrack(*cube, r.params, kPsf, fit::defaultStampHalfSize(kPsf));
+  ASSERT_EQ(live.width, r.residualStack.width);
+  ASSERT_EQ(live.height, r.residualStack.height);
+  for (std::size_t k = 0; k < live.size(); ++k)
+    ASSERT_NEAR(live.pixels[k], r.residualStack.pixels[k], 1e-3) << k;
   ASSERT_EQ(panel.residualView()->tileCount(), 3);  // data | model | residual
   EXPECT_EQ(panel.residualView()->tile(2).image->width, r.residualStack.width);
 
@@ -169,6 +184,52 @@ TEST(FitPanel, ShowsLivePointsAndCancelsWithinASecond) {
   EXPECT_TRUE(cancelled);
   EXPECT_FALSE(panel.acceptButton()->isEnabled());
   EXPECT_EQ(panel.outcome(), nullptr);
+}
+
+TEST(FitPanel, LaunchedFromTheMainWindowWithF) {
+  CoreServices services = test::fakeServices(test::movingDotCube(64, 64, 20, {4.0, 0.0}, 30, 30));
+  int fits = 0;
+  services.fitCandidate = [&fits](const PreparedView&, const search::Candidate& c, CancelToken&,
+                                  const FitStepCallback& onStep) {
+    ++fits;  // on the worker; read after the fit finished
+    FitOutcome out;
+    for (int it = 0; it < 3; ++it) {
+      fit::FitIteration step;
+      step.iteration = it;
+      step.cost = 10.0 - it;
+      onStep({step, nullptr});
+    }
+    out.result.costHistory = {10.0, 9.0, 8.0};
+    out.json = {{"x", c.x}};
+    return out;
+  };
+  MainWindow w(services);
+  w.resize(1200, 800);
+  w.show();
+  w.openDemo();
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() != nullptr && !w.jobs()->busy(); }));
+  auto result = std::make_shared<search::SearchResult>();
+  search::Candidate c;
+  c.x = 30;
+  c.y = 30;
+  c.v = {4.0, 0.0};
+  result->candidates.push_back(c);
+  w.observation()->setResult(result);
+  w.selectCandidate(0);
+
+  // The fit action (shortcut F) is on the candidates table, whose (vetting) context menu lists it.
+  auto* action = w.findChild<QAction*>("action.fitCandidate");
+  ASSERT_TRUE(action);
+  EXPECT_EQ(action->shortcut(), QKeySequence("F"));
+  EXPECT_TRUE(w.candidates()->table()->actions().contains(action));
+  bool finished = false;
+  QObject::connect(w.fitPanel(), &FitPanel::fitFinished, [&] { finished = true; });
+  w.activateWindow();
+  QTest::keyClick(&w, Qt::Key_F);
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 5000));
+  EXPECT_EQ(fits, 1);
+  EXPECT_EQ(w.fitPanel()->fittedIndex(), 0);
+  EXPECT_EQ(w.fitPanel()->costPoints(), 3);
 }
 
 ST_UI_TEST_MAIN()

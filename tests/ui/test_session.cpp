@@ -19,6 +19,7 @@
 
 #include <unistd.h>
 
+#include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -78,8 +79,10 @@ CoreServices services(const std::shared_ptr<Calls>& calls) {
   return s;
 }
 
+// No job running, and the candidate inspector (which stores the artifact flags it computes on the
+// selected candidate, an autosaved change) done.
 bool idle(MainWindow& w) {
-  return !w.jobs()->busy();
+  return !w.jobs()->busy() && !w.candidateInspector()->busy();
 }
 
 QString sessionStatus(MainWindow& w) {
@@ -112,7 +115,8 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   const std::string input = (dir / "obs.fits").string();
   std::ofstream(input) << "fake";
   auto calls = std::make_shared<Calls>();
-  MainWindow w1(services(calls));
+  auto window1 = std::make_unique<MainWindow>(services(calls));
+  MainWindow& w1 = *window1;
   w1.resize(1200, 800);
   w1.show();
   w1.openInputs({QString::fromStdString(input)});
@@ -149,8 +153,18 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
   o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
   o1->setSelected(1);
+  // The candidate inspector computes the selected candidate's artifact flags in a worker and stores them (its
+  // finished signal is queued after the worker stops): wait for them, so that this window's state is final
+  // and in the file, then close it (it must not write any more).
+  ASSERT_TRUE(test::waitFor([&] {
+    return idle(w1) && !w1.candidateInspector()->busy() && !o1->candidateState(1)->artifacts.empty();
+  }));
   ASSERT_TRUE(w1.session()->autosaver()->flush());
   ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w1).contains(path); }));
+  const auto states1 = o1->candidateStates();
+  const auto result1 = o1->result();
+  const search::VelocityGrid grid1 = o1->grid();
+  window1.reset();
 
   const int searches = calls->searches;
   calls->lastStages.clear();
@@ -158,10 +172,11 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   w2.openSession(path);
   ASSERT_TRUE(test::waitFor([&] { return w2.observation()->result() && idle(w2); }));
   Observation* o2 = w2.observation();
+  test::waitFor([&] { return !w2.candidateInspector()->busy(); }, 5000);
   EXPECT_EQ(calls->searches, searches) << "reopening searched again";
   EXPECT_EQ(calls->lastStages[0].params[0].value, 3.25);  // pre-processed with the saved parameters
-  EXPECT_EQ(o2->candidateStates(), o1->candidateStates());
-  const auto& r1 = *o1->result();
+  EXPECT_EQ(o2->candidateStates(), states1);
+  const auto& r1 = *result1;
   const auto& r2 = *o2->result();
   ASSERT_EQ(r2.candidates.size(), r1.candidates.size());
   for (std::size_t i = 0; i < r1.candidates.size(); ++i) {
@@ -170,14 +185,15 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
     EXPECT_EQ(r2.candidates[i].snr, r1.candidates[i].snr);
   }
   EXPECT_EQ(r2.map.maxSnr, r1.map.maxSnr);
-  EXPECT_EQ(o2->grid().stepPxS, o1->grid().stepPxS);
-  EXPECT_EQ(o2->grid().centre, o1->grid().centre);
+  EXPECT_EQ(o2->grid().stepPxS, grid1.stepPxS);
+  EXPECT_EQ(o2->grid().centre, grid1.centre);
   EXPECT_EQ(o2->selected(), std::optional<int>(1));
   EXPECT_EQ(o2->candidateState(0)->label, session::Label::Real);
   EXPECT_EQ(o2->candidateState(1)->reason, session::ArtifactReason::Diffraction);
   EXPECT_EQ(w2.session()->path(), path);
 
   // Later changes keep going to the same file, counting on.
+  ASSERT_TRUE(w2.session()->autosaver()->flush());
   const std::int64_t before = session::SessionStore(path.toStdString()).load().changes;
   o2->setCandidateLabel(3, session::Label::Unsure);
   ASSERT_TRUE(w2.session()->autosaver()->flush());
@@ -221,6 +237,144 @@ TEST(Session, CorruptedAndNewerFilesGetAMessageNamingTheBackup) {
     EXPECT_EQ(w.observation()->raw(), nullptr);
     EXPECT_TRUE(w.session()->path().isEmpty());  // nothing will be written over it
   }
+}
+
+TEST(Session, SaveAsMovesTheAutosaveAndAFailedSaveNamesThePath) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.show();
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  // Opening the same inputs again starts a new file beside the first, which is kept.
+  const QString earlier = w.session()->path();
+  const std::int64_t earlierChanges = session::SessionStore(earlier.toStdString()).load().changes;
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.session()->path() != earlier && idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(session::SessionStore(earlier.toStdString()).load().changes, earlierChanges);
+  EXPECT_TRUE(test::waitFor([&] { return w.statusBar()->currentMessage().contains(earlier); }, 2000))
+      << w.statusBar()->currentMessage().toStdString();
+  const QString first = w.session()->path();
+  const QString second = QString::fromStdString((dir / "elsewhere.json").string());
+  w.session()->saveAs(second);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_TRUE(QFile::exists(first));  // the first file stays as it was
+  EXPECT_EQ(session::SessionStore(second.toStdString()).load().inputs, std::vector<std::string>{input});
+  ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w) == "Session: " + second; }));
+
+  // A place that cannot be written: the status bar turns to an error naming the path, a (non-modal)
+  // message says so, and the GUI goes on.
+  const QString bad = QString::fromStdString((dir / "no" / "such" / "dir" / "s.json").string());
+  w.session()->saveAs(bad);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  ASSERT_TRUE(test::waitFor([&] { return sessionStatus(w).contains("NOT saved"); }));
+  EXPECT_TRUE(sessionStatus(w).contains(bad)) << sessionStatus(w).toStdString();
+  QMessageBox* box = nullptr;
+  for (auto* b : w.findChildren<QMessageBox*>())
+    if (b->isVisible()) box = b;
+  ASSERT_NE(box, nullptr);
+  EXPECT_TRUE(box->text().contains(bad)) << box->text().toStdString();
+  box->close();
+}
+
+TEST(Session, RelativeInputsAreFoundBesideTheSessionFile) {
+  test::TempDir dir;
+  std::ofstream((dir / "rel.fits").string()) << "fake";
+  session::Session s;
+  s.inputs = {"rel.fits"};  // as `synthtrack-cli` writes what it was given
+  session::SessionStore store((dir / "cli.json").string());
+  store.save(s);
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.openSession(QString::fromStdString(store.path()));
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  EXPECT_EQ(w.session()->inputs(), std::vector<std::string>{(dir / "rel.fits").string()});
+  EXPECT_EQ(w.observation()->result(), nullptr);  // a session without a search restores none
+}
+
+TEST(Session, FramesFromOutsideASessionAreNeverSavedOverIt) {
+  test::TempDir dir;
+  const QString path = QString::fromStdString((dir / "s.json").string());
+  Observation obs;
+  SessionController controller(&obs, {});
+  controller.prepareNew({"a.fits"}, false, path);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1)), "a");
+  ASSERT_TRUE(controller.autosaver()->flush());
+  const session::Session before = session::SessionStore(path.toStdString()).load();
+  // A panel that saves while reacting to the new frames, before the controller heard of them.
+  QObject::connect(&obs, &Observation::rawChanged, &controller, &SessionController::requestSave);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 2, 2)), "b");
+  obs.setUnit(VelocityUnit::DegPerDay);
+  ASSERT_TRUE(controller.autosaver()->flush());
+  EXPECT_TRUE(controller.path().isEmpty());
+  EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);
+}
+
+TEST(Session, ANewSearchNeverOverwritesVettedCandidates) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  MainWindow w(services(calls));
+  w.openInputs({QString::fromStdString(input)});
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->prepared() && idle(w); }));
+  w.searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return w.observation()->result() && idle(w); }));
+  // A search without vetting is simply replaced by the next one, in the same file.
+  const QString first = w.session()->path();
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return idle(w); }));
+  EXPECT_EQ(w.session()->path(), first);
+  w.observation()->setCandidateLabel(0, session::Label::Real);
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return idle(w); }));
+  ASSERT_TRUE(w.session()->autosaver()->flush());
+  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(session::SessionStore(first.toStdString()).load().candidates[0].label, session::Label::Real);
+  EXPECT_EQ(session::SessionStore(w.session()->path().toStdString()).load().candidates[0].label,
+            session::Label::Unvetted);
+  EXPECT_TRUE(test::waitFor([&] { return w.statusBar()->currentMessage().contains(first); }, 2000))
+      << w.statusBar()->currentMessage().toStdString();
+}
+
+TEST(Session, ASecondWindowOnTheSameFileDoesNotWriteIt) {
+  test::TempDir dir;
+  const QString path = QString::fromStdString((dir / "s.json").string());
+  const auto cube = std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1));
+  Observation o1;
+  auto c1 = std::make_unique<SessionController>(&o1, std::function<SessionParameters()>{});
+  c1->prepareNew({"a.fits"}, false, path);
+  o1.setRaw(cube, "a");
+  ASSERT_TRUE(c1->autosaver()->flush());
+  const session::Session before = session::SessionStore(path.toStdString()).load();
+
+  Observation o2;
+  SessionController c2(&o2, {});
+  QString error;
+  QObject::connect(&c2, &SessionController::saveFailed, [&](const QString& m) { error = m; });
+  c2.setSuspended(true);
+  c2.adopt(path, {"a.fits"}, false, before.changes, {});
+  o2.setRaw(cube, "a");
+  c2.setSuspended(false);
+  EXPECT_TRUE(c2.path().isEmpty());
+  EXPECT_TRUE(error.contains(path) && error.contains("another")) << error.toStdString();
+  o2.setUnit(VelocityUnit::DegPerDay);
+  ASSERT_TRUE(c2.autosaver()->flush());
+  EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);
+
+  // Once the first window lets go (closed), another can take the file.
+  c1.reset();
+  EXPECT_FALSE(QFile::exists(SessionLock::lockPath(path)));
+  SessionController c3(&o2, {});
+  c3.adopt(path, {"a.fits"}, false, before.changes, {});
+  EXPECT_EQ(c3.path(), path);
 }
 
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {

@@ -75,7 +75,8 @@ TEST(SessionAutosaver, SavesInOrderCoalescesAndCountsOn) {
   const QString path = QString::fromStdString((dir / "s.json").string());
   SessionAutosaver saver;
   std::vector<qint64> saved;
-  QObject::connect(&saver, &SessionAutosaver::saved,
+  // Context object on this thread: the signal comes from the worker and is queued here.
+  QObject::connect(&saver, &SessionAutosaver::saved, &saver,
                    [&](const QString&, qint64 changes, double) { saved.push_back(changes); });
   saver.setChangeCount(path, 41);  // an opened session that had 41 saves
   for (int i = 0; i < 200; ++i)
@@ -116,7 +117,7 @@ TEST(SessionAutosaver, FailureNamesThePath) {
   test::TempDir dir;
   SessionAutosaver saver;
   QString failedPath, message;
-  QObject::connect(&saver, &SessionAutosaver::failed, [&](const QString& p, const QString& m) {
+  QObject::connect(&saver, &SessionAutosaver::failed, &saver, [&](const QString& p, const QString& m) {
     failedPath = p;
     message = m;
   });

@@ -158,6 +158,9 @@ TEST(Vetting, NoteEditorColumnsAndColours) {
   EXPECT_GT(cell.red(), cell.green());
   EXPECT_GT(cell.alpha(), row.alpha());
   EXPECT_FALSE(m->index(0, CandidateModel::Snr).data(Qt::BackgroundRole).isValid());
+  // The label cell's swatch (visible on a selected row, whose background is the selection colour).
+  EXPECT_EQ(m->index(2, CandidateModel::Label).data(Qt::DecorationRole).value<QColor>(), cell);
+  EXPECT_FALSE(m->index(0, CandidateModel::Label).data(Qt::DecorationRole).isValid());
   EXPECT_TRUE(vettingShortcutHelp().contains("charge leakage"));
   EXPECT_TRUE(m->index(0, CandidateModel::Snr).data(Qt::ToolTipRole).toString().contains("Backspace"));
 }

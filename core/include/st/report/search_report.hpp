@@ -36,9 +36,9 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
 [[nodiscard]] search::VelocityMap velocityMapFromJson(const nlohmann::json& json);
 
 /// The inverse of searchResultToJson() (plus a "velocity_map" member when present, see velocityMapToJson):
-/// grid, trials, snr_threshold, t_ref_mjd, backend, method, method_reason, elapsed_s, cells_above_threshold, min_frames and
-/// the candidates (an absent "candidates" gives none; an absent velocity map an empty one). Round trip exact.
-/// Throws st::InputError naming the key at fault.
+/// grid, trials, snr_threshold, t_ref_mjd, backend, method, method_reason, elapsed_s, cells_above_threshold,
+/// min_frames and the candidates (an absent "candidates" gives none; an absent velocity map an empty one).
+/// Round trip exact. Throws st::InputError naming the key at fault.
 [[nodiscard]] search::SearchResult searchResultFromJson(const nlohmann::json& json);
 
 /// Writes the candidates of a searchResultToJson() object as CSV (one header line; empty fields where a

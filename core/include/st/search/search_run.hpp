@@ -39,7 +39,8 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 
 /// Sorts `hits` by decreasing SNR (ties: increasing y, x, ivy, ivx, so every backend keeps the same cells
 /// and picks the same representative cell), keeps at most params.maxCandidates and clusters them into
-/// result.candidates (clusterCells with the cube's PSF FWHM and result.trials).
+/// result.candidates (clusterCells with the cube's PSF FWHM and result.trials), then merges the sidelobes of
+/// bright candidates into them (sidelobes.hpp; result.sidelobesMerged counts them).
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params);
 

@@ -97,6 +97,8 @@ struct SearchResult {
   double elapsedS = 0.0;
   std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
   int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
+  std::int64_t sidelobesMerged =
+      0;  ///< candidates merged into a brighter one as its sidelobes (sidelobes.hpp)
 };
 
 enum class StackMode { Ipsa, Csa };

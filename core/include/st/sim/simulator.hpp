@@ -172,6 +172,13 @@ SimParams preset(std::string_view name);
 /// The valid preset names.
 std::vector<std::string> presetNames();
 
+/// The demo's search grid, shared by the GUI's --demo and `synthtrack-cli demo`: +-8 deg/day around the sky
+/// rate in steps of 1.5 px over the time span. A demo setting, coarser than the paper's +-12 deg/day at 1 px
+/// (the demo object moves at 5.97 deg/day, and 1.5 px is half the ~3 px PSF, paper §4), so the demo's
+/// search takes seconds on a laptop's CPU.
+inline constexpr double kDemoHalfRangeDegPerDay = 8.0;
+inline constexpr double kDemoGridStepPx = 1.5;
+
 /// Changes the number of frames and/or the frame size of a preset, keeping moving objects at the same
 /// place relative to the frame centre and the star density. Non-positive values leave that unchanged.
 void resize(SimParams& params, int width, int height, int frames);

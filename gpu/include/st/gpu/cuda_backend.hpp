@@ -27,7 +27,9 @@ struct CudaOptions {
   /// resident on the device.
   bool naiveKernel = false;
   /// Tests and benchmarks: -1 = automatic (the stair kernel when it applies, else the kernel estimated
-  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -4 = the
+  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -6 = the
+  /// stair kernel with a software-pipelined frame loop (measured slower; benchmarks); -7 = the stair
+  /// kernel with at most 8 frames per stage (the earlier sizing; benchmarks); -4 = the
   /// stair kernel with 4-row tiles when it applies; -3 = automatic without the stair kernel; -2 = the row
   /// kernel whenever it applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform
   /// branches), 1 (no reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
@@ -40,8 +42,8 @@ struct CudaOptions {
   int treeTileRows = 0;
   /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
   bool profileTree = false;
-  /// Tree search, benchmarks: root velocities per block of the root kernel, 0 = 4 x 4 (default), 1 = 8 x 8,
-  /// 2 = 2 x 4, 3 = 4 x 8 (vx x vy).
+  /// Tree search, benchmarks: root kernel shape (TreeRootLaunch::shape in gpu/src/tree_kernel_params.hpp),
+  /// 0 = the default.
   int treeRootShape = 0;
 };
 
@@ -52,6 +54,10 @@ inline constexpr int kTreeDefaultCut = 4;
 /// The CUDA backend, with what its last search did about memory (tiling, devices) for the log.
 class CudaSearchBackend : public search::SearchBackend {
  public:
+  /// "exact" and "tree" (tree_search_device.hpp: the CPU tree's plan, bit-identical stacks).
+  [[nodiscard]] bool supportsMethod(const std::string& method) const override {
+    return method == "exact" || method == "tree";
+  }
   /// One line per device used by the last search: how the cube and the grid were tiled.
   [[nodiscard]] virtual std::string lastNote() const = 0;
   /// Device seconds spent in search kernels by the last search (summed over devices).
