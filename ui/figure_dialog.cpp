@@ -19,6 +19,7 @@
 #include <qcustomplot.h>
 
 #include "figure_preset.hpp"
+#include "st/common/error.hpp"
 #include "image_view.hpp"
 
 namespace st::ui {
@@ -208,6 +209,7 @@ void FigureDialog::onSourceChanged() {
   m_stampHalf->setEnabled(s.preset);
   const auto& raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
   const QString bunit = raw ? QString::fromStdString(raw->header.getString("BUNIT").value_or("ADU")) : "ADU";
+  m_title->setPlaceholderText(s.preset ? "default: Synthetic tracking of candidate #N (SNR …)" : QString());
   if (s.preset) {
     m_title->clear();
     m_units->setText("IPSA sum of " + bunit);
@@ -294,12 +296,21 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
   const FigureFormat format = figureFormatForPath(path);
   FigureSize size = figureSize();
   if (source.plot) {
-    if (size.heightIn <= 0)
-      size.heightIn = size.widthIn * source.plot->height() / std::max(source.plot->width(), 1);
-    const QSizeF pt(size.widthIn * kPt, size.heightIn * kPt);
-    auto paint = paintPicture(capturePlot(*source.plot, pt, m_title->text()), pt);
-    return [path, format, size, paint, title = m_title->text()] {
-      exportFigure(path, format, size, paint, title);
+    // A plot is a widget: it paints itself here, on the GUI thread (milliseconds), at the screen's DPI its
+    // layout was measured at; the worker only reports the outcome.
+    QCustomPlot& plot = *source.plot;
+    if (size.heightIn <= 0) size.heightIn = size.widthIn * plot.height() / std::max(plot.width(), 1);
+    const QString title = m_title->text();
+    std::string failure;
+    try {
+      exportFigure(
+          path, format, size, [&](QCPPainter& p, const QSizeF& s) { paintPlot(p, s, plot, title); }, title,
+          plot.logicalDpiX());
+    } catch (const std::exception& e) {
+      failure = e.what();
+    }
+    return [failure] {
+      if (!failure.empty()) throw InputError(failure);
     };
   }
   std::function<ImageFigure()> build;
@@ -314,21 +325,25 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
     const ImageFigure fig = build();
     if (size.heightIn <= 0) size.heightIn = naturalFigureSize(fig, size.widthIn * kPt).height() / kPt;
     exportFigure(
-        path, format, size, [&fig](QPainter& p, const QSizeF& pt) { paintImageFigure(p, pt, fig); },
+        path, format, size, [&fig](QCPPainter& p, const QSizeF& pt) { paintImageFigure(p, pt, fig); },
         fig.title);
   };
 }
 
 bool FigureDialog::exportTo(const QString& path) {
-  if (busy()) return false;
   const int i = m_source->currentIndex();
-  if (i < 0 || i >= static_cast<int>(m_sources.size())) return false;
   QString error;
   std::function<void()> job;
-  try {
-    job = makeJob(m_sources[static_cast<std::size_t>(i)], path, error);
-  } catch (const std::exception& e) {
-    error = QString::fromStdString(e.what());
+  if (busy()) {
+    error = "An export is running.";
+  } else if (i < 0 || i >= static_cast<int>(m_sources.size())) {
+    error = "Nothing to export.";
+  } else {
+    try {
+      job = makeJob(m_sources[static_cast<std::size_t>(i)], path, error);
+    } catch (const std::exception& e) {
+      error = QString::fromStdString(e.what());
+    }
   }
   if (!job) {
     m_status->setText("⚠ " + error);
@@ -340,6 +355,7 @@ bool FigureDialog::exportTo(const QString& path) {
   settings.setValue("figure/widthIn", m_width->value());
   settings.setValue("figure/dpi", m_dpi->value());
   m_runningPath = path;
+  m_path->setText(path);
   m_export->setEnabled(false);
   m_status->setText("Exporting " + path + "…");
   m_watcher.setFuture(QtConcurrent::run([job]() -> QString {

@@ -57,7 +57,7 @@ class FigureDialog : public QDialog {
   void setFigureSize(const FigureSize& size);
   void setTitle(const QString& title);
   /// Starts writing `path` (format from its suffix) in a worker. False when an export is running or nothing
-  /// can be exported (the reason is in lastMessage()).
+  /// can be exported (the reason is in lastMessage(), and exportFinished is emitted with it).
   bool exportTo(const QString& path);
   [[nodiscard]] bool busy() const { return m_watcher.isRunning(); }
   [[nodiscard]] QString lastMessage() const;

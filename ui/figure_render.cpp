@@ -1,5 +1,6 @@
 #include "figure_render.hpp"
 
+#include <QFontMetricsF>
 #include <QPainter>
 #include <QPainterPath>
 #include <algorithm>
@@ -41,7 +42,19 @@ double topMargin(const ImagePanel& p) {
 }
 
 QString tickText(double v) {
+  // Whole numbers as such (10000, not 1e+04) up to a million; the rest with 4 significant digits.
+  if (std::abs(v) < 1e6 && std::abs(v - std::round(v)) < 1e-9 * std::max(1.0, std::abs(v)))
+    return QString::number(static_cast<long long>(std::llround(v)));
   return QString::number(v, 'g', 4);
+}
+
+// Height of the caption block for a figure `width` wide: the wrapped text plus a margin.
+double captionHeight(const ImageFigure& figure, double width) {
+  if (figure.caption.isEmpty()) return 0.0;
+  const QFontMetricsF fm(figureFont(8));
+  const QRectF r =
+      fm.boundingRect(QRectF(0, 0, width - 12, 1000), Qt::AlignLeft | Qt::TextWordWrap, figure.caption);
+  return std::max(kCaptionH, r.height() + 8);
 }
 
 void drawArrow(QPainter& painter, QPointF from, QPointF to, double head) {
@@ -214,8 +227,7 @@ QSizeF naturalFigureSize(const ImageFigure& figure, double widthPt) {
     const double w = panelW - leftMargin(p) - rightMargin(p);
     panelH = std::max(panelH, w * p.image->height / p.image->width + topMargin(p) + bottomMargin(p));
   }
-  const double h =
-      panelH + (figure.title.isEmpty() ? 0 : kFigTitleH) + (figure.caption.isEmpty() ? 0 : kCaptionH);
+  const double h = panelH + (figure.title.isEmpty() ? 0 : kFigTitleH) + captionHeight(figure, widthPt);
   return {widthPt, std::ceil(std::max(h, 40.0))};
 }
 
@@ -234,10 +246,11 @@ void paintImageFigure(QPainter& painter, const QSizeF& size, const ImageFigure& 
     top = kFigTitleH;
   }
   if (!figure.caption.isEmpty()) {
-    bottom -= kCaptionH;
+    const double capH = captionHeight(figure, size.width());
+    bottom -= capH;
     painter.setPen(Qt::black);
     painter.setFont(figureFont(8));
-    painter.drawText(QRectF(6, bottom + 2, size.width() - 12, kCaptionH - 4),
+    painter.drawText(QRectF(6, bottom + 2, size.width() - 12, capH - 4),
                      Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, figure.caption);
   }
   const auto n = static_cast<double>(std::max<std::size_t>(figure.panels.size(), 1));

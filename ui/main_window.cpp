@@ -14,6 +14,7 @@
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QMimeData>
+#include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
 #include <QSettings>
@@ -25,6 +26,7 @@
 
 #include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
+#include "figure_export.hpp"
 #include "fit_panel.hpp"
 #include "header_dialog.hpp"
 #include "image_view.hpp"
@@ -349,8 +351,18 @@ void MainWindow::showError(const QString& title, const QString& message) {
 
 bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
   QImage image = grab().toImage();
+  if (m_screenshotOverlay && m_screenshotOverlay->isVisible()) {  // a dialog of the script, centred on top
+    const QImage top = m_screenshotOverlay->grab().toImage();
+    QPainter painter(&image);
+    const QPoint at((image.width() - top.width()) / 2, (image.height() - top.height()) / 2);
+    painter.drawImage(at, top);
+    painter.setPen(QPen(QColor(60, 60, 60), 2));
+    painter.drawRect(QRect(at, top.size()).adjusted(-1, -1, 0, 0));
+  }
   if (maxWidth > 0 && image.width() > maxWidth)
     image = image.scaledToWidth(maxWidth, Qt::SmoothTransformation);
+  if (m_script && m_script->screenshotColours > 0)
+    image = reduceToPalette(image, m_script->screenshotColours);
   const bool ok = image.save(path, nullptr, 0);
   if (!ok) showError("Screenshot", "could not write " + path);
   return ok;

@@ -46,8 +46,17 @@ struct ScriptOptions {
   std::optional<int> select;  ///< 1-based candidate number
   bool fit = false;           ///< run the co-moving fit of the selected candidate before the screenshot
   QString screenshot;
-  int screenshotWidth = 0;  ///< scale the screenshot down to this width (0: as on screen)
+  int screenshotWidth = 0;    ///< scale the screenshot down to this width (0: as on screen)
+  int screenshotColours = 0;  ///< reduce the screenshot to this many colours (0: keep all; docs use 256)
   bool quit = false;
+  /// Figure written when done: the paper's sky/object preset for the selected candidate, else the central
+  /// view (format from the suffix; 7 in wide at figureDpi).
+  QString exportFigure;
+  int figureDpi = 150;
+  QString exportReports;   ///< folder for the candidates JSON/CSV and DS9 regions, written when done
+  QString dialog;          ///< "figure" or "reports": that dialog is opened, and shown on the screenshot
+  bool acceptFit = false;  ///< accept the --fit result into the candidate (before the labels and exports)
+  QStringList labels;  ///< "N=LABEL" (real, unsure, unvetted, artifact[:REASON]), applied before the exports
 };
 
 class MainWindow : public QMainWindow {
@@ -127,6 +136,11 @@ class MainWindow : public QMainWindow {
   void rebuildRecentMenu();
   void advanceScript(const QString& finishedJob, bool ok);
   void finishScript(bool ok, const QString& message);
+  /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.
+  void runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done);
+  /// The script's --accept-fit and --label (main_window_export.cpp); false with a message on stderr for a bad
+  /// one.
+  bool applyScriptVetting(const ScriptOptions& script);
   void showError(const QString& title, const QString& message);
   void buildSessionMenu(QMenu* file);
   void buildSession();
@@ -164,6 +178,7 @@ class MainWindow : public QMainWindow {
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;
+  QWidget* m_screenshotOverlay = nullptr;  ///< a dialog drawn over the window on screenshots
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
   bool m_autoPreprocess = true;

@@ -243,14 +243,16 @@ void MainWindow::finishScript(bool ok, const QString& message) {
   if (!ok) std::fprintf(stderr, "synthtrack: %s\n", message.toLocal8Bit().constData());
   // Let the live stack arrive and the widgets lay out before the picture is taken.
   QTimer::singleShot(1200, this, [this, script, ok] {
-    bool good = ok;
-    if (!script.screenshot.isEmpty())
-      good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
-    if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
-    std::fflush(stdout);
-    m_script.reset();
-    emit scriptFinished(good);
-    if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);
+    runScriptExports(script, [this, script, ok](bool exportsOk) {
+      bool good = ok && exportsOk;
+      if (!script.screenshot.isEmpty())
+        good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
+      if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
+      std::fflush(stdout);
+      m_script.reset();
+      emit scriptFinished(good);
+      if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);
+    });
   });
 }
 

@@ -17,6 +17,8 @@
 #include <QVBoxLayout>
 #include <QtConcurrent>
 
+#include "st/common/error.hpp"
+
 namespace st::ui {
 
 nlohmann::json loadReportSettings() {
@@ -245,9 +247,10 @@ QString ReportDialog::resultText() const {
 }
 
 bool ReportDialog::exportReports() {
-  if (busy() || !m_ctx.makeSession) return false;
   ReportRequest r;
   try {
+    if (busy()) throw InputError("reports are being written");
+    if (!m_ctx.makeSession) throw InputError("no session to report on");
     r.session = m_ctx.makeSession(toJson(submissionSettings()));
   } catch (const std::exception& e) {
     m_result->setPlainText("Failed: " + QString::fromStdString(e.what()));

@@ -47,7 +47,8 @@ class ReportDialog : public QDialog {
   void setOutput(const QString& folder, const QString& baseName);
   void setOutputs(bool json, bool csv, bool ds9, bool stacks, bool ades, bool mpc);
   void setStackChoice(StackChoice choice);
-  /// Starts writing in a worker; false while one runs or when the session cannot be made.
+  /// Starts writing in a worker; false while one runs or when the session cannot be made (exportFinished is
+  /// emitted then too, with the reason).
   bool exportReports();
   [[nodiscard]] bool busy() const { return m_watcher.isRunning(); }
   /// The warning line (low SNR, real candidates without a sky position); empty when none.

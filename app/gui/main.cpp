@@ -1,6 +1,7 @@
 // synthtrack: the desktop application.
 //   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
-//   [--quit]
+//   [--quit] [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
+//   [--accept-fit] [--label N=LABEL]...
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
 // --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
@@ -58,7 +59,22 @@ int main(int argc, char** argv) {
                                       "FILE");
   const QCommandLineOption width("screenshot-width", "Scale the screenshot down to this width.", "PIXELS");
   const QCommandLineOption quit("quit", "Quit when done.");
-  parser.addOptions({demo, session, search, select, fit, screenshot, width, quit});
+  const QCommandLineOption figure("export-figure",
+                                  "Write a figure when done (.png/.svg/.pdf): the sky/object preset of the "
+                                  "selected candidate, else the central view.",
+                                  "FILE");
+  const QCommandLineOption dpi("figure-dpi", "Resolution of --export-figure PNGs (default 150).", "DPI");
+  const QCommandLineOption reports("export-reports", "Write the candidates JSON/CSV and DS9 regions to DIR.",
+                                   "DIR");
+  const QCommandLineOption dialog("dialog", "Open a dialog (figure or reports), shown on the screenshot.",
+                                  "NAME");
+  const QCommandLineOption colours("screenshot-colours", "Reduce the screenshot to N colours (small PNGs).",
+                                   "N");
+  const QCommandLineOption acceptFit("accept-fit", "Accept the --fit result into the selected candidate.");
+  const QCommandLineOption label("label", "Label candidate N: real, unsure, unvetted or artifact[:REASON].",
+                                 "N=LABEL");
+  parser.addOptions({demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports,
+                     dialog, acceptFit, label, colours});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -79,6 +95,20 @@ int main(int argc, char** argv) {
   script.screenshot = parser.value(screenshot);
   script.screenshotWidth = parser.value(width).toInt();
   script.quit = parser.isSet(quit);
+  script.exportFigure = parser.value(figure);
+  if (parser.isSet(dpi)) {
+    script.figureDpi = parser.value(dpi).toInt();
+    if (script.figureDpi < 50 || script.figureDpi > 2400) {
+      std::fprintf(stderr, "synthtrack: --figure-dpi needs 50 to 2400, got '%s'\n",
+                   parser.value(dpi).toLocal8Bit().constData());
+      return 2;
+    }
+  }
+  script.exportReports = parser.value(reports);
+  script.dialog = parser.value(dialog);
+  script.screenshotColours = parser.value(colours).toInt();
+  script.acceptFit = parser.isSet(acceptFit);
+  script.labels = parser.values(label);
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();

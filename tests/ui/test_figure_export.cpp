@@ -10,6 +10,7 @@
 #include <QSvgRenderer>
 #include <QXmlStreamReader>
 #include <cmath>
+#include <qcustomplot.h>
 
 #include "figure_dialog.hpp"
 #include "figure_export.hpp"
@@ -64,7 +65,7 @@ ImageFigure gradientFigure() {
 void exportGradient(const QString& path, FigureFormat format, double dpi) {
   const ImageFigure fig = gradientFigure();
   exportFigure(path, format, {4.0, 3.0, dpi},
-               [&](QPainter& p, const QSizeF& s) { paintImageFigure(p, s, fig); });
+               [&](QCPPainter& p, const QSizeF& s) { paintImageFigure(p, s, fig); });
 }
 
 }  // namespace
@@ -127,6 +128,32 @@ TEST(FigureExport, ErrorsNameThePath) {
   }
   EXPECT_THROW((void)figureFormatForPath("fig.bmp"), InputError);
   EXPECT_EQ(figureFormatForPath("a/B.SVG"), FigureFormat::Svg);
+}
+
+TEST(FigureExport, PaletteReductionKeepsFewColoursAndBoundsTheError) {
+  QImage three(40, 30, QImage::Format_RGB32);
+  three.fill(qRgb(200, 10, 10));
+  for (int x = 0; x < 40; ++x) {
+    three.setPixel(x, 5, qRgb(0, 0, 0));
+    three.setPixel(x, 20, qRgb(255, 255, 255));
+  }
+  const QImage p3 = reduceToPalette(three, 256);
+  EXPECT_EQ(p3.format(), QImage::Format_Indexed8);
+  EXPECT_EQ(p3.colorCount(), 3);
+  for (int y : {0, 5, 20})
+    EXPECT_EQ(p3.pixel(7, y), three.pixel(7, y));
+  // A 256-level gray ramp: 6 bits per channel make 64 bins of 4 levels, each drawn as their mean (error <=
+  // 2).
+  QImage ramp(256, 8, QImage::Format_RGB32);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 256; ++x)
+      ramp.setPixel(x, y, qRgb(x, x, x));
+  const QImage p64 = reduceToPalette(ramp, 256);
+  EXPECT_EQ(p64.colorCount(), 64);
+  int worst = 0;
+  for (int x = 0; x < 256; ++x)
+    worst = std::max(worst, std::abs(qGray(p64.pixel(x, 3)) - x));
+  EXPECT_LE(worst, 2);
 }
 
 TEST(FigureRender, ScaleBarLengthsAndTicksAreRound) {
@@ -232,6 +259,8 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   EXPECT_EQ(QImage(run(0, "central.png", {5.0, 4.0, 120})).size(), QSize(600, 480));
   const int plot = static_cast<int>(names.indexOf(names.filter("Velocity space: plot").front()));
   EXPECT_TRUE(QSvgRenderer(run(plot, "vmap.svg", {5.0, 4.0, 300})).isValid());
+  const QImage vmap(run(plot, "vmap.png", {5.0, 4.0, 100}));
+  EXPECT_EQ(vmap.size(), QSize(500, 400));
   const QImage preset(run(d->presetIndex(), "preset.png", {7.0, 0.0, 100}));
   EXPECT_EQ(preset.width(), 700);
   EXPECT_GT(preset.height(), 200);  // height from the two square panels: ~330 pt
@@ -239,6 +268,7 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   QDir().mkpath("ui_screens");
   preset.save("ui_screens/figure_preset.png");
   QImage(qpath(dir, "central.png")).save("ui_screens/figure_central.png");
+  vmap.save("ui_screens/figure_vmap.png");
 
   // A folder that does not exist: the message names the path.
   d->setSource(0);
@@ -251,6 +281,30 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   d->exportTo("/nonexistent-st-folder/x.pdf");
   ASSERT_TRUE(test::waitFor([&] { return failed; }));
   EXPECT_TRUE(message.contains("/nonexistent-st-folder/x.pdf")) << message.toStdString();
+}
+
+TEST(FigureDialog, ScriptOptionsExportTheFigureAndReports) {
+  MainWindow w(test::fakeServices(test::movingDotCube(96, 96, 40, {8.0, -4.0}, 40, 50)));
+  w.resize(1200, 800);
+  w.show();
+  test::TempDir dir;
+  ScriptOptions script;
+  script.demo = true;
+  script.exportFigure = qpath(dir, "script.svg");
+  script.exportReports = qpath(dir, "reports");
+  script.dialog = "reports";
+  bool finished = false, good = false;
+  QObject::connect(&w, &MainWindow::scriptFinished, [&](bool ok) {
+    finished = true;
+    good = ok;
+  });
+  w.runScript(script);
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 30000));
+  EXPECT_TRUE(good);
+  EXPECT_TRUE(QSvgRenderer(script.exportFigure).isValid());  // no candidate selected: the central view
+  // No search ran: the reports hold no candidates, but are written.
+  EXPECT_TRUE(QFile::exists(qpath(dir, "reports/synthtrack_candidates.json")));
+  EXPECT_TRUE(QFile::exists(qpath(dir, "reports/synthtrack.reg")));
 }
 
 ST_UI_TEST_MAIN()

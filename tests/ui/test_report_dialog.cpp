@@ -17,6 +17,7 @@
 #include "main_window.hpp"
 #include "report_dialog.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
 #include "test_support.hpp"
@@ -195,7 +196,9 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   EXPECT_NEAR(a.raDeg, b.raDeg, 1e-9);
   EXPECT_NEAR(a.decDeg, b.decDeg, 1e-9);
 
-  // The settings persist for the next dialog.
+  // The settings went into the session (autosaved with it) and persist for the next dialog.
+  EXPECT_EQ(w->session()->settings().value("station", ""), "291");
+  EXPECT_EQ(w->session()->settings().value("ast_cat", ""), "Gaia3");
   ReportDialog again({obs, {}});
   EXPECT_EQ(again.submissionSettings().stationCode, "291");
   EXPECT_EQ(again.submissionSettings().mpcCatalogCode, 'W');
