@@ -159,6 +159,41 @@ __device__ __forceinline__ void mbarrierWait(unsigned long long* bar, int parity
   } while (!done);
 }
 
+/// The end of a launch for one thread's 4 vy x kSR x kSC cells: partial sums stored, or cells scored and
+/// each velocity's best key reduced over the warp into the map.
+template <int kSR, class PartialAt, class CellOk>
+__device__ __forceinline__ void finishStairTile(const SearchLaunch& p, const float (&acc)[kSVy][kSR][kSC],
+                                                PartialAt partialAt, CellOk cellOk, int ix, int iyBase,
+                                                int x0, int y0, int lane) {
+#pragma unroll
+  for (int k = 0; k < kSVy; ++k) {
+    const int iy = iyBase + k;
+    if (ix >= p.nvx || iy >= p.iy1) continue;  // uniform across the warp
+    unsigned long long best = 0ull;
+#pragma unroll
+    for (int r = 0; r < kSR; ++r) {
+#pragma unroll
+      for (int j = 0; j < kSC; ++j) {
+        if (!cellOk(k, r, j)) continue;
+        if (!p.finalize) {  // not finishCell: 120 instructions more here, 1.02e13 vs 1.05e13 (separate runs)
+          p.partial[partialAt(k, r, j)] = acc[k][r][j];
+          continue;
+        }
+        const int x = x0 + lane + 32 * j;
+        const int y = y0 + r;
+        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
+                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
+        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
+        best = key > best ? key : best;
+      }
+    }
+    if (p.finalize) {
+      best = warpMax(best);
+      if (lane == 0 && best != 0ull) atomicMax(p.mapKeys + static_cast<long long>(iy) * p.nvx + ix, best);
+    }
+  }
+}
+
 /// kSR pixel rows per thread (and block): 8 (two blocks per SM) or 4 (four blocks per SM: more warps to
 /// hide latencies, fewer additions per shared-memory load).
 /// kTma: windows copied by the tensor memory accelerator (`map`, one instruction per frame) instead of
@@ -239,33 +274,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s), warp);
   }
 
-#pragma unroll
-  for (int k = 0; k < kSVy; ++k) {
-    const int iy = iyBase + k;
-    if (ix >= p.nvx || iy >= p.iy1) continue;  // uniform across the warp
-    unsigned long long best = 0ull;
-#pragma unroll
-    for (int r = 0; r < kSR; ++r) {
-#pragma unroll
-      for (int j = 0; j < kSC; ++j) {
-        if (!cellOk(k, r, j)) continue;
-        if (!p.finalize) {  // not finishCell: 120 instructions more here, 1.02e13 vs 1.05e13 (separate runs)
-          p.partial[partialAt(k, r, j)] = acc[k][r][j];
-          continue;
-        }
-        const int x = x0 + lane + 32 * j;
-        const int y = y0 + r;
-        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
-                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
-        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
-        best = key > best ? key : best;
-      }
-    }
-    if (p.finalize) {
-      best = warpMax(best);
-      if (lane == 0 && best != 0ull) atomicMax(p.mapKeys + static_cast<long long>(iy) * p.nvx + ix, best);
-    }
-  }
+  finishStairTile<kSR>(p, acc, partialAt, cellOk, ix, iyBase, x0, y0, lane);
 }
 
 }  // namespace
