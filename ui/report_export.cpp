@@ -237,8 +237,12 @@ ReportOutcome writeReports(const ReportRequest& r, ProgressSink& progress, Cance
   if (r.ds9) {
     const auto [t0, t1] = spanS(r.raw.get());
     astro::PixelToSky toSky;
-    if (r.raw && r.raw->wcs) toSky = report::skyMappingAtTRef(*r.raw->wcs, skyRateOf(r.session), t0);
-    report::writeDs9Regions(stem + ".reg", report::regionMarks(r.session, t0, t1), toSky);
+    std::string frame = "fk5";
+    if (r.raw && r.raw->wcs) {
+      toSky = report::skyMappingAtTRef(*r.raw->wcs, skyRateOf(r.session), t0);
+      frame = report::ds9SkyFrame(*r.raw->wcs);
+    }
+    report::writeDs9Regions(stem + ".reg", report::regionMarks(r.session, t0, t1), toSky, frame);
     out.written.push_back(stem + ".reg");
   }
   cancel.throwIfCancelled();

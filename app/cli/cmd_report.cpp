@@ -180,9 +180,9 @@ void writeDs9(const std::string& path, const session::Session& s, const std::opt
     }
   }
   const auto marks = report::regionMarks(s, startS, endS);
-  report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{});
-  std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), wcs ? "fk5" : "image coordinates",
-              path.c_str());
+  const std::string frame = wcs ? report::ds9SkyFrame(*wcs->cube.wcs) : std::string("image coordinates");
+  report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{}, frame);
+  std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), frame.c_str(), path.c_str());
 }
 
 /// Artifact flags (and the known-object flag) of every candidate, saved into the session.

@@ -1,5 +1,6 @@
 #include "st/report/regions.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -39,12 +40,26 @@ double localScaleArcsec(const astro::PixelToSky& toSky, double x, double y) {
 
 }  // namespace
 
-std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky) {
+std::string ds9SkyFrame(const Wcs& wcs) {
+  const FitsHeader h = wcs.toHeader();
+  std::string sys = h.getString("RADESYS").value_or("");
+  for (auto& ch : sys)
+    ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  sys.erase(sys.find_last_not_of(' ') + 1);
+  if (sys == "icrs" || sys == "fk5" || sys == "fk4") return sys;
+  if (!sys.empty()) return "fk5";
+  const auto equinox = h.getDouble("EQUINOX");
+  if (!equinox) return "icrs";
+  return *equinox >= 1984.0 ? "fk5" : "fk4";
+}
+
+std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky,
+                       const std::string& skyFrame) {
   std::string out = "# Region file format: DS9 version 4.1\n# written by synthtrack; positions at t_ref\n";
   out +=
       "global color=green width=1 font=\"helvetica 10 normal roman\" select=1 edit=1 move=1 delete=1 "
       "include=1 source=1\n";
-  out += toSky ? "fk5\n" : "image\n";
+  out += toSky ? skyFrame + "\n" : "image\n";
   for (const auto& m : marks) {
     const std::string props =
         " # color=" + cleanText(m.color) + (m.text.empty() ? "" : " text={" + cleanText(m.text) + "}");
@@ -71,8 +86,8 @@ std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelT
 }
 
 void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
-                     const astro::PixelToSky& toSky) {
-  const std::string text = ds9Regions(marks, toSky);
+                     const astro::PixelToSky& toSky, const std::string& skyFrame) {
+  const std::string text = ds9Regions(marks, toSky, skyFrame);
   std::ofstream out(path);
   if (!out) throw InputError("cannot write DS9 region file '" + path + "'");
   out << text;

@@ -256,6 +256,32 @@ TEST(Ds9, Fk5ThroughAWcsAtTheMappingEpoch) {
   m.radiusPx = 10.0;
   const std::string r = ds9Regions({m}, toSky);
   EXPECT_NE(r.find("\nfk5\ncircle(150.0000000,+30.0000000,3.000\")"), std::string::npos) << r;
+  const std::string icrs = ds9Regions({m}, toSky, "icrs");
+  EXPECT_NE(icrs.find("\nicrs\ncircle(150.0000000,+30.0000000,3.000\")"), std::string::npos) << icrs;
+}
+
+TEST(Ds9, SkyFrameFollowsTheWcs) {
+  // FITS WCS paper II: RADESYS names the frame; without it FK5 for EQUINOX >= 1984, FK4 before, ICRS
+  // without EQUINOX.
+  const auto frameOf = [](std::optional<std::string> radesys, std::optional<double> equinox) {
+    FitsHeader h;
+    h.setString("CTYPE1", "RA---TAN");
+    h.setString("CTYPE2", "DEC--TAN");
+    h.setNumber("CRVAL1", 150.0);
+    h.setNumber("CRVAL2", 30.0);
+    h.setNumber("CDELT1", -1e-4);
+    h.setNumber("CDELT2", 1e-4);
+    if (radesys) h.setString("RADESYS", *radesys);
+    if (equinox) h.setNumber("EQUINOX", *equinox);
+    std::vector<std::string> warnings;
+    const auto wcs = Wcs::fromHeader(h, &warnings);
+    return wcs ? ds9SkyFrame(*wcs) : std::string("no wcs");
+  };
+  EXPECT_EQ(frameOf("ICRS", std::nullopt), "icrs");
+  EXPECT_EQ(frameOf("FK5", 2000.0), "fk5");
+  EXPECT_EQ(frameOf(std::nullopt, 2000.0), "fk5");
+  EXPECT_EQ(frameOf(std::nullopt, 1950.0), "fk4");
+  EXPECT_EQ(frameOf(std::nullopt, std::nullopt), "icrs");
 }
 
 }  // namespace

@@ -9,7 +9,7 @@ DS9 regions and FITS stacks, and checks with astropy and by column:
     RA cols 33-44 and Dec cols 45-56 (sexagesimal parsed by astropy, to 0.5 ms of time / 5 mas), station 78-80;
   ADES PSV: header blocks, field names, obsTime (astropy isot, to 0.5 ms), ra/dec (1e-7 deg), stn, logSNR;
   only candidates labelled real are reported, the SNR-5 one with a warning on stderr;
-  DS9: fk5 circles at astropy's sky position of the t_ref pixel moved to the WCS's epoch (1e-6 deg);
+  DS9: icrs circles at astropy's sky position of the t_ref pixel moved to the WCS's epoch (1e-6 deg);
   FITS stack: astropy reads it; its WCS maps pixel (x, y) to the cube WCS at (x, y) + sky * (t_0 - t_ref)
     (1e-9 deg); provenance keywords present;
   session: labels kept; a corrupted session exits 1 naming a backup copy that exists;
@@ -122,9 +122,9 @@ def main():
                   "rmsRA/rmsDec %s %s" % (f["rmsRA"], f["rmsDec"]))
             check(abs(float(f["logSNR"]) - math.log10(c["snr"])) <= 0.005, "logSNR %s" % f["logSNR"])
 
-        # DS9 regions in fk5 at astropy's position.
+        # DS9 regions in the WCS's frame (RADESYS ICRS: icrs) at astropy's position.
         reg_lines = open(reg).read().splitlines()
-        check(reg_lines[0] == "# Region file format: DS9 version 4.1" and "fk5" in reg_lines, "DS9 header / fk5")
+        check(reg_lines[0] == "# Region file format: DS9 version 4.1" and "icrs" in reg_lines, "DS9 header / icrs")
         circles = [l for l in reg_lines if l.startswith("circle(")]
         check(len(circles) == 3, "three DS9 circles")
         for l, c in zip(circles, cands):

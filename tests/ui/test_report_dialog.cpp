@@ -1,9 +1,9 @@
 // The Reports dialog on the main window, offscreen, on a moving-dot cube with a TAN WCS (1"/px, north up,
 // east left): only candidates labelled real reach ADES and MPC; the low-SNR one shows a visible warning;
-// JSON/CSV carry every candidate with its label; DS9 regions are fk5; the FITS stacks carry a WCS and
-// provenance and the object-tracked one has all frames of the dot on the candidate's pixel; the settings
-// persist; errors name the path. With ST_REPORT_OUT set, the outputs stay there for the DS9 and astropy
-// checks of tests/python/test_gui_reports.py.
+// JSON/CSV carry every candidate with its label; DS9 regions are in the WCS frame; the FITS stacks carry a
+// WCS and provenance and the object-tracked one has all frames of the dot on the candidate's pixel; the
+// settings persist; errors name the path. With ST_REPORT_OUT set, the outputs stay there for the DS9 and
+// astropy checks of tests/python/test_gui_reports.py.
 #include <gtest/gtest.h>
 
 #include <QFile>
@@ -166,9 +166,9 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   const auto csv = readLines(folder + "/run_candidates.csv");
   ASSERT_EQ(csv.size(), cands.size() + 1);
   EXPECT_EQ(csv[1].substr(0, 7), "1,real,");
-  // DS9: fk5 through the WCS, one circle per candidate.
+  // DS9: in the WCS's own frame (RADESYS ICRS here: icrs), one circle per candidate.
   const std::string reg = readAll(folder + "/run.reg");
-  EXPECT_NE(reg.find("fk5"), std::string::npos);
+  EXPECT_NE(reg.find("\nicrs\n"), std::string::npos);
   std::size_t circles = 0;
   for (auto p = reg.find("circle("); p != std::string::npos; p = reg.find("circle(", p + 1))
     ++circles;

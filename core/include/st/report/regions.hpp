@@ -1,6 +1,8 @@
 #pragma once
 // DS9 region files (DS9 region format version 4.1). With a pixel-to-sky mapping the regions are written in
-// fk5 (RA/Dec in degrees, radii in arcsec); without one in image coordinates, converted to DS9's 1-based
+// the WCS's celestial frame (icrs or fk5: RA/Dec in degrees, radii in arcsec; ds9SkyFrame), so DS9 applies no
+// frame change (FK5 J2000 and ICRS differ by up to ~20 mas); without one in image coordinates, converted to
+// DS9's 1-based
 // pixels here (ARCHITECTURE.md: 1-based at the writer, nowhere else).
 #include <optional>
 #include <string>
@@ -27,13 +29,19 @@ struct RegionMark {
   double trackEndS = 0.0;
 };
 
-/// The region file text. `toSky` (may be empty) maps 0-based pixels at t_ref to ICRS (see
-/// skyMappingAtTRef); with it, coordinates are fk5 degrees and radii arcsec from the local scale.
-[[nodiscard]] std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky);
+/// The DS9 name of a WCS's celestial frame from its RADESYS (FITS WCS paper II: without RADESYS, FK5 when
+/// EQUINOX >= 1984, FK4 before, ICRS without EQUINOX): "icrs", "fk5", "fk4", or "fk5" for others.
+[[nodiscard]] std::string ds9SkyFrame(const Wcs& wcs);
+
+/// The region file text. `toSky` (may be empty) maps 0-based pixels at t_ref to the WCS's sky (see
+/// skyMappingAtTRef); with it, coordinates are `skyFrame` (ds9SkyFrame) degrees and radii arcsec from the
+/// local scale.
+[[nodiscard]] std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelToSky& toSky,
+                                     const std::string& skyFrame = "fk5");
 
 /// Writes ds9Regions to `path`. Throws st::InputError naming the path.
 void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& marks,
-                     const astro::PixelToSky& toSky);
+                     const astro::PixelToSky& toSky, const std::string& skyFrame = "fk5");
 
 /// The mapping of pixels at t_ref through a WCS that belongs to the frame at `mappingEpochOffsetS` (seconds
 /// from t_ref; the first frame's for a cube's FITS WCS): a point at (x, y) at t_ref was at (x, y) +
