@@ -314,19 +314,7 @@ class CudaBackend final : public CudaSearchBackend {
     work(0);
     for (auto& t : threads)
       t.join();
-    // Rethrow a real error in preference to the Cancelled it caused on the other devices.
-    std::exception_ptr first;
-    for (const auto& e : errors) {
-      if (!e) continue;
-      try {
-        std::rethrow_exception(e);
-      } catch (const Cancelled&) {
-        if (!first) first = e;
-      } catch (...) {
-        std::rethrow_exception(e);
-      }
-    }
-    if (first) std::rethrow_exception(first);
+    rethrowFirst(errors);
     return outcomes;
   }
 
