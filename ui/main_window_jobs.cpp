@@ -105,9 +105,8 @@ void MainWindow::runSearch() {
     return std::function<void()>([this, result, message] {
       m_search->setBackendMessage(QString::fromStdString(message));
       m_obs->setResult(result);
-      statusBar()->showMessage(QString("Search: %1 candidates above SNR %2 in %3 s (%4)")
-                                   .arg(result->candidates.size())
-                                   .arg(result->snrThreshold, 0, 'f', 2)
+      statusBar()->showMessage(QString("Search: %1 in %2 s (%3)")
+                                   .arg(candidateSummary(*result))
                                    .arg(result->elapsedS, 0, 'f', 1)
                                    .arg(QString::fromStdString(result->method + " on " + result->backend)),
                                15000);

@@ -360,13 +360,25 @@ void SearchPanel::onResultChanged() {
   if (!r) return;
   const QString why =
       r->methodReason == "requested" ? QString("as selected") : QString::fromStdString(r->methodReason);
-  m_status->setText(QString("%1 search on %2: %3 candidates above SNR %4 in %5 (%6)")
+  m_status->setText(QString("%1 search on %2: %3 in %4 (%5)")
                         .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
                         .arg(QString::fromStdString(r->backend))
-                        .arg(r->candidates.size())
-                        .arg(r->snrThreshold, 0, 'f', 2)
+                        .arg(candidateSummary(*r))
                         .arg(humanSeconds(r->elapsedS))
                         .arg(why));
+}
+
+QString candidateSummary(const search::SearchResult& result) {
+  const std::size_t n = result.candidates.size();
+  QString text = QString("%1 candidate%2 above SNR %3")
+                     .arg(n)
+                     .arg(n == 1 ? "" : "s")
+                     .arg(result.snrThreshold, 0, 'f', 2);
+  if (result.sidelobesMerged > 0)
+    text += QString(" (%1 sidelobe%2 merged)")
+                .arg(result.sidelobesMerged)
+                .arg(result.sidelobesMerged == 1 ? "" : "s");
+  return text;
 }
 
 void SearchPanel::setMeasuredStackSeconds(double seconds) {

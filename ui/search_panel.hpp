@@ -24,6 +24,10 @@ class QRadioButton;
 
 namespace st::ui {
 
+/// "1 candidate above SNR 7.00" / "3 candidates above SNR 7.00", with "(2 sidelobes merged)" when the search
+/// merged sidelobes of bright candidates into them (st/search/sidelobes.hpp).
+QString candidateSummary(const search::SearchResult& result);
+
 class SearchPanel : public QWidget {
   Q_OBJECT
  public:

@@ -113,8 +113,12 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
   result = std::make_shared<search::SearchResult>(*result);
   result->method = "exact";
   result->methodReason = "requested";
+  result->candidates.resize(1);
+  result->sidelobesMerged = 2;
   obs.setResult(result);
-  EXPECT_TRUE(panel.statusText().startsWith("exact search on cpu")) << panel.statusText().toStdString();
+  EXPECT_TRUE(
+      panel.statusText().startsWith("exact search on cpu: 1 candidate above SNR 7.00 (2 sidelobes merged)"))
+      << panel.statusText().toStdString();
   EXPECT_TRUE(panel.statusText().contains("as selected")) << panel.statusText().toStdString();
 }
 
