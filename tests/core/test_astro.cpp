@@ -1,6 +1,8 @@
 // Photometry and astrometry from co-moving fits (paper §5.1-5.2).
 #include <gtest/gtest.h>
 
+#include "test_support.hpp"
+
 #include <cmath>
 #include <numbers>
 
@@ -85,16 +87,7 @@ TEST(Astrometry, RateAndPositionAngleThroughAWcs) {
 TEST(Astrometry, ThroughAFitsWcsLikeThroughTheSameTanProjection) {
   // A TAN header, CRPIX 1-based = 101 (0-based 100), north up, east left, 0.3"/px.
   FitsHeader h;
-  h.setString("CTYPE1", "RA---TAN");
-  h.setString("CTYPE2", "DEC--TAN");
-  h.setNumber("CRVAL1", 150.0);
-  h.setNumber("CRVAL2", 30.0);
-  h.setNumber("CRPIX1", 101.0);
-  h.setNumber("CRPIX2", 101.0);
-  h.setNumber("CD1_1", -0.3 / 3600.0);
-  h.setNumber("CD1_2", 0.0);
-  h.setNumber("CD2_1", 0.0);
-  h.setNumber("CD2_2", 0.3 / 3600.0);
+  test::setTanWcs(h, 150.0, 30.0, 101.0, 101.0, 0.3);
   std::vector<std::string> warnings;
   const auto wcs = Wcs::fromHeader(h, &warnings);
   ASSERT_NE(wcs, nullptr);

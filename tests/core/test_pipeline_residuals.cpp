@@ -16,6 +16,7 @@
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/sim/simulator.hpp"
+#include "track_pixels.hpp"
 
 namespace st::pipeline {
 namespace {
@@ -111,27 +112,14 @@ TEST(PipelineResiduals, OnlyTheObjectIsFound) {
 TEST(PipelineResiduals, ObjectPixelsUntouchedStarArtefactsZeroed) {
   const ResidualRun& r = residualRun();
   const FrameCube& f = r.prep.frames;
-  const int w = f.width(), h = f.height();
+  const int w = f.width();
   const std::size_t np = f.framePixels();
   const auto dt = f.timeOffsetsS();
   std::set<std::uint64_t> hit;
   for (const auto& cr : r.truth.cosmicRays)
     for (const auto& [x, y] : cr.pixels)
       hit.insert(cr.frame * np + static_cast<std::size_t>(y) * w + x);
-  const auto& o = r.truth.objects.front();
-  std::size_t objectPixels = 0, objectZeroed = 0;
-  for (std::size_t n = 0; n < f.frameCount(); ++n) {
-    const int x = static_cast<int>(std::lround(o.xRefPx + o.vxPxPerS * dt[n]));
-    const int y = static_cast<int>(std::lround(o.yRefPx + o.vyPxPerS * dt[n]));
-    for (int yy = y - 1; yy <= y + 1; ++yy)
-      for (int xx = x - 1; xx <= x + 1; ++xx) {
-        if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-        const std::uint64_t q = n * np + static_cast<std::size_t>(yy) * w + xx;
-        if (hit.count(q)) continue;
-        ++objectPixels;
-        objectZeroed += f.pixels()[q] == 0.0f;
-      }
-  }
+  const auto [objectPixels, objectZeroed] = test::zeroedAlongTrack(f, r.truth.objects.front(), hit);
   ASSERT_GT(objectPixels, 100u);
   EXPECT_EQ(objectZeroed, 0u) << "pixels of the moving object zeroed";
 

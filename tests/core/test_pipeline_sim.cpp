@@ -9,6 +9,7 @@
 
 #include "st/pipeline/preprocess.hpp"
 #include "st/sim/simulator.hpp"
+#include "track_pixels.hpp"
 
 namespace st::pipeline {
 namespace {
@@ -46,7 +47,7 @@ TEST(PipelineSim, SmallPresetAgainstTruth) {
       << "PSF star at " << out.psfStarAt->first << "," << out.psfStarAt->second << " of " << out.stars.size()
       << " catalog stars; beta " << out.psf.beta;
 
-  const int w = out.frames.width(), h = out.frames.height();
+  const int w = out.frames.width();
   const std::size_t np = out.frames.framePixels();
   const std::set<std::uint64_t> flagged(out.cosmicRayPixels.begin(), out.cosmicRayPixels.end());
   std::set<std::uint64_t> hitPixels;
@@ -63,21 +64,12 @@ TEST(PipelineSim, SmallPresetAgainstTruth) {
   }
   ASSERT_GT(hits, 10u);
   EXPECT_GE(removed, (hits * 95 + 99) / 100) << removed << " of " << hits << " hits removed";
-  const auto dt = out.frames.timeOffsetsS();
   std::size_t objectPixels = 0, objectZeroed = 0;
-  for (const auto& o : truth.objects)
-    for (std::size_t n = 0; n < out.frames.frameCount(); ++n) {
-      const int x = static_cast<int>(std::lround(o.xRefPx + o.vxPxPerS * dt[n]));
-      const int y = static_cast<int>(std::lround(o.yRefPx + o.vyPxPerS * dt[n]));
-      for (int yy = y - 1; yy <= y + 1; ++yy)
-        for (int xx = x - 1; xx <= x + 1; ++xx) {
-          if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-          const std::uint64_t q = n * np + static_cast<std::size_t>(yy) * w + xx;
-          if (hitPixels.count(q)) continue;
-          ++objectPixels;
-          objectZeroed += out.frames.pixels()[q] == 0.0f;
-        }
-    }
+  for (const auto& o : truth.objects) {
+    const auto [pixels, zeroed] = test::zeroedAlongTrack(out.frames, o, hitPixels);
+    objectPixels += pixels;
+    objectZeroed += zeroed;
+  }
   ASSERT_GT(objectPixels, 100u);
   EXPECT_EQ(objectZeroed, 0u) << "pixels of the moving object removed";
   for (float v : out.filtered.frames.pixels())

@@ -2,6 +2,8 @@
 // field, sexagesimal/date rounding with carries, DS9 regions in image and fk5 coordinates.
 #include <gtest/gtest.h>
 
+#include "test_support.hpp"
+
 #include <cmath>
 #include <sstream>
 
@@ -231,16 +233,7 @@ TEST(Ds9, ImageCoordinatesAreOneBased) {
 
 TEST(Ds9, Fk5ThroughAWcsAtTheMappingEpoch) {
   FitsHeader h;
-  h.setString("CTYPE1", "RA---TAN");
-  h.setString("CTYPE2", "DEC--TAN");
-  h.setNumber("CRVAL1", 150.0);
-  h.setNumber("CRVAL2", 30.0);
-  h.setNumber("CRPIX1", 101.0);
-  h.setNumber("CRPIX2", 101.0);
-  h.setNumber("CD1_1", -0.3 / 3600.0);
-  h.setNumber("CD1_2", 0.0);
-  h.setNumber("CD2_1", 0.0);
-  h.setNumber("CD2_2", 0.3 / 3600.0);
+  test::setTanWcs(h, 150.0, 30.0, 101.0, 101.0, 0.3);
   std::vector<std::string> warnings;
   const auto wcs = Wcs::fromHeader(h, &warnings);
   ASSERT_NE(wcs, nullptr);

@@ -33,4 +33,17 @@ std::filesystem::path realDataDir() {
   return {};
 }
 
+void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double crpix2, double arcsecPerPx) {
+  h.setString("CTYPE1", "RA---TAN");
+  h.setString("CTYPE2", "DEC--TAN");
+  h.setNumber("CRVAL1", raDeg);
+  h.setNumber("CRVAL2", decDeg);
+  h.setNumber("CRPIX1", crpix1);
+  h.setNumber("CRPIX2", crpix2);
+  h.setNumber("CD1_1", -arcsecPerPx / 3600.0);
+  h.setNumber("CD1_2", 0.0);
+  h.setNumber("CD2_1", 0.0);
+  h.setNumber("CD2_2", arcsecPerPx / 3600.0);
+}
+
 }  // namespace st::test

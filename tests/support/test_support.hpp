@@ -1,7 +1,9 @@
 #pragma once
-// Helpers shared by the test suites: temporary folders, the real-data location.
+// Helpers shared by the test suites: temporary folders, the real-data location, a simple TAN WCS.
 #include <filesystem>
 #include <string>
+
+#include "st/common/fits_header.hpp"
 
 namespace st::test {
 
@@ -22,5 +24,9 @@ class TempDir {
 /// The folder with real telescope data (../shared/data/real, or $ST_REAL_DATA), or empty when absent.
 /// Tests that need it call GTEST_SKIP() when this is empty.
 std::filesystem::path realDataDir();
+
+/// Writes a TAN WCS into `h`: (raDeg, decDeg) at the 1-based pixel (crpix1, crpix2), north up, east left,
+/// `arcsecPerPx` (CD matrix diagonal, no rotation).
+void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double crpix2, double arcsecPerPx);
 
 }  // namespace st::test

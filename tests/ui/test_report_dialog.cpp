@@ -33,16 +33,7 @@ constexpr Velocity kDotV{8.0, -4.0};
 FrameCube cubeWithWcs() {
   FrameCube cube = test::movingDotCube(96, 96, 40, kDotV, 40, 50);
   FitsHeader& h = cube.header;
-  h.setString("CTYPE1", "RA---TAN");
-  h.setString("CTYPE2", "DEC--TAN");
-  h.setNumber("CRPIX1", 48.5);
-  h.setNumber("CRPIX2", 48.5);
-  h.setNumber("CRVAL1", 150.0);
-  h.setNumber("CRVAL2", 30.0);
-  h.setNumber("CD1_1", -1.0 / 3600.0);
-  h.setNumber("CD1_2", 0.0);
-  h.setNumber("CD2_1", 0.0);
-  h.setNumber("CD2_2", 1.0 / 3600.0);
+  test::setTanWcs(h, 150.0, 30.0, 48.5, 48.5, 1.0);
   h.setString("RADESYS", "ICRS");
   h.setNumber("EQUINOX", 2000.0);
   cube.wcs = Wcs::fromHeader(h, nullptr);
