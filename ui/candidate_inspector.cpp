@@ -235,6 +235,7 @@ void CandidateInspector::start() {
   m_clock.start();
   m_cancel = std::make_shared<CancelToken>();
   auto cancel = m_cancel;
+  m_pending = true;
   m_watcher.setFuture(QtConcurrent::run([in = std::move(in), cancel, index]() -> Outcome {
     Outcome out;
     out.index = index;
@@ -251,6 +252,7 @@ void CandidateInspector::start() {
 
 void CandidateInspector::onFinished() {
   const Outcome out = m_watcher.result();
+  m_pending = false;
   if (m_restart) {
     start();
     return;

@@ -54,7 +54,9 @@ class CandidateInspector : public QWidget {
   /// The last inspection shown (null before the first), and the candidate it belongs to.
   [[nodiscard]] const std::shared_ptr<const Inspection>& inspection() const noexcept { return m_shown; }
   [[nodiscard]] int inspectedIndex() const noexcept { return m_shownIndex; }
-  [[nodiscard]] bool busy() const { return m_watcher.isRunning(); }
+  /// An inspection is running or its result (flags stored on the candidate) is not yet applied: the
+  /// watcher's finished signal is queued after the worker stops.
+  [[nodiscard]] bool busy() const { return m_pending; }
   [[nodiscard]] std::size_t knownObjectCount() const { return m_known ? m_known->size() : 0; }
   [[nodiscard]] QString statusText() const;
   [[nodiscard]] bool playing() const { return m_playTimer.isActive(); }
@@ -113,6 +115,7 @@ class CandidateInspector : public QWidget {
   QFutureWatcher<Outcome> m_watcher;
   std::shared_ptr<CancelToken> m_cancel;
   bool m_restart = false;
+  bool m_pending = false;  ///< started, onFinished not yet run
   std::shared_ptr<const Inspection> m_shown;
   int m_shownIndex = -1;
   std::shared_ptr<const std::vector<vet::KnownObject>> m_known;
