@@ -176,14 +176,6 @@ void checkAgainstReference(Kern rowKernel) {
   EXPECT_NE(gpu->lastNote().find(kernelName(rowKernel)), std::string::npos) << gpu->lastNote();
 }
 
-TEST(CudaBackend, TiledKernelMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::Tiled);
-}
-
-TEST(CudaBackend, RowKernelMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::Row);
-}
-
 TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
   gpu::CudaOptions o;
   o.naiveKernel = true;
@@ -229,14 +221,6 @@ void checkChunkedEqualsResident(Kern rowKernel) {
   }
 }
 
-TEST(CudaBackend, TiledKernelChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::Tiled);
-}
-
-TEST(CudaBackend, RowKernelChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::Row);
-}
-
 void checkLongCube(double step, const char* kernel) {
   const std::string name(kernel);
   ST_REQUIRE_GPU(gpu, kernelOptions(name == "row kernel"     ? Kern::Row
@@ -267,39 +251,6 @@ TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceRowKernel) {
 
 TEST(CudaBackend, LongCubeUploadOverlapEqualsReferenceStairKernel) {
   checkLongCube(0.04, "stair kernel");
-}
-
-TEST(CudaBackend, StairKernelMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::Stair);
-}
-
-TEST(CudaBackend, StairKernelChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::Stair);
-}
-
-TEST(CudaBackend, StairKernelCpAsyncWindowsMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::StairCpAsync);
-}
-
-TEST(CudaBackend, StairKernelCpAsyncWindowsChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::StairCpAsync);
-}
-
-// The stair kernel with its software-pipelined frame loop (measured slower, kept for benchmarks).
-TEST(CudaBackend, StairKernelPipelinedMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::StairPipe);
-}
-
-TEST(CudaBackend, StairKernelPipelinedChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::StairPipe);
-}
-
-TEST(CudaBackend, StairKernel4RowsMatchesHostReferenceAndFindsTheSource) {
-  checkAgainstReference(Kern::Stair4);
-}
-
-TEST(CudaBackend, StairKernel4RowsChunkedOverFramesAndVelocitiesEqualsResident) {
-  checkChunkedEqualsResident(Kern::Stair4);
 }
 
 TEST(CudaBackend, CandidateOverflowIsRecoveredNotTruncated) {
@@ -424,6 +375,30 @@ TEST(CudaBackend, DeviceSummaryNamesTheDevice) {
   EXPECT_NE(gpu::deviceSummary().find("sm_"), std::string::npos);
   EXPECT_EQ(gpu->name().rfind("cuda: ", 0), 0u);
 }
+
+// Every kernel, alone against the host reference, and chunked over frames and velocities against itself
+// resident. StairPipe is the stair kernel with its software-pipelined frame loop (measured slower, kept
+// for benchmarks).
+class CudaKernel : public ::testing::TestWithParam<Kern> {};
+
+TEST_P(CudaKernel, MatchesHostReferenceAndFindsTheSource) {
+  checkAgainstReference(GetParam());
+}
+
+TEST_P(CudaKernel, ChunkedOverFramesAndVelocitiesEqualsResident) {
+  checkChunkedEqualsResident(GetParam());
+}
+
+std::string testNameOf(const ::testing::TestParamInfo<Kern>& param) {
+  static const char* const kNames[] = {"Tiled",      "Row",          "Stair",
+                                       "Stair4Rows", "StairCpAsync", "StairPipelined"};
+  return kNames[static_cast<int>(param.param)];
+}
+
+INSTANTIATE_TEST_SUITE_P(EveryKernel, CudaKernel,
+                         ::testing::Values(Kern::Tiled, Kern::Row, Kern::Stair, Kern::Stair4,
+                                           Kern::StairCpAsync, Kern::StairPipe),
+                         testNameOf);
 
 }  // namespace
 }  // namespace st
