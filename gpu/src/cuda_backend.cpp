@@ -20,6 +20,8 @@
 #include "stack_engine.hpp"
 #include "st/search/tree_plan.hpp"
 #include "tree_search_device.hpp"
+#include "uploader.hpp"
+#include "wall_phases.hpp"
 #include "cuda_check.hpp"
 #include <functional>
 
@@ -33,6 +35,7 @@ class CudaBackend final : public CudaSearchBackend {
     if (m_options.maxDevices > 0 && static_cast<int>(m_devices.size()) > m_options.maxDevices) {
       m_devices.resize(static_cast<std::size_t>(m_options.maxDevices));
     }
+    m_resources.resize(m_devices.size());
   }
 
   [[nodiscard]] std::string name() const override {
@@ -63,6 +66,7 @@ class CudaBackend final : public CudaSearchBackend {
     result.backend = name();
     result.method = "exact";
     result.minFrames = search::minFramesFor(params, cube.frames.frameCount());
+    WallPhases wall;
     HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
     if (m_options.kernelVariant >= 0) {
       plan.tiledMode = m_options.kernelVariant;
@@ -84,7 +88,9 @@ class CudaBackend final : public CudaSearchBackend {
                                ? m_options.cellCapacity
                                : std::max<std::size_t>(4 * params.maxCandidates, 65536);
     progress.report(0.0, "velocity search (" + name() + ")");
+    wall.mark("plan");
     std::vector<DeviceOutcome> outcomes = runAll(plan, cube, capacity, progress, cancel);
+    wall.mark("devices");
     std::uint64_t above = 0;
     for (const auto& o : outcomes)
       above += o.cellsAbove;
@@ -101,7 +107,8 @@ class CudaBackend final : public CudaSearchBackend {
     mergeMap(outcomes, plan, result);
     result.cellsAboveThreshold = static_cast<std::int64_t>(above);
     search::setCandidates(result, collectCells(outcomes), cube, params);
-    m_note.clear();
+    wall.mark("candidates");
+    m_note = "host: " + wall.str() + "\n";
     m_kernelSeconds = 0.0;
     for (std::size_t i = 0; i < outcomes.size(); ++i) {
       m_note += "device " + std::to_string(m_devices[i].ordinal) + ": " + outcomes[i].note + "\n";
@@ -130,6 +137,7 @@ class CudaBackend final : public CudaSearchBackend {
                           "velocity search, tree (" + name() + ")", [&](int d, int used, auto report) {
                             DeviceJob job;
                             job.device = m_devices[d].ordinal;
+                            job.resources = &m_resources[static_cast<std::size_t>(d)];
                             job.cellCapacity = cap;
                             job.profile = m_options.profileTree;
                             job.treeRootShape = m_options.treeRootShape;
@@ -233,6 +241,7 @@ class CudaBackend final : public CudaSearchBackend {
                            }));
       } catch (...) {
         errors[d] = std::current_exception();
+        m_resources[d].reset();  // work may be left on its streams; made afresh by the next search
         m_abort.store(true);
       }
     };
@@ -287,6 +296,7 @@ class CudaBackend final : public CudaSearchBackend {
       try {
         DeviceJob job;
         job.device = m_devices[d].ordinal;
+        job.resources = &m_resources[static_cast<std::size_t>(d)];
         job.iyBegin = static_cast<int>(static_cast<long>(plan.nvy) * d / used);
         job.iyEnd = static_cast<int>(static_cast<long>(plan.nvy) * (d + 1) / used);
         job.memoryLimitBytes = m_options.deviceMemoryLimitBytes;
@@ -305,7 +315,8 @@ class CudaBackend final : public CudaSearchBackend {
             cancel, abort);
       } catch (...) {
         errors[d] = std::current_exception();
-        abort.store(true);  // stop the other devices early; the first real error is rethrown below
+        m_resources[d].reset();  // work may be left on its streams; made afresh by the next search
+        abort.store(true);       // stop the other devices early; the first real error is rethrown below
       }
     };
     std::vector<std::thread> threads;
@@ -351,6 +362,7 @@ class CudaBackend final : public CudaSearchBackend {
   }
 
   std::vector<DeviceInfo> m_devices;
+  std::vector<std::unique_ptr<DeviceResources>> m_resources;  ///< per device, kept between searches
   CudaOptions m_options;
   StackEngine m_stack;
   std::string m_note;

@@ -6,6 +6,7 @@
 
 #include "cuda_check.hpp"
 #include "uploader.hpp"
+#include "wall_phases.hpp"
 #include "st/common/parallel.hpp"
 
 namespace st::gpu {
@@ -170,7 +171,10 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
     cancel.throwIfCancelled();
     if (abort.load(std::memory_order_relaxed)) throw Cancelled();
   };
+  WallPhases wall;
   ST_CUDA_CHECK(cudaSetDevice(job.device));
+  std::unique_ptr<DeviceResources> own;
+  DeviceResources& res = ensureResources(job.resources ? *job.resources : own);
   std::size_t freeBytes = 0;
   std::size_t totalBytes = 0;
   ST_CUDA_CHECK(cudaMemGetInfo(&freeBytes, &totalBytes));
@@ -226,14 +230,15 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
                  DeviceBuffer<unsigned long long>(static_cast<std::size_t>(plan.nvx) * plan.nvy),
                  DeviceBuffer<DeviceCell>(std::max<std::size_t>(job.cellCapacity, 1)),
                  DeviceBuffer<unsigned long long>(1)};
-  Stream compute;
-  Stream copy;
+  Stream& compute = res.compute;
+  Stream& copy = res.copy;
   ST_CUDA_CHECK(cudaMemsetAsync(t.mapKeys.get(), 0, t.mapKeys.bytes(), compute.get()));
   ST_CUDA_CHECK(cudaMemsetAsync(t.count.get(), 0, sizeof(unsigned long long), compute.get()));
   SearchLaunch p = baseLaunch(plan, t, job);
   Launcher launcher(plan, naive, compute.get(), chunkRows);
-  Uploader uploader(frames, plane, static_cast<std::size_t>(frameChunk) * plane);
+  Uploader uploader(res, frames, plane);
   Event uploaded;
+  wall.mark("set-up");
   int rowsDone = 0;
   auto report = [&](int r) {
     rowsDone += r;
@@ -253,6 +258,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
         fixed + offsetBytes(chunkRows) + cubeBytes + partialBytes(firstEnd - job.iyBegin) <= budget;
     DeviceBuffer<float> partial(overlap ? static_cast<std::size_t>(firstEnd - job.iyBegin) * plan.nvx * plane
                                         : 0);
+    wall.mark("allocation");
     if (overlap) launcher.prepare(p, job.iyBegin, firstEnd);
     p.partial = partial.get();
     for (int n0 = 0; n0 < n; n0 += uploadFrames) {
@@ -269,6 +275,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
       }
       poll();
     }
+    wall.mark("upload enqueued");
     p.partial = nullptr;
     p.loadPartial = false;
     p.finalize = true;
@@ -277,6 +284,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
     int iy = job.iyBegin;
     if (overlap) {
       compute.sync();
+      wall.mark("first chunk");
       report(firstEnd - iy);
       iy = firstEnd;
     }
@@ -288,6 +296,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
       poll();
       report(iy1 - iy);
     }
+    wall.mark("other chunks");
     out.note = "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB), " +
                (overlap ? "upload overlapped with the first velocity chunk" : "upload then search") +
                kernelName(plan, naive);
@@ -324,6 +333,7 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
                std::to_string(frameChunk) + ", velocities in chunks of " + std::to_string(chunkRows) +
                " rows" + kernelName(plan, naive);
   }
+  wall.mark("free");
   compute.sync();
   copy.sync();
   out.kernelSeconds = launcher.seconds();
@@ -339,6 +349,8 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
     ST_CUDA_CHECK(cudaMemcpy(out.cells.data(), t.cells.get(), out.cells.size() * sizeof(DeviceCell),
                              cudaMemcpyDeviceToHost));
   }
+  wall.mark("read-back");
+  out.note += "; wall: " + wall.str();
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -16,8 +17,12 @@
 
 namespace st::gpu {
 
+struct DeviceResources;
+
 struct DeviceJob {
   int device = 0;
+  /// Streams and staging kept by the backend between searches (made on first use); null: made for this one.
+  std::unique_ptr<DeviceResources>* resources = nullptr;
   int iyBegin = 0;  ///< grid rows [iyBegin, iyEnd) go to this device
   int iyEnd = 0;
   std::size_t memoryLimitBytes = 0;  ///< 0: what the device has free (less a reserve)

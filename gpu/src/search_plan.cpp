@@ -6,6 +6,7 @@
 
 #include "kernel_params.hpp"
 #include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
 
 namespace st::gpu {
 namespace {
@@ -36,16 +37,18 @@ void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, co
   const int nv = static_cast<int>(vel.size());
   shifts.resize(static_cast<std::size_t>(nv) * n);
   spans.resize(static_cast<std::size_t>(nv) * extent * 2);
-  std::vector<int> sorted(static_cast<std::size_t>(n));
-  for (int i = 0; i < nv; ++i) {
-    for (int k = 0; k < n; ++k) {
-      shifts[static_cast<std::size_t>(i) * n + k] = ipsaShift(vel[i], dt[k]);
-      sorted[k] = ipsaShift(vel[i], dt[order[k]]);
+  // Velocities in parallel: ~2 x 10^6 binary searches for the paper's problem (5 ms on one core).
+  parallelFor(static_cast<std::size_t>(nv), 4, [&](std::size_t lo, std::size_t hi) {
+    std::vector<int> sorted(static_cast<std::size_t>(n));
+    for (std::size_t i = lo; i < hi; ++i) {
+      for (int k = 0; k < n; ++k) {
+        shifts[i * n + k] = ipsaShift(vel[i], dt[k]);
+        sorted[k] = ipsaShift(vel[i], dt[order[k]]);
+      }
+      for (int c = 0; c < extent; ++c)
+        validSpan(sorted.data(), n, -c, extent - c, &spans[(i * extent + c) * 2]);
     }
-    for (int c = 0; c < extent; ++c) {
-      validSpan(sorted.data(), n, -c, extent - c, &spans[(static_cast<std::size_t>(i) * extent + c) * 2]);
-    }
-  }
+  });
 }
 
 /// Largest shift difference, over frames, between velocities `len` grid steps apart (tiles can start

@@ -1,6 +1,7 @@
 #include "tree_search_device.hpp"
 
 #include <cstdio>
+#include <memory>
 #include <string>
 
 #include "cuda_check.hpp"
@@ -40,10 +41,12 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     if (abort.load(std::memory_order_relaxed)) throw Cancelled();
   };
   ST_CUDA_CHECK(cudaSetDevice(job.device));
+  std::unique_ptr<DeviceResources> own;
+  DeviceResources& res = ensureResources(job.resources ? *job.resources : own);
   const std::size_t plane = static_cast<std::size_t>(plan.width) * plan.height;
   const std::size_t cubeFloats = plane * static_cast<std::size_t>(plan.frameCount);
-  Stream compute;
-  Stream copy;
+  Stream& compute = res.compute;
+  Stream& copy = res.copy;
   DeviceBuffer<float> cube(cubeFloats);
   DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[0], 1)),
                                   DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[1], 1))};
@@ -65,7 +68,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   Event up0(true), up1(true), k0(true), k1(true);
   up0.record(copy.get());
   {
-    Uploader uploader(frames, plane, cubeFloats);
+    Uploader uploader(res, frames, plane);
     uploader.upload(cube.get(), 0, plan.frameCount, copy.get());
     up1.record(copy.get());
     copy.sync();

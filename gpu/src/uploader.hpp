@@ -1,54 +1,69 @@
 #pragma once
-// Upload of frames from pageable host memory through pinned staging buffers (shared by the exact and the
-// tree search).
+// What one device keeps between searches (streams, pinned staging buffers: creating them costs ~20-30 ms,
+// measured on an H100 2026-11-22), and the upload of frames from pageable host memory through the staging
+// buffers (shared by the exact and the tree search).
 #include <algorithm>
 #include <cstddef>
 #include <cstring>
+#include <memory>
 
 #include "cuda_check.hpp"
 #include "st/common/parallel.hpp"
 
 namespace st::gpu {
 
-inline constexpr std::size_t kStagingBytes = std::size_t{32} << 20;  // one pinned staging buffer
+/// One pinned staging buffer. 8 MiB pieces were slower (H100, 2026-11-22: the paper's cube uploaded in
+/// 117-130 ms instead of 43-51 ms; parallelFor starts its threads for every piece).
+inline constexpr std::size_t kStagingBytes = std::size_t{32} << 20;
 
-/// Copies frames from pageable host memory to the device through two pinned staging buffers, so that the
-/// host copy of one piece (on every core) overlaps the DMA of the previous one.
+/// Streams and staging buffers of one device, created with that device current and used by one host thread
+/// at a time (the device's search thread). A search that fails drops them (the owner resets the pointer).
+struct DeviceResources {
+  Stream compute;
+  Stream copy;
+  PinnedBuffer staging[2] = {PinnedBuffer(kStagingBytes), PinnedBuffer(kStagingBytes)};
+  Event stagingFree[2];
+  int nextStaging = 0;
+};
+
+/// The resources in `slot`, made now (with their device current) when it is empty.
+inline DeviceResources& ensureResources(std::unique_ptr<DeviceResources>& slot) {
+  if (!slot) slot = std::make_unique<DeviceResources>();
+  return *slot;
+}
+
+/// Copies frames from pageable host memory to the device through the two pinned staging buffers of
+/// `resources`, so that the host copy of one piece (on every core) overlaps the DMA of the previous one.
 class Uploader {
  public:
-  Uploader(const float* host, std::size_t plane, std::size_t totalFloats)
-      : m_host(host), m_plane(plane), m_pieceFloats(std::min(totalFloats, kStagingBytes / sizeof(float))) {
-    for (auto& b : m_pinned)
-      b = PinnedBuffer(m_pieceFloats * sizeof(float));
-  }
+  Uploader(DeviceResources& resources, const float* host, std::size_t plane)
+      : m_r(resources), m_host(host), m_plane(plane) {}
   /// Enqueues frames [n0, n1) into `dst` on `stream`. Blocks only while a staging buffer is still in flight.
   void upload(float* dst, int n0, int n1, cudaStream_t stream) {
+    constexpr std::size_t kPieceFloats = kStagingBytes / sizeof(float);
     const std::size_t total = static_cast<std::size_t>(n1 - n0) * m_plane;
     const float* src = m_host + static_cast<std::size_t>(n0) * m_plane;
-    for (std::size_t off = 0; off < total; off += m_pieceFloats) {
-      const std::size_t piece = std::min(m_pieceFloats, total - off);
-      const int b = m_next;
-      m_next ^= 1;
-      m_free[b].sync();
+    for (std::size_t off = 0; off < total; off += kPieceFloats) {
+      const std::size_t piece = std::min(kPieceFloats, total - off);
+      const int b = m_r.nextStaging;
+      m_r.nextStaging ^= 1;
+      m_r.stagingFree[b].sync();
       // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
-      float* dst0 = static_cast<float*>(m_pinned[b].get());
+      float* dst0 = static_cast<float*>(m_r.staging[b].get());
       const float* src0 = src + off;
       parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
         std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
       });
-      ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_pinned[b].get(), piece * sizeof(float),
+      ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_r.staging[b].get(), piece * sizeof(float),
                                     cudaMemcpyHostToDevice, stream));
-      m_free[b].record(stream);
+      m_r.stagingFree[b].record(stream);
     }
   }
 
  private:
+  DeviceResources& m_r;
   const float* m_host;
   std::size_t m_plane;
-  std::size_t m_pieceFloats;
-  PinnedBuffer m_pinned[2];
-  Event m_free[2];
-  int m_next = 0;
 };
 
 }  // namespace st::gpu
