@@ -233,6 +233,7 @@ int cmdSearch(const Args& args) {
   const search::SearchResult r = search::searchWithChoice(*sel.backend, fc, grid, o.request.params, method,
                                                           progress, processCancelToken());
   progress.finish();
+  std::fputs(searchNotesText(r).c_str(), stderr);
   nlohmann::json j = report::searchResultToJson(fc, r, cli.positionals());
   j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
   j["min_frames"] = r.minFrames;

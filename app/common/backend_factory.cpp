@@ -3,6 +3,7 @@
 #include "st/common/error.hpp"
 #include "st/config.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/search/fallback_backend.hpp"
 #if ST_HAVE_CUDA
 #include "st/gpu/cuda_backend.hpp"
 #endif
@@ -31,6 +32,8 @@ BackendSelection makeBackend(BackendChoice choice) {
 #endif
     if (out.backend) {
       out.message = "using " + out.backend->name();
+      // A device failure during a search (out of memory, a failed launch) reruns it on the CPU, saying so.
+      out.backend = search::makeFallbackBackend(std::move(out.backend), search::makeCpuBackend());
       return out;
     }
     if (choice == BackendChoice::Cuda) throw GpuError("CUDA backend not available: " + whyNot);
@@ -52,6 +55,20 @@ BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& m
   sel = makeBackend(BackendChoice::Cpu);
   sel.message = "method tree: " + gpu + " has no tree search; " + sel.message;
   return sel;
+}
+
+std::string searchNotesText(const search::SearchResult& result) {
+  std::string out;
+  for (const std::string& w : result.warnings)
+    out += "warning: " + w + "\n";
+  std::size_t start = 0;
+  while (start < result.backendNote.size()) {
+    std::size_t end = result.backendNote.find('\n', start);
+    if (end == std::string::npos) end = result.backendNote.size();
+    out += "  " + result.backendNote.substr(start, end - start) + "\n";
+    start = end + 1;
+  }
+  return out;
 }
 
 std::vector<std::string> parseDeviceSummary(const std::string& summary) {

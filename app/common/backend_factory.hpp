@@ -28,6 +28,11 @@ BackendSelection makeBackend(BackendChoice choice);
 /// named.
 BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method);
 
+/// What a finished search has to tell the user besides its candidates, for a terminal: each of
+/// SearchResult::warnings as "warning: ...", then the backend's note (memory tiling, devices, time per
+/// phase) indented; empty when there is neither.
+std::string searchNotesText(const search::SearchResult& result);
+
 /// The names of the visible GPUs for a backend selector ("NVIDIA H100 80GB HBM3, 79.1 GiB"), empty without
 /// CUDA or a device.
 std::vector<std::string> gpuNames();

@@ -61,6 +61,8 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["backend"] = r.backend;
   j["method"] = r.method;
   j["method_reason"] = r.methodReason;
+  if (!r.backendNote.empty()) j["backend_note"] = r.backendNote;
+  if (!r.warnings.empty()) j["warnings"] = r.warnings;
   j["t_ref_mjd"] = r.tRefMjd;
   j["frames"] = cube.frames.frameCount();
   j["sigma_f"] = cube.sigmaF;
@@ -175,6 +177,8 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
   r.backend = required<std::string>(j, "backend", kWhat);
   r.method = required<std::string>(j, "method", kWhat);
   r.methodReason = optionalKey<std::string>(j, "method_reason", std::string(), kWhat);
+  r.backendNote = optionalKey<std::string>(j, "backend_note", std::string(), kWhat);
+  r.warnings = optionalKey<std::vector<std::string>>(j, "warnings", {}, kWhat);
   r.elapsedS = optionalKey<double>(j, "elapsed_s", 0.0, kWhat);
   r.cellsAboveThreshold = optionalKey<std::int64_t>(j, "cells_above_threshold", 0, kWhat);
   r.minFrames = optionalKey<int>(j, "min_frames", 0, kWhat);

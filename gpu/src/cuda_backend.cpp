@@ -114,6 +114,7 @@ class CudaBackend final : public CudaSearchBackend {
       m_note += "device " + std::to_string(m_devices[i].ordinal) + ": " + outcomes[i].note + "\n";
       m_kernelSeconds += outcomes[i].kernelSeconds;
     }
+    result.backendNote = trimmed(m_note);
     result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.report(1.0, "velocity search (" + name() + ")");
     return result;
@@ -175,6 +176,7 @@ class CudaBackend final : public CudaSearchBackend {
       m_uploadSeconds = std::max(m_uploadSeconds, outcomes[i].uploadSeconds);
     }
     m_treeAdditions = dplan.additionsPerTile * dplan.tiles;
+    result.backendNote = trimmed(m_note);
     result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.report(1.0, "velocity search, tree (" + name() + ")");
     return result;
@@ -208,6 +210,12 @@ class CudaBackend final : public CudaSearchBackend {
     throw GpuError("not enough device memory for the tree search: the cube (" +
                    std::to_string(cubeBytes >> 20) + " MiB) and partial stacks need " +
                    std::to_string(need >> 20) + " MiB, " + std::to_string(budget >> 20) + " MiB allowed");
+  }
+
+  static std::string trimmed(std::string s) {
+    while (!s.empty() && s.back() == '\n')
+      s.pop_back();
+    return s;
   }
 
   static std::size_t checkedCapacity(std::uint64_t above, double threshold) {

@@ -123,6 +123,8 @@ search::SearchResult awkwardResult() {
   r.cellsAboveThreshold = 123456789012;
   r.sidelobesMerged = 3;
   r.minFrames = 5;
+  r.backendNote = "host: plan 2.1 ms\ndevice 0: cube resident (1500 MiB)";
+  r.warnings = {"cuda: X failed (out of memory); searched on cpu instead"};
   return r;
 }
 
@@ -147,6 +149,8 @@ TEST(SearchReport, ResultRoundTripsExactlyThroughJsonText) {
   EXPECT_EQ(back.cellsAboveThreshold, r.cellsAboveThreshold);
   EXPECT_EQ(back.sidelobesMerged, r.sidelobesMerged);
   EXPECT_EQ(back.minFrames, 5);
+  EXPECT_EQ(back.backendNote, r.backendNote);
+  EXPECT_EQ(back.warnings, r.warnings);
   ASSERT_EQ(back.candidates.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i)
     expectSameCandidate(back.candidates[i], r.candidates[i]);

@@ -17,6 +17,7 @@
 #include "st/gpu/cuda_backend.hpp"
 #include "st/search/candidates.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/search/fallback_backend.hpp"
 #include "st/search/search_run.hpp"
 #include "st/stack/csa.hpp"
 
@@ -359,6 +360,49 @@ TEST(CudaBackend, CancelledSearchThrowsCancelled) {
   CancelToken cancel;
   cancel.cancel();
   EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), Cancelled);
+}
+
+/// Cancels its token at the first progress report.
+struct CancelOnProgress final : ProgressSink {
+  explicit CancelOnProgress(CancelToken& t) : token(t) {}
+  void report(double, std::string_view) override { token.cancel(); }
+  CancelToken& token;
+};
+
+TEST(CudaBackend, SearchAfterACancelledOneGivesTheSameAnswer) {
+  // The backend keeps its streams and staging buffers between searches; one cancelled mid-way (work left
+  // on its streams) must not change the next search's answer.
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem(Kern::Stair);
+  NullProgress quiet;
+  CancelToken cancel;
+  const SearchResult a = gpu->search(p.cube, p.grid, p.params, quiet, cancel);
+  CancelToken stop;
+  CancelOnProgress stopper(stop);
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, stopper, stop), Cancelled);
+  const SearchResult b = gpu->search(p.cube, p.grid, p.params, quiet, cancel);
+  EXPECT_EQ(a.map.maxSnr, b.map.maxSnr);
+  ASSERT_EQ(a.candidates.size(), b.candidates.size());
+  for (std::size_t i = 0; i < a.candidates.size(); ++i)
+    EXPECT_EQ(a.candidates[i].snr, b.candidates[i].snr);
+}
+
+TEST(CudaBackend, OutOfDeviceMemoryFallsBackToTheCpuWithAWarning) {
+  gpu::CudaOptions tiny;
+  tiny.deviceMemoryLimitBytes = 16 * 1024;  // not even one velocity row of partial sums
+  ST_REQUIRE_GPU(gpu, tiny);
+  Problem p = standardProblem();
+  NullProgress progress;
+  CancelToken cancel;
+  EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), GpuError);
+  auto backend = search::makeFallbackBackend(std::move(gpu), search::makeCpuBackend());
+  const SearchResult r = backend->search(p.cube, p.grid, p.params, progress, cancel);
+  const SearchResult cpu = search::makeCpuBackend()->search(p.cube, p.grid, p.params, progress, cancel);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("not enough device memory"), std::string::npos) << r.warnings[0];
+  EXPECT_EQ(r.backend, cpu.backend);
+  EXPECT_EQ(r.map.maxSnr, cpu.map.maxSnr);
+  ASSERT_EQ(r.candidates.size(), cpu.candidates.size());
 }
 
 TEST(CudaBackend, BadInputIsAnInputError) {

@@ -99,6 +99,11 @@ struct SearchResult {
   int minFrames = 0;                     ///< N_in below this was ignored (minFrameFraction x N_f, rounded up)
   std::int64_t sidelobesMerged =
       0;  ///< candidates merged into a brighter one as its sidelobes (sidelobes.hpp)
+  /// How the backend ran the search, for the log: memory tiling, devices, time per phase (CUDA); may be
+  /// empty.
+  std::string backendNote;
+  /// What the user must see: e.g. the GPU failed and the CPU searched instead (fallback_backend.hpp).
+  std::vector<std::string> warnings;
 };
 
 enum class StackMode { Ipsa, Csa };
