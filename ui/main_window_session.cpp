@@ -61,6 +61,8 @@ void MainWindow::buildSession() {
         return p;
       },
       this);
+  // The search panel's settings are part of the session: a change by hand is saved like a label.
+  connect(m_search, &SearchPanel::settingsChanged, m_session, &SessionController::requestSave);
   m_sessionLabel = new QLabel("Session: none", this);
   connect(m_session, &SessionController::statusChanged, this,
           [this](const QString& text, const QString& tooltip, bool error) {

@@ -341,6 +341,21 @@ void SearchPanel::refresh() {
       gridDescription(g, m_shownUnit, m_obs->plateScale(), m_obs->raw() ? m_obs->raw()->timeSpanS() : 0.0));
   m_gridOriginLabel->setText(m_origin);
   m_gridOriginLabel->setVisible(!m_origin.isEmpty());
+  const search::SearchParams p = params();
+  const QString settings = QString("%1 %2 %3 %4 %5 %6 %7 %8 %9")
+                               .arg(g.centre.vx, 0, 'g', 17)
+                               .arg(g.centre.vy, 0, 'g', 17)
+                               .arg(g.stepPxS, 0, 'g', 17)
+                               .arg(g.nvx)
+                               .arg(g.nvy)
+                               .arg(p.snrThreshold, 0, 'g', 17)
+                               .arg(p.targetFap ? QString::number(*p.targetFap, 'g', 17) : QString("-"))
+                               .arg(QString::fromStdString(p.method))
+                               .arg(static_cast<int>(backendKind()));
+  if (settings != m_lastSettings) {
+    m_lastSettings = settings;
+    emit settingsChanged();
+  }
   if (m_obs->grid().nvx != g.nvx || m_obs->grid().stepPxS != g.stepPxS || !(m_obs->grid().centre == g.centre))
     m_obs->setGrid(g);
   const auto& raw = m_obs->raw();

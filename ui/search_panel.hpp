@@ -74,6 +74,8 @@ class SearchPanel : public QWidget {
   void setGridPxS(Velocity centre, double halfRange, double step);
 
  signals:
+  /// The grid, threshold, method or backend changed (by hand or by a setter): the session saves it.
+  void settingsChanged();
   void runRequested();
   void cancelRequested();
 
@@ -117,6 +119,7 @@ class SearchPanel : public QWidget {
   std::optional<search::VelocityGrid> m_exactGrid;  ///< the grid as given, until a value is edited
   QString m_origin;
   search::SearchParams m_hiddenParams;  ///< what params() returns beyond the shown threshold and method
+  QString m_lastSettings;               ///< the settings settingsChanged() last announced, as text
   QRadioButton* m_bySnr;
   QRadioButton* m_byFap;
   QDoubleSpinBox* m_snr;
