@@ -342,16 +342,10 @@ void SearchPanel::refresh() {
   m_gridOriginLabel->setText(m_origin);
   m_gridOriginLabel->setVisible(!m_origin.isEmpty());
   const search::SearchParams p = params();
-  const QString settings = QString("%1 %2 %3 %4 %5 %6 %7 %8 %9")
-                               .arg(g.centre.vx, 0, 'g', 17)
-                               .arg(g.centre.vy, 0, 'g', 17)
-                               .arg(g.stepPxS, 0, 'g', 17)
-                               .arg(g.nvx)
-                               .arg(g.nvy)
-                               .arg(p.snrThreshold, 0, 'g', 17)
-                               .arg(p.targetFap ? QString::number(*p.targetFap, 'g', 17) : QString("-"))
-                               .arg(QString::fromStdString(p.method))
-                               .arg(static_cast<int>(backendKind()));
+  QString settings = QString::fromStdString(p.method);
+  for (double v : {g.centre.vx, g.centre.vy, g.stepPxS, 1.0 * g.nvx, 1.0 * g.nvy, p.snrThreshold,
+                   p.targetFap.value_or(-1.0), 1.0 * static_cast<int>(backendKind())})
+    settings += ' ' + QString::number(v, 'g', 17);
   if (settings != m_lastSettings) {
     m_lastSettings = settings;
     emit settingsChanged();
