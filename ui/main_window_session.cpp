@@ -194,8 +194,10 @@ void MainWindow::applyOpenedSession(const OpenedSession& opened) {
     m_search->setBackendMessage("stacks: " + QString::fromStdString(opened.backendMessage));
   m_obs->setPrepared(opened.prepared);
   // The search panel as it was saved: unit, grid (exactly), threshold, method, backend.
-  m_search->setUnit(snap.unit);
-  m_obs->setUnit(snap.unit);
+  if (snap.unitSaved) {
+    m_search->setUnit(snap.unit);
+    m_obs->setUnit(snap.unit);
+  }
   const search::VelocityGrid& g = snap.parameters.grid;
   if (g.count() > 0 && g.stepPxS > 0.0) m_search->setGrid(g, "restored from the session");
   m_search->setParams(snap.parameters.search);

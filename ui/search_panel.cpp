@@ -81,7 +81,9 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   m_half = velocitySpin(gridBox, 0);
   m_step = velocitySpin(gridBox, 0);
   m_step->setMinimum(1e-6);
-  m_half->setToolTip("Half-width of the square grid around the centre");
+  m_half->setToolTip(
+      "Half-width of the square grid around the centre: a whole number of steps, at least the range asked "
+      "for (the demo's ±8 deg/day in 1.5 px steps is ±8.08 deg/day)");
   m_step->setToolTip("Grid spacing; the paper's default is 1 pixel over the observation's time span");
   auto* centre = new QHBoxLayout;
   centre->addWidget(m_cx);
@@ -215,7 +217,7 @@ void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {
 
 void SearchPanel::onGridEdited() {
   m_exactGrid.reset();
-  m_origin = "edited";
+  m_origin = "edited by hand";
   refresh();
 }
 

@@ -161,7 +161,10 @@ SessionSnapshot restoreSnapshot(const session::Session& session, const std::vect
   const json view = p.contains("view") ? p["view"] : json::object();
   const std::string unit = valueOr<std::string>(view, "velocity_unit", "px_s", where);
   for (const auto& [u, key] : kUnits)
-    if (unit == key) snap.unit = u;
+    if (unit == key) {
+      snap.unit = u;
+      snap.unitSaved = view.contains("velocity_unit");
+    }
   if (!session.search.is_object() || session.search.empty()) {
     if (!session.candidates.empty())
       throw InputError(where + ": candidates without a search result (the 'search' member is empty)");

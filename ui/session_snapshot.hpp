@@ -11,8 +11,9 @@
 //   "preprocess":  {"<stage name>": {"enabled": bool, "parameters": {"<key>": number, ...}}, ...}
 //   "search":      {"grid": {centre_vx_px_s, centre_vy_px_s, step_px_s, nvx, nvy}, "snr_threshold",
 //                   "target_fap" (null when the threshold is by SNR), "max_candidates", "min_frame_fraction",
-//                   "method" ("exact" | "tree"), "backend" ("auto" | "cpu" | "gpu")}
-//   "view":        {"selected": 0-based candidate index or null, "velocity_unit": int}
+//                   "method" ("auto" | "exact" | "tree"), "backend" ("auto" | "cpu" | "gpu")}
+//   "view":        {"selected": 0-based candidate index or null, "velocity_unit": "px_s" | "arcsec_min" |
+//   "deg_day"}
 // Every key is optional on reading: a file from an older build that lacks one (e.g. "method", "backend",
 // "demo_autosave") loads with the GUI's default for it (SessionParameters' defaults: SNR 7, method auto,
 // backend auto); keys are only ever added, so Session::version does not change for them (an older build
@@ -69,6 +70,7 @@ struct SessionSnapshot {
   std::vector<session::CandidateState> states;
   std::optional<int> selected;  ///< 0-based, within range of the result
   VelocityUnit unit = VelocityUnit::PxPerS;
+  bool unitSaved = false;  ///< the file names the unit (else the window keeps its own default)
 };
 
 /// The inverse of makeSession(). `defaults` are the pipeline's stages (CoreServices::preprocessStages): a

@@ -161,6 +161,9 @@ TEST(SessionSearchSettings, AnOlderFileWithoutTheKeysOpensWithDefaults) {
   EXPECT_EQ(g.stepPxS, 0.25);
   EXPECT_EQ(g.nvx, 9);
   EXPECT_EQ(g.centre.vx, 1.0);
+  // No unit in the file: the window's default for an observation with a plate scale, shown and used alike.
+  EXPECT_EQ(w.observation()->unit(), VelocityUnit::DegPerDay);
+  EXPECT_EQ(child<QComboBox>(panel, "px/s")->currentText(), "deg/day");
 }
 
 TEST(SessionSearchSettings, DemoAutosavesDoNotPileUp) {
