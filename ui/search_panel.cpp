@@ -450,12 +450,18 @@ void SearchPanel::onResultChanged() {
   if (!r) return;
   const QString why =
       r->methodReason == "requested" ? QString("as selected") : QString::fromStdString(r->methodReason);
-  m_status->setText(QString("%1 search on %2: %3 in %4 (%5)")
-                        .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
-                        .arg(QString::fromStdString(r->backend))
-                        .arg(candidateSummary(*r))
-                        .arg(humanSeconds(r->elapsedS))
-                        .arg(why));
+  QString text = QString("%1 search on %2: %3 in %4 (%5)")
+                     .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
+                     .arg(QString::fromStdString(r->backend))
+                     .arg(candidateSummary(*r))
+                     .arg(humanSeconds(r->elapsedS))
+                     .arg(why);
+  // What the user must see (e.g. the GPU failed and the CPU searched instead) goes first.
+  for (auto it = r->warnings.rbegin(); it != r->warnings.rend(); ++it)
+    text.prepend("Warning: " + QString::fromStdString(*it) + "\n");
+  m_status->setText(text);
+  // How the backend ran it (memory tiling, devices, time per phase), on hover.
+  m_status->setToolTip(QString::fromStdString(r->backendNote));
 }
 
 QString candidateSummary(const search::SearchResult& result) {
