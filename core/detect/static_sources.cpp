@@ -9,6 +9,7 @@
 #include "st/common/parallel.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/stats/sigma_clip.hpp"
+#include "source_motion.hpp"
 #include "star_footprint.hpp"
 
 namespace st::detect {
@@ -137,6 +138,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 CancelToken& cancel) {
   StaticSources out;
   out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
@@ -180,10 +182,22 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
+  // Sources seen per pixel move when their centroids shift between the thirds relative to the stars'.
+  std::vector<Star> described(comps.size());
+  std::vector<detail::SourceShift> shifts(nPerPixel);
+  detail::ThirdStacks thirds;
+  if (params.keepMovers) thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
+  for (std::size_t k = 0; k < comps.size(); ++k) {
+    described[k] = describe(comps[k], resid, snr, snrF, s, params, background);
+    const bool judged = !described[k].saturated && described[k].snr < params.spikeSnr;
+    if (k < nPerPixel && thirds.valid() && judged)
+      shifts[k] = detail::measureShift(comps[k], cw, thirds, noise.sigma);
+  }
+  const auto common = detail::commonShift(shifts);
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
-    Star st = describe(comp, resid, snr, snrF, s, params, background);
+    Star st = std::move(described[k]);
     // Seen only after the filter: a static source only if it stays put between the stacks of the first and
     // second halves of the frames (a slow moving object is a streak there, and its halves shift).
     if (k >= nPerPixel) {
@@ -195,6 +209,15 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       if (!halves.isStatic(peak, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 1,
                            params.maxHalfShiftPx))
         continue;
+    } else if (shifts[k].measured) {
+      MovingSource m = detail::judgeMotion(shifts[k], common, thirds, s.x0, s.y0, params, st);
+      if (m.moving) {
+        m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
+        for (int p : comp)
+          out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
+        out.movers.push_back(m);
+        continue;
+      }
     }
     for (int p : comp)
       out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
@@ -212,6 +235,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     out.stars.push_back(std::move(st));
   }
   out.mask.dilate(base);
+  out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   progress.report(1.0, "static sources");
   return out;
@@ -248,7 +272,8 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
 }
 
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
-                                          int radiusPx, ProgressSink& progress, CancelToken& cancel) {
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel,
+                                          const MovingMask* keep) {
   SingleFrameSources out;
   out.seedsPerFrame.assign(cube.frameCount(), 0);
   out.zeroedPerFrame.assign(cube.frameCount(), 0);
@@ -256,6 +281,7 @@ SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, d
   const std::size_t np = cube.framePixels();
   const bool perPixel = sigma.size() == np;
   const int r2 = radiusPx * radiusPx;
+  const bool useKeep = keep && !keep->empty();
   parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
     std::vector<int> seeds;
     for (std::size_t n = n0; n < n1; ++n) {
@@ -264,7 +290,9 @@ SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, d
       seeds.clear();
       for (std::size_t i = 0; i < np; ++i) {
         const double s = perPixel ? sigma.pixels[i] : sigmaN;
-        if (s > 0 && f[i] >= snr * s) seeds.push_back(static_cast<int>(i));
+        if (s <= 0 || f[i] < snr * s) continue;
+        if (useKeep && keep->covers(n, static_cast<int>(i) % w, static_cast<int>(i) / w)) continue;
+        seeds.push_back(static_cast<int>(i));
       }
       out.seedsPerFrame[n] = seeds.size();
       for (int p : seeds) {

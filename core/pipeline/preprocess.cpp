@@ -110,6 +110,18 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     }
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
     out.stars = stars.stars;
+    out.movers = stars.movers;
+    if (!stars.movers.empty()) {
+      std::ostringstream note;
+      note << stars.movers.size()
+           << " source(s) of the sky-rate stack moved between its first and last thirds and were left "
+              "unmasked "
+              "for the search:";
+      for (const auto& m : stars.movers)
+        note << " (" << m.x << ", " << m.y << ") px moving (" << m.v.vx << ", " << m.v.vy << ") px/s, shift "
+             << m.shiftPx << " +- " << m.shiftSigmaPx << " px;";
+      out.notes.push_back(note.str());
+    }
   }
   lap("static sources");
   {
@@ -143,7 +155,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
     const int radius = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
     out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
-                                                     radius, sub, cancel);
+                                                     radius, sub, cancel, &stars.moverMask);
   }
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.8, 1.0);

@@ -40,6 +40,16 @@ struct StaticSourceParams {
   double wingBeta = 4.0;  ///< paper §3.3: beta ~ 4 (the PSF is fitted after this stage)
   /// Spikes and bleed trails are measured and masked for saturated stars and stars above this stack SNR.
   double spikeSnr = 300.0;
+  /// Sources of the per-pixel detection whose centroid moves between the sky-rate stacks of the first and
+  /// the last third of the frames are movers (a slow moving object is a short streak there that looks like
+  /// a star; a star's centroid stays put): they are not masked, not in the catalog, and are listed in
+  /// StaticSources::movers. Moving means a shift > max(minMoverShiftPx, moverShiftSigmas * its sigma) and a
+  /// middle third on the line (detail::measureMotion). Saturated stars and stars above spikeSnr are always
+  /// static. The floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the
+  /// sky rate's integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
+  bool keepMovers = true;
+  double minMoverShiftPx = 1.5;
+  double moverShiftSigmas = 5.0;
 };
 
 /// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky
@@ -54,11 +64,27 @@ struct Star {
   int pixels = 0;            ///< footprint size before dilation
   bool saturated = false;
   std::vector<int> bleedColumns;  ///< columns (0-based, at t_ref) with a vertical run of saturated pixels
+  double motionXPx = 0.0;  ///< centroid shift between the first and last thirds' stacks (0: not measured)
+  double motionYPx = 0.0;
+  double motionSigmaPx = 0.0;  ///< its error (stack noise only)
+};
+
+/// A source of the sky-rate stack found to move (StaticSourceParams::keepMovers): left for the search.
+struct MovingSource {
+  double x = 0.0;  ///< position at t_ref from the thirds' centroids, 0-based px
+  double y = 0.0;
+  Velocity v;            ///< velocity in the frames (sky rate + shift between the thirds / their time), px/s
+  double shiftPx = 0.0;  ///< centroid shift between the first and last thirds' stacks
+  double shiftSigmaPx = 0.0;  ///< its error from the stack noise
+  double snr = 0.0;           ///< peak SNR in the sky-rate stack (of its streak)
+  bool moving = false;        ///< the decision of detail::measureMotion
 };
 
 struct StaticSources {
-  std::vector<Star> stars;  ///< sorted by decreasing flux
-  MovingMask mask;          ///< footprints, dilated, at t_ref; follows the sky rate
+  std::vector<Star> stars;           ///< sorted by decreasing flux
+  MovingMask mask;                   ///< footprints, dilated, at t_ref; follows the sky rate
+  std::vector<MovingSource> movers;  ///< sources of the stack that moved: not in `stars`, not masked
+  MovingMask moverMask;     ///< the movers' footprints (streaks in the sky-rate stack), dilated like `mask`
   double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
 };
 
@@ -85,8 +111,10 @@ struct SingleFrameSources {
 
 /// Paper §4.3: in zero-biased frames, pixels with value >= snr * sigma (sigma: per-pixel noise image, or
 /// sigmaN when `sigma` is empty) are bright objects of that frame alone; they are zeroed together with a
-/// disc of `radiusPx` around them, in that frame only.
+/// disc of `radiusPx` around them, in that frame only. Pixels covered by `keep` in that frame (the movers of
+/// findStaticSources, left for the search) are not seeds.
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
-                                          int radiusPx, ProgressSink& progress, CancelToken& cancel);
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel,
+                                          const MovingMask* keep = nullptr);
 
 }  // namespace st::detect

@@ -57,7 +57,11 @@ struct Prepared {
   Image noiseMap;           ///< smooth noise map when params.background.noiseMap
   stats::ClipStats global;  ///< pixel-independent background (50 frames, xi = 5)
   std::vector<detect::Star> stars;  ///< static-source catalog, positions at t_ref
-  Velocity skyRate;                 ///< px/s
+  /// Sources of the sky-rate stack that moved between its first and last thirds (slow moving objects): not
+  /// masked, not zeroed as single-frame sources, left for the search
+  /// (detect::StaticSourceParams::keepMovers).
+  std::vector<detect::MovingSource> movers;
+  Velocity skyRate;  ///< px/s
   bool skyRateMeasured = false;
   calib::CalibrationReport calibration;
   std::size_t hotPixels = 0;  ///< found in the science frames and masked in every frame
