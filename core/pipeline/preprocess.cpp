@@ -126,7 +126,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   lap("static sources");
   {
     SubProgress sub(progress, 0.4, 0.65);
-    stats::Background bg = stats::estimateBackground(cube, params.background, &stars.mask, sub, cancel);
+    // The movers are left out too: a slow one covers a pixel for a good part of the frames and would
+    // raise its background (and lose that much of its signal).
+    detect::MovingMask exclude = stars.mask;
+    const auto& movers = stars.moverMask.canvas();
+    for (std::size_t i = 0; i < movers.size(); ++i)
+      if (movers[i])
+        exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
+                    exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
+    stats::Background bg = stats::estimateBackground(cube, params.background, &exclude, sub, cancel);
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);

@@ -48,7 +48,7 @@ struct StaticSourceParams {
   /// static. The floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the
   /// sky rate's integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
   bool keepMovers = true;
-  double minMoverShiftPx = 1.5;
+  double minMoverShiftPx = 1.0;
   double moverShiftSigmas = 5.0;
 };
 
