@@ -271,6 +271,42 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
   return total;
 }
 
+std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unmeasured,
+                           const MovingMask& keep) {
+  const int w = cube.width(), h = cube.height();
+  if (unmeasured.size() != cube.framePixels()) return 0;
+  // Pixels `keep` covers in some frame: its set reference positions moved by each distinct shift.
+  std::vector<std::uint8_t> kept(cube.framePixels(), 0);
+  if (!keep.empty()) {
+    std::vector<std::pair<int, int>> shifts;
+    for (std::size_t n = 0; n < keep.frameCount(); ++n)
+      shifts.emplace_back(keep.shiftX(n), keep.shiftY(n));
+    std::sort(shifts.begin(), shifts.end());
+    shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
+    const auto& c = keep.canvas();
+    for (int j = 0; j < keep.canvasHeight(); ++j)
+      for (int i = 0; i < keep.canvasWidth(); ++i) {
+        if (!c[static_cast<std::size_t>(j) * keep.canvasWidth() + i]) continue;
+        for (const auto& [sx, sy] : shifts) {
+          const int x = keep.x0() + i + sx, y = keep.y0() + j + sy;
+          if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
+        }
+      }
+  }
+  std::size_t zeroed = 0;
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    if (kept[i] || !unmeasured[i]) continue;
+    bool any = false;
+    for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+      float& v = cube.frame(n)[i];
+      any |= v != 0.0f;
+      v = 0.0f;
+    }
+    zeroed += any;
+  }
+  return zeroed;
+}
+
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
                                           int radiusPx, ProgressSink& progress, CancelToken& cancel,
                                           const MovingMask* keep) {

@@ -33,6 +33,7 @@ nlohmann::json preparedToJson(const Prepared& p) {
   j["single_frame_sources"] = {{"seed_pixels_per_frame", p.singleFrame.seedsPerFrame},
                                {"zeroed_pixels_per_frame", p.singleFrame.zeroedPerFrame}};
   j["static_pixels_zeroed"] = p.staticPixelsZeroed;
+  j["unmeasured_pixels_zeroed"] = p.unmeasuredPixelsZeroed;
   j["hot_pixels"] = p.hotPixels;
   j["calibration"] = {{"overscan_counts_per_frame", p.calibration.overscanLevel},
                       {"bad_pixels", p.calibration.badPixels}};

@@ -124,6 +124,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     }
   }
   lap("static sources");
+  std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
   {
     SubProgress sub(progress, 0.4, 0.65);
     // The movers are left out too: a slow one covers a pixel for a good part of the frames and would
@@ -139,6 +140,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
     out.noiseMap = std::move(bg.noiseMap);
+    unmeasured = std::move(bg.filled);
     if (bg.pixelsFilled > 0) {
       out.notes.push_back(
           std::to_string(bg.pixelsFilled) +
@@ -161,6 +163,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   {
     SubProgress sub(progress, 0.75, 0.8);
     out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
+    out.unmeasuredPixelsZeroed = detect::zeroUnmeasured(cube, unmeasured, stars.moverMask);
+    if (out.unmeasuredPixelsZeroed > 0) {
+      out.notes.push_back(std::to_string(out.unmeasuredPixelsZeroed) +
+                          " pixels seen in some frames but without a measured background (static-mask "
+                          "edges, bright static light) zeroed in every frame");
+    }
     const int radius = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
     out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
                                                      radius, sub, cancel, &stars.moverMask);

@@ -104,6 +104,17 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
 /// pixels zeroed over all frames.
 std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel);
 
+/// Zeroes, in every frame, the pixels flagged in `unmeasured` (row-major, frame-sized: pixels whose
+/// per-pixel background had too few samples, so the global mean stood in) that `keep` (the movers) covers in
+/// no frame. Such pixels are (1) along the static mask's edge, which the integer sky-rate shifts move by a
+/// pixel or two from frame to frame: covered in most frames, they keep a bright star's halo (broader than
+/// the Moffat wings masked) in the few frames that uncover them; (2) bright static light that the stack's
+/// mesh background absorbed (a saturated star's halo and its islands between mask pieces), above the
+/// background's strong-signal cut in most frames. Either leaves a static residual that the search finds
+/// near the sky rate. Returns the number of pixels zeroed (each counted once).
+std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unmeasured,
+                           const MovingMask& keep);
+
 struct SingleFrameSources {
   std::vector<std::size_t> seedsPerFrame;   ///< pixels at or above the threshold, per frame
   std::vector<std::size_t> zeroedPerFrame;  ///< pixels zeroed (seeds dilated), per frame

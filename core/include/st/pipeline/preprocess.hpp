@@ -68,6 +68,9 @@ struct Prepared {
   std::vector<std::size_t> cosmicRaysPerFrame;
   std::size_t cosmicRays = 0;
   std::size_t staticPixelsZeroed = 0;  ///< over all frames
+  /// Pixels (each counted once) whose background could not be measured, not on a mover's track, that were
+  /// not already 0 in every frame: zeroed in every frame (detect::zeroUnmeasured).
+  std::size_t unmeasuredPixelsZeroed = 0;
   detect::SingleFrameSources singleFrame;
   psf::Moffat psf;  ///< fitted, or the fallback of params.psfFwhmPx
   bool psfFitted = false;
