@@ -131,6 +131,44 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
   return a;
 }
 
+// Sources seen per pixel (the first nPerPixel components) that are neither saturated nor very bright: their
+// centroids in the stacks of the thirds of the frames and the stars' common shift (keepMovers).
+struct Motion {
+  detail::ThirdStacks thirds;
+  std::vector<detail::SourceShift> shifts;
+  std::pair<double, double> common{0.0, 0.0};
+};
+
+Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background,
+                      const std::vector<std::vector<int>>& comps, std::size_t nPerPixel,
+                      const std::vector<Star>& stars, int cw, double sigma, const StaticSourceParams& params,
+                      CancelToken& cancel) {
+  Motion m;
+  m.shifts.resize(nPerPixel);
+  if (!params.keepMovers) return m;
+  m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
+  if (!m.thirds.valid()) return m;
+  for (std::size_t k = 0; k < nPerPixel; ++k)
+    if (!stars[k].saturated && stars[k].snr < params.spikeSnr)
+      m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+  m.common = detail::commonShift(m.shifts);
+  return m;
+}
+
+// Judges component k (seen per pixel) and, when it moves, records it in out.movers and out.moverMask.
+bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& comp, const SkyStack& s, int cw,
+                 Velocity skyRate, const StaticSourceParams& params, Star& star, StaticSources& out) {
+  if (k >= motion.shifts.size() || !motion.shifts[k].measured) return false;
+  MovingSource m =
+      detail::judgeMotion(motion.shifts[k], motion.common, motion.thirds, s.x0, s.y0, params, star);
+  if (!m.moving) return false;
+  m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
+  for (int p : comp)
+    out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
+  out.movers.push_back(m);
+  return true;
+}
+
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
@@ -182,18 +220,11 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
-  // Sources seen per pixel move when their centroids shift between the thirds relative to the stars'.
   std::vector<Star> described(comps.size());
-  std::vector<detail::SourceShift> shifts(nPerPixel);
-  detail::ThirdStacks thirds;
-  if (params.keepMovers) thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
-  for (std::size_t k = 0; k < comps.size(); ++k) {
+  for (std::size_t k = 0; k < comps.size(); ++k)
     described[k] = describe(comps[k], resid, snr, snrF, s, params, background);
-    const bool judged = !described[k].saturated && described[k].snr < params.spikeSnr;
-    if (k < nPerPixel && thirds.valid() && judged)
-      shifts[k] = detail::measureShift(comps[k], cw, thirds, noise.sigma);
-  }
-  const auto common = detail::commonShift(shifts);
+  const Motion motion =
+      measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cancel);
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
@@ -209,15 +240,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       if (!halves.isStatic(peak, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 1,
                            params.maxHalfShiftPx))
         continue;
-    } else if (shifts[k].measured) {
-      MovingSource m = detail::judgeMotion(shifts[k], common, thirds, s.x0, s.y0, params, st);
-      if (m.moving) {
-        m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
-        for (int p : comp)
-          out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
-        out.movers.push_back(m);
-        continue;
-      }
+    } else if (keptAsMover(motion, k, comp, s, cw, skyRate, params, st, out)) {
+      continue;
     }
     for (int p : comp)
       out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
