@@ -6,6 +6,8 @@
 // with the sky motion. Saturated stars also lose their Moffat wings (radius growing with the flux),
 // diffraction spikes and column bleed trails (charge leakage), measured in the stack: the paper's main false
 // positives. The star catalog (position, flux, saturated, bleed columns) is kept for astrometry and vetting.
+// A source whose centroid moves between the stacks of the first and last thirds of the frames (a slow moving
+// object, a short streak that looks like a star) is not static: it is listed as a mover and left unmasked.
 #include <cstddef>
 #include <optional>
 #include <vector>

@@ -4,9 +4,11 @@
 //   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
 //   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
 //   -> static sources in the sky-rate stack (SNR >= 7 per pixel or after the PSF filter; wings, spikes and
-//      bleed trails of saturated stars): star catalog and footprint mask
+//      bleed trails of saturated stars): star catalog and footprint mask; sources whose centroid moves
+//      between the stacks of the first and last thirds of the frames are movers, left unmasked
 //   -> per-pixel background (<= 2000 frames, xi = 4, stars left out), sigma_n, subtraction (zero-biased)
-//   -> cosmic-ray pixels, static sources (along the sky motion) and single-frame sources (SNR >= 7) zeroed
+//   -> cosmic-ray pixels, static sources (along the sky motion), pixels without a measured background and
+//      single-frame sources (SNR >= 7) zeroed, the movers' tracks spared
 //   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing) -> matched filter.
 //
 // Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
