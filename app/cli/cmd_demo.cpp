@@ -31,19 +31,19 @@ constexpr const char* kHelp =
     "                           [--vmax-deg-day D] [--grid-step-px P] [--snr S] [--fits K]\n"
     "                           [--backend auto|cpu|cuda] [--method auto|exact|tree]\n"
     "Simulates the demo observation (default paper-neo: the paper's V~23 asteroid at 5.97 deg/day, 500\n"
-    "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s), pre-processes it, searches +-D deg/day around the\n"
-    "sky rate (default 8) in steps of P px over the span (default 1.5; both demo settings, coarser than the\n"
-    "paper's +-12 deg/day and 1 px that 'synthtrack-cli search' uses), with --method (default auto: exact "
-    "or\n"
-    "tree, whichever is estimated to win), fits the K best candidates (default 40) and writes everything to\n"
-    "DIR (default ./demo-output).\n";
+    "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s; also known-pair and small), pre-processes it,\n"
+    "searches +-D deg/day around the sky rate (default: the preset's, 8 for paper-neo, 1.5 for known-pair,\n"
+    "40 for small) in steps of P px over the span (default 1.5; both demo settings, coarser than the\n"
+    "paper's +-12 deg/day and 1 px that 'synthtrack-cli search' uses), with --method (default auto: exact\n"
+    "or tree, whichever is estimated to win), fits the K best candidates (default 40) and writes\n"
+    "everything to DIR (default ./demo-output).\n";
 
 struct DemoOptions {
   std::filesystem::path out = "demo-output";
   std::string preset = "paper-neo";
   std::uint64_t seed = 1;
   int frames = 0;
-  double vmaxDegDay = sim::kDemoHalfRangeDegPerDay;
+  double vmaxDegDay = 0.0;  ///< 0: the preset's (sim::presetDemoHalfRangeDegPerDay)
   double stepPx = sim::kDemoGridStepPx;
   double snr = pipeline::demoSearchParams().snrThreshold;
   int fits = 40;
@@ -62,7 +62,7 @@ DemoOptions parseDemo(const Args& args) {
   if (auto v = cli.value("preset")) o.preset = *v;
   if (auto v = cli.integer("seed")) o.seed = static_cast<std::uint64_t>(*v);
   if (auto v = cli.integer("frames")) o.frames = static_cast<int>(*v);
-  o.vmaxDegDay = cli.number("vmax-deg-day", o.vmaxDegDay);
+  o.vmaxDegDay = cli.number("vmax-deg-day", sim::presetDemoHalfRangeDegPerDay(o.preset));
   o.stepPx = cli.number("grid-step-px", o.stepPx);
   o.snr = cli.number("snr", o.snr);
   if (auto v = cli.integer("fits")) o.fits = static_cast<int>(*v);

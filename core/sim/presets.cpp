@@ -169,6 +169,13 @@ SimParams preset(std::string_view name) {
   throw InputError("unknown simulator preset '" + std::string(name) + "' (valid: " + valid + ")");
 }
 
+double presetDemoHalfRangeDegPerDay(std::string_view name) {
+  (void)preset(name);  // validates the name
+  if (name == "known-pair") return 1.5;
+  if (name == "small") return 40.0;
+  return kDemoHalfRangeDegPerDay;
+}
+
 void resize(SimParams& p, int width, int height, int frames) {
   if (width > 0 || height > 0) {
     const int w = width > 0 ? width : p.width;

@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "st/common/error.hpp"
+#include "st/common/units.hpp"
 #include "st/sim/psf_stamp.hpp"
 #include "st/sim/simulator.hpp"
 #include "test_support.hpp"
@@ -68,6 +69,25 @@ TEST(Sim, UnknownPresetListsValidNames) {
     EXPECT_NE(m.find("known-pair"), std::string::npos);
     EXPECT_NE(m.find("small"), std::string::npos);
   }
+}
+
+TEST(Sim, EveryPresetsDemoGridReachesItsObjectsAndStaysSmall) {
+  // The demo's default grid for each preset (sim::presetDemoHalfRangeDegPerDay, st::sim::kDemoGridStepPx over
+  // the span) must contain every object's motion relative to the stars with >= 20% to spare, and be small
+  // enough to search in seconds (<= 2e4 velocities; +-8 deg/day on known-pair's 480 s span was ~7e5).
+  for (const std::string& name : st::sim::presetNames()) {
+    const SimParams p = st::sim::preset(name);
+    const double halfPxS =
+        st::sim::presetDemoHalfRangeDegPerDay(name) * 3600.0 / st::kSecondsPerDay / p.plateScaleArcsecPerPx;
+    const double spanS = (p.frames - 1) / p.frameRateHz;
+    const double steps = std::ceil(halfPxS * spanS / st::sim::kDemoGridStepPx);
+    EXPECT_LE((2 * steps + 1) * (2 * steps + 1), 2e4) << name;
+    for (const st::sim::MovingObject& o : p.objects) {
+      EXPECT_LE(std::max(std::abs(o.skyVxPxPerS), std::abs(o.skyVyPxPerS)), halfPxS / 1.2)
+          << name << " " << o.name;
+    }
+  }
+  EXPECT_THROW(st::sim::presetDemoHalfRangeDegPerDay("no-such"), st::InputError);
 }
 
 TEST(Sim, InvalidParamsNameTheValue) {

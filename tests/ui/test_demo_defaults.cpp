@@ -113,9 +113,12 @@ TEST(DemoDefaults, GuiAndCliDemoSearchTheSameGridAndReportTheSame) {
   const QString cli = QCoreApplication::applicationDirPath() + "/../app/synthtrack-cli";
   if (!QFileInfo(cli).isExecutable()) GTEST_SKIP() << "synthtrack-cli not built: " << cli.toStdString();
   test::TempDir dir;
-  // The small preset at the demo's default grid and threshold (no --vmax/--grid-step/--snr/--method).
+  // The small preset at the demo's default grid step and threshold (no --grid-step/--snr/--method). The
+  // GUI's demo is paper-neo and takes its half-range (8 deg/day); the CLI's demo takes each preset's own
+  // (sim::presetDemoHalfRangeDegPerDay), so it is given paper-neo's here.
   QProcess process;
-  process.start(cli, {"demo", "--preset", "small", "--fits", "0", "--backend", "cpu", "--out",
+  process.start(cli, {"demo", "--preset", "small", "--fits", "0", "--backend", "cpu", "--vmax-deg-day",
+                      QString::number(sim::presetDemoHalfRangeDegPerDay("paper-neo")), "--out",
                       QString::fromStdString(dir.path().string())});
   ASSERT_TRUE(process.waitForFinished(60000));
   std::ifstream in(dir / "candidates.json");

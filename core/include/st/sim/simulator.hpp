@@ -179,6 +179,12 @@ std::vector<std::string> presetNames();
 inline constexpr double kDemoHalfRangeDegPerDay = 8.0;
 inline constexpr double kDemoGridStepPx = 1.5;
 
+/// The demo's half-range for preset `name`, deg/day around the sky rate: enough to reach its objects with
+/// margin and small enough to search in seconds: paper-neo 8 (object at 5.97 deg/day), known-pair 1.5
+/// (0.6 deg/day over a 480 s span, where +-8 deg/day would be ~7e5 velocities), small 40 (29 deg/day).
+/// Throws st::InputError for an unknown preset.
+double presetDemoHalfRangeDegPerDay(std::string_view name);
+
 /// Changes the number of frames and/or the frame size of a preset, keeping moving objects at the same
 /// place relative to the frame centre and the star density. Non-positive values leave that unchanged.
 void resize(SimParams& params, int width, int height, int frames);
