@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core_services.hpp"
+#include "search_backend_cache.hpp"
 #include "observation.hpp"
 
 class QComboBox;
@@ -149,6 +150,8 @@ class MainWindow : public QMainWindow {
   void rebuildRecentSessionsMenu();
 
   CoreServices m_services;
+  /// The search backend kept between searches (used by the search job's worker thread only).
+  std::shared_ptr<SearchBackendCache> m_searchBackends = std::make_shared<SearchBackendCache>();
   Observation* m_obs;
   JobRunner* m_jobs;
   StackScrubber* m_scrubber;

@@ -98,13 +98,17 @@ void MainWindow::runSearch() {
   const search::VelocityGrid grid = m_search->grid();
   const search::SearchParams params = m_search->params();
   const BackendKind kind = m_search->backendKind();
-  m_jobs->start("Searching", [this, cube, makeBackend, grid, params, kind](ProgressSink& progress,
-                                                                           CancelToken& cancel) {
+  auto backends = m_searchBackends;
+  m_jobs->start("Searching", [this, cube, makeBackend, backends, grid, params, kind](ProgressSink& progress,
+                                                                                     CancelToken& cancel) {
     if (!makeBackend) throwMissingService("search backend");
     std::string message;
-    std::unique_ptr<search::SearchBackend> backend = makeBackend(kind, message);
-    auto result = std::make_shared<const search::SearchResult>(
-        search::searchWithMethod(*backend, *cube, grid, params, progress, cancel));
+    auto result =
+        backends->with(kind, makeBackend, [&](search::SearchBackend& backend, const std::string& m) {
+          message = m;
+          return std::make_shared<const search::SearchResult>(
+              search::searchWithMethod(backend, *cube, grid, params, progress, cancel));
+        });
     return std::function<void()>([this, result, message] {
       m_search->setBackendMessage(QString::fromStdString(message));
       m_obs->setResult(result);
