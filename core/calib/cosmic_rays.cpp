@@ -100,12 +100,12 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
       ++observed[i];
     }
   }
-  const int needObserved = std::min(2, blocks);
+  // A hit that protects itself (the only observing block) is still flagged: its block mean, the signal it
+  // must exceed, is its own amplitude divided by the block's frames covering it (>= 3).
   for (int j = 0; j < mask.canvasHeight(); ++j)
     for (int i = 0; i < mask.canvasWidth(); ++i) {
       const std::size_t k = static_cast<std::size_t>(j) * mask.canvasWidth() + i;
-      if (observed[k] >= needObserved && minSnr[k] >= params.protectSnr)
-        mask.set(mask.x0() + i, mask.y0() + j);
+      if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
     }
   mask.dilate(params.protectDilatePx);
   Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f)};

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -47,10 +48,36 @@ void robustStats(const Image& image, double* med, double* sigma) {
   *sigma = 1.4826 * medianOf(v);
 }
 
+/// Pixels within 3% of the brightest one, within 3 FWHM of the fitted centre. An unsaturated Moffat is above
+/// 0.97 of its peak only within r = R sqrt(0.97^(-1/beta) - 1) <= 0.1 FWHM (any beta), so a few pixels at
+/// most; the clipped core of a saturated star (in a frame or in a stack) is a plateau of many.
+int flatTopPixels(const Image& image, const MoffatFit& fit) {
+  const double r = 3.0 * fit.fwhm();
+  const int x0 = std::max(0, int(std::floor(fit.x0 - r))), x1 = std::min(image.width - 1, int(fit.x0 + r));
+  const int y0 = std::max(0, int(std::floor(fit.y0 - r))), y1 = std::min(image.height - 1, int(fit.y0 + r));
+  float top = -std::numeric_limits<float>::infinity();
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      top = std::max(top, image.at(x, y));
+  const double level = fit.background + 0.97 * (top - fit.background);
+  int count = 0;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      count += image.at(x, y) >= level ? 1 : 0;
+  return count;
+}
+
 /// Why a fit is not acceptable as the PSF, or empty when it is.
-std::string judgeFit(const MoffatFit& fit, const StarCandidate& c, double noise, const PsfStarOptions& o) {
+std::string judgeFit(const Image& image, const MoffatFit& fit, const StarCandidate& c, double noise,
+                     const PsfStarOptions& o) {
   if (!fit.converged()) return where(c) + ": " + toString(fit.convergence);
+  if (fit.model.beta <= kFitMinBeta * 1.01 || fit.model.beta >= kFitMaxBeta * 0.99)
+    return where(c) + ": beta " + fmt(fit.model.beta, 2) + " at the fit's bound (not a Moffat profile)";
   const double w = fit.fwhm();
+  const int flat = flatTopPixels(image, fit);
+  const double flatLimit = std::max(8.0, M_PI * std::pow(0.1 * w + 1.0, 2));
+  if (flat > flatLimit)
+    return where(c) + ": flat-topped core (" + std::to_string(flat) + " px within 3% of the peak; saturated)";
   if (!(w >= o.minFwhmPx && w <= o.maxFwhmPx))
     return where(c) + ": FWHM " + fmt(w, 2) + " px outside [" + fmt(o.minFwhmPx) + ", " + fmt(o.maxFwhmPx) +
            "]";
@@ -113,6 +140,7 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
   const double noise = robustImageNoise(image);
   PsfMeasurement m;
+  std::vector<std::pair<MoffatFit, StarCandidate>> accepted;
   int tries = 0;
   for (const auto& c : sorted) {
     if (tries >= o.maxTries) break;
@@ -137,13 +165,25 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
       m.rejected.push_back(where(c) + ": " + e.what());
       continue;
     }
-    const std::string why = judgeFit(fit, c, noise, o);
-    if (why.empty()) {
-      m.fit = fit;
-      m.star = c;
-      return m;
+    const std::string why = judgeFit(image, fit, c, noise, o);
+    if (!why.empty()) {
+      m.rejected.push_back(why);
+      continue;
     }
-    m.rejected.push_back(why);
+    accepted.emplace_back(fit, c);
+    if (static_cast<int>(accepted.size()) >= o.maxAccepted) break;
+  }
+  if (!accepted.empty()) {
+    // The median FWHM of the accepted stars (the lower middle one of an even count): one star blended with a
+    // faint neighbour, or hit where the earlier stages left a residual, does not set the PSF.
+    std::sort(accepted.begin(), accepted.end(),
+              [](const auto& a, const auto& b) { return a.first.fwhm() < b.first.fwhm(); });
+    for (const auto& a : accepted)
+      m.acceptedFwhm.push_back(a.first.fwhm());
+    const auto& mid = accepted[(accepted.size() - 1) / 2];
+    m.fit = mid.first;
+    m.star = mid.second;
+    return m;
   }
   std::string msg =
       "no star usable for the PSF among " + std::to_string(all.size()) +
@@ -159,7 +199,7 @@ PsfMeasurement measurePsfAt(const Image& image, double x, double y, const PsfSta
   m.star = {x, y, 0.0, false};
   m.fit = fitMoffat(image, x, y, o.fit);
   m.candidatesConsidered = 1;
-  const std::string why = judgeFit(m.fit, m.star, robustImageNoise(image), o);
+  const std::string why = judgeFit(image, m.fit, m.star, robustImageNoise(image), o);
   if (!why.empty())
     throw InputError("PSF fit on the given " + why + "; give the PSF FWHM instead (e.g. --fwhm)");
   return m;

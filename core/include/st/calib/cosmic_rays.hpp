@@ -56,8 +56,8 @@ struct CosmicRayParams {
   double growSigma = 5.0;       ///< 8-neighbours of a hit above this join it (tracks, charge spread) ...
   double growFalseRate = 1e-4;  ///< ... and above the tail threshold at this rate, whichever is higher
   double protectSnr = 5.0;      ///< pixels whose SNR is >= this in every one of `protectBlocks` sky-rate
-                                ///< stacks that observe them (>= 10% of the block's frames, >= 3), at
-                                ///< least two, are protected (a star is in every block, a hit in one)
+                                ///< stacks that observe them (>= 10% of the block's frames, >= 3) are
+                                ///< protected (a star is in every block that sees it, a hit in one)
   int protectBlocks = 3;
   int protectDilatePx = 2;
   double protectedExcess = 1.0;  ///< on a protected pixel a hit must also exceed this times the star signal
