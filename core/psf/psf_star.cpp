@@ -89,6 +89,27 @@ std::string judgeFit(const Image& image, const MoffatFit& fit, const StarCandida
   return {};
 }
 
+/// Which of the accepted fits (brightest first) gives the PSF: the brightest, unless three or more were
+/// accepted, when it is the brightest whose FWHM is within max(3 sigma, 2%) of their median (a star blended
+/// with a faint neighbour, or left with a residual by earlier stages, does not set the PSF), or else the
+/// median one.
+std::size_t chooseAccepted(const std::vector<std::pair<MoffatFit, StarCandidate>>& accepted) {
+  if (accepted.size() < 3) return 0;
+  std::vector<std::size_t> order(accepted.size());
+  for (std::size_t i = 0; i < order.size(); ++i)
+    order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return accepted[a].first.fwhm() < accepted[b].first.fwhm();
+  });
+  const std::size_t median = order[(order.size() - 1) / 2];
+  const double mid = accepted[median].first.fwhm();
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    const MoffatFit& f = accepted[i].first;
+    if (std::fabs(f.fwhm() - mid) <= std::max(3.0 * f.sigmaFwhm, 0.02 * mid)) return i;
+  }
+  return median;
+}
+
 }  // namespace
 
 double robustImageNoise(const Image& image) {
@@ -174,15 +195,12 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
     if (static_cast<int>(accepted.size()) >= o.maxAccepted) break;
   }
   if (!accepted.empty()) {
-    // The median FWHM of the accepted stars (the lower middle one of an even count): one star blended with a
-    // faint neighbour, or hit where the earlier stages left a residual, does not set the PSF.
-    std::sort(accepted.begin(), accepted.end(),
-              [](const auto& a, const auto& b) { return a.first.fwhm() < b.first.fwhm(); });
+    const std::size_t pick = chooseAccepted(accepted);
     for (const auto& a : accepted)
       m.acceptedFwhm.push_back(a.first.fwhm());
-    const auto& mid = accepted[(accepted.size() - 1) / 2];
-    m.fit = mid.first;
-    m.star = mid.second;
+    std::sort(m.acceptedFwhm.begin(), m.acceptedFwhm.end());
+    m.fit = accepted[pick].first;
+    m.star = accepted[pick].second;
     return m;
   }
   std::string msg =

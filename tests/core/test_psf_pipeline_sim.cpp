@@ -3,8 +3,9 @@
 // against 3.57): the cosmic-ray stage zeroed star cores of drifting stars in thousands of frames (EMCCD
 // noise over a Gaussian 7-sigma threshold, and stars compared with their own wings one frame later), and the
 // fit ignored the stack's own blur (each frame's trail of 0.98 px plus the rounding of the integer shifts:
-// +2%). Tolerance 2% of the FWHM, on a drifting EMCCD sky (paper-neo's detector) and on a conventional CCD
-// with a different FWHM, beta and a diagonal drift.
+// +2%). Tolerance 1.5-2% of the FWHM (the paper-neo preset itself, 0.5%: test_psf_pipeline_sim_slow.cpp), on
+// a drifting EMCCD sky (paper-neo's detector) and on a conventional CCD with a different FWHM, beta and a
+// diagonal drift.
 #include <gtest/gtest.h>
 
 #include "st/pipeline/preprocess.hpp"
@@ -42,7 +43,9 @@ TEST(PsfPipelineSim, PaperNeoDetectorDriftingSky) {
   p.fixedStars = {{96.3, 40.6, 16.9}, {80.7, 130.2, 17.1}, {120.4, 165.5, 17.3}};
   const Prepared out = prepare(p, 3, false);
   ASSERT_TRUE(out.psfFitted) << (out.notes.empty() ? "" : out.notes.back());
-  EXPECT_NEAR(out.psf.fwhm(), p.psf.fwhm(), 0.02 * p.psf.fwhm());
+  // Stars that stay in the field are protected from the cosmic-ray stage even before the fix; what remains
+  // here is the stack's blur (+1.9% before, -0.95% after): 1.5%.
+  EXPECT_NEAR(out.psf.fwhm(), p.psf.fwhm(), 0.015 * p.psf.fwhm());
   EXPECT_NEAR(out.psf.beta, p.psf.beta, 0.1 * p.psf.beta);
 }
 
@@ -60,7 +63,7 @@ TEST(PsfPipelineSim, ConventionalCcdDiagonalDriftOtherShape) {
   p.spikeMagLimit = -10.0;
   p.fixedStars = {{90.2, 60.7, 15.6}, {60.6, 120.3, 15.8}, {130.5, 110.1, 16.0}};
   p.objects.clear();
-  const Prepared out = prepare(p, 5, true);
+  const Prepared out = prepare(p, 5, true);  // 2.784 px before the fix (+7%), 2.606 after
   ASSERT_TRUE(out.psfFitted) << (out.notes.empty() ? "" : out.notes.back());
   EXPECT_NEAR(out.psf.fwhm(), p.psf.fwhm(), 0.02 * p.psf.fwhm());
   EXPECT_NEAR(out.psf.beta, p.psf.beta, 0.1 * p.psf.beta);
