@@ -40,7 +40,7 @@ QString num(double v, int precision = 4) {
 FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidget* parent)
     : QWidget(parent), m_obs(observation), m_services(services) {
   m_jobs = new JobRunner(this);
-  m_title = new QLabel("Select a candidate and press Fit (F).", this);
+  m_title = new QLabel(this);
   m_title->setWordWrap(true);
   m_fit = new QPushButton("Fit (F)", this);
   m_fit->setToolTip("Co-moving PSF fit of the selected candidate (paper §3.2)");
@@ -105,13 +105,60 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
             if (cancelled) m_status->setText("Fit cancelled.");
             if (!ok && !cancelled) m_status->setText("Fit failed: " + message);
             if (ok) m_status->setText(m_status->text() + QString(" (%1 s)").arg(elapsedS, 0, 'f', 1));
+            updateTitle();
             emit fitFinished(ok, cancelled, message);
           });
   connect(m_obs, &Observation::resultChanged, this, [this] {
     m_outcome.reset();
     m_fittedIndex = -1;
     m_accept->setEnabled(false);
+    updateTitle();
   });
+  connect(m_obs, &Observation::selectionChanged, this, &FitPanel::updateTitle);
+  connect(m_obs, &Observation::candidateStateChanged, this, &FitPanel::updateTitle);
+  connect(m_obs, &Observation::preparedChanged, this, &FitPanel::updateTitle);
+  updateTitle();
+}
+
+QString FitPanel::titleText() const {
+  return m_title->text();
+}
+
+void FitPanel::updateTitle() {
+  const auto& result = m_obs->result();
+  const search::Candidate* c = m_obs->selectedCandidate();
+  QString text;
+  if (m_runningIndex >= 0) {
+    text = QString("Candidate %1: fitting… (Cancel stops it)").arg(m_runningIndex + 1);
+  } else if (!result) {
+    text = "No candidates yet: run the search, then select a candidate and press Fit (F).";
+  } else if (result->candidates.empty()) {
+    text = "The search found no candidate to fit.";
+  } else if (!c) {
+    text = QString("Select one of the %1 candidates and press Fit (F).").arg(result->candidates.size());
+  } else {
+    const int index = *m_obs->selected();
+    const auto& states = m_obs->candidateStates();
+    const bool stored = index < static_cast<int>(states.size()) && !states[index].fit.is_null();
+    text = QString("Candidate %1 selected: (%2, %3) px, v (%4, %5) px/s — ")
+               .arg(index + 1)
+               .arg(c->x)
+               .arg(c->y)
+               .arg(c->v.vx, 0, 'g', 4)
+               .arg(c->v.vy, 0, 'g', 4);
+    if (m_outcome && m_fittedIndex == index)
+      text += stored && m_outcome->json == states[index].fit
+                  ? "fit done and stored on the candidate."
+                  : QString("fit done (%1): Accept stores it.")
+                        .arg(QString::fromStdString(fit::toString(m_outcome->result.status)));
+    else if (stored)
+      text += "a fit is stored on it; Fit (F) fits it again.";
+    else
+      text += "ready to fit: press Fit (F).";
+    if (m_outcome && m_fittedIndex >= 0 && m_fittedIndex != index)
+      text += QString(" (The plots show candidate %1's fit.)").arg(m_fittedIndex + 1);
+  }
+  m_title->setText(text);
 }
 
 FitPanel::~FitPanel() {
@@ -168,13 +215,13 @@ void FitPanel::fitSelected() {
     return;
   }
   m_runningIndex = *m_obs->selected();
-  m_title->setText(QString("Candidate %1: start (%2, %3) px, v (%4, %5) px/s")
-                       .arg(m_runningIndex + 1)
-                       .arg(c->x)
-                       .arg(c->y)
-                       .arg(c->v.vx, 0, 'g', 4)
-                       .arg(c->v.vy, 0, 'g', 4));
-  m_status->setText("Fitting…");
+  updateTitle();
+  m_status->setText(QString("Fitting candidate %1 from (%2, %3) px, v (%4, %5) px/s…")
+                        .arg(m_runningIndex + 1)
+                        .arg(c->x)
+                        .arg(c->y)
+                        .arg(c->v.vx, 0, 'g', 4)
+                        .arg(c->v.vy, 0, 'g', 4));
   resetPlots();
   m_accept->setEnabled(false);
   m_fit->setEnabled(false);
@@ -301,6 +348,7 @@ void FitPanel::accept() {
   if (!m_outcome || m_fittedIndex < 0) return;
   m_obs->setCandidateFit(m_fittedIndex, m_outcome->json);
   m_status->setText(QString("Fit stored on candidate %1.").arg(m_fittedIndex + 1));
+  updateTitle();
   emit accepted(m_fittedIndex);
 }
 

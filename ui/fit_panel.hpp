@@ -45,6 +45,9 @@ class FitPanel : public QWidget {
   /// Iterations plotted so far.
   [[nodiscard]] int costPoints() const;
   [[nodiscard]] QString statusText() const;
+  /// The line above the buttons: what Fit would do now (no candidates yet / select one / candidate N
+  /// selected, ready to fit / fitting / fit done, Accept stores it / fit stored).
+  [[nodiscard]] QString titleText() const;
 
  public slots:
   /// Fits the selected candidate (does nothing without one, or while a fit runs).
@@ -64,6 +67,8 @@ class FitPanel : public QWidget {
   void showOutcome(const FitOutcome& outcome);
   void fillTable(const FitOutcome& outcome);
   void resetPlots();
+  /// Sets the title line from the observation's state and the last fit (titleText()).
+  void updateTitle();
   void rescaleCost();
 
   Observation* m_obs;

@@ -21,7 +21,9 @@
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
+#include "st/pipeline/demo_search.hpp"
 #include "st/search/method_choice.hpp"
+#include "st/search/velocity_grid.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -46,6 +48,7 @@ void MainWindow::openInputs(const QStringList& paths) {
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
   m_demoGrid = true;
+  m_search->setParams(pipeline::demoSearchParams());  // as synthtrack-cli demo
   m_session->prepareNew({}, true);
   startLoad("demo observation (simulated paper-neo)",
             [simulate](ProgressSink& progress, CancelToken& cancel) {
@@ -167,11 +170,17 @@ void MainWindow::onPreparedChanged() {
       m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
       const auto& raw = *m_obs->raw();
       if (m_demoGrid && raw.plateScaleArcsecPerPx) {
-        // The demo grid (st/sim/simulator.hpp), the same as `synthtrack-cli demo`'s.
-        const double span = std::max(raw.timeSpanS(), 1e-3);
-        m_search->setGridPxS(prepared->filtered->skyRate,
-                             degPerDayToPxPerSec(sim::kDemoHalfRangeDegPerDay, *raw.plateScaleArcsecPerPx),
-                             sim::kDemoGridStepPx / span);
+        // The demo's grid, made as `synthtrack-cli demo` makes it (st/pipeline/demo_search.hpp).
+        try {
+          m_search->setGrid(search::makeVelocityGrid(pipeline::demoGridSpec(raw.plateScaleArcsecPerPx),
+                                                     *prepared->filtered),
+                            QString("the demo's grid: ±%1 deg/day in %2 px steps (as synthtrack-cli demo; "
+                                    "the paper's, for other observations: ±12 deg/day in 1 px steps)")
+                                .arg(sim::kDemoHalfRangeDegPerDay)
+                                .arg(sim::kDemoGridStepPx));
+        } catch (const std::exception& e) {  // the paper's grid stays
+          statusBar()->showMessage("Demo grid not set: " + QString::fromStdString(e.what()), 10000);
+        }
       }
       m_obs->setVelocity(prepared->filtered->skyRate);
     }

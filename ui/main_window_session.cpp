@@ -61,6 +61,8 @@ void MainWindow::buildSession() {
         return p;
       },
       this);
+  // The search panel's settings are part of the session: a change by hand is saved like a label.
+  connect(m_search, &SearchPanel::settingsChanged, m_session, &SessionController::requestSave);
   m_sessionLabel = new QLabel("Session: none", this);
   connect(m_session, &SessionController::statusChanged, this,
           [this](const QString& text, const QString& tooltip, bool error) {
@@ -126,10 +128,15 @@ void MainWindow::rebuildRecentSessionsMenu() {
   if (!m_recentSessionsMenu) return;
   m_recentSessionsMenu->clear();
   const QStringList recent = QSettings().value("recentSessions").toStringList();
-  for (const QString& path : recent)
+  for (int i = 0; i < recent.size(); ++i) {
+    const QString path = recent[i];
+    // Gone: a pruned demo autosave or a file moved away (the newest is the current one, maybe not yet
+    // written).
+    if (i > 0 && !QFileInfo::exists(path)) continue;
     m_recentSessionsMenu->addAction(QFileInfo(path).fileName(), this, [this, path] { openSession(path); })
         ->setToolTip(path);
-  m_recentSessionsMenu->setEnabled(!recent.isEmpty());
+  }
+  m_recentSessionsMenu->setEnabled(!m_recentSessionsMenu->isEmpty());
 }
 
 void MainWindow::openSession(const QString& path) {
@@ -173,7 +180,8 @@ void MainWindow::applyOpenedSession(const OpenedSession& opened) {
   const SessionSnapshot& snap = opened.snapshot;
   // Nothing is saved while the state is rebuilt: the file already holds it.
   m_session->setSuspended(true);
-  m_session->adopt(opened.path, snap.inputs, snap.parameters.demo, opened.changes, opened.settings);
+  m_session->adopt(opened.path, snap.inputs, snap.parameters.demo, opened.changes, opened.settings,
+                   snap.parameters.demoAutosave);
   m_demoGrid = snap.parameters.demo;
   m_processing->setStages(snap.parameters.stages);
   m_preparedStages = snap.parameters.stages;
@@ -185,10 +193,15 @@ void MainWindow::applyOpenedSession(const OpenedSession& opened) {
   if (!opened.backendMessage.empty())
     m_search->setBackendMessage("stacks: " + QString::fromStdString(opened.backendMessage));
   m_obs->setPrepared(opened.prepared);
+  // The search panel as it was saved: unit, grid (exactly), threshold, method, backend.
+  if (snap.unitSaved) {
+    m_search->setUnit(snap.unit);
+    m_obs->setUnit(snap.unit);
+  }
   const search::VelocityGrid& g = snap.parameters.grid;
-  if (g.count() > 0)
-    m_search->setGridPxS(g.centre, 0.5 * (std::max(g.nvx, g.nvy) - 1) * g.stepPxS, g.stepPxS);
-  m_obs->setUnit(snap.unit);
+  if (g.count() > 0 && g.stepPxS > 0.0) m_search->setGrid(g, "restored from the session");
+  m_search->setParams(snap.parameters.search);
+  m_search->setBackendKind(snap.parameters.backend);
   int vetted = 0;
   if (snap.result) {
     m_obs->setResult(snap.result, snap.states);

@@ -15,6 +15,9 @@
 #include <QtConcurrent/QtConcurrentRun>
 #include <cmath>
 
+#include "grid_description.hpp"
+#include "session_snapshot.hpp"
+#include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "st/stats/false_alarm.hpp"
@@ -78,17 +81,26 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   m_half = velocitySpin(gridBox, 0);
   m_step = velocitySpin(gridBox, 0);
   m_step->setMinimum(1e-6);
-  m_half->setToolTip("Half-width of the square grid around the centre");
+  m_half->setToolTip(
+      "Half-width of the square grid around the centre: a whole number of steps, at least the range asked "
+      "for (the demo's ±8 deg/day in 1.5 px steps is ±8.08 deg/day)");
   m_step->setToolTip("Grid spacing; the paper's default is 1 pixel over the observation's time span");
   auto* centre = new QHBoxLayout;
   centre->addWidget(m_cx);
   centre->addWidget(m_cy);
   m_gridSize = new QLabel(gridBox);
+  m_gridSize->setWordWrap(true);
+  m_gridSize->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  m_gridOriginLabel = new QLabel(gridBox);
+  m_gridOriginLabel->setWordWrap(true);
+  m_gridOriginLabel->setStyleSheet("color: palette(placeholder-text); font-style: italic");
+  m_gridOriginLabel->hide();
   form->addRow("Units", m_unit);
   form->addRow("Centre vx, vy", centre);
   form->addRow("Half-range", m_half);
   form->addRow("Step", m_step);
   form->addRow("Grid", m_gridSize);
+  form->addRow(m_gridOriginLabel);
 
   auto* thrBox = new QGroupBox("Detection threshold", this);
   auto* thr = new QFormLayout(thrBox);
@@ -98,7 +110,8 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
   m_snr = new QDoubleSpinBox(thrBox);
   m_snr->setRange(1, 100);
   m_snr->setDecimals(2);
-  m_snr->setValue(search::SearchParams{}.snrThreshold);
+  m_hiddenParams = defaultPanelSearchParams();
+  m_snr->setValue(m_hiddenParams.snrThreshold);
   m_snr->setToolTip("Paper §4.4: SNR 7, about 0.34% false alarms for 512² pixels × 100² velocities");
   m_fap = new QLineEdit("0.01", thrBox);
   m_fap->setValidator(new QDoubleValidator(1e-300, 1, 30, m_fap));
@@ -117,7 +130,7 @@ SearchPanel::SearchPanel(Observation* observation, const std::vector<std::string
 
   connect(m_unit, &QComboBox::currentIndexChanged, this, &SearchPanel::onUnitChanged);
   for (auto* s : {m_cx, m_cy, m_half, m_step})
-    connect(s, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
+    connect(s, &QDoubleSpinBox::valueChanged, this, &SearchPanel::onGridEdited);
   connect(m_snr, &QDoubleSpinBox::valueChanged, this, &SearchPanel::refresh);
   connect(m_fap, &QLineEdit::textChanged, this, &SearchPanel::refresh);
   connect(m_bySnr, &QRadioButton::toggled, this, &SearchPanel::refresh);
@@ -181,22 +194,53 @@ void SearchPanel::onRawChanged() {
   onUnitChanged();
 }
 
-void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {
+void SearchPanel::setGrid(const search::VelocityGrid& grid, const QString& origin) {
+  m_exactGrid = grid;
+  m_origin = origin;
   const auto scale = m_obs->plateScale();
+  const double half = 0.5 * (std::max(grid.nvx, grid.nvy) - 1) * grid.stepPxS;
   const QSignalBlocker b1(m_cx), b2(m_cy), b3(m_half), b4(m_step);
-  m_cx->setValue(fromPxPerS(centre.vx, m_shownUnit, scale));
-  m_cy->setValue(fromPxPerS(centre.vy, m_shownUnit, scale));
-  m_half->setValue(fromPxPerS(halfRange, m_shownUnit, scale));
-  m_step->setValue(fromPxPerS(step, m_shownUnit, scale));
+  m_cx->setValue(fromPxPerS(grid.centre.vx, m_shownUnit, scale));
+  m_cy->setValue(fromPxPerS(grid.centre.vy, m_shownUnit, scale));
+  m_half->setValue(fromPxPerS(half, m_shownUnit, scale));
+  m_step->setValue(fromPxPerS(grid.stepPxS, m_shownUnit, scale));
+  refresh();
+}
+
+void SearchPanel::setGridPxS(Velocity centre, double halfRange, double step) {
+  search::VelocityGrid g;
+  g.centre = centre;
+  g.stepPxS = step;
+  g.nvx = g.nvy = 2 * static_cast<int>(std::ceil(halfRange / step - 1e-9)) + 1;
+  setGrid(g, {});
+}
+
+void SearchPanel::onGridEdited() {
+  m_exactGrid.reset();
+  m_origin = "edited by hand";
   refresh();
 }
 
 void SearchPanel::setDefaultsFor(const FrameCube& cube, Velocity skyRate) {
+  // The grid synthtrack-cli search makes (search::makeVelocityGrid, same rounding of the point count).
   const double span = std::max(cube.timeSpanS(), 1e-3);
-  const double step = 1.0 / span;
-  double half = 12.0 * step;  // without a plate scale: 12 px over the span on either side
-  if (cube.plateScaleArcsecPerPx) half = degPerDayToPxPerSec(12.0, *cube.plateScaleArcsecPerPx);
-  setGridPxS(skyRate, half, step);
+  search::GridSpec spec;
+  spec.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+  spec.unit = cube.plateScaleArcsecPerPx ? search::VelocityUnit::DegPerDay : search::VelocityUnit::PxPerS;
+  spec.halfRange = cube.plateScaleArcsecPerPx ? 12.0 : 12.0 / span;  // +-12 steps without a plate scale
+  spec.stepPx = 1.0;
+  const QString origin =
+      cube.plateScaleArcsecPerPx
+          ? QString("the paper's grid: ±12 deg/day in 1 px steps (as synthtrack-cli search)")
+          : QString("±12 steps of 1 px over the span (no plate scale for deg/day)");
+  try {
+    setGrid(search::makeVelocityGrid(spec, span, 1.0, skyRate), origin);
+  } catch (const InputError&) {  // over the velocity limit: shown as such, the person picks a coarser step
+    const double half = search::toPxPerS(spec.halfRange, spec.unit, spec.plateScaleArcsecPerPx);
+    setGridPxS(skyRate, half, 1.0 / span);
+    m_origin = origin;
+    refresh();
+  }
 }
 
 void SearchPanel::onUnitChanged() {
@@ -208,6 +252,13 @@ void SearchPanel::onUnitChanged() {
     s->setValue(fromPxPerS(px, next, scale));
   }
   m_shownUnit = scale ? next : VelocityUnit::PxPerS;
+  if (m_exactGrid) {  // shown from the exact grid, not from the values rounded in the previous unit
+    const search::VelocityGrid& g = *m_exactGrid;
+    m_cx->setValue(fromPxPerS(g.centre.vx, m_shownUnit, scale));
+    m_cy->setValue(fromPxPerS(g.centre.vy, m_shownUnit, scale));
+    m_half->setValue(fromPxPerS(0.5 * (std::max(g.nvx, g.nvy) - 1) * g.stepPxS, m_shownUnit, scale));
+    m_step->setValue(fromPxPerS(g.stepPxS, m_shownUnit, scale));
+  }
   setSpinUnits();
   m_obs->setUnit(m_shownUnit);
   refresh();
@@ -219,22 +270,49 @@ void SearchPanel::setSpinUnits() {
 }
 
 search::VelocityGrid SearchPanel::grid() const {
+  if (m_exactGrid) return *m_exactGrid;
   const auto scale = m_obs->plateScale();
   search::VelocityGrid g;
   g.centre = {toPxPerS(m_cx->value(), m_shownUnit, scale), toPxPerS(m_cy->value(), m_shownUnit, scale)};
   g.stepPxS = toPxPerS(m_step->value(), m_shownUnit, scale);
   const double half = toPxPerS(m_half->value(), m_shownUnit, scale);
-  const int n = 2 * static_cast<int>(std::floor(half / g.stepPxS + 1e-9)) + 1;
+  const int n = 2 * static_cast<int>(std::ceil(half / g.stepPxS - 1e-9)) + 1;
   g.nvx = g.nvy = std::max(1, n);
   return g;
 }
 
 search::SearchParams SearchPanel::params() const {
-  search::SearchParams p;
+  search::SearchParams p = m_hiddenParams;
   p.snrThreshold = m_snr->value();
+  p.targetFap.reset();
   if (m_byFap->isChecked()) p.targetFap = m_fap->text().toDouble();
   p.method = method();
   return p;
+}
+
+void SearchPanel::setParams(const search::SearchParams& params) {
+  m_hiddenParams = params;
+  m_snr->setValue(params.snrThreshold);
+  if (params.targetFap) m_fap->setText(QString::number(*params.targetFap, 'g', 12));
+  (params.targetFap ? m_byFap : m_bySnr)->setChecked(true);
+  setMethod(params.method);
+  refresh();
+}
+
+void SearchPanel::setBackendKind(BackendKind kind) {
+  if (kind == BackendKind::Gpu && !m_hasGpu) kind = BackendKind::Auto;  // e.g. a session from a GPU machine
+  const int index = m_backend->findData(static_cast<int>(kind));
+  if (index >= 0) m_backend->setCurrentIndex(index);
+}
+
+void SearchPanel::setUnit(VelocityUnit unit) {
+  if (unit != VelocityUnit::PxPerS && !m_obs->plateScale()) return;
+  const int index = m_unit->findData(static_cast<int>(unit));
+  if (index >= 0) m_unit->setCurrentIndex(index);
+}
+
+QString SearchPanel::gridText() const {
+  return m_gridSize->text();
 }
 
 std::string SearchPanel::method() const {
@@ -261,7 +339,19 @@ BackendKind SearchPanel::backendKind() const {
 void SearchPanel::refresh() {
   setSpinUnits();
   const search::VelocityGrid g = grid();
-  m_gridSize->setText(QString("%1 × %2 = %3 velocities").arg(g.nvx).arg(g.nvy).arg(g.count()));
+  m_gridSize->setText(
+      gridDescription(g, m_shownUnit, m_obs->plateScale(), m_obs->raw() ? m_obs->raw()->timeSpanS() : 0.0));
+  m_gridOriginLabel->setText(m_origin);
+  m_gridOriginLabel->setVisible(!m_origin.isEmpty());
+  const search::SearchParams p = params();
+  QString settings = QString::fromStdString(p.method);
+  for (double v : {g.centre.vx, g.centre.vy, g.stepPxS, 1.0 * g.nvx, 1.0 * g.nvy, p.snrThreshold,
+                   p.targetFap.value_or(-1.0), 1.0 * static_cast<int>(backendKind())})
+    settings += ' ' + QString::number(v, 'g', 17);
+  if (settings != m_lastSettings) {
+    m_lastSettings = settings;
+    emit settingsChanged();
+  }
   if (m_obs->grid().nvx != g.nvx || m_obs->grid().stepPxS != g.stepPxS || !(m_obs->grid().centre == g.centre))
     m_obs->setGrid(g);
   const auto& raw = m_obs->raw();
@@ -360,12 +450,18 @@ void SearchPanel::onResultChanged() {
   if (!r) return;
   const QString why =
       r->methodReason == "requested" ? QString("as selected") : QString::fromStdString(r->methodReason);
-  m_status->setText(QString("%1 search on %2: %3 in %4 (%5)")
-                        .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
-                        .arg(QString::fromStdString(r->backend))
-                        .arg(candidateSummary(*r))
-                        .arg(humanSeconds(r->elapsedS))
-                        .arg(why));
+  QString text = QString("%1 search on %2: %3 in %4 (%5)")
+                     .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
+                     .arg(QString::fromStdString(r->backend))
+                     .arg(candidateSummary(*r))
+                     .arg(humanSeconds(r->elapsedS))
+                     .arg(why);
+  // What the user must see (e.g. the GPU failed and the CPU searched instead) goes first.
+  for (auto it = r->warnings.rbegin(); it != r->warnings.rend(); ++it)
+    text.prepend("Warning: " + QString::fromStdString(*it) + "\n");
+  m_status->setText(text);
+  // How the backend ran it (memory tiling, devices, time per phase), on hover.
+  m_status->setToolTip(QString::fromStdString(r->backendNote));
 }
 
 QString candidateSummary(const search::SearchResult& result) {

@@ -33,9 +33,22 @@ class SearchPanel : public QWidget {
  public:
   SearchPanel(Observation* observation, const std::vector<std::string>& gpuNames, QWidget* parent = nullptr);
 
+  /// The grid in use: exactly the one last given to setGrid() (or a default), until a value is edited by
+  /// hand; then the shown values, 2 * ceil(half-range / step) + 1 points per axis (as makeVelocityGrid).
   [[nodiscard]] search::VelocityGrid grid() const;
+  /// The threshold, method and the parameters the panel does not show (kept from setParams()).
   [[nodiscard]] search::SearchParams params() const;
   [[nodiscard]] BackendKind backendKind() const;
+  /// Shows `params`: SNR or FAP threshold, method; maxCandidates and minFrameFraction are kept for params().
+  void setParams(const search::SearchParams& params);
+  /// Selects the backend choice (GPU only where one was found, else Auto: a session saved on a GPU machine
+  /// opens on a laptop).
+  void setBackendKind(BackendKind kind);
+  /// Shows the grid in `unit` (angular units only when the observation has a plate scale).
+  void setUnit(VelocityUnit unit);
+  /// The grid in words with units (gridDescription()), and where the setting came from ("" when not known).
+  [[nodiscard]] QString gridText() const;
+  [[nodiscard]] QString gridOrigin() const { return m_origin; }
   /// The method selected: "auto" (default), "exact" or "tree" (also in params().method).
   [[nodiscard]] std::string method() const;
   /// Selects "auto", "exact" or "tree" (anything else is ignored).
@@ -52,13 +65,17 @@ class SearchPanel : public QWidget {
   void setBackendMessage(const QString& text);
   /// Seconds one velocity's stack took, measured by the scrubber (feeds the time estimate).
   void setMeasuredStackSeconds(double seconds);
-  /// Grid defaults for the observation: step 1 px over the time span (paper §4), range +-12 deg/day or the
-  /// pixel equivalent, centred on the sky rate.
+  /// Grid defaults for the observation, as `synthtrack-cli search`: step 1 px over the time span (paper
+  /// §4.4), range +-12 deg/day (or +-12 steps without a plate scale), centred on the sky rate.
   void setDefaultsFor(const FrameCube& cube, Velocity skyRate);
-  /// Sets centre and half-range in px/s.
+  /// Uses exactly `grid` (px/s); `origin` says where it came from (shown under the grid, "" for none).
+  void setGrid(const search::VelocityGrid& grid, const QString& origin);
+  /// Sets centre, half-range and step in px/s (2 * ceil(halfRange / step) + 1 points per axis).
   void setGridPxS(Velocity centre, double halfRange, double step);
 
  signals:
+  /// The grid, threshold, method or backend changed (by hand or by a setter): the session saves it.
+  void settingsChanged();
   void runRequested();
   void cancelRequested();
 
@@ -76,6 +93,8 @@ class SearchPanel : public QWidget {
 
   void onUnitChanged();
   void onRawChanged();
+  /// A grid value was edited by hand: the shown values are the grid from now on.
+  void onGridEdited();
   void refresh();
   void setSpinUnits();
   void onResultChanged();
@@ -96,6 +115,11 @@ class SearchPanel : public QWidget {
   QDoubleSpinBox* m_half;
   QDoubleSpinBox* m_step;
   QLabel* m_gridSize;
+  QLabel* m_gridOriginLabel;
+  std::optional<search::VelocityGrid> m_exactGrid;  ///< the grid as given, until a value is edited
+  QString m_origin;
+  search::SearchParams m_hiddenParams;  ///< what params() returns beyond the shown threshold and method
+  QString m_lastSettings;               ///< the settings settingsChanged() last announced, as text
   QRadioButton* m_bySnr;
   QRadioButton* m_byFap;
   QDoubleSpinBox* m_snr;

@@ -1,6 +1,7 @@
 #include "session_controller.hpp"
 
 #include <QDir>
+#include <QFile>
 #include <QFileInfo>
 #include <QRegularExpression>
 #include <algorithm>
@@ -51,6 +52,32 @@ QString freeSessionPath(const QString& path) {
   }
 }
 
+QStringList pruneDemoAutosaves(const QString& folder, const QString& current, int keep) {
+  static const QRegularExpression name(QString("^demo\\.synthtrack-session(-\\d+)?\\.json$"));
+  const QFileInfo currentInfo(current);
+  std::vector<QFileInfo> autosaves;
+  for (const QFileInfo& info : QDir(folder).entryInfoList(QDir::Files, QDir::Time)) {  // newest first
+    if (!name.match(info.fileName()).hasMatch() || info == currentInfo) continue;
+    QFile file(info.absoluteFilePath());
+    if (!file.open(QIODevice::ReadOnly)) continue;
+    const nlohmann::json j = nlohmann::json::parse(file.readAll().toStdString(), nullptr, false);
+    const nlohmann::json* mark = nullptr;
+    if (j.is_object() && j.contains("parameters") && j["parameters"].is_object() &&
+        j["parameters"].contains("observation") && j["parameters"]["observation"].is_object() &&
+        j["parameters"]["observation"].contains("demo_autosave"))
+      mark = &j["parameters"]["observation"]["demo_autosave"];
+    if (mark && mark->is_boolean() && mark->get<bool>()) autosaves.push_back(info);
+  }
+  QStringList removed;
+  for (std::size_t i = static_cast<std::size_t>(std::max(0, keep - 1)); i < autosaves.size(); ++i) {
+    const QString path = autosaves[i].absoluteFilePath();
+    SessionLock lock;
+    if (!lock.acquire(path)) continue;  // open in a window or another process
+    if (QFile::remove(path)) removed << path;
+  }
+  return removed;
+}
+
 SessionController::SessionController(Observation* observation, std::function<SessionParameters()> parameters,
                                      QObject* parent)
     : QObject(parent), m_obs(observation), m_parameters(std::move(parameters)) {
@@ -78,8 +105,9 @@ void SessionController::prepareNew(std::vector<std::string> inputs, bool demo, c
 }
 
 void SessionController::adopt(const QString& path, std::vector<std::string> inputs, bool demo,
-                              std::int64_t changes, nlohmann::json settings) {
+                              std::int64_t changes, nlohmann::json settings, bool demoAutosave) {
   m_next.reset();
+  m_demoAutosave = demoAutosave;
   m_sessionRaw = m_obs->raw().get();  // the restored frames arrive next (suspended), then are this session's
   m_sessionResult = nullptr;
   m_hadVetting = false;
@@ -91,7 +119,9 @@ void SessionController::adopt(const QString& path, std::vector<std::string> inpu
 }
 
 void SessionController::saveAs(const QString& path) {
-  if (setPath(path, 0)) requestSave();
+  if (!setPath(path, 0)) return;
+  m_demoAutosave = false;  // saved by a person: never pruned
+  requestSave();
 }
 
 bool SessionController::setPath(const QString& path, std::int64_t changes) {
@@ -125,7 +155,16 @@ void SessionController::startNext() {
   m_settings = nlohmann::json::object();
   m_sessionResult = nullptr;
   m_hadVetting = false;
-  setPath(path, 0);
+  m_demoAutosave = m_demo && next.path.isEmpty();
+  if (!setPath(path, 0) || !m_demoAutosave) return;
+  // Each demo run starts a new file: the older demo autosaves beyond the newest few go.
+  const QStringList removed = pruneDemoAutosaves(QFileInfo(path).absolutePath(), path);
+  if (!removed.isEmpty())
+    emit notice(QString("Removed %1 older demo autosave%2 (the newest %3 are kept in %4)")
+                    .arg(removed.size())
+                    .arg(removed.size() == 1 ? "" : "s")
+                    .arg(kDemoAutosavesKept)
+                    .arg(QFileInfo(path).absolutePath()));
 }
 
 void SessionController::forkFile() {
@@ -142,6 +181,7 @@ void SessionController::forkFile() {
 session::Session SessionController::currentSession() const {
   SessionParameters p = m_parameters ? m_parameters() : SessionParameters{};
   p.demo = m_demo;
+  p.demoAutosave = m_demoAutosave;
   return makeSession(*m_obs, m_inputs, p, m_settings);
 }
 

@@ -24,11 +24,22 @@ namespace st::ui {
 /// Where a new analysis of `inputs` keeps its session: beside the first input when that folder is writable
 /// (NAME.synthtrack-session.json, NAME = the input's file name without its FITS extensions, or the folder's
 /// name), else in `fallbackDir` (QStandardPaths::AppDataLocation + "/sessions" when empty), which the demo
-/// always uses ("demo.synthtrack-session.json").
+/// always uses ("demo.synthtrack-session.json"; a new demo run prunes the older ones, pruneDemoAutosaves()).
 [[nodiscard]] QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo,
                                          const QString& fallbackDir = {});
 /// `path` when no file is there, else the first of NAME-2.EXT, NAME-3.EXT, ... that is free.
 [[nodiscard]] QString freeSessionPath(const QString& path);
+
+/// Demo autosaves kept in the application's folder, the one being written included.
+inline constexpr int kDemoAutosavesKept = 5;
+
+/// Removes old demo autosaves from `folder` so that each `--demo` run does not leave one more file: of the
+/// files named demo.synthtrack-session.json / demo.synthtrack-session-N.json whose content says it is a demo
+/// autosave ("demo_autosave": true, SessionParameters::demoAutosave), not locked by a window, and other than
+/// `current`, the newest `keep - 1` (by modification time) stay and the others are deleted. A file a person
+/// saved (Save session as…) never carries the mark, and a file that cannot be read is kept. Returns the
+/// paths deleted.
+QStringList pruneDemoAutosaves(const QString& folder, const QString& current, int keep = kDemoAutosavesKept);
 
 class SessionController : public QObject {
   Q_OBJECT
@@ -54,9 +65,10 @@ class SessionController : public QObject {
   /// (notice() says so).
   void prepareNew(std::vector<std::string> inputs, bool demo, const QString& path = {});
   /// Continue in an opened session file (no save until the next change), counting on from `changes`.
+  /// `demoAutosave`: the file is a demo autosave (SessionParameters::demoAutosave, kept as it is).
   void adopt(const QString& path, std::vector<std::string> inputs, bool demo, std::int64_t changes,
-             nlohmann::json settings);
-  /// Save the current state to `path` from now on (File > Save session as…).
+             nlohmann::json settings, bool demoAutosave = false);
+  /// Save the current state to `path` from now on (File > Save session as…; never pruned).
   void saveAs(const QString& path);
   /// While restoring a session, the intermediate states are not saved.
   void setSuspended(bool suspended) { m_suspended = suspended; }
@@ -93,6 +105,7 @@ class SessionController : public QObject {
   QString m_path;
   std::vector<std::string> m_inputs;
   bool m_demo = false;
+  bool m_demoAutosave = false;  ///< the file is the demo's autosave in the application's folder
   nlohmann::json m_settings = nlohmann::json::object();
   struct Next {
     std::vector<std::string> inputs;

@@ -90,6 +90,12 @@ void restoreSearchParameters(const json& s, SessionParameters& p, const std::str
 
 }  // namespace
 
+search::SearchParams defaultPanelSearchParams() {
+  search::SearchParams p;
+  p.method = "auto";
+  return p;
+}
+
 const char* toString(BackendKind kind) noexcept {
   switch (kind) {
     case BackendKind::Cpu:
@@ -113,6 +119,7 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
   s.inputs = inputs;
   s.settings = settings.is_object() ? settings : json::object();
   s.parameters["observation"] = {{"demo", parameters.demo}, {"label", obs.label().toStdString()}};
+  if (parameters.demoAutosave) s.parameters["observation"]["demo_autosave"] = true;
   s.parameters["preprocess"] = stagesToJson(parameters.stages);
   s.parameters["search"] = searchParametersToJson(parameters);
   const char* unit = "px_s";
@@ -146,6 +153,7 @@ SessionSnapshot restoreSnapshot(const session::Session& session, const std::vect
   const json& p = session.parameters;
   const json observation = p.contains("observation") ? p["observation"] : json::object();
   snap.parameters.demo = valueOr<bool>(observation, "demo", false, where);
+  snap.parameters.demoAutosave = valueOr<bool>(observation, "demo_autosave", false, where);
   snap.label = QString::fromStdString(valueOr<std::string>(observation, "label", "", where));
   snap.parameters.stages =
       restoreStages(p.contains("preprocess") ? p["preprocess"] : json(), defaults, where);
@@ -153,7 +161,10 @@ SessionSnapshot restoreSnapshot(const session::Session& session, const std::vect
   const json view = p.contains("view") ? p["view"] : json::object();
   const std::string unit = valueOr<std::string>(view, "velocity_unit", "px_s", where);
   for (const auto& [u, key] : kUnits)
-    if (unit == key) snap.unit = u;
+    if (unit == key) {
+      snap.unit = u;
+      snap.unitSaved = view.contains("velocity_unit");
+    }
   if (!session.search.is_object() || session.search.empty()) {
     if (!session.candidates.empty())
       throw InputError(where + ": candidates without a search result (the 'search' member is empty)");

@@ -7,14 +7,18 @@
 // then the saved result is put back).
 //
 // Layout of Session::parameters (stable keys, units in the names):
-//   "observation": {"demo": bool, "label": string}
+//   "observation": {"demo": bool, "label": string, "demo_autosave": bool (absent = false)}
 //   "preprocess":  {"<stage name>": {"enabled": bool, "parameters": {"<key>": number, ...}}, ...}
 //   "search":      {"grid": {centre_vx_px_s, centre_vy_px_s, step_px_s, nvx, nvy}, "snr_threshold",
 //                   "target_fap" (null when the threshold is by SNR), "max_candidates", "min_frame_fraction",
-//                   "method" ("exact" | "tree"), "backend" ("auto" | "cpu" | "gpu")}
-//   "view":        {"selected": 0-based candidate index or null, "velocity_unit": int}
-// Session::search is report::searchResultToJson() without "candidates", plus "velocity_map"
-// (report::velocityMapToJson). Each CandidateState::candidate is report::candidateToJson().
+//                   "method" ("auto" | "exact" | "tree"), "backend" ("auto" | "cpu" | "gpu")}
+//   "view":        {"selected": 0-based candidate index or null, "velocity_unit": "px_s" | "arcsec_min" |
+//   "deg_day"}
+// Every key is optional on reading: a file from an older build that lacks one (e.g. "method", "backend",
+// "demo_autosave") loads with the GUI's default for it (SessionParameters' defaults: SNR 7, method auto,
+// backend auto); keys are only ever added, so Session::version does not change for them (an older build
+// ignores a key it does not know). Session::search is report::searchResultToJson() without "candidates", plus
+// "velocity_map" (report::velocityMapToJson). Each CandidateState::candidate is report::candidateToJson().
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,13 +33,19 @@
 
 namespace st::ui {
 
+/// The search panel's settings before anything is changed: search::SearchParams with method "auto".
+[[nodiscard]] search::SearchParams defaultPanelSearchParams();
+
 /// What a session records besides the Observation: the panels' settings at the time of the save.
 struct SessionParameters {
   std::vector<StageSpec> stages;  ///< pre-processing as set (ProcessingPanel::stages())
   search::VelocityGrid grid;      ///< the search panel's grid (the result keeps the grid it used)
-  search::SearchParams search;    ///< thresholds and method (SearchPanel::params())
+  search::SearchParams search = defaultPanelSearchParams();  ///< thresholds, method (SearchPanel::params())
   BackendKind backend = BackendKind::Auto;
   bool demo = false;  ///< the observation is the simulated demo (no input files)
+  /// The file is an autosave of the demo in the application's own folder, which later demo runs may prune
+  /// (SessionController); never set for a file a person saved (Save session as…).
+  bool demoAutosave = false;
 };
 
 /// The session of the GUI's current state. `inputs` are the frame files as opened (absolute paths);
@@ -60,6 +70,7 @@ struct SessionSnapshot {
   std::vector<session::CandidateState> states;
   std::optional<int> selected;  ///< 0-based, within range of the result
   VelocityUnit unit = VelocityUnit::PxPerS;
+  bool unitSaved = false;  ///< the file names the unit (else the window keeps its own default)
 };
 
 /// The inverse of makeSession(). `defaults` are the pipeline's stages (CoreServices::preprocessStages): a

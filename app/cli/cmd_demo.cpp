@@ -13,6 +13,7 @@
 #include "commands.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/demo_search.hpp"
 #include "st/pipeline/prepared_json.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/search_report.hpp"
@@ -44,10 +45,10 @@ struct DemoOptions {
   int frames = 0;
   double vmaxDegDay = sim::kDemoHalfRangeDegPerDay;
   double stepPx = sim::kDemoGridStepPx;
-  double snr = 7.0;
+  double snr = pipeline::demoSearchParams().snrThreshold;
   int fits = 40;
   BackendChoice backend = BackendChoice::Auto;
-  std::string method = "auto";
+  std::string method = pipeline::demoSearchParams().method;
 };
 
 DemoOptions parseDemo(const Args& args) {
@@ -92,12 +93,11 @@ void writeStack(const std::filesystem::path& path, const FrameCube& cube, Veloci
 /// The demo's search: +-vmax deg/day around the sky rate, steps of stepPx over the span, o.method.
 search::SearchResult demoSearch(const DemoOptions& o, const pipeline::Prepared& prepared,
                                 search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel) {
-  search::GridSpec spec;
+  // The settings the GUI's demo uses too (st/pipeline/demo_search.hpp), with the options' overrides.
+  search::GridSpec spec = pipeline::demoGridSpec(prepared.frames.plateScaleArcsecPerPx);
   spec.halfRange = o.vmaxDegDay;
-  spec.unit = search::VelocityUnit::DegPerDay;
-  spec.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
   spec.stepPx = o.stepPx;
-  search::SearchParams params;
+  search::SearchParams params = pipeline::demoSearchParams();
   params.snrThreshold = o.snr;
   params.method = o.method;
   const search::VelocityGrid grid = search::makeVelocityGrid(spec, prepared.filtered);

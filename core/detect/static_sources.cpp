@@ -9,6 +9,7 @@
 #include "st/common/parallel.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/stats/sigma_clip.hpp"
+#include "source_motion.hpp"
 #include "star_footprint.hpp"
 
 namespace st::detect {
@@ -130,6 +131,44 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
   return a;
 }
 
+// Sources seen per pixel (the first nPerPixel components) that are neither saturated nor very bright: their
+// centroids in the stacks of the thirds of the frames and the stars' common shift (keepMovers).
+struct Motion {
+  detail::ThirdStacks thirds;
+  std::vector<detail::SourceShift> shifts;
+  std::pair<double, double> common{0.0, 0.0};
+};
+
+Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background,
+                      const std::vector<std::vector<int>>& comps, std::size_t nPerPixel,
+                      const std::vector<Star>& stars, int cw, double sigma, const StaticSourceParams& params,
+                      CancelToken& cancel) {
+  Motion m;
+  m.shifts.resize(nPerPixel);
+  if (!params.keepMovers) return m;
+  m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
+  if (!m.thirds.valid()) return m;
+  for (std::size_t k = 0; k < nPerPixel; ++k)
+    if (!stars[k].saturated && stars[k].snr < params.spikeSnr)
+      m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+  m.common = detail::commonShift(m.shifts);
+  return m;
+}
+
+// Judges component k (seen per pixel) and, when it moves, records it in out.movers and out.moverMask.
+bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& comp, const SkyStack& s, int cw,
+                 Velocity skyRate, const StaticSourceParams& params, Star& star, StaticSources& out) {
+  if (k >= motion.shifts.size() || !motion.shifts[k].measured) return false;
+  MovingSource m =
+      detail::judgeMotion(motion.shifts[k], motion.common, motion.thirds, s.x0, s.y0, params, star);
+  if (!m.moving) return false;
+  m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
+  for (int p : comp)
+    out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
+  out.movers.push_back(m);
+  return true;
+}
+
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
@@ -137,6 +176,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 CancelToken& cancel) {
   StaticSources out;
   out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
@@ -180,10 +220,15 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
+  std::vector<Star> described(comps.size());
+  for (std::size_t k = 0; k < comps.size(); ++k)
+    described[k] = describe(comps[k], resid, snr, snrF, s, params, background);
+  const Motion motion =
+      measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cancel);
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
-    Star st = describe(comp, resid, snr, snrF, s, params, background);
+    Star st = std::move(described[k]);
     // Seen only after the filter: a static source only if it stays put between the stacks of the first and
     // second halves of the frames (a slow moving object is a streak there, and its halves shift).
     if (k >= nPerPixel) {
@@ -195,6 +240,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       if (!halves.isStatic(peak, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 1,
                            params.maxHalfShiftPx))
         continue;
+    } else if (keptAsMover(motion, k, comp, s, cw, skyRate, params, st, out)) {
+      continue;
     }
     for (int p : comp)
       out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
@@ -212,6 +259,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     out.stars.push_back(std::move(st));
   }
   out.mask.dilate(base);
+  out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   progress.report(1.0, "static sources");
   return out;
@@ -247,8 +295,45 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
   return total;
 }
 
+std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unmeasured,
+                           const MovingMask& keep) {
+  const int w = cube.width(), h = cube.height();
+  if (unmeasured.size() != cube.framePixels()) return 0;
+  // Pixels `keep` covers in some frame: its set reference positions moved by each distinct shift.
+  std::vector<std::uint8_t> kept(cube.framePixels(), 0);
+  if (!keep.empty()) {
+    std::vector<std::pair<int, int>> shifts;
+    for (std::size_t n = 0; n < keep.frameCount(); ++n)
+      shifts.emplace_back(keep.shiftX(n), keep.shiftY(n));
+    std::sort(shifts.begin(), shifts.end());
+    shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
+    const auto& c = keep.canvas();
+    for (int j = 0; j < keep.canvasHeight(); ++j)
+      for (int i = 0; i < keep.canvasWidth(); ++i) {
+        if (!c[static_cast<std::size_t>(j) * keep.canvasWidth() + i]) continue;
+        for (const auto& [sx, sy] : shifts) {
+          const int x = keep.x0() + i + sx, y = keep.y0() + j + sy;
+          if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
+        }
+      }
+  }
+  std::size_t zeroed = 0;
+  for (std::size_t i = 0; i < kept.size(); ++i) {
+    if (kept[i] || !unmeasured[i]) continue;
+    bool any = false;
+    for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+      float& v = cube.frame(n)[i];
+      any |= v != 0.0f;
+      v = 0.0f;
+    }
+    zeroed += any;
+  }
+  return zeroed;
+}
+
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
-                                          int radiusPx, ProgressSink& progress, CancelToken& cancel) {
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel,
+                                          const MovingMask* keep) {
   SingleFrameSources out;
   out.seedsPerFrame.assign(cube.frameCount(), 0);
   out.zeroedPerFrame.assign(cube.frameCount(), 0);
@@ -256,6 +341,7 @@ SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, d
   const std::size_t np = cube.framePixels();
   const bool perPixel = sigma.size() == np;
   const int r2 = radiusPx * radiusPx;
+  const bool useKeep = keep && !keep->empty();
   parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
     std::vector<int> seeds;
     for (std::size_t n = n0; n < n1; ++n) {
@@ -264,7 +350,9 @@ SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, d
       seeds.clear();
       for (std::size_t i = 0; i < np; ++i) {
         const double s = perPixel ? sigma.pixels[i] : sigmaN;
-        if (s > 0 && f[i] >= snr * s) seeds.push_back(static_cast<int>(i));
+        if (s <= 0 || f[i] < snr * s) continue;
+        if (useKeep && keep->covers(n, static_cast<int>(i) % w, static_cast<int>(i) / w)) continue;
+        seeds.push_back(static_cast<int>(i));
       }
       out.seedsPerFrame[n] = seeds.size();
       for (int p : seeds) {

@@ -33,6 +33,7 @@ nlohmann::json preparedToJson(const Prepared& p) {
   j["single_frame_sources"] = {{"seed_pixels_per_frame", p.singleFrame.seedsPerFrame},
                                {"zeroed_pixels_per_frame", p.singleFrame.zeroedPerFrame}};
   j["static_pixels_zeroed"] = p.staticPixelsZeroed;
+  j["unmeasured_pixels_zeroed"] = p.unmeasuredPixelsZeroed;
   j["hot_pixels"] = p.hotPixels;
   j["calibration"] = {{"overscan_counts_per_frame", p.calibration.overscanLevel},
                       {"bad_pixels", p.calibration.badPixels}};
@@ -46,7 +47,9 @@ nlohmann::json preparedToJson(const Prepared& p) {
               {"filtered_snr", s.filteredSnr},
               {"pixels", s.pixels},
               {"saturated", s.saturated},
-              {"bleed_columns", s.bleedColumns}};
+              {"bleed_columns", s.bleedColumns},
+              {"motion_px", {s.motionXPx, s.motionYPx}},
+              {"motion_sigma_px", s.motionSigmaPx}};
     if (p.frames.wcs) {
       try {
         const auto sky = p.frames.wcs->pixelToSky(s.x, s.y);
@@ -58,6 +61,16 @@ nlohmann::json preparedToJson(const Prepared& p) {
     stars.push_back(std::move(e));
   }
   j["stars"] = std::move(stars);
+  json movers = json::array();
+  for (const auto& m : p.movers)
+    movers.push_back({{"x_px", m.x},
+                      {"y_px", m.y},
+                      {"vx_px_s", m.v.vx},
+                      {"vy_px_s", m.v.vy},
+                      {"shift_px", m.shiftPx},
+                      {"shift_sigma_px", m.shiftSigmaPx},
+                      {"snr", m.snr}});
+  j["moving_sources"] = std::move(movers);
   j["notes"] = p.notes;
   j["elapsed_s"] = p.elapsedS;
   return j;

@@ -111,15 +111,37 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     }
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
     out.stars = stars.stars;
+    out.movers = stars.movers;
+    if (!stars.movers.empty()) {
+      std::ostringstream note;
+      note << stars.movers.size()
+           << " source(s) of the sky-rate stack moved between its first and last thirds and were left "
+              "unmasked "
+              "for the search:";
+      for (const auto& m : stars.movers)
+        note << " (" << m.x << ", " << m.y << ") px moving (" << m.v.vx << ", " << m.v.vy << ") px/s, shift "
+             << m.shiftPx << " +- " << m.shiftSigmaPx << " px;";
+      out.notes.push_back(note.str());
+    }
   }
   lap("static sources");
+  std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
   {
     SubProgress sub(progress, 0.4, 0.65);
-    stats::Background bg = stats::estimateBackground(cube, params.background, &stars.mask, sub, cancel);
+    // The movers are left out too: a slow one covers a pixel for a good part of the frames and would
+    // raise its background (and lose that much of its signal).
+    detect::MovingMask exclude = stars.mask;
+    const auto& movers = stars.moverMask.canvas();
+    for (std::size_t i = 0; i < movers.size(); ++i)
+      if (movers[i])
+        exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
+                    exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
+    stats::Background bg = stats::estimateBackground(cube, params.background, &exclude, sub, cancel);
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
     out.noiseMap = std::move(bg.noiseMap);
+    unmeasured = std::move(bg.filled);
     if (bg.pixelsFilled > 0) {
       out.notes.push_back(
           std::to_string(bg.pixelsFilled) +
@@ -142,9 +164,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   {
     SubProgress sub(progress, 0.75, 0.8);
     out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
+    out.unmeasuredPixelsZeroed = detect::zeroUnmeasured(cube, unmeasured, stars.moverMask);
+    if (out.unmeasuredPixelsZeroed > 0) {
+      out.notes.push_back(std::to_string(out.unmeasuredPixelsZeroed) +
+                          " pixels seen in some frames but without a measured background (static-mask "
+                          "edges, bright static light) zeroed in every frame");
+    }
     const int radius = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
     out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
-                                                     radius, sub, cancel);
+                                                     radius, sub, cancel, &stars.moverMask);
   }
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.8, 1.0);

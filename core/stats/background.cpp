@@ -162,6 +162,9 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
     ++nValid;
   }
   out.pixelsFilled = valid.size() - nValid;
+  out.filled.resize(valid.size());
+  for (std::size_t i = 0; i < valid.size(); ++i)
+    out.filled[i] = !valid[i];
   if (nValid == 0) {
     throw InputError("per-pixel background: no pixel has " + std::to_string(params.minSamples) +
                      " unmasked background samples (frames used: " + std::to_string(frames.size()) + ")");

@@ -134,7 +134,7 @@ class CudaBackend final : public CudaSearchBackend {
     const TreeDevicePlan dplan = chooseTreeTiles(tree, plan, cube, capacity, cut);
     progress.report(0.0, "velocity search, tree (" + name() + ")");
     auto runTiles = [&](std::size_t cap) {
-      return runOnDevices(std::min<int>(static_cast<int>(m_devices.size()), dplan.tiles), progress, cancel,
+      return runOnDevices(std::min<int>(static_cast<int>(m_devices.size()), dplan.tiles), progress,
                           "velocity search, tree (" + name() + ")", [&](int d, int used, auto report) {
                             DeviceJob job;
                             job.device = m_devices[d].ordinal;
@@ -229,9 +229,8 @@ class CudaBackend final : public CudaSearchBackend {
 
   /// Runs `work(d, used, report)` on devices [0, used), one host thread each; rethrows the first real error.
   template <class Work>
-  std::vector<DeviceOutcome> runOnDevices(int used, ProgressSink& progress, CancelToken& cancel,
-                                          const std::string& stage, Work work) {
-    (void)cancel;
+  std::vector<DeviceOutcome> runOnDevices(int used, ProgressSink& progress, const std::string& stage,
+                                          Work work) {
     std::vector<DeviceOutcome> outcomes(static_cast<std::size_t>(used));
     std::vector<std::exception_ptr> errors(static_cast<std::size_t>(used));
     std::vector<double> fractions(static_cast<std::size_t>(used), 0.0);
@@ -294,47 +293,18 @@ class CudaBackend final : public CudaSearchBackend {
   std::vector<DeviceOutcome> runAll(const HostPlan& plan, const search::FilteredCube& cube,
                                     std::size_t capacity, ProgressSink& progress, CancelToken& cancel) {
     const int used = std::min<int>(static_cast<int>(m_devices.size()), plan.nvy);
-    std::vector<DeviceOutcome> outcomes(static_cast<std::size_t>(used));
-    std::vector<std::exception_ptr> errors(static_cast<std::size_t>(used));
-    std::vector<double> fractions(static_cast<std::size_t>(used), 0.0);
-    std::mutex progressMutex;
-    std::atomic<bool> abort{false};
-    const std::string stage = "velocity search (" + name() + ")";
-    auto work = [&](int d) {
-      try {
-        DeviceJob job;
-        job.device = m_devices[d].ordinal;
-        job.resources = &m_resources[static_cast<std::size_t>(d)];
-        job.iyBegin = static_cast<int>(static_cast<long>(plan.nvy) * d / used);
-        job.iyEnd = static_cast<int>(static_cast<long>(plan.nvy) * (d + 1) / used);
-        job.memoryLimitBytes = m_options.deviceMemoryLimitBytes;
-        job.cellCapacity = capacity;
-        job.naiveKernel = m_options.naiveKernel;
-        outcomes[d] = runOnDevice(
-            plan, cube.frames.pixels().data(), job,
-            [&](double f) {
-              std::lock_guard lock(progressMutex);
-              fractions[d] = f;
-              double sum = 0.0;
-              for (double x : fractions)
-                sum += x;
-              progress.report(sum / used, stage);
-            },
-            cancel, abort);
-      } catch (...) {
-        errors[d] = std::current_exception();
-        m_resources[d].reset();  // work may be left on its streams; made afresh by the next search
-        abort.store(true);       // stop the other devices early; the first real error is rethrown below
-      }
-    };
-    std::vector<std::thread> threads;
-    for (int d = 1; d < used; ++d)
-      threads.emplace_back(work, d);
-    work(0);
-    for (auto& t : threads)
-      t.join();
-    rethrowFirst(errors);
-    return outcomes;
+    return runOnDevices(used, progress, "velocity search (" + name() + ")", [&](int d, int n, auto report) {
+      DeviceJob job;
+      job.device = m_devices[d].ordinal;
+      job.resources = &m_resources[static_cast<std::size_t>(d)];
+      job.iyBegin = static_cast<int>(static_cast<long>(plan.nvy) * d / n);
+      job.iyEnd = static_cast<int>(static_cast<long>(plan.nvy) * (d + 1) / n);
+      job.memoryLimitBytes = m_options.deviceMemoryLimitBytes;
+      job.cellCapacity = capacity;
+      job.naiveKernel = m_options.naiveKernel;
+      job.uploadChunkBytes = m_options.uploadChunkBytes;
+      return runOnDevice(plan, cube.frames.pixels().data(), job, report, cancel, m_abort);
+    });
   }
 
   static void mergeMap(const std::vector<DeviceOutcome>& outcomes, const HostPlan& plan,

@@ -27,6 +27,7 @@ struct DeviceJob {
   int iyEnd = 0;
   std::size_t memoryLimitBytes = 0;  ///< 0: what the device has free (less a reserve)
   std::size_t cellCapacity = 0;      ///< candidate buffer, cells
+  std::size_t uploadChunkBytes = 0;  ///< resident cube: frames per upload step (0: kUploadChunkBytes)
   bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
   int treeRootShape = 0;             ///< tree search: TreeRootLaunch::shape
   bool profile = false;              ///< tree search: time each level of the first tile (for the note)

@@ -6,7 +6,6 @@
 
 #include "kernel_params.hpp"
 #include "st/common/error.hpp"
-#include "st/common/parallel.hpp"
 
 namespace st::gpu {
 namespace {
@@ -15,19 +14,33 @@ int ipsaShift(double v, double dt) {
   return static_cast<int>(std::lround(v * dt));
 }
 
-/// Inclusive range [lo, hi] of time-ordered frames k with a <= s[k] < b, s monotone either way.
-void validSpan(const int* s, int n, int a, int b, int* out) {
+/// For every column (or row) c in [0, extent): the inclusive range [lo, hi] of time-ordered frames k with
+/// -c <= s[k] < extent - c, i.e. those that keep c inside the frame (hi < lo: none). `s` is monotone either
+/// way; one sweep over the frames and the columns (the bounds move one way as c moves the other).
+void validSpans(const int* s, int n, int extent, int* out) {
   int lo = 0;
   int hi = 0;
-  if (s[n - 1] >= s[0]) {
-    lo = static_cast<int>(std::lower_bound(s, s + n, a) - s);
-    hi = static_cast<int>(std::lower_bound(s, s + n, b) - s);
-  } else {
-    lo = static_cast<int>(std::partition_point(s, s + n, [b](int v) { return v >= b; }) - s);
-    hi = static_cast<int>(std::partition_point(s, s + n, [a](int v) { return v >= a; }) - s);
+  auto put = [&](int c) {
+    out[2 * c] = lo;
+    out[2 * c + 1] = std::max(hi, lo) - 1;
+  };
+  if (s[n - 1] >= s[0]) {  // non-decreasing: lo = first s >= -c, hi = first s >= extent - c
+    for (int c = extent - 1; c >= 0; --c) {
+      while (lo < n && s[lo] < -c)
+        ++lo;
+      while (hi < n && s[hi] < extent - c)
+        ++hi;
+      put(c);
+    }
+  } else {  // non-increasing: lo = first s < extent - c, hi = first s < -c
+    for (int c = 0; c < extent; ++c) {
+      while (lo < n && s[lo] >= extent - c)
+        ++lo;
+      while (hi < n && s[hi] >= -c)
+        ++hi;
+      put(c);
+    }
   }
-  out[0] = lo;
-  out[1] = std::max(hi, lo) - 1;
 }
 
 /// Shifts [nv][N] in frame order, and the spans from the same shifts in time order.
@@ -37,18 +50,14 @@ void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, co
   const int nv = static_cast<int>(vel.size());
   shifts.resize(static_cast<std::size_t>(nv) * n);
   spans.resize(static_cast<std::size_t>(nv) * extent * 2);
-  // Velocities in parallel: ~2 x 10^6 binary searches for the paper's problem (5 ms on one core).
-  parallelFor(static_cast<std::size_t>(nv), 4, [&](std::size_t lo, std::size_t hi) {
-    std::vector<int> sorted(static_cast<std::size_t>(n));
-    for (std::size_t i = lo; i < hi; ++i) {
-      for (int k = 0; k < n; ++k) {
-        shifts[i * n + k] = ipsaShift(vel[i], dt[k]);
-        sorted[k] = ipsaShift(vel[i], dt[order[k]]);
-      }
-      for (int c = 0; c < extent; ++c)
-        validSpan(sorted.data(), n, -c, extent - c, &spans[(i * extent + c) * 2]);
+  std::vector<int> sorted(static_cast<std::size_t>(n));
+  for (std::size_t i = 0; i < static_cast<std::size_t>(nv); ++i) {
+    for (int k = 0; k < n; ++k) {
+      shifts[i * n + k] = ipsaShift(vel[i], dt[k]);
+      sorted[k] = ipsaShift(vel[i], dt[order[k]]);
     }
-  });
+    validSpans(sorted.data(), n, extent, &spans[i * extent * 2]);
+  }
 }
 
 /// Largest shift difference, over frames, between velocities `len` grid steps apart (tiles can start

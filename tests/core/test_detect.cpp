@@ -129,6 +129,28 @@ TEST(SingleFrameSources, BrightTransientIsZeroedInItsFrameOnly) {
   EXPECT_EQ(cube.frame(1)[15 * 40 + 20], 0.0f);
 }
 
+// Pixels without a measured background are zeroed in every frame unless a mover's track (the keep mask,
+// carried with the sky rate) covers them in some frame; measured pixels are untouched. Oracle: the flags.
+TEST(UnmeasuredPixels, ZeroedInEveryFrameExceptOnMoverTracks) {
+  const std::vector<double> dt = {-2.0, -1.0, 0.0, 1.0, 2.0};
+  FrameCube cube(40, 30, dt.size());
+  for (auto& v : cube.pixels())
+    v = 5.0f;
+  std::vector<std::uint8_t> unmeasured(cube.framePixels(), 0);
+  unmeasured[10 * 40 + 10] = 1;  // e.g. a halo pixel at a mask edge
+  unmeasured[12 * 40 + 22] = 1;  // on the mover's track in frame 4 only
+  MovingMask keep(40, 30, dt, {1.0, 0.0});
+  keep.set(20, 12);  // reference position: frame n sees it at x = 20 + round(dt_n)
+  const std::size_t zeroed = zeroUnmeasured(cube, unmeasured, keep);
+  EXPECT_EQ(zeroed, 1u);
+  for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+    EXPECT_EQ(cube.frame(n)[10 * 40 + 10], 0.0f) << "frame " << n;
+    EXPECT_EQ(cube.frame(n)[12 * 40 + 22], 5.0f) << "frame " << n;
+    EXPECT_EQ(cube.frame(n)[5 * 40 + 5], 5.0f) << "frame " << n;
+  }
+  EXPECT_EQ(zeroUnmeasured(cube, unmeasured, keep), 0u) << "already 0: not counted again";
+}
+
 TEST(HotPixels, FoundAndStarsAreNot) {
   auto sc = scene({});  // tracked: the stars are as persistent as a hot pixel, but not as sharp
   FrameCube cube = sc.make();

@@ -12,6 +12,7 @@
 #include <random>
 #include <tuple>
 
+#include "gpu_test_cubes.hpp"
 #include "ipsa_host_reference.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
@@ -29,39 +30,15 @@ using search::SearchParams;
 using search::SearchResult;
 using search::VelocityGrid;
 
-std::unique_ptr<gpu::CudaSearchBackend> backendOrSkip(const gpu::CudaOptions& options = {}) {
-  std::string whyNot;
-  auto b = gpu::makeCudaSearchBackend(whyNot, options);
-  return b;
-}
-
-#define ST_REQUIRE_GPU(var, ...)         \
-  auto var = backendOrSkip(__VA_ARGS__); \
-  if (!var) GTEST_SKIP() << "no usable CUDA device";
-
 /// A noise cube (sigma 1) with non-uniform, partly unsorted times and a source moving at `src`.
 FilteredCube makeCube(int w, int h, int n, Velocity src, int x0, int y0, float amp, unsigned seed) {
-  FilteredCube c;
-  c.frames = FrameCube(w, h, static_cast<std::size_t>(n));
-  c.sigmaF = 1.0;
-  c.psfFwhmPx = 2.5;
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> noise(0.0f, 1.0f);
-  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
-  for (auto& p : c.frames.pixels())
-    p = noise(rng);
-  for (int k = 0; k < n; ++k) {
-    double t = 0.06 * k + jitter(rng) + (k > n / 2 ? 1.0 : 0.0);  // uneven cadence and a gap
-    c.frames.info()[k].mjdMid = 60000.0 + t / kSecondsPerDay;
-  }
-  std::swap(c.frames.info()[1], c.frames.info()[4]);  // frames need not be in time order
-  const std::vector<double> dt = c.frames.timeOffsetsS();
-  for (int k = 0; k < n; ++k) {
-    const int x = x0 + test::refShift(src.vx, dt[k]);
-    const int y = y0 + test::refShift(src.vy, dt[k]);
-    if (x >= 0 && y >= 0 && x < w && y < h) c.frames.frame(k)[static_cast<std::size_t>(y) * w + x] += amp;
-  }
-  return c;
+  test::CubeTiming timing;
+  timing.cadenceS = 0.06;  // uneven cadence and a gap
+  timing.jitterS = 0.02;
+  timing.gapAfter = n / 2;
+  timing.gapS = 1.0;
+  timing.swapped = {1, 4};  // frames need not be in time order
+  return test::movingPointsCube(w, h, n, seed, timing, {{x0, y0, src, amp}}, 2.5);
 }
 
 VelocityGrid makeGrid(int nvx, int nvy, double step) {
@@ -201,7 +178,7 @@ void checkChunkedEqualsResident(Kern rowKernel) {
     gpu::CudaOptions o = kernelOptions(rowKernel);
     o.deviceMemoryLimitBytes = limit;
     o.cellCapacity = 4096;
-    auto tiny = backendOrSkip(o);
+    auto tiny = test::cudaOrNull(o);
     try {
       b = tiny->search(p.cube, p.grid, p.params, progress, cancel);
     } catch (const GpuError&) {
@@ -224,10 +201,12 @@ void checkChunkedEqualsResident(Kern rowKernel) {
 
 void checkLongCube(double step, const char* kernel) {
   const std::string name(kernel);
-  ST_REQUIRE_GPU(gpu, kernelOptions(name == "row kernel"     ? Kern::Row
-                                    : name == "stair kernel" ? Kern::Stair
-                                                             : Kern::Tiled));
-  // 600 frames of 256 x 240 (141 MiB) upload in more than one chunk; the first velocity chunk is summed
+  gpu::CudaOptions options = kernelOptions(name == "row kernel"     ? Kern::Row
+                                           : name == "stair kernel" ? Kern::Stair
+                                                                    : Kern::Tiled);
+  options.uploadChunkBytes = std::size_t{32} << 20;  // the 141 MiB cube in 5 upload steps
+  ST_REQUIRE_GPU(gpu, options);
+  // 600 frames of 256 x 240 (141 MiB) upload in 32 MiB steps; the first velocity chunk is summed
   // chunk by chunk through device partial sums while the rest of the cube arrives.
   Problem p;
   p.grid = makeGrid(9, 3, step);

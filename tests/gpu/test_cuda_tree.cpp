@@ -10,6 +10,7 @@
 #include <cmath>
 #include <random>
 
+#include "gpu_test_cubes.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
 #include "st/search/ipsa.hpp"
@@ -23,46 +24,18 @@ using search::SearchParams;
 using search::SearchResult;
 using search::VelocityGrid;
 
-std::unique_ptr<gpu::CudaSearchBackend> gpuOrNull(const gpu::CudaOptions& options = {}) {
-  std::string whyNot;
-  return gpu::makeCudaSearchBackend(whyNot, options);
-}
-
-#define ST_REQUIRE_GPU(var, ...)     \
-  auto var = gpuOrNull(__VA_ARGS__); \
-  if (!var) GTEST_SKIP() << "no usable CUDA device";
-
 /// Noise (sigma 1), uneven cadence with a gap, two frames out of time order, and sources moving across
 /// (one of them leaves the frame half-way).
 FilteredCube makeCube(int w, int h, int n, unsigned seed) {
-  FilteredCube c;
-  c.frames = FrameCube(w, h, static_cast<std::size_t>(n));
-  c.sigmaF = 1.0;
-  c.psfFwhmPx = 2.0;
-  std::mt19937 rng(seed);
-  std::normal_distribution<float> noise(0.0f, 1.0f);
-  std::uniform_real_distribution<double> jitter(-0.03, 0.03);
-  for (auto& p : c.frames.pixels())
-    p = noise(rng);
-  for (int k = 0; k < n; ++k) {
-    const double t = 0.1 * k + jitter(rng) + (k > n / 3 ? 0.8 : 0.0);
-    c.frames.info()[k].mjdMid = 60000.0 + t / kSecondsPerDay;
-  }
-  std::swap(c.frames.info()[2], c.frames.info()[5]);
-  const std::vector<double> dt = c.frames.timeOffsetsS();
-  const struct {
-    int x, y;
-    Velocity v;
-    float amp;
-  } src[] = {{30, 40, {4.0, -3.0}, 1.5f}, {w - 6, 10, {9.0, 2.5}, 2.0f}, {50, 20, {-1.0, 5.5}, 1.2f}};
-  for (const auto& s : src) {
-    for (int k = 0; k < n; ++k) {
-      const int x = s.x + search::ipsaShift(s.v.vx, dt[k]);
-      const int y = s.y + search::ipsaShift(s.v.vy, dt[k]);
-      if (x >= 0 && y >= 0 && x < w && y < h) c.frames.frame(k)[static_cast<std::size_t>(y) * w + x] += s.amp;
-    }
-  }
-  return c;
+  test::CubeTiming timing;
+  timing.cadenceS = 0.1;
+  timing.jitterS = 0.03;
+  timing.gapAfter = n / 3;
+  timing.gapS = 0.8;
+  timing.swapped = {2, 5};
+  return test::movingPointsCube(
+      w, h, n, seed, timing,
+      {{30, 40, {4.0, -3.0}, 1.5f}, {w - 6, 10, {9.0, 2.5}, 2.0f}, {50, 20, {-1.0, 5.5}, 1.2f}}, 2.0);
 }
 
 struct Problem {
@@ -170,7 +143,7 @@ TEST(CudaTree, MemoryLimitTilesTheRowsOrFailsClearly) {
   gpu::CudaOptions tiny;
   tiny.cellCapacity = 65536;
   tiny.deviceMemoryLimitBytes = 1 << 20;
-  auto small = gpuOrNull(tiny);
+  auto small = test::cudaOrNull(tiny);
   EXPECT_THROW(small->search(p.cube, p.grid, p.params, progress, cancel), GpuError);
 }
 

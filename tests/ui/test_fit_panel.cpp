@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <QElapsedTimer>
+#include <QLabel>
 #include <QPushButton>
 #include <QTableView>
 #include <QAction>
@@ -230,6 +231,43 @@ TEST(FitPanel, LaunchedFromTheMainWindowWithF) {
   EXPECT_EQ(fits, 1);
   EXPECT_EQ(w.fitPanel()->fittedIndex(), 0);
   EXPECT_EQ(w.fitPanel()->costPoints(), 3);
+}
+
+/// The line above Fit (found as the panel's first own label, so the test also runs against older builds).
+QString title(FitPanel& panel) {
+  return panel.findChildren<QLabel*>(QString(), Qt::FindDirectChildrenOnly).front()->text();
+}
+
+TEST(FitPanel, TitleFollowsTheState) {
+  CoreServices services;
+  services.fitCandidate = [](const PreparedView&, const search::Candidate& c, CancelToken&,
+                             const FitStepCallback&) {
+    FitOutcome out;
+    out.result.status = fit::FitStatus::Converged;
+    out.result.costHistory = {2.0, 1.0};
+    out.json = {{"x", c.x}, {"status", "converged"}};
+    return out;
+  };
+  Observation obs;
+  FitPanel panel(&obs, &services);
+  EXPECT_TRUE(title(panel).startsWith("No candidates yet")) << title(panel).toStdString();
+  setUp(obs);  // one candidate, selected
+  EXPECT_TRUE(title(panel).startsWith("Candidate 1 selected")) << title(panel).toStdString();
+  EXPECT_TRUE(title(panel).contains("ready to fit")) << title(panel).toStdString();
+  EXPECT_FALSE(title(panel).contains("Select a candidate"));
+  obs.setSelected(std::nullopt);
+  EXPECT_TRUE(title(panel).startsWith("Select one of the 1 candidates")) << title(panel).toStdString();
+  obs.setSelected(0);
+  bool finished = false;
+  QObject::connect(&panel, &FitPanel::fitFinished, [&] { finished = true; });
+  panel.fitSelected();
+  EXPECT_TRUE(title(panel).contains("fitting")) << title(panel).toStdString();
+  ASSERT_TRUE(test::waitFor([&] { return finished; }, 5000));
+  EXPECT_TRUE(title(panel).contains("fit done (converged): Accept stores it")) << title(panel).toStdString();
+  panel.accept();
+  EXPECT_TRUE(title(panel).contains("fit done and stored")) << title(panel).toStdString();
+  obs.setResult(std::make_shared<search::SearchResult>());  // a new search without candidates
+  EXPECT_TRUE(title(panel).startsWith("The search found no candidate")) << title(panel).toStdString();
 }
 
 ST_UI_TEST_MAIN()

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <QComboBox>
+#include <QLabel>
 #include <QGroupBox>
 #include <QTest>
 #include <cstdlib>
@@ -120,6 +121,19 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
       panel.statusText().startsWith("exact search on cpu: 1 candidate above SNR 7.00 (2 sidelobes merged)"))
       << panel.statusText().toStdString();
   EXPECT_TRUE(panel.statusText().contains("as selected")) << panel.statusText().toStdString();
+
+  // A GPU failure that the CPU made up for is said first; the backend's note is on hover.
+  result = std::make_shared<search::SearchResult>(*result);
+  result->warnings = {"cuda: NVIDIA H100 failed (out of memory); searched on cpu instead"};
+  result->backendNote = "device 0: cube resident (1500 MiB)";
+  obs.setResult(result);
+  EXPECT_TRUE(panel.statusText().startsWith("Warning: cuda: NVIDIA H100 failed (out of memory)"))
+      << panel.statusText().toStdString();
+  EXPECT_TRUE(panel.statusText().contains("exact search on cpu")) << panel.statusText().toStdString();
+  bool noteShown = false;
+  for (const QLabel* label : panel.findChildren<QLabel*>())
+    noteShown = noteShown || label->toolTip() == "device 0: cube resident (1500 MiB)";
+  EXPECT_TRUE(noteShown);
 }
 
 ST_UI_TEST_MAIN()

@@ -6,6 +6,8 @@
 // with the sky motion. Saturated stars also lose their Moffat wings (radius growing with the flux),
 // diffraction spikes and column bleed trails (charge leakage), measured in the stack: the paper's main false
 // positives. The star catalog (position, flux, saturated, bleed columns) is kept for astrometry and vetting.
+// A source whose centroid moves between the stacks of the first and last thirds of the frames (a slow moving
+// object, a short streak that looks like a star) is not static: it is listed as a mover and left unmasked.
 #include <cstddef>
 #include <optional>
 #include <vector>
@@ -40,6 +42,16 @@ struct StaticSourceParams {
   double wingBeta = 4.0;  ///< paper §3.3: beta ~ 4 (the PSF is fitted after this stage)
   /// Spikes and bleed trails are measured and masked for saturated stars and stars above this stack SNR.
   double spikeSnr = 300.0;
+  /// Sources of the per-pixel detection whose centroid moves between the sky-rate stacks of the first and
+  /// the last third of the frames are movers (a slow moving object is a short streak there that looks like
+  /// a star; a star's centroid stays put): they are not masked, not in the catalog, and are listed in
+  /// StaticSources::movers. Moving means a shift > max(minMoverShiftPx, moverShiftSigmas * its sigma) and a
+  /// middle third on the line (detail::measureMotion). Saturated stars and stars above spikeSnr are always
+  /// static. The floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the
+  /// sky rate's integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
+  bool keepMovers = true;
+  double minMoverShiftPx = 1.0;
+  double moverShiftSigmas = 5.0;
 };
 
 /// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky
@@ -54,11 +66,27 @@ struct Star {
   int pixels = 0;            ///< footprint size before dilation
   bool saturated = false;
   std::vector<int> bleedColumns;  ///< columns (0-based, at t_ref) with a vertical run of saturated pixels
+  double motionXPx = 0.0;  ///< centroid shift between the first and last thirds' stacks (0: not measured)
+  double motionYPx = 0.0;
+  double motionSigmaPx = 0.0;  ///< its error (stack noise only)
+};
+
+/// A source of the sky-rate stack found to move (StaticSourceParams::keepMovers): left for the search.
+struct MovingSource {
+  double x = 0.0;  ///< position at t_ref from the thirds' centroids, 0-based px
+  double y = 0.0;
+  Velocity v;            ///< velocity in the frames (sky rate + shift between the thirds / their time), px/s
+  double shiftPx = 0.0;  ///< centroid shift between the first and last thirds' stacks
+  double shiftSigmaPx = 0.0;  ///< its error from the stack noise
+  double snr = 0.0;           ///< peak SNR in the sky-rate stack (of its streak)
+  bool moving = false;        ///< the decision of detail::measureMotion
 };
 
 struct StaticSources {
-  std::vector<Star> stars;  ///< sorted by decreasing flux
-  MovingMask mask;          ///< footprints, dilated, at t_ref; follows the sky rate
+  std::vector<Star> stars;           ///< sorted by decreasing flux
+  MovingMask mask;                   ///< footprints, dilated, at t_ref; follows the sky rate
+  std::vector<MovingSource> movers;  ///< sources of the stack that moved: not in `stars`, not masked
+  MovingMask moverMask;     ///< the movers' footprints (streaks in the sky-rate stack), dilated like `mask`
   double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
 };
 
@@ -78,6 +106,17 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
 /// pixels zeroed over all frames.
 std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel);
 
+/// Zeroes, in every frame, the pixels flagged in `unmeasured` (row-major, frame-sized: pixels whose
+/// per-pixel background had too few samples, so the global mean stood in) that `keep` (the movers) covers in
+/// no frame. Such pixels are (1) along the static mask's edge, which the integer sky-rate shifts move by a
+/// pixel or two from frame to frame: covered in most frames, they keep a bright star's halo (broader than
+/// the Moffat wings masked) in the few frames that uncover them; (2) bright static light that the stack's
+/// mesh background absorbed (a saturated star's halo and its islands between mask pieces), above the
+/// background's strong-signal cut in most frames. Either leaves a static residual that the search finds
+/// near the sky rate. Returns the number of pixels zeroed (each counted once).
+std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unmeasured,
+                           const MovingMask& keep);
+
 struct SingleFrameSources {
   std::vector<std::size_t> seedsPerFrame;   ///< pixels at or above the threshold, per frame
   std::vector<std::size_t> zeroedPerFrame;  ///< pixels zeroed (seeds dilated), per frame
@@ -85,8 +124,10 @@ struct SingleFrameSources {
 
 /// Paper §4.3: in zero-biased frames, pixels with value >= snr * sigma (sigma: per-pixel noise image, or
 /// sigmaN when `sigma` is empty) are bright objects of that frame alone; they are zeroed together with a
-/// disc of `radiusPx` around them, in that frame only.
+/// disc of `radiusPx` around them, in that frame only. Pixels covered by `keep` in that frame (the movers of
+/// findStaticSources, left for the search) are not seeds.
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
-                                          int radiusPx, ProgressSink& progress, CancelToken& cancel);
+                                          int radiusPx, ProgressSink& progress, CancelToken& cancel,
+                                          const MovingMask* keep = nullptr);
 
 }  // namespace st::detect

@@ -4,9 +4,11 @@
 //   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
 //   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
 //   -> static sources in the sky-rate stack (SNR >= 7 per pixel or after the PSF filter; wings, spikes and
-//      bleed trails of saturated stars): star catalog and footprint mask
+//      bleed trails of saturated stars): star catalog and footprint mask; sources whose centroid moves
+//      between the stacks of the first and last thirds of the frames are movers, left unmasked
 //   -> per-pixel background (<= 2000 frames, xi = 4, stars left out), sigma_n, subtraction (zero-biased)
-//   -> cosmic-ray pixels, static sources (along the sky motion) and single-frame sources (SNR >= 7) zeroed
+//   -> cosmic-ray pixels, static sources (along the sky motion), pixels without a measured background and
+//      single-frame sources (SNR >= 7) zeroed, the movers' tracks spared
 //   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing) -> matched filter.
 //
 // Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
@@ -57,13 +59,20 @@ struct Prepared {
   Image noiseMap;           ///< smooth noise map when params.background.noiseMap
   stats::ClipStats global;  ///< pixel-independent background (50 frames, xi = 5)
   std::vector<detect::Star> stars;  ///< static-source catalog, positions at t_ref
-  Velocity skyRate;                 ///< px/s
+  /// Sources of the sky-rate stack that moved between its first and last thirds (slow moving objects): not
+  /// masked, not zeroed as single-frame sources, left for the search
+  /// (detect::StaticSourceParams::keepMovers).
+  std::vector<detect::MovingSource> movers;
+  Velocity skyRate;  ///< px/s
   bool skyRateMeasured = false;
   calib::CalibrationReport calibration;
   std::size_t hotPixels = 0;  ///< found in the science frames and masked in every frame
   std::vector<std::size_t> cosmicRaysPerFrame;
   std::size_t cosmicRays = 0;
   std::size_t staticPixelsZeroed = 0;  ///< over all frames
+  /// Pixels (each counted once) whose background could not be measured, not on a mover's track, that were
+  /// not already 0 in every frame: zeroed in every frame (detect::zeroUnmeasured).
+  std::size_t unmeasuredPixelsZeroed = 0;
   detect::SingleFrameSources singleFrame;
   psf::Moffat psf;  ///< fitted, or the fallback of params.psfFwhmPx
   bool psfFitted = false;

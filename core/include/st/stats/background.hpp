@@ -4,6 +4,8 @@
 // frame-to-frame variation averaged over pixels, an optional smooth noise map, and the subtraction that
 // makes the frames zero-biased.
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
@@ -40,7 +42,8 @@ struct Background {
   ClipStats global;              ///< the pixel-independent estimate it started from
   std::size_t framesUsed = 0;    ///< frames that entered the per-pixel clip
   std::size_t pixelsFilled = 0;  ///< pixels with < minSamples samples (level = global mean, not in sigmaN)
-  Image noiseMap;                ///< smooth noise map when params.noiseMap, else empty
+  std::vector<std::uint8_t> filled;  ///< 1 for those pixels (row-major, width x height)
+  Image noiseMap;                    ///< smooth noise map when params.noiseMap, else empty
 };
 
 /// Per-pixel background of the cube (paper §3.1 with xi = 4 over up to ~2000 frames). Masked samples, samples

@@ -34,6 +34,9 @@ struct CudaOptions {
   /// kernel whenever it applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform
   /// branches), 1 (no reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
   int kernelVariant = -1;
+  /// Exact search, cube resident: bytes of frames per upload step, each followed by a launch over the first
+  /// velocity rows (0 = 256 MiB). Tests set it small to upload a small cube in several steps.
+  std::size_t uploadChunkBytes = 0;
   /// Use at most this many devices (0 = all visible).
   int maxDevices = 0;
   /// Tree search: levels summed in registers by the root kernel (0 = kTreeDefaultCut; at most 4).
