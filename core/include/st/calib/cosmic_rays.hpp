@@ -9,14 +9,16 @@
 //
 // The threshold follows the noise that is actually there. A threshold in units of a Gaussian-equivalent
 // sigma flags far too many pixels when the noise has a heavy right tail (an EMCCD's gain register gives an
-// exponential excess; Poisson counts are skewed at low levels): 7 "sigma" is a 1e-12 event for Gaussian noise
-// but ~4e-5 per pixel for the paper-neo sky (~3.6 photons per pixel through an EM gain of 200). So the
-// excess E = F_n - max(two nearest frames, both registrations) of noise-only pixels is measured on the cube
-// itself, its upper tail is fitted by an exponential between the 1e-2 and 1e-3 exceedance quantiles, and the
-// seed threshold is where that tail reaches CosmicRayParams::falseFlagRate. Tails that fall faster than
-// exponential (Gaussian, Gamma, the EMCCD compound Poisson-Gamma whose log-slope steepens towards -1/gain)
-// are over-estimated by the exponential, so the false-flag rate is at most the target (checked in
-// tests/core/test_calib_emccd.cpp).
+// exponential excess; Poisson counts are skewed at low levels): an excess of 7 "sigma" over both neighbours
+// has probability 1.2e-9 for Gaussian noise but 1.7e-5 per pixel on the paper-neo sky (~3.6 photons per pixel
+// through an EM gain of 200; measured on 5e7 noise-only pixels). So the excess E = F_n - max(two nearest
+// frames, both registrations) of noise-only pixels is measured on the cube itself, its upper tail is fitted
+// by an exponential between the 1e-2 and 1e-3 exceedance quantiles, and the seed threshold is where that tail
+// reaches CosmicRayParams::falseFlagRate. Tails that fall faster than exponential (Gaussian, Gamma, the EMCCD
+// compound Poisson-Gamma whose log-slope steepens towards -1/gain) are over-estimated by the exponential, so
+// the false-flag rate is at most the target (checked in tests/core/test_calib_emccd.cpp). Hits themselves
+// must stay well below 1e-3 of the pixels (paper-neo: ~5e-7), or they lift the measured tail and the
+// threshold with it.
 #include <cstddef>
 #include <cmath>
 #include <cstdint>
@@ -50,7 +52,7 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
                         const std::function<bool(std::size_t, int, int)>& skip = {});
 
 struct CosmicRayParams {
-  double thresholdSigma = 7.0;  ///< hit: F_n - max(two nearest frames) > thresholdSigma * sigma (one frame)
+  double thresholdSigma = 7.0;  ///< hit: F_n - max(references) > thresholdSigma * sigma (one frame)
                                 ///< and above the tail threshold at falseFlagRate, whichever is higher
   double falseFlagRate = 1e-7;  ///< target probability that a noise-only pixel seeds a hit (see above)
   double growSigma = 5.0;       ///< 8-neighbours of a hit above this join it (tracks, charge spread) ...
