@@ -45,7 +45,7 @@ struct TailModel {
   }
 };
 
-/// Measures the TailModel on up to 16 frames spread over the cube: all their unmasked pixels (x, y) of frame
+/// Measures the TailModel on up to 8 frames spread over the cube: all their unmasked pixels (x, y) of frame
 /// n that `skip(n, x, y)` does not exclude (e.g. protected stars), with the reference frames registered at
 /// `skyRate` (px/s, integer shifts round(v (t_n - t_ref)) as in the sky-rate stack).
 TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
