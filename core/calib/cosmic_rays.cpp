@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <mutex>
 
 #include "st/common/parallel.hpp"
@@ -18,6 +19,46 @@ std::pair<std::size_t, std::size_t> neighbours(std::size_t n, std::size_t nf) {
   if (n + 1 == nf) return {nf - 2, nf - 3};
   return {n - 1, n + 1};
 }
+
+// The temporal reference of a pixel: the two nearest frames, sampled both at the same detector pixel and
+// where the same patch of sky lies in them (integer shifts round(v (t_n - t_ref)) of the sky rate, the
+// MovingMask convention). A cosmic ray stands above all four samples; a star drifting by ~1 px per frame
+// (paper-neo) does not stand above itself, nor a hot pixel or bad column above itself. Without drift the
+// two pairs coincide. A sample outside its frame or masked is left out; a pixel needs both detector-frame
+// samples and is never flagged otherwise.
+class TimeReference {
+ public:
+  TimeReference(const FrameCube& cube, const detect::MovingMask& geom)
+      : m_cube(cube), m_geom(geom), m_np(cube.framePixels()), m_nf(cube.frameCount()) {}
+
+  /// Largest of the reference samples of pixel (x, y) of frame n, and the mean of the two detector-frame
+  /// ones (the fill value); false when a detector-frame sample is unusable.
+  bool at(std::size_t n, int x, int y, float* maxOut, float* meanOut) const {
+    const auto [a, b] = neighbours(n, m_nf);
+    float va = 0.0f, vb = 0.0f;
+    if (!sample(a, x, y, &va) || !sample(b, x, y, &vb)) return false;
+    *maxOut = std::max(va, vb);
+    *meanOut = 0.5f * (va + vb);
+    for (const std::size_t r : {a, b}) {
+      float v = 0.0f;
+      const int xr = x + m_geom.shiftX(r) - m_geom.shiftX(n), yr = y + m_geom.shiftY(r) - m_geom.shiftY(n);
+      if ((xr != x || yr != y) && sample(r, xr, yr, &v)) *maxOut = std::max(*maxOut, v);
+    }
+    return true;
+  }
+
+ private:
+  bool sample(std::size_t a, int x, int y, float* v) const {
+    if (x < 0 || y < 0 || x >= m_cube.width() || y >= m_cube.height()) return false;
+    const std::size_t i = a * m_np + static_cast<std::size_t>(y) * m_cube.width() + x;
+    if (!m_cube.mask().empty() && m_cube.mask()[i]) return false;
+    *v = m_cube.pixels()[i];
+    return true;
+  }
+  const FrameCube& m_cube;
+  const detect::MovingMask& m_geom;
+  std::size_t m_np, m_nf;
+};
 
 // Protected positions (at t_ref, following the sky rate) and the star signal there: the smallest block mean
 // above the local background, counts per frame.
@@ -36,33 +77,83 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   detect::MovingMask mask(cube.width(), cube.height(), cube.timeOffsetsS(), params.skyRate);
   const std::size_t nf = cube.frameCount();
   const int blocks = static_cast<int>(std::clamp<std::size_t>(params.protectBlocks, 1, nf));
+  // A block observes a canvas pixel when enough of its frames cover it (a drifting star is in the field for
+  // part of the night only); blocks that do not observe it neither protect nor veto.
   std::vector<float> minSnr, minMean;
+  std::vector<std::uint8_t> observed;
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
-    const detect::SkyStack s = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, nf * b / blocks,
-                                                      nf * (b + 1) / blocks);
+    const std::size_t f0 = nf * b / blocks, f1 = nf * (b + 1) / blocks;
+    const detect::SkyStack s = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, f0, f1);
     const Image local = detect::meshBackground(s.mean, s.count, 32);
-    if (minSnr.empty()) minSnr.assign(s.mean.size(), 1e30f), minMean.assign(s.mean.size(), 1e30f);
+    const float minCount = std::max(3.0f, 0.1f * static_cast<float>(f1 - f0));
+    if (minSnr.empty()) {
+      minSnr.assign(s.mean.size(), 1e30f);
+      minMean.assign(s.mean.size(), 1e30f);
+      observed.assign(s.mean.size(), 0);
+    }
     for (std::size_t i = 0; i < s.mean.size(); ++i) {
-      const float snr = s.count.pixels[i] > 0 ? static_cast<float>((s.mean.pixels[i] - local.pixels[i]) *
-                                                                   std::sqrt(s.count.pixels[i]) / sigma)
-                                              : 0.0f;
-      minSnr[i] = std::min(minSnr[i], snr);
-      minMean[i] = std::min(minMean[i], s.mean.pixels[i] - local.pixels[i]);
+      if (s.count.pixels[i] < minCount) continue;
+      const float excess = s.mean.pixels[i] - local.pixels[i];
+      minSnr[i] = std::min(minSnr[i], static_cast<float>(excess * std::sqrt(s.count.pixels[i]) / sigma));
+      minMean[i] = std::min(minMean[i], excess);
+      ++observed[i];
     }
   }
+  // A hit that protects itself (the only observing block) is still flagged: its block mean, the signal it
+  // must exceed, is its own amplitude divided by the block's frames covering it (>= 3).
   for (int j = 0; j < mask.canvasHeight(); ++j)
-    for (int i = 0; i < mask.canvasWidth(); ++i)
-      if (minSnr[static_cast<std::size_t>(j) * mask.canvasWidth() + i] >= params.protectSnr)
-        mask.set(mask.x0() + i, mask.y0() + j);
+    for (int i = 0; i < mask.canvasWidth(); ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * mask.canvasWidth() + i;
+      if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
+    }
   mask.dilate(params.protectDilatePx);
   Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f)};
   for (std::size_t i = 0; i < minMean.size(); ++i)
-    if (p.mask.canvas()[i]) p.signal[i] = std::max(0.0f, minMean[i]);
+    if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
   return p;
 }
 
+// Value exceeded by a fraction `q` of `v` (v is reordered).
+float upperQuantile(std::vector<float>& v, double q) {
+  const auto k = static_cast<std::ptrdiff_t>(std::floor((1.0 - q) * static_cast<double>(v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
 }  // namespace
+
+TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
+                        const std::function<bool(std::size_t, int, int)>& skip) {
+  const std::size_t nf = cube.frameCount();
+  TailModel t;
+  if (nf < 3) return t;
+  const detect::MovingMask geom(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  const TimeReference ref(cube, geom);
+  const std::size_t np = cube.framePixels();
+  const int w = cube.width();
+  const auto& mask = cube.mask();
+  const std::size_t frames = std::min<std::size_t>(nf, 8);
+  std::vector<float> d;
+  d.reserve(frames * np);
+  for (std::size_t k = 0; k < frames; ++k) {
+    const std::size_t n = (nf - 1) * k / std::max<std::size_t>(1, frames - 1);
+    const float* f = cube.frame(n);
+    for (std::size_t i = 0; i < np; ++i) {
+      const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+      float mx = 0.0f, mean = 0.0f;
+      if (!mask.empty() && mask[n * np + i]) continue;
+      if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
+      d.push_back(f[i] - mx);
+    }
+  }
+  t.samples = d.size();
+  if (d.size() < TailModel::kMinSamples) return t;
+  t.at1e2 = upperQuantile(d, 1e-2);
+  t.at1e3 = upperQuantile(d, 1e-3);
+  t.scale = std::max(0.0, (t.at1e3 - t.at1e2) / std::log(10.0));
+  return t;
+}
 
 double noiseFromFrameDifferences(const FrameCube& cube) {
   const std::size_t nf = cube.frameCount();
@@ -96,22 +187,31 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   if (!(out.sigma > 0.0)) return out;
   const Protection prot = protection(cube, params, out.sigma, progress, cancel);
   out.protectedPixels = prot.mask.count();
+  const TimeReference ref(cube, prot.mask);
   const int w = cube.width(), h = cube.height();
   const std::size_t np = cube.framePixels();
   const auto& mask = cube.mask();
   const float* px = cube.pixels().data();
-  auto excess = [&](std::size_t n, std::size_t i) {
-    const auto [a, b] = neighbours(n, nf);
-    return px[n * np + i] - std::max(px[a * np + i], px[b * np + i]);
-  };
-  // On a protected star a hit must also exceed the star's own signal there: seeing and photon noise make a
-  // star pixel vary far more than the sky.
-  auto eligible = [&](std::size_t n, int x, int y, float ex) {
+  out.tail = fitExcessTail(cube, params.skyRate,
+                           [&](std::size_t n, int x, int y) { return prot.mask.covers(n, x, y); });
+  out.seedThreshold = std::max(params.thresholdSigma * out.sigma, out.tail.threshold(params.falseFlagRate));
+  out.growThreshold = std::max(params.growSigma * out.sigma, out.tail.threshold(params.growFalseRate));
+  // Pixel (x, y) of frame n is a hit when its excess over the registered reference exceeds `thr` and, on a
+  // protected star, the star's own signal there (seeing and photon noise make a star pixel vary far more
+  // than the sky).
+  auto isHit = [&](std::size_t n, int x, int y, float thr) {
     const std::size_t i = static_cast<std::size_t>(y) * w + x;
     if (!mask.empty() && mask[n * np + i]) return false;
+    // Cheap exact pre-test: the reference maximum includes the same pixel of the two nearest frames.
+    const auto [a, b] = neighbours(n, nf);
+    if (px[n * np + i] - std::max(px[a * np + i], px[b * np + i]) <= thr) return false;
+    float mx = 0.0f, mean = 0.0f;
+    if (!ref.at(n, x, y, &mx, &mean)) return false;
+    const float ex = px[n * np + i] - mx;
+    if (ex <= thr) return false;
     return !prot.mask.covers(n, x, y) || ex > params.protectedExcess * prot.signalAt(n, x, y);
   };
-  const float thr = static_cast<float>(params.thresholdSigma * out.sigma);
+  const float thr = static_cast<float>(out.seedThreshold);
   std::mutex m;
   // Pass 1, read-only: seeds.
   parallelFor(nf, 4, [&](std::size_t n0, std::size_t n1) {
@@ -119,21 +219,18 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const auto [a, b] = neighbours(n, nf);
-      const float* f = px + n * np;
-      const float* fa = px + a * np;
-      const float* fb = px + b * np;
-      for (std::size_t i = 0; i < np; ++i) {
-        const float ex = f[i] - std::max(fa[i], fb[i]);
-        if (ex <= thr) continue;
-        if (eligible(n, static_cast<int>(i % w), static_cast<int>(i / w), ex)) local.push_back(n * np + i);
+      const float *f = px + n * np, *fa = px + a * np, *fb = px + b * np;
+      for (std::size_t i = 0; i < np; ++i) {  // the pre-test of isHit, vectorisable
+        if (f[i] - std::max(fa[i], fb[i]) <= thr) continue;
+        if (isHit(n, static_cast<int>(i % w), static_cast<int>(i / w), thr)) local.push_back(n * np + i);
       }
     }
     std::lock_guard lock(m);
     out.pixels.insert(out.pixels.end(), local.begin(), local.end());
     progress.report(0.5 + 0.4 * static_cast<double>(n1) / nf, "cosmic rays");
   });
-  // Pass 2, read-only: grow by the 8-neighbours above growSigma (twice, for short tracks).
-  const float grow = static_cast<float>(params.growSigma * out.sigma);
+  // Pass 2, read-only: grow by the 8-neighbours above the grow threshold (twice, for short tracks).
+  const float grow = static_cast<float>(out.growThreshold);
   std::sort(out.pixels.begin(), out.pixels.end());
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<std::uint64_t> added;
@@ -144,22 +241,20 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
         for (int dx = -1; dx <= 1; ++dx) {
           const int qx = x + dx, qy = y + dy;
           if ((dx == 0 && dy == 0) || qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
-          const std::size_t q = static_cast<std::size_t>(qy) * w + qx;
-          const float ex = excess(n, q);
-          if (ex > grow && eligible(n, qx, qy, ex)) added.push_back(n * np + q);
+          if (isHit(n, qx, qy, grow)) added.push_back(n * np + static_cast<std::size_t>(qy) * w + qx);
         }
     }
     out.pixels.insert(out.pixels.end(), added.begin(), added.end());
     std::sort(out.pixels.begin(), out.pixels.end());
     out.pixels.erase(std::unique(out.pixels.begin(), out.pixels.end()), out.pixels.end());
   }
-  // Pass 3: fill. Reference values come from frames not yet modified where possible: compute all fills first.
+  // Pass 3: fill. Reference values come from frames not yet modified: compute all fills first.
   std::vector<float> fill(out.pixels.size(), 0.0f);
   if (params.fill == CosmicRayParams::Fill::TimeNeighbours) {
     for (std::size_t k = 0; k < out.pixels.size(); ++k) {
       const std::size_t n = out.pixels[k] / np, i = out.pixels[k] % np;
-      const auto [a, b] = neighbours(n, nf);
-      fill[k] = 0.5f * (px[a * np + i] + px[b * np + i]);
+      float mx = 0.0f;
+      ref.at(n, static_cast<int>(i % w), static_cast<int>(i / w), &mx, &fill[k]);
     }
   }
   float* wpx = cube.pixels().data();

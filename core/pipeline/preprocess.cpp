@@ -24,6 +24,7 @@ void measurePsfInto(Prepared& out, const PreprocessParams& params, ProgressSink&
     candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
   psf::PsfStarOptions opt;
   opt.fit.noiseSigma = 0.0;
+  opt.fit.smear = psf::stackSmear(out.frames, out.skyRate);  // the stack's trails and shift rounding
   try {
     const psf::PsfMeasurement m = params.psfStar ? psf::measurePsfAt(s.mean, params.psfStar->first - s.x0,
                                                                      params.psfStar->second - s.y0, opt)

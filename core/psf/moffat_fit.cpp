@@ -18,32 +18,36 @@ enum Param { kX0 = 0, kY0, kR, kBeta, kAmp, kBg };
 
 constexpr double kMinRadius = 0.2;
 constexpr double kMaxRadius = 200.0;
-constexpr double kMinBeta = 1.05;
-constexpr double kMaxBeta = 50.0;
+constexpr double kMinBeta = kFitMinBeta;
+constexpr double kMaxBeta = kFitMaxBeta;
 
 struct Pixel {
   double x, y, value;
 };
 
-/// Model value and its gradient with respect to the six parameters at one pixel (pixel mean, s x s).
-double modelAt(const Vec6& p, double px, double py, const Moffat::GaussRule& g, Vec6* grad) {
+/// Model value and its gradient with respect to the six parameters at one pixel (pixel mean, s x s, averaged
+/// over the smear offsets; `smear` has at least one entry).
+double modelAt(const Vec6& p, double px, double py, const Moffat::GaussRule& g, const SmearKernel& smear,
+               Vec6* grad) {
   const double r2inv = 1.0 / (p[kR] * p[kR]);
   double sumP = 0.0, sumDx = 0.0, sumDy = 0.0, sumDr = 0.0, sumDb = 0.0;
-  for (int j = 0; j < g.n; ++j) {
-    const double dy = py + g.x[j] - p[kY0];
-    for (int i = 0; i < g.n; ++i) {
-      const double dx = px + g.x[i] - p[kX0];
-      const double wt = g.w[i] * g.w[j];
-      const double rr = dx * dx + dy * dy;
-      const double u = 1.0 + rr * r2inv;
-      const double lnu = std::log(u);
-      const double val = wt * std::exp(-p[kBeta] * lnu);
-      const double q = 2.0 * p[kBeta] * val / u * r2inv;  // 2 beta u^(-beta-1) / R^2
-      sumP += val;
-      sumDx += q * dx;
-      sumDy += q * dy;
-      sumDr += q * rr / p[kR];
-      sumDb -= lnu * val;
+  for (std::size_t k = 0; k < smear.weight.size(); ++k) {
+    for (int j = 0; j < g.n; ++j) {
+      const double dy = py + g.x[j] - p[kY0] - smear.dy[k];
+      for (int i = 0; i < g.n; ++i) {
+        const double dx = px + g.x[i] - p[kX0] - smear.dx[k];
+        const double wt = smear.weight[k] * g.w[i] * g.w[j];
+        const double rr = dx * dx + dy * dy;
+        const double u = 1.0 + rr * r2inv;
+        const double lnu = std::log(u);
+        const double val = wt * std::exp(-p[kBeta] * lnu);
+        const double q = 2.0 * p[kBeta] * val / u * r2inv;  // 2 beta u^(-beta-1) / R^2
+        sumP += val;
+        sumDx += q * dx;
+        sumDy += q * dy;
+        sumDr += q * rr / p[kR];
+        sumDb -= lnu * val;
+      }
     }
   }
   if (grad) {
@@ -58,14 +62,14 @@ double modelAt(const Vec6& p, double px, double py, const Moffat::GaussRule& g, 
 }
 
 /// Sum of squared residuals; with normal equations when jtj/jtr are given.
-double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Moffat::GaussRule& s, Mat6* jtj,
-                Vec6* jtr) {
+double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Moffat::GaussRule& s,
+                const SmearKernel& smear, Mat6* jtj, Vec6* jtr) {
   double ssr = 0.0;
   if (jtj) jtj->setZero();
   if (jtr) jtr->setZero();
   Vec6 g;
   for (const auto& px : pixels) {
-    const double r = px.value - modelAt(p, px.x, px.y, s, jtj ? &g : nullptr);
+    const double r = px.value - modelAt(p, px.x, px.y, s, smear, jtj ? &g : nullptr);
     ssr += r * r;
     if (jtj) {
       jtj->selfadjointView<Eigen::Lower>().rankUpdate(g);
@@ -125,6 +129,70 @@ Vec6 initialGuess(const Image& image, double xg, double yg, const MoffatFitOptio
   return p;
 }
 
+/// The state of a Levenberg-Marquardt run: parameters, sum of squared residuals, J^T J at the end.
+struct LmState {
+  Vec6 p;
+  double ssr = 0.0;
+  Mat6 jtj;
+  int iterations = 0;
+  FitConvergence convergence = FitConvergence::MaxIterations;
+  [[nodiscard]] bool converged() const noexcept {
+    return convergence != FitConvergence::MaxIterations && convergence != FitConvergence::Diverged;
+  }
+};
+
+/// Levenberg-Marquardt from `start` (damping on the diagonal of J^T J, x10 / x0.1).
+LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& start, const Moffat::GaussRule& s,
+                              const SmearKernel& smear, int maxIterations) {
+  LmState st;
+  Vec6 p = start;
+  Mat6 jtj;
+  Vec6 jtr;
+  double ssr = evaluate(pixels, p, s, smear, &jtj, &jtr);
+  double lambda = 1e-3;
+  int it = 0;
+  FitConvergence conv = FitConvergence::MaxIterations;
+  for (; it < maxIterations; ++it) {
+    if (jtr.cwiseAbs().maxCoeff() <= 1e-12 * (ssr + 1e-300)) {
+      conv = FitConvergence::SmallGradient;
+      break;
+    }
+    bool accepted = false;
+    while (!accepted) {
+      Mat6 a = jtj;
+      a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+      Vec6 trial = p + a.ldlt().solve(jtr);
+      clampParams(trial);
+      const double trialSsr = evaluate(pixels, trial, s, smear, nullptr, nullptr);
+      if (std::isfinite(trialSsr) && trialSsr < ssr) {
+        const double step = ((trial - p).cwiseAbs().array() / (p.cwiseAbs().array() + 1e-12)).maxCoeff();
+        const double reduction = (ssr - trialSsr) / std::max(ssr, 1e-300);
+        p = trial;
+        ssr = evaluate(pixels, p, s, smear, &jtj, &jtr);
+        lambda = std::max(lambda * 0.1, 1e-12);
+        accepted = true;
+        if (reduction < 1e-10) conv = FitConvergence::RelativeReduction;
+        if (step < 1e-9) conv = FitConvergence::SmallStep;
+      } else {
+        lambda *= 10.0;
+        if (lambda > 1e12) {
+          // No step helps: at a minimum when the last relative change was already tiny.
+          const bool atMinimum = std::isfinite(trialSsr) && (trialSsr - ssr) <= 1e-10 * ssr;
+          conv = atMinimum ? FitConvergence::RelativeReduction : FitConvergence::Diverged;
+          break;
+        }
+      }
+    }
+    if (conv != FitConvergence::MaxIterations) break;
+  }
+  st.p = p;
+  st.ssr = ssr;
+  st.jtj = jtj;
+  st.iterations = it + 1;
+  st.convergence = conv;
+  return st;
+}
+
 double fwhmDerivBeta(double r, double beta) {
   const double t = std::pow(2.0, 1.0 / beta);
   return 2.0 * r * (0.5 / std::sqrt(t - 1.0)) * t * std::log(2.0) * (-1.0 / (beta * beta));
@@ -155,6 +223,10 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
                      ") is outside the " + std::to_string(image.width) + " x " +
                      std::to_string(image.height) + " image");
   const Moffat::GaussRule s = Moffat::gaussRule(o.subsamples);
+  if (o.smear.dx.size() != o.smear.weight.size() || o.smear.dy.size() != o.smear.weight.size())
+    throw InputError("Moffat fit: smear kernel has " + std::to_string(o.smear.dx.size()) + " x offsets, " +
+                     std::to_string(o.smear.dy.size()) + " y offsets and " +
+                     std::to_string(o.smear.weight.size()) + " weights; they must match");
   double fwhmGuess = 0.0;
   Vec6 p = initialGuess(image, xGuess, yGuess, o, &fwhmGuess);
   const int half = o.halfSize > 0 ? o.halfSize : std::clamp(int(std::ceil(4.0 * fwhmGuess)), 6, 30);
@@ -170,47 +242,21 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
     throw InputError("Moffat fit: only " + std::to_string(pixels.size()) + " usable pixels around (" +
                      std::to_string(xGuess) + ", " + std::to_string(yGuess) + "); need at least 20");
 
-  MoffatFit fit;
-  Mat6 jtj;
-  Vec6 jtr;
-  double ssr = evaluate(pixels, p, s, &jtj, &jtr);
-  double lambda = 1e-3;
-  int it = 0;
-  fit.convergence = FitConvergence::MaxIterations;
-  for (; it < o.maxIterations; ++it) {
-    if (jtr.cwiseAbs().maxCoeff() <= 1e-12 * (ssr + 1e-300)) {
-      fit.convergence = FitConvergence::SmallGradient;
-      break;
-    }
-    bool accepted = false;
-    while (!accepted) {
-      Mat6 a = jtj;
-      a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
-      Vec6 trial = p + a.ldlt().solve(jtr);
-      clampParams(trial);
-      const double trialSsr = evaluate(pixels, trial, s, nullptr, nullptr);
-      if (std::isfinite(trialSsr) && trialSsr < ssr) {
-        const double step = ((trial - p).cwiseAbs().array() / (p.cwiseAbs().array() + 1e-12)).maxCoeff();
-        const double reduction = (ssr - trialSsr) / std::max(ssr, 1e-300);
-        p = trial;
-        ssr = evaluate(pixels, p, s, &jtj, &jtr);
-        lambda = std::max(lambda * 0.1, 1e-12);
-        accepted = true;
-        if (reduction < 1e-10) fit.convergence = FitConvergence::RelativeReduction;
-        if (step < 1e-9) fit.convergence = FitConvergence::SmallStep;
-      } else {
-        lambda *= 10.0;
-        if (lambda > 1e12) {
-          // No step helps: at a minimum when the last relative change was already tiny.
-          const bool atMinimum = std::isfinite(trialSsr) && (trialSsr - ssr) <= 1e-10 * ssr;
-          fit.convergence = atMinimum ? FitConvergence::RelativeReduction : FitConvergence::Diverged;
-          break;
-        }
-      }
-    }
-    if (fit.convergence != FitConvergence::MaxIterations) break;
+  // Without a smear kernel first (cheap), then from there with it: the smeared model costs K times more per
+  // pixel and only moves R and beta by a few per cent.
+  const SmearKernel none{{0.0}, {0.0}, {1.0}};
+  LmState lm = runLevenbergMarquardt(pixels, p, s, none, o.maxIterations);
+  if (!o.smear.empty() && lm.converged()) {
+    const int used = lm.iterations;
+    lm = runLevenbergMarquardt(pixels, lm.p, s, o.smear, o.maxIterations);
+    lm.iterations += used;
   }
-  fit.iterations = it + 1;
+  p = lm.p;
+  const double ssr = lm.ssr;
+  const Mat6& jtj = lm.jtj;
+  MoffatFit fit;
+  fit.convergence = lm.convergence;
+  fit.iterations = lm.iterations;
   fit.x0 = p[kX0];
   fit.y0 = p[kY0];
   fit.model = Moffat{p[kR], p[kBeta]};

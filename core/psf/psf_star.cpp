@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -47,10 +48,36 @@ void robustStats(const Image& image, double* med, double* sigma) {
   *sigma = 1.4826 * medianOf(v);
 }
 
+/// Pixels within 3% of the brightest one, within 3 FWHM of the fitted centre. An unsaturated Moffat is above
+/// 0.97 of its peak only within r = R sqrt(0.97^(-1/beta) - 1) <= 0.1 FWHM (any beta), so a few pixels at
+/// most; the clipped core of a saturated star (in a frame or in a stack) is a plateau of many.
+int flatTopPixels(const Image& image, const MoffatFit& fit) {
+  const double r = 3.0 * fit.fwhm();
+  const int x0 = std::max(0, int(std::floor(fit.x0 - r))), x1 = std::min(image.width - 1, int(fit.x0 + r));
+  const int y0 = std::max(0, int(std::floor(fit.y0 - r))), y1 = std::min(image.height - 1, int(fit.y0 + r));
+  float top = -std::numeric_limits<float>::infinity();
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      top = std::max(top, image.at(x, y));
+  const double level = fit.background + 0.97 * (top - fit.background);
+  int count = 0;
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      count += image.at(x, y) >= level ? 1 : 0;
+  return count;
+}
+
 /// Why a fit is not acceptable as the PSF, or empty when it is.
-std::string judgeFit(const MoffatFit& fit, const StarCandidate& c, double noise, const PsfStarOptions& o) {
+std::string judgeFit(const Image& image, const MoffatFit& fit, const StarCandidate& c, double noise,
+                     const PsfStarOptions& o) {
   if (!fit.converged()) return where(c) + ": " + toString(fit.convergence);
+  if (fit.model.beta <= kFitMinBeta * 1.01 || fit.model.beta >= kFitMaxBeta * 0.99)
+    return where(c) + ": beta " + fmt(fit.model.beta, 2) + " at the fit's bound (not a Moffat profile)";
   const double w = fit.fwhm();
+  const int flat = flatTopPixels(image, fit);
+  const double flatLimit = std::max(8.0, M_PI * std::pow(0.1 * w + 1.0, 2));
+  if (flat > flatLimit)
+    return where(c) + ": flat-topped core (" + std::to_string(flat) + " px within 3% of the peak; saturated)";
   if (!(w >= o.minFwhmPx && w <= o.maxFwhmPx))
     return where(c) + ": FWHM " + fmt(w, 2) + " px outside [" + fmt(o.minFwhmPx) + ", " + fmt(o.maxFwhmPx) +
            "]";
@@ -60,6 +87,27 @@ std::string judgeFit(const MoffatFit& fit, const StarCandidate& c, double noise,
     return where(c) + ": peak SNR " + fmt(fit.amplitude / noise) + " below " + fmt(o.minPeakSnr);
   if (fit.amplitude <= 0.0) return where(c) + ": non-positive amplitude";
   return {};
+}
+
+/// Which of the accepted fits (brightest first) gives the PSF: the brightest, unless three or more were
+/// accepted, when it is the brightest whose FWHM is within max(3 sigma, 2%) of their median (a star blended
+/// with a faint neighbour, or left with a residual by earlier stages, does not set the PSF), or else the
+/// median one.
+std::size_t chooseAccepted(const std::vector<std::pair<MoffatFit, StarCandidate>>& accepted) {
+  if (accepted.size() < 3) return 0;
+  std::vector<std::size_t> order(accepted.size());
+  for (std::size_t i = 0; i < order.size(); ++i)
+    order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return accepted[a].first.fwhm() < accepted[b].first.fwhm();
+  });
+  const std::size_t median = order[(order.size() - 1) / 2];
+  const double mid = accepted[median].first.fwhm();
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    const MoffatFit& f = accepted[i].first;
+    if (std::fabs(f.fwhm() - mid) <= std::max(3.0 * f.sigmaFwhm, 0.02 * mid)) return i;
+  }
+  return median;
 }
 
 }  // namespace
@@ -113,6 +161,7 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
   const double noise = robustImageNoise(image);
   PsfMeasurement m;
+  std::vector<std::pair<MoffatFit, StarCandidate>> accepted;
   int tries = 0;
   for (const auto& c : sorted) {
     if (tries >= o.maxTries) break;
@@ -137,13 +186,22 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
       m.rejected.push_back(where(c) + ": " + e.what());
       continue;
     }
-    const std::string why = judgeFit(fit, c, noise, o);
-    if (why.empty()) {
-      m.fit = fit;
-      m.star = c;
-      return m;
+    const std::string why = judgeFit(image, fit, c, noise, o);
+    if (!why.empty()) {
+      m.rejected.push_back(why);
+      continue;
     }
-    m.rejected.push_back(why);
+    accepted.emplace_back(fit, c);
+    if (static_cast<int>(accepted.size()) >= o.maxAccepted) break;
+  }
+  if (!accepted.empty()) {
+    const std::size_t pick = chooseAccepted(accepted);
+    for (const auto& a : accepted)
+      m.acceptedFwhm.push_back(a.first.fwhm());
+    std::sort(m.acceptedFwhm.begin(), m.acceptedFwhm.end());
+    m.fit = accepted[pick].first;
+    m.star = accepted[pick].second;
+    return m;
   }
   std::string msg =
       "no star usable for the PSF among " + std::to_string(all.size()) +
@@ -159,7 +217,7 @@ PsfMeasurement measurePsfAt(const Image& image, double x, double y, const PsfSta
   m.star = {x, y, 0.0, false};
   m.fit = fitMoffat(image, x, y, o.fit);
   m.candidatesConsidered = 1;
-  const std::string why = judgeFit(m.fit, m.star, robustImageNoise(image), o);
+  const std::string why = judgeFit(image, m.fit, m.star, robustImageNoise(image), o);
   if (!why.empty())
     throw InputError("PSF fit on the given " + why + "; give the PSF FWHM instead (e.g. --fwhm)");
   return m;

@@ -1,6 +1,7 @@
 #pragma once
 // Fitting the Moffat PSF of the paper (\label{MoffatPsf}) to one star: model
-//   M(x, y) = B + A * <P(x - x0, y - y0; R, beta)>_pixel,
+//   M(x, y) = B + A * <P(x - x0, y - y0; R, beta)>_pixel
+// (averaged over MoffatFitOptions::smear when the image is a stack with known blur, st/psf/stack_smear.hpp),
 // where <.>_pixel is the mean of P over the pixel (the detector integrates over its pixels, so fitting a
 // point-sampled P to the data would bias R by ~1-3% at FWHM ~3 px). Six parameters (x0, y0, R, beta, A, B)
 // by Levenberg-Marquardt with an analytic Jacobian (Eigen dense solves). The radial profile of a star
@@ -10,8 +11,13 @@
 
 #include "st/common/image.hpp"
 #include "st/psf/moffat.hpp"
+#include "st/psf/stack_smear.hpp"
 
 namespace st::psf {
+
+/// Bounds of beta in the fit; a fit that ends on one is not a Moffat profile (measurePsf rejects it).
+inline constexpr double kFitMinBeta = 1.05;
+inline constexpr double kFitMaxBeta = 50.0;
 
 /// Options of fitMoffat. Defaults suit stars of FWHM 2-15 px.
 struct MoffatFitOptions {
@@ -21,6 +27,10 @@ struct MoffatFitOptions {
   double betaGuess = 3.0;   ///< starting beta
   double noiseSigma = 0.0;  ///< per-pixel noise of the image; 0 = estimate from the residuals
   bool ignoreZeros = true;  ///< skip pixels that are exactly 0 (zeroed by earlier stages, masked)
+  /// The blur of the image beyond the PSF (e.g. stackSmear of a sky-rate stack: trails and shift rounding).
+  /// When given, the model is A * sum_k w_k <P(x - x0 - dx_k, y - y0 - dy_k)>_pixel + B, and R, beta are
+  /// those of the PSF itself. Empty = the image is the PSF.
+  SmearKernel smear;
 };
 
 /// Why the LM iterations stopped.

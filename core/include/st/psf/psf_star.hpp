@@ -33,6 +33,7 @@ struct PsfStarOptions {
   double minFwhmPx = 0.8;  ///< fits outside [min, max] FWHM are rejected as not a star
   double maxFwhmPx = 40.0;
   int maxTries = 10;     ///< candidates fitted, brightest first, before giving up
+  int maxAccepted = 5;   ///< stars accepted before stopping (see measurePsf for the choice among them)
   MoffatFitOptions fit;  ///< options of the Moffat fit
 };
 
@@ -42,6 +43,7 @@ struct PsfMeasurement {
   StarCandidate star;                 ///< the star used
   int candidatesConsidered = 0;       ///< candidates after the saturation/edge/isolation cuts
   std::vector<std::string> rejected;  ///< why earlier candidates were rejected (for the user to see)
+  std::vector<double> acceptedFwhm;   ///< FWHM (px) of every accepted star, increasing (measurePsf)
 };
 
 /// Robust noise of an image: 1.4826 x MAD about the median over the non-zero finite pixels (every pixel
@@ -55,10 +57,14 @@ double robustImageNoise(const Image& image);
 std::vector<StarCandidate> findStarCandidates(const Image& image, double thresholdSigma = 10.0,
                                               std::optional<double> saturationLevel = std::nullopt);
 
-/// Chooses the brightest candidate that is unsaturated, away from the edges and isolated, fits it, and
-/// accepts the first fit that converged with a plausible FWHM and peak SNR. With `candidates` empty, finds
-/// them with findStarCandidates. Throws st::InputError ("no star usable for the PSF ... give a FWHM") when
-/// none is accepted; the message lists why the best candidates were rejected.
+/// Fits the brightest candidates that are unsaturated, away from the edges and isolated, and accepts fits
+/// that converged with a plausible FWHM and peak SNR, beta inside the fit's bounds and no flat-topped core
+/// (more than max(8, pi (0.1 FWHM + 1)^2) pixels within 3% of the peak: a saturated star the catalog did
+/// not flag; an unsaturated Moffat has at most a few), up to maxAccepted of them. The PSF is the brightest
+/// accepted star's, unless three or more were accepted: then the brightest whose FWHM is within
+/// max(3 sigma, 2%) of their median, so that one star blended with a faint neighbour does not set it. With
+/// `candidates` empty, finds them with findStarCandidates. Throws st::InputError ("no star usable for the
+/// PSF ... give a FWHM") when none is accepted; the message lists why the best candidates were rejected.
 PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& candidates,
                           const PsfStarOptions& options = {});
 
