@@ -46,9 +46,37 @@ std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
   return out;
 }
 
+/// True when the frame nearest t_ref has a flat top (>= 5 pixels within 3% of the highest, far above the
+/// background) within 2 FWHM of the reference position (x, y) moved by the sky rate: a full well that bled.
+/// The stack's per-pixel maximum alone cannot tell: a bright object moving a few px per second leaves a
+/// plateau there along its track (each pixel it crosses peaks at the same value), while in one frame it is
+/// a PSF with at most 4 near-equal pixels.
+bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, double x, double y, double fwhm,
+                    double background) {
+  const std::vector<double> dt = cube.timeOffsetsS();
+  std::size_t k = 0;
+  for (std::size_t i = 1; i < dt.size(); ++i)
+    if (std::abs(dt[i]) < std::abs(dt[k])) k = i;
+  const int w = cube.width(), h = cube.height();
+  const int cx = static_cast<int>(std::lround(x + skyRate.vx * dt[k]));
+  const int cy = static_cast<int>(std::lround(y + skyRate.vy * dt[k]));
+  const int r = static_cast<int>(std::ceil(2.0 * fwhm)) + 1;
+  const float* f = cube.frame(k);
+  float top = -1e30f;
+  for (int yy = std::max(0, cy - r); yy <= std::min(h - 1, cy + r); ++yy)
+    for (int xx = std::max(0, cx - r); xx <= std::min(w - 1, cx + r); ++xx)
+      top = std::max(top, f[static_cast<std::size_t>(yy) * w + xx]);
+  if (!(top - background > 1000.0)) return false;
+  int near = 0;
+  for (int yy = std::max(0, cy - r); yy <= std::min(h - 1, cy + r); ++yy)
+    for (int xx = std::max(0, cx - r); xx <= std::min(w - 1, cx + r); ++xx)
+      near += f[static_cast<std::size_t>(yy) * w + xx] >= 0.97f * top;
+  return near >= 5;
+}
+
 Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr,
               const std::vector<float>& snrF, const SkyStack& s, const StaticSourceParams& params,
-              double background) {
+              double background, const FrameCube& cube, Velocity skyRate) {
   Star st;
   double sw = 0.0, sx = 0.0, sy = 0.0;
   float peakMax = -1e30f;
@@ -83,7 +111,8 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
     nearTop += flat;
     if (level || flat) ++satPerColumn[p % w];
   }
-  st.saturated = atLevel > 0 || nearTop >= 5;
+  st.saturated = atLevel > 0 ||
+                 (nearTop >= 5 && flatTopInFrame(cube, skyRate, st.x, st.y, params.psfFwhmPx, background));
   if (st.saturated) {
     const int run = std::max(3, static_cast<int>(std::ceil(2.0 * params.psfFwhmPx)));
     for (const auto& [col, n] : satPerColumn)
@@ -131,8 +160,9 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
   return a;
 }
 
-// Sources seen per pixel (the first nPerPixel components) that are neither saturated nor very bright: their
-// centroids in the stacks of the thirds of the frames and the stars' common shift (keepMovers).
+// Sources seen per pixel (the first nPerPixel components) that are not saturated, however bright (a bright
+// slow mover is above spikeSnr in the stack): their centroids in the stacks of the thirds of the frames and
+// the stars' common shift (keepMovers).
 struct Motion {
   detail::ThirdStacks thirds;
   std::vector<detail::SourceShift> shifts;
@@ -149,8 +179,7 @@ Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background
   m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
   if (!m.thirds.valid()) return m;
   for (std::size_t k = 0; k < nPerPixel; ++k)
-    if (!stars[k].saturated && stars[k].snr < params.spikeSnr)
-      m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+    if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
   m.common = detail::commonShift(m.shifts);
   return m;
 }
@@ -222,7 +251,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
-    described[k] = describe(comps[k], resid, snr, snrF, s, params, background);
+    described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
   const Motion motion =
       measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cancel);
   detail::HalfStacks halves;
