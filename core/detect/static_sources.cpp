@@ -46,31 +46,36 @@ std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
   return out;
 }
 
-/// True when the frame nearest t_ref has a flat top (>= 5 pixels within 3% of the highest, far above the
-/// background) within 2 FWHM of the reference position (x, y) moved by the sky rate: a full well that bled.
-/// The stack's per-pixel maximum alone cannot tell: a bright object moving a few px per second leaves a
-/// plateau there along its track (each pixel it crosses peaks at the same value), while in one frame it is
-/// a PSF with at most 4 near-equal pixels.
-bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, double x, double y, double fwhm,
+/// True when, in the frame nearest t_ref, the footprint `comp` (canvas indices of the sky-rate stack `s`,
+/// placed in that frame by the stack's own integer shift) has a flat top: >= 5 pixels within 3% of its
+/// highest value, far above the background: a full well that bled (the bleed column, in the footprint, is
+/// flat too, however far the centroid lies from the core). The stack's per-pixel maximum alone cannot tell:
+/// a bright object moving across many frames leaves a plateau there along its track (each pixel it crosses
+/// peaks at the same value), while in one frame it is a PSF with at most 4 near-equal pixels.
+bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, const std::vector<int>& comp, const SkyStack& s,
                     double background) {
   const std::vector<double> dt = cube.timeOffsetsS();
+  if (dt.empty() || comp.empty()) return false;
   std::size_t k = 0;
   for (std::size_t i = 1; i < dt.size(); ++i)
     if (std::abs(dt[i]) < std::abs(dt[k])) k = i;
-  const int w = cube.width(), h = cube.height();
-  const int cx = static_cast<int>(std::lround(x + skyRate.vx * dt[k]));
-  const int cy = static_cast<int>(std::lround(y + skyRate.vy * dt[k]));
-  const int r = static_cast<int>(std::ceil(2.0 * fwhm)) + 1;
+  const MovingMask geom(cube.width(), cube.height(), dt, skyRate);
+  const int w = cube.width(), h = cube.height(), cw = s.mean.width;
   const float* f = cube.frame(k);
-  float top = -1e30f;
-  for (int yy = std::max(0, cy - r); yy <= std::min(h - 1, cy + r); ++yy)
-    for (int xx = std::max(0, cx - r); xx <= std::min(w - 1, cx + r); ++xx)
-      top = std::max(top, f[static_cast<std::size_t>(yy) * w + xx]);
+  const auto& mask = cube.mask();
+  std::vector<float> values;
+  values.reserve(comp.size());
+  for (int p : comp) {
+    const int x = s.x0 + p % cw + geom.shiftX(k), y = s.y0 + p / cw + geom.shiftY(k);
+    if (x < 0 || y < 0 || x >= w || y >= h) continue;
+    const std::size_t i = static_cast<std::size_t>(y) * w + x;
+    if (!mask.empty() && mask[k * cube.framePixels() + i]) continue;
+    values.push_back(f[i]);
+  }
+  if (values.empty()) return false;
+  const float top = *std::max_element(values.begin(), values.end());
   if (!(top - background > 1000.0)) return false;
-  int near = 0;
-  for (int yy = std::max(0, cy - r); yy <= std::min(h - 1, cy + r); ++yy)
-    for (int xx = std::max(0, cx - r); xx <= std::min(w - 1, cx + r); ++xx)
-      near += f[static_cast<std::size_t>(yy) * w + xx] >= 0.97f * top;
+  const auto near = std::count_if(values.begin(), values.end(), [&](float v) { return v >= 0.97f * top; });
   return near >= 5;
 }
 
@@ -111,8 +116,7 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
     nearTop += flat;
     if (level || flat) ++satPerColumn[p % w];
   }
-  st.saturated = atLevel > 0 ||
-                 (nearTop >= 5 && flatTopInFrame(cube, skyRate, st.x, st.y, params.psfFwhmPx, background));
+  st.saturated = atLevel > 0 || (nearTop >= 5 && flatTopInFrame(cube, skyRate, comp, s, background));
   if (st.saturated) {
     const int run = std::max(3, static_cast<int>(std::ceil(2.0 * params.psfFwhmPx)));
     for (const auto& [col, n] : satPerColumn)
@@ -191,6 +195,9 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
   MovingSource m =
       detail::judgeMotion(motion.shifts[k], motion.common, motion.thirds, s.x0, s.y0, params, star);
   if (!m.moving) return false;
+  // A bright source must also leave its earlier place (a saturated star's changing bleed moves its centroid).
+  if (star.snr >= params.spikeSnr && !detail::vacates(comp, cw, motion.thirds, params.psfFwhmPx))
+    return false;
   m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
   for (int p : comp)
     out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
