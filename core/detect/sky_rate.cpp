@@ -12,6 +12,10 @@
 namespace st::detect {
 namespace {
 
+// Sources voting in the consensus offsets peak at >= 4 times the detection threshold (log1p(4) in the
+// compressed images): bright enough to centroid to a small fraction of a pixel.
+const double kMinPeakCompressed = std::log1p(4.0);
+
 struct Block {
   cv::Mat image;  // CV_64F
   double tS = 0.0;
@@ -84,36 +88,63 @@ cv::Mat stackImage(const SkyStack& s, double thr) {
   return m;
 }
 
-// Median offset of bright, unsaturated-looking stars between two stacks on the same canvas: local maxima of
-// `a` above `thr` (counts per frame), flux-weighted centroids in a (2r+1)^2 box in both. False when < 3.
-bool centroidOffset(const SkyStack& a, const SkyStack& b, double thr, int r, cv::Point2d* d) {
-  const int w = a.mean.width, h = a.mean.height;
-  std::vector<double> dx, dy;
-  auto centroid = [&](const SkyStack& s, int cx, int cy, double* ox, double* oy) {
-    double sw = 0, sx = 0, sy = 0;
-    for (int y = cy - r; y <= cy + r; ++y)
-      for (int x = cx - r; x <= cx + r; ++x) {
-        if (s.count.at(x, y) <= 0) return false;
-        const double v = std::max(0.0f, s.mean.at(x, y));
-        sw += v, sx += v * x, sy += v * y;
-      }
-    if (sw <= 0) return false;
-    *ox = sx / sw, *oy = sy / sw;
-    return true;
-  };
-  for (int y = r + 1; y < h - r - 1 && dx.size() < 200; ++y)
-    for (int x = r + 1; x < w - r - 1; ++x) {
-      const float v = a.mean.at(x, y);
-      if (v < thr) continue;
-      bool peak = true;
-      for (int j = -1; j <= 1 && peak; ++j)
-        for (int i = -1; i <= 1; ++i)
-          if ((i || j) && a.mean.at(x + i, y + j) >= v) peak = false;
-      if (!peak) continue;
-      double ax, ay, bx, by;
-      if (centroid(a, x, y, &ax, &ay) && centroid(b, x, y, &bx, &by))
-        dx.push_back(bx - ax), dy.push_back(by - ay);
+// cv::phaseCorrelate on copies: when the images already have an optimal DFT size (128 x 128, say), OpenCV
+// multiplies them by the window in place.
+cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response) {
+  return cv::phaseCorrelate(a.clone(), b.clone(), window, response);
+}
+
+// Centroid (weighted by the image values) and peak of one connected source of a thresholded image.
+struct Source {
+  double x = 0.0, y = 0.0, peak = 0.0;
+};
+
+// The sources of a thresholded, compressed image (0 where faint): 8-connected components of at least
+// kMinSourcePixels pixels whose peak reaches `minPeak`; each source counts once, however large.
+std::vector<Source> sourcesOf(const cv::Mat& image, double minPeak) {
+  constexpr int kMinSourcePixels = 4;
+  cv::Mat labels;
+  const cv::Mat on = image > 0.0;
+  const int n = cv::connectedComponents(on, labels, 8, CV_32S);
+  std::vector<Source> acc(static_cast<std::size_t>(std::max(0, n)));
+  std::vector<double> sw(acc.size(), 0.0);
+  std::vector<int> pixels(acc.size(), 0);
+  for (int y = 0; y < image.rows; ++y) {
+    const double* row = image.ptr<double>(y);
+    const int* lab = labels.ptr<int>(y);
+    for (int x = 0; x < image.cols; ++x) {
+      if (lab[x] <= 0) continue;
+      Source& s = acc[static_cast<std::size_t>(lab[x])];
+      s.x += row[x] * x, s.y += row[x] * y, s.peak = std::max(s.peak, row[x]);
+      sw[static_cast<std::size_t>(lab[x])] += row[x];
+      ++pixels[static_cast<std::size_t>(lab[x])];
     }
+  }
+  std::vector<Source> out;
+  for (std::size_t k = 1; k < acc.size(); ++k)
+    if (pixels[k] >= kMinSourcePixels && acc[k].peak >= minPeak && sw[k] > 0)
+      out.push_back({acc[k].x / sw[k], acc[k].y / sw[k], acc[k].peak});
+  return out;
+}
+
+// The stars' consensus offset of `b` relative to `a` (thresholded, compressed images): each bright source of
+// `a` is paired with the source of `b` nearest to where `coarse` puts it (within kMatchRadiusPx), and the
+// median of the pairs' centroid offsets is the offset. One vote per source, so that a bright moving object
+// (a streak, whose pixels all peak alike) counts as one outlier among the stars, not as many votes, and no
+// source weighs more for being brighter. False with fewer than 3 pairs.
+bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak, cv::Point2d* d) {
+  constexpr double kMatchRadiusPx = 3.0;
+  const std::vector<Source> sa = sourcesOf(a, minPeak), sb = sourcesOf(b, minPeak);
+  std::vector<double> dx, dy;
+  for (const Source& s : sa) {
+    const Source* best = nullptr;
+    double bestD = kMatchRadiusPx;
+    for (const Source& t : sb) {
+      const double dist = std::hypot(t.x - s.x - coarse.x, t.y - s.y - coarse.y);
+      if (dist < bestD) bestD = dist, best = &t;
+    }
+    if (best) dx.push_back(best->x - s.x), dy.push_back(best->y - s.y);
+  }
   if (dx.size() < 3) return false;
   std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
   std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
@@ -122,34 +153,49 @@ bool centroidOffset(const SkyStack& a, const SkyStack& b, double thr, int r, cv:
 }
 
 // Refines a rate: stacks of the first and last thirds of the frames at `rate` put the stars at the same
-// reference positions when the rate is right; their offset over the time between them is the residual.
+// reference positions when the rate is right. The stacks shift frames by whole pixels, round(v dt_n), so a
+// star sits in the stack of frames N at x_ref + mean_N(v_true dt_n - round(v dt_n)): the offset d between
+// the thirds' stacks gives v_true = (d + R_b - R_a) / (t_b - t_a), with R the mean integer shift of each
+// third (adding d / (t_b - t_a) to `rate` instead would count the same offset again whenever the integer
+// shifts do not change). Iterates (the stacks smear less as the rate improves) until the integer shifts
+// stay the same.
 Velocity refineRate(const FrameCube& cube, Velocity rate, double background, double sigma, double detectSigma,
                     double minResponse, double* response, CancelToken& cancel) {
   const std::size_t nf = cube.frameCount(), third = std::max<std::size_t>(1, nf / 3);
   const auto dt = cube.timeOffsetsS();
+  double ta = 0.0, tb = 0.0;
+  for (std::size_t n = 0; n < third; ++n)
+    ta += dt[n] / third, tb += dt[nf - third + n] / third;
+  if (tb <= ta) return rate;
+  // Mean integer shift of frames [first, first + third) at rate v along one axis.
+  auto meanShift = [&](double v, std::size_t first) {
+    double sum = 0.0;
+    for (std::size_t n = first; n < first + third; ++n)
+      sum += static_cast<double>(std::lround(v * dt[n]));
+    return sum / static_cast<double>(third);
+  };
   NullProgress none;
   for (int it = 0; it < 4; ++it) {
     const SkyStack a = stackAtSkyRate(cube, rate, background, none, cancel, 0, third);
     const SkyStack b = stackAtSkyRate(cube, rate, background, none, cancel, nf - third, nf);
-    double ta = 0.0, tb = 0.0;
-    for (std::size_t n = 0; n < third; ++n)
-      ta += dt[n] / third, tb += dt[nf - third + n] / third;
-    if (tb <= ta) break;
     cv::Mat window;
     cv::createHanningWindow(window, cv::Size(a.mean.width, a.mean.height), CV_64F);
     double r = 0.0;
-    cv::Point2d d = cv::phaseCorrelate(stackImage(a, detectSigma * sigma), stackImage(b, detectSigma * sigma),
-                                       window, &r);
+    const cv::Mat ia = stackImage(a, detectSigma * sigma), ib = stackImage(b, detectSigma * sigma);
+    cv::Point2d d = phaseShift(ia, ib, window, &r);
     if (r < minResponse) break;
     *response = r;
-    // Once the stacks nearly coincide, star centroids measure the offset more precisely than the phase
-    // correlation's sub-pixel peak.
+    // The stars' consensus: the phase correlation's sub-pixel peak is pulled by a bright moving object.
     cv::Point2d c;
-    const double thr = 20.0 * sigma / std::sqrt(static_cast<double>(third));
-    if (std::hypot(d.x, d.y) < 1.5 && centroidOffset(a, b, thr, 3, &c)) d = c;
-    rate.vx += d.x / (tb - ta);
-    rate.vy += d.y / (tb - ta);
-    if (std::hypot(d.x, d.y) < 0.02) break;
+    if (consensusOffset(ia, ib, d, kMinPeakCompressed, &c)) d = c;
+    const Velocity next{(d.x + meanShift(rate.vx, nf - third) - meanShift(rate.vx, 0)) / (tb - ta),
+                        (d.y + meanShift(rate.vy, nf - third) - meanShift(rate.vy, 0)) / (tb - ta)};
+    bool sameShifts = true;
+    for (std::size_t n = 0; n < nf && sameShifts; ++n)
+      sameShifts = std::lround(next.vx * dt[n]) == std::lround(rate.vx * dt[n]) &&
+                   std::lround(next.vy * dt[n]) == std::lround(rate.vy * dt[n]);
+    rate = next;
+    if (sameShifts) break;
   }
   return rate;
 }
@@ -178,7 +224,9 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
     const Block a = blockMean(cube, start, start + len, background, sigma, params.detectSigma, dt);
     const Block b = blockMean(cube, start + len, start + 2 * len, background, sigma, params.detectSigma, dt);
     double response = 0.0;
-    const cv::Point2d d = cv::phaseCorrelate(a.image, b.image, window, &response);
+    cv::Point2d d = phaseShift(a.image, b.image, window, &response);
+    cv::Point2d c;
+    if (consensusOffset(a.image, b.image, d, kMinPeakCompressed, &c)) d = c;
     const double span = b.tS - a.tS;
     if (span <= 0) continue;
     vx.push_back(d.x / span);

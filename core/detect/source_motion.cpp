@@ -121,4 +121,31 @@ MovingSource judgeMotion(const SourceShift& shift, std::pair<double, double> com
   return m;
 }
 
+bool vacates(const std::vector<int>& comp, int cw, const ThirdStacks& thirds, double fwhmPx) {
+  if (!thirds.valid() || comp.empty()) return false;
+  const Image& first = thirds.resid[0];
+  const Image& last = thirds.resid[2];
+  int p0 = comp.front(), p2 = comp.front();
+  for (int p : comp) {
+    if (first.pixels[p] > first.pixels[p0]) p0 = p;
+    if (last.pixels[p] > last.pixels[p2]) p2 = p;
+  }
+  const double r = std::max(1.0, fwhmPx);
+  if (std::hypot(p0 % cw - p2 % cw, p0 / cw - p2 / cw) < 2.0 * r) return false;
+  const int ri = static_cast<int>(std::ceil(r)), ch = first.height;
+  auto disc = [&](const Image& im, int centre) {
+    double sum = 0.0;
+    for (int dy = -ri; dy <= ri; ++dy)
+      for (int dx = -ri; dx <= ri; ++dx) {
+        const int x = centre % cw + dx, y = centre / cw + dy;
+        if (x >= 0 && y >= 0 && x < cw && y < ch && dx * dx + dy * dy <= r * r)
+          sum += im.pixels[static_cast<std::size_t>(y) * cw + x];
+      }
+    return sum;
+  };
+  const double at0In0 = disc(first, p0), at0In2 = disc(last, p0);
+  const double at2In2 = disc(last, p2), at2In0 = disc(first, p2);
+  return at0In0 > 0 && at2In2 > 0 && at0In2 < 0.5 * at0In0 && at2In0 < 0.5 * at2In2;
+}
+
 }  // namespace st::detect::detail

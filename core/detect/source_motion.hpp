@@ -60,4 +60,12 @@ MovingSource judgeMotion(const SourceShift& shift, std::pair<double, double> com
                          const ThirdStacks& thirds, int x0, int y0, const StaticSourceParams& params,
                          Star& star);
 
+/// For a bright source (above StaticSourceParams::spikeSnr) found moving: does it leave where it was? The
+/// brightest footprint pixel of the first third's stack and that of the last third's are >= 2 FWHM apart,
+/// and the flux in a disc of radius FWHM around each is < half as large in the other outer third. A moving
+/// object vacates its earlier place; a saturated star whose bleed trail or flat-fielded plateau changes
+/// between thirds (its centroid shifts by pixels: real frames without SATURATE, where the flat spreads the
+/// full-well pixels by more than the flat-top test's 3%) keeps its core in both.
+bool vacates(const std::vector<int>& comp, int cw, const ThirdStacks& thirds, double fwhmPx);
+
 }  // namespace st::detect::detail

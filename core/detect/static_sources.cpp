@@ -46,9 +46,42 @@ std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
   return out;
 }
 
+/// True when, in the frame nearest t_ref, the footprint `comp` (canvas indices of the sky-rate stack `s`,
+/// placed in that frame by the stack's own integer shift) has a flat top: >= 5 pixels within 3% of its
+/// highest value, far above the background: a full well that bled (the bleed column, in the footprint, is
+/// flat too, however far the centroid lies from the core). The stack's per-pixel maximum alone cannot tell:
+/// a bright object moving across many frames leaves a plateau there along its track (each pixel it crosses
+/// peaks at the same value), while in one frame it is a PSF with at most 4 near-equal pixels.
+bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, const std::vector<int>& comp, const SkyStack& s,
+                    double background) {
+  const std::vector<double> dt = cube.timeOffsetsS();
+  if (dt.empty() || comp.empty()) return false;
+  std::size_t k = 0;
+  for (std::size_t i = 1; i < dt.size(); ++i)
+    if (std::abs(dt[i]) < std::abs(dt[k])) k = i;
+  const MovingMask geom(cube.width(), cube.height(), dt, skyRate);
+  const int w = cube.width(), h = cube.height(), cw = s.mean.width;
+  const float* f = cube.frame(k);
+  const auto& mask = cube.mask();
+  std::vector<float> values;
+  values.reserve(comp.size());
+  for (int p : comp) {
+    const int x = s.x0 + p % cw + geom.shiftX(k), y = s.y0 + p / cw + geom.shiftY(k);
+    if (x < 0 || y < 0 || x >= w || y >= h) continue;
+    const std::size_t i = static_cast<std::size_t>(y) * w + x;
+    if (!mask.empty() && mask[k * cube.framePixels() + i]) continue;
+    values.push_back(f[i]);
+  }
+  if (values.empty()) return false;
+  const float top = *std::max_element(values.begin(), values.end());
+  if (!(top - background > 1000.0)) return false;
+  const auto near = std::count_if(values.begin(), values.end(), [&](float v) { return v >= 0.97f * top; });
+  return near >= 5;
+}
+
 Star describe(const std::vector<int>& comp, const Image& resid, const std::vector<float>& snr,
               const std::vector<float>& snrF, const SkyStack& s, const StaticSourceParams& params,
-              double background) {
+              double background, const FrameCube& cube, Velocity skyRate) {
   Star st;
   double sw = 0.0, sx = 0.0, sy = 0.0;
   float peakMax = -1e30f;
@@ -83,7 +116,7 @@ Star describe(const std::vector<int>& comp, const Image& resid, const std::vecto
     nearTop += flat;
     if (level || flat) ++satPerColumn[p % w];
   }
-  st.saturated = atLevel > 0 || nearTop >= 5;
+  st.saturated = atLevel > 0 || (nearTop >= 5 && flatTopInFrame(cube, skyRate, comp, s, background));
   if (st.saturated) {
     const int run = std::max(3, static_cast<int>(std::ceil(2.0 * params.psfFwhmPx)));
     for (const auto& [col, n] : satPerColumn)
@@ -131,8 +164,9 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
   return a;
 }
 
-// Sources seen per pixel (the first nPerPixel components) that are neither saturated nor very bright: their
-// centroids in the stacks of the thirds of the frames and the stars' common shift (keepMovers).
+// Sources seen per pixel (the first nPerPixel components) that are not saturated, however bright (a bright
+// slow mover is above spikeSnr in the stack): their centroids in the stacks of the thirds of the frames and
+// the stars' common shift (keepMovers).
 struct Motion {
   detail::ThirdStacks thirds;
   std::vector<detail::SourceShift> shifts;
@@ -149,8 +183,7 @@ Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background
   m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
   if (!m.thirds.valid()) return m;
   for (std::size_t k = 0; k < nPerPixel; ++k)
-    if (!stars[k].saturated && stars[k].snr < params.spikeSnr)
-      m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+    if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
   m.common = detail::commonShift(m.shifts);
   return m;
 }
@@ -162,6 +195,9 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
   MovingSource m =
       detail::judgeMotion(motion.shifts[k], motion.common, motion.thirds, s.x0, s.y0, params, star);
   if (!m.moving) return false;
+  // A bright source must also leave its earlier place (a saturated star's changing bleed moves its centroid).
+  if (star.snr >= params.spikeSnr && !detail::vacates(comp, cw, motion.thirds, params.psfFwhmPx))
+    return false;
   m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
   for (int p : comp)
     out.moverMask.set(s.x0 + p % cw, s.y0 + p / cw);
@@ -222,7 +258,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
-    described[k] = describe(comps[k], resid, snr, snrF, s, params, background);
+    described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
   const Motion motion =
       measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cancel);
   detail::HalfStacks halves;

@@ -46,9 +46,12 @@ struct StaticSourceParams {
   /// the last third of the frames are movers (a slow moving object is a short streak there that looks like
   /// a star; a star's centroid stays put): they are not masked, not in the catalog, and are listed in
   /// StaticSources::movers. Moving means a shift > max(minMoverShiftPx, moverShiftSigmas * its sigma) and a
-  /// middle third on the line (detail::measureMotion). Saturated stars and stars above spikeSnr are always
-  /// static. The floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the
-  /// sky rate's integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
+  /// middle third on the line (detail::measureMotion). Saturated stars (full well reached in a frame, or
+  /// at saturationLevel) are always static; bright unsaturated sources, above spikeSnr included, are judged
+  /// (a bright slow asteroid, the paper's 2009 BL2, is one), and above spikeSnr must also vacate their
+  /// first-third place (detail::vacates: a saturated star not recognised as such keeps its core there). The
+  /// floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the sky rate's
+  /// integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
   bool keepMovers = true;
   double minMoverShiftPx = 1.0;
   double moverShiftSigmas = 5.0;
