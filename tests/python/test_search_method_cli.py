@@ -31,7 +31,8 @@ def small_preset(cli, tmp):
     r = subprocess.run([cli, "simulate", "--preset", "small", "-o", obs], capture_output=True, text=True)
     check(r.returncode == 0, "simulate small: " + r.stderr)
     out_csv = os.path.join(tmp, "small.csv")
-    r = search(cli, [obs, "--backend", "cpu", "--json", "--out", out_csv])
+    # +-40 deg/day: the small preset's object moves at ~29 deg/day, beyond the default +-12.
+    r = search(cli, [obs, "--backend", "cpu", "--vmax-deg-day", "40", "--json", "--out", out_csv])
     check(r.returncode == 0, "search small: " + r.stderr)
     j = json.loads(r.stdout)
     check(j["method"] == "exact", "small preset, auto -> exact: %s" % j["method"])
@@ -52,11 +53,11 @@ def small_preset(cli, tmp):
     session = json.load(open(spath)) if r.returncode == 0 else {"search": {}}
     check(session["search"].get("method") == "exact" and
           session["search"].get("method_reason") == j["method_reason"], "session: %s" % session["search"].keys())
-    r = search(cli, [obs, "--backend", "cpu", "--method", "tree", "--json"])
+    r = search(cli, [obs, "--backend", "cpu", "--vmax-deg-day", "40", "--method", "tree", "--json"])
     t = json.loads(r.stdout) if r.returncode == 0 else {}
     check(t.get("method") == "tree" and t.get("method_reason") == "requested", "--method tree kept: %s" % r.stderr)
     check(t.get("trials") == j["trials"], "same trials for tree and exact")
-    r = search(cli, [obs, "--backend", "cpu", "--method", "exact", "--json"])
+    r = search(cli, [obs, "--backend", "cpu", "--vmax-deg-day", "40", "--method", "exact", "--json"])
     e = json.loads(r.stdout) if r.returncode == 0 else {}
     check(e.get("method") == "exact" and e.get("method_reason") == "requested", "--method exact kept")
     r = search(cli, [obs, "--method", "bogus"])
