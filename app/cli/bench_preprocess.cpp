@@ -95,12 +95,7 @@ int benchPreprocess(const Args& args) {
   sim::SimResult sim = sim::simulate(params, seed, progress, cancel);
   const double simS = std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
   pipeline::PreprocessParams pp;
-  calib::MasterCalibration m;
-  m.width = sim.cube.width();
-  m.height = sim.cube.height();
-  m.bias = sim.biasFrame;
-  m.flat = sim.flatFrame;
-  pp.masters = m;
+  pp.masters = sim::exactMasters(sim);
   if (a.flag("given-sky-rate")) pp.skyRate = Velocity{sim.truth.skyVxPxPerS, sim.truth.skyVyPxPerS};
   const std::size_t frames = sim.cube.frameCount();
   const int w = sim.cube.width(), h = sim.cube.height();

@@ -154,6 +154,15 @@ void SimParams::validate() const {
   require(hotPixelMinAdu > 0.0 && hotPixelMaxAdu >= hotPixelMinAdu, "hotPixelMinAdu/MaxAdu", hotPixelMinAdu);
 }
 
+calib::MasterCalibration exactMasters(const SimResult& result) {
+  calib::MasterCalibration m;
+  m.width = result.cube.width();
+  m.height = result.cube.height();
+  m.bias = result.biasFrame;
+  m.flat = result.flatFrame;
+  return m;
+}
+
 SimResult simulate(const SimParams& params, std::uint64_t seed, ProgressSink& progress, CancelToken& cancel) {
   params.validate();
   const detail::Scene scene = detail::planScene(params, seed);

@@ -50,11 +50,7 @@ TEST_P(SkyRateBrightMover, FollowsTheStarsNotTheMover) {
   NullProgress p;
   CancelToken c;
   sim::SimResult sim = sim::simulate(params, 11, p, c);
-  calib::MasterCalibration m;
-  m.width = sim.cube.width();
-  m.height = sim.cube.height();
-  m.bias = sim.biasFrame;
-  m.flat = sim.flatFrame;
+  const calib::MasterCalibration m = sim::exactMasters(sim);
   FrameCube& cube = sim.cube;
   calib::applyCalibration(cube, m, {}, p, c);
   const stats::ClipStats global = stats::globalBackground(cube);

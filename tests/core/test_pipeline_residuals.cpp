@@ -42,12 +42,7 @@ const ResidualRun& residualRun() {
     ResidualRun out;
     out.truth = sim.truth;
     PreprocessParams params;
-    calib::MasterCalibration m;
-    m.width = sim.cube.width();
-    m.height = sim.cube.height();
-    m.bias = sim.biasFrame;
-    m.flat = sim.flatFrame;
-    params.masters = m;
+    params.masters = sim::exactMasters(sim);
     out.prep = preprocess(std::move(sim.cube), params, p, c);
     search::VelocityGrid grid;
     // Around the sky rate, shifted towards the object's motion relative to the stars (-0.71, 0.41) px/s

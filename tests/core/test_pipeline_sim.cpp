@@ -20,12 +20,7 @@ TEST(PipelineSim, SmallPresetAgainstTruth) {
   sim::SimResult sim = sim::simulate(sim::preset("small"), 7, p, c);
   const sim::Truth truth = sim.truth;
   PreprocessParams params;
-  calib::MasterCalibration m;
-  m.width = sim.cube.width();
-  m.height = sim.cube.height();
-  m.bias = sim.biasFrame;
-  m.flat = sim.flatFrame;
-  params.masters = m;
+  params.masters = sim::exactMasters(sim);
   const Prepared out = preprocess(std::move(sim.cube), params, p, c);
 
   double sigmaTruth = 0.0, skyTruth = 0.0;

@@ -20,12 +20,7 @@ Prepared prepare(const sim::SimParams& p, std::uint64_t seed, bool withMasters) 
   sim::SimResult s = sim::simulate(p, seed, progress, cancel);
   PreprocessParams params;
   if (withMasters) {
-    calib::MasterCalibration m;
-    m.width = s.cube.width();
-    m.height = s.cube.height();
-    m.bias = s.biasFrame;
-    m.flat = s.flatFrame;
-    params.masters = m;
+    params.masters = sim::exactMasters(s);
   }
   params.matchedFilter = false;
   return preprocess(std::move(s.cube), params, progress, cancel);

@@ -29,6 +29,7 @@
 #include <string_view>
 #include <vector>
 
+#include "st/calib/calibration.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
@@ -134,6 +135,10 @@ struct SimResult {
   Image biasFrame;  ///< the exact (noise-free) bias pattern used, ADU
   Image flatFrame;  ///< the exact flat pattern used, mean 1
 };
+
+/// The master calibration that undoes the simulated bias and flat exactly (no calibration-frame noise), for
+/// pre-processing a simulated cube as if perfect masters had been taken.
+calib::MasterCalibration exactMasters(const SimResult& result);
 
 /// Simulates an observation. Deterministic: the same params and seed give identical pixels, for any
 /// number of threads (each frame has its own RNG stream). Frames are generated in parallel with
