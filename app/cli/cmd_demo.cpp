@@ -152,8 +152,7 @@ int cmdDemo(const Args& args) {
   BackendSelection backend = makeBackendForMethod(o.backend, o.method);
   SubProgress searchProgress(progress, 0.5, 0.9);
   const search::SearchResult result = demoSearch(o, prepared, *backend.backend, searchProgress, cancel);
-  for (const std::string& w : result.warnings)
-    std::fprintf(stderr, "warning: %s\n", w.c_str());
+  std::fputs(searchNotesText(result).c_str(), stderr);
   nlohmann::json report = report::searchResultToJson(prepared.filtered, result, {path("observation.fits")});
 
   // 4. Co-moving fits and segment checks of the best candidates.

@@ -58,14 +58,7 @@ class CudaBackend final : public CudaSearchBackend {
     if (params.method != "exact") {
       throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
     }
-    search::SearchResult result;
-    result.grid = grid;
-    result.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
-    result.snrThreshold = search::effectiveThreshold(params, result.trials);
-    result.tRefMjd = cube.frames.tRefMjd();
-    result.backend = name();
-    result.method = "exact";
-    result.minFrames = search::minFramesFor(params, cube.frames.frameCount());
+    search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "exact");
     WallPhases wall;
     HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
     if (m_options.kernelVariant >= 0) {
@@ -84,9 +77,7 @@ class CudaBackend final : public CudaSearchBackend {
     } else if (m_options.kernelVariant == -3) {
       chooseTiling(plan, true, false);  // automatic choice without the stair kernel
     }
-    std::size_t capacity = m_options.cellCapacity > 0
-                               ? m_options.cellCapacity
-                               : std::max<std::size_t>(4 * params.maxCandidates, 65536);
+    std::size_t capacity = initialCapacity(params);
     progress.report(0.0, "velocity search (" + name() + ")");
     wall.mark("plan");
     std::vector<DeviceOutcome> outcomes = runAll(plan, cube, capacity, progress, cancel);
@@ -96,12 +87,7 @@ class CudaBackend final : public CudaSearchBackend {
       above += o.cellsAbove;
     if (above > capacity) {
       // More cells passed than the buffer held: run again with room for all (never a silent truncation).
-      constexpr std::uint64_t kMaxCells = std::uint64_t{1} << 27;  // 4 GiB of cells
-      if (above > kMaxCells) {
-        throw GpuError(std::to_string(above) + " cells exceed SNR " + std::to_string(result.snrThreshold) +
-                       ": too many to collect on the GPU (raise the threshold)");
-      }
-      capacity = static_cast<std::size_t>(above);
+      capacity = checkedCapacity(above, result.snrThreshold);
       outcomes = runAll(plan, cube, capacity, progress, cancel);
     }
     mergeMap(outcomes, plan, result);
@@ -127,9 +113,7 @@ class CudaBackend final : public CudaSearchBackend {
     search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "tree");
     const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
     const search::TreePlan tree = search::buildTreePlan(cube.frames.timeOffsetsS(), grid);
-    std::size_t capacity = m_options.cellCapacity > 0
-                               ? m_options.cellCapacity
-                               : std::max<std::size_t>(4 * params.maxCandidates, 65536);
+    std::size_t capacity = initialCapacity(params);
     const int cut = m_options.treeCut > 0 ? m_options.treeCut : kTreeDefaultCut;
     const TreeDevicePlan dplan = chooseTreeTiles(tree, plan, cube, capacity, cut);
     progress.report(0.0, "velocity search, tree (" + name() + ")");
@@ -218,6 +202,13 @@ class CudaBackend final : public CudaSearchBackend {
     return s;
   }
 
+  /// Cells above threshold kept on the device: CudaOptions::cellCapacity, or max(4 x maxCandidates, 65536).
+  std::size_t initialCapacity(const search::SearchParams& params) const {
+    return m_options.cellCapacity > 0 ? m_options.cellCapacity
+                                      : std::max<std::size_t>(4 * params.maxCandidates, 65536);
+  }
+
+  /// Room for all `above` cells, or st::GpuError beyond 2^27 cells (4 GiB).
   static std::size_t checkedCapacity(std::uint64_t above, double threshold) {
     constexpr std::uint64_t kMaxCells = std::uint64_t{1} << 27;  // 4 GiB of cells
     if (above > kMaxCells) {
