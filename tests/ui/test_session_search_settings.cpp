@@ -231,11 +231,4 @@ TEST(SessionSearchSettings, PruningKeepsLockedUnmarkedAndUnreadableFiles) {
     EXPECT_TRUE(QFileInfo::exists(folder + "/demo.synthtrack-session" + kept + ".json")) << kept;
 }
 
-int main(int argc, char** argv) {
-  qputenv("QT_QPA_PLATFORM", "offscreen");
-  QCoreApplication::setOrganizationName("synthtrack-tests");
-  QStandardPaths::setTestModeEnabled(true);  // AppDataLocation and settings under ~/.qttest
-  QApplication app(argc, argv);
-  ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
-}
+ST_UI_TEST_MAIN_ISOLATED()

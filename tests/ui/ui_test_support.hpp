@@ -4,6 +4,7 @@
 // the GUI's threading and wiring, not the science (the core's own tests check that).
 #include <QApplication>
 #include <QEventLoop>
+#include <QStandardPaths>
 #include <QTimer>
 #include <chrono>
 #include <cmath>
@@ -151,6 +152,18 @@ inline bool waitFor(const std::function<bool()>& done, int timeoutMs = 20000) {
   int main(int argc, char** argv) {                            \
     qputenv("QT_QPA_PLATFORM", "offscreen");                   \
     QCoreApplication::setOrganizationName("synthtrack-tests"); \
+    QApplication app(argc, argv);                              \
+    ::testing::InitGoogleTest(&argc, argv);                    \
+    return RUN_ALL_TESTS();                                    \
+  }
+
+/// ST_UI_TEST_MAIN with QStandardPaths' test mode: AppDataLocation and settings under ~/.qttest, so tests
+/// that save sessions or settings never touch the user's.
+#define ST_UI_TEST_MAIN_ISOLATED()                             \
+  int main(int argc, char** argv) {                            \
+    qputenv("QT_QPA_PLATFORM", "offscreen");                   \
+    QCoreApplication::setOrganizationName("synthtrack-tests"); \
+    QStandardPaths::setTestModeEnabled(true);                  \
     QApplication app(argc, argv);                              \
     ::testing::InitGoogleTest(&argc, argv);                    \
     return RUN_ALL_TESTS();                                    \
