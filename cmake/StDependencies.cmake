@@ -17,3 +17,10 @@ find_library(OPENCV_IMGPROC_LIBRARY NAMES opencv_imgproc REQUIRED)
 add_library(st_opencv INTERFACE)
 target_include_directories(st_opencv SYSTEM INTERFACE ${OPENCV_INCLUDE_DIR})
 target_link_libraries(st_opencv INTERFACE ${OPENCV_IMGPROC_LIBRARY} ${OPENCV_CORE_LIBRARY})
+
+# SEP (SExtractor as a C library, Debian libsep-dev): per-frame background meshes of real frames.
+find_path(SEP_INCLUDE_DIR sep.h REQUIRED)
+find_library(SEP_LIBRARY NAMES sep REQUIRED)
+add_library(st_sep INTERFACE)
+target_include_directories(st_sep SYSTEM INTERFACE ${SEP_INCLUDE_DIR})
+target_link_libraries(st_sep INTERFACE ${SEP_LIBRARY})

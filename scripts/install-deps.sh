@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config clang libclang-rt-14-dev
   libcfitsio-dev wcslib-dev libeigen3-dev libfftw3-dev
-  libopencv-core-dev libopencv-imgproc-dev nlohmann-json3-dev
+  libopencv-core-dev libopencv-imgproc-dev nlohmann-json3-dev libsep-dev
   qt6-base-dev qt6-svg-dev libqcustomplot-dev libgl-dev
   libgtest-dev libgmock-dev
   python3-astropy python3-numpy

@@ -63,6 +63,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                                               params.calib, sub, cancel);
   }
   lap("calibrate");
+  {
+    SubProgress sub(progress, 0.1, 0.12);
+    out.frameBackgrounds = stats::removeFrameBackgrounds(cube, params.frameBackground, sub, cancel);
+    if (out.frameBackgrounds.framesSkipped > 0)
+      out.notes.push_back(std::to_string(out.frameBackgrounds.framesSkipped) +
+                          " frame(s) without a background model (SEP failed): their sky level was kept");
+  }
+  lap("frame backgrounds");
   out.global = stats::globalBackground(cube, params.background.global);
   if (params.findHotPixels) {
     const auto hot = detect::findHotPixels(cube, out.global.mean, out.global.sigma, {}, cancel);
@@ -136,7 +144,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       if (movers[i])
         exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
                     exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
-    stats::Background bg = stats::estimateBackground(cube, params.background, &exclude, sub, cancel);
+    stats::Background bg = stats::subtractPixelBackground(cube, params.background, &exclude, sub, cancel);
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
@@ -148,10 +156,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
           " pixels had too few background samples (under static sources); their background is "
           "the global mean");
     }
-  }
-  {
-    SubProgress sub(progress, 0.65, 0.7);
-    stats::subtractBackground(cube, out.background, sub, cancel);
   }
   calib::zeroPixels(cube, cr.pixels);
   out.cosmicRayPixels = std::move(cr.pixels);
@@ -174,8 +178,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
                                                      radius, sub, cancel, &stars.moverMask);
   }
+  if (params.removeResidualMean) {
+    SubProgress sub(progress, 0.8, 0.83);
+    out.residualMeanRms = stats::removeResidualMeans(cube, params.residualMeshPx, 5.0, sub, cancel);
+  }
+  if (params.weightedFilter) out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
+  lap("residual means and noise model");
   if (params.matchedFilter) {
-    SubProgress sub(progress, 0.8, 1.0);
+    SubProgress sub(progress, 0.83, 1.0);
     // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
     FrameCube& f = out.filtered.frames;
     f = FrameCube(cube.width(), cube.height(), 0);
@@ -185,7 +195,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     f.wcs = cube.wcs;
     f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
-    const stack::MatchedFilterResult mf = stack::filterCube(out.filtered.frames, kernel, sub, cancel);
+    const stack::MatchedFilterResult mf = stack::filterCube(out.filtered.frames, kernel, sub, cancel,
+                                                            params.weightedFilter ? &out.noiseModel : nullptr);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

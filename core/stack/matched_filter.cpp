@@ -12,11 +12,13 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/stats/noise_model.hpp"
 
 namespace st::stack {
 namespace {
 
 constexpr std::size_t kMinNoiseSamples = 1000;
+constexpr std::size_t kMinFrameSamples = 400;
 
 double madSigma(std::vector<float>& v) {
   if (v.empty()) return 0.0;
@@ -56,6 +58,72 @@ cv::Mat excludedPixels(float* frame, const std::uint8_t* mask, int width, int he
   return bad;
 }
 
+/// The inverse-variance weights of the matched filter (matched_filter.hpp, filterCube): 1/v per pixel, and
+/// per pixel the output scale sigma_ref sqrt(sum K^2) / sqrt(Phi), Phi = (K^2 conv omega), omega = (1/v) x
+/// the mean over frames of [pixel used in frame n] / s_n^2.
+struct Weights {
+  std::vector<float> invVar;
+  std::vector<float> outScale;
+};
+
+Weights makeWeights(const FrameCube& cube, const FilterKernel& kernel, const stats::NoiseModel& m,
+                    CancelToken& cancel) {
+  const int w = cube.width(), h = cube.height();
+  const std::size_t np = cube.framePixels(), nf = cube.frameCount();
+  if (m.variance.width != w || m.variance.height != h || m.frameScale.size() != nf)
+    throw InputError("matched filter: the noise model (" + std::to_string(m.variance.width) + "x" +
+                     std::to_string(m.variance.height) + ", " + std::to_string(m.frameScale.size()) +
+                     " frames) does not match the cube (" + std::to_string(w) + "x" + std::to_string(h) + ", " +
+                     std::to_string(nf) + " frames)");
+  Weights out;
+  out.invVar.resize(np);
+  for (std::size_t i = 0; i < np; ++i) {
+    const float v = m.variance.pixels[i];
+    out.invVar[i] = v > 0.0f && std::isfinite(v) ? 1.0f / v : 0.0f;
+  }
+  std::vector<double> invS2(nf);
+  for (std::size_t n = 0; n < nf; ++n)
+    invS2[n] = 1.0 / (m.frameScale[n] * m.frameScale[n]);
+  const bool hasMask = cube.mask().size() == cube.pixels().size();
+  cv::Mat omega(h, w, CV_32F);
+  parallelFor(static_cast<std::size_t>(h), 8, [&](std::size_t y0, std::size_t y1) {
+    std::vector<double> acc(static_cast<std::size_t>(w));
+    for (std::size_t y = y0; y < y1; ++y) {
+      cancel.throwIfCancelled();
+      std::fill(acc.begin(), acc.end(), 0.0);
+      for (std::size_t n = 0; n < nf; ++n) {
+        const std::size_t off = n * np + y * w;
+        const float* f = cube.pixels().data() + off;
+        for (int x = 0; x < w; ++x)
+          if (f[x] != 0.0f && std::isfinite(f[x]) && !(hasMask && cube.mask()[off + x])) acc[x] += invS2[n];
+      }
+      auto* row = omega.ptr<float>(static_cast<int>(y));
+      for (int x = 0; x < w; ++x)
+        row[x] = static_cast<float>(acc[x] / static_cast<double>(nf) * out.invVar[y * w + x]);
+    }
+  });
+  cv::Mat k2(kernel.kernel.height, kernel.kernel.width, CV_32F);
+  for (int y = 0; y < k2.rows; ++y)
+    for (int x = 0; x < k2.cols; ++x) {
+      const float k = kernel.kernel.at(x, y);
+      k2.at<float>(y, x) = k * k;
+    }
+  cv::Mat phi;
+  cv::filter2D(omega, phi, CV_32F, k2, cv::Point(-1, -1), 0.0, cv::BORDER_CONSTANT);
+  double phiMax = 0.0;
+  cv::minMaxLoc(phi, nullptr, &phiMax);
+  const double scale = m.sigmaRef * std::sqrt(kernel.sumSquares);
+  out.outScale.resize(np);
+  for (int y = 0; y < h; ++y) {
+    const auto* row = phi.ptr<float>(y);
+    for (int x = 0; x < w; ++x) {
+      const double p = row[x];
+      out.outScale[std::size_t(y) * w + x] = p > 1e-9 * phiMax ? static_cast<float>(scale / std::sqrt(p)) : 0.0f;
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 FilterKernel makeFilterKernel(const psf::Moffat& psf, double truncation) {
@@ -92,10 +160,12 @@ void filterFrame(float* frame, int width, int height, const FilterKernel& kernel
 }
 
 MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
-                               CancelToken& cancel) {
+                               CancelToken& cancel, const stats::NoiseModel* noise) {
   const int w = cube.width(), h = cube.height();
   const std::size_t nFrames = cube.frameCount(), np = cube.framePixels();
   const bool hasMask = cube.mask().size() == cube.pixels().size();
+  const bool weighted = noise && !noise->empty();
+  const Weights weights = weighted ? makeWeights(cube, kernel, *noise, cancel) : Weights{};
   const std::vector<std::size_t> sampleFrames = spreadFrames(nFrames, 64);
   std::vector<std::vector<float>> samples(sampleFrames.size());
   std::atomic<std::size_t> done{0};
@@ -112,7 +182,15 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
       const bool sampled = slot != sampleFrames.end() && *slot == n;
       cv::Mat bad;
       if (sampled) bad = excludedPixels(f, m, w, h, kernel.halfSize);
+      if (weighted) {
+        const float invS2 = static_cast<float>(1.0 / (noise->frameScale[n] * noise->frameScale[n]));
+        for (std::size_t i = 0; i < np; ++i)
+          f[i] *= weights.invVar[i] * invS2;
+      }
       filterFrame(f, w, h, kernel, scratch.data());
+      if (weighted)
+        for (std::size_t i = 0; i < np; ++i)
+          f[i] *= weights.outScale[i];
       if (sampled) {
         auto& out = samples[std::size_t(slot - sampleFrames.begin())];
         for (int y = kernel.halfSize; y < h - kernel.halfSize; y += 3) {
@@ -135,7 +213,21 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
                      std::to_string(kMinNoiseSamples) + "); the frames are mostly masked");
   MatchedFilterResult r;
   r.noiseSamples = all.size();
-  r.sigmaF = madSigma(all);
+  // The search sums frames, so the sigma that scales a sum is the rms of the frames' sigmas, not the MAD of
+  // the pooled pixels (smaller when frames differ in noise: a mixture of widths is heavy-tailed). Per frame
+  // when every sampled frame has enough pixels, else pooled.
+  const bool perFrame = std::all_of(samples.begin(), samples.end(),
+                                    [](const std::vector<float>& v) { return v.size() >= kMinFrameSamples; });
+  if (perFrame) {
+    double sumSq = 0.0;
+    for (auto& v : samples) {
+      const double s = madSigma(v);
+      sumSq += s * s;
+    }
+    r.sigmaF = std::sqrt(sumSq / static_cast<double>(samples.size()));
+  } else {
+    r.sigmaF = madSigma(all);
+  }
   r.kernelHalfSize = kernel.halfSize;
   r.kernelSumSquares = kernel.sumSquares;
   return r;

@@ -27,6 +27,7 @@ std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted) {
 struct RowClip {
   std::vector<double> mean, sigma;
   std::vector<std::size_t> count;
+  std::vector<double> hi;  ///< the threshold that defined the final clipped set (samples <= hi)
 };
 
 RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi) {
@@ -87,6 +88,7 @@ RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi)
       hi[x] = r.mean[x] + xi * r.sigma[x];
     }
   }
+  r.hi = std::move(hi);
   return r;
 }
 
@@ -113,9 +115,13 @@ ClipStats globalBackground(const FrameCube& cube, const GlobalBackgroundParams& 
   return sigmaClip(samples.data(), samples.size(), params.xi);
 }
 
-Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
-                              const detect::MovingMask* exclude, ProgressSink& progress,
-                              CancelToken& cancel) {
+namespace {
+
+// The per-pixel clip of every row: fills out.level, out.sigma, out.filled, out.sigmaN; calls
+// onRow(y, buf, frames, clip) for each row after its clip (buf: the row's samples of the frames used).
+template <class OnRow>
+Background clipRows(const FrameCube& cube, const BackgroundParams& params, const detect::MovingMask* exclude,
+                    ProgressSink& progress, CancelToken& cancel, const OnRow& onRow) {
   Background out;
   out.global = globalBackground(cube, params.global);
   const int w = cube.width(), h = cube.height();
@@ -151,6 +157,7 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
         out.level.pixels[i] = static_cast<float>(ok ? r.mean[x] : out.global.mean);
         out.sigma.pixels[i] = static_cast<float>(ok ? r.sigma[x] : out.global.sigma);
       }
+      onRow(y, buf, frames, r, valid.data() + y * w, out.level.pixels.data() + y * w);
       if (y % 16 == 0) progress.report(static_cast<double>(y) / h, "per-pixel background");
     }
   });
@@ -173,6 +180,90 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
   if (params.noiseMap) out.noiseMap = boxSmooth(out.sigma, params.noiseMapBoxPx, valid);
   progress.report(1.0, "per-pixel background");
   return out;
+}
+
+}  // namespace
+
+Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
+                              const detect::MovingMask* exclude, ProgressSink& progress,
+                              CancelToken& cancel) {
+  return clipRows(cube, params, exclude, progress, cancel,
+                  [](std::size_t, const std::vector<float>&, const std::vector<std::size_t>&, const RowClip&,
+                     const std::uint8_t*, const float*) {});
+}
+
+Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
+                                   const detect::MovingMask* exclude, ProgressSink& progress,
+                                   CancelToken& cancel) {
+  const int w = cube.width();
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const std::vector<double> t = cube.timeOffsetsS();
+  const bool sorted = std::is_sorted(t.begin(), t.end());
+  const double window = sorted ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
+  const auto& mask = cube.mask();
+  // For every frame n, the used frames [lo, hi) (indices into the evenly spaced set) within +-window of it.
+  const auto used = evenlySpaced(nf, params.maxFrames);
+  std::vector<std::size_t> lo(nf, 0), hi(nf, 0);
+  if (window > 0.0) {
+    for (std::size_t n = 0; n < nf; ++n) {
+      lo[n] = static_cast<std::size_t>(
+          std::lower_bound(used.begin(), used.end(), n,
+                           [&](std::size_t k, std::size_t m) { return t[k] < t[m] - window; }) -
+          used.begin());
+      hi[n] = static_cast<std::size_t>(
+          std::upper_bound(used.begin(), used.end(), n,
+                           [&](std::size_t m, std::size_t k) { return t[m] + window < t[k]; }) -
+          used.begin());
+    }
+  }
+  float* pix = cube.pixels().data();
+  auto onRow = [&](std::size_t y, const std::vector<float>& buf, const std::vector<std::size_t>& frames,
+                   const RowClip& r, const std::uint8_t* validRow, const float* levelRow) {
+    const std::size_t nk = frames.size();
+    // Running sums of the clipped samples inside the current window, per column.
+    std::vector<double> winS(w, 0.0), total(w, 0.0);
+    std::vector<std::size_t> winC(w, 0), totalC(w, 0);
+    auto inSet = [&](std::size_t k, int x) {
+      const float v = buf[k * w + x];
+      return !std::isnan(v) && v <= r.hi[x];
+    };
+    for (std::size_t k = 0; k < nk; ++k)
+      for (int x = 0; x < w; ++x)
+        if (inSet(k, x)) {
+          total[x] += buf[k * w + x];
+          ++totalC[x];
+        }
+    std::size_t curLo = 0, curHi = 0;
+    std::vector<float> level(w);
+    for (std::size_t n = 0; n < nf; ++n) {
+      if (window > 0.0) {
+        for (; curHi < hi[n]; ++curHi)
+          for (int x = 0; x < w; ++x)
+            if (inSet(curHi, x)) {
+              winS[x] += buf[curHi * w + x];
+              ++winC[x];
+            }
+        for (; curLo < lo[n]; ++curLo)
+          for (int x = 0; x < w; ++x)
+            if (inSet(curLo, x)) {
+              winS[x] -= buf[curLo * w + x];
+              --winC[x];
+            }
+      }
+      for (int x = 0; x < w; ++x) {
+        const std::size_t c = totalC[x] - winC[x];
+        level[x] = validRow[x] && c >= params.minSamples ? static_cast<float>((total[x] - winS[x]) / double(c))
+                                                          : levelRow[x];
+      }
+      const std::size_t off = n * np + y * w;
+      float* f = pix + off;
+      for (int x = 0; x < w; ++x) {
+        const float v = f[x] - level[x];
+        f[x] = ((!mask.empty() && mask[off + x]) || !std::isfinite(v)) ? 0.0f : v;
+      }
+    }
+  };
+  return clipRows(cube, params, exclude, progress, cancel, onRow);
 }
 
 void subtractBackground(FrameCube& cube, const Image& level, ProgressSink& progress, CancelToken& cancel) {

@@ -1,6 +1,7 @@
 #pragma once
 // Pre-processing of one observation (paper §4.2-4.3, ARCHITECTURE.md data flow):
 //   calibrate (overscan, bias, dark, flat, trim, bad pixels)
+//   -> each frame's own smooth background (SEP mesh) removed, the cube's median sky level kept
 //   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
 //   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
 //   -> static sources in the sky-rate stack (SNR >= 7 per pixel or after the PSF filter; wings, spikes and
@@ -9,7 +10,9 @@
 //   -> per-pixel background (<= 2000 frames, xi = 4, stars left out), sigma_n, subtraction (zero-biased)
 //   -> cosmic-ray pixels, static sources (along the sky motion), pixels without a measured background and
 //      single-frame sources (SNR >= 7) zeroed, the movers' tracks spared
-//   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing) -> matched filter.
+//   -> PSF (Moffat fit on the sky-rate stack of the zero-biased frames, before zeroing)
+//   -> each frame's residual local mean removed, the noise model (s_n^2 v(q)) measured
+//   -> the inverse-variance-weighted matched filter (stats/noise_model.hpp, stack/matched_filter.hpp).
 //
 // Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
 // cube is the matched-filtered copy (Prepared::filtered). Per-pixel images (background, noise), the
@@ -30,6 +33,7 @@
 #include "st/psf/moffat.hpp"
 #include "st/search/types.hpp"
 #include "st/stats/background.hpp"
+#include "st/stats/noise_model.hpp"
 
 namespace st::pipeline {
 
@@ -49,6 +53,11 @@ struct PreprocessParams {
   std::optional<std::pair<double, double>>
       psfStar;                ///< the star the user names for the PSF (0-based px, t_ref)
   bool matchedFilter = true;  ///< produce Prepared::filtered (one extra cube)
+  stats::FrameBackgroundParams frameBackground;  ///< each frame's smooth background (SEP), before all else
+  bool removeResidualMean = true;  ///< remove each zero-biased frame's residual local mean (mesh)
+  int residualMeshPx = 64;         ///< its mesh cell
+  bool weightedFilter = true;      ///< inverse-variance-weighted matched filter (else the paper's uniform one)
+  stats::NoiseModelParams noise;
 };
 
 struct Prepared {
@@ -80,6 +89,9 @@ struct Prepared {
   search::FilteredCube filtered;                       ///< matched-filtered frames and sigma_F for the search
   std::vector<std::string> notes;              ///< what the user should know (sky rate, PSF fallback, ...)
   std::vector<std::uint64_t> cosmicRayPixels;  ///< flat cube indices of the pixels zeroed as cosmic rays
+  stats::FrameBackgrounds frameBackgrounds;  ///< each frame's SEP level and rms (before all else)
+  double residualMeanRms = 0.0;              ///< rms of the residual local means removed, counts
+  stats::NoiseModel noiseModel;  ///< variance s_n^2 v(q) used by the weighted filter (empty when off)
   std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage
   double elapsedS = 0.0;
 };

@@ -13,6 +13,7 @@
 #include "st/common/progress.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/search/types.hpp"
+#include "st/stats/noise_model.hpp"
 
 namespace st::stack {
 
@@ -40,19 +41,27 @@ void filterFrame(float* frame, int width, int height, const FilterKernel& kernel
 
 /// What filterCube measured.
 struct MatchedFilterResult {
-  double sigmaF = 0.0;           ///< robust noise of one filtered frame (1.4826 x MAD about the median)
+  double sigmaF = 0.0;  ///< noise of one filtered frame: rms over frames of each one's 1.4826 x MAD
   std::size_t noiseSamples = 0;  ///< pixels that entered sigmaF
   int kernelHalfSize = 0;
   double kernelSumSquares = 0.0;
 };
 
 /// Filters every frame of `cube` in place (parallel over frames; one scratch frame per thread, no second
-/// cube). Masked and non-finite pixels are set to 0 first. sigma_F is measured on up to 64 frames spread
+/// cube). With a noise model (variance s_n^2 v(q) of frame n at pixel q, stats/noise_model.hpp) the filter is
+/// the inverse-variance-weighted one: psi_n = K conv (F_n / (s_n^2 v)), and the output is
+/// psi_n sigma_ref sqrt(sum K^2) / sqrt(Phi) with Phi = K^2 conv omega, omega(q) = (1/v(q)) x the mean over
+/// frames of [q used in frame n] / s_n^2. The search's S / (sigma_F sqrt(N_in)) along a track then equals the
+/// likelihood statistic sum psi / sqrt(sum phi) (Whidden et al. 2019) wherever Phi is constant along the
+/// track (noise separable into a frame factor and a smooth map); for uniform noise sigma (v = sigma^2,
+/// s_n = 1) the output is exactly the unweighted K conv F away from edges and zeroed pixels, and sigma_F is
+/// sigma sqrt(sum K^2) everywhere: every pixel is scaled to the same noise, so vignetted corners and noisy
+/// frames neither raise false alarms nor dilute the rest. Masked and non-finite pixels are set to 0 first. sigma_F is measured on up to 64 frames spread
 /// over the cube from every 3rd pixel that is at least halfSize away from the frame edge and from any
 /// zero/masked input pixel (there the noise is lower and would bias sigma_F). Reports progress; throws
 /// st::Cancelled, and st::InputError when too few pixels are left to measure sigma_F (< 1000).
 MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
-                               CancelToken& cancel);
+                               CancelToken& cancel, const stats::NoiseModel* noise = nullptr);
 
 /// Robust noise (1.4826 x MAD about the median) of already-filtered frames: non-zero pixels of up to
 /// maxFrames frames spread over the cube, every `stride`-th pixel, `border` px from the edges. Returns 0 when

@@ -33,6 +33,11 @@ struct BackgroundParams {
   std::size_t minSamples = 10;    ///< pixels with fewer background samples take the global mean
   bool noiseMap = false;          ///< also compute a smooth noise map (box mean of the per-pixel sigma)
   int noiseMapBoxPx = 33;         ///< side of that box, pixels
+  /// subtractPixelBackground: frame n's background at a pixel leaves out the samples of the frames within
+  /// +- this fraction of the time span of frame n, so that a mover crossing the pixel in that time does not
+  /// subtract its own flux (movers faster than about FWHM / (fraction x span) keep all of it). 0 = the
+  /// paper's one mean per pixel.
+  double moverWindowFraction = 0.25;
 };
 
 struct Background {
@@ -52,6 +57,14 @@ struct Background {
 /// pixel's samples. Throws st::InputError when no pixel has enough samples; st::Cancelled.
 Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
                               const detect::MovingMask* exclude, ProgressSink& progress, CancelToken& cancel);
+
+/// estimateBackground, then the subtraction in place of a background per frame and pixel: the mean of the
+/// pixel's clipped background samples outside +- moverWindowFraction x span of the frame (the whole clipped
+/// mean when fewer than minSamples remain, or when the frame times are not sorted). Masked pixels become 0.
+/// Returns what estimateBackground returns (`level` is the whole clipped mean, for display).
+Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
+                                   const detect::MovingMask* exclude, ProgressSink& progress,
+                                   CancelToken& cancel);
 
 /// Subtracts `level` from every frame in place; masked pixels become 0, so the frames are zero-biased and
 /// carry no NaN. Throws st::InputError when the sizes differ.

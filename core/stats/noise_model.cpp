@@ -1,0 +1,260 @@
+#include "st/stats/noise_model.hpp"
+
+extern "C" {
+#include <sep.h>  // a C header without extern "C" guards
+}
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+#include "st/stats/background.hpp"
+
+namespace st::stats {
+namespace {
+
+constexpr double kChi2OneMedian = 0.454936423119572;  // median of chi^2 with one degree of freedom
+
+struct SepBkgDeleter {
+  void operator()(sep_bkg* b) const noexcept { sep_bkg_free(b); }
+};
+using SepBkg = std::unique_ptr<sep_bkg, SepBkgDeleter>;
+
+double medianOf(std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+/// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD; NaN when fewer
+/// than `minCount` values.
+double clippedMean(std::vector<float>& v, double k, std::size_t minCount) {
+  if (v.size() < minCount) return std::nan("");
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  double centre = *mid;
+  std::vector<float> dev(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i)
+    dev[i] = std::fabs(v[i] - static_cast<float>(centre));
+  std::nth_element(dev.begin(), dev.begin() + static_cast<std::ptrdiff_t>(dev.size() / 2), dev.end());
+  double sigma = 1.4826 * dev[dev.size() / 2];
+  if (!(sigma > 0.0)) return centre;
+  for (int it = 0; it < 5; ++it) {
+    double s = 0.0, ss = 0.0;
+    std::size_t c = 0;
+    for (float x : v) {
+      const double d = x - centre;
+      if (std::fabs(d) > k * sigma) continue;
+      s += d;
+      ss += d * d;
+      ++c;
+    }
+    if (c < minCount) break;
+    const double m = s / static_cast<double>(c);
+    centre += m;
+    sigma = std::sqrt(std::max(0.0, ss / static_cast<double>(c) - m * m));
+    if (!(sigma > 0.0)) break;
+  }
+  return centre;
+}
+
+/// Bilinear interpolation of a mesh of nx x ny cell values (cell centres at (i + 0.5) * mesh, clamped at the
+/// outer centres) at pixel (x, y).
+float meshAt(const std::vector<double>& mesh, int nx, int ny, int meshPx, int x, int y) {
+  const double u = std::clamp((x + 0.5) / meshPx - 0.5, 0.0, static_cast<double>(nx - 1));
+  const double w = std::clamp((y + 0.5) / meshPx - 0.5, 0.0, static_cast<double>(ny - 1));
+  const int i0 = static_cast<int>(u), j0 = static_cast<int>(w);
+  const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
+  const double fu = u - i0, fw = w - j0;
+  const double top = mesh[j0 * nx + i0] * (1 - fu) + mesh[j0 * nx + i1] * fu;
+  const double bottom = mesh[j1 * nx + i0] * (1 - fu) + mesh[j1 * nx + i1] * fu;
+  return static_cast<float>(top * (1 - fw) + bottom * fw);
+}
+
+}  // namespace
+
+FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const FrameBackgroundParams& params,
+                                        ProgressSink& progress, CancelToken& cancel) {
+  FrameBackgrounds out;
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  out.level.assign(nf, std::nan(""));
+  out.rms.assign(nf, std::nan(""));
+  if (!params.enabled || nf == 0) return out;
+  const int mesh = std::max(8, params.meshPx), filter = std::max(1, params.filterCells);
+  const bool hasMask = cube.mask().size() == cube.pixels().size();
+  std::vector<SepBkg> bkg(nf);
+  std::atomic<std::size_t> done{0};
+  progress.report(0.0, "frame backgrounds");
+  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t n = b; n < e; ++n) {
+      cancel.throwIfCancelled();
+      sep_image im{};
+      im.data = cube.frame(n);
+      im.dtype = SEP_TFLOAT;
+      if (hasMask) {
+        im.mask = cube.mask().data() + n * np;
+        im.mdtype = SEP_TBYTE;
+        im.maskthresh = 0.0;
+      }
+      im.w = cube.width();
+      im.h = cube.height();
+      im.noise_type = SEP_NOISE_NONE;
+      sep_bkg* raw = nullptr;
+      if (sep_background(&im, std::min(mesh, im.w), std::min(mesh, im.h), filter, filter, 0.0, &raw) == 0 &&
+          raw) {
+        bkg[n].reset(raw);
+        out.level[n] = sep_bkg_global(raw);
+        out.rms[n] = sep_bkg_globalrms(raw);
+      }
+      const std::size_t d = ++done;
+      if (d % 32 == 0) progress.report(0.5 * double(d) / double(nf), "frame backgrounds");
+    }
+  });
+  std::vector<double> levels;
+  for (double l : out.level)
+    if (std::isfinite(l)) levels.push_back(l);
+  out.restoredLevel = medianOf(levels);
+  const float restored = static_cast<float>(out.restoredLevel);
+  done = 0;
+  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t n = b; n < e; ++n) {
+      cancel.throwIfCancelled();
+      if (!bkg[n]) continue;
+      float* f = cube.frame(n);
+      sep_bkg_subarray(bkg[n].get(), f, SEP_TFLOAT);
+      for (std::size_t i = 0; i < np; ++i)
+        f[i] += restored;
+      bkg[n].reset();
+      const std::size_t d = ++done;
+      if (d % 32 == 0) progress.report(0.5 + 0.5 * double(d) / double(nf), "frame backgrounds");
+    }
+  });
+  out.framesSkipped = nf - levels.size();
+  progress.report(1.0, "frame backgrounds");
+  return out;
+}
+
+double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
+                           CancelToken& cancel) {
+  const int w = cube.width(), h = cube.height();
+  const int mesh = std::max(8, meshPx);
+  const int nx = (w + mesh - 1) / mesh, ny = (h + mesh - 1) / mesh;
+  const std::size_t nf = cube.frameCount();
+  std::vector<double> sumSq(nf, 0.0);
+  std::vector<std::size_t> cells(nf, 0);
+  std::atomic<std::size_t> done{0};
+  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
+    std::vector<float> values;
+    std::vector<double> means(static_cast<std::size_t>(nx) * ny);
+    for (std::size_t n = b; n < e; ++n) {
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      std::vector<double> good;
+      for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+          values.clear();
+          for (int y = j * mesh; y < std::min(h, (j + 1) * mesh); ++y)
+            for (int x = i * mesh; x < std::min(w, (i + 1) * mesh); ++x) {
+              const float v = f[static_cast<std::size_t>(y) * w + x];
+              if (v != 0.0f && std::isfinite(v)) values.push_back(v);
+            }
+          const double m = clippedMean(values, clipSigma, std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16));
+          means[static_cast<std::size_t>(j) * nx + i] = m;
+          if (std::isfinite(m)) good.push_back(m);
+        }
+      if (good.empty()) continue;  // a fully zeroed frame
+      const double fill = medianOf(good);
+      for (double& m : means) {
+        if (!std::isfinite(m)) m = fill;
+        sumSq[n] += m * m;
+        ++cells[n];
+      }
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          float& v = f[static_cast<std::size_t>(y) * w + x];
+          if (v != 0.0f && std::isfinite(v)) v -= meshAt(means, nx, ny, mesh, x, y);
+        }
+      const std::size_t d = ++done;
+      if (d % 32 == 0) progress.report(double(d) / double(nf), "residual means");
+    }
+  });
+  double s = 0.0;
+  std::size_t c = 0;
+  for (std::size_t n = 0; n < nf; ++n) {
+    s += sumSq[n];
+    c += cells[n];
+  }
+  progress.report(1.0, "residual means");
+  return c > 0 ? std::sqrt(s / static_cast<double>(c)) : 0.0;
+}
+
+NoiseModel NoiseModel::uniform(int width, int height, std::size_t frames, double sigma) {
+  NoiseModel m;
+  m.variance = Image(width, height, static_cast<float>(sigma * sigma));
+  m.frameScale.assign(frames, 1.0);
+  m.sigmaRef = sigma;
+  return m;
+}
+
+NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                              const std::vector<std::uint8_t>& unmeasured, const NoiseModelParams& params,
+                              CancelToken& cancel) {
+  const int w = zeroBiased.width(), h = zeroBiased.height();
+  if (pixelSigma.width != w || pixelSigma.height != h)
+    throw InputError("noise model: per-pixel sigma of " + std::to_string(pixelSigma.width) + "x" +
+                     std::to_string(pixelSigma.height) + " does not match frames of " + std::to_string(w) + "x" +
+                     std::to_string(h));
+  const std::size_t np = zeroBiased.framePixels(), nf = zeroBiased.frameCount();
+  Image raw(w, h);
+  std::vector<std::uint8_t> valid(np, 0);
+  for (std::size_t i = 0; i < np; ++i) {
+    const float s = pixelSigma.pixels[i];
+    const bool ok = (unmeasured.empty() || !unmeasured[i]) && s > 0.0f && std::isfinite(s);
+    valid[i] = ok;
+    raw.pixels[i] = ok ? s * s : 0.0f;
+  }
+  if (std::count(valid.begin(), valid.end(), 1) == 0)
+    throw InputError("noise model: no pixel has a measured frame-to-frame sigma");
+  const Image smooth = boxSmooth(raw, params.smoothBoxPx, valid);
+  NoiseModel m;
+  m.variance = Image(w, h);
+  std::vector<double> vs;
+  vs.reserve(np / 4);
+  for (std::size_t i = 0; i < np; ++i) {
+    const float s = smooth.pixels[i];
+    const float v = valid[i] && raw.pixels[i] > params.noisyPixelRatio * s ? raw.pixels[i] : s;
+    m.variance.pixels[i] = v > 0.0f && std::isfinite(v) ? v : 0.0f;
+    if (m.variance.pixels[i] > 0.0f && (i % 4 == 0)) vs.push_back(m.variance.pixels[i]);
+  }
+  m.frameScale.assign(nf, std::nan(""));
+  const int stride = std::max(1, params.sampleStride);
+  parallelFor(nf, 4, [&](std::size_t b, std::size_t e) {
+    std::vector<double> r;
+    for (std::size_t n = b; n < e; ++n) {
+      cancel.throwIfCancelled();
+      const float* f = zeroBiased.frame(n);
+      r.clear();
+      for (std::size_t i = n % stride; i < np; i += stride) {
+        const float v = m.variance.pixels[i];
+        if (f[i] != 0.0f && v > 0.0f && std::isfinite(f[i])) r.push_back(double(f[i]) * f[i] / v);
+      }
+      if (r.size() >= 100) m.frameScale[n] = std::sqrt(medianOf(r) / kChi2OneMedian);
+    }
+  });
+  std::vector<double> scales;
+  for (double s : m.frameScale)
+    if (std::isfinite(s) && s > 0.0) scales.push_back(s);
+  const double typical = scales.empty() ? 1.0 : medianOf(scales);
+  for (double& s : m.frameScale)
+    if (!(std::isfinite(s) && s > 0.0)) s = typical;
+  m.sigmaRef = std::sqrt(medianOf(vs)) * typical;
+  return m;
+}
+
+}  // namespace st::stats
