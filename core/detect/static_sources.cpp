@@ -255,6 +255,13 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   for (float c : s.count.pixels)
     frames = std::max<double>(frames, c);
   const int base = static_cast<int>(std::ceil(params.dilateFwhm * params.psfFwhmPx)) + 1;
+  // Where the star field does not drift over the span (a guided, sidereally tracked sequence) the per-pixel
+  // background removes each star's light as far as it is constant: what is left to mask is where single
+  // frames see the star (its photon noise, seeing and guiding residuals), not where a stack would. A drifting
+  // field crosses the pixels, so there every star is masked down to one stack sigma.
+  const bool staticField = std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
+  const double maskFrames = staticField ? 1.0 : frames;
+  const double maskSnr = staticField ? params.growSnr * std::sqrt(frames) : 0.0;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
@@ -280,11 +287,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       continue;
     }
     for (int p : comp)
-      out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
-    // The Moffat wings down to one stack sigma per pixel (radius grows with the flux).
+      if (snr[p] >= maskSnr || st.saturated) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+    // The Moffat wings down to one stack sigma per pixel (one frame's sigma in a static field; the radius
+    // grows with the flux).
     if (params.maskWings)
       detail::setDisc(out.mask, st.x, st.y,
-                      detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
+                      detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames, noise.sigma));
     // Diffraction spikes along the detector axes and the column bleed of saturated (or very bright) stars.
     if (st.saturated || st.snr >= params.spikeSnr) {
       // Followed in the stack with only the global background removed: the mesh background is raised by
@@ -294,7 +302,9 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     }
     out.stars.push_back(std::move(st));
   }
-  out.mask.dilate(base);
+  // The dilation covers the stars' sub-pixel motion under the sky rate's integer shifts; a static field has
+  // none, so one pixel there.
+  out.mask.dilate(staticField ? 1 : base);
   out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   progress.report(1.0, "static sources");

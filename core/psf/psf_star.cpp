@@ -166,8 +166,8 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
   for (const auto& c : sorted) {
     if (tries >= o.maxTries) break;
     if (c.saturated || !(c.flux > 0.0)) continue;
-    if (c.x < o.edgeMarginPx || c.y < o.edgeMarginPx || c.x > image.width - 1 - o.edgeMarginPx ||
-        c.y > image.height - 1 - o.edgeMarginPx)
+    const int margin = std::min(o.edgeMarginPx, std::min(image.width, image.height) / 8);
+    if (c.x < margin || c.y < margin || c.x > image.width - 1 - margin || c.y > image.height - 1 - margin)
       continue;
     if (o.saturationLevel && image.at(int(std::lround(c.x)), int(std::lround(c.y))) >= *o.saturationLevel)
       continue;

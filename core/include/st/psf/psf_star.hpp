@@ -29,11 +29,11 @@ struct PsfStarOptions {
   double isolationRadiusPx = 15.0;  ///< no other candidate brighter than isolationFluxRatio x this star's
                                     ///< flux (or saturated) within this radius, px
   double isolationFluxRatio = 0.05;
-  int edgeMarginPx = 10;   ///< candidates closer to the edge are skipped
+  int edgeMarginPx = 32;   ///< candidates closer to the edge are skipped (at most 1/8 of the image)
   double minFwhmPx = 0.8;  ///< fits outside [min, max] FWHM are rejected as not a star
   double maxFwhmPx = 40.0;
-  int maxTries = 10;     ///< candidates fitted, brightest first, before giving up
-  int maxAccepted = 5;   ///< stars accepted before stopping (see measurePsf for the choice among them)
+  int maxTries = 30;     ///< candidates fitted, brightest first, before giving up
+  int maxAccepted = 9;   ///< stars accepted before stopping (see measurePsf for the choice among them)
   MoffatFitOptions fit;  ///< options of the Moffat fit
 };
 
