@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "cli_args.hpp"
@@ -29,7 +30,8 @@ constexpr const char* kHelp =
     "N=TEXT]...\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--ades-xml out.xml] [--mpc out.txt]\n"
     "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
-    "                             [--telescope-aperture M] [--telescope-design D] [--telescope-detector CCD]\n"
+    "                             [--telescope-aperture M] [--telescope-design D]\n"
+    "                             [--telescope-detector CCD|CMO]\n"
     "                             [--ast-cat CAT] [--mpc-cat C] [--safe-snr S] [--wcs FITS] [--stacks DIR]\n"
     "                             [--prepared P.json] [--known K.csv [--known-radius ARCSEC]]\n"
     "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
@@ -47,9 +49,10 @@ constexpr const char* kHelp =
     "  --ades FILE       ADES 2022 PSV astrometry of the candidates labelled real\n"
     "  --ades-xml FILE   the same as ADES 2022 XML (what the MPC's submit.xsd validates)\n"
     "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real\n"
-    "                    ADES needs --station, --observer (or --measurer), --telescope-aperture and --ast-cat\n"
-    "                    (design and detector have defaults); MPC 80-column needs --station and --ast-cat\n"
-    "                    (or --mpc-cat). A missing value is refused (exit 2), no file is written.\n"
+    "                    ADES needs --station, --observer (or --measurer), --telescope-aperture\n"
+    "                    and --ast-cat (design and detector have defaults); MPC 80-column needs --station\n"
+    "                    and --ast-cat (or --mpc-cat).\n"
+    "                    A missing value is refused (exit 2) and no file is written.\n"
     "  The values below are kept in the session's settings (--session):\n"
     "  --station CODE    MPC observatory code (3 characters)\n"
     "  --observer NAME   observer name(s), comma-separated\n"
@@ -68,6 +71,13 @@ constexpr const char* kHelp =
     "                    (ra_rate_arcsec_min, dec_rate_arcsec_min or *_deg_day)  --known-radius ARCSEC (10)\n"
     "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
     "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
+
+// clang-format off
+const std::set<std::string> kValuedOptions = {
+    "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
+    "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
+    "mpc-cat", "prepared", "known", "known-radius"};
+// clang-format on
 
 nlohmann::json readJson(const std::string& path) {
   std::ifstream in(path);
@@ -314,11 +324,7 @@ void writeStacks(const std::string& dir, const session::Session& s) {
 }  // namespace
 
 int cmdReport(const Args& args) {
-  const CliArgs cli(args,
-                    {"session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer",
-                     "measurer", "submitter", "telescope-aperture", "telescope-design", "telescope-detector",
-                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat", "prepared", "known", "known-radius"},
-                    {"help"});
+  const CliArgs cli(args, kValuedOptions, {"help"});
   if (cli.flag("help")) {
     std::printf("%s", kHelp);
     return 0;

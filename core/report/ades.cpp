@@ -43,12 +43,23 @@ std::string xmlEscaped(const std::string& s) {
   std::string out;
   for (char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&apos;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -141,7 +152,8 @@ AdesDocument parseAdesPsv(std::string_view psv) {
       for (char c : line)
         if (c != ' ' && c != '\t') compact += c;
       if (compact.rfind("#version=", 0) != 0 || compact.size() == 9)
-        lineError(lineNo, "the first line must be '# version=" + std::string(kAdesVersion) + "', got '" + line + "'");
+        lineError(lineNo,
+                  "the first line must be '# version=" + std::string(kAdesVersion) + "', got '" + line + "'");
       d.version = compact.substr(9);
       versionSeen = true;
     } else if (line[0] == '#' || line[0] == '!') {
@@ -149,7 +161,8 @@ AdesDocument parseAdesPsv(std::string_view psv) {
       const std::string body = trimmed(std::string_view(line).substr(1));
       const auto gap = body.find_first_of(" \t");
       std::string name = body.substr(0, gap);
-      std::string value = gap == std::string::npos ? std::string() : trimmed(std::string_view(body).substr(gap));
+      std::string value =
+          gap == std::string::npos ? std::string() : trimmed(std::string_view(body).substr(gap));
       if (name.empty()) lineError(lineNo, "a header line without an element name");
       if (line[0] == '#') {
         d.context.push_back({std::move(name), std::move(value), {}});

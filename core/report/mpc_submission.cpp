@@ -207,8 +207,8 @@ void checkAdesDetection(const AstrometricDetection& d) {
   if (!std::regex_match(d.trkSub, kTrkSub))
     throw InputError("ADES trkSub must be 1 to 8 of letters, digits, '-', '_', got '" + d.trkSub + "'");
   if (d.mag && std::isfinite(*d.mag) && !std::regex_match(d.band, kBand))
-    throw InputError("detection '" + d.trkSub + "': the magnitude's band must be 1-3 letters or digits, got '" +
-                     d.band + "'");
+    throw InputError("detection '" + d.trkSub +
+                     "': the magnitude's band must be 1-3 letters or digits, got '" + d.band + "'");
 }
 
 std::vector<std::string> adesRow(const AstrometricDetection& d, const SubmissionSettings& s,
@@ -219,8 +219,10 @@ std::vector<std::string> adesRow(const AstrometricDetection& d, const Submission
   const auto rms = [&](const std::optional<double>& v, const char* name) {
     if (!v) return std::string();
     std::string text = positiveDecimal(*v, 7);
-    if (text.empty()) warnings.push_back(d.trkSub + ": " + name + " " + fmt("%g", *v) + "\" not positive "
-                                         "or too large for ADES, left out");
+    if (text.empty())
+      warnings.push_back(d.trkSub + ": " + name + " " + fmt("%g", *v) +
+                         "\" not positive "
+                         "or too large for ADES, left out");
     return text;
   };
   std::string logSnr;
@@ -250,14 +252,15 @@ AdesDocument adesDocument(const std::vector<AstrometricDetection>& ds, const Sub
   checkSettings(s, SubmissionFormat::Ades);
   if (observerNames(s).empty()) warnings.push_back("ADES: no observer name (set --observer)");
   if (const StarCatalogue* c = findStarCatalogue(s.astCat); !c) {
-    warnings.push_back("ADES: astCat '" + s.astCat +
-                       "' is not in the MPC's list of catalogues (a batch naming an unlisted one is rejected)");
+    warnings.push_back(
+        "ADES: astCat '" + s.astCat +
+        "' is not in the MPC's list of catalogues (a batch naming an unlisted one is rejected)");
   } else if (c->deprecated) {
     warnings.push_back("ADES: astCat '" + s.astCat + "' is deprecated by the MPC; prefer Gaia3 or Gaia2");
   }
   AdesDocument doc;
   doc.context = adesContext(s);
-  doc.fields = {"trkSub", "mode", "stn",    "obsTime", "ra",     "dec",    "rmsRA",
+  doc.fields = {"trkSub", "mode",   "stn", "obsTime", "ra",     "dec",    "rmsRA",
                 "rmsDec", "astCat", "mag", "band",    "logSNR", "remarks"};
   for (const auto& d : ds) {
     checkAdesDetection(d);

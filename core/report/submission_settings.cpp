@@ -43,7 +43,8 @@ void adesProblems(const SubmissionSettings& s, std::vector<SettingsProblem>& out
     out.push_back({"measurer", "a measurer name of 1-100 characters without '|', got '" + measurer + "'"});
   }
   for (const auto& name : observerNames(s))
-    if (!plainText(name, 100)) out.push_back({"observers", "observer names of at most 100 characters: '" + name + "'"});
+    if (!plainText(name, 100))
+      out.push_back({"observers", "observer names of at most 100 characters: '" + name + "'"});
   if (!s.submitter.empty() && !plainText(s.submitter, 100))
     out.push_back({"submitter", "a submitter name of 1-100 characters without '|'"});
   if (!plainText(s.telescopeDesign, 25))
@@ -56,14 +57,17 @@ void adesProblems(const SubmissionSettings& s, std::vector<SettingsProblem>& out
     out.push_back({"aperture_m", std::string("the telescope aperture in metres (> 0), got ") + aperture});
   if (std::find_if(std::begin(kModes), std::end(kModes), [&](const char* m) { return s.detector == m; }) ==
       std::end(kModes)) {
-    out.push_back({"detector", "the detector: CCD, CMO (CMOS), VID (video) or TDI, got '" + s.detector + "'"});
+    out.push_back(
+        {"detector", "the detector: CCD, CMO (CMOS), VID (video) or TDI, got '" + s.detector + "'"});
   }
   if (s.astCat.empty()) {
-    out.push_back({"ast_cat", "astCat, the reference catalogue of the astrometric solution (e.g. Gaia3, Gaia2, "
-                              "UCAC4, PS1_DR2, ATLAS2)"});
+    out.push_back({"ast_cat",
+                   "astCat, the reference catalogue of the astrometric solution (e.g. Gaia3, Gaia2, "
+                   "UCAC4, PS1_DR2, ATLAS2)"});
   } else if (s.astCat.size() > 8 || !allOf(s.astCat, "._")) {
-    out.push_back({"ast_cat", "astCat as the MPC spells it: 1-8 of letters, digits, '.', '_' (e.g. Gaia3), got '" +
-                                  s.astCat + "'"});
+    out.push_back(
+        {"ast_cat", "astCat as the MPC spells it: 1-8 of letters, digits, '.', '_' (e.g. Gaia3), got '" +
+                        s.astCat + "'"});
   }
 }
 
@@ -99,12 +103,14 @@ std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& s, Sub
   } else {
     const char code = resolvedCatalogueCode(s);
     if (code == ' ') {
-      out.push_back({"mpc_catalog_code",
-                     s.astCat.empty()
-                         ? std::string("the reference catalogue (astCat, e.g. Gaia3) for the code of column 72")
-                         : "a column-72 catalogue code: astCat '" + s.astCat + "' has none in the MPC's list"});
+      out.push_back(
+          {"mpc_catalog_code",
+           s.astCat.empty()
+               ? std::string("the reference catalogue (astCat, e.g. Gaia3) for the code of column 72")
+               : "a column-72 catalogue code: astCat '" + s.astCat + "' has none in the MPC's list"});
     } else if (!std::isalnum(static_cast<unsigned char>(code))) {
-      out.push_back({"mpc_catalog_code", std::string("a column-72 code is a letter or digit, got '") + code + "'"});
+      out.push_back(
+          {"mpc_catalog_code", std::string("a column-72 code is a letter or digit, got '") + code + "'"});
     }
   }
   return out;

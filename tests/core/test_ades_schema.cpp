@@ -39,8 +39,8 @@ Validation validate(const test::TempDir& dir, const std::string& xml, const std:
   const fs::path file = dir / (name + ".xml");
   const fs::path log = dir / (name + ".log");
   std::ofstream(file) << xml;
-  const std::string cmd = "xmllint --noout --schema '" + submitXsd().string() + "' '" + file.string() + "' > '" +
-                          log.string() + "' 2>&1";
+  const std::string cmd = "xmllint --noout --schema '" + submitXsd().string() + "' '" + file.string() +
+                          "' > '" + log.string() + "' 2>&1";
   Validation v;
   v.valid = std::system(cmd.c_str()) == 0;
   std::ifstream in(log);
@@ -134,8 +134,8 @@ TEST_F(AdesSchema, FilesMissingWhatTheMpcRequiresAreRejected) {
   const std::string v2017 = std::regex_replace(good, std::regex("version=\"2022\""), "version=\"2017\"");
   const std::string noAperture = std::regex_replace(good, std::regex(" *<aperture>[^<]*</aperture>\n"), "");
   const std::string noAstCat = std::regex_replace(good, std::regex(" *<astCat>[^<]*</astCat>\n"), "");
-  for (const auto& [name, xml] : {std::pair{"v2017", v2017}, std::pair{"noAperture", noAperture},
-                                  std::pair{"noAstCat", noAstCat}}) {
+  for (const auto& [name, xml] :
+       {std::pair{"v2017", v2017}, std::pair{"noAperture", noAperture}, std::pair{"noAstCat", noAstCat}}) {
     SCOPED_TRACE(name);
     ASSERT_NE(xml, good);  // the edit happened
     const Validation v = validate(tmp, xml, name);

@@ -228,7 +228,8 @@ TEST(AdesPsv, HeaderBlocksAndFieldsOneByOne) {
   const std::string all = t.text;
   EXPECT_NE(all.find("# observers\n! name A. Observer\n! name B. Second\n"), std::string::npos) << all;
   EXPECT_NE(all.find("# measurers\n! name A. Observer\n"), std::string::npos);
-  EXPECT_NE(all.find("# telescope\n! design reflector\n! aperture 0.500\n! detector CCD\n"), std::string::npos);
+  EXPECT_NE(all.find("# telescope\n! design reflector\n! aperture 0.500\n! detector CCD\n"),
+            std::string::npos);
   std::size_t h = 0;
   while (h < lines.size() && (lines[h][0] == '#' || lines[h][0] == '!'))
     ++h;

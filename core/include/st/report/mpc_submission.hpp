@@ -53,7 +53,8 @@ struct SubmissionText {
 /// valid position and epoch, a trkSub not 1-8 of [-A-Za-z0-9_], or a magnitude with a band that is not
 /// 1-3 letters or digits. Warnings: no observer, a deprecated or unlisted astCat, low SNR, values left out.
 [[nodiscard]] AdesDocument adesDocument(const std::vector<AstrometricDetection>& detections,
-                                        const SubmissionSettings& settings, std::vector<std::string>& warnings);
+                                        const SubmissionSettings& settings,
+                                        std::vector<std::string>& warnings);
 /// adesDocument() as PSV (columns padded to a common width) and as XML.
 [[nodiscard]] SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& detections,
                                            const SubmissionSettings& settings);

@@ -13,14 +13,15 @@
 namespace st::report {
 
 struct SubmissionSettings {
-  std::string stationCode;  ///< MPC observatory code, 3 characters (required)
-  std::string observers;    ///< observer name(s), comma-separated ("A. Smith, B. Jones")
-  std::string measurer;     ///< measurer name; default: the first observer
-  std::string submitter;    ///< default: the measurer
+  std::string stationCode;                    ///< MPC observatory code, 3 characters (required)
+  std::string observers;                      ///< observer name(s), comma-separated ("A. Smith, B. Jones")
+  std::string measurer;                       ///< measurer name; default: the first observer
+  std::string submitter;                      ///< default: the measurer
   std::string telescopeDesign = "reflector";  ///< ADES telescope design (reflector, refractor, Schmidt, ...)
   double apertureM = 0.0;        ///< telescope aperture, metres; ADES requires it (0 = not given)
   std::string detector = "CCD";  ///< ADES telescope detector and observation mode: CCD or CMO (CMOS)
-  std::string astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); ADES requires it
+  std::string
+      astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); ADES requires it
   /// Column 72 of the 80-column format; ' ' = the code of astCat (star_catalogues.hpp), which it overrides.
   char mpcCatalogCode = ' ';
   double safeSnr = 7.0;  ///< below this SNR a line gets a warning (paper §4.4 threshold)
@@ -37,8 +38,8 @@ struct SettingsProblem {
 };
 
 /// Every problem that would make a file of `format` invalid (empty when none). ADES: station code (3
-/// letters/digits), a measurer (given or the first observer), names of at most 100 characters, telescope design
-/// and detector (1-25 characters; the detector also the observation mode, so one of the MPC's modes),
+/// letters/digits), a measurer (given or the first observer), names of at most 100 characters, telescope
+/// design and detector (1-25 characters; the detector also the observation mode, so one of the MPC's modes),
 /// aperture > 0 and below 1000 m, astCat (1-8 of [.A-Za-z0-9_]). MPC 80-column: station code, and a column-72
 /// code (given, or known for astCat).
 [[nodiscard]] std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& settings,
