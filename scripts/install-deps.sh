@@ -11,6 +11,7 @@ packages=(
   libgtest-dev libgmock-dev
   python3-astropy python3-numpy
   xvfb xauth saods9
+  libxml2-utils
 )
 
 missing=()

@@ -54,7 +54,7 @@ ReportDialog* MainWindow::reportDialog() {
     // edits go into the session (and autosave).
     const auto adopt = [this] {
       if (m_session->settings().contains("station"))
-        m_reportDialog->setSubmissionSettings(submissionFromJson(m_session->settings()));
+        m_reportDialog->setSubmissionSettings(report::submissionFromJson(m_session->settings()));
     };
     adopt();
     connect(m_session, &SessionController::pathChanged, m_reportDialog, adopt);

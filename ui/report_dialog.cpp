@@ -18,6 +18,7 @@
 #include <QtConcurrent>
 
 #include "st/common/error.hpp"
+#include "st/report/star_catalogues.hpp"
 
 namespace st::ui {
 
@@ -67,7 +68,7 @@ ReportDialog::ReportDialog(Context context, QWidget* parent) : QDialog(parent), 
     connect(m_ctx.observation, &Observation::resultChanged, this, refresh);
   }
   m_loading = true;
-  setSubmissionSettings(submissionFromJson(loadReportSettings()));
+  setSubmissionSettings(report::submissionFromJson(loadReportSettings()));
   m_loading = false;
 }
 
@@ -90,7 +91,7 @@ QWidget* ReportDialog::buildOutputsPage() {
   m_stackChoice->addItem("of the candidates labelled real", static_cast<int>(StackChoice::Real));
   m_stackChoice->addItem("of the selected candidate", static_cast<int>(StackChoice::Selected));
   m_stackChoice->addItem("of every candidate", static_cast<int>(StackChoice::All));
-  m_ades = new QCheckBox("ADES PSV astrometry (candidates labelled real only)", page);
+  m_ades = new QCheckBox("ADES 2022 PSV astrometry (candidates labelled real only)", page);
   m_mpc = new QCheckBox("MPC 80-column astrometry (candidates labelled real only)", page);
   for (QCheckBox* c : {m_json, m_csv, m_ds9})
     c->setChecked(true);
@@ -103,6 +104,10 @@ QWidget* ReportDialog::buildOutputsPage() {
   form->addRow("", m_stackChoice);
   form->addRow("Astrometry", m_ades);
   form->addRow("", m_mpc);
+  for (QCheckBox* c : {m_ades, m_mpc})
+    connect(c, &QCheckBox::toggled, this, [this] {
+      if (isVisible()) refreshWarnings();
+    });
   connect(browse, &QPushButton::clicked, this, [this] {
     const QString dir = QFileDialog::getExistingDirectory(this, "Report folder", m_folder->text());
     if (!dir.isEmpty()) m_folder->setText(dir);
@@ -123,18 +128,26 @@ QWidget* ReportDialog::buildObservatoryPage() {
   m_submitter = new QLineEdit(page);
   m_submitter->setPlaceholderText("the measurer");
   m_telescope = new QLineEdit(page);
+  m_telescope->setToolTip("ADES telescope design: reflector, refractor, Schmidt, ... (required)");
   m_aperture = new QDoubleSpinBox(page);
+  m_aperture->setToolTip("Telescope aperture in metres (ADES requires it)");
   m_aperture->setRange(0.0, 50.0);
   m_aperture->setDecimals(2);
   m_aperture->setSuffix(" m");
   m_aperture->setSpecialValueText("not given");
   m_detector = new QComboBox(page);
   m_detector->addItems({"CCD", "CMO"});
+  m_detector->setToolTip("Detector: CCD, or CMO for CMOS (the ADES mode and 80-column note 2)");
   m_astCat = new QLineEdit(page);
-  m_astCat->setToolTip("ADES astCat: the catalogue of the WCS solution (e.g. Gaia3); ADES requires it");
+  m_astCat->setToolTip(
+      "ADES astCat: the reference catalogue of the WCS solution as the MPC spells it (Gaia3, Gaia2, UCAC4, "
+      "PS1_DR2, ATLAS2, ...); required. Filled from the frames' header when it names one.");
   m_mpcCat = new QLineEdit(page);
   m_mpcCat->setMaxLength(1);
-  m_mpcCat->setToolTip("80-column catalogue code, column 72 (e.g. W for Gaia DR3, V for Gaia DR2)");
+  m_mpcCat->setPlaceholderText("from the catalogue");
+  m_mpcCat->setToolTip(
+      "80-column catalogue code, column 72 (e.g. W for Gaia DR3, V for Gaia DR2); empty: the "
+      "code of the catalogue above");
   m_safeSnr = new QDoubleSpinBox(page);
   m_safeSnr->setRange(0.0, 100.0);
   m_safeSnr->setDecimals(1);
@@ -217,12 +230,27 @@ void ReportDialog::setStackChoice(StackChoice choice) {
 }
 
 void ReportDialog::showEvent(QShowEvent* event) {
+  // The catalogue of the WCS solution, when the frames' header names it and none is set.
+  if (m_astCat->text().trimmed().isEmpty() && m_ctx.observation && m_ctx.observation->raw()) {
+    if (const auto cat = report::astCatFromHeader(m_ctx.observation->raw()->header)) {
+      m_astCat->setText(QString::fromStdString(*cat));
+      onSettingsEdited();
+    }
+  }
   refreshWarnings();
   QDialog::showEvent(event);
 }
 
 void ReportDialog::refreshWarnings() {
   QStringList lines;
+  // What a valid submission still needs (the export refuses until it is given).
+  const report::SubmissionSettings settings = submissionSettings();
+  for (const auto& [box, format] : {std::pair{m_ades, report::SubmissionFormat::Ades},
+                                    std::pair{m_mpc, report::SubmissionFormat::Mpc80}}) {
+    if (!box->isChecked()) continue;
+    if (const auto problems = report::submissionProblems(settings, format); !problems.empty())
+      lines << "⚠ " + QString::fromStdString(report::problemsText(problems, format)) + " (Observatory page)";
+  }
   if (m_ctx.makeSession && m_ctx.observation && m_ctx.observation->result()) {
     try {
       const auto s = m_ctx.makeSession(toJson(submissionSettings()));

@@ -3,8 +3,11 @@
 // object-tracked, WCS at t_ref, provenance), ADES PSV and MPC 80-column astrometry of the candidates
 // labelled real (report_export.hpp). An "Observatory" page holds the MPC station code, observers, measurer,
 // submitter and telescope fields; they are kept in QSettings (reportSettings()) and written into the
-// session's settings. Candidates labelled real below the safe SNR show a visible warning before and after
-// the export. The writing runs on a worker thread; errors name the path at fault.
+// session's settings; the catalogue is filled from the frames' header when it names one. While ADES or MPC
+// output is chosen and a value it requires is missing (report::submissionProblems), the warning line says
+// which, and the export refuses before writing anything. Candidates labelled real below the safe SNR show a
+// visible warning before and after the export. The writing runs on a worker thread; errors name the path at
+// fault.
 #include <QDialog>
 #include <QFutureWatcher>
 #include <functional>

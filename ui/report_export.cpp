@@ -173,36 +173,6 @@ std::string candidatesCsv(const session::Session& s) {
   return out;
 }
 
-nlohmann::json toJson(const report::SubmissionSettings& s) {
-  return {{"station", s.stationCode},
-          {"observers", s.observers},
-          {"measurer", s.measurer},
-          {"submitter", s.submitter},
-          {"telescope_design", s.telescopeDesign},
-          {"aperture_m", s.apertureM},
-          {"detector", s.detector},
-          {"ast_cat", s.astCat},
-          {"mpc_catalog_code", std::string(1, s.mpcCatalogCode)},
-          {"safe_snr", s.safeSnr}};
-}
-
-report::SubmissionSettings submissionFromJson(const nlohmann::json& j) {
-  report::SubmissionSettings s;
-  if (!j.is_object()) return s;
-  s.stationCode = j.value("station", s.stationCode);
-  s.observers = j.value("observers", s.observers);
-  s.measurer = j.value("measurer", s.measurer);
-  s.submitter = j.value("submitter", s.submitter);
-  s.telescopeDesign = j.value("telescope_design", s.telescopeDesign);
-  s.apertureM = j.value("aperture_m", s.apertureM);
-  s.detector = j.value("detector", s.detector);
-  s.astCat = j.value("ast_cat", s.astCat);
-  if (const std::string c = j.value("mpc_catalog_code", std::string{}); c.size() == 1)
-    s.mpcCatalogCode = c[0];
-  s.safeSnr = j.value("safe_snr", s.safeSnr);
-  return s;
-}
-
 std::vector<std::string> submissionWarnings(const session::Session& s, double safeSnr) {
   std::vector<std::string> warnings;
   for (const auto& d : report::realDetections(s, warnings)) {
@@ -225,6 +195,13 @@ ReportOutcome writeReports(const ReportRequest& r, ProgressSink& progress, Cance
   fs::create_directories(r.folder, ec);
   if (ec) throw InputError("cannot create folder '" + r.folder + "': " + ec.message());
   const std::string stem = (fs::path(r.folder) / r.baseName).string();
+  // A submission that would not validate is refused before any file is written.
+  for (const auto& [wanted, format] : {std::pair{r.ades, report::SubmissionFormat::Ades},
+                                       std::pair{r.mpc, report::SubmissionFormat::Mpc80}}) {
+    if (!wanted) continue;
+    if (const auto problems = report::submissionProblems(r.submission, format); !problems.empty())
+      throw InputError(report::problemsText(problems, format));
+  }
   progress.report(0.0, "reports");
   if (r.candidatesJson) {
     report::writeJsonFile(stem + "_candidates.json", candidatesJson(r.session));

@@ -45,8 +45,10 @@ struct ReportOutcome {
   std::vector<std::string> warnings;  ///< low SNR, real candidates without a sky position, ...
 };
 
-/// Writes the requested reports. Throws st::InputError / st::FitsError naming the path at fault; polls
-/// `cancel` between files and reports progress per file.
+/// Writes the requested reports. Throws st::InputError / st::FitsError naming the path at fault, and, before
+/// writing anything, st::InputError listing report::submissionProblems() when ADES or MPC output is asked for
+/// with settings that would not make a valid file; polls `cancel` between files and reports progress per
+/// file.
 ReportOutcome writeReports(const ReportRequest& request, ProgressSink& progress, CancelToken& cancel);
 
 /// The candidates JSON: session.search with "candidates" = each candidate object plus "fit" (when
@@ -57,13 +59,6 @@ ReportOutcome writeReports(const ReportRequest& request, ProgressSink& progress,
 /// rate_deg_day, pa_deg, flags, then the accepted fit's x, y, vx_px_s, vy_px_s, snr, ra_deg, dec_deg (empty
 /// when unknown). Text fields are quoted when they hold a comma, quote or newline (RFC 4180).
 [[nodiscard]] std::string candidatesCsv(const session::Session& session);
-
-/// Submission settings as kept in Session::settings: the keys `synthtrack-cli report` uses (station,
-/// observers, measurer, ast_cat, mpc_catalog_code) and submitter, telescope_design, aperture_m, detector,
-/// safe_snr.
-[[nodiscard]] nlohmann::json toJson(const report::SubmissionSettings& settings);
-/// The inverse; missing keys keep the defaults of SubmissionSettings.
-[[nodiscard]] report::SubmissionSettings submissionFromJson(const nlohmann::json& json);
 
 /// Warnings for the candidates labelled real below `safeSnr` (and real ones without a sky position), as the
 /// dialog shows them before anything is written.

@@ -1,9 +1,11 @@
 // synthtrack-cli report CANDIDATES.json: vetting labels into a session file, and the reports of issue 8 —
-// DS9 regions of every candidate, ADES PSV and MPC 80-column astrometry of the candidates labelled real.
+// DS9 regions of every candidate, ADES (PSV, XML) and MPC 80-column astrometry of the candidates labelled
+// real. A submission that would not validate is refused before any file is written (exit 2, usage).
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <nlohmann/json.hpp>
 
 #include "cli_args.hpp"
@@ -13,6 +15,7 @@
 #include "st/io/wcs.hpp"
 #include "st/report/fits_stack.hpp"
 #include "st/report/session_report.hpp"
+#include "st/report/star_catalogues.hpp"
 #include "st/session/session.hpp"
 #include "st/stack/ipsa.hpp"
 #include "st/vet/artifacts.hpp"
@@ -25,10 +28,12 @@ namespace {
 constexpr const char* kHelp =
     "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note "
     "N=TEXT]...\n"
-    "                             [--ds9 out.reg] [--ades out.psv] [--mpc out.txt] [--station CODE]\n"
-    "                             [--observer NAME] [--measurer NAME] [--ast-cat CAT] [--safe-snr S]\n"
-    "                             [--mpc-cat C] [--wcs FITS] [--stacks DIR] [--prepared P.json]\n"
-    "                             [--known K.csv [--known-radius ARCSEC]]\n"
+    "                             [--ds9 out.reg] [--ades out.psv] [--ades-xml out.xml] [--mpc out.txt]\n"
+    "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
+    "                             [--telescope-aperture M] [--telescope-design D]\n"
+    "                             [--telescope-detector CCD|CMO]\n"
+    "                             [--ast-cat CAT] [--mpc-cat C] [--safe-snr S] [--wcs FITS] [--stacks DIR]\n"
+    "                             [--prepared P.json] [--known K.csv [--known-radius ARCSEC]]\n"
     "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
     "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
     "                    change is saved at once (atomically)\n"
@@ -39,13 +44,25 @@ constexpr const char* kHelp =
     "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
     "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to); also gives real "
     "candidates\n"
-    "                    whose fit has no RA/Dec one, at the fitted position\n"
-    "  --ades FILE       ADES PSV astrometry of the candidates labelled real (needs --station)\n"
-    "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real (needs --station)\n"
-    "  --station CODE    MPC observatory code (kept in the session's settings)\n"
-    "  --observer NAME   observer name(s), comma-separated (kept in the session's settings)\n"
-    "  --measurer NAME   measurer (default: the first observer)   --ast-cat CAT  ADES astCat of the WCS\n"
-    "  --mpc-cat C       80-column catalogue code of the WCS (column 72, e.g. W for Gaia DR3)\n"
+    "                    whose fit has no RA/Dec one, at the fitted position, and --ast-cat when its header\n"
+    "                    names the catalogue (astrometry.net index comments)\n"
+    "  --ades FILE       ADES 2022 PSV astrometry of the candidates labelled real\n"
+    "  --ades-xml FILE   the same as ADES 2022 XML (what the MPC's submit.xsd validates)\n"
+    "  --mpc FILE        MPC 80-column astrometry of the candidates labelled real\n"
+    "                    ADES needs --station, --observer (or --measurer), --telescope-aperture\n"
+    "                    and --ast-cat (design and detector have defaults); MPC 80-column needs --station\n"
+    "                    and --ast-cat (or --mpc-cat).\n"
+    "                    A missing value is refused (exit 2) and no file is written.\n"
+    "  The values below are kept in the session's settings (--session):\n"
+    "  --station CODE    MPC observatory code (3 characters)\n"
+    "  --observer NAME   observer name(s), comma-separated\n"
+    "  --measurer NAME   measurer (default: the first observer)   --submitter NAME  (default: the measurer)\n"
+    "  --telescope-aperture M     aperture in metres (ADES telescope aperture)\n"
+    "  --telescope-design D       reflector (default), refractor, Schmidt, ...\n"
+    "  --telescope-detector CCD   CCD (default) or CMO (CMOS); also the ADES mode and 80-column note 2\n"
+    "  --ast-cat CAT     reference catalogue of the WCS solution as the MPC spells it (ADES astCat: Gaia3,\n"
+    "                    Gaia2, UCAC4, PS1_DR2, ATLAS2, ...); gives the 80-column code of column 72\n"
+    "  --mpc-cat C       80-column catalogue code (column 72), instead of the one of --ast-cat\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
     "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
     "catalog\n"
@@ -54,6 +71,13 @@ constexpr const char* kHelp =
     "                    (ra_rate_arcsec_min, dec_rate_arcsec_min or *_deg_day)  --known-radius ARCSEC (10)\n"
     "  --stacks DIR      FITS stacks (IPSA at the fitted velocity, else the search's) of the candidates\n"
     "                    labelled real, from the session's input frames, with the WCS moved to t_ref\n";
+
+// clang-format off
+const std::set<std::string> kValuedOptions = {
+    "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
+    "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
+    "mpc-cat", "prepared", "known", "known-radius"};
+// clang-format on
 
 nlohmann::json readJson(const std::string& path) {
   std::ifstream in(path);
@@ -98,26 +122,19 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (auto s = cli.value("station")) settings["station"] = *s;
   if (auto s = cli.value("observer")) settings["observers"] = *s;
   if (auto s = cli.value("measurer")) settings["measurer"] = *s;
+  if (auto s = cli.value("submitter")) settings["submitter"] = *s;
+  if (auto s = cli.value("telescope-design")) settings["telescope_design"] = *s;
+  if (auto s = cli.value("telescope-detector")) settings["detector"] = *s;
+  if (auto m = cli.number("telescope-aperture")) {
+    if (!(*m > 0.0)) throw UsageError("--telescope-aperture needs the aperture in metres (> 0)");
+    settings["aperture_m"] = *m;
+  }
   if (auto s = cli.value("ast-cat")) settings["ast_cat"] = *s;
   if (auto s = cli.value("mpc-cat")) {
     if (s->size() != 1) throw UsageError("--mpc-cat needs one character (column 72 of the 80-column format)");
     settings["mpc_catalog_code"] = *s;
   }
   if (settings != ed.session().settings) ed.setSettings(settings);
-}
-
-report::SubmissionSettings submissionSettings(const nlohmann::json& s, const CliArgs& cli) {
-  report::SubmissionSettings out;
-  out.stationCode = s.value("station", std::string{});
-  out.observers = s.value("observers", std::string{});
-  out.measurer = s.value("measurer", std::string{});
-  out.astCat = s.value("ast_cat", std::string{});
-  if (const std::string c = s.value("mpc_catalog_code", std::string{}); c.size() == 1)
-    out.mpcCatalogCode = c[0];
-  out.safeSnr = cli.number("safe-snr", out.safeSnr);
-  if (out.stationCode.empty())
-    throw UsageError("ADES and MPC reports need --station CODE (MPC observatory code)");
-  return out;
 }
 
 void writeText(const std::string& path, const std::string& text) {
@@ -149,6 +166,47 @@ std::optional<WcsMapping> loadWcs(const CliArgs& cli, const session::Session& s)
   const double tRef = s.search.value("t_ref_mjd", epoch);
   m.toSky = report::skyMappingAtTRef(*m.cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0);
   return m;
+}
+
+/// The option that sets a settings key (report::SettingsProblem::key).
+const char* optionFor(const std::string& key) {
+  if (key == "station") return "--station CODE";
+  if (key == "observers" || key == "measurer") return "--observer NAME or --measurer NAME";
+  if (key == "submitter") return "--submitter NAME";
+  if (key == "telescope_design") return "--telescope-design D";
+  if (key == "aperture_m") return "--telescope-aperture M";
+  if (key == "detector") return "--telescope-detector CCD|CMO";
+  if (key == "ast_cat") return "--ast-cat CAT";
+  return "--ast-cat CAT or --mpc-cat C";
+}
+
+/// The submission settings of the session (with --safe-snr, and the catalogue of --wcs's header when none is
+/// set); refuses with a usage error naming every missing value and its option, before anything is written.
+report::SubmissionSettings submissionSettings(const nlohmann::json& json, const CliArgs& cli,
+                                              const std::optional<WcsMapping>& wcs) {
+  report::SubmissionSettings out = report::submissionFromJson(json);
+  out.safeSnr = cli.number("safe-snr", out.safeSnr);
+  if (out.astCat.empty() && wcs) {
+    if (auto cat = report::astCatFromHeader(wcs->cube.header)) {
+      out.astCat = *cat;
+      std::fprintf(stderr, "note: astCat %s from the header of --wcs (set --ast-cat to override)\n",
+                   cat->c_str());
+    }
+  }
+  std::string refused;
+  const auto check = [&](const char* option, report::SubmissionFormat format) {
+    if (!cli.has(option)) return;
+    const auto problems = report::submissionProblems(out, format);
+    if (problems.empty()) return;
+    refused += std::string(refused.empty() ? "" : "\n") + "--" + option + " needs: ";
+    for (std::size_t i = 0; i < problems.size(); ++i)
+      refused += (i ? "; " : "") + problems[i].message + " (" + optionFor(problems[i].key) + ")";
+  };
+  check("ades", report::SubmissionFormat::Ades);
+  check("ades-xml", report::SubmissionFormat::Ades);
+  check("mpc", report::SubmissionFormat::Mpc80);
+  if (!refused.empty()) throw UsageError(refused);
+  return out;
 }
 
 /// Real candidates whose converged fit has no sky position get one through the --wcs mapping (in memory).
@@ -266,10 +324,7 @@ void writeStacks(const std::string& dir, const session::Session& s) {
 }  // namespace
 
 int cmdReport(const Args& args) {
-  const CliArgs cli(args,
-                    {"session", "label", "note", "ds9", "ades", "mpc", "station", "observer", "measurer",
-                     "ast-cat", "safe-snr", "wcs", "stacks", "mpc-cat", "prepared", "known", "known-radius"},
-                    {"help"});
+  const CliArgs cli(args, kValuedOptions, {"help"});
   if (cli.flag("help")) {
     std::printf("%s", kHelp);
     return 0;
@@ -307,30 +362,28 @@ int cmdReport(const Args& args) {
   session::SessionEditor editor(store, std::move(s));
   applyEdits(cli, editor);
   const std::optional<WcsMapping> wcs = loadWcs(cli, editor.session());
+  const bool submit = cli.has("ades") || cli.has("ades-xml") || cli.has("mpc");
+  std::optional<report::SubmissionSettings> settings;
+  if (submit) settings = submissionSettings(editor.session().settings, cli, wcs);
   runVetting(cli, editor, wcs);
   const session::Session cur = withSkyPositions(editor.session(), wcs);
   if (auto p = cli.value("ds9")) writeDs9(*p, cur, wcs);
   if (auto p = cli.value("stacks")) writeStacks(*p, cur);
-  if (cli.has("ades") || cli.has("mpc")) {
-    const report::SubmissionSettings settings = submissionSettings(cur.settings, cli);
+  if (settings) {
     std::vector<std::string> warnings;
     const auto detections = report::realDetections(cur, warnings);
     if (detections.empty())
       warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
-    if (auto p = cli.value("ades")) {
-      const auto t = report::formatAdesPsv(detections, settings);
-      writeText(*p, t.text);
-      warnings.insert(warnings.end(), t.warnings.begin(), t.warnings.end());
-      std::printf("ADES PSV, %zu detections: %s\n", detections.size(), p->c_str());
-    }
-    if (auto p = cli.value("mpc")) {
-      const auto t = report::formatMpc80(detections, settings);
-      writeText(*p, t.text);
-      for (const auto& w : t.warnings) {
+    const auto write = [&](const char* option, const char* what, const report::SubmissionText& t) {
+      const std::string path = *cli.value(option);
+      writeText(path, t.text);
+      for (const auto& w : t.warnings)
         if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
-      }
-      std::printf("MPC 80-column, %zu detections: %s\n", detections.size(), p->c_str());
-    }
+      std::printf("%s, %zu detections: %s\n", what, detections.size(), path.c_str());
+    };
+    if (cli.has("ades")) write("ades", "ADES PSV", report::formatAdesPsv(detections, *settings));
+    if (cli.has("ades-xml")) write("ades-xml", "ADES XML", report::formatAdesXml(detections, *settings));
+    if (cli.has("mpc")) write("mpc", "MPC 80-column", report::formatMpc80(detections, *settings));
     for (const auto& w : warnings)
       std::fprintf(stderr, "warning: %s\n", w.c_str());
   }

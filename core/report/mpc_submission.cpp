@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <regex>
 
 #include "st/common/error.hpp"
+#include "st/report/star_catalogues.hpp"
 
 namespace st::report {
 namespace {
@@ -39,10 +41,24 @@ std::string adesRa(double raDeg) {
   return text == "360.0000000" ? "0.0000000" : text;
 }
 
-void checkSettings(const SubmissionSettings& s) {
-  if (s.stationCode.size() != 3) {
-    throw InputError("MPC station code must be 3 characters, got '" + s.stationCode + "' (set --station)");
+void checkSettings(const SubmissionSettings& s, SubmissionFormat format) {
+  if (const auto problems = submissionProblems(s, format); !problems.empty())
+    throw InputError(problemsText(problems, format));
+}
+
+// A positive decimal of at most `maxChars` characters (ADES PosDecimalTypeW*): 3 decimals, more for a value
+// that would round to zero, fewer for a large one; empty when none fits.
+std::string positiveDecimal(double v, std::size_t maxChars) {
+  if (!(v > 0.0) || !std::isfinite(v)) return {};
+  for (int decimals = 3; decimals >= 0; --decimals) {
+    const std::string s = fmt("%.*f", decimals, v);
+    if (s.size() <= maxChars && std::stod(s) > 0.0) return s;
   }
+  for (int decimals = 4; decimals + 2 <= static_cast<int>(maxChars); ++decimals) {
+    const std::string s = fmt("%.*f", decimals, v);
+    if (std::stod(s) > 0.0) return s;
+  }
+  return {};
 }
 
 void checkDetection(const AstrometricDetection& d) {
@@ -110,7 +126,7 @@ std::string sexagesimalDec(double decDeg) {
 }
 
 std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings& s) {
-  checkSettings(s);
+  checkSettings(s, SubmissionFormat::Mpc80);
   if (det.trkSub.empty() || det.trkSub.size() > 7) {
     throw InputError("80-column designation must be 1 to 7 characters, got '" + det.trkSub + "'");
   }
@@ -130,20 +146,19 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
     put(66, fmt("%4.1f", *det.mag));
     if (!det.band.empty()) line[70] = det.band[0];
   }
-  line[71] = s.mpcCatalogCode;
+  line[71] = resolvedCatalogueCode(s);
   put(78, s.stationCode);
   return line;
 }
 
 SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
-  checkSettings(s);
+  checkSettings(s, SubmissionFormat::Mpc80);
   SubmissionText out;
   // MPC1992 header lines (3-letter code, a blank, text; at most 80 characters each).
   auto header = [&](const char* code, const std::string& text) {
     if (!text.empty()) out.text += (std::string(code) + " " + text).substr(0, 80) + "\n";
   };
-  const std::string measurer =
-      !s.measurer.empty() ? s.measurer : s.observers.substr(0, s.observers.find(','));
+  const std::string measurer = measurerOf(s);
   header("COD", s.stationCode);
   header("OBS", s.observers);
   header("MEA", measurer);
@@ -156,76 +171,114 @@ SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const Su
     out.warnings.push_back("80-column: no observer name for the OBS line (set --observer)");
   for (const auto& d : ds)
     out.text += mpc80Line(d, s) + "\n";
-  if (s.mpcCatalogCode == ' ') {
-    out.warnings.push_back(
-        "80-column: column 72 (astrometric catalogue code) is blank; set the catalogue of "
-        "the WCS solution");
-  }
   lowSnrWarnings(ds, s, out.warnings);
   return out;
 }
 
-SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
-  checkSettings(s);
-  SubmissionText out;
-  std::string& t = out.text;
-  t += "# version=2017\n# observatory\n! mpcCode " + s.stationCode + "\n";
-  const std::string measurer =
-      !s.measurer.empty() ? s.measurer : s.observers.substr(0, s.observers.find(','));
-  const std::string submitter = !s.submitter.empty() ? s.submitter : measurer;
-  if (!submitter.empty()) t += "# submitter\n! name " + submitter + "\n";
-  if (!s.observers.empty()) {
-    t += "# observers\n";
-    std::size_t start = 0;
-    while (start <= s.observers.size()) {
-      const std::size_t comma = std::min(s.observers.find(',', start), s.observers.size());
-      std::string name = s.observers.substr(start, comma - start);
-      name.erase(0, name.find_first_not_of(' '));
-      if (!name.empty()) t += "! name " + name + "\n";
-      start = comma + 1;
-    }
-  } else {
-    out.warnings.push_back("ADES: no observer name (set --observer)");
-  }
-  if (!measurer.empty()) t += "# measurers\n! name " + measurer + "\n";
-  t += "# telescope\n! design " + s.telescopeDesign + "\n";
-  if (s.apertureM > 0.0) t += fmt("! aperture %.2f\n", s.apertureM);
-  t += "! detector " + s.detector + "\n";
-  if (s.astCat.empty())
-    out.warnings.push_back("ADES: astCat (catalogue of the WCS solution) is empty; ADES requires it");
+namespace {
 
-  const std::vector<std::string> names = {"trkSub", "mode",   "stn", "obsTime", "ra",     "dec",    "rmsRA",
-                                          "rmsDec", "astCat", "mag", "band",    "logSNR", "remarks"};
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& d : ds) {
-    checkDetection(d);
-    if (d.trkSub.empty() || d.trkSub.size() > 8)
-      throw InputError("ADES trkSub must be 1 to 8 characters, got '" + d.trkSub + "'");
-    const bool hasMag = d.mag && std::isfinite(*d.mag);
-    rows.push_back({d.trkSub, s.detector, s.stationCode, isoUtcFromMjd(d.mjdUtc), adesRa(d.raDeg),
-                    fmt("%+.7f", d.decDeg), d.sigmaRaArcsec ? fmt("%.3f", *d.sigmaRaArcsec) : "",
-                    d.sigmaDecArcsec ? fmt("%.3f", *d.sigmaDecArcsec) : "", s.astCat,
-                    hasMag ? fmt("%.2f", *d.mag) : "", hasMag ? d.band : "",
-                    d.snr > 0.0 ? fmt("%.2f", std::log10(d.snr)) : "",
-                    "synthetic tracking (shift-and-stack)"});
-  }
-  std::vector<std::size_t> width(names.size());
-  for (std::size_t i = 0; i < names.size(); ++i) {
-    width[i] = names[i].size();
-    for (const auto& r : rows)
-      width[i] = std::max(width[i], r[i].size());
-  }
-  auto emit = [&](const std::vector<std::string>& fields) {
-    for (std::size_t i = 0; i < fields.size(); ++i) {
-      std::string f = fields[i];
-      if (i + 1 < fields.size()) f.resize(width[i], ' ');
-      t += f + (i + 1 < fields.size() ? "|" : "\n");
-    }
+AdesContextBlock names(const char* block, const std::vector<std::string>& people) {
+  AdesContextBlock b{block, {}, {}};
+  for (const auto& n : people)
+    b.items.emplace_back("name", n);
+  return b;
+}
+
+std::vector<AdesContextBlock> adesContext(const SubmissionSettings& s) {
+  const std::string measurer = measurerOf(s);
+  const auto observers = observerNames(s);
+  std::vector<AdesContextBlock> c;
+  c.push_back({"observatory", {}, {{"mpcCode", s.stationCode}}});
+  c.push_back({"submitter", {}, {{"name", s.submitter.empty() ? measurer : s.submitter}}});
+  if (!observers.empty()) c.push_back(names("observers", observers));
+  c.push_back(names("measurers", {measurer}));
+  c.push_back({"telescope",
+               {},
+               {{"design", s.telescopeDesign},
+                {"aperture", positiveDecimal(s.apertureM, 6)},
+                {"detector", s.detector}}});
+  return c;
+}
+
+void checkAdesDetection(const AstrometricDetection& d) {
+  static const std::regex kTrkSub("[-A-Za-z0-9_]{1,8}");
+  static const std::regex kBand("[A-Za-z0-9_]{1,3}");
+  checkDetection(d);
+  if (!std::regex_match(d.trkSub, kTrkSub))
+    throw InputError("ADES trkSub must be 1 to 8 of letters, digits, '-', '_', got '" + d.trkSub + "'");
+  if (d.mag && std::isfinite(*d.mag) && !std::regex_match(d.band, kBand))
+    throw InputError("detection '" + d.trkSub +
+                     "': the magnitude's band must be 1-3 letters or digits, got '" + d.band + "'");
+}
+
+std::vector<std::string> adesRow(const AstrometricDetection& d, const SubmissionSettings& s,
+                                 std::vector<std::string>& warnings) {
+  const bool hasMag = d.mag && std::isfinite(*d.mag) && *d.mag >= -5.0 && *d.mag <= 35.0;
+  if (d.mag && !hasMag)
+    warnings.push_back(d.trkSub + ": magnitude " + fmt("%g", *d.mag) + " outside ADES's -5..35, left out");
+  const auto rms = [&](const std::optional<double>& v, const char* name) {
+    if (!v) return std::string();
+    std::string text = positiveDecimal(*v, 7);
+    if (text.empty())
+      warnings.push_back(d.trkSub + ": " + name + " " + fmt("%g", *v) +
+                         "\" not positive "
+                         "or too large for ADES, left out");
+    return text;
   };
-  emit(names);
-  for (const auto& r : rows)
-    emit(r);
-  lowSnrWarnings(ds, s, out.warnings);
+  std::string logSnr;
+  if (d.snr > 0.0 && std::isfinite(d.snr)) {
+    logSnr = fmt("%.2f", std::log10(d.snr));
+    if (logSnr.size() - (logSnr[0] == '-') > 5) logSnr.clear();  // DecimalTypeW6
+  }
+  return {d.trkSub,
+          s.detector,
+          s.stationCode,
+          isoUtcFromMjd(d.mjdUtc),
+          adesRa(d.raDeg),
+          fmt("%+.7f", d.decDeg),
+          rms(d.sigmaRaArcsec, "rmsRA"),
+          rms(d.sigmaDecArcsec, "rmsDec"),
+          s.astCat,
+          hasMag ? fmt("%.2f", *d.mag) : "",
+          hasMag ? d.band : "",
+          logSnr,
+          "synthetic tracking (shift-and-stack)"};
+}
+
+}  // namespace
+
+AdesDocument adesDocument(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s,
+                          std::vector<std::string>& warnings) {
+  checkSettings(s, SubmissionFormat::Ades);
+  if (observerNames(s).empty()) warnings.push_back("ADES: no observer name (set --observer)");
+  if (const StarCatalogue* c = findStarCatalogue(s.astCat); !c) {
+    warnings.push_back(
+        "ADES: astCat '" + s.astCat +
+        "' is not in the MPC's list of catalogues (a batch naming an unlisted one is rejected)");
+  } else if (c->deprecated) {
+    warnings.push_back("ADES: astCat '" + s.astCat + "' is deprecated by the MPC; prefer Gaia3 or Gaia2");
+  }
+  AdesDocument doc;
+  doc.context = adesContext(s);
+  doc.fields = {"trkSub", "mode",   "stn", "obsTime", "ra",     "dec",    "rmsRA",
+                "rmsDec", "astCat", "mag", "band",    "logSNR", "remarks"};
+  for (const auto& d : ds) {
+    checkAdesDetection(d);
+    doc.rows.push_back(adesRow(d, s, warnings));
+  }
+  lowSnrWarnings(ds, s, warnings);
+  return doc;
+}
+
+SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
+  SubmissionText out;
+  out.text = adesPsvText(adesDocument(ds, s, out.warnings));
+  return out;
+}
+
+SubmissionText formatAdesXml(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
+  SubmissionText out;
+  out.text = adesXmlText(adesDocument(ds, s, out.warnings));
   return out;
 }
 

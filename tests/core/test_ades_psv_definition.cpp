@@ -1,4 +1,4 @@
-// ADES PSV (ADES 2017, the MPC's "ADES Description" and its PSV rules) checked field by field against the
+// ADES PSV (ADES 2022, the MPC's "ADES Description" and its PSV rules) checked field by field against the
 // format's definition rather than against our own expectations: every data line of formatAdesPsv() for a
 // set of awkward detections (RA near 360, southern Dec, no magnitude, low SNR, sub-second epochs) must
 // satisfy each field's syntax and range, carry the required optical fields, and keep the PSV table shape.
@@ -58,6 +58,7 @@ TEST(AdesPsvDefinition, EveryDataLineSatisfiesTheFieldDefinitions) {
   s.stationCode = "I41";
   s.observers = "A. Observer";
   s.astCat = "Gaia3";
+  s.apertureM = 1.05;
   const auto ds = awkwardDetections();
   const SubmissionText t = formatAdesPsv(ds, s);
   std::vector<std::string> lines;
@@ -65,7 +66,7 @@ TEST(AdesPsvDefinition, EveryDataLineSatisfiesTheFieldDefinitions) {
   for (std::string l; std::getline(ss, l);)
     lines.push_back(l);
   ASSERT_FALSE(lines.empty());
-  EXPECT_EQ(lines[0], "# version=2017");  // ADES: the version line comes first
+  EXPECT_EQ(lines[0], "# version=2022");  // ADES: the version line comes first
   std::size_t h = 0;
   while (h < lines.size() && (lines[h][0] == '#' || lines[h][0] == '!'))
     ++h;

@@ -12,6 +12,7 @@
 #include "st/io/wcs.hpp"
 #include "st/report/mpc_submission.hpp"
 #include "st/report/regions.hpp"
+#include "st/report/star_catalogues.hpp"
 
 namespace st::report {
 namespace {
@@ -38,6 +39,13 @@ SubmissionSettings settings291() {
   s.mpcCatalogCode = 'd';
   s.observers = "A. Observer, B. Second";
   s.astCat = "Gaia3";
+  return s;
+}
+
+/// settings291() with what ADES needs beyond the 80-column format: the telescope aperture.
+SubmissionSettings adesSettings291() {
+  SubmissionSettings s = settings291();
+  s.apertureM = 0.5;
   return s;
 }
 
@@ -122,9 +130,66 @@ TEST(Mpc80, NoMagnitudeCmosAndBadInput) {
   AstrometricDetection nan = publishedDetection();
   nan.raDeg = std::nan("");
   EXPECT_THROW((void)mpc80Line(nan, settings291()), InputError);
-  EXPECT_THROW((void)formatAdesPsv({nan}, settings291()), InputError);
+  EXPECT_THROW((void)formatAdesPsv({nan}, adesSettings291()), InputError);
   d.trkSub = "TOOLONG8";
   EXPECT_THROW((void)mpc80Line(d, settings291()), InputError);
+}
+
+TEST(Mpc80, CatalogueCodeOfColumn72FromTheAstCat) {
+  // The MPC's catalogue codes (its "Catalogue Codes" page, and ADES-Master's packUtil.py).
+  EXPECT_EQ(mpcCatalogueCode("Gaia3"), 'W');
+  EXPECT_EQ(mpcCatalogueCode("Gaia2"), 'V');
+  EXPECT_EQ(mpcCatalogueCode("Gaia3E"), 'X');
+  EXPECT_EQ(mpcCatalogueCode("UCAC4"), 'q');
+  EXPECT_EQ(mpcCatalogueCode("PS1_DR2"), '2');
+  EXPECT_EQ(mpcCatalogueCode("gaia3"), ' ');  // ADES spells it exactly
+  SubmissionSettings s = settings291();
+  s.mpcCatalogCode = ' ';
+  s.astCat = "Gaia2";
+  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], 'V');
+  s.mpcCatalogCode = 'W';  // a given code wins
+  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], 'W');
+  // No code and a catalogue without one: refused, naming the column, not written blank.
+  s.mpcCatalogCode = ' ';
+  s.astCat = "MyCat";
+  EXPECT_THROW((void)formatMpc80({publishedDetection()}, s), InputError);
+  s.astCat.clear();
+  try {
+    (void)mpc80Line(publishedDetection(), s);
+    ADD_FAILURE() << "no error without a catalogue";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("column 72"), std::string::npos) << e.what();
+  }
+}
+
+TEST(StarCatalogues, AstCatFromAnAstrometryNetHeader) {
+  auto header = [](std::vector<std::string> indexes) {
+    FitsHeader h;
+    h.cards.push_back({"COMMENT", "", "solved by astrometry.net", false});
+    for (std::size_t i = 0; i < indexes.size(); ++i)
+      h.cards.push_back(
+          {"COMMENT", "", "Index(" + std::to_string(i) + "): /data/index-" + indexes[i] + ".fits", false});
+    return h;
+  };
+  EXPECT_EQ(astCatFromHeader(header({"4219", "4218", "4217"})), "2MASS");  // as PANOPTES' solved frames
+  EXPECT_EQ(astCatFromHeader(header({"4110"})), "Tyc2");
+  EXPECT_EQ(astCatFromHeader(header({"5203-07", "5204-11"})), "Gaia2");
+  EXPECT_EQ(astCatFromHeader(header({"4110", "4208"})), std::nullopt);  // two catalogues: which one solved?
+  EXPECT_EQ(astCatFromHeader(header({"6001"})), std::nullopt);          // a series we do not know
+  EXPECT_EQ(astCatFromHeader(header({})), std::nullopt);
+}
+
+TEST(SubmissionSettingsJson, RoundTripAndMistypedKeys) {
+  SubmissionSettings s = adesSettings291();
+  s.submitter = "S. Ubmitter";
+  s.detector = "CMO";
+  const SubmissionSettings back = submissionFromJson(toJson(s));
+  EXPECT_EQ(toJson(back), toJson(s));
+  EXPECT_DOUBLE_EQ(back.apertureM, 0.5);
+  EXPECT_EQ(back.mpcCatalogCode, 'd');
+  nlohmann::json j = toJson(s);
+  j["aperture_m"] = "wide";  // a hand-edited session: the default, not an exception
+  EXPECT_DOUBLE_EQ(submissionFromJson(j).apertureM, 0.0);
 }
 
 std::vector<std::string> split(const std::string& line) {
@@ -151,19 +216,20 @@ TEST(AdesPsv, HeaderBlocksAndFieldsOneByOne) {
   b.decDeg = -5.25;
   b.mag.reset();
   b.snr = 5.0;  // below the safe SNR
-  const SubmissionText t = formatAdesPsv({a, b}, settings291());
+  const SubmissionText t = formatAdesPsv({a, b}, adesSettings291());
   std::vector<std::string> lines;
   std::stringstream ss(t.text);
   for (std::string l; std::getline(ss, l);)
     lines.push_back(l);
   ASSERT_GE(lines.size(), 5u);
-  EXPECT_EQ(lines[0], "# version=2017");
+  EXPECT_EQ(lines[0], "# version=2022");
   EXPECT_EQ(lines[1], "# observatory");
   EXPECT_EQ(lines[2], "! mpcCode 291");
   const std::string all = t.text;
   EXPECT_NE(all.find("# observers\n! name A. Observer\n! name B. Second\n"), std::string::npos) << all;
   EXPECT_NE(all.find("# measurers\n! name A. Observer\n"), std::string::npos);
-  EXPECT_NE(all.find("# telescope\n! design reflector\n"), std::string::npos);
+  EXPECT_NE(all.find("# telescope\n! design reflector\n! aperture 0.500\n! detector CCD\n"),
+            std::string::npos);
   std::size_t h = 0;
   while (h < lines.size() && (lines[h][0] == '#' || lines[h][0] == '!'))
     ++h;
@@ -203,13 +269,31 @@ TEST(AdesPsv, HeaderBlocksAndFieldsOneByOne) {
   EXPECT_NE(t.warnings[0].find("SNR 5.00"), std::string::npos);
 }
 
-TEST(AdesPsv, MissingCatalogueAndObserverAreWarnedNotInvented) {
+TEST(AdesPsv, MissingRequiredValuesAreRefusedNotInvented) {
+  // ADES requires a measurer, the telescope aperture and astCat: without them no file is made, and the
+  // error names each one.
   SubmissionSettings s;
   s.stationCode = "X05";
+  try {
+    (void)formatAdesPsv({publishedDetection()}, s);
+    ADD_FAILURE() << "no error for settings without measurer, aperture and astCat";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    for (const char* needed : {"measurer", "aperture", "astCat"})
+      EXPECT_NE(what.find(needed), std::string::npos) << needed << " in: " << what;
+  }
+  const auto problems = submissionProblems(s, SubmissionFormat::Ades);
+  std::vector<std::string> keys;
+  for (const auto& p : problems)
+    keys.push_back(p.key);
+  EXPECT_EQ(keys, (std::vector<std::string>{"measurer", "aperture_m", "ast_cat"}));
+  // Given them, the missing observer is only a warning (ADES observers are optional).
+  s.measurer = "M. Easurer";
+  s.apertureM = 1.0;
+  s.astCat = "Gaia3";
   const SubmissionText t = formatAdesPsv({publishedDetection()}, s);
-  ASSERT_EQ(t.warnings.size(), 2u);
+  ASSERT_EQ(t.warnings.size(), 1u);
   EXPECT_NE(t.warnings[0].find("observer"), std::string::npos);
-  EXPECT_NE(t.warnings[1].find("astCat"), std::string::npos);
   s.stationCode.clear();
   EXPECT_THROW((void)formatAdesPsv({}, s), InputError);
 }

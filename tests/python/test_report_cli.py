@@ -73,7 +73,8 @@ def main():
         ades, mpc, reg, stacks = (os.path.join(tmp, n) for n in ("out.psv", "out.txt", "out.reg", "stacks"))
         r = run(cli, ["report", cpath, "--session", session, "--label", "1=real", "--label", "2=real",
                       "--label", "3=artifact:ghost", "--note", "3=ghost of the bright star", "--station", "X05",
-                      "--observer", "A. Observer, B. Second", "--ast-cat", "Gaia3", "--ades", ades, "--mpc", mpc,
+                      "--observer", "A. Observer, B. Second", "--ast-cat", "Gaia3", "--telescope-aperture", "0.5",
+                      "--ades", ades, "--mpc", mpc,
                       "--ds9", reg, "--wcs", obs, "--stacks", stacks])
         check(r.returncode == 0, "report exit code %d: %s" % (r.returncode, r.stderr))
         check("SNR 5.00 is below the safe 7.0" in r.stderr, "low-SNR warning on stderr: " + r.stderr)
@@ -103,7 +104,7 @@ def main():
 
         # ADES PSV, field by field.
         text = open(ades).read().splitlines()
-        check(text[0] == "# version=2017" and text[1] == "# observatory" and text[2] == "! mpcCode X05",
+        check(text[0] == "# version=2022" and text[1] == "# observatory" and text[2] == "! mpcCode X05",
               "ADES header: %r" % text[:3])
         check("! name A. Observer" in text and "! name B. Second" in text, "ADES observers")
         body = [l for l in text if not l.startswith(("#", "!"))]

@@ -2,7 +2,8 @@
 // east left): only candidates labelled real reach ADES and MPC; the low-SNR one shows a visible warning;
 // JSON/CSV carry every candidate with its label; DS9 regions are in the WCS frame; the FITS stacks carry a
 // WCS and provenance and the object-tracked one has all frames of the dot on the candidate's pixel; the
-// settings persist; errors name the path. With ST_REPORT_OUT set, the outputs stay there for the DS9 and
+// settings persist; errors name the path; a submission missing what ADES requires is said in the dialog and
+// refused before any file is written. With ST_REPORT_OUT set, the outputs stay there for the DS9 and
 // astropy checks of tests/python/test_gui_reports.py.
 #include <gtest/gtest.h>
 
@@ -108,6 +109,7 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   s.observers = "A. Observer";
   s.astCat = "Gaia3";
   s.mpcCatalogCode = 'W';
+  s.apertureM = 0.5;  // ADES requires the telescope aperture
   d->setSubmissionSettings(s);
   d->show();
   d->refreshWarnings();
@@ -211,6 +213,40 @@ TEST_F(ReportDialogTest, ErrorsNameThePath) {
   // No real candidate: nothing to warn about.
   d->refreshWarnings();
   EXPECT_FALSE(d->warningVisible());
+}
+
+TEST_F(ReportDialogTest, AnInvalidSubmissionIsSaidAndRefusedBeforeWriting) {
+  ReportDialog* d = w->reportDialog();
+  report::SubmissionSettings s;  // station and observer, but no aperture and no catalogue
+  s.stationCode = "291";
+  s.observers = "A. Observer";
+  d->setSubmissionSettings(s);
+  test::TempDir tmp;
+  d->setOutput(QString::fromStdString((tmp / "out").string()), "run");
+  d->setOutputs(true, false, false, false, true, false);
+  d->show();
+  d->refreshWarnings();
+  EXPECT_TRUE(d->warningVisible());
+  EXPECT_TRUE(d->warningText().contains("ADES needs")) << d->warningText().toStdString();
+  EXPECT_TRUE(d->warningText().contains("aperture"));
+  EXPECT_TRUE(d->warningText().contains("astCat"));
+  bool done = false, ok = true;
+  QObject::connect(d, &ReportDialog::exportFinished, [&](bool good, const QString&) {
+    done = true;
+    ok = good;
+  });
+  ASSERT_TRUE(d->exportReports());
+  ASSERT_TRUE(test::waitFor([&] { return done; }));
+  EXPECT_FALSE(ok);
+  EXPECT_TRUE(d->resultText().contains("aperture")) << d->resultText().toStdString();
+  EXPECT_FALSE(QFile::exists(QString::fromStdString((tmp / "out" / "run.psv").string())));
+  EXPECT_FALSE(QFile::exists(QString::fromStdString((tmp / "out" / "run_candidates.json").string())));
+  // Given them, the warning goes.
+  s.apertureM = 0.5;
+  s.astCat = "Gaia3";
+  d->setSubmissionSettings(s);
+  d->refreshWarnings();
+  EXPECT_FALSE(d->warningText().contains("ADES needs")) << d->warningText().toStdString();
 }
 
 ST_UI_TEST_MAIN()

@@ -1,33 +1,25 @@
 #pragma once
-// Astrometry for the Minor Planet Center: ADES PSV (pipe-separated values, ADES version 2017) and the
-// MPC1992 80-column format, for detections a person labelled real (issue 8). Both are fixed by the MPC:
+// Astrometry for the Minor Planet Center: ADES (version 2022, PSV and XML; ades.hpp) and the MPC1992
+// 80-column format, for detections a person labelled real (issue 8). Both are fixed by the MPC:
 //   80-column: cols 1-5 number (blank), 6-12 provisional/temporary designation, 13 discovery asterisk,
 //   14 note 1, 15 note 2 ('C' CCD, 'B' CMOS), 16-32 date "YYYY MM DD.dddddd" (UTC), 33-44 RA
 //   "HH MM SS.sss", 45-56 Dec "sDD MM SS.ss", 57-65 blank, 66-70 magnitude ("22.9 "), 71 band,
-//   72 astrometric catalogue code, 73-77 blank, 78-80 observatory code.
-//   ADES PSV: '#'/'!' header blocks (observatory mpcCode, submitter, observers, measurers, telescope), one
-//   line of field names, then one '|'-separated line per observation; obsTime ISO 8601 UTC with 'Z', ra and
-//   dec in decimal degrees, rmsRA (RA cos Dec) and rmsDec in arcsec, logSNR = log10(SNR).
-// Shift-and-stack users are asked by the MPC not to submit detections pulled out of noise: every line below
-// `safeSnr` adds a warning (the CLI prints them on stderr, the GUI shows them).
+//   72 astrometric catalogue code (star_catalogues.hpp), 73-77 blank, 78-80 observatory code.
+//   ADES: obsContext observatory (mpcCode), submitter, observers, measurers, telescope (design, aperture,
+//   detector), then one optical element per observation with trkSub, mode, stn, obsTime (ISO 8601 UTC with
+//   'Z'), ra and dec (decimal degrees), rmsRA (RA cos Dec) and rmsDec (arcsec), astCat, mag and band,
+//   logSNR = log10(SNR), remarks, in the order of submit.xsd's OpticalType.
+// A file that would not validate is refused (st::InputError naming what is missing, submissionProblems())
+// rather than written. Shift-and-stack users are asked by the MPC not to submit detections pulled out of
+// noise: every line below `safeSnr` adds a warning (the CLI prints them on stderr, the GUI shows them).
 #include <optional>
 #include <string>
 #include <vector>
 
-namespace st::report {
+#include "st/report/ades.hpp"
+#include "st/report/submission_settings.hpp"
 
-struct SubmissionSettings {
-  std::string stationCode;  ///< MPC observatory code, 3 characters (required)
-  std::string observers;    ///< observer name(s), comma-separated ("A. Smith, B. Jones")
-  std::string measurer;     ///< measurer name; default: the first observer
-  std::string submitter;    ///< default: the measurer
-  std::string telescopeDesign = "reflector";
-  double apertureM = 0.0;        ///< telescope aperture, metres (0 = not written)
-  std::string detector = "CCD";  ///< ADES detector/mode: CCD or CMO
-  std::string astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); required
-  char mpcCatalogCode = ' ';  ///< column 72 of the 80-column format (e.g. 'V' Gaia DR2, 'W' Gaia DR3)
-  double safeSnr = 7.0;       ///< below this SNR a line gets a warning (paper §4.4 threshold)
-};
+namespace st::report {
 
 /// One measured position of a detection labelled real.
 struct AstrometricDetection {
@@ -46,17 +38,27 @@ struct SubmissionText {
   std::vector<std::string> warnings;  ///< low SNR, missing catalogue, truncated designation, ...
 };
 
-/// One 80-column line (exactly 80 characters, no newline). Throws st::InputError for a station code that is
-/// not 3 characters or a designation longer than 7.
+/// One 80-column line (exactly 80 characters, no newline). Throws st::InputError for settings with
+/// submissionProblems(Mpc80) (station code, column-72 code) or a designation longer than 7.
 [[nodiscard]] std::string mpc80Line(const AstrometricDetection& d, const SubmissionSettings& settings);
 /// The whole 80-column message: the MPC1992 header lines COD (station), OBS (observers), MEA (measurer), TEL
-/// (telescope), NET (astCat, when given), ACK, then one line per detection.
+/// (telescope), NET (astCat, when given), ACK, then one line per detection. Column 72 is the settings' code,
+/// else astCat's (resolvedCatalogueCode()).
 [[nodiscard]] SubmissionText formatMpc80(const std::vector<AstrometricDetection>& detections,
                                          const SubmissionSettings& settings);
-/// The ADES PSV text: header blocks and the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA, rmsDec,
-/// astCat, mag, band, logSNR, remarks. Columns are padded to a common width (PSV allows blanks around
-/// values).
+/// The ADES document: obsContext from the settings, the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA,
+/// rmsDec, astCat, mag, band, logSNR, remarks (mag and band only where a magnitude is given, in -5..35;
+/// rmsRA/rmsDec with 3 decimals, more for values below 0.0005", absent when they do not fit 7 characters).
+/// Throws st::InputError listing submissionProblems(Ades) when there are any, and for a detection without a
+/// valid position and epoch, a trkSub not 1-8 of [-A-Za-z0-9_], or a magnitude with a band that is not
+/// 1-3 letters or digits. Warnings: no observer, a deprecated or unlisted astCat, low SNR, values left out.
+[[nodiscard]] AdesDocument adesDocument(const std::vector<AstrometricDetection>& detections,
+                                        const SubmissionSettings& settings,
+                                        std::vector<std::string>& warnings);
+/// adesDocument() as PSV (columns padded to a common width) and as XML.
 [[nodiscard]] SubmissionText formatAdesPsv(const std::vector<AstrometricDetection>& detections,
+                                           const SubmissionSettings& settings);
+[[nodiscard]] SubmissionText formatAdesXml(const std::vector<AstrometricDetection>& detections,
                                            const SubmissionSettings& settings);
 
 /// Calendar date of an MJD (UTC): year, month, day with fraction (proleptic Gregorian).

@@ -1,0 +1,64 @@
+#pragma once
+// What an astrometry submission to the Minor Planet Center says about the observation beside the positions:
+// station, people, telescope, reference catalogue. One typed record, shared by the CLI (`synthtrack-cli
+// report`, kept in the session's settings) and the GUI's report dialog (kept in QSettings and the session),
+// with its JSON form and the check of what a valid file needs (ADES 2022 submit.xsd: observatory mpcCode,
+// submitter, measurers, telescope design/aperture/detector, astCat on every optical observation; MPC1992:
+// a 3-character station code and the catalogue code of column 72).
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace st::report {
+
+struct SubmissionSettings {
+  std::string stationCode;                    ///< MPC observatory code, 3 characters (required)
+  std::string observers;                      ///< observer name(s), comma-separated ("A. Smith, B. Jones")
+  std::string measurer;                       ///< measurer name; default: the first observer
+  std::string submitter;                      ///< default: the measurer
+  std::string telescopeDesign = "reflector";  ///< ADES telescope design (reflector, refractor, Schmidt, ...)
+  double apertureM = 0.0;        ///< telescope aperture, metres; ADES requires it (0 = not given)
+  std::string detector = "CCD";  ///< ADES telescope detector and observation mode: CCD or CMO (CMOS)
+  std::string
+      astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); ADES requires it
+  /// Column 72 of the 80-column format; ' ' = the code of astCat (star_catalogues.hpp), which it overrides.
+  char mpcCatalogCode = ' ';
+  double safeSnr = 7.0;  ///< below this SNR a line gets a warning (paper §4.4 threshold)
+};
+
+enum class SubmissionFormat { Ades, Mpc80 };
+
+/// A value a valid file needs that the settings lack or hold malformed. `key` is the value's key in the
+/// settings JSON (toJson below: station, observers, measurer, submitter, telescope_design, aperture_m,
+/// detector, ast_cat, mpc_catalog_code), for a front end to name its own option or field.
+struct SettingsProblem {
+  std::string key;
+  std::string message;
+};
+
+/// Every problem that would make a file of `format` invalid (empty when none). ADES: station code (3
+/// letters/digits), a measurer (given or the first observer), names of at most 100 characters, telescope
+/// design and detector (1-25 characters; the detector also the observation mode, so one of the MPC's modes),
+/// aperture > 0 and below 1000 m, astCat (1-8 of [.A-Za-z0-9_]). MPC 80-column: station code, and a column-72
+/// code (given, or known for astCat).
+[[nodiscard]] std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& settings,
+                                                              SubmissionFormat format);
+/// The problems as one sentence: "ADES needs: the telescope aperture (...); astCat (...)".
+[[nodiscard]] std::string problemsText(const std::vector<SettingsProblem>& problems, SubmissionFormat format);
+
+/// The measurer: the given one, else the first observer (trimmed); may be empty.
+[[nodiscard]] std::string measurerOf(const SubmissionSettings& settings);
+/// The observers, split at commas and trimmed, empty names dropped.
+[[nodiscard]] std::vector<std::string> observerNames(const SubmissionSettings& settings);
+/// Column 72: the given code, else astCat's (' ' when neither).
+[[nodiscard]] char resolvedCatalogueCode(const SubmissionSettings& settings);
+
+/// The settings as kept in a session's settings and in the GUI's QSettings: station, observers, measurer,
+/// submitter, telescope_design, aperture_m, detector, ast_cat, mpc_catalog_code (one character, " " = from
+/// astCat), safe_snr.
+[[nodiscard]] nlohmann::json toJson(const SubmissionSettings& settings);
+/// The inverse; missing or mistyped keys keep the defaults of SubmissionSettings.
+[[nodiscard]] SubmissionSettings submissionFromJson(const nlohmann::json& json);
+
+}  // namespace st::report
