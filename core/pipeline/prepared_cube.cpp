@@ -17,9 +17,9 @@ std::string numberText(double v) {
 }
 
 // What to run instead, for the messages that refuse a file.
-std::string whatToRun(const std::string& source) {
-  return "pre-process the raw frames with `synthtrack-cli preprocess RAW... -o " + source +
-         "` (which writes it) and search that, or search the raw frames without --preprocessed";
+std::string whatToRun() {
+  return "run `synthtrack-cli preprocess RAW... -o PREPARED.fits` on the raw frames and search PREPARED.fits "
+         "with --preprocessed, or search the raw frames without --preprocessed";
 }
 
 // A number keyword; a value that is not a number names the file and the keyword.
@@ -60,7 +60,7 @@ std::optional<std::pair<PreparedState, std::string>> stateOf(const FitsHeader& h
   if (h.has(kPreparedKeyword)) {
     throw InputError(source + ": has " + kPreparedKeyword + " but no " + kFilteredKeyword +
                      " keyword, so it cannot be told whether its frames are matched-filtered; " +
-                     whatToRun(source));
+                     whatToRun());
   }
   if (h.has("SIGMAF")) return std::pair{PreparedState::Filtered, std::string("SIGMAF (no STFILT)")};
   if (h.getString("STEP").value_or("") == "preprocess" && h.has("PSFFWHM")) {
@@ -108,7 +108,7 @@ PreparedHeader readPreparedHeader(const FitsHeader& header, const std::string& s
   throw InputError(source + ": not a pre-processed cube: the header has no " + kFilteredKeyword +
                    " keyword (nor SIGMAF or PSFFWHM from preprocess), so it cannot be told whether its frames "
                    "are matched-filtered; " +
-                   whatToRun(source));
+                   whatToRun());
 }
 
 void checkNotPrepared(const FrameCube& raw, const std::string& whatToDo) {
@@ -140,7 +140,7 @@ PreparedSearchInput searchInputFromPrepared(FrameCube loaded, const PreparedOver
     if (!h.psf && !overrides.psfFwhmPx) {
       throw InputError(source + ": zero-biased cube (" + h.evidence +
                        ") without PSFFWHM: the matched filter needs the PSF; give its FWHM (--fwhm) or " +
-                       whatToRun(source));
+                       whatToRun());
     }
     const double beta = h.psf ? h.psf->beta : kDefaultPsfBeta;
     const psf::Moffat psf =
