@@ -64,7 +64,8 @@ std::optional<std::pair<PreparedState, std::string>> stateOf(const FitsHeader& h
   }
   if (h.has("SIGMAF")) return std::pair{PreparedState::Filtered, std::string("SIGMAF (no STFILT)")};
   if (h.getString("STEP").value_or("") == "preprocess" && h.has("PSFFWHM")) {
-    return std::pair{PreparedState::ZeroBiased, std::string("STEP = 'preprocess' without SIGMAF (no STFILT)")};
+    return std::pair{PreparedState::ZeroBiased,
+                     std::string("STEP = 'preprocess' without SIGMAF (no STFILT)")};
   }
   return std::nullopt;
 }
@@ -105,10 +106,11 @@ std::optional<PreparedHeader> recognisePreparedHeader(const FitsHeader& header, 
 
 PreparedHeader readPreparedHeader(const FitsHeader& header, const std::string& source) {
   if (auto p = recognisePreparedHeader(header, source)) return *p;
-  throw InputError(source + ": not a pre-processed cube: the header has no " + kFilteredKeyword +
-                   " keyword (nor SIGMAF or PSFFWHM from preprocess), so it cannot be told whether its frames "
-                   "are matched-filtered; " +
-                   whatToRun());
+  throw InputError(
+      source + ": not a pre-processed cube: the header has no " + kFilteredKeyword +
+      " keyword (nor SIGMAF or PSFFWHM from preprocess), so it cannot be told whether its frames "
+      "are matched-filtered; " +
+      whatToRun());
 }
 
 void checkNotPrepared(const FrameCube& raw, const std::string& whatToDo) {
@@ -143,8 +145,7 @@ PreparedSearchInput searchInputFromPrepared(FrameCube loaded, const PreparedOver
                        whatToRun());
     }
     const double beta = h.psf ? h.psf->beta : kDefaultPsfBeta;
-    const psf::Moffat psf =
-        overrides.psfFwhmPx ? psf::Moffat::fromFwhm(*overrides.psfFwhmPx, beta) : *h.psf;
+    const psf::Moffat psf = overrides.psfFwhmPx ? psf::Moffat::fromFwhm(*overrides.psfFwhmPx, beta) : *h.psf;
     in.cube = stack::makeFilteredCube(std::move(loaded), psf, h.skyRate, progress, cancel);
     in.filteredHere = true;
     in.notes.push_back(source + ": zero-biased cube (" + h.evidence + "), matched-filtered with the " +
@@ -165,8 +166,9 @@ PreparedSearchInput searchInputFromPrepared(FrameCube loaded, const PreparedOver
     const int border = static_cast<int>(std::ceil(2.0 * in.cube.psfFwhmPx));
     in.cube.sigmaF = stack::measureFilteredNoise(in.cube.frames, border);
     if (!(in.cube.sigmaF > 0.0)) {
-      throw InputError(source + ": filtered cube without SIGMAF, and sigma_F could not be measured from the "
-                                "data (fewer than 1000 usable pixels); give it (--sigma-f)");
+      throw InputError(source +
+                       ": filtered cube without SIGMAF, and sigma_F could not be measured from the "
+                       "data (fewer than 1000 usable pixels); give it (--sigma-f)");
     }
     in.notes.push_back(source + ": filtered cube without SIGMAF: sigma_F " + numberText(in.cube.sigmaF) +
                        " measured (1.4826 MAD)");

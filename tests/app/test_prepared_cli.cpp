@@ -31,7 +31,9 @@ class PreparedCli : public ::testing::Test {
     const auto cli = cliPath();
     if (cli.empty()) return;
     std::string args;
-    args.append("simulate --preset small --seed 3 -o ").append(quoted(path("raw.fits"))).append(" >/dev/null");
+    args.append("simulate --preset small --seed 3 -o ")
+        .append(quoted(path("raw.fits")))
+        .append(" >/dev/null");
     s_ready = runCli(cli, args) == 0;
     args.clear();
     args.append("preprocess ").append(quoted(path("raw.fits"))).append(" -o ").append(quoted(path("P.fits")));
@@ -54,7 +56,8 @@ class PreparedCli : public ::testing::Test {
   static nlohmann::json search(const std::string& input, const std::string& extra, const std::string& tag) {
     std::string args;
     args.append("search ").append(quoted(path(input))).append(" ").append(extra);
-    args.append(" --vmax-deg-day 40 --backend cpu --method exact --json > ").append(quoted(path(tag + ".json")));
+    args.append(" --vmax-deg-day 40 --backend cpu --method exact --json > ")
+        .append(quoted(path(tag + ".json")));
     args.append(" 2> ").append(quoted(path(tag + ".err")));
     if (runCli(cliPath(), args) != 0) return nullptr;
     nlohmann::json j;

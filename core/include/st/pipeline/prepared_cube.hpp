@@ -65,8 +65,9 @@ PreparedHeader readPreparedHeader(const FitsHeader& header, const std::string& s
 
 /// Values the user gives that win over the header's.
 struct PreparedOverrides {
-  std::optional<double> psfFwhmPx;  ///< the matched filter's FWHM (zero-biased cubes; beta stays the header's)
-  std::optional<double> sigmaF;     ///< noise of one filtered frame
+  std::optional<double>
+      psfFwhmPx;                 ///< the matched filter's FWHM (zero-biased cubes; beta stays the header's)
+  std::optional<double> sigmaF;  ///< noise of one filtered frame
 };
 
 /// The search's input made from a loaded prepared cube.
