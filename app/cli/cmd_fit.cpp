@@ -258,6 +258,8 @@ int cmdFit(const Args& args) {
   load.plateScaleArcsecPerPx = a.number("plate-scale");
   const FrameCube cube = io::loadFrames(a.positionals(), load, progress, cancel);
   progress.finish();
+  for (const auto& w : cube.warnings)
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
 
   const fit::FitParams start{
       {*a.number("vx-px-s"), *a.number("vy-px-s")}, *a.number("x"), *a.number("y"), std::nan(""), 0.0};

@@ -12,6 +12,7 @@
 #include "st/calib/calibration.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/prepared_json.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "terminal_progress.hpp"
@@ -40,6 +41,7 @@ FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& p
   io::LoadOptions opt;  // calibration frames need no times: fall back to a nominal clock
   opt.startMjd = 0.0;
   opt.frameRateHz = 1.0;
+  opt.scienceFrames = false;  // bias/dark/flat are expected here: no 'not a science frame' warning
   return io::loadFrames(files, opt, progress, processCancelToken());
 }
 
@@ -54,13 +56,15 @@ const char* kHelp =
     "Calibrates (overscan BIASSEC, bias, dark, flat, TRIMSEC), removes cosmic rays, estimates the "
     "background\n"
     "and noise (paper §3.1), finds and zeroes static sources at the sky rate, fits the PSF and writes the\n"
-    "zero-biased cube plus PREPARED.json (noise, PSF, sky rate, star catalog).\n\n"
+    "zero-biased cube (background subtracted, NOT matched-filtered) plus PREPARED.json (noise, PSF, sky\n"
+    "rate, star catalog). Its header says what it is (STPREP = 1, STFILT = F, PSFFWHM, PSFBETA, SIGMAN,\n"
+    "SKYVX/SKYVY): `search PREPARED.fits --preprocessed` matched-filters it with that PSF before searching.\n\n"
     "  -o PREPARED.fits        output cube (overwritten); the sidecar gets the .json extension\n"
     "  --bias F / --flat F / --dark F   calibration frames (files or folders; repeat for several)\n"
     "  --sky-rate-px-s VX,VY   motion of the stars, px/s (default: measured from the stars)\n"
     "  --fwhm PX               PSF FWHM when no star is usable for the fit (default 3)\n"
     "  --psf-star X,Y          fit the PSF on the star at this 0-based pixel (t_ref)\n"
-    "  --filtered F.fits       also write the matched-filtered cube\n"
+    "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
     "  --json                  print the sidecar to stdout as well\n";
@@ -99,6 +103,8 @@ int cmdPreprocess(const Args& args) {
     SubProgress sub(progress, 0.0, 0.2);
     cube = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), sub, cancel);
   }
+  pipeline::checkNotPrepared(cube, "search it with `synthtrack-cli search " + pipeline::cubeSource(cube) +
+                                " --preprocessed`, or pre-process the raw frames");
   const FrameCube bias = loadCalibration(cli.values("bias"), progress);
   const FrameCube dark = loadCalibration(cli.values("dark"), progress);
   const FrameCube flat = loadCalibration(cli.values("flat"), progress);
@@ -111,18 +117,16 @@ int cmdPreprocess(const Args& args) {
     SubProgress sub(progress, 0.2, 0.95);
     prepared = pipeline::preprocess(std::move(cube), params, sub, cancel);
   }
-  FitsHeader extra = io::provenanceCards("preprocess");
-  extra.setNumber("SIGMAN", prepared.sigmaN, "noise of one pixel of one frame, counts");
-  extra.setNumber("SKYVX", prepared.skyRate.vx, "sky rate x, px/s");
-  extra.setNumber("SKYVY", prepared.skyRate.vy, "sky rate y, px/s");
-  extra.setNumber("PSFFWHM", prepared.psf.fwhm(), "Moffat FWHM, px");
-  extra.setNumber("PSFBETA", prepared.psf.beta, "Moffat beta");
-  io::writeCube(*out, prepared.frames, extra);
+  using pipeline::PreparedState;
+  io::writeCube(*out, prepared.frames, pipeline::preparedCubeCards(prepared, PreparedState::ZeroBiased));
   if (params.matchedFilter) {
-    extra.setNumber("SIGMAF", prepared.filtered.sigmaF, "noise of one filtered frame, counts");
-    io::writeCube(*cli.value("filtered"), prepared.filtered.frames, extra);
+    io::writeCube(*cli.value("filtered"), prepared.filtered.frames,
+                  pipeline::preparedCubeCards(prepared, PreparedState::Filtered));
   }
-  if (cli.has("background")) io::writeImage(*cli.value("background"), prepared.background, extra);
+  if (cli.has("background")) {
+    io::writeImage(*cli.value("background"), prepared.background,
+                   pipeline::preparedCubeCards(prepared, std::nullopt));
+  }
   const std::string sidecar = sidecarPath(*out);
   pipeline::writePreparedSidecar(sidecar, prepared);
   progress.finish();

@@ -1,12 +1,12 @@
 // synthtrack-cli search INPUT... : the velocity search (paper §4.4) over a grid of trial velocities,
 // candidates above threshold with their false-alarm probabilities (paper Prob_false).
-#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "backend_factory.hpp"
 #include "candidate_fit.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
@@ -19,7 +19,6 @@
 #include "st/search/search_run.hpp"
 #include "st/search/sky_motion.hpp"
 #include "st/search/velocity_grid.hpp"
-#include "st/stack/matched_filter.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -29,9 +28,11 @@ constexpr const char* kHelp =
     "usage: synthtrack-cli search INPUT... [--preprocessed] [--fit] [options]\n"
     "  Searches the frames over a grid of trial velocities (paper §4.4). Raw INPUT is\n"
     "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults: no bias/flat frames).\n"
-    "  --preprocessed        INPUT is already pre-processed and matched-filtered; sigma_F, PSF FWHM and sky\n"
-    "                        rate come from the header keywords SIGMAF, PSFFWHM, SKYVX/SKYVY (px/s) when\n"
-    "                        present, else from the options below\n"
+    "  --preprocessed        INPUT was written by 'synthtrack-cli preprocess', told by its header: the\n"
+    "                        zero-biased cube (-o; STFILT = F) is matched-filtered with the header's PSF\n"
+    "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is searched\n"
+    "                        as is with SIGMAF; sky rate from SKYVX/SKYVY (px/s). A cube whose header does not\n"
+    "                        say (no STFILT) is refused; a pre-processed cube without --preprocessed too\n"
     "  --fit                 refine every candidate (up to --fit-max, default 50) by the co-moving PSF fit\n"
     "                        with segment checks (needs raw INPUT, not --preprocessed)\n"
     "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
@@ -43,9 +44,10 @@ constexpr const char* kHelp =
     "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all trials\n"
     "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
     "  --max-candidates N    cells kept before clustering (default 2000000)\n"
-    "  --sigma-f S           noise of one filtered frame (default: header SIGMAF, else measured: 1.4826 "
-    "MAD)\n"
-    "  --fwhm PX             PSF FWHM (default: header PSFFWHM, else 3)\n"
+    "  --sigma-f S           noise of one filtered frame (default: header SIGMAF of a filtered cube, else\n"
+    "                        measured from the filtered frames: 1.4826 MAD)\n"
+    "  --fwhm PX             PSF FWHM (default: fitted, or header PSFFWHM with --preprocessed; for a\n"
+    "                        zero-biased cube it is the matched filter's)\n"
     "  --backend auto|cpu|cuda  (default auto)\n"
     "  --method auto|exact|tree  exact IPSA (every frame at its exact shift) or the hierarchical tree "
     "search\n"
@@ -112,26 +114,17 @@ Options parseOptions(const CliArgs& cli) {
   return o;
 }
 
-search::FilteredCube loadFiltered(const CliArgs& cli, const Options& o, ProgressSink& progress) {
-  search::FilteredCube fc;
-  SubProgress loadProgress(progress, 0.0, 1.0);
-  fc.frames = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
-  const FitsHeader& h = fc.frames.header;
-  fc.psfFwhmPx = o.fwhm.value_or(h.getDouble("PSFFWHM").value_or(3.0));
-  if (!(fc.psfFwhmPx > 0.0)) throw InputError("PSF FWHM must be > 0, got " + std::to_string(fc.psfFwhmPx));
-  fc.skyRate = {h.getDouble("SKYVX").value_or(0.0), h.getDouble("SKYVY").value_or(0.0)};
-  if (o.sigmaF) {
-    fc.sigmaF = *o.sigmaF;
-  } else if (auto s = h.getDouble("SIGMAF")) {
-    fc.sigmaF = *s;
-  } else {
-    fc.sigmaF = stack::measureFilteredNoise(fc.frames, static_cast<int>(std::ceil(2.0 * fc.psfFwhmPx)));
-    if (!(fc.sigmaF > 0.0)) {
-      throw InputError(
-          "could not measure sigma_F from the data (fewer than 1000 usable pixels); give --sigma-f");
-    }
+/// The search's input from a cube written by `preprocess` (pipeline::searchInputFromPrepared: a zero-biased
+/// cube is matched-filtered with its header's PSF, a filtered one taken as is, anything else refused).
+pipeline::PreparedSearchInput loadPrepared(const CliArgs& cli, const Options& o, ProgressSink& progress) {
+  FrameCube frames;
+  {
+    SubProgress loadProgress(progress, 0.0, 0.5);
+    frames = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
   }
-  return fc;
+  SubProgress filterProgress(progress, 0.5, 1.0);
+  return pipeline::searchInputFromPrepared(std::move(frames), {o.fwhm, o.sigmaF}, filterProgress,
+                                           processCancelToken());
 }
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
@@ -209,18 +202,25 @@ int cmdSearch(const Args& args) {
   BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method);
   TerminalProgress progress;
   std::optional<pipeline::Prepared> prepared;
-  if (!preprocessed) {
+  std::optional<pipeline::PreparedSearchInput> loaded;
+  std::vector<std::string> warnings, notes;
+  if (preprocessed) {
+    loaded = loadPrepared(cli, o, progress);
+    warnings = std::move(loaded->warnings);
+    notes = std::move(loaded->notes);
+  } else {
     SubProgress loadProgress(progress, 0.0, 0.2);
     FrameCube raw =
         io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
+    pipeline::checkNotPrepared(raw, "search it with --preprocessed");
+    warnings = raw.warnings;
     SubProgress prepProgress(progress, 0.2, 0.5);
     prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress,
                                     processCancelToken());
     if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
     if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;
   }
-  const search::FilteredCube loaded = preprocessed ? loadFiltered(cli, o, progress) : search::FilteredCube{};
-  const search::FilteredCube& fc = preprocessed ? loaded : prepared->filtered;
+  const search::FilteredCube& fc = preprocessed ? loaded->cube : prepared->filtered;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
   const search::MethodEstimate e =
       search::estimateMethods(fc.frames.width(), fc.frames.height(), fc.frames.timeOffsetsS(), grid,
@@ -228,6 +228,10 @@ int cmdSearch(const Args& args) {
   const search::MethodChoice method = search::chooseMethod(
       o.request.params.method, e, sel.backend->supportsMethod("tree"), sel.backend->name());
   progress.finish();
+  for (const auto& w : warnings)
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
+  for (const auto& n : notes)
+    std::fprintf(stderr, "note: %s\n", n.c_str());
   std::fprintf(stderr, "%s\n", sel.message.c_str());
   printEstimate(fc, grid, e, method);
   const search::SearchResult r = search::searchWithChoice(*sel.backend, fc, grid, o.request.params, method,

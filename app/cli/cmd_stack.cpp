@@ -12,6 +12,7 @@
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/csa.hpp"
 #include "st/stack/ipsa.hpp"
@@ -29,22 +30,32 @@ constexpr const char* kHelp =
     "  --vx-px-s VX         velocity along x (columns), px/s\n"
     "  --vy-px-s VY         velocity along y (rows), px/s\n"
     "  --csa                continuous (sub-pixel, Fourier) shifts instead of whole-pixel IPSA shifts\n"
-    "  --filtered           stack the matched-filtered frames (PSF from --fwhm, else fitted on a star of\n"
-    "                       the zero-velocity stack)\n"
+    "  --filtered           stack the matched-filtered frames (PSF from --fwhm, else from the header of a\n"
+    "                       cube written by `preprocess` (PSFFWHM, PSFBETA), else fitted on a star of the\n"
+    "                       zero-velocity stack); a cube that is already filtered (STFILT = T) is not\n"
+    "                       filtered again\n"
     "  --fwhm F             PSF FWHM in px for the matched filter (Moffat, beta from --beta)\n"
-    "  --beta B             Moffat beta with --fwhm (default 4, the paper's)\n"
+    "  --beta B             Moffat beta with --fwhm (default: the header's PSFBETA, else 4, the paper's)\n"
     "  --nin NIN.fits       also write N_in(x, y), the frames that contributed to each pixel\n"
     "%s";
 
-/// The PSF for the matched filter: the user's FWHM, or a Moffat fit on the best star of the sum of the
-/// frames.
-psf::Moffat choosePsf(const CliArgs& cli, const FrameCube& cube) {
+/// The PSF for the matched filter: the user's FWHM; else the PSF in the header of a cube written by
+/// `preprocess` (PSFFWHM, PSFBETA); else a Moffat fit on the best star of the sum of the frames (which finds
+/// none in a pre-processed cube: its stars are zeroed).
+psf::Moffat choosePsf(const CliArgs& cli, const FrameCube& cube,
+                      const std::optional<pipeline::PreparedHeader>& prepared) {
   if (const auto fwhm = cli.number("fwhm")) {
-    const double beta = cli.number("beta", 4.0);
+    const double beta = cli.number("beta", prepared && prepared->psf ? prepared->psf->beta : 4.0);
     if (!(*fwhm > 0.0) || !(beta > 1.0))
       throw UsageError("--fwhm must be > 0 and --beta > 1 (got " + std::to_string(*fwhm) + ", " +
                        std::to_string(beta) + ")");
     return psf::Moffat::fromFwhm(*fwhm, beta);
+  }
+  if (prepared && prepared->psf) {
+    std::fprintf(stderr, "PSF: Moffat R = %.3f px, beta = %.3f, FWHM = %.3f px (header of %s)\n",
+                 prepared->psf->radius, prepared->psf->beta, prepared->psf->fwhm(),
+                 pipeline::cubeSource(cube).c_str());
+    return *prepared->psf;
   }
   const stack::StackResult still = stack::stackIpsa(cube, Velocity{0.0, 0.0});
   const psf::PsfMeasurement m = psf::measurePsf(still.sum, {});
@@ -83,9 +94,24 @@ int cmdStack(const Args& args) {
   params.setNumber("MJD-AVG", cube.tRefMjd(), "epoch of the stack's positions (t_ref), MJD (UTC)");
   params.setString("STKMODE", cli.flag("csa") ? "CSA" : "IPSA", "shift-and-add method");
   params.setNumber("NFRAMES", double(cube.frameCount()), "frames in the input");
-  params.set("FILTERED", cli.flag("filtered") ? "T" : "F", "frames matched-filtered before stacking");
-  if (cli.flag("filtered")) {
-    const psf::Moffat psfModel = choosePsf(cli, cube);
+  const auto prepared = pipeline::recognisePreparedHeader(cube.header, pipeline::cubeSource(cube));
+  const bool alreadyFiltered = prepared && prepared->state == pipeline::PreparedState::Filtered;
+  params.set("FILTERED", cli.flag("filtered") || alreadyFiltered ? "T" : "F",
+             "frames matched-filtered before stacking");
+  if (cli.flag("filtered") && alreadyFiltered) {
+    if (cli.has("fwhm")) {
+      throw UsageError("--fwhm: " + pipeline::cubeSource(cube) + " is already matched-filtered (" +
+                       prepared->evidence + "); it is not filtered again");
+    }
+    std::fprintf(stderr, "note: %s is already matched-filtered (%s): stacked as is\n",
+                 pipeline::cubeSource(cube).c_str(), prepared->evidence.c_str());
+    if (prepared->psf) {
+      params.setNumber("PSFFWHM", prepared->psf->fwhm(), "matched-filter PSF FWHM, px");
+      params.setNumber("PSFBETA", prepared->psf->beta, "matched-filter Moffat beta");
+    }
+    if (prepared->sigmaF) params.setNumber("SIGMAF", *prepared->sigmaF, "noise of one filtered frame");
+  } else if (cli.flag("filtered")) {
+    const psf::Moffat psfModel = choosePsf(cli, cube, prepared);
     const stack::FilterKernel kernel = stack::makeFilterKernel(psfModel);
     const stack::MatchedFilterResult f = stack::filterCube(cube, kernel, progress, cancel);
     params.setNumber("PSFFWHM", psfModel.fwhm(), "matched-filter PSF FWHM, px");

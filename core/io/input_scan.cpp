@@ -1,6 +1,7 @@
 #include "input_scan.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -138,6 +139,56 @@ void timesFromStartAndRate(ScannedFile& s) {
   s.timeSource = t.source + " + plane * cadence";
 }
 
+// "bias", "dark" or "flat" when IMAGETYP or OBSTYPE names a calibration frame (case-insensitive: 'Bias Frame',
+// 'ZERO', 'dark', 'FLAT', 'Flat Field', 'SKYFLAT', ...); the card that said so goes to `card`.
+std::optional<std::string> calibrationType(const FitsHeader& h, std::string& card) {
+  for (const char* key : {"IMAGETYP", "OBSTYPE"}) {
+    const auto v = h.getString(key);
+    if (!v) continue;
+    std::string lower = *v;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+    const auto has = [&](const char* word) { return lower.find(word) != std::string::npos; };
+    std::optional<std::string> type;
+    if (has("bias") || has("zero")) {
+      type = "bias";
+    } else if (has("dark")) {
+      type = "dark";
+    } else if (has("flat")) {
+      type = "flat";
+    }
+    if (type) {
+      card = std::string(key) + " = '" + *v + "'";
+      return type;
+    }
+  }
+  return std::nullopt;
+}
+
+// A science input that is a calibration frame, or has no exposure, is most likely a mistake the user should
+// see: it is stacked like any other frame.
+void warnIfNotScience(ScannedFile& s) {
+  std::string card;
+  const auto type = calibrationType(s.header, card);
+  const char* zeroExposure = nullptr;  // the keyword that says 0
+  try {
+    for (const char* key : {"EXPTIME", "EXPOSURE"}) {
+      if (const auto e = s.header.getDouble(key)) {
+        if (*e == 0.0) zeroExposure = key;
+        break;
+      }
+    }
+  } catch (const InputError&) {
+    // not a number: reported where the times are read
+  }
+  if (!type && !zeroExposure) return;
+  std::string what = hduName(s.path, s.hdu) + ": ";
+  if (type) what += card + " says a " + *type + " frame";
+  if (zeroExposure) what += std::string(type ? ", and " : "") + zeroExposure + " = 0 (no exposure)";
+  what += ", given as a science frame (it is stacked like the others); leave it out of the science inputs "
+          "(calibration frames go to preprocess --bias/--dark/--flat)";
+  s.warnings.push_back(std::move(what));
+}
+
 }  // namespace
 
 std::vector<std::string> expandInputs(const std::vector<std::string>& inputs) {
@@ -261,6 +312,7 @@ ScannedFile scanFile(const std::string& path, std::size_t fileIndex, const LoadO
   }
   checkRiceTiles(f);  // before CFITSIO decompresses anything (it crashes on corrupt RICE tiles)
   s.header = readHeader(f);
+  if (options.scienceFrames) warnIfNotScience(s);
   try {
     if (s.header.getDouble("BZERO").value_or(0.0) != 0.0 ||
         s.header.getDouble("BSCALE").value_or(1.0) != 1.0) {

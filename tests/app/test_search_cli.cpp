@@ -8,34 +8,16 @@
 #include <nlohmann/json.hpp>
 
 #include "../core/search_test_cubes.hpp"
+#include "cli_runner.hpp"
 #include "st/io/fits_writer.hpp"
 #include "test_support.hpp"
 
 namespace st {
 namespace {
 
-std::filesystem::path cliPath() {
-  // Tests run in build/tests (WORKING_DIRECTORY of gtest_discover_tests); the CLI is build/app.
-  for (const char* p : {"../app/synthtrack-cli", "app/synthtrack-cli", "../../app/synthtrack-cli"}) {
-    if (std::filesystem::exists(p)) return std::filesystem::absolute(p);
-  }
-  return {};
-}
-
-/// Runs the CLI with `args` (already quoted where needed); returns its exit status. Built with append, not
-/// operator+, which trips GCC 12's -Wrestrict false positive.
-int runCli(const std::filesystem::path& cli, const std::string& args) {
-  std::string cmd;
-  cmd.append("\"").append(cli.string()).append("\" ").append(args);
-  const int status = std::system(cmd.c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-std::string quoted(const std::filesystem::path& p) {
-  std::string s;
-  s.append("\"").append(p.string()).append("\"");
-  return s;
-}
+using test::cliPath;
+using test::quoted;
+using test::runCli;
 
 TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
   const auto cli = cliPath();
@@ -50,7 +32,7 @@ TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
   test::matchedFilter(cube, psf, r);
   test::TempDir dir;
   const auto fits = dir / "filtered.fits";
-  FitsHeader extra;
+  FitsHeader extra;  // no STFILT: SIGMAF alone says filtered (files written before STFILT existed)
   extra.setNumber("SIGMAF", std::sqrt(p2), "noise of one filtered frame");
   extra.setNumber("PSFFWHM", psf.fwhm(), "px");
   io::writeCube(fits.string(), cube, extra);

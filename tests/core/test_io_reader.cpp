@@ -1,6 +1,7 @@
 // loadFrames: every BITPIX with BZERO/BSCALE/BLANK, cubes vs files, compressed inputs, HDU choice, times.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -123,6 +124,60 @@ TEST(IoReader, FilesCubeAndFolderGiveIdenticalCubes) {
     EXPECT_EQ(fromCube.info()[n].plane, static_cast<int>(n));
   }
   EXPECT_EQ(fromCube.header.getString("SOFTWARE").value_or("").rfind("synthtrack ", 0), 0u);
+}
+
+// A bias, dark or flat frame (IMAGETYP or OBSTYPE, any case and wording) or a frame of EXPTIME 0 among the
+// science frames is stacked like the others: the user is told, with the file named, unless the frames are
+// loaded as calibration frames.
+TEST(IoReader, WarnsAboutCalibrationFramesGivenAsScience) {
+  TempDir dir;
+  struct Case {
+    const char* name;
+    const char* key;
+    const char* type;  // nullptr: no type card
+    double exptime;
+    const char* expected;  // nullptr: no warning
+  };
+  const Case cases[] = {
+      {"light", "IMAGETYP", "Light Frame", 0.2, nullptr},
+      {"object", "OBSTYPE", "OBJECT", 0.2, nullptr},
+      {"bias", "IMAGETYP", "Bias Frame", 0.2, "a bias frame"},
+      {"zero", "IMAGETYP", "ZERO", 0.2, "a bias frame"},
+      {"flat", "IMAGETYP", "FLAT", 0.2, "a flat frame"},
+      {"flatfield", "OBSTYPE", "flat field", 0.2, "a flat frame"},
+      {"dark", "OBSTYPE", "dark", 0.2, "a dark frame"},
+      {"noexposure", "IMAGETYP", nullptr, 0.0, "EXPTIME = 0"},
+  };
+  std::vector<std::string> paths;
+  for (std::size_t n = 0; n < std::size(cases); ++n) {
+    char date[64];
+    std::snprintf(date, sizeof date, "2023-05-06T07:08:%06.3f", 10.0 + n * 0.25);
+    FixtureImage img = timedFrame(date, cases[n].exptime, 0.0);
+    if (cases[n].type) img.cards.push_back({cases[n].key, std::string("'") + cases[n].type + "'", ""});
+    const auto path = dir / (std::string(cases[n].name) + ".fits");
+    writeFixture(path, img);
+    paths.push_back(path.string());
+  }
+  const FrameCube cube = loadFrames(paths);
+  ASSERT_EQ(cube.frameCount(), std::size(cases));
+  for (std::size_t n = 0; n < std::size(cases); ++n) {
+    const std::string file = "/" + std::string(cases[n].name) + ".fits";
+    const auto w = std::find_if(cube.warnings.begin(), cube.warnings.end(),
+                                [&](const std::string& s) { return s.find(file) != std::string::npos; });
+    if (cases[n].expected == nullptr) {
+      EXPECT_EQ(w, cube.warnings.end()) << cases[n].name << ": " << *w;
+    } else {
+      ASSERT_NE(w, cube.warnings.end()) << cases[n].name << " has no warning";
+      EXPECT_NE(w->find(cases[n].expected), std::string::npos) << *w;
+      EXPECT_NE(w->find("science"), std::string::npos) << *w;
+    }
+  }
+  EXPECT_EQ(summarizeInputs(paths).warnings, cube.warnings) << "info shows the same warnings";
+  LoadOptions calibration;
+  calibration.scienceFrames = false;
+  NullProgress progress;
+  CancelToken cancel;
+  EXPECT_TRUE(loadFrames(paths, calibration, progress, cancel).warnings.empty());
 }
 
 TEST(IoReader, TileCompressedAndGzipMatchPlain) {

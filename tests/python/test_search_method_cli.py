@@ -70,8 +70,11 @@ def larger_cube(cli, tmp):
     r = subprocess.run([cli, "simulate", "--preset", "small", "--frames", "500", "--size", "256x256", "-o", obs],
                        capture_output=True, text=True)
     check(r.returncode == 0, "simulate 500 x 256^2: " + r.stderr)
-    # Searched as if pre-processed with an unreachable threshold: only the method and the run matter here.
-    r = search(cli, [obs, "--preprocessed", "--sigma-f", "1", "--snr", "1e9", "--vmax-px-s", "0.3",
+    # Pre-processed, then searched with an unreachable threshold: only the method and the run matter here.
+    prepared = os.path.join(tmp, "larger_prepared.fits")
+    r = subprocess.run([cli, "preprocess", obs, "-o", prepared], capture_output=True, text=True)
+    check(r.returncode == 0, "preprocess 500 x 256^2: " + r.stderr)
+    r = search(cli, [prepared, "--preprocessed", "--sigma-f", "1", "--snr", "1e9", "--vmax-px-s", "0.3",
                      "--backend", "cpu", "--json"])
     check(r.returncode == 0, "search 500 x 256^2: " + r.stderr)
     j = json.loads(r.stdout) if r.returncode == 0 else {"trials": {}, "method": "", "method_reason": ""}

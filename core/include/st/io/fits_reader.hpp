@@ -28,6 +28,10 @@ struct LoadOptions {
   /// Plate scale to use when there is no WCS (arcsec/px); a WCS wins unless `forcePlateScale`.
   std::optional<double> plateScaleArcsecPerPx;
   bool forcePlateScale = false;
+  /// The frames are science exposures: a file whose IMAGETYP or OBSTYPE says bias/zero, dark or flat, or
+  /// whose EXPTIME is 0, gets a warning naming it (FrameCube::warnings, InputSummary::warnings). False when
+  /// loading calibration frames.
+  bool scienceFrames = true;
 };
 
 /// Loads every frame of `inputs` (files or folders) into one cube, frames sorted by mid-time (a warning in
