@@ -232,6 +232,7 @@ int cmdSearch(const Args& args) {
     std::fprintf(stderr, "warning: %s\n", w.c_str());
   for (const auto& n : notes)
     std::fprintf(stderr, "note: %s\n", n.c_str());
+  std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(fc.frames, fc.psfFwhmPx).c_str());
   std::fprintf(stderr, "%s\n", sel.message.c_str());
   printEstimate(fc, grid, e, method);
   const search::SearchResult r = search::searchWithChoice(*sel.backend, fc, grid, o.request.params, method,

@@ -1,6 +1,7 @@
 #include "st/search/sky_motion.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include "st/common/error.hpp"
 #include "st/io/wcs.hpp"
@@ -33,6 +34,25 @@ SkyMotion skyMotion(const FrameCube& cube, double x, double y, Velocity v) {
     // No sky position at this pixel: keep the plate-scale rate.
   }
   return m;
+}
+
+double staticRateLimitPxS(double fwhmPx, double spanS) { return spanS > 0.0 ? fwhmPx / spanS : 0.0; }
+
+std::string staticRateLimitNote(const FrameCube& cube, double fwhmPx) {
+  const double v = staticRateLimitPxS(fwhmPx, cube.timeSpanS());
+  char buf[256];
+  if (cube.plateScaleArcsecPerPx) {
+    std::snprintf(buf, sizeof buf,
+                  "movers slower than %.3g px/s (%.3g deg/day: one PSF FWHM of %.2f px over the %.0f s span) "
+                  "relative to the stars look static and are removed with them",
+                  v, v * *cube.plateScaleArcsecPerPx * 86400.0 / 3600.0, fwhmPx, cube.timeSpanS());
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "movers slower than %.3g px/s (one PSF FWHM of %.2f px over the %.0f s span) relative to the "
+                  "stars look static and are removed with them",
+                  v, fwhmPx, cube.timeSpanS());
+  }
+  return buf;
 }
 
 }  // namespace st::search

@@ -251,9 +251,11 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
             }
       }
       for (int x = 0; x < w; ++x) {
+        // Short sequences: 15 frames less the 7 of a middle frame's window leave 8; a third of the clipped
+        // samples (at least 4) still beats taking a mover's own flux into its background.
         const std::size_t c = totalC[x] - winC[x];
-        level[x] = validRow[x] && c >= params.minSamples ? static_cast<float>((total[x] - winS[x]) / double(c))
-                                                          : levelRow[x];
+        const std::size_t need = std::min(params.minSamples, std::max<std::size_t>(4, totalC[x] / 3));
+        level[x] = validRow[x] && c >= need ? static_cast<float>((total[x] - winS[x]) / double(c)) : levelRow[x];
       }
       const std::size_t off = n * np + y * w;
       float* f = pix + off;

@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -185,6 +186,10 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
       }
     }
     const Prepared prep = preprocess(std::move(cube), pp, np, c);
+    std::printf("seed %u: %zu cosmic-ray pixels (uninjected %zu), %zu single-frame source pixels zeroed\n", seed,
+                prep.cosmicRays, clean.cosmicRays,
+                std::accumulate(prep.singleFrame.zeroedPerFrame.begin(), prep.singleFrame.zeroedPerFrame.end(),
+                                std::size_t{0}));
     const search::SearchResult r = searchLowell(prep);
     const double step = r.grid.stepPxS, span = prep.filtered.frames.timeSpanS();
     std::vector<bool> used(r.candidates.size(), false);
@@ -217,17 +222,18 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
       atTruth /= prep.filtered.sigmaF * std::sqrt(std::max(1, nIn));
       // The injected flux that pre-processing kept: (injected - uninjected zero-biased frames) over the
       // footprint, against what was added.
-      double kept = 0.0, added = 0.0;
+      double kept = 0.0, added = 0.0, zeroed = 0.0;
       for (std::size_t n = 0; n < nf; ++n)
         footprint(m, psf, tOff[n], raw.info()[n].exposureS, w, h, [&](std::size_t i, double p) {
           if (p < 0.02) return;
           kept += prep.frames.frame(n)[i] - clean.frames.frame(n)[i];
           added += m.flux * p;
+          if (prep.frames.frame(n)[i] == 0.0f && clean.frames.frame(n)[i] != 0.0f) zeroed += m.flux * p;
         });
       std::printf("seed %u mover (%.1f, %.1f) v (%.5f, %.5f) expected SNR %.1f flux %.0f: %s %.1f; on the true "
-                  "track %.1f; flux kept %.2f\n",
+                  "track %.1f; flux kept %.2f, zeroed %.2f\n",
                   seed, m.x, m.y, m.vx, m.vy, m.snr, m.flux, best > 0 ? "found at SNR" : "missed", best, atTruth,
-                  added > 0 ? kept / added : 0.0);
+                  added > 0 ? kept / added : 0.0, added > 0 ? zeroed / added : 0.0);
     }
     int unmatched = 0;
     bool asteroid = false;

@@ -60,7 +60,8 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
 
 /// estimateBackground, then the subtraction in place of a background per frame and pixel: the mean of the
 /// pixel's clipped background samples outside +- moverWindowFraction x span of the frame (the whole clipped
-/// mean when fewer than minSamples remain, or when the frame times are not sorted). Masked pixels become 0.
+/// mean when fewer than min(minSamples, max(4, a third of the clipped samples)) remain, or when the frame
+/// times are not sorted). Masked pixels become 0.
 /// Returns what estimateBackground returns (`level` is the whole clipped mean, for display).
 Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
                                    const detect::MovingMask* exclude, ProgressSink& progress,
