@@ -4,12 +4,15 @@
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <map>
+#include <mutex>
 #include <string>
 
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/psf/psf_star.hpp"
+#include "st/sim/samplers.hpp"
 
 namespace st::inject {
 namespace {
@@ -33,25 +36,28 @@ std::vector<std::uint8_t> maskedInAnyFrame(const FrameCube& cube) {
   return any;
 }
 
-psf::Moffat measurePsfOnFrames(const FrameCube& cube, Field& field, ProgressSink& progress,
+psf::Moffat measurePsfOnFrames(const FrameCube& cube, int psfFrames, Field& field, ProgressSink& progress,
                                CancelToken& cancel) {
-  std::vector<psf::MoffatFit> fits(cube.frameCount());
-  std::vector<std::uint8_t> ok(cube.frameCount(), 0);
-  std::vector<std::string> why(cube.frameCount());
-  parallelFor(cube.frameCount(), 1, [&](std::size_t n0, std::size_t n1) {
-    for (std::size_t n = n0; n < n1; ++n) {
+  const std::size_t count = std::clamp<std::size_t>(static_cast<std::size_t>(std::max(psfFrames, 1)), 1,
+                                                    cube.frameCount());
+  std::vector<psf::MoffatFit> fits(count);
+  std::vector<std::uint8_t> ok(count, 0);
+  std::vector<std::string> why(count);
+  parallelFor(count, 1, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k) {
       cancel.throwIfCancelled();
+      const std::size_t n = count == 1 ? cube.frameCount() / 2 : k * (cube.frameCount() - 1) / (count - 1);
       Image frame = cube.frameImage(n);
       for (int y = 0; y < frame.height; ++y)
         for (int x = 0; x < frame.width; ++x)
           if (cube.isMasked(n, x, y)) frame.at(x, y) = 0.0f;  // the fit skips exact zeros
       try {
-        fits[n] = psf::measurePsf(frame, {}).fit;
-        ok[n] = 1;
+        fits[k] = psf::measurePsf(frame, {}).fit;
+        ok[k] = 1;
       } catch (const InputError& e) {
-        why[n] = e.what();
+        why[k] = e.what();
       }
-      progress.report(0.5 + 0.5 * static_cast<double>(n1) / cube.frameCount(), "inject: PSF");
+      progress.report(0.5 + 0.5 * static_cast<double>(k1) / count, "inject: PSF");
     }
   });
   std::vector<std::size_t> good;
@@ -67,6 +73,30 @@ psf::Moffat measurePsfOnFrames(const FrameCube& cube, Field& field, ProgressSink
 }
 
 }  // namespace
+
+double residualScale(std::size_t frames) {
+  if (frames < 2) throw InputError("residual scale: needs at least 2 frames");
+  static std::mutex mutex;
+  static std::map<std::size_t, double> cache;
+  const std::lock_guard lock(mutex);
+  if (auto it = cache.find(frames); it != cache.end()) return it->second;
+  sim::Rng rng(sim::streamSeed(20261125, frames));
+  sim::NormalPairs normal;
+  const std::size_t pixels = std::max<std::size_t>(200, 200000 / frames);
+  std::vector<double> column(frames), scratch, residuals;
+  residuals.reserve(pixels * frames);
+  for (std::size_t k = 0; k < pixels; ++k) {
+    for (double& v : column)
+      v = normal.next(rng);
+    scratch = column;
+    const double m = medianOf(scratch);
+    for (const double v : column)
+      residuals.push_back(std::abs(v - m));
+  }
+  const double scale = 1.4826 * medianOf(residuals);  // residuals about a median: their own median is ~0
+  cache[frames] = scale;
+  return scale;
+}
 
 Image meshBackground(const Image& image, const std::vector<std::uint8_t>& mask, int meshPx) {
   if (meshPx < 4) throw InputError("mesh background: cell must be >= 4 px, got " + std::to_string(meshPx));
@@ -145,7 +175,7 @@ Field measureField(const FrameCube& cube, const FieldParams& params, ProgressSin
   if (params.psf) {
     f.psf = *params.psf;
   } else {
-    f.psf = measurePsfOnFrames(cube, f, progress, cancel);
+    f.psf = measurePsfOnFrames(cube, params.psfFrames, f, progress, cancel);
     f.psfMeasured = true;
   }
   progress.report(1.0, "inject: field measured");
@@ -192,7 +222,7 @@ std::vector<double> localFrameNoise(const FrameCube& cube, const std::vector<std
     for (std::size_t n = 0; n < nf; ++n)
       values[n][k] -= m;
   }
-  const double correction = std::sqrt(1.0 - (2.0 - M_PI / 2.0) / static_cast<double>(nf));
+  const double correction = residualScale(nf);
   std::vector<double> sigma(nf);
   for (std::size_t n = 0; n < nf; ++n) {
     scratch = values[n];

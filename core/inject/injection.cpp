@@ -184,6 +184,7 @@ RawGeometry rawGeometry(const FrameCube& raw, const calib::MasterCalibration& ma
     g.offsetY = trim->y0;
   }
   g.flat = masters.flat;
+  g.integerCounts = raw.header.getDouble("BITPIX").value_or(-32.0) > 0.0;
   return g;
 }
 
@@ -206,10 +207,14 @@ Image rawSignal(const InjectionPlan& plan, std::size_t frame, const RawGeometry&
   sim::Rng rng(sim::streamSeed(plan.params.seed, 1 + frame));
   for (std::size_t i = 0; i < expected.size(); ++i) {
     if (!(expected[i] > 0.0)) continue;
-    signal.pixels[i] = g.gainEPerAdu > 0.0
-                           ? static_cast<float>(static_cast<double>(sim::poisson(rng, expected[i] * g.gainEPerAdu)) /
-                                                g.gainEPerAdu)
-                           : static_cast<float>(expected[i]);
+    double v = g.gainEPerAdu > 0.0
+                   ? static_cast<double>(sim::poisson(rng, expected[i] * g.gainEPerAdu)) / g.gainEPerAdu
+                   : expected[i];
+    if (g.integerCounts) {
+      const double whole = std::floor(v);
+      v = whole + (sim::uniform01(rng) < v - whole ? 1.0 : 0.0);
+    }
+    signal.pixels[i] = static_cast<float>(v);
   }
   return signal;
 }

@@ -126,12 +126,23 @@ CopyReport copyWithAddedPixels(const std::string& src, const std::string& dst,
     in.check(status, "moving to the HDU");
     const bool compressed = fits_is_compressed_image(in.get(), &status) != 0;
     if (compressed) {
-      fits_img_decompress(in.get(), out.get(), &status);
+      // Decompressed in memory first: fits_img_decompress writes into an empty primary of its output when
+      // it can, which would move the image from HDU h to HDU 1; copied from memory it stays at HDU h.
+      fitsfile* mem = nullptr;
+      fits_create_file(&mem, "mem://", &status);
+      in.check(status, "creating a memory file to decompress into");
+      fits_img_decompress(in.get(), mem, &status);
+      if (status == 0) fits_copy_hdu(mem, out.get(), 0, &status);
+      int closeStatus = 0;
+      fits_close_file(mem, &closeStatus);
       in.check(status, "decompressing the image");
     } else {
       fits_copy_hdu(in.get(), out.get(), 0, &status);
       in.check(status, "copying the HDU");
     }
+    // Re-read the new HDU's structure so that its scaling (BZERO/BSCALE) and size are the ones in force.
+    fits_movabs_hdu(out.get(), h, nullptr, &status);
+    out.check(status, "moving to the copied HDU");
     const auto edits = byHdu.find(h);
     const bool edited = edits != byHdu.end();
     if (edited) {
