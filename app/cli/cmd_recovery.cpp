@@ -17,11 +17,13 @@ namespace st::app {
 namespace {
 
 constexpr const char* kHelp =
-    "usage: synthtrack-cli recovery TRUTH.json CANDIDATES.json [--match-px P] [--out DIR] [options]\n\n"
+    "usage: synthtrack-cli recovery TRUTH.json CANDIDATES.json [TRUTH2.json CANDIDATES2.json ...]\n"
+    "                               [--match-px P] [--out DIR] [options]\n\n"
     "Matches the candidates of a search (the JSON of 'synthtrack-cli search --json') to the movers of an\n"
     "injection (DIR/truth.json of 'synthtrack-cli inject'), one to one, by position at t_ref and velocity;\n"
     "prints and writes the completeness in bins of expected SNR (and of magnitude when known), with Wilson\n"
-    "68% binomial intervals, the recovered/expected SNR ratio, and the unmatched candidates.\n\n"
+    "68% binomial intervals, the recovered/expected SNR ratio, and the unmatched candidates. Several pairs\n"
+    "(e.g. one per seed) are matched pair by pair and scored together (\"set\" = the pair's index).\n\n"
     "  --match-px P           position tolerance at t_ref, px (default 2)\n"
     "  --match-v-px-s V       velocity tolerance per component, px/s (default: one grid step of the search)\n"
     "  --match-v-steps K      velocity tolerance in grid steps (default 1)\n"
@@ -67,8 +69,9 @@ int cmdRecovery(const Args& args) {
     std::printf("%s", kHelp);
     return 0;
   }
-  if (cli.positionals().size() != 2) throw UsageError("give TRUTH.json and CANDIDATES.json");
-  const std::string truthPath = cli.positionals()[0], candPath = cli.positionals()[1];
+  const auto& pos = cli.positionals();
+  if (pos.size() < 2 || pos.size() % 2 != 0)
+    throw UsageError("give TRUTH.json and CANDIDATES.json (or several such pairs)");
   inject::RecoveryParams params;
   params.matchPx = cli.number("match-px", 2.0);
   params.matchVPxS = cli.number("match-v-px-s");
@@ -79,25 +82,38 @@ int cmdRecovery(const Args& args) {
   if (params.matchVPxS && !(*params.matchVPxS > 0.0)) throw UsageError("--match-v-px-s must be > 0");
   if (!(params.matchVSteps > 0.0)) throw UsageError("--match-v-steps must be > 0");
 
-  inject::Truth truth;
-  inject::CandidateSet cands;
-  try {
-    truth = inject::truthFromJson(readJson(truthPath));
-  } catch (const InputError& e) {
-    throw InputError(truthPath + ": " + e.what());
+  std::vector<inject::RecoveryResult> parts;
+  nlohmann::json sets = nlohmann::json::array();
+  for (std::size_t k = 0; k < pos.size(); k += 2) {
+    const std::string& truthPath = pos[k];
+    const std::string& candPath = pos[k + 1];
+    inject::Truth truth;
+    inject::CandidateSet cands;
+    try {
+      truth = inject::truthFromJson(readJson(truthPath));
+    } catch (const InputError& e) {
+      throw InputError(truthPath + ": " + e.what());
+    }
+    try {
+      cands = inject::candidatesFromJson(readJson(candPath));
+    } catch (const InputError& e) {
+      throw InputError(candPath + ": " + e.what());
+    }
+    parts.push_back(inject::matchRecovery(truth, cands, params));
+    sets.push_back({{"set", k / 2},
+                    {"truth_file", truthPath},
+                    {"candidates_file", candPath},
+                    {"injected", parts.back().total},
+                    {"recovered", parts.back().recovered},
+                    {"candidates", cands.candidates.size()},
+                    {"time_shift_s", parts.back().timeShiftS}});
   }
-  try {
-    cands = inject::candidatesFromJson(readJson(candPath));
-  } catch (const InputError& e) {
-    throw InputError(candPath + ": " + e.what());
-  }
-  const inject::RecoveryResult r = inject::matchRecovery(truth, cands, params);
+  const inject::RecoveryResult r = parts.size() == 1 ? parts.front() : inject::combineRecovery(parts, params);
   const std::filesystem::path outDir =
       cli.value("out") ? std::filesystem::path(*cli.value("out"))
-                       : std::filesystem::absolute(candPath).parent_path() / "recovery";
+                       : std::filesystem::absolute(pos[1]).parent_path() / "recovery";
   nlohmann::json j = inject::recoveryToJson(r);
-  j["truth_file"] = truthPath;
-  j["candidates_file"] = candPath;
+  j["sets"] = sets;
   inject::writeRecoveryCsv(r, outDir.string());
   report::writeJsonFile((outDir / "recovery.json").string(), j);
   const std::string svgPath = (outDir / "completeness.svg").string();
@@ -111,6 +127,10 @@ int cmdRecovery(const Args& args) {
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }
+  if (parts.size() > 1)
+    for (const auto& set : sets)
+      std::printf("set %d: %d of %d recovered (%s)\n", set["set"].get<int>(), set["recovered"].get<int>(),
+                  set["injected"].get<int>(), set["truth_file"].get<std::string>().c_str());
   std::printf("%s", inject::recoveryText(r).c_str());
   std::printf("wrote recovery.json, completeness.csv, objects.csv, unmatched.csv and completeness.svg in %s\n",
               outDir.string().c_str());

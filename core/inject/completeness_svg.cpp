@@ -105,8 +105,8 @@ std::string completenessSvg(const std::vector<CompletenessBin>& bins, const std:
   }
   s += "</g>\n";
   s += "<text x=\"" + num(kLeft + pw) + "\" y=\"" + num(kHeight - 6) +
-       "\" text-anchor=\"end\" font-size=\"10\" fill=\"#555555\">points: recovered/injected per bin, horizontal "
-       "bar: bin, vertical bar: Wilson 68% interval</text>\n";
+       "\" text-anchor=\"end\" font-size=\"10\" fill=\"#555555\">k/n: recovered/injected per bin; horizontal bar: "
+       "the bin; vertical bar: Wilson 68% interval</text>\n";
   s += "</svg>\n";
   return s;
 }

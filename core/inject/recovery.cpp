@@ -58,6 +58,42 @@ nlohmann::json binsToJson(const std::vector<CompletenessBin>& bins) {
 
 }  // namespace
 
+namespace {
+
+/// Totals, bins and the median SNR ratio from r.objects.
+void summarise(RecoveryResult& r, const RecoveryParams& params) {
+  std::vector<double> snrs, ratios, mags;
+  std::vector<bool> found;
+  bool allMags = !r.objects.empty();
+  r.recovered = 0;
+  for (const auto& o : r.objects) {
+    if (o.recovered()) {
+      ratios.push_back(o.snrRatio);
+      ++r.recovered;
+    }
+    snrs.push_back(o.truth.expectedSnr);
+    found.push_back(o.recovered());
+    if (o.truth.magnitude) mags.push_back(*o.truth.magnitude);
+    allMags = allMags && o.truth.magnitude.has_value();
+  }
+  r.total = static_cast<int>(r.objects.size());
+  r.medianSnrRatio.reset();
+  if (!ratios.empty()) r.medianSnrRatio = median(ratios);
+  r.snrBins = completenessBins(snrs, found, params.snrEdges);
+  r.magBins.clear();
+  if (allMags && params.magBinWidth > 0.0) {
+    const double w = params.magBinWidth;
+    const double lo = std::floor(*std::min_element(mags.begin(), mags.end()) / w) * w;
+    const double hi = std::floor(*std::max_element(mags.begin(), mags.end()) / w) * w;
+    std::vector<double> edges;
+    for (double e = lo; e <= hi + 0.5 * w; e += w)
+      edges.push_back(e);
+    r.magBins = completenessBins(mags, found, edges);
+  }
+}
+
+}  // namespace
+
 CandidateSet candidatesFromJson(const nlohmann::json& j) {
   CandidateSet set;
   const nlohmann::json* list = &j;
@@ -94,7 +130,8 @@ std::pair<double, double> wilsonInterval(int k, int n, double z) {
   const double nn = n, p = k / nn, z2 = z * z;
   const double centre = (p + z2 / (2 * nn)) / (1 + z2 / nn);
   const double half = z / (1 + z2 / nn) * std::sqrt(p * (1 - p) / nn + z2 / (4 * nn * nn));
-  return {std::max(0.0, centre - half), std::min(1.0, centre + half)};
+  // The bounds are exactly 0 at k = 0 and 1 at k = n; rounding would leave 1e-18 there.
+  return {k == 0 ? 0.0 : std::max(0.0, centre - half), k == n ? 1.0 : std::min(1.0, centre + half)};
 }
 
 std::vector<CompletenessBin> completenessBins(const std::vector<double>& values, const std::vector<bool>& recovered,
@@ -173,9 +210,6 @@ RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& cands, cons
     candOf[p.t] = static_cast<int>(p.c);
     truthOf[p.c] = static_cast<int>(p.t);
   }
-  std::vector<double> snrs, ratios, mags;
-  std::vector<bool> found;
-  bool allMags = !truth.objects.empty();
   for (std::size_t t = 0; t < truth.objects.size(); ++t) {
     ObjectOutcome o;
     o.truth = truth.objects[t];
@@ -188,26 +222,8 @@ RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& cands, cons
       o.vyErrorPxS = c.vyPxS - o.truth.vyPxS;
       o.recoveredSnr = c.snr;
       o.snrRatio = o.truth.expectedSnr > 0.0 ? c.snr / o.truth.expectedSnr : 0.0;
-      ratios.push_back(o.snrRatio);
-      ++r.recovered;
     }
-    snrs.push_back(o.truth.expectedSnr);
-    found.push_back(o.recovered());
-    if (o.truth.magnitude) mags.push_back(*o.truth.magnitude);
-    allMags = allMags && o.truth.magnitude.has_value();
     r.objects.push_back(o);
-  }
-  r.total = static_cast<int>(truth.objects.size());
-  if (!ratios.empty()) r.medianSnrRatio = median(ratios);
-  r.snrBins = completenessBins(snrs, found, params.snrEdges);
-  if (allMags && params.magBinWidth > 0.0) {
-    const double w = params.magBinWidth;
-    const double lo = std::floor(*std::min_element(mags.begin(), mags.end()) / w) * w;
-    const double hi = std::floor(*std::max_element(mags.begin(), mags.end()) / w) * w;
-    std::vector<double> edges;
-    for (double e = lo; e <= hi + 0.5 * w; e += w)
-      edges.push_back(e);
-    r.magBins = completenessBins(mags, found, edges);
   }
   for (std::size_t c = 0; c < cs.size(); ++c) {
     if (truthOf[c] >= 0) continue;
@@ -224,6 +240,26 @@ RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& cands, cons
     u.nearestDistancePx = std::isfinite(best) ? best : 0.0;
     r.unmatched.push_back(u);
   }
+  summarise(r, params);
+  return r;
+}
+
+RecoveryResult combineRecovery(const std::vector<RecoveryResult>& parts, const RecoveryParams& params) {
+  RecoveryResult r;
+  if (parts.empty()) return r;
+  r.matchPx = parts.front().matchPx;
+  r.matchVPxS = parts.front().matchVPxS;
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    for (auto o : parts[k].objects) {
+      o.set = static_cast<int>(k);
+      r.objects.push_back(o);
+    }
+    for (auto u : parts[k].unmatched) {
+      u.set = static_cast<int>(k);
+      r.unmatched.push_back(u);
+    }
+  }
+  summarise(r, params);
   return r;
 }
 
@@ -242,7 +278,8 @@ nlohmann::json recoveryToJson(const RecoveryResult& r) {
   j["error_bars"] = "Wilson score interval, 1 sigma (68.3%)";
   j["objects"] = nlohmann::json::array();
   for (const auto& o : r.objects) {
-    nlohmann::json e = {{"id", o.truth.id},
+    nlohmann::json e = {{"set", o.set},
+                        {"id", o.truth.id},
                         {"x_px", o.truth.xPx},
                         {"y_px", o.truth.yPx},
                         {"vx_px_s", o.truth.vxPxS},
@@ -262,7 +299,8 @@ nlohmann::json recoveryToJson(const RecoveryResult& r) {
   }
   j["unmatched"] = nlohmann::json::array();
   for (const auto& u : r.unmatched)
-    j["unmatched"].push_back({{"candidate", u.candidate.index},
+    j["unmatched"].push_back({{"set", u.set},
+                              {"candidate", u.candidate.index},
                               {"x", u.candidate.xPx},
                               {"y", u.candidate.yPx},
                               {"vx_px_s", u.candidate.vxPxS},
@@ -299,10 +337,10 @@ void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
   {
     std::ofstream out;
     openCsv(out, d / "objects.csv");
-    out << "id,x_px,y_px,vx_px_s,vy_px_s,expected_snr,magnitude,recovered,candidate,recovered_snr,snr_ratio,"
+    out << "set,id,x_px,y_px,vx_px_s,vy_px_s,expected_snr,magnitude,recovered,candidate,recovered_snr,snr_ratio,"
            "position_error_px\n";
     for (const auto& o : r.objects) {
-      out << o.truth.id << ',' << o.truth.xPx << ',' << o.truth.yPx << ',' << o.truth.vxPxS << ','
+      out << o.set << ',' << o.truth.id << ',' << o.truth.xPx << ',' << o.truth.yPx << ',' << o.truth.vxPxS << ','
           << o.truth.vyPxS << ',' << o.truth.expectedSnr << ',' << magnitudeText(o.truth.magnitude) << ','
           << (o.recovered() ? 1 : 0) << ',';
       if (o.recovered())
@@ -316,12 +354,12 @@ void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
   {
     std::ofstream out;
     openCsv(out, d / "unmatched.csv");
-    out << "candidate,x,y,vx_px_s,vy_px_s,snr,flags,duplicate,nearest_id,nearest_distance_px\n";
+    out << "set,candidate,x,y,vx_px_s,vy_px_s,snr,flags,duplicate,nearest_id,nearest_distance_px\n";
     for (const auto& u : r.unmatched) {
       std::string flags;
       for (const auto& f : u.candidate.flags)
         flags += (flags.empty() ? "" : " ") + f;
-      out << u.candidate.index << ',' << u.candidate.xPx << ',' << u.candidate.yPx << ',' << u.candidate.vxPxS
+      out << u.set << ',' << u.candidate.index << ',' << u.candidate.xPx << ',' << u.candidate.yPx << ',' << u.candidate.vxPxS
           << ',' << u.candidate.vyPxS << ',' << u.candidate.snr << ',' << flags << ',' << (u.duplicate ? 1 : 0)
           << ',' << u.nearestId << ',' << u.nearestDistancePx << '\n';
     }
@@ -366,8 +404,8 @@ std::string recoveryText(const RecoveryResult& r) {
   }
   s += r.unmatched.empty() ? "\n" : ":\n";
   for (const auto& u : r.unmatched) {
-    std::snprintf(line, sizeof line, "  #%d at (%.0f, %.0f) v (%.5g, %.5g) px/s SNR %.2f%s, nearest mover %d at %.1f px\n",
-                  u.candidate.index, u.candidate.xPx, u.candidate.yPx, u.candidate.vxPxS, u.candidate.vyPxS,
+    std::snprintf(line, sizeof line, "  set %d #%d at (%.0f, %.0f) v (%.5g, %.5g) px/s SNR %.2f%s, nearest mover %d at %.1f px\n",
+                  u.set, u.candidate.index, u.candidate.xPx, u.candidate.yPx, u.candidate.vxPxS, u.candidate.vyPxS,
                   u.candidate.snr, u.duplicate ? " duplicate" : "", u.nearestId, u.nearestDistancePx);
     s += line;
   }

@@ -372,6 +372,14 @@ TEST(Recovery, HandMadePairGivesExactCounts) {
   wide.matchPx = 2.5;
   wide.matchVSteps = 2.0;
   EXPECT_EQ(matchRecovery(truth, cands, wide).recovered, 7);
+  // Two runs scored together: the counts add up, bins included.
+  const RecoveryResult both = combineRecovery({r, r}, {});
+  EXPECT_EQ(both.total, 16);
+  EXPECT_EQ(both.recovered, 10);
+  EXPECT_EQ(both.snrBins.front().total, 4);
+  EXPECT_EQ(both.unmatched.size(), 8u);
+  EXPECT_EQ(both.objects.back().set, 1);
+  EXPECT_NEAR(*both.medianSnrRatio, 0.9, 1e-12);
   // Without a grid step or a tolerance there is no velocity criterion.
   CandidateSet noStep = cands;
   noStep.gridStepPxS.reset();

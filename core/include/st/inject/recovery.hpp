@@ -59,6 +59,7 @@ struct CompletenessBin {
 };
 
 struct ObjectOutcome {
+  int set = 0;  ///< which truth/candidates pair it came from (combineRecovery), 0 for one pair
   TruthObject truth;
   int candidate = -1;  ///< index of the matched candidate, -1 when not recovered
   double positionErrorPx = 0.0;
@@ -70,6 +71,7 @@ struct ObjectOutcome {
 };
 
 struct UnmatchedCandidate {
+  int set = 0;
   CandidateRecord candidate;
   bool duplicate = false;      ///< within tolerance of an injected mover that another candidate matched
   int nearestId = 0;           ///< nearest truth object at t_ref (0 when there is none)
@@ -107,6 +109,11 @@ std::vector<CompletenessBin> completenessBins(const std::vector<double>& values,
 /// they qualified for an object already taken). Throws st::InputError when no velocity tolerance can be
 /// set (no matchVPxS and no grid step in the candidates) or params are invalid.
 RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& candidates, const RecoveryParams& params);
+
+/// Several injection runs scored together (e.g. one per seed): the objects and unmatched candidates of
+/// `parts` (tagged with their index in `set`), totals, bins and median SNR ratio recomputed over all of them.
+/// The tolerances are those of the first part; time shifts are per part and not kept.
+RecoveryResult combineRecovery(const std::vector<RecoveryResult>& parts, const RecoveryParams& params);
 
 /// The result as JSON (units in the keys): summary, snr_bins, magnitude_bins, objects, unmatched.
 nlohmann::json recoveryToJson(const RecoveryResult& result);
