@@ -19,6 +19,8 @@ int cmdFit(const Args& args);
 int cmdReport(const Args& args);
 int cmdDemo(const Args& args);
 int cmdBench(const Args& args);
+int cmdInject(const Args& args);
+int cmdRecovery(const Args& args);
 
 // `synthtrack-cli bench WHAT`: each benchmark in its own bench_<what>.cpp. They print one result line per
 // measurement (what, problem size, time, rate) and take --json.

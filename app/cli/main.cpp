@@ -28,6 +28,8 @@ constexpr Command kCommands[] = {
     {"search", st::app::cmdSearch, "velocity search: candidates and the velocity map"},
     {"fit", st::app::cmdFit, "co-moving PSF fit of one candidate"},
     {"report", st::app::cmdReport, "vetting session, DS9 regions, ADES PSV and MPC 80-column astrometry"},
+    {"inject", st::app::cmdInject, "copies of raw frames with synthetic movers added, and their truth"},
+    {"recovery", st::app::cmdRecovery, "score a search of injected frames: completeness, SNR ratio, SVG"},
     {"bench", st::app::cmdBench, "benchmarks (load, pre-processing, stacks, search)"},
 };
 
