@@ -3,7 +3,7 @@
 // biases and 3 twilight flats, searched over +-0.2 deg/day around the sky rate in 1 px steps over the span
 // (what `synthtrack-cli preprocess ... && synthtrack-cli search --preprocessed --vmax-deg-day 0.2` does).
 // The asteroid moves ~10 px over the sequence, so the sky-rate stack sees it as a star; pre-processing must
-// find that it moves (not mask it) and the search must find it: within 2 px of (673, 723.5) (0-based,
+// find that it moves (not mask it) and the search must find it as its best candidate: within 2 px of (673, 723.5) (0-based,
 // trimmed frame, t_ref) and with a velocity within 20% of (-0.00087, -0.0021) px/s (the README's
 // (-0.27, -0.64) px per ~309 s frame). ~20 s on 2 cores.
 #include <gtest/gtest.h>
@@ -19,6 +19,7 @@
 #include "st/io/fits_reader.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/vet/segments.hpp"
 #include "test_support.hpp"
 
 namespace st::pipeline {
@@ -78,13 +79,25 @@ TEST(PipelineReal, Lowell5945SlowAsteroidIsNotMaskedAndIsFound) {
       << "the asteroid is not among " << r.candidates.size() << " candidates";
   EXPECT_LE(std::hypot(found->v.vx - kVx, found->v.vy - kVy), 0.2 * std::hypot(kVx, kVy));
   EXPECT_EQ(found, r.candidates.begin()) << "the asteroid is not the best candidate";
-  // Every candidate is a mover found by pre-processing: no static residual (before the unmeasured pixels
-  // were zeroed, two appeared at the edge of the mask of the saturated star at (1225, 1033)).
+  // No static residual (before the unmeasured pixels were zeroed, two appeared at the edge of the mask of the
+  // saturated star at (1225, 1033)): every candidate moves at least 2 px over the span relative to the stars,
+  // and shows in both halves of the sequence (a transient or a one-sided residual does not). Since the noise
+  // model (issue 14) the field's fainter asteroids are found too (a dozen at SNR 7-200, all moving the way
+  // 5945 does), so candidates need not be movers that pre-processing saw.
+  const auto t = out.filtered.frames.timeOffsetsS();
+  std::vector<std::size_t> first, second;
+  for (std::size_t n = 0; n < t.size(); ++n)
+    (n < t.size() / 2 ? first : second).push_back(n);
   for (const auto& cd : r.candidates) {
-    const bool onMover =
-        std::any_of(out.movers.begin(), out.movers.end(),
-                    [&](const detect::MovingSource& m) { return std::hypot(cd.x - m.x, cd.y - m.y) <= 3.0; });
-    EXPECT_TRUE(onMover) << "candidate (" << cd.x << ", " << cd.y << ") SNR " << cd.snr << " is no mover";
+    const Velocity rel{cd.v.vx - out.skyRate.vx, cd.v.vy - out.skyRate.vy};
+    EXPECT_GE(std::hypot(rel.vx, rel.vy) * span, 2.0)
+        << "candidate (" << cd.x << ", " << cd.y << ") SNR " << cd.snr << " is (nearly) static";
+    for (const auto* half : {&first, &second}) {
+      const Image s = vet::stackStamp(out.filtered.frames, *half, cd.x, cd.y, cd.v, 0.0, 0);
+      const double snrHalf = s.at(0, 0) / (out.filtered.sigmaF * std::sqrt(double(half->size())));
+      EXPECT_GE(snrHalf, cd.snr / std::sqrt(2.0) / 3.0)
+          << "candidate (" << cd.x << ", " << cd.y << ") SNR " << cd.snr << ": SNR " << snrHalf << " in a half";
+    }
   }
 }
 
