@@ -34,7 +34,7 @@ std::vector<batch::Outcome> runLocally(const std::vector<batch::Observation>& ob
     }
     try {
       RunOutcome r = runBatchObservation(obs, settings, backends, me);
-      onOutcome(r, 0);
+      onOutcome(r, 0, i);
       out.push_back(std::move(r.outcome));
     } catch (const Cancelled&) {
       out.push_back({obs.name, obs.group, obs.inputs, batch::Outcome::Status::NotDone, "cancelled", {}});
@@ -102,7 +102,7 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
               r.outcome.error = j.value("error", std::string());
             }
           }
-          onOutcome(r, src);
+          onOutcome(r, src, *held);
           outcomes[*held] = std::move(r.outcome);
         }
         giveWork(src);

@@ -16,7 +16,8 @@ struct DispatchSettings {
 };
 
 /// Called at rank 0 as each observation ends (done, failed or skipped), for the progress line.
-using OnOutcome = std::function<void(const RunOutcome&, int rank)>;
+/// `index` is the observation's index in the list.
+using OnOutcome = std::function<void(const RunOutcome&, int rank, std::size_t index)>;
 
 /// Runs the observations `order` (indices into `observations`) to completion and returns one outcome per
 /// index of `order`, at rank 0 (other ranks get an empty list once rank 0 lets them go). Without an active

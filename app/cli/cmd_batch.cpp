@@ -1,10 +1,13 @@
 // synthtrack-cli batch INPUT... --out DIR | --manifest FILE --out DIR: many observations through the same
 // pipeline as `search --fit`, in one process or under mpirun (issue 17; ARCHITECTURE.md "Beyond one
 // machine"). Restartable: a rerun skips what is complete and redoes the rest.
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 
 #include "batch_dispatch.hpp"
@@ -40,8 +43,24 @@ constexpr const char* kHelp =
     "  Search options (as for 'synthtrack-cli search'):\n";
 
 std::atomic<bool> g_stop{false};
+// What is not done yet, as the line a SIGTERM prints (mpirun sends it to every rank when one dies, and
+// SIGKILL a second later: too soon to rely on writing files). Two buffers, the atomic index names the
+// complete one, so the handler only reads finished text (async-signal-safe: write(2) and atomics).
+char g_notDoneText[2][16384];
+std::atomic<int> g_notDoneCurrent{-1};
+
+void setNotDoneText(const std::string& text) {
+  const int next = g_notDoneCurrent.load() == 0 ? 1 : 0;
+  std::snprintf(g_notDoneText[next], sizeof g_notDoneText[next], "%s", text.c_str());
+  g_notDoneCurrent.store(next);
+}
+
 void onTerm(int) {
   g_stop.store(true);
+  static const char kMsg[] = "batch: stopped by SIGTERM (mpirun ends the whole job when one rank dies)\n";
+  [[maybe_unused]] auto n = ::write(2, kMsg, sizeof kMsg - 1);
+  const int cur = g_notDoneCurrent.load();
+  if (cur >= 0) n = ::write(2, g_notDoneText[cur], std::strlen(g_notDoneText[cur]));
 }
 
 std::map<std::string, std::string> batchOptions(const CliArgs& cli) {
@@ -135,7 +154,28 @@ int cmdBatch(const Args& args) {
                                         .c_str()
                                   : "one process");
   }
-  const OnOutcome onOutcome = [&](const RunOutcome& r, int rank) {
+  // The catalogue as it stands, rewritten as observations end (at most every 2 s), so that even a job
+  // killed outright leaves one naming what is not done.
+  std::vector<batch::Outcome> current;
+  for (const auto& obs : observations)
+    current.push_back({obs.name, obs.group, obs.inputs, batch::Outcome::Status::NotDone,
+                       "the batch ended before it ran", {}});
+  auto lastWrite = std::chrono::steady_clock::now();
+  const auto updateState = [&](bool force) {
+    std::string names;
+    for (const auto& o : current)
+      if (o.status == batch::Outcome::Status::NotDone) names += (names.empty() ? "" : ", ") + o.name;
+    setNotDoneText(names.empty() ? std::string("batch: every observation had finished\n")
+                                 : "batch: NOT DONE: " + names + ". Rerun the same command to finish them.\n");
+    if (!force && current.size() > 50 && std::chrono::steady_clock::now() - lastWrite < std::chrono::seconds(2))
+      return;
+    batch::writeJsonAtomically(settings.layout.catalogue(), batch::mergeCatalogue(current));
+    lastWrite = std::chrono::steady_clock::now();
+  };
+  if (root) updateState(true);
+  const OnOutcome onOutcome = [&](const RunOutcome& r, int rank, std::size_t index) {
+    current[index] = r.outcome;
+    updateState(false);
     ++finished;
     if (r.skipped) {
       ++skipped;
@@ -183,8 +223,6 @@ int cmdBatch(const Args& args) {
       std::fprintf(stderr, "batch:   %s: %s\n", e["observation"].get<std::string>().c_str(),
                    e["reason"].get<std::string>().c_str());
     std::fflush(stderr);
-    // A dead rank can make MPI_Finalize wait for it: end the job here.
-    if (cluster.active()) cluster.abort(3);
     return 3;
   }
   return catalogue["errors"].empty() ? 0 : 1;
