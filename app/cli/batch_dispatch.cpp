@@ -22,14 +22,16 @@ using Clock = std::chrono::steady_clock;
 
 std::vector<batch::Outcome> runLocally(const std::vector<batch::Observation>& observations,
                                        const std::vector<std::size_t>& order, const BatchSettings& settings,
-                                       const OnOutcome& onOutcome, const std::function<bool()>& stopRequested) {
+                                       const OnOutcome& onOutcome,
+                                       const std::function<bool()>& stopRequested) {
   BackendCache backends;
   const WorkerInfo me{0, {}, "this process"};
   std::vector<batch::Outcome> out;
   for (const std::size_t i : order) {
     const batch::Observation& obs = observations[i];
     if (stopRequested()) {
-      out.push_back({obs.name, obs.group, obs.inputs, batch::Outcome::Status::NotDone, "the batch was stopped", {}});
+      out.push_back(
+          {obs.name, obs.group, obs.inputs, batch::Outcome::Status::NotDone, "the batch was stopped", {}});
       continue;
     }
     try {
@@ -76,8 +78,8 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
     std::fprintf(stderr, "batch: rank %d %s while running %s\n", w, why.c_str(), what.c_str());
   };
   bool stop = false;
-  while (!stop && (queue.inFlight() > 0 || (queue.pending() > 0 && !alive.empty()) ||
-                   stopped.size() < alive.size())) {
+  while (!stop &&
+         (queue.inFlight() > 0 || (queue.pending() > 0 && !alive.empty()) || stopped.size() < alive.size())) {
     if (stopRequested()) break;
     int src = -1, tag = 0;
     std::string bytes;
@@ -93,7 +95,8 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
         if (held) {
           const batch::Observation& obs = observations[*held];
           RunOutcome r;
-          r.outcome = outcomeFromDisk(obs, settings, "its worker reported it done but its output is not there");
+          r.outcome =
+              outcomeFromDisk(obs, settings, "its worker reported it done but its output is not there");
           if (j.is_object()) {
             r.skipped = j.value("skipped", false);
             r.seconds = j.value("seconds", 0.0);
@@ -128,8 +131,8 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
       continue;
     }
     const batch::Observation& obs = observations[i];
-    std::string reason = stopRequested() ? "the job was stopped before it finished"
-                                         : "no worker was left to run it";
+    std::string reason =
+        stopRequested() ? "the job was stopped before it finished" : "no worker was left to run it";
     if (const auto w = [&]() -> std::optional<int> {
           for (int r = 1; r < cluster.size(); ++r)
             if (queue.heldBy(r) == i) return r;
@@ -142,8 +145,8 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
 }
 
 /// A worker rank: asks for work, runs it, reports, with a heartbeat thread beside it.
-void work(Cluster& cluster, const std::vector<batch::Observation>& observations, const BatchSettings& settings,
-          const DispatchSettings& ds) {
+void work(Cluster& cluster, const std::vector<batch::Observation>& observations,
+          const BatchSettings& settings, const DispatchSettings& ds) {
   const int localIndex = cluster.localRank() - (cluster.nodeHasRoot() ? 1 : 0);
   const int localWorkers = cluster.localSize() - (cluster.nodeHasRoot() ? 1 : 0);
   const WorkerInfo me{cluster.rank(), cluster.host(), chooseRankResources(localIndex, localWorkers)};

@@ -28,17 +28,20 @@ constexpr const char* kHelp =
     "       synthtrack-cli batch --manifest FILE --out DIR [options]\n"
     "  Runs every observation (each INPUT one: a cube file or a folder of frames) through pre-processing,\n"
     "  the velocity search and the co-moving fits, as 'synthtrack-cli search --fit' does. Writes\n"
-    "  DIR/observations/NAME/ (candidates.json, candidates.csv, digest.json; each folder written whole, then\n"
+    "  DIR/observations/NAME/ (candidates.json, candidates.csv, digest.json; each folder written whole, "
+    "then\n"
     "  renamed into place), DIR/logs/NAME.json (status, rank, host, seconds, error) and the merged\n"
     "  DIR/catalogue.json (candidates of all observations, the same object seen by overlapping cubes of one\n"
-    "  night once; 'errors': observations that failed; 'not_done'). A rerun skips observations whose outputs\n"
+    "  night once; 'errors': observations that failed; 'not_done'). A rerun skips observations whose "
+    "outputs\n"
     "  are complete for the same inputs (sizes, times) and options, and redoes the others.\n"
     "  Under 'mpirun -np K' rank 0 hands out observations (largest first) and merges, ranks 1..K-1 run\n"
     "  them, each on its own GPU when the node has several, else on its share of the cores.\n"
     "  --manifest FILE       JSON or CSV, one observation per entry/line: inputs, name, bias, dark, flat,\n"
     "                        group, and search options (e.g. vmax-deg-day) that override the batch's\n"
     "  --split N             cut each folder of frames into cubes of N frames ...\n"
-    "  --overlap K           ... consecutive cubes sharing K frames (default N/4), so a mover is whole in one\n"
+    "  --overlap K           ... consecutive cubes sharing K frames (default N/4), so a mover is whole in "
+    "one\n"
     "  --worker-timeout S    a worker silent for S seconds is declared dead (default 120)\n"
     "  Search options (as for 'synthtrack-cli search'):\n";
 
@@ -98,7 +101,8 @@ std::vector<batch::Observation> observationsFor(const CliArgs& cli) {
 
 void writeSummary(const BatchSettings& settings, const std::vector<batch::Outcome>& outcomes,
                   std::size_t skipped, double seconds, int ranks) {
-  nlohmann::json j{{"observations", outcomes.size()}, {"skipped", skipped}, {"seconds", seconds}, {"ranks", ranks}};
+  nlohmann::json j{
+      {"observations", outcomes.size()}, {"skipped", skipped}, {"seconds", seconds}, {"ranks", ranks}};
   std::size_t done = 0, failed = 0, notDone = 0;
   for (const auto& o : outcomes) {
     done += o.status == batch::Outcome::Status::Done;
@@ -150,24 +154,30 @@ int cmdBatch(const Args& args) {
   std::size_t finished = 0, skipped = 0, failed = 0, processed = 0;
   if (root) {
     std::fprintf(stderr, "batch: %zu observations, %s\n", total,
-                 cluster.active() ? ("rank 0 hands out, " + std::to_string(cluster.size() - 1) + " worker ranks")
-                                        .c_str()
-                                  : "one process");
+                 cluster.active()
+                     ? ("rank 0 hands out, " + std::to_string(cluster.size() - 1) + " worker ranks").c_str()
+                     : "one process");
   }
   // The catalogue as it stands, rewritten as observations end (at most every 2 s), so that even a job
   // killed outright leaves one naming what is not done.
   std::vector<batch::Outcome> current;
   for (const auto& obs : observations)
-    current.push_back({obs.name, obs.group, obs.inputs, batch::Outcome::Status::NotDone,
-                       "the batch ended before it ran", {}});
+    current.push_back({obs.name,
+                       obs.group,
+                       obs.inputs,
+                       batch::Outcome::Status::NotDone,
+                       "the batch ended before it ran",
+                       {}});
   auto lastWrite = std::chrono::steady_clock::now();
   const auto updateState = [&](bool force) {
     std::string names;
     for (const auto& o : current)
       if (o.status == batch::Outcome::Status::NotDone) names += (names.empty() ? "" : ", ") + o.name;
-    setNotDoneText(names.empty() ? std::string("batch: every observation had finished\n")
-                                 : "batch: NOT DONE: " + names + ". Rerun the same command to finish them.\n");
-    if (!force && current.size() > 50 && std::chrono::steady_clock::now() - lastWrite < std::chrono::seconds(2))
+    setNotDoneText(names.empty()
+                       ? std::string("batch: every observation had finished\n")
+                       : "batch: NOT DONE: " + names + ". Rerun the same command to finish them.\n");
+    if (!force && current.size() > 50 &&
+        std::chrono::steady_clock::now() - lastWrite < std::chrono::seconds(2))
       return;
     batch::writeJsonAtomically(settings.layout.catalogue(), batch::mergeCatalogue(current));
     lastWrite = std::chrono::steady_clock::now();
@@ -190,9 +200,8 @@ int cmdBatch(const Args& args) {
     std::fprintf(stderr, "batch: %s %s (rank %d); %s\n", r.outcome.name.c_str(), what.c_str(), rank,
                  batch::progressLine(finished, total, skipped, failed, processed, elapsed).c_str());
   };
-  std::vector<batch::Outcome> byOrder =
-      runQueue(cluster, observations, batch::largestFirst(observations), settings, dispatch, onOutcome,
-               [] { return g_stop.load(); });
+  std::vector<batch::Outcome> byOrder = runQueue(cluster, observations, batch::largestFirst(observations),
+                                                 settings, dispatch, onOutcome, [] { return g_stop.load(); });
   if (!root) return 0;
 
   // Outcomes back in list order for the catalogue.
@@ -204,10 +213,11 @@ int cmdBatch(const Args& args) {
   batch::writeJsonAtomically(settings.layout.catalogue(), catalogue);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   writeSummary(settings, outcomes, skipped, seconds, cluster.size());
-  std::printf("batch: %zu observations in %.1f s (%zu skipped as complete): %zu candidates, %zu errors, %zu not "
-              "done; catalogue %s\n",
-              total, seconds, skipped, catalogue["candidates"].size(), catalogue["errors"].size(),
-              catalogue["not_done"].size(), settings.layout.catalogue().c_str());
+  std::printf(
+      "batch: %zu observations in %.1f s (%zu skipped as complete): %zu candidates, %zu errors, %zu not "
+      "done; catalogue %s\n",
+      total, seconds, skipped, catalogue["candidates"].size(), catalogue["errors"].size(),
+      catalogue["not_done"].size(), settings.layout.catalogue().c_str());
   for (const auto& e : catalogue["errors"])
     std::fprintf(stderr, "batch: error: %s: %s\n", e["observation"].get<std::string>().c_str(),
                  e["error"].get<std::string>().c_str());

@@ -23,12 +23,15 @@ constexpr const char* kHelp =
     "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults: no bias/flat frames).\n"
     "  --preprocessed        INPUT was written by 'synthtrack-cli preprocess', told by its header: the\n"
     "                        zero-biased cube (-o; STFILT = F) is matched-filtered with the header's PSF\n"
-    "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is searched\n"
-    "                        as is with SIGMAF; sky rate from SKYVX/SKYVY (px/s). A cube whose header does not\n"
+    "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is "
+    "searched\n"
+    "                        as is with SIGMAF; sky rate from SKYVX/SKYVY (px/s). A cube whose header does "
+    "not\n"
     "                        say (no STFILT) is refused; a pre-processed cube without --preprocessed too\n"
     "  --fit                 refine every candidate (up to --fit-max, default 50) by the co-moving PSF fit\n"
     "                        with segment checks (needs raw INPUT, not --preprocessed)\n"
-    "  --mpi                 under mpirun: split the velocity grid's vy rows over the ranks (exact CPU search),\n"
+    "  --mpi                 under mpirun: split the velocity grid's vy rows over the ranks (exact CPU "
+    "search),\n"
     "                        rank 0 gathers; the same candidates as one process\n"
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
 

@@ -122,7 +122,8 @@ std::vector<std::string> Cluster::gather(const std::string& mine) {
     total += sizes[i];
   }
   std::string all(static_cast<std::size_t>(total), '\0');
-  MPI_Gatherv(mine.data(), n, MPI_BYTE, all.data(), sizes.data(), offsets.data(), MPI_BYTE, 0, MPI_COMM_WORLD);
+  MPI_Gatherv(mine.data(), n, MPI_BYTE, all.data(), sizes.data(), offsets.data(), MPI_BYTE, 0,
+              MPI_COMM_WORLD);
   std::vector<std::string> out;
   for (std::size_t i = 0; i < sizes.size(); ++i)
     out.push_back(all.substr(offsets[i], sizes[i]));

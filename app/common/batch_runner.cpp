@@ -49,11 +49,12 @@ void writeLog(const BatchSettings& s, const std::string& name, const nlohmann::j
 
 }  // namespace
 
-std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings, const batch::Observation& obs) {
+std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings,
+                                                    const batch::Observation& obs) {
   std::map<std::string, std::string> o = settings.options;
   // A range given by the observation replaces the batch's in whatever unit.
-  const bool ownRange = obs.params.count("vmax-px-s") + obs.params.count("vmax-arcsec-min") +
-                        obs.params.count("vmax-deg-day");
+  const bool ownRange =
+      obs.params.count("vmax-px-s") + obs.params.count("vmax-arcsec-min") + obs.params.count("vmax-deg-day");
   if (ownRange) {
     for (const char* k : {"vmax-px-s", "vmax-arcsec-min", "vmax-deg-day"})
       o.erase(k);
@@ -88,8 +89,9 @@ bool completedEarlier(const batch::Observation& obs, const BatchSettings& settin
   const fs::path dir = settings.layout.observationDir(obs.name);
   if (!batch::outputComplete(dir, digest)) return false;
   try {
-    outcome = {obs.name, obs.group, obs.inputs, batch::Outcome::Status::Done, {},
-               batch::readJsonFile(dir / batch::kResultFile)};
+    outcome = {obs.name,   obs.group,
+               obs.inputs, batch::Outcome::Status::Done,
+               {},         batch::readJsonFile(dir / batch::kResultFile)};
     return true;
   } catch (const InputError&) {
     return false;
@@ -122,9 +124,10 @@ RunOutcome runBatchObservation(const batch::Observation& obs, const BatchSetting
   const auto start = std::chrono::steady_clock::now();
   const auto options = effectiveOptions(settings, obs);
   const std::string digest = batch::inputDigest(obs, digestOptions(options));
-  nlohmann::json log{{"observation", obs.name}, {"inputs", obs.inputs},   {"digest", digest},
-                     {"options", options},      {"rank", worker.rank},    {"pid", static_cast<long>(::getpid())},
-                     {"host", worker.host},     {"resources", worker.resources}, {"status", "running"}};
+  nlohmann::json log{
+      {"observation", obs.name}, {"inputs", obs.inputs},          {"digest", digest},
+      {"options", options},      {"rank", worker.rank},           {"pid", static_cast<long>(::getpid())},
+      {"host", worker.host},     {"resources", worker.resources}, {"status", "running"}};
   writeLog(settings, obs.name, log);
   out.outcome = {obs.name, obs.group, obs.inputs, batch::Outcome::Status::Failed, {}, {}};
   try {

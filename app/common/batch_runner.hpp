@@ -23,7 +23,8 @@ struct BatchSettings {
 };
 
 /// The options in force for `obs`: the batch's, overridden by the observation's own.
-std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings, const batch::Observation& obs);
+std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings,
+                                                    const batch::Observation& obs);
 
 /// Checks `options` parse as `search` options (UsageError naming the one at fault) without running.
 void validateOptions(const std::map<std::string, std::string>& options);

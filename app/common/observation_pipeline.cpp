@@ -16,7 +16,8 @@ namespace st::app {
 
 namespace {
 
-FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress, CancelToken& cancel) {
+FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress,
+                          CancelToken& cancel) {
   if (files.empty()) return {};
   io::LoadOptions opt;  // calibration frames need no times: a nominal clock
   opt.startMjd = 0.0;
@@ -64,7 +65,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks) {
   if (fit && in.preprocessed)
-    throw InputError("the co-moving fit needs the unfiltered frames: give the raw input, not a pre-processed one");
+    throw InputError(
+        "the co-moving fit needs the unfiltered frames: give the raw input, not a pre-processed one");
   std::optional<pipeline::Prepared> prepared;
   std::optional<pipeline::PreparedSearchInput> loaded;
   std::vector<std::string> warnings, notes;

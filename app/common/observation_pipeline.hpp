@@ -20,7 +20,7 @@ namespace st::app {
 struct ObservationInput {
   std::vector<std::string> inputs;  ///< files or folders, one observation
   io::LoadOptions load;
-  bool preprocessed = false;  ///< INPUT was written by `preprocess` (no --fit then)
+  bool preprocessed = false;                  ///< INPUT was written by `preprocess` (no --fit then)
   std::vector<std::string> bias, dark, flat;  ///< calibration frames for the pre-processing
 };
 
@@ -35,7 +35,7 @@ struct PlannedSearch {
 };
 
 struct ObservationHooks {
-  std::function<void(const PlannedSearch&)> planned;           ///< before the search
+  std::function<void(const PlannedSearch&)> planned;          ///< before the search
   std::function<void(const search::SearchResult&)> searched;  ///< after it, before the fits
   /// Replaces backend.search (search --mpi: the grid split over ranks). Gets the grid and the parameters
   /// with the method resolved.

@@ -18,22 +18,37 @@ Velocity parsePair(const std::string& text, const std::string& name) {
 }  // namespace
 
 std::set<std::string> searchOptionNames() {
-  return {"vmax-px-s", "vmax-arcsec-min", "vmax-deg-day", "centre-px-s",    "grid-step-px",
-          "snr",       "fap",             "min-frame-fraction", "max-candidates", "sigma-f",
-          "fwhm",      "backend",         "method",       "fit-max"};
+  return {"vmax-px-s",
+          "vmax-arcsec-min",
+          "vmax-deg-day",
+          "centre-px-s",
+          "grid-step-px",
+          "snr",
+          "fap",
+          "min-frame-fraction",
+          "max-candidates",
+          "sigma-f",
+          "fwhm",
+          "backend",
+          "method",
+          "fit-max"};
 }
 
 const char* searchOptionsHelp() {
   return "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
-         "                        half-width of the grid around its centre (default: 12 deg/day, the paper's,\n"
+         "                        half-width of the grid around its centre (default: 12 deg/day, the "
+         "paper's,\n"
          "                        when the plate scale is known)\n"
          "  --centre-px-s VX,VY   grid centre (default: the sky rate)\n"
-         "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's rule)\n"
+         "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's "
+         "rule)\n"
          "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
-         "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all trials\n"
+         "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all "
+         "trials\n"
          "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
          "  --max-candidates N    cells kept before clustering (default 2000000)\n"
-         "  --sigma-f S           noise of one filtered frame (default: header SIGMAF of a filtered cube, else\n"
+         "  --sigma-f S           noise of one filtered frame (default: header SIGMAF of a filtered cube, "
+         "else\n"
          "                        measured from the filtered frames: 1.4826 MAD)\n"
          "  --fwhm PX             PSF FWHM (default: fitted, or header PSFFWHM with --preprocessed; for a\n"
          "                        zero-biased cube it is the matched filter's)\n"
@@ -41,10 +56,14 @@ const char* searchOptionsHelp() {
          "  --backend auto|cpu|cuda  (default auto)\n"
          "  --method auto|exact|tree  exact IPSA (every frame at its exact shift) or the hierarchical tree "
          "search\n"
-         "                        (about N_pix x N_v work instead of N_pix x N_f x N_v; every sample within 1 px\n"
-         "                        of the exact shift, median SNR loss ~1%, worst ~5%). auto (default): the tree\n"
-         "                        where the backend has it and it is estimated >= 2x faster and >= 1 s quicker,\n"
-         "                        else exact; the choice and why are printed and written to the JSON and CSV\n";
+         "                        (about N_pix x N_v work instead of N_pix x N_f x N_v; every sample within "
+         "1 px\n"
+         "                        of the exact shift, median SNR loss ~1%, worst ~5%). auto (default): the "
+         "tree\n"
+         "                        where the backend has it and it is estimated >= 2x faster and >= 1 s "
+         "quicker,\n"
+         "                        else exact; the choice and why are printed and written to the JSON and "
+         "CSV\n";
 }
 
 SearchOptions parseSearchOptions(const CliArgs& cli) {

@@ -47,7 +47,8 @@ std::string progressLine(std::size_t done, std::size_t total, std::size_t skippe
   const double etaS = static_cast<double>(total - done) * elapsedS / static_cast<double>(processed);
   const long eta = std::lround(etaS);
   if (eta >= 3600) {
-    std::snprintf(buf + n, sizeof buf - n, ", %.1f/h, ETA %ldh%02ldm", perHour, eta / 3600, (eta % 3600) / 60);
+    std::snprintf(buf + n, sizeof buf - n, ", %.1f/h, ETA %ldh%02ldm", perHour, eta / 3600,
+                  (eta % 3600) / 60);
   } else {
     std::snprintf(buf + n, sizeof buf - n, ", %.1f/h, ETA %ldm%02lds", perHour, eta / 60, eta % 60);
   }

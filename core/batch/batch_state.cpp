@@ -90,7 +90,8 @@ nlohmann::json readJsonFile(const fs::path& path) {
 
 bool outputComplete(const fs::path& dir, const std::string& digest) {
   std::error_code ec;
-  if (!fs::is_regular_file(dir / kDigestFile, ec) || !fs::is_regular_file(dir / kResultFile, ec)) return false;
+  if (!fs::is_regular_file(dir / kDigestFile, ec) || !fs::is_regular_file(dir / kResultFile, ec))
+    return false;
   try {
     const nlohmann::json j = readJsonFile(dir / kDigestFile);
     return j.value("digest", std::string()) == digest;
@@ -110,7 +111,8 @@ void writeJsonAtomically(const fs::path& path, const nlohmann::json& json) {
   }
   std::error_code ec;
   fs::rename(tmp, path, ec);
-  if (ec) throw InputError("cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
+  if (ec)
+    throw InputError("cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
 }
 
 StagedFolder::StagedFolder(fs::path finalDir) : m_final(std::move(finalDir)) {
@@ -137,8 +139,9 @@ void StagedFolder::commit() {
     if (ec) throw InputError("cannot move the old '" + m_final.string() + "' aside: " + ec.message());
   }
   fs::rename(m_staging, m_final, ec);
-  if (ec) throw InputError("cannot rename '" + m_staging.string() + "' to '" + m_final.string() + "': " +
-                           ec.message());
+  if (ec)
+    throw InputError("cannot rename '" + m_staging.string() + "' to '" + m_final.string() +
+                     "': " + ec.message());
   m_committed = true;
   if (!aside.empty()) fs::remove_all(aside, ec);
 }

@@ -37,8 +37,8 @@ nlohmann::json entryFor(const Detection& d, const std::string& observation) {
   nlohmann::json e;
   e["observation"] = observation;
   e["t_ref_mjd"] = d.tRefMjd;
-  for (const char* k : {"x", "y", "vx_px_s", "vy_px_s", "snr", "n_frames", "fap", "flags", "rate_deg_day",
-                        "pa_deg", "fit"}) {
+  for (const char* k :
+       {"x", "y", "vx_px_s", "vy_px_s", "snr", "n_frames", "fap", "flags", "rate_deg_day", "pa_deg", "fit"}) {
     if (c.contains(k)) e[k] = c[k];
   }
   return e;
@@ -49,7 +49,8 @@ nlohmann::json entryFor(const Detection& d, const std::string& observation) {
 std::array<double, 4> bestState(const nlohmann::json& c) {
   if (c.contains("fit") && c["fit"].value("status", std::string()) == "converged") {
     const auto& f = c["fit"];
-    return {f["x"].get<double>(), f["y"].get<double>(), f["vx_px_s"].get<double>(), f["vy_px_s"].get<double>()};
+    return {f["x"].get<double>(), f["y"].get<double>(), f["vx_px_s"].get<double>(),
+            f["vy_px_s"].get<double>()};
   }
   return {c["x"].get<double>(), c["y"].get<double>(), c["vx_px_s"].get<double>(), c["vy_px_s"].get<double>()};
 }
@@ -105,9 +106,10 @@ nlohmann::json mergeCatalogue(const std::vector<Outcome>& outcomes, const MatchP
       if (merged) continue;
       nlohmann::json e = entryFor(d, outcomes[d.outcome].name);
       e["seen_in"] = nlohmann::json::array();
-      e["seen_in"].push_back(
-          {{"observation", outcomes[d.outcome].name}, {"x", (*d.candidate)["x"]}, {"y", (*d.candidate)["y"]},
-           {"snr", d.snr}});
+      e["seen_in"].push_back({{"observation", outcomes[d.outcome].name},
+                              {"x", (*d.candidate)["x"]},
+                              {"y", (*d.candidate)["y"]},
+                              {"snr", d.snr}});
       entries.emplace_back(d, std::move(e));
     }
   }

@@ -21,7 +21,8 @@ bool isFitsName(const std::string& name) {
   std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return std::tolower(c); });
   for (const char* gz : {".gz", ".fz"}) {
     const std::string s = gz;
-    if (n.size() > s.size() && n.compare(n.size() - s.size(), s.size(), s) == 0) n.resize(n.size() - s.size());
+    if (n.size() > s.size() && n.compare(n.size() - s.size(), s.size(), s) == 0)
+      n.resize(n.size() - s.size());
   }
   for (const char* ext : {".fits", ".fit", ".fts"}) {
     const std::string s = ext;
@@ -255,8 +256,8 @@ std::vector<Observation> readManifest(const std::string& path) {
 }
 
 std::vector<std::pair<int, int>> splitRanges(int frames, int framesPerCube, int overlap) {
-  if (framesPerCube < 2) throw InputError("--split needs at least 2 frames per cube, got " +
-                                          std::to_string(framesPerCube));
+  if (framesPerCube < 2)
+    throw InputError("--split needs at least 2 frames per cube, got " + std::to_string(framesPerCube));
   if (overlap < 0 || overlap >= framesPerCube) {
     throw InputError("--overlap must be in [0, " + std::to_string(framesPerCube - 1) + "], got " +
                      std::to_string(overlap));
@@ -296,7 +297,7 @@ std::vector<Observation> splitObservation(const Observation& obs, int framesPerC
   const auto ranges = splitRanges(static_cast<int>(frames.size()), framesPerCube, overlap);
   for (std::size_t i = 0; i < ranges.size(); ++i) {
     Observation c = obs;
-    char suffix[16];
+    char suffix[32];
     std::snprintf(suffix, sizeof suffix, "_c%03zu", i);
     c.name = obs.name + suffix;
     c.group = obs.group.empty() ? obs.name : obs.group;

@@ -11,8 +11,8 @@
 namespace st::search {
 
 RowRange rowShare(int nvy, int part, int parts) {
-  if (parts < 1 || part < 0 || part >= parts) throw InputError("row share " + std::to_string(part) + " of " +
-                                                               std::to_string(parts) + " is not a part");
+  if (parts < 1 || part < 0 || part >= parts)
+    throw InputError("row share " + std::to_string(part) + " of " + std::to_string(parts) + " is not a part");
   const int base = nvy / parts;
   const int extra = nvy % parts;
   const int begin = part * base + std::min(part, extra);

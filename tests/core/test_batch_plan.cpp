@@ -40,7 +40,7 @@ TEST(BatchPlan, SplitFolderNamesCubesAndGroupsThem) {
   test::TempDir dir;
   std::filesystem::create_directories(dir / "night");
   for (int i = 0; i < 10; ++i)
-    touch(dir / "night" / ("f" + std::to_string(100 + i) + ".fits"));
+    touch(dir / "night" / std::string("f").append(std::to_string(100 + i)).append(".fits"));
   touch(dir / "night" / "notes.txt");
   const auto obs = batch::observationsFromInputs({(dir / "night").string() + "/"});
   ASSERT_EQ(obs.size(), 1u);
@@ -118,9 +118,11 @@ TEST(BatchState, StagedFolderAppearsWholeOrNotAtAll) {
 }
 
 nlohmann::json result(double tRefMjd, std::vector<std::array<double, 5>> cands) {
-  nlohmann::json r{{"t_ref_mjd", tRefMjd}, {"grid", {{"step_px_s", 0.1}}}, {"candidates", nlohmann::json::array()}};
+  nlohmann::json r{
+      {"t_ref_mjd", tRefMjd}, {"grid", {{"step_px_s", 0.1}}}, {"candidates", nlohmann::json::array()}};
   for (const auto& c : cands)
-    r["candidates"].push_back({{"x", c[0]}, {"y", c[1]}, {"vx_px_s", c[2]}, {"vy_px_s", c[3]}, {"snr", c[4]}});
+    r["candidates"].push_back(
+        {{"x", c[0]}, {"y", c[1]}, {"vx_px_s", c[2]}, {"vy_px_s", c[3]}, {"snr", c[4]}});
   return r;
 }
 
@@ -130,8 +132,12 @@ TEST(Catalogue, OneObjectInOverlappingCubesIsOneEntry) {
   // The same mover (2, 0.5 px/s) in both cubes of a night, and a different one in the second only.
   std::vector<batch::Outcome> o{
       {"n_c000", "n", {"a"}, S::Done, {}, result(60000.0, {{50, 40, 2.0, 0.5, 12.0}})},
-      {"n_c001", "n", {"b"}, S::Done, {}, result(60000.0 + dtDays, {{170, 70, 2.05, 0.5, 15.0},
-                                                                    {10, 10, 0.0, 3.0, 8.0}})},
+      {"n_c001",
+       "n",
+       {"b"},
+       S::Done,
+       {},
+       result(60000.0 + dtDays, {{170, 70, 2.05, 0.5, 15.0}, {10, 10, 0.0, 3.0, 8.0}})},
       {"other", "", {"c"}, S::Done, {}, result(60000.0, {{50, 40, 2.0, 0.5, 9.0}})},
       {"bad", "", {"d"}, S::Failed, "truncated", {}},
       {"late", "", {"e"}, S::NotDone, "rank 2 died", {}}};

@@ -43,7 +43,8 @@ TEST(RowSplit, MergedPartsEqualOneSearch) {
   for (int parts : {2, 3, 5}) {
     std::vector<search::RowSearch> got;
     for (int p = 0; p < parts; ++p) {
-      const auto part = search::searchRows(fc, grid, params, search::rowShare(grid.nvy, p, parts), progress, cancel);
+      const auto part =
+          search::searchRows(fc, grid, params, search::rowShare(grid.nvy, p, parts), progress, cancel);
       got.push_back(search::rowSearchFromBytes(search::toBytes(part)));  // as it travels between ranks
     }
     const search::SearchResult merged = search::mergeRowSearches(fc, grid, params, got, "cpu (mpi)");

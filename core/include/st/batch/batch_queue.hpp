@@ -25,7 +25,9 @@ class BatchQueue {
   [[nodiscard]] std::size_t pending() const noexcept { return m_pending.size(); }
   [[nodiscard]] std::size_t inFlight() const noexcept { return m_held.size(); }
   /// Indices never handed out, in order (to name what was not done when the batch stops early).
-  [[nodiscard]] std::vector<std::size_t> pendingIndices() const { return {m_pending.begin(), m_pending.end()}; }
+  [[nodiscard]] std::vector<std::size_t> pendingIndices() const {
+    return {m_pending.begin(), m_pending.end()};
+  }
 
  private:
   std::deque<std::size_t> m_pending;

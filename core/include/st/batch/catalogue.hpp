@@ -12,11 +12,11 @@ namespace st::batch {
 /// How one observation ended, as the catalogue needs it.
 struct Outcome {
   std::string name;
-  std::string group;               ///< empty: its own group
+  std::string group;  ///< empty: its own group
   std::vector<std::string> inputs;
   enum class Status { Done, Failed, NotDone } status = Status::NotDone;
-  std::string error;       ///< Failed: what went wrong; NotDone: why (e.g. its worker died)
-  nlohmann::json result;   ///< Done: the search result (candidates.json), candidates with "fit"
+  std::string error;      ///< Failed: what went wrong; NotDone: why (e.g. its worker died)
+  nlohmann::json result;  ///< Done: the search result (candidates.json), candidates with "fit"
 };
 
 struct MatchParams {
