@@ -15,12 +15,14 @@ namespace st::app {
 
 namespace {
 
+#if ST_HAVE_MPI
 bool launchedByMpi() {
   for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE", "MPI_LOCALNRANKS"}) {
     if (std::getenv(v) != nullptr) return true;
   }
   return false;
 }
+#endif
 
 std::string hostName() {
   char buf[256] = {};
