@@ -9,6 +9,7 @@ packages=(
   libopencv-core-dev libopencv-imgproc-dev nlohmann-json3-dev libsep-dev
   qt6-base-dev qt6-svg-dev libqcustomplot-dev libgl-dev
   libgtest-dev libgmock-dev
+  libopenmpi-dev openmpi-bin
   python3-astropy python3-numpy
   xvfb xauth saods9
   libxml2-utils

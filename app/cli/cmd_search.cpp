@@ -5,20 +5,13 @@
 #include <nlohmann/json.hpp>
 
 #include "backend_factory.hpp"
-#include "candidate_fit.hpp"
-#include "st/pipeline/prepared_cube.hpp"
-#include "st/pipeline/preprocess.hpp"
+#include "observation_pipeline.hpp"
+#include "search_options.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
 #include "st/report/search_report.hpp"
 #include "load_args.hpp"
-#include "st/common/error.hpp"
-#include "st/common/parallel.hpp"
-#include "st/io/fits_reader.hpp"
 #include "st/search/method_choice.hpp"
-#include "st/search/search_run.hpp"
-#include "st/search/sky_motion.hpp"
-#include "st/search/velocity_grid.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -30,102 +23,17 @@ constexpr const char* kHelp =
     "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults: no bias/flat frames).\n"
     "  --preprocessed        INPUT was written by 'synthtrack-cli preprocess', told by its header: the\n"
     "                        zero-biased cube (-o; STFILT = F) is matched-filtered with the header's PSF\n"
-    "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is searched\n"
-    "                        as is with SIGMAF; sky rate from SKYVX/SKYVY (px/s). A cube whose header does not\n"
+    "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is "
+    "searched\n"
+    "                        as is with SIGMAF; sky rate from SKYVX/SKYVY (px/s). A cube whose header does "
+    "not\n"
     "                        say (no STFILT) is refused; a pre-processed cube without --preprocessed too\n"
     "  --fit                 refine every candidate (up to --fit-max, default 50) by the co-moving PSF fit\n"
     "                        with segment checks (needs raw INPUT, not --preprocessed)\n"
-    "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
-    "                        half-width of the grid around its centre (default: 12 deg/day, the paper's,\n"
-    "                        when the plate scale is known)\n"
-    "  --centre-px-s VX,VY   grid centre (default: the sky rate)\n"
-    "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's rule)\n"
-    "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
-    "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all trials\n"
-    "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
-    "  --max-candidates N    cells kept before clustering (default 2000000)\n"
-    "  --sigma-f S           noise of one filtered frame (default: header SIGMAF of a filtered cube, else\n"
-    "                        measured from the filtered frames: 1.4826 MAD)\n"
-    "  --fwhm PX             PSF FWHM (default: fitted, or header PSFFWHM with --preprocessed; for a\n"
-    "                        zero-biased cube it is the matched filter's)\n"
-    "  --backend auto|cpu|cuda  (default auto)\n"
-    "  --method auto|exact|tree  exact IPSA (every frame at its exact shift) or the hierarchical tree "
-    "search\n"
-    "                        (about N_pix x N_v work instead of N_pix x N_f x N_v; every sample within 1 px\n"
-    "                        of the exact shift, median SNR loss ~1%, worst ~5%). auto (default): the tree\n"
-    "                        where the backend has it and it is estimated >= 2x faster and >= 1 s quicker,\n"
-    "                        else exact; the choice and why are printed and written to the JSON and CSV\n"
+    "  --mpi                 under mpirun: split the velocity grid's vy rows over the ranks (exact CPU "
+    "search),\n"
+    "                        rank 0 gathers; the same candidates as one process\n"
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
-
-struct Options {
-  search::SearchRequest request;
-  std::optional<double> sigmaF;
-  std::optional<double> fwhm;
-  std::string backend = "auto";
-  std::optional<std::string> csv;
-  bool json = false;
-};
-
-Velocity parsePair(const std::string& text, const std::string& name) {
-  double a = 0.0, b = 0.0;
-  char comma = 0;
-  if (std::sscanf(text.c_str(), "%lf%c%lf", &a, &comma, &b) != 3 || comma != ',') {
-    throw UsageError("--" + name + " needs VX,VY, got '" + text + "'");
-  }
-  return {a, b};
-}
-
-Options parseOptions(const CliArgs& cli) {
-  Options o;
-  search::GridSpec& g = o.request.grid;
-  const int ranges = cli.has("vmax-px-s") + cli.has("vmax-arcsec-min") + cli.has("vmax-deg-day");
-  if (ranges > 1) throw UsageError("give one of --vmax-px-s, --vmax-arcsec-min, --vmax-deg-day");
-  g.unit = search::VelocityUnit::DegPerDay;
-  g.halfRange = 12.0;
-  if (auto v = cli.number("vmax-px-s")) g = {*v, search::VelocityUnit::PxPerS};
-  if (auto v = cli.number("vmax-arcsec-min")) g = {*v, search::VelocityUnit::ArcsecPerMin};
-  if (auto v = cli.number("vmax-deg-day")) g = {*v, search::VelocityUnit::DegPerDay};
-  if (auto c = cli.value("centre-px-s")) g.centre = parsePair(*c, "centre-px-s");
-  if (cli.flag("grid-step-fwhm")) {
-    if (cli.has("grid-step-px")) throw UsageError("give --grid-step-px or --grid-step-fwhm, not both");
-    g.stepRule = search::StepRule::FwhmOverSpan;
-  }
-  if (auto p = cli.number("grid-step-px")) g.stepPx = *p;
-  search::SearchParams& p = o.request.params;
-  if (cli.has("snr") && cli.has("fap")) throw UsageError("give --snr or --fap, not both");
-  if (auto s = cli.number("snr")) p.snrThreshold = *s;
-  p.targetFap = cli.number("fap");
-  if (auto f = cli.number("min-frame-fraction")) p.minFrameFraction = *f;
-  if (auto n = cli.integer("max-candidates")) {
-    if (*n < 1) throw UsageError("--max-candidates must be >= 1");
-    p.maxCandidates = static_cast<std::size_t>(*n);
-  }
-  o.sigmaF = cli.number("sigma-f");
-  o.fwhm = cli.number("fwhm");
-  if (auto b = cli.value("backend")) o.backend = *b;
-  p.method = "auto";
-  if (auto m = cli.value("method")) {
-    if (*m != "auto" && *m != "exact" && *m != "tree")
-      throw UsageError("--method must be 'auto', 'exact' or 'tree', got '" + *m + "'");
-    p.method = *m;
-  }
-  o.csv = cli.value("out");
-  o.json = cli.flag("json");
-  return o;
-}
-
-/// The search's input from a cube written by `preprocess` (pipeline::searchInputFromPrepared: a zero-biased
-/// cube is matched-filtered with its header's PSF, a filtered one taken as is, anything else refused).
-pipeline::PreparedSearchInput loadPrepared(const CliArgs& cli, const Options& o, ProgressSink& progress) {
-  FrameCube frames;
-  {
-    SubProgress loadProgress(progress, 0.0, 0.5);
-    frames = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
-  }
-  SubProgress filterProgress(progress, 0.5, 1.0);
-  return pipeline::searchInputFromPrepared(std::move(frames), {o.fwhm, o.sigmaF}, filterProgress,
-                                           processCancelToken());
-}
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
 void printEstimate(const search::FilteredCube& fc, const search::VelocityGrid& grid,
@@ -171,94 +79,53 @@ void printTable(const nlohmann::json& j) {
 }  // namespace
 
 int cmdSearch(const Args& args) {
-  std::set<std::string> valued = {"vmax-px-s",
-                                  "vmax-arcsec-min",
-                                  "vmax-deg-day",
-                                  "centre-px-s",
-                                  "grid-step-px",
-                                  "snr",
-                                  "fap",
-                                  "min-frame-fraction",
-                                  "max-candidates",
-                                  "sigma-f",
-                                  "fwhm",
-                                  "backend",
-                                  "method",
-                                  "fit-max",
-                                  "out"};
+  std::set<std::string> valued = searchOptionNames();
+  valued.insert("out");
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "fit", "help"});
+  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "fit", "mpi", "help"});
   if (cli.flag("help")) {
-    std::printf("%s%s", kHelp, loadOptionsHelp());
+    std::printf("%s%s%s", kHelp, searchOptionsHelp(), loadOptionsHelp());
     return 0;
   }
   if (cli.positionals().empty()) throw UsageError("no INPUT given");
-  const bool preprocessed = cli.flag("preprocessed");
-  if (cli.flag("fit") && preprocessed) {
+  ObservationInput input{cli.positionals(), loadOptionsFromArgs(cli), cli.flag("preprocessed"), {}, {}, {}};
+  if (cli.flag("fit") && input.preprocessed) {
     throw UsageError("--fit needs the unfiltered frames: give the raw INPUT without --preprocessed");
   }
-  const Options o = parseOptions(cli);
+  const SearchOptions o = parseSearchOptions(cli);
+  if (cli.flag("mpi")) return searchMpi(input, o, cli.flag("fit"), cli.value("out"), cli.flag("json"));
   BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method);
   TerminalProgress progress;
-  std::optional<pipeline::Prepared> prepared;
-  std::optional<pipeline::PreparedSearchInput> loaded;
-  std::vector<std::string> warnings, notes;
-  if (preprocessed) {
-    loaded = loadPrepared(cli, o, progress);
-    warnings = std::move(loaded->warnings);
-    notes = std::move(loaded->notes);
-  } else {
-    SubProgress loadProgress(progress, 0.0, 0.2);
-    FrameCube raw =
-        io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
-    pipeline::checkNotPrepared(raw, "search it with --preprocessed");
-    warnings = raw.warnings;
-    SubProgress prepProgress(progress, 0.2, 0.5);
-    prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress,
-                                    processCancelToken());
-    if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
-    if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;
-  }
-  const search::FilteredCube& fc = preprocessed ? loaded->cube : prepared->filtered;
-  const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
-  const search::MethodEstimate e =
-      search::estimateMethods(fc.frames.width(), fc.frames.height(), fc.frames.timeOffsetsS(), grid,
-                              search::costModelFor(*sel.backend), workerCount());
-  const search::MethodChoice method = search::chooseMethod(
-      o.request.params.method, e, sel.backend->supportsMethod("tree"), sel.backend->name());
-  progress.finish();
-  for (const auto& w : warnings)
-    std::fprintf(stderr, "warning: %s\n", w.c_str());
-  for (const auto& n : notes)
-    std::fprintf(stderr, "note: %s\n", n.c_str());
-  std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(fc.frames, fc.psfFwhmPx).c_str());
-  std::fprintf(stderr, "%s\n", sel.message.c_str());
-  printEstimate(fc, grid, e, method);
-  const search::SearchResult r = search::searchWithChoice(*sel.backend, fc, grid, o.request.params, method,
-                                                          progress, processCancelToken());
-  progress.finish();
-  std::fputs(searchNotesText(r).c_str(), stderr);
-  nlohmann::json j = report::searchResultToJson(fc, r, cli.positionals());
-  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
-  j["min_frames"] = r.minFrames;
-  j["cells_above_threshold"] = r.cellsAboveThreshold;
-  if (cli.flag("fit")) {
-    const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
-    const long long fitMax = cli.integer("fit-max").value_or(50);
-    for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < fitMax; ++i) {
-      progress.report(static_cast<double>(i) / static_cast<double>(r.candidates.size()), "co-moving fits");
-      j["candidates"][i]["fit"] = fitCandidateJson(*prepared, r.candidates[i], gain, processCancelToken());
-    }
+  ObservationHooks hooks;
+  hooks.planned = [&](const PlannedSearch& p) {
     progress.finish();
-  }
-  if (o.csv) report::writeCandidatesCsv(*o.csv, j);
-  if (o.json) {
+    for (const auto& w : p.warnings)
+      std::fprintf(stderr, "warning: %s\n", w.c_str());
+    for (const auto& n : p.notes)
+      std::fprintf(stderr, "note: %s\n", n.c_str());
+    std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(p.cube.frames, p.cube.psfFwhmPx).c_str());
+    std::fprintf(stderr, "%s\n", sel.message.c_str());
+    printEstimate(p.cube, p.grid, p.estimate, p.choice);
+  };
+  hooks.searched = [&](const search::SearchResult& r) {
+    progress.finish();
+    std::fputs(searchNotesText(r).c_str(), stderr);
+  };
+  const nlohmann::json j =
+      runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
+  progress.finish();
+  writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
+  return 0;
+}
+
+void writeSearchOutputs(const nlohmann::json& j, const std::optional<std::string>& csv, bool json) {
+  if (csv) report::writeCandidatesCsv(*csv, j);
+  if (json) {
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     printTable(j);
   }
-  return 0;
 }
 
 }  // namespace st::app

@@ -26,6 +26,7 @@ constexpr Command kCommands[] = {
     {"preprocess", st::app::cmdPreprocess, "calibrate, remove background and static sources"},
     {"stack", st::app::cmdStack, "IPSA or CSA stack at one velocity"},
     {"search", st::app::cmdSearch, "velocity search: candidates and the velocity map"},
+    {"batch", st::app::cmdBatch, "many observations: search --fit on each (MPI optional), merged catalogue"},
     {"fit", st::app::cmdFit, "co-moving PSF fit of one candidate"},
     {"report", st::app::cmdReport, "vetting session, DS9 regions, ADES PSV and MPC 80-column astrometry"},
     {"inject", st::app::cmdInject, "copies of raw frames with synthetic movers added, and their truth"},

@@ -1,5 +1,11 @@
 #include "backend_factory.hpp"
 
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <regex>
+#include <thread>
+
 #include "st/common/error.hpp"
 #include "st/config.hpp"
 #include "st/search/cpu_backend.hpp"
@@ -55,6 +61,41 @@ BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& m
   sel = makeBackend(BackendChoice::Cpu);
   sel.message = "method tree: " + gpu + " has no tree search; " + sel.message;
   return sel;
+}
+
+std::string chooseRankResources(int localIndex, int localWorkers) {
+  localWorkers = std::max(1, localWorkers);
+  std::vector<std::string> devices;
+  if (const char* v = std::getenv("CUDA_VISIBLE_DEVICES")) {
+    std::string list = v;
+    for (std::size_t start = 0; start <= list.size();) {
+      const std::size_t comma = std::min(list.find(',', start), list.size());
+      if (comma > start) devices.push_back(list.substr(start, comma - start));
+      start = comma + 1;
+    }
+  } else {
+    std::error_code ec;
+    const std::regex gpu("nvidia[0-9]+");
+    for (const auto& e : std::filesystem::directory_iterator("/dev", ec)) {
+      const std::string name = e.path().filename().string();
+      if (std::regex_match(name, gpu)) devices.push_back(name.substr(6));
+    }
+    std::sort(devices.begin(), devices.end());
+  }
+  std::string note;
+  if (cudaCompiledIn() && devices.size() > 1) {
+    const std::string mine = devices[static_cast<std::size_t>(localIndex) % devices.size()];
+    ::setenv("CUDA_VISIBLE_DEVICES", mine.c_str(), 1);
+    note = "GPU " + mine + " of " + std::to_string(devices.size());
+  } else {
+    note = devices.empty() ? "no GPU" : std::to_string(devices.size()) + " GPU(s) visible";
+  }
+  if (std::getenv("ST_THREADS") == nullptr) {
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    const unsigned share = std::max(1u, cores / static_cast<unsigned>(localWorkers));
+    ::setenv("ST_THREADS", std::to_string(share).c_str(), 1);
+  }
+  return note + ", " + std::getenv("ST_THREADS") + " CPU threads";
 }
 
 std::string searchNotesText(const search::SearchResult& result) {

@@ -28,6 +28,13 @@ BackendSelection makeBackend(BackendChoice choice);
 /// named.
 BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method);
 
+/// For one of `localWorkers` worker processes on a node (batch under MPI), index `localIndex`: each gets
+/// its own GPU when the node has several (CUDA_VISIBLE_DEVICES set to one of the visible ones, round robin;
+/// the devices counted from CUDA_VISIBLE_DEVICES or /dev/nvidiaN, without starting CUDA, so call this
+/// before any backend is made), and a share of the cores (ST_THREADS = cores / workers on the node) unless
+/// ST_THREADS is set. Returns what was chosen, for the log.
+std::string chooseRankResources(int localIndex, int localWorkers);
+
 /// What a finished search has to tell the user besides its candidates, for a terminal: each of
 /// SearchResult::warnings as "warning: ...", then the backend's note (memory tiling, devices, time per
 /// phase) indented; empty when there is neither.

@@ -78,6 +78,8 @@ struct Shared {
   std::mutex mutex;
   std::atomic<float> hitFloor{0.0f};
   KernelOutput out;
+  int ivBegin = 0;  ///< flat velocity indices searched: [ivBegin, ivEnd)
+  int ivEnd = 0;
 };
 
 /// Fills the zero-padded tile of frames [k0, k0 + nb) for output rows [y0, y0 + rows) and returns its
@@ -269,8 +271,8 @@ void runItem(Shared& sh, Scratch& s, std::size_t item, CancelToken& cancel) {
   // which then come from L3 rather than memory (a row tile of 1500 frames x 512 px is ~18 MB).
   const int vb = static_cast<int>(item % sh.velBlocks);
   const int rt = static_cast<int>(item / sh.velBlocks);
-  const int iv0 = vb * kVelBlock;
-  const int nv = std::min<int>(kVelBlock, static_cast<int>(sh.grid.count()) - iv0);
+  const int iv0 = sh.ivBegin + vb * kVelBlock;
+  const int nv = std::min<int>(kVelBlock, sh.ivEnd - iv0);
   const int y0 = sh.roi.y0 + rt * kRowTile;
   const int rows = std::min(kRowTile, sh.roi.y0 + sh.roi.height - y0);
   const int n = static_cast<int>(sh.order.dt.size());
@@ -317,7 +319,14 @@ KernelOutput runIpsaKernel(const FrameCube& cube, const VelocityGrid& grid, cons
   for (int k = 1; k <= n; ++k)
     sh.invNorm[k] = static_cast<float>(1.0 / (params.sigmaF * std::sqrt(double(k))));
   sh.rowTiles = (roi.height + kRowTile - 1) / kRowTile;
-  sh.velBlocks = static_cast<int>((grid.count() + kVelBlock - 1) / kVelBlock);
+  const int rowEnd = params.ivyEnd < 0 ? grid.nvy : params.ivyEnd;
+  if (params.ivyBegin < 0 || params.ivyBegin >= rowEnd || rowEnd > grid.nvy) {
+    throw InputError("velocity rows [" + std::to_string(params.ivyBegin) + ", " + std::to_string(rowEnd) +
+                     ") outside the grid's " + std::to_string(grid.nvy));
+  }
+  sh.ivBegin = params.ivyBegin * grid.nvx;
+  sh.ivEnd = rowEnd * grid.nvx;
+  sh.velBlocks = (sh.ivEnd - sh.ivBegin + kVelBlock - 1) / kVelBlock;
   sh.hitFloor.store(static_cast<float>(params.snrThreshold));
   sh.out.map.nvx = grid.nvx;
   sh.out.map.nvy = grid.nvy;

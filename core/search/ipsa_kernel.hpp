@@ -40,6 +40,11 @@ struct KernelParams {
   double snrThreshold = 7.0;  ///< cells strictly above are reported
   int minFrames = 1;          ///< cells with N_in below are ignored
   std::size_t maxHits = 10000;
+  /// Rows of the velocity grid searched: [ivyBegin, ivyEnd), -1 = to the last (search --mpi gives each rank
+  /// its share). Cells and map entries of other rows are left out; results of a row do not depend on which
+  /// other rows are searched with it (each velocity's sums run over the frames in the same order).
+  int ivyBegin = 0;
+  int ivyEnd = -1;
 };
 
 struct KernelOutput {

@@ -1,0 +1,110 @@
+#include "search_options.hpp"
+
+#include <cstdio>
+
+namespace st::app {
+
+namespace {
+
+Velocity parsePair(const std::string& text, const std::string& name) {
+  double a = 0.0, b = 0.0;
+  char comma = 0;
+  if (std::sscanf(text.c_str(), "%lf%c%lf", &a, &comma, &b) != 3 || comma != ',') {
+    throw UsageError("--" + name + " needs VX,VY, got '" + text + "'");
+  }
+  return {a, b};
+}
+
+}  // namespace
+
+std::set<std::string> searchOptionNames() {
+  return {"vmax-px-s",
+          "vmax-arcsec-min",
+          "vmax-deg-day",
+          "centre-px-s",
+          "grid-step-px",
+          "snr",
+          "fap",
+          "min-frame-fraction",
+          "max-candidates",
+          "sigma-f",
+          "fwhm",
+          "backend",
+          "method",
+          "fit-max"};
+}
+
+const char* searchOptionsHelp() {
+  return "  --vmax-px-s V | --vmax-arcsec-min A | --vmax-deg-day D\n"
+         "                        half-width of the grid around its centre (default: 12 deg/day, the "
+         "paper's,\n"
+         "                        when the plate scale is known)\n"
+         "  --centre-px-s VX,VY   grid centre (default: the sky rate)\n"
+         "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's "
+         "rule)\n"
+         "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
+         "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all "
+         "trials\n"
+         "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
+         "  --max-candidates N    cells kept before clustering (default 2000000)\n"
+         "  --sigma-f S           noise of one filtered frame (default: header SIGMAF of a filtered cube, "
+         "else\n"
+         "                        measured from the filtered frames: 1.4826 MAD)\n"
+         "  --fwhm PX             PSF FWHM (default: fitted, or header PSFFWHM with --preprocessed; for a\n"
+         "                        zero-biased cube it is the matched filter's)\n"
+         "  --fit-max N           candidates refined by the co-moving fit (default 50)\n"
+         "  --backend auto|cpu|cuda  (default auto)\n"
+         "  --method auto|exact|tree  exact IPSA (every frame at its exact shift) or the hierarchical tree "
+         "search\n"
+         "                        (about N_pix x N_v work instead of N_pix x N_f x N_v; every sample within "
+         "1 px\n"
+         "                        of the exact shift, median SNR loss ~1%, worst ~5%). auto (default): the "
+         "tree\n"
+         "                        where the backend has it and it is estimated >= 2x faster and >= 1 s "
+         "quicker,\n"
+         "                        else exact; the choice and why are printed and written to the JSON and "
+         "CSV\n";
+}
+
+SearchOptions parseSearchOptions(const CliArgs& cli) {
+  SearchOptions o;
+  search::GridSpec& g = o.request.grid;
+  const int ranges = cli.has("vmax-px-s") + cli.has("vmax-arcsec-min") + cli.has("vmax-deg-day");
+  if (ranges > 1) throw UsageError("give one of --vmax-px-s, --vmax-arcsec-min, --vmax-deg-day");
+  g.unit = search::VelocityUnit::DegPerDay;
+  g.halfRange = 12.0;
+  if (auto v = cli.number("vmax-px-s")) g = {*v, search::VelocityUnit::PxPerS};
+  if (auto v = cli.number("vmax-arcsec-min")) g = {*v, search::VelocityUnit::ArcsecPerMin};
+  if (auto v = cli.number("vmax-deg-day")) g = {*v, search::VelocityUnit::DegPerDay};
+  if (auto c = cli.value("centre-px-s")) g.centre = parsePair(*c, "centre-px-s");
+  if (cli.flag("grid-step-fwhm")) {
+    if (cli.has("grid-step-px")) throw UsageError("give --grid-step-px or --grid-step-fwhm, not both");
+    g.stepRule = search::StepRule::FwhmOverSpan;
+  }
+  if (auto p = cli.number("grid-step-px")) g.stepPx = *p;
+  search::SearchParams& p = o.request.params;
+  if (cli.has("snr") && cli.has("fap")) throw UsageError("give --snr or --fap, not both");
+  if (auto s = cli.number("snr")) p.snrThreshold = *s;
+  p.targetFap = cli.number("fap");
+  if (auto f = cli.number("min-frame-fraction")) p.minFrameFraction = *f;
+  if (auto n = cli.integer("max-candidates")) {
+    if (*n < 1) throw UsageError("--max-candidates must be >= 1");
+    p.maxCandidates = static_cast<std::size_t>(*n);
+  }
+  o.sigmaF = cli.number("sigma-f");
+  o.fwhm = cli.number("fwhm");
+  if (auto b = cli.value("backend")) o.backend = *b;
+  p.method = "auto";
+  if (auto m = cli.value("method")) {
+    if (*m != "auto" && *m != "exact" && *m != "tree")
+      throw UsageError("--method must be 'auto', 'exact' or 'tree', got '" + *m + "'");
+    p.method = *m;
+  }
+  if (auto n = cli.integer("fit-max")) {
+    if (*n < 0) throw UsageError("--fit-max must be >= 0");
+    o.fitMax = *n;
+  }
+  return o;
+}
+
+}  // namespace st::app

@@ -1,0 +1,31 @@
+#pragma once
+// The search options shared by `synthtrack-cli search` and `batch` (and a batch manifest's per-observation
+// "params"): one parser, so an observation in a batch is searched exactly as `search` would search it.
+#include <optional>
+#include <set>
+#include <string>
+
+#include "cli_args.hpp"
+#include "st/search/search_run.hpp"
+
+namespace st::app {
+
+struct SearchOptions {
+  search::SearchRequest request;
+  std::optional<double> sigmaF;  ///< override of the filtered frames' noise
+  std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
+  std::string backend = "auto";
+  long long fitMax = 50;  ///< candidates refined by the co-moving fit (--fit-max)
+};
+
+/// Names of the valued options parseSearchOptions reads (without "--").
+std::set<std::string> searchOptionNames();
+
+/// Help text for those options (one per line, indented).
+const char* searchOptionsHelp();
+
+/// SearchOptions from parsed arguments (defaults: +-12 deg/day, step 1 px over the span, SNR 7, method auto,
+/// backend auto, fit-max 50). Throws UsageError naming the option at fault.
+SearchOptions parseSearchOptions(const CliArgs& cli);
+
+}  // namespace st::app
