@@ -12,6 +12,7 @@
 #include "st/report/search_report.hpp"
 #include "load_args.hpp"
 #include "st/search/method_choice.hpp"
+#include "st/search/sky_motion.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
