@@ -4,6 +4,7 @@
 //   the star catalog.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "cli_args.hpp"
@@ -35,11 +36,14 @@ std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name) {
   }
 }
 
-FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress) {
+// Calibration frames are cropped as the science frames are (`crop`), so that the masters match them.
+FrameCube loadCalibration(const std::vector<std::string>& files, const std::optional<io::CropRegion>& crop,
+                          ProgressSink& progress) {
   if (files.empty()) return {};
   io::LoadOptions opt;  // calibration frames need no times: fall back to a nominal clock
   opt.startMjd = 0.0;
   opt.frameRateHz = 1.0;
+  opt.crop = crop;
   return io::loadFrames(files, opt, progress, processCancelToken());
 }
 
@@ -63,24 +67,28 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
+    "  (with --crop, the calibration frames are cropped alike)\n"
     "  --json                  print the sidecar to stdout as well\n";
 
 }  // namespace
 
 int cmdPreprocess(const Args& args) {
   if (!args.empty() && args[0] == "--help") {
-    std::printf("%s%s", kHelp, loadOptionsHelp());
+    std::printf("%s%s%s", kHelp, calibOptionsHelp(), loadOptionsHelp());
     return 0;
   }
   auto names = loadOptionNames();
   for (const char* n :
        {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background"})
     names.insert(n);
-  const CliArgs cli(args, names, {"no-cosmic-rays", "json"});
+  auto flags = calibFlagNames();
+  flags.insert({"no-cosmic-rays", "json"});
+  const CliArgs cli(args, names, flags);
   if (cli.positionals().empty()) throw UsageError("give at least one INPUT (a FITS file or a folder)");
   const auto out = cli.value("o");
   if (!out) throw UsageError("give the output file with -o PREPARED.fits");
   pipeline::PreprocessParams params;
+  params.calib = calibParamsFromArgs(cli);
   if (cli.has("sky-rate-px-s")) {
     const auto [vx, vy] = pairOf(cli, "sky-rate-px-s");
     params.skyRate = Velocity{vx, vy};
@@ -95,17 +103,21 @@ int cmdPreprocess(const Args& args) {
   TerminalProgress progress;
   CancelToken& cancel = processCancelToken();
   FrameCube cube;
+  const io::LoadOptions loadOptions = loadOptionsFromArgs(cli);
   {
     SubProgress sub(progress, 0.0, 0.2);
-    cube = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), sub, cancel);
+    cube = io::loadFrames(cli.positionals(), loadOptions, sub, cancel);
   }
-  const FrameCube bias = loadCalibration(cli.values("bias"), progress);
-  const FrameCube dark = loadCalibration(cli.values("dark"), progress);
-  const FrameCube flat = loadCalibration(cli.values("flat"), progress);
+  std::vector<std::string> warnings = cube.warnings;
+  const FrameCube bias = loadCalibration(cli.values("bias"), loadOptions.crop, progress);
+  const FrameCube dark = loadCalibration(cli.values("dark"), loadOptions.crop, progress);
+  const FrameCube flat = loadCalibration(cli.values("flat"), loadOptions.crop, progress);
+  for (const FrameCube* c : {&bias, &dark, &flat})
+    warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
   if (!bias.empty() || !dark.empty() || !flat.empty()) {
     params.masters = calib::buildMasters(bias, dark, flat, cube, params.calib, progress, cancel);
+    warnings.insert(warnings.end(), params.masters->warnings.begin(), params.masters->warnings.end());
   }
-  const std::vector<std::string> loadWarnings = cube.warnings;
   pipeline::Prepared prepared;
   {
     SubProgress sub(progress, 0.2, 0.95);
@@ -126,8 +138,8 @@ int cmdPreprocess(const Args& args) {
   const std::string sidecar = sidecarPath(*out);
   pipeline::writePreparedSidecar(sidecar, prepared);
   progress.finish();
-  for (const auto& w : loadWarnings)
-    std::fprintf(stderr, "warning: %s\n", w.c_str());
+  warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());
+  printWarnings(warnings);
   for (const auto& n : prepared.notes)
     std::fprintf(stderr, "note: %s\n", n.c_str());
   if (cli.flag("json")) {

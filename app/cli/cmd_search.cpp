@@ -195,9 +195,11 @@ int cmdSearch(const Args& args) {
                                   "out"};
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "fit", "help"});
+  auto flags = calibFlagNames();
+  flags.insert({"preprocessed", "grid-step-fwhm", "json", "fit", "help"});
+  const CliArgs cli(args, valued, flags);
   if (cli.flag("help")) {
-    std::printf("%s%s", kHelp, loadOptionsHelp());
+    std::printf("%s%s%s", kHelp, calibOptionsHelp(), loadOptionsHelp());
     return 0;
   }
   if (cli.positionals().empty()) throw UsageError("no INPUT given");
@@ -214,8 +216,12 @@ int cmdSearch(const Args& args) {
     FrameCube raw =
         io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), loadProgress, processCancelToken());
     SubProgress prepProgress(progress, 0.2, 0.5);
-    prepared = pipeline::preprocess(std::move(raw), pipeline::PreprocessParams{}, prepProgress,
-                                    processCancelToken());
+    std::vector<std::string> warnings = raw.warnings;
+    pipeline::PreprocessParams pp;
+    pp.calib = calibParamsFromArgs(cli);
+    prepared = pipeline::preprocess(std::move(raw), pp, prepProgress, processCancelToken());
+    warnings.insert(warnings.end(), prepared->calibration.warnings.begin(), prepared->calibration.warnings.end());
+    printWarnings(warnings);
     if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
     if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;
   }
