@@ -220,7 +220,8 @@ int cmdSearch(const Args& args) {
     pipeline::PreprocessParams pp;
     pp.calib = calibParamsFromArgs(cli);
     prepared = pipeline::preprocess(std::move(raw), pp, prepProgress, processCancelToken());
-    warnings.insert(warnings.end(), prepared->calibration.warnings.begin(), prepared->calibration.warnings.end());
+    warnings.insert(warnings.end(), prepared->calibration.warnings.begin(),
+                    prepared->calibration.warnings.end());
     printWarnings(warnings);
     if (o.fwhm) prepared->filtered.psfFwhmPx = *o.fwhm;
     if (o.sigmaF) prepared->filtered.sigmaF = *o.sigmaF;

@@ -65,8 +65,9 @@ float overscanLevel(const float* frame, int width, const Section& s) {
 
 // The section to use for `key`: the one given in params (which must fit), else the header's, made to fit
 // the frames (clipped or ignored, with a warning). A malformed header section is ignored with a warning.
-std::optional<Section> sectionFrom(const std::optional<Section>& given, const FrameCube& cube, const char* key,
-                                   const CalibParams& params, std::vector<std::string>& warnings) {
+std::optional<Section> sectionFrom(const std::optional<Section>& given, const FrameCube& cube,
+                                   const char* key, const CalibParams& params,
+                                   std::vector<std::string>& warnings) {
   const int w = cube.width(), h = cube.height();
   if (given) {
     checkSectionInside(*given, w, h, key);

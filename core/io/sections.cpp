@@ -94,11 +94,11 @@ void cropSections(FitsHeader& header, const PixelRegion& crop, std::string_view 
       continue;
     }
     if (!(*inside == moved)) {
-      warnings.push_back(std::string(file) + ": " + std::string(key) + " " + original +
-                         " reaches outside the crop " + cropText + "; clipped to " +
-                         formatSection({inside->x0 + crop.x0, inside->y0 + crop.y0, inside->width,
-                                        inside->height}) +
-                         " of the original frame");
+      warnings.push_back(
+          std::string(file) + ": " + std::string(key) + " " + original + " reaches outside the crop " +
+          cropText + "; clipped to " +
+          formatSection({inside->x0 + crop.x0, inside->y0 + crop.y0, inside->width, inside->height}) +
+          " of the original frame");
     }
     header.setString(std::string(key), formatSection(*inside));
   }

@@ -139,19 +139,22 @@ void SimParams::validate() const {
   require(readNoiseE >= 0.0, "read noise, e-", readNoiseE);
   require(gainEPerAdu > 0.0, "gain, e-/ADU", gainEPerAdu);
   require(emGain >= 1.0, "EM gain (1 = none)", emGain);
-  require(flatAmplitude >= 0.0 && flatAmplitude < 0.5, "flat-field amplitude (must be in [0, 0.5))", flatAmplitude);
+  require(flatAmplitude >= 0.0 && flatAmplitude < 0.5, "flat-field amplitude (must be in [0, 0.5))",
+          flatAmplitude);
   require(fullWellE > 0.0, "full well, e-", fullWellE);
   require(saturationAdu > biasLevelAdu, "saturation level, ADU (must exceed the bias level)", saturationAdu);
   require(zeroPointPhotonsPerS > 0.0, "photometric zero point, photons/s", zeroPointPhotonsPerS);
   require(starCount >= 0, "number of stars", starCount);
   require(starMagMax >= starMagMin, "faintest star magnitude (must be >= the brightest)", starMagMax);
   require(brightStars >= 0, "number of bright stars", brightStars);
-  require(spikeFraction >= 0.0 && spikeFraction < 1.0, "diffraction-spike fraction (must be in [0, 1))", spikeFraction);
+  require(spikeFraction >= 0.0 && spikeFraction < 1.0, "diffraction-spike fraction (must be in [0, 1))",
+          spikeFraction);
   require(cosmicRaysPerFrame >= 0.0, "cosmic rays per frame", cosmicRaysPerFrame);
   require(cosmicRayMinAdu > 0.0 && cosmicRayMaxAdu >= cosmicRayMinAdu, "cosmic-ray amplitude range, ADU",
           cosmicRayMinAdu);
   require(hotPixels >= 0, "number of hot pixels", hotPixels);
-  require(hotPixelMinAdu > 0.0 && hotPixelMaxAdu >= hotPixelMinAdu, "hot-pixel amplitude range, ADU", hotPixelMinAdu);
+  require(hotPixelMinAdu > 0.0 && hotPixelMaxAdu >= hotPixelMinAdu, "hot-pixel amplitude range, ADU",
+          hotPixelMinAdu);
 }
 
 calib::MasterCalibration exactMasters(const SimResult& result) {

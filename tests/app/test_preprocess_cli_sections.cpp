@@ -60,8 +60,8 @@ class PreprocessCliSections : public ::testing::Test {
     }
   }
   std::string run(const std::string& options, int* status) {
-    std::string args = "preprocess \"" + (m_dir / "in").string() + "\" -o \"" + (m_dir / "out.fits").string() +
-                       "\" " + options;
+    std::string args = "preprocess \"" + (m_dir / "in").string() + "\" -o \"" +
+                       (m_dir / "out.fits").string() + "\" " + options;
     std::string err;
     *status = runCli(m_cli, args, m_dir / "err.txt", &err);
     return err;

@@ -43,11 +43,13 @@ TEST(SectionFit, InsideKeptPartlyOutsideClippedWhollyOutsideIgnored) {
   EXPECT_EQ(fitSectionToFrame({0, 0, 16, 700}, 1078, 700, "BIASSEC", "a.fits", w), (Section{0, 0, 16, 700}));
   EXPECT_TRUE(w.empty());
   // The measured case: BIASSEC [1:16,1:1020] on frames of 1078x700.
-  const auto clipped = fitSectionToFrame(io::parseSection("[1:16,1:1020]"), 1078, 700, "BIASSEC", "a.fits", w);
+  const auto clipped =
+      fitSectionToFrame(io::parseSection("[1:16,1:1020]"), 1078, 700, "BIASSEC", "a.fits", w);
   ASSERT_TRUE(clipped);
   EXPECT_EQ(*clipped, (Section{0, 0, 16, 700}));
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_TRUE(mentions(w, {"a.fits", "BIASSEC [1:16,1:1020]", "1078x700", "clipped to [1:16,1:700]"})) << w[0];
+  EXPECT_TRUE(mentions(w, {"a.fits", "BIASSEC [1:16,1:1020]", "1078x700", "clipped to [1:16,1:700]"}))
+      << w[0];
   w.clear();
   EXPECT_FALSE(fitSectionToFrame(io::parseSection("[1100:1120,1:700]"), 1078, 700, "TRIMSEC", "b.fits", w));
   ASSERT_EQ(w.size(), 1u);
@@ -126,7 +128,8 @@ TEST(CalibrationSections, NothingLeftOrMalformedIsIgnoredWithAWarning) {
   const CalibrationReport r = applyCalibration(c, {}, {}, p, t);
   EXPECT_TRUE(r.overscanLevel.empty());
   EXPECT_EQ(c.width(), 40);
-  EXPECT_TRUE(mentions(r.warnings, {"neossat_sub.fits", "BIASSEC [41:50,1:30]", "ignored"})) << joined(r.warnings);
+  EXPECT_TRUE(mentions(r.warnings, {"neossat_sub.fits", "BIASSEC [41:50,1:30]", "ignored"}))
+      << joined(r.warnings);
   EXPECT_TRUE(mentions(r.warnings, {"neossat_sub.fits", "TRIMSEC", "ignored"})) << joined(r.warnings);
 }
 
@@ -197,7 +200,8 @@ TEST(CropSections, CroppedSeriesCalibratesWithWarnings) {
   NullProgress p;
   CancelToken t;
   FrameCube cube = io::loadFrames(files, o, p, t);
-  EXPECT_TRUE(mentions(cube.warnings, {"f0.fits", "BIASSEC [1:4,1:1020]", "clipped"})) << joined(cube.warnings);
+  EXPECT_TRUE(mentions(cube.warnings, {"f0.fits", "BIASSEC [1:4,1:1020]", "clipped"}))
+      << joined(cube.warnings);
   CalibrationReport r;
   ASSERT_NO_THROW(r = applyCalibration(cube, {}, {}, p, t));
   EXPECT_TRUE(r.warnings.empty()) << joined(r.warnings);  // the loader already fitted the sections

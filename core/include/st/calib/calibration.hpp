@@ -17,8 +17,8 @@
 namespace st::calib {
 
 struct CalibParams {
-  bool subtractOverscan = true;    ///< subtract the median of BIASSEC from each frame when it is known
-  bool trim = true;                ///< trim every frame to TRIMSEC (else DATASEC) when it is known
+  bool subtractOverscan = true;  ///< subtract the median of BIASSEC from each frame when it is known
+  bool trim = true;              ///< trim every frame to TRIMSEC (else DATASEC) when it is known
   /// Read BIASSEC, TRIMSEC and DATASEC from the headers. A header section that does not fit the frames is
   /// clipped to them, or ignored when nothing is left, with a warning (calibration reports); false ignores
   /// them all (the CLI's --ignore-sections), for headers that describe another readout.
