@@ -27,12 +27,12 @@ constexpr double kPhaseVarPx2 = 0.3 * 0.3;
 
 // One block stacked at the current rate about its own mean time: a star at x_ref + u t in the frames sits
 // in the stack at x_ref + u tS - meanShift (u the true rate), since frame n is shifted by the whole pixels
-// round(v (t_n - tS)) of the current rate v.
+// round(v (t_n - tS)) of the current rate v. Single precision, 9 bytes a pixel: every block is held at once.
 struct BlockStack {
-  cv::Mat image;       // thresholded, compressed (0 where faint or no frame), CV_64F
-  cv::Mat covered;     // CV_8U, 255 where (nearly) every frame contributed
-  LinearImage linear;  // the mean itself, its noise, valid where covered
-  double tS = 0.0;     // mean t_n - t_ref over the block
+  cv::Mat value;    // CV_32F, mean of F_n - background where covered, else 0
+  cv::Mat noise;    // CV_32F, sigma / sqrt(frames contributing)
+  cv::Mat covered;  // CV_8U, 255 where (nearly) every frame of the block contributed
+  double tS = 0.0;  // mean t_n - t_ref over the block
   cv::Point2d meanShift;
 };
 
@@ -59,7 +59,7 @@ Layout layoutBlocks(const FrameCube& cube, Velocity rate, const SkyRateParams& p
 }
 
 BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last, Velocity rate,
-                      double background, double sigma, double detectSigma, const std::vector<double>& dt) {
+                      double background, double sigma, const std::vector<double>& dt) {
   const int w = cube.width(), h = cube.height();
   BlockStack b;
   for (std::size_t n = first; n < last; ++n)
@@ -87,10 +87,9 @@ BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last
     }
   }
   b.meanShift *= 1.0 / static_cast<double>(last - first);
-  b.image = cv::Mat::zeros(h, w, CV_64F);
+  b.value = cv::Mat::zeros(h, w, CV_32F);
+  b.noise = cv::Mat::zeros(h, w, CV_32F);
   b.covered = cv::Mat::zeros(h, w, CV_8U);
-  b.linear.value = cv::Mat::zeros(h, w, CV_64F);
-  b.linear.noise = cv::Mat::zeros(h, w, CV_64F);
   // Only where (nearly) every frame of the block contributed: where only the frames of one end of the block
   // do, a star sits at their mean residual of the whole-pixel shifts, not the block's (up to 0.5 px off:
   // at 16.4 px/s and 16.7 Hz the residual ramps through a pixel over ~50 frames).
@@ -98,18 +97,16 @@ BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last
   for (int y = 0; y < h; ++y) {
     const double* srow = sum.ptr<double>(y);
     const double* crow = cnt.ptr<double>(y);
-    double* out = b.image.ptr<double>(y);
+    float* v = b.value.ptr<float>(y);
+    float* n = b.noise.ptr<float>(y);
     unsigned char* cov = b.covered.ptr<unsigned char>(y);
     for (int x = 0; x < w; ++x) {
       if (crow[x] <= 0 || crow[x] < full) continue;
       cov[x] = 255;
-      const double v = srow[x] / crow[x], thr = detectSigma * sigma / std::sqrt(crow[x]);
-      b.linear.value.at<double>(y, x) = v;
-      b.linear.noise.at<double>(y, x) = sigma / std::sqrt(crow[x]);
-      out[x] = v > thr ? std::log1p(v / thr) : 0.0;
+      v[x] = static_cast<float>(srow[x] / crow[x]);
+      n[x] = static_cast<float>(sigma / std::sqrt(crow[x]));
     }
   }
-  b.linear.valid = b.covered;
   return b;
 }
 
@@ -131,31 +128,52 @@ struct Link {
   bool byStars = false;  // from the paired stars' windowed centroids (else the phase correlation's peak)
 };
 
+// A stack (or a translated one) as a double-precision linear image, valid where `valid`.
+LinearImage linearImage(const cv::Mat& value, const cv::Mat& noise, const cv::Mat& valid) {
+  LinearImage l;
+  value.convertTo(l.value, CV_64F);
+  noise.convertTo(l.noise, CV_64F);
+  l.valid = valid;
+  return l;
+}
+
+// The thresholded, compressed image that finds and pairs the sources: log1p(v / t) where v > t =
+// detectSigma * noise, else 0 (and 0 where not valid).
+cv::Mat compressed(const LinearImage& l, double detectSigma) {
+  cv::Mat out = cv::Mat::zeros(l.value.size(), CV_64F);
+  for (int y = 0; y < out.rows; ++y) {
+    const double* v = l.value.ptr<double>(y);
+    const double* n = l.noise.ptr<double>(y);
+    const unsigned char* ok = l.valid.ptr<unsigned char>(y);
+    double* o = out.ptr<double>(y);
+    for (int x = 0; x < out.cols; ++x) {
+      const double t = detectSigma * n[x];
+      if (ok[x] && t > 0.0 && v[x] > t) o[x] = std::log1p(v[x] / t);
+    }
+  }
+  return out;
+}
+
 // Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
-// are cut to where both have frames, and the residual offset is measured. False when they share no
-// reliable star pattern.
+// are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
+// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
+// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
+// pattern.
 bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 double minResponse, Link* link) {
+                 const SkyRateParams& params, Link* link) {
   const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
   const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
   const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
   const cv::Mat both = a.covered & translated(b.covered, gx, gy);
   if (cv::countNonZero(both) == 0) return false;
-  cv::Mat ia = cv::Mat::zeros(a.image.size(), CV_64F), ib = cv::Mat::zeros(a.image.size(), CV_64F);
-  a.image.copyTo(ia, both);
-  translated(b.image, gx, gy).copyTo(ib, both);
+  const LinearImage la = linearImage(a.value, a.noise, both);
+  const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
+  const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);
   double r = 0.0;
   cv::Point2d d = phaseShift(ia, ib, window, &r);
-  if (!(r >= minResponse)) return false;
-  // Sub-pixel: windowed centroids of the paired sources on the linear stacks (the compressed images only
-  // find and pair them).
-  const std::vector<SourcePair> pairs = pairSources(ia, ib, d, kPairPeak);
-  // One validity mask for both (where both stacks are fully covered), so that a window cut by it is cut
-  // alike in both.
-  const LinearImage la{a.linear.value, a.linear.noise, both};
-  const LinearImage lb{translated(b.linear.value, gx, gy), translated(b.linear.noise, gx, gy), both};
+  if (!(r >= params.minResponse)) return false;
   cv::Point2d c;
-  link->byStars = windowedOffset(la, lb, pairs, &c, &link->var);
+  link->byStars = windowedOffset(la, lb, pairSources(ia, ib, d, kPairPeak), &c, &link->var);
   if (link->byStars) {
     d = c;
   } else {
@@ -249,8 +267,7 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
   parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
     for (std::size_t l = l0; l < l1; ++l) {
       cancel.throwIfCancelled();
-      ok[l] =
-          measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params.minResponse, &tried[l]);
+      ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l]);
     }
   });
   std::vector<Link> links;
@@ -284,8 +301,7 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
       for (std::size_t b = b0; b < b1; ++b) {
         cancel.throwIfCancelled();
-        stacks[b] = stackBlock(cube, layout.first[b], layout.first[b + 1], rate, background, sigma,
-                               params.detectSigma, dt);
+        stacks[b] = stackBlock(cube, layout.first[b], layout.first[b + 1], rate, background, sigma, dt);
       }
     });
     const std::vector<Link> links =
