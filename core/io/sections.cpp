@@ -10,8 +10,10 @@
 namespace st::io {
 namespace {
 
+// `keyword` is a header keyword (TRIMSEC) or a command-line option (--crop).
 [[noreturn]] void bad(std::string_view keyword, std::string_view text, const std::string& why) {
-  throw InputError("header keyword " + std::string(keyword) + " = '" + std::string(text) +
+  const std::string what = keyword.substr(0, 2) == "--" ? "option " : "header keyword ";
+  throw InputError(what + std::string(keyword) + " = '" + std::string(text) +
                    "' is not an image section [x1:x2,y1:y2]: " + why);
 }
 
