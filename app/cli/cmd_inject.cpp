@@ -8,6 +8,7 @@
 
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "observation_pipeline.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/units.hpp"
@@ -49,7 +50,8 @@ constexpr const char* kHelp =
     "  --zero-point MAG       magnitude of 1 calibrated count/s, for the movers' magnitudes (default none)\n"
     "  --json                 print truth.json to stdout as well\n";
 
-std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name, std::pair<double, double> fallback) {
+std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name,
+                                 std::pair<double, double> fallback) {
   const auto v = cli.value(name);
   if (!v) return fallback;
   double a = 0.0, b = 0.0;
@@ -59,20 +61,13 @@ std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name, st
   return {a, b};
 }
 
-FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress) {
-  if (files.empty()) return {};
-  io::LoadOptions opt;  // calibration frames need no times
-  opt.startMjd = 0.0;
-  opt.frameRateHz = 1.0;
-  return io::loadFrames(files, opt, progress, processCancelToken());
-}
-
 }  // namespace
 
 int cmdInject(const Args& args) {
   auto names = loadOptionNames();
-  for (const char* n : {"o", "n", "snr", "rate", "rate-unit", "seed", "fwhm", "beta", "gain", "bias", "flat", "dark",
-                        "min-star-distance", "edge-margin", "min-separation", "star-sigma", "zero-point"})
+  for (const char* n :
+       {"o", "n", "snr", "rate", "rate-unit", "seed", "fwhm", "beta", "gain", "bias", "flat", "dark",
+        "min-star-distance", "edge-margin", "min-separation", "star-sigma", "zero-point"})
     names.insert(n);
   const CliArgs cli(args, names, {"json", "help"});
   if (cli.flag("help")) {
@@ -86,7 +81,8 @@ int cmdInject(const Args& args) {
   const auto seed = cli.integer("seed");
   if (!seed || *seed < 0) throw UsageError("give a random seed >= 0 with --seed S");
   const std::string unit = cli.value("rate-unit").value_or("px-s");
-  if (unit != "px-s" && unit != "deg-day") throw UsageError("--rate-unit must be px-s or deg-day, got '" + unit + "'");
+  if (unit != "px-s" && unit != "deg-day")
+    throw UsageError("--rate-unit must be px-s or deg-day, got '" + unit + "'");
   if (cli.has("beta") && !cli.has("fwhm")) throw UsageError("--beta goes with --fwhm");
   if (cli.has("dark") && !cli.has("bias")) throw UsageError("--dark needs --bias");
   if (cli.has("crop")) throw UsageError("inject writes whole raw frames: --crop is not supported");
@@ -150,9 +146,9 @@ int cmdInject(const Args& args) {
   calib::MasterCalibration masters;
   {
     SubProgress sub(progress, 0.1, 0.2);
-    const FrameCube bias = loadCalibration(cli.values("bias"), sub);
-    const FrameCube dark = loadCalibration(cli.values("dark"), sub);
-    const FrameCube flat = loadCalibration(cli.values("flat"), sub);
+    const FrameCube bias = loadCalibrationFrames(cli.values("bias"), std::nullopt, sub, cancel);
+    const FrameCube dark = loadCalibrationFrames(cli.values("dark"), std::nullopt, sub, cancel);
+    const FrameCube flat = loadCalibrationFrames(cli.values("flat"), std::nullopt, sub, cancel);
     if (!bias.empty() || !flat.empty())
       masters = calib::buildMasters(bias, dark, flat, raw, calibParams, sub, cancel);
   }
@@ -169,7 +165,8 @@ int cmdInject(const Args& args) {
   for (const auto& w : warnings)
     std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (run.clippedPixels > 0)
-    std::fprintf(stderr, "warning: %zu pixels reached the raw type's limit and were clipped\n", run.clippedPixels);
+    std::fprintf(stderr, "warning: %zu pixels reached the raw type's limit and were clipped\n",
+                 run.clippedPixels);
   if (cli.flag("json")) {
     std::printf("%s\n", truth.dump(2).c_str());
     return 0;
@@ -178,11 +175,13 @@ int cmdInject(const Args& args) {
   std::printf("wrote %zu files and %s: %zu movers, seed %llu, t_ref MJD %.8f\n", run.written.size(),
               truthPath.c_str(), plan.objects.size(), static_cast<unsigned long long>(plan.params.seed),
               plan.tRefMjd);
-  std::printf("PSF %s: Moffat FWHM %.3f px, beta %.3f (stamp radius %.1f px); gain %.4g e-/ADU (%s); %zu star/bad "
-              "pixels masked\n",
-              plan.psfMeasured ? "measured" : "given", plan.psf.fwhm(), plan.psf.beta, plan.stampRadiusPx, gain,
-              meta.gainSource.c_str(), run.field.maskedPixels);
-  std::printf("%4s %9s %9s %12s %12s %11s %8s\n", "id", "x_px", "y_px", "vx_px_s", "vy_px_s", "flux", "exp_snr");
+  std::printf(
+      "PSF %s: Moffat FWHM %.3f px, beta %.3f (stamp radius %.1f px); gain %.4g e-/ADU (%s); %zu star/bad "
+      "pixels masked\n",
+      plan.psfMeasured ? "measured" : "given", plan.psf.fwhm(), plan.psf.beta, plan.stampRadiusPx, gain,
+      meta.gainSource.c_str(), run.field.maskedPixels);
+  std::printf("%4s %9s %9s %12s %12s %11s %8s\n", "id", "x_px", "y_px", "vx_px_s", "vy_px_s", "flux",
+              "exp_snr");
   for (const auto& o : plan.objects)
     std::printf("%4d %9.2f %9.2f %12.6f %12.6f %11.1f %8.2f\n", o.id, o.xPx, o.yPx, o.vxPxS, o.vyPxS, o.flux,
                 o.expectedSnr);

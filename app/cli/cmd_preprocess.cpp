@@ -4,10 +4,12 @@
 //   the star catalog.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "observation_pipeline.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/io/fits_reader.hpp"
@@ -36,15 +38,6 @@ std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name) {
   }
 }
 
-FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress) {
-  if (files.empty()) return {};
-  io::LoadOptions opt;  // calibration frames need no times: fall back to a nominal clock
-  opt.startMjd = 0.0;
-  opt.frameRateHz = 1.0;
-  opt.scienceFrames = false;  // bias/dark/flat are expected here: no 'not a science frame' warning
-  return io::loadFrames(files, opt, progress, processCancelToken());
-}
-
 std::string sidecarPath(const std::string& out) {
   std::filesystem::path p(out);
   p.replace_extension(".json");
@@ -58,7 +51,8 @@ const char* kHelp =
     "and noise (paper §3.1), finds and zeroes static sources at the sky rate, fits the PSF and writes the\n"
     "zero-biased cube (background subtracted, NOT matched-filtered) plus PREPARED.json (noise, PSF, sky\n"
     "rate, star catalog). Its header says what it is (STPREP = 1, STFILT = F, PSFFWHM, PSFBETA, SIGMAN,\n"
-    "SKYVX/SKYVY): `search PREPARED.fits --preprocessed` matched-filters it with that PSF before searching.\n\n"
+    "SKYVX/SKYVY): `search PREPARED.fits --preprocessed` matched-filters it with that PSF before "
+    "searching.\n\n"
     "  -o PREPARED.fits        output cube (overwritten); the sidecar gets the .json extension\n"
     "  --bias F / --flat F / --dark F   calibration frames (files or folders; repeat for several)\n"
     "  --sky-rate-px-s VX,VY   motion of the stars, px/s (default: measured from the stars)\n"
@@ -67,24 +61,28 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
+    "  (with --crop, the calibration frames are cropped alike)\n"
     "  --json                  print the sidecar to stdout as well\n";
 
 }  // namespace
 
 int cmdPreprocess(const Args& args) {
   if (!args.empty() && args[0] == "--help") {
-    std::printf("%s%s", kHelp, loadOptionsHelp());
+    std::printf("%s%s%s", kHelp, calibOptionsHelp(), loadOptionsHelp());
     return 0;
   }
   auto names = loadOptionNames();
   for (const char* n :
        {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background"})
     names.insert(n);
-  const CliArgs cli(args, names, {"no-cosmic-rays", "json"});
+  auto flags = calibFlagNames();
+  flags.insert({"no-cosmic-rays", "json"});
+  const CliArgs cli(args, names, flags);
   if (cli.positionals().empty()) throw UsageError("give at least one INPUT (a FITS file or a folder)");
   const auto out = cli.value("o");
   if (!out) throw UsageError("give the output file with -o PREPARED.fits");
   pipeline::PreprocessParams params;
+  params.calib = calibParamsFromArgs(cli);
   if (cli.has("sky-rate-px-s")) {
     const auto [vx, vy] = pairOf(cli, "sky-rate-px-s");
     params.skyRate = Velocity{vx, vy};
@@ -99,19 +97,26 @@ int cmdPreprocess(const Args& args) {
   TerminalProgress progress;
   CancelToken& cancel = processCancelToken();
   FrameCube cube;
+  const io::LoadOptions loadOptions = loadOptionsFromArgs(cli);
   {
     SubProgress sub(progress, 0.0, 0.2);
-    cube = io::loadFrames(cli.positionals(), loadOptionsFromArgs(cli), sub, cancel);
+    cube = io::loadFrames(cli.positionals(), loadOptions, sub, cancel);
   }
   pipeline::checkNotPrepared(cube, "search it with `synthtrack-cli search " + pipeline::cubeSource(cube) +
-                                " --preprocessed`, or pre-process the raw frames");
-  const FrameCube bias = loadCalibration(cli.values("bias"), progress);
-  const FrameCube dark = loadCalibration(cli.values("dark"), progress);
-  const FrameCube flat = loadCalibration(cli.values("flat"), progress);
+                                       " --preprocessed`, or pre-process the raw frames");
+  std::vector<std::string> warnings = cube.warnings;
+  const FrameCube bias =
+      loadCalibrationFrames(cli.values("bias"), loadOptions.crop, progress, processCancelToken());
+  const FrameCube dark =
+      loadCalibrationFrames(cli.values("dark"), loadOptions.crop, progress, processCancelToken());
+  const FrameCube flat =
+      loadCalibrationFrames(cli.values("flat"), loadOptions.crop, progress, processCancelToken());
+  for (const FrameCube* c : {&bias, &dark, &flat})
+    warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
   if (!bias.empty() || !dark.empty() || !flat.empty()) {
     params.masters = calib::buildMasters(bias, dark, flat, cube, params.calib, progress, cancel);
+    warnings.insert(warnings.end(), params.masters->warnings.begin(), params.masters->warnings.end());
   }
-  const std::vector<std::string> loadWarnings = cube.warnings;
   pipeline::Prepared prepared;
   {
     SubProgress sub(progress, 0.2, 0.95);
@@ -130,8 +135,8 @@ int cmdPreprocess(const Args& args) {
   const std::string sidecar = sidecarPath(*out);
   pipeline::writePreparedSidecar(sidecar, prepared);
   progress.finish();
-  for (const auto& w : loadWarnings)
-    std::fprintf(stderr, "warning: %s\n", w.c_str());
+  warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());
+  printWarnings(warnings);
   for (const auto& n : prepared.notes)
     std::fprintf(stderr, "note: %s\n", n.c_str());
   if (cli.flag("json")) {

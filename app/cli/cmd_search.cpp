@@ -84,13 +84,17 @@ int cmdSearch(const Args& args) {
   valued.insert("out");
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  const CliArgs cli(args, valued, {"preprocessed", "grid-step-fwhm", "json", "fit", "mpi", "help"});
+  auto flags = calibFlagNames();
+  flags.insert({"preprocessed", "grid-step-fwhm", "json", "fit", "mpi", "help"});
+  const CliArgs cli(args, valued, flags);
   if (cli.flag("help")) {
-    std::printf("%s%s%s", kHelp, searchOptionsHelp(), loadOptionsHelp());
+    std::printf("%s%s%s%s", kHelp, searchOptionsHelp(), calibOptionsHelp(), loadOptionsHelp());
     return 0;
   }
   if (cli.positionals().empty()) throw UsageError("no INPUT given");
-  ObservationInput input{cli.positionals(), loadOptionsFromArgs(cli), cli.flag("preprocessed"), {}, {}, {}};
+  ObservationInput input{
+      cli.positionals(),       loadOptionsFromArgs(cli), cli.flag("preprocessed"), {}, {}, {},
+      calibParamsFromArgs(cli)};
   if (cli.flag("fit") && input.preprocessed) {
     throw UsageError("--fit needs the unfiltered frames: give the raw INPUT without --preprocessed");
   }

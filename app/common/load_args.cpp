@@ -43,6 +43,37 @@ io::LoadOptions loadOptionsFromArgs(const CliArgs& args) {
   return o;
 }
 
+std::set<std::string> calibFlagNames() {
+  return {"no-overscan", "ignore-sections"};
+}
+
+const char* calibOptionsHelp() {
+  return "  --no-overscan        do not subtract the overscan (BIASSEC)\n"
+         "  --ignore-sections    ignore the headers' BIASSEC, TRIMSEC and DATASEC (no overscan, no trim);\n"
+         "                       without it, a section that does not fit the frames is clipped to them\n";
+}
+
+calib::CalibParams calibParamsFromArgs(const CliArgs& args) {
+  calib::CalibParams p;
+  if (args.flag("no-overscan")) p.subtractOverscan = false;
+  if (args.flag("ignore-sections")) p.useHeaderSections = false;
+  return p;
+}
+
+void printWarnings(const std::vector<std::string>& warnings) {
+  bool section = false;
+  for (const auto& w : warnings) {
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
+    for (std::string_view key : io::kImageSectionKeywords)
+      section = section || w.find(key) != std::string::npos;
+  }
+  if (section) {
+    std::fprintf(stderr,
+                 "hint: --no-overscan skips the overscan, --ignore-sections ignores the headers' image "
+                 "sections\n");
+  }
+}
+
 std::string isoFromMjd(double mjd) {
   const double dayFloor = std::floor(mjd);
   long jdn = static_cast<long>(dayFloor) + 2400001;  // Julian Day Number of the civil date

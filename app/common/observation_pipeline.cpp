@@ -14,17 +14,19 @@
 
 namespace st::app {
 
-namespace {
-
-FrameCube loadCalibration(const std::vector<std::string>& files, ProgressSink& progress,
-                          CancelToken& cancel) {
+FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
+                                const std::optional<io::CropRegion>& crop, ProgressSink& progress,
+                                CancelToken& cancel) {
   if (files.empty()) return {};
   io::LoadOptions opt;  // calibration frames need no times: a nominal clock
   opt.startMjd = 0.0;
   opt.frameRateHz = 1.0;
-  opt.scienceFrames = false;
+  opt.scienceFrames = false;  // bias/dark/flat are expected here: no 'not a science frame' warning
+  opt.crop = crop;            // cropped as the science frames are, so that the masters match them
   return io::loadFrames(files, opt, progress, cancel);
 }
+
+namespace {
 
 pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, ProgressSink& progress,
                            CancelToken& cancel, std::vector<std::string>& warnings) {
@@ -36,13 +38,17 @@ pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, P
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
   pipeline::PreprocessParams params;
-  const FrameCube bias = loadCalibration(in.bias, progress, cancel);
-  const FrameCube dark = loadCalibration(in.dark, progress, cancel);
-  const FrameCube flat = loadCalibration(in.flat, progress, cancel);
+  params.calib = in.calib;
+  const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
+  const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
+  const FrameCube flat = loadCalibrationFrames(in.flat, in.load.crop, progress, cancel);
+  for (const FrameCube* c : {&bias, &dark, &flat})
+    warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
   if (!bias.empty() || !dark.empty() || !flat.empty())
     params.masters = calib::buildMasters(bias, dark, flat, raw, params.calib, progress, cancel);
   SubProgress prepProgress(progress, 0.2, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(raw), params, prepProgress, cancel);
+  warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());
   if (o.fwhm) prepared.filtered.psfFwhmPx = *o.fwhm;
   if (o.sigmaF) prepared.filtered.sigmaF = *o.sigmaF;
   return prepared;

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "st/calib/calibration.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include "search_options.hpp"
@@ -22,7 +24,14 @@ struct ObservationInput {
   io::LoadOptions load;
   bool preprocessed = false;                  ///< INPUT was written by `preprocess` (no --fit then)
   std::vector<std::string> bias, dark, flat;  ///< calibration frames for the pre-processing
+  calib::CalibParams calib;  ///< overscan / section choices (--no-overscan, --ignore-sections)
 };
+
+/// Loads bias, dark or flat frames (files or folders; none = an empty cube) with a nominal clock, no
+/// science-frame warnings, cropped with `crop` as the science frames are.
+FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
+                                const std::optional<io::CropRegion>& crop, ProgressSink& progress,
+                                CancelToken& cancel);
 
 /// What is known just before the search: for printing the plan.
 struct PlannedSearch {

@@ -57,11 +57,15 @@ bool enabled(const std::vector<ui::StageSpec>& stages, const std::string& name) 
   return true;
 }
 
+const char* const kCalibrationStage = "Calibration (overscan, trim, bad pixels)";
+
 std::vector<ui::StageSpec> stageSpecs() {
   const pipeline::PreprocessParams d;
   using P = ui::StageParam;
   return {
-      {"Calibration (overscan, trim, bad pixels)", true, false, {}},
+      // Off: the headers' image sections (BIASSEC, TRIMSEC, DATASEC) are ignored, for headers that describe
+      // another readout; on, a section that does not fit the frames is clipped with a warning.
+      {kCalibrationStage, true, true, {}},
       {"Cosmic rays",
        d.removeCosmicRays,
        true,
@@ -103,6 +107,11 @@ std::vector<ui::StageSpec> stageSpecs() {
 ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>& stages,
                                ProgressSink& progress, CancelToken& cancel) {
   pipeline::PreprocessParams p;
+  // The calibration stage off: the headers' image sections (overscan, trim) are ignored.
+  if (!enabled(stages, kCalibrationStage)) {
+    p.calib.subtractOverscan = false;
+    p.calib.useHeaderSections = false;
+  }
   p.removeCosmicRays = enabled(stages, "Cosmic rays");
   p.cosmicRays.thresholdSigma = param(stages, "cr.threshold", p.cosmicRays.thresholdSigma);
   p.cosmicRays.growSigma = param(stages, "cr.grow", p.cosmicRays.growSigma);
@@ -146,6 +155,8 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
       prep.skyRate.vy, prep.skyRateMeasured ? " measured" : "", prep.stars.size(), prep.cosmicRays,
       prep.elapsedS);
   view.summary = line;
+  for (const auto& w : prep.calibration.warnings)
+    view.summary += "\n• warning: " + w;
   for (const auto& note : prep.notes)
     view.summary += "\n• " + note;
   view.filtered = std::move(filtered);

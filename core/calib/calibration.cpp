@@ -63,13 +63,37 @@ float overscanLevel(const float* frame, int width, const Section& s) {
   return medianOf(v);
 }
 
-std::optional<Section> sectionFrom(const std::optional<Section>& given, const FitsHeader& header,
-                                   const char* key, int w, int h) {
-  std::optional<Section> s = given;
-  if (!s) {
-    s = io::sectionFromHeader(header, key);
+// The section to use for `key`: the one given in params (which must fit), else the header's, made to fit
+// the frames (clipped or ignored, with a warning). A malformed header section is ignored with a warning.
+std::optional<Section> sectionFrom(const std::optional<Section>& given, const FrameCube& cube,
+                                   const char* key, const CalibParams& params,
+                                   std::vector<std::string>& warnings) {
+  const int w = cube.width(), h = cube.height();
+  if (given) {
+    checkSectionInside(*given, w, h, key);
+    return given;
   }
-  if (s) checkSectionInside(*s, w, h, key);
+  if (!params.useHeaderSections) return std::nullopt;
+  std::optional<Section> s;
+  try {
+    s = io::sectionFromHeader(cube.header, key);
+  } catch (const InputError& e) {
+    warnings.push_back(fileOf(cube) + ": " + e.what() + "; ignored");
+    return std::nullopt;
+  }
+  if (!s) return std::nullopt;
+  return fitSectionToFrame(*s, w, h, key, fileOf(cube), warnings);
+}
+
+// The trim region: TRIMSEC, else DATASEC (cameras that write only the data section).
+std::optional<Section> trimFrom(const FrameCube& cube, const CalibParams& params,
+                                std::vector<std::string>& warnings) {
+  std::optional<Section> s = sectionFrom(params.trimSec, cube, "TRIMSEC", params, warnings);
+  const auto text = cube.header.getString("TRIMSEC");
+  const bool noTrimsec = !text || text->find_first_not_of(" \t") == std::string::npos;
+  if (!s && !params.trimSec && params.useHeaderSections && noTrimsec) {
+    s = sectionFrom(std::nullopt, cube, "DATASEC", params, warnings);
+  }
   return s;
 }
 
@@ -151,9 +175,9 @@ MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, con
   m.width = science.width();
   m.height = science.height();
   const int w = m.width, h = m.height;
-  const FitsHeader& hdr = bias.empty() ? science.header : bias.header;
-  if (params.subtractOverscan) m.biasSec = sectionFrom(params.biasSec, hdr, "BIASSEC", w, h);
-  m.trimSec = sectionFrom(params.trimSec, science.header, "TRIMSEC", w, h);
+  if (params.subtractOverscan)
+    m.biasSec = sectionFrom(params.biasSec, bias.empty() ? science : bias, "BIASSEC", params, m.warnings);
+  m.trimSec = trimFrom(science, params, m.warnings);
   if (bias.empty()) return m;
   m.binning = binningOf(bias.header);
   const std::size_t np = science.framePixels();
@@ -270,6 +294,7 @@ void trimInPlace(FrameCube& cube, const Section& s) {
   }
   out.header.erase("TRIMSEC");
   out.header.erase("BIASSEC");
+  out.header.erase("DATASEC");
   // The WCS is re-read from the shifted cards so that it refers to the trimmed pixel grid.
   if (hadWcs) out.wcs = Wcs::fromHeader(out.header, &out.warnings);
   cube = std::move(out);
@@ -289,8 +314,8 @@ CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& mas
   std::optional<Section> biasSec = masters.bias.empty() ? std::nullopt : masters.biasSec;
   std::optional<Section> trimSec = masters.bias.empty() ? std::nullopt : masters.trimSec;
   if (masters.bias.empty()) {
-    if (params.subtractOverscan) biasSec = sectionFrom(params.biasSec, cube.header, "BIASSEC", w, h);
-    trimSec = sectionFrom(params.trimSec, cube.header, "TRIMSEC", w, h);
+    if (params.subtractOverscan) biasSec = sectionFrom(params.biasSec, cube, "BIASSEC", params, rep.warnings);
+    trimSec = trimFrom(cube, params, rep.warnings);
   }
   const std::size_t np = cube.framePixels();
   if (biasSec) rep.overscanLevel.assign(cube.frameCount(), 0.0f);

@@ -17,6 +17,7 @@
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/units.hpp"
+#include "st/io/sections.hpp"
 #include "st/io/wcs.hpp"
 
 namespace st::io {
@@ -192,10 +193,13 @@ void readPixels(const LoadPlan& plan, FrameCube& cube, ProgressSink& progress, C
   }
 }
 
-// The first frame's header, made to describe the loaded (possibly cropped) 2-D frame.
-FitsHeader frameHeader(const LoadPlan& plan) {
-  FitsHeader h = plan.files[plan.frames.front().fileIndex].header;
+// The first frame's header, made to describe the loaded (possibly cropped) 2-D frame: a crop moves the WCS
+// reference pixel and the image sections (st/io/sections.hpp, cropSections, which warns into `warnings`).
+FitsHeader frameHeader(const LoadPlan& plan, std::vector<std::string>& warnings) {
+  const ScannedFile& first = plan.files[plan.frames.front().fileIndex];
+  FitsHeader h = first.header;
   if (plan.cropped) {
+    cropSections(h, plan.region, first.path, warnings);
     for (int axis = 1; axis <= 2; ++axis) {
       const std::string key = "CRPIX" + std::to_string(axis);
       try {
@@ -254,8 +258,8 @@ FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& 
     const ScannedFile& s = plan.files[p.fileIndex];
     cube.info()[n] = FrameInfo{*p.mjdMid, p.exposureS.value_or(0.0), s.path, s.hdu, p.plane};
   }
-  cube.header = frameHeader(plan);
   cube.warnings = plan.warnings;
+  cube.header = frameHeader(plan, cube.warnings);
   attachWcs(cube, options);
   return cube;
 }
@@ -293,7 +297,7 @@ InputSummary summarizeInputs(const std::vector<std::string>& inputs, const LoadO
   for (const auto& f : plan.files)
     s.files.push_back(f.path);
   s.warnings = plan.warnings;
-  FitsHeader h = frameHeader(plan);
+  FitsHeader h = frameHeader(plan, s.warnings);
   h.set("NAXIS", "2");
   h.erase("NAXIS3");
   const auto wcs = Wcs::fromHeader(h, &s.warnings);

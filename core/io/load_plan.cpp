@@ -41,7 +41,7 @@ void checkSizes(LoadPlan& plan, const LoadOptions& options) {
       throw InputError(f.path + " HDU " + std::to_string(f.hdu) + ": frame size " +
                        sizeText(f.width, f.height) + " differs from " + sizeText(first.width, first.height) +
                        " of " + first.path +
-                       "; crop every frame to a common region with --crop [x1:x2,y1:y2] (LoadOptions::crop)");
+                       "; crop every frame to a common region (--crop [x1:x2,y1:y2] on the command line)");
     }
   }
   plan.region = PixelRegion{0, 0, first.width, first.height};
@@ -58,7 +58,7 @@ void assignTimes(LoadPlan& plan, const LoadOptions& options) {
           f.path + " HDU " + std::to_string(f.hdu) +
           ": no timestamps: the header has none of DATE-OBS with a time, DATE-OBS + TIME-OBS/UTCSTART/UT, "
           "MJD-OBS, DATE-AVG, MJD-AVG (nor a FRAMES table); give the first frame's mid-time and the "
-          "frame rate with --start-mjd MJD --frame-rate HZ (LoadOptions::startMjd, frameRateHz)");
+          "frame rate (--start-mjd MJD --frame-rate HZ on the command line)");
     }
     if (!(*options.frameRateHz > 0.0) || !std::isfinite(*options.startMjd)) {
       throw InputError("frame rate must be > 0 Hz and the start MJD finite, got " +

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cstdio>
 #include <string>
 
 #include "st/common/error.hpp"
@@ -9,8 +10,10 @@
 namespace st::io {
 namespace {
 
+// `keyword` is a header keyword (TRIMSEC) or a command-line option (--crop).
 [[noreturn]] void bad(std::string_view keyword, std::string_view text, const std::string& why) {
-  throw InputError("header keyword " + std::string(keyword) + " = '" + std::string(text) +
+  const std::string what = keyword.substr(0, 2) == "--" ? "option " : "header keyword ";
+  throw InputError(what + std::string(keyword) + " = '" + std::string(text) +
                    "' is not an image section [x1:x2,y1:y2]: " + why);
 }
 
@@ -53,6 +56,54 @@ std::optional<PixelRegion> sectionFromHeader(const FitsHeader& header, std::stri
   const auto text = header.getString(keyword);
   if (!text || text->find_first_not_of(" \t") == std::string::npos) return std::nullopt;
   return parseSection(*text, keyword);
+}
+
+std::string formatSection(const PixelRegion& r) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "[%d:%d,%d:%d]", r.x0 + 1, r.x0 + r.width, r.y0 + 1, r.y0 + r.height);
+  return buf;
+}
+
+std::optional<PixelRegion> clipRegion(const PixelRegion& r, int width, int height) {
+  const long x0 = std::max<long>(0, r.x0), y0 = std::max<long>(0, r.y0);
+  const long x1 = std::min<long>(width, static_cast<long>(r.x0) + r.width);
+  const long y1 = std::min<long>(height, static_cast<long>(r.y0) + r.height);
+  if (r.width <= 0 || r.height <= 0 || x1 <= x0 || y1 <= y0) return std::nullopt;
+  return PixelRegion{static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(x1 - x0),
+                     static_cast<int>(y1 - y0)};
+}
+
+void cropSections(FitsHeader& header, const PixelRegion& crop, std::string_view file,
+                  std::vector<std::string>& warnings) {
+  const std::string cropText = formatSection(crop);
+  for (std::string_view key : kImageSectionKeywords) {
+    std::optional<PixelRegion> s;
+    try {
+      s = sectionFromHeader(header, key);
+    } catch (const InputError& e) {
+      warnings.push_back(std::string(file) + ": " + e.what() + "; ignored");
+      header.erase(key);
+      continue;
+    }
+    if (!s) continue;
+    const std::string original = formatSection(*s);
+    const PixelRegion moved{s->x0 - crop.x0, s->y0 - crop.y0, s->width, s->height};
+    const std::optional<PixelRegion> inside = clipRegion(moved, crop.width, crop.height);
+    if (!inside) {
+      warnings.push_back(std::string(file) + ": " + std::string(key) + " " + original +
+                         " lies outside the crop " + cropText + "; ignored");
+      header.erase(key);
+      continue;
+    }
+    if (!(*inside == moved)) {
+      warnings.push_back(
+          std::string(file) + ": " + std::string(key) + " " + original + " reaches outside the crop " +
+          cropText + "; clipped to " +
+          formatSection({inside->x0 + crop.x0, inside->y0 + crop.y0, inside->width, inside->height}) +
+          " of the original frame");
+    }
+    header.setString(std::string(key), formatSection(*inside));
+  }
 }
 
 }  // namespace st::io

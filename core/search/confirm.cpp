@@ -21,7 +21,7 @@ void validate(const FilteredCube& cube2, const ConfirmRequest& r) {
                      std::to_string(r.gridStepPxS) + " px/s");
   }
   if (!(r.sigmaPosPx >= 0.0) || (r.sigmaVelPxS && !(*r.sigmaVelPxS >= 0.0)) || !(r.nSigma > 0.0)) {
-    throw InputError("confirmation uncertainties must be >= 0 and nSigma > 0");
+    throw InputError("confirmation: the uncertainties must be >= 0 and the window (in sigmas) > 0");
   }
   if (!std::isfinite(r.x) || !std::isfinite(r.y) || !std::isfinite(r.v.vx) || !std::isfinite(r.v.vy)) {
     throw InputError("confirmation candidate position or velocity is not finite");

@@ -31,9 +31,10 @@ void validateSearchInput(const FilteredCube& cube, const VelocityGrid& grid, con
                      " px/s");
   }
   if (!(params.minFrameFraction >= 0.0 && params.minFrameFraction <= 1.0)) {
-    throw InputError("minFrameFraction must be in [0, 1], got " + std::to_string(params.minFrameFraction));
+    throw InputError("the fraction of frames a track must cover must be in [0, 1], got " +
+                     std::to_string(params.minFrameFraction));
   }
-  if (params.maxCandidates < 1) throw InputError("maxCandidates must be at least 1");
+  if (params.maxCandidates < 1) throw InputError("the largest number of candidates must be at least 1");
   if (!params.targetFap && !std::isfinite(params.snrThreshold)) {
     throw InputError("the SNR threshold must be finite");
   }

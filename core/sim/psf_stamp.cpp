@@ -10,7 +10,7 @@ namespace st::sim {
 PsfStamp::PsfStamp(const psf::Moffat& psf, double trailDxPx, double trailDyPx, int radiusPx)
     : m_psf(psf), m_radius(radiusPx), m_side(2 * radiusPx + 1) {
   if (radiusPx < 1 || !(psf.radius > 0.0) || !(psf.beta > 1.0)) {
-    throw InputError("PsfStamp: need radius >= 1 px, Moffat R > 0 and beta > 1 (got radius " +
+    throw InputError("simulator PSF stamp: need radius >= 1 px, Moffat R > 0 and beta > 1 (got radius " +
                      std::to_string(radiusPx) + ", R " + std::to_string(psf.radius) + ", beta " +
                      std::to_string(psf.beta) + ")");
   }

@@ -129,29 +129,32 @@ void SimParams::validate() const {
   require(width > 0 && width <= 16384, "width", width);
   require(height > 0 && height <= 16384, "height", height);
   require(frames > 0 && frames <= 1000000, "frames", frames);
-  require(frameRateHz > 0.0, "frameRateHz", frameRateHz);
+  require(frameRateHz > 0.0, "frame rate, Hz", frameRateHz);
   require(exposureS > 0.0 && exposureS <= 1.0 / frameRateHz * (1.0 + 1e-9),
-          "exposureS (0 < exposure <= 1/frameRateHz)", exposureS);
-  require(plateScaleArcsecPerPx > 0.0, "plateScaleArcsecPerPx", plateScaleArcsecPerPx);
-  require(psf.radius > 0.0, "psf.radius", psf.radius);
-  require(psf.beta > 1.0, "psf.beta (must be > 1)", psf.beta);
-  require(skyPhotonsPerPxPerFrame >= 0.0, "skyPhotonsPerPxPerFrame", skyPhotonsPerPxPerFrame);
-  require(readNoiseE >= 0.0, "readNoiseE", readNoiseE);
-  require(gainEPerAdu > 0.0, "gainEPerAdu", gainEPerAdu);
-  require(emGain >= 1.0, "emGain (1 = no EM gain)", emGain);
-  require(flatAmplitude >= 0.0 && flatAmplitude < 0.5, "flatAmplitude", flatAmplitude);
-  require(fullWellE > 0.0, "fullWellE", fullWellE);
-  require(saturationAdu > biasLevelAdu, "saturationAdu (must exceed biasLevelAdu)", saturationAdu);
-  require(zeroPointPhotonsPerS > 0.0, "zeroPointPhotonsPerS", zeroPointPhotonsPerS);
-  require(starCount >= 0, "starCount", starCount);
-  require(starMagMax >= starMagMin, "starMagMax (must be >= starMagMin)", starMagMax);
-  require(brightStars >= 0, "brightStars", brightStars);
-  require(spikeFraction >= 0.0 && spikeFraction < 1.0, "spikeFraction", spikeFraction);
-  require(cosmicRaysPerFrame >= 0.0, "cosmicRaysPerFrame", cosmicRaysPerFrame);
-  require(cosmicRayMinAdu > 0.0 && cosmicRayMaxAdu >= cosmicRayMinAdu, "cosmicRayMinAdu/MaxAdu",
+          "exposure, s (0 < exposure <= 1 / frame rate)", exposureS);
+  require(plateScaleArcsecPerPx > 0.0, "plate scale, arcsec/px", plateScaleArcsecPerPx);
+  require(psf.radius > 0.0, "PSF Moffat radius R, px", psf.radius);
+  require(psf.beta > 1.0, "PSF Moffat beta (must be > 1)", psf.beta);
+  require(skyPhotonsPerPxPerFrame >= 0.0, "sky, photons per pixel per frame", skyPhotonsPerPxPerFrame);
+  require(readNoiseE >= 0.0, "read noise, e-", readNoiseE);
+  require(gainEPerAdu > 0.0, "gain, e-/ADU", gainEPerAdu);
+  require(emGain >= 1.0, "EM gain (1 = none)", emGain);
+  require(flatAmplitude >= 0.0 && flatAmplitude < 0.5, "flat-field amplitude (must be in [0, 0.5))",
+          flatAmplitude);
+  require(fullWellE > 0.0, "full well, e-", fullWellE);
+  require(saturationAdu > biasLevelAdu, "saturation level, ADU (must exceed the bias level)", saturationAdu);
+  require(zeroPointPhotonsPerS > 0.0, "photometric zero point, photons/s", zeroPointPhotonsPerS);
+  require(starCount >= 0, "number of stars", starCount);
+  require(starMagMax >= starMagMin, "faintest star magnitude (must be >= the brightest)", starMagMax);
+  require(brightStars >= 0, "number of bright stars", brightStars);
+  require(spikeFraction >= 0.0 && spikeFraction < 1.0, "diffraction-spike fraction (must be in [0, 1))",
+          spikeFraction);
+  require(cosmicRaysPerFrame >= 0.0, "cosmic rays per frame", cosmicRaysPerFrame);
+  require(cosmicRayMinAdu > 0.0 && cosmicRayMaxAdu >= cosmicRayMinAdu, "cosmic-ray amplitude range, ADU",
           cosmicRayMinAdu);
-  require(hotPixels >= 0, "hotPixels", hotPixels);
-  require(hotPixelMinAdu > 0.0 && hotPixelMaxAdu >= hotPixelMinAdu, "hotPixelMinAdu/MaxAdu", hotPixelMinAdu);
+  require(hotPixels >= 0, "number of hot pixels", hotPixels);
+  require(hotPixelMinAdu > 0.0 && hotPixelMaxAdu >= hotPixelMinAdu, "hot-pixel amplitude range, ADU",
+          hotPixelMinAdu);
 }
 
 calib::MasterCalibration exactMasters(const SimResult& result) {

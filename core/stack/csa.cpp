@@ -240,7 +240,7 @@ StackResult stackCsa(const FrameCube& cube, Velocity v, ProgressSink& progress, 
 }
 
 Image shiftImage(const Image& in, double dx, double dy, const CsaOptions& o) {
-  if (in.empty()) throw InputError("shiftImage: empty image");
+  if (in.empty()) throw InputError("shifting an image: the image is empty");
   FrameCube one(in.width, in.height, 1);
   std::copy(in.pixels.begin(), in.pixels.end(), one.pixels().begin());
   NullProgress progress;

@@ -17,8 +17,12 @@
 namespace st::calib {
 
 struct CalibParams {
-  bool subtractOverscan = true;    ///< subtract the median of BIASSEC from each frame when it is known
-  bool trim = true;                ///< trim every frame to TRIMSEC when it is known
+  bool subtractOverscan = true;  ///< subtract the median of BIASSEC from each frame when it is known
+  bool trim = true;              ///< trim every frame to TRIMSEC (else DATASEC) when it is known
+  /// Read BIASSEC, TRIMSEC and DATASEC from the headers. A header section that does not fit the frames is
+  /// clipped to them, or ignored when nothing is left, with a warning (calibration reports); false ignores
+  /// them all (the CLI's --ignore-sections), for headers that describe another readout.
+  bool useHeaderSections = true;
   std::optional<Section> biasSec;  ///< overrides the header's BIASSEC (0-based)
   std::optional<Section> trimSec;  ///< overrides the header's TRIMSEC (0-based)
   double hotSigma = 8.0;           ///< hot pixel: master dark (or bias) above clip mean + hotSigma * sigma
@@ -41,10 +45,12 @@ struct MasterCalibration {
   std::size_t flatOutliers = 0;     ///< flat pixels outside [flatLow, flatHigh] after normalisation
   std::optional<Section> biasSec;   ///< the overscan used (from params or the calibration headers)
   std::optional<Section> trimSec;
+  std::vector<std::string> warnings;  ///< header sections clipped or ignored, naming the file and keyword
 };
 
 /// Builds the masters. `bias` is required unless all three are empty; `dark` and `flat` are optional (empty
-/// cubes). `science` is only used to check sizes and binning and to find BIASSEC/TRIMSEC. Throws
+/// cubes). `science` is only used to check sizes and binning and to find BIASSEC/TRIMSEC/DATASEC (header
+/// sections that do not fit are clipped or ignored, with a warning in `warnings`). Throws
 /// st::InputError naming both sizes and the file when a calibration frame differs in size or binning from
 /// the science frames, and when a flat has no positive pixel.
 MasterCalibration buildMasters(const FrameCube& bias, const FrameCube& dark, const FrameCube& flat,
@@ -56,12 +62,14 @@ struct CalibrationReport {
   std::size_t badPixels = 0;         ///< pixels masked per frame (after trim)
   int trimmedWidth = 0;
   int trimmedHeight = 0;
+  std::vector<std::string> warnings;  ///< header sections clipped or ignored, naming the file and keyword
 };
 
 /// Applies the masters to `cube` in place: overscan, bias, dark * EXPTIME, flat; bad pixels are set in the
 /// cube's mask; then the trim (the pixel buffer is compacted in place, no second cube). Without masters
-/// (`masters` empty) only overscan and trim are done, from params or the cube's header. Throws st::InputError
-/// on a size mismatch (naming both sizes and the file).
+/// (`masters` empty) only overscan and trim are done, from params or the cube's header (a header section
+/// that does not fit is clipped or ignored, with a warning in the report). Throws st::InputError on a size
+/// mismatch (naming both sizes and the file), and when a section given in `params` does not fit.
 CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
                                    const CalibParams& params, ProgressSink& progress, CancelToken& cancel);
 

@@ -1,7 +1,9 @@
 #pragma once
 // The sky rate: how fast the stars move across the detector (px/s). Zero for a tracked telescope; the drift
 // rate when the sky moves (paper §4.1: scanning at 5"/s). Measured from the stars when not given.
+#include <cstddef>
 #include <string>
+#include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
@@ -14,25 +16,58 @@ struct SkyRateParams {
   int blockFrames = 12;       ///< frames per block at most (short, so that drifting stars streak little)
   double detectSigma = 5.0;   ///< pixels below this SNR in a block mean are zeroed (keep the stars)
   double minResponse = 0.03;  ///< phase-correlation peak below this: no reliable stars, rate 0
+  int chainMinBlocks = 4;     ///< the chained refinement cuts the cube into at least this many blocks ...
+  double chainStepFraction = 0.15;  ///< ... and into enough that the stars move at most this fraction of
+                                    ///< the frame between neighbouring blocks (so that they share stars)
+  double chainLinkFraction = 0.5;   ///< blocks are compared when the stars move at most this fraction of
+                                    ///< the frame between them (neighbours always); never beyond
+  int chainMinBlockFrames = 4;      ///< frames per block at least
+};
+
+/// One block of contiguous frames of the chained refinement, and where its stars were found.
+struct SkyRateBlock {
+  std::size_t firstFrame = 0;  ///< frames [firstFrame, lastFrame)
+  std::size_t lastFrame = 0;
+  double tS = 0.0;    ///< mean of the block's t_n - t_ref, s
+  Velocity offsetPx;  ///< the star field's measured position minus the linear model's at tS, px (x, y)
 };
 
 struct SkyRate {
-  Velocity rate;          ///< px/s
-  bool reliable = false;  ///< false when no star pattern was found (rate is then 0)
-  double response = 0.0;  ///< phase-correlation peak of the final measurement
-  std::string note;       ///< how it was measured, for the user
+  Velocity rate;           ///< px/s
+  bool reliable = false;   ///< false when no star pattern was found (rate is then 0)
+  double response = 0.0;   ///< phase-correlation peak of the final measurement
+  std::string note;        ///< how it was measured, for the user
+  bool chained = false;    ///< true when the rate is the chained refinement's (else the block pairs')
+  Velocity blockPairRate;  ///< the first estimate, from pairs of short adjacent blocks, px/s
+  /// The chained blocks (empty when the chain failed): per-block departures of the star field from the
+  /// linear motion, for a later per-frame registration (ARCHITECTURE.md's o_n); not used by the search.
+  std::vector<SkyRateBlock> blocks;
+  double residualRmsPx = 0.0;  ///< rms over blocks of |offsetPx| (both axes), px
 };
 
-/// Measures the sky rate by phase correlation (OpenCV) of the means of blocks of frames with the global
-/// background `background` removed and faint pixels (< detectSigma * sigma / sqrt(frames in block)) zeroed:
-/// pairs of short adjacent blocks (median over pairs) give a first rate (robust to large drifts; each block
-/// is the smaller of the means of its two halves so that cosmic rays drop out); then stacks at that rate of
-/// the first and last thirds of the frames are phase-correlated (stars coincide when the rate is right) and
-/// the residual offset, with the stacks' integer shifts, over their time separation gives the rate (up to 4
-/// times, until the integer shifts stay the same). Wherever >= 3 bright sources (peak >= 4x the threshold,
-/// >= 4 px) pair up, the offset is their median centroid offset, one vote per source, instead of the phase
-/// correlation's sub-pixel peak: a bright moving object (a streak in every block) pulls that peak, not the
-/// median (tested: a magnitude-14 mover among the "small" preset's stars, within 0.02 px/s of the truth).
+/// Measures the sky rate from the stars, with the global background `background` removed and faint pixels
+/// (< detectSigma * sigma / sqrt(frames averaged)) zeroed.
+/// First estimate: phase correlation (OpenCV) of pairs of short adjacent blocks spread over the cube (median
+/// over pairs; each block is the smaller of the means of its two halves so that cosmic rays drop out;
+/// wherever >= 3 bright sources pair up, their median centroid offset replaces the correlation's sub-pixel
+/// peak, which a bright mover pulls). Robust to large drifts, good to ~0.5 px/s.
+/// Then the chained refinement: the cube is cut into contiguous blocks (chainMinBlocks at least, more when
+/// the stars would move more than chainStepFraction of the frame between neighbours), each stacked at the
+/// current rate about its own mean time, only where (nearly) all its frames contribute. Blocks whose stars
+/// move at most chainLinkFraction of the frame between them (neighbours always) are compared: block j's
+/// stack moved by the predicted whole pixels, the residual offset from the phase correlation, then from
+/// Gaussian-windowed centroids of the paired stars on the linear stacks (saturated, flat-topped ones left
+/// out; estimates > 3 sigma + 0.1 px from their median dropped, so that a mover does not count; the rest
+/// averaged by inverse variance). A weighted least-squares solve over the links gives each block's position
+/// of the star field, a straight line through them the rate and each block's departure (offsetPx);
+/// iterated (up to 4 times) until the stacks' whole-pixel shifts stay the same. Blocks that share no stars
+/// are never compared, so the field may change completely over the sequence. The chain is kept when every
+/// block is linked and its rate agrees with the first estimate (within 3 times the pairs' robust scatter and
+/// 1 px over a pair's time span); otherwise the first estimate is kept and the note says why.
+/// Tested: paper-neo seeds 1..21 (500 frames, 16.4 px/s, the field moving 490 px of 512) within 0.004
+/// px/s of the truth, the 1500-frame seed 5 within 0.001 (tests/core/test_detect_sky_rate_slow.cpp); a
+/// synthetic field crossing the frame 3.7 times within 0.01; a magnitude-14 mover among the "small" preset's
+/// stars within 0.02 px/s.
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
                        CancelToken& cancel);
 

@@ -1,0 +1,344 @@
+#include "sky_rate_chain.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iterator>
+#include <numeric>
+
+#include <Eigen/Dense>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "sky_rate_match.hpp"
+#include "st/common/parallel.hpp"
+
+namespace st::detect::detail {
+namespace {
+
+// A stack pixel is used when at least this fraction of its block's frames contributed to it (masked
+// samples, a hot pixel or a cosmic ray, may be missing).
+constexpr double kFullCoverage = 0.97;
+// Sources paired between blocks peak at >= 2 times the detection threshold (log1p(1) compressed); the
+// windowed centroids weigh them by their precision.
+const double kPairPeak = std::log1p(1.0);
+// The variance given to an offset from the phase correlation's peak alone (its sub-pixel interpolation is
+// good to ~0.3 px, and a bright mover pulls it), px^2.
+constexpr double kPhaseVarPx2 = 0.3 * 0.3;
+
+// One block stacked at the current rate about its own mean time: a star at x_ref + u t in the frames sits
+// in the stack at x_ref + u tS - meanShift (u the true rate), since frame n is shifted by the whole pixels
+// round(v (t_n - tS)) of the current rate v. Single precision, 9 bytes a pixel: every block is held at once.
+struct BlockStack {
+  cv::Mat value;    // CV_32F, mean of F_n - background where covered, else 0
+  cv::Mat noise;    // CV_32F, sigma / sqrt(frames contributing)
+  cv::Mat covered;  // CV_8U, 255 where (nearly) every frame of the block contributed
+  double tS = 0.0;  // mean t_n - t_ref over the block
+  cv::Point2d meanShift;
+};
+
+struct Layout {
+  std::vector<std::size_t> first;  // block k is frames [first[k], first[k + 1])
+  [[nodiscard]] std::size_t count() const { return first.size() - 1; }
+};
+
+// Enough contiguous blocks that the stars move at most stepFraction of the frame between neighbours.
+Layout layoutBlocks(const FrameCube& cube, Velocity rate, const SkyRateParams& p) {
+  const std::size_t nf = cube.frameCount();
+  const double span = cube.timeSpanS();
+  const double f = std::max(1e-3, p.chainStepFraction);
+  const double need = std::max({static_cast<double>(p.chainMinBlocks),
+                                std::ceil(std::fabs(rate.vx) * span / (f * cube.width())),
+                                std::ceil(std::fabs(rate.vy) * span / (f * cube.height()))});
+  const std::size_t most = nf / static_cast<std::size_t>(std::max(1, p.chainMinBlockFrames));
+  const std::size_t k = std::min<std::size_t>(most, static_cast<std::size_t>(std::min(need, 1e6)));
+  Layout l;
+  if (k < 2) return l;
+  for (std::size_t b = 0; b <= k; ++b)
+    l.first.push_back(nf * b / k);
+  return l;
+}
+
+BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last, Velocity rate,
+                      double background, double sigma, const std::vector<double>& dt) {
+  const int w = cube.width(), h = cube.height();
+  BlockStack b;
+  for (std::size_t n = first; n < last; ++n)
+    b.tS += dt[n];
+  b.tS /= static_cast<double>(last - first);
+  cv::Mat sum = cv::Mat::zeros(h, w, CV_64F), cnt = cv::Mat::zeros(h, w, CV_64F);
+  const auto& mask = cube.mask();
+  const std::size_t np = cube.framePixels();
+  for (std::size_t n = first; n < last; ++n) {
+    const int sx = static_cast<int>(std::lround(rate.vx * (dt[n] - b.tS)));
+    const int sy = static_cast<int>(std::lround(rate.vy * (dt[n] - b.tS)));
+    b.meanShift.x += sx, b.meanShift.y += sy;
+    const float* f = cube.frame(n);
+    // Stack pixel (x, y) takes frame pixel (x + sx, y + sy).
+    for (int y = std::max(0, -sy); y < std::min(h, h - sy); ++y) {
+      double* srow = sum.ptr<double>(y);
+      double* crow = cnt.ptr<double>(y);
+      const std::size_t row = static_cast<std::size_t>(y + sy) * w;
+      for (int x = std::max(0, -sx); x < std::min(w, w - sx); ++x) {
+        const std::size_t i = row + static_cast<std::size_t>(x + sx);
+        if (!mask.empty() && mask[n * np + i]) continue;
+        srow[x] += f[i] - background;
+        crow[x] += 1.0;
+      }
+    }
+  }
+  b.meanShift *= 1.0 / static_cast<double>(last - first);
+  b.value = cv::Mat::zeros(h, w, CV_32F);
+  b.noise = cv::Mat::zeros(h, w, CV_32F);
+  b.covered = cv::Mat::zeros(h, w, CV_8U);
+  // Only where (nearly) every frame of the block contributed: where only the frames of one end of the block
+  // do, a star sits at their mean residual of the whole-pixel shifts, not the block's (up to 0.5 px off:
+  // at 16.4 px/s and 16.7 Hz the residual ramps through a pixel over ~50 frames).
+  const double full = kFullCoverage * static_cast<double>(last - first);
+  for (int y = 0; y < h; ++y) {
+    const double* srow = sum.ptr<double>(y);
+    const double* crow = cnt.ptr<double>(y);
+    float* v = b.value.ptr<float>(y);
+    float* n = b.noise.ptr<float>(y);
+    unsigned char* cov = b.covered.ptr<unsigned char>(y);
+    for (int x = 0; x < w; ++x) {
+      if (crow[x] <= 0 || crow[x] < full) continue;
+      cov[x] = 255;
+      v[x] = static_cast<float>(srow[x] / crow[x]);
+      n[x] = static_cast<float>(sigma / std::sqrt(crow[x]));
+    }
+  }
+  return b;
+}
+
+// out(x, y) = in(x + gx, y + gy), zero where that falls outside `in`.
+cv::Mat translated(const cv::Mat& in, int gx, int gy) {
+  cv::Mat out = cv::Mat::zeros(in.size(), in.type());
+  const int w = in.cols, h = in.rows;
+  const int x0 = std::max(0, -gx), x1 = std::min(w, w - gx), y0 = std::max(0, -gy), y1 = std::min(h, h - gy);
+  if (x1 <= x0 || y1 <= y0) return out;
+  in(cv::Rect(x0 + gx, y0 + gy, x1 - x0, y1 - y0)).copyTo(out(cv::Rect(x0, y0, x1 - x0, y1 - y0)));
+  return out;
+}
+
+struct Link {
+  std::size_t i = 0, j = 0;
+  cv::Point2d d;    // P_j - P_i, px: the star field's motion from block i to block j
+  cv::Point2d var;  // its variance along x and y, px^2
+  double response = 0.0;
+  bool byStars = false;  // from the paired stars' windowed centroids (else the phase correlation's peak)
+};
+
+// A stack (or a translated one) as a double-precision linear image, valid where `valid`.
+LinearImage linearImage(const cv::Mat& value, const cv::Mat& noise, const cv::Mat& valid) {
+  LinearImage l;
+  value.convertTo(l.value, CV_64F);
+  noise.convertTo(l.noise, CV_64F);
+  l.valid = valid;
+  return l;
+}
+
+// The thresholded, compressed image that finds and pairs the sources: log1p(v / t) where v > t =
+// detectSigma * noise, else 0 (and 0 where not valid).
+cv::Mat compressed(const LinearImage& l, double detectSigma) {
+  cv::Mat out = cv::Mat::zeros(l.value.size(), CV_64F);
+  for (int y = 0; y < out.rows; ++y) {
+    const double* v = l.value.ptr<double>(y);
+    const double* n = l.noise.ptr<double>(y);
+    const unsigned char* ok = l.valid.ptr<unsigned char>(y);
+    double* o = out.ptr<double>(y);
+    for (int x = 0; x < out.cols; ++x) {
+      const double t = detectSigma * n[x];
+      if (ok[x] && t > 0.0 && v[x] > t) o[x] = std::log1p(v[x] / t);
+    }
+  }
+  return out;
+}
+
+// Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
+// are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
+// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
+// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
+// pattern.
+bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
+                 const SkyRateParams& params, Link* link) {
+  const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
+  const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
+  const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
+  const cv::Mat both = a.covered & translated(b.covered, gx, gy);
+  if (cv::countNonZero(both) == 0) return false;
+  const LinearImage la = linearImage(a.value, a.noise, both);
+  const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
+  const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);
+  double r = 0.0;
+  cv::Point2d d = phaseShift(ia, ib, window, &r);
+  if (!(r >= params.minResponse)) return false;
+  cv::Point2d c;
+  link->byStars = windowedOffset(la, lb, pairSources(ia, ib, d, kPairPeak), &c, &link->var);
+  if (link->byStars) {
+    d = c;
+  } else {
+    link->var = {kPhaseVarPx2, kPhaseVarPx2};
+  }
+  link->response = r;
+  link->d = {gx + d.x + b.meanShift.x - a.meanShift.x, gy + d.y + b.meanShift.y - a.meanShift.y};
+  return true;
+}
+
+// True when the links connect every block to block 0.
+bool connected(std::size_t blocks, const std::vector<Link>& links) {
+  std::vector<std::size_t> parent(blocks);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto root = [&](std::size_t k) {
+    while (parent[k] != k)
+      k = parent[k] = parent[parent[k]];
+    return k;
+  };
+  for (const Link& l : links)
+    parent[root(l.i)] = root(l.j);
+  for (std::size_t k = 1; k < blocks; ++k)
+    if (root(k) != root(0)) return false;
+  return true;
+}
+
+// Weighted least-squares positions of the star field per block (block 0 at 0) from the links, then a
+// straight line through them: the rate, and each block's departure from the line.
+void solve(const std::vector<Link>& links, std::vector<SkyRateBlock>& blocks, Velocity* rate) {
+  const std::size_t k = blocks.size();
+  std::vector<double> pos[2];
+  for (int axis = 0; axis < 2; ++axis) {
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(links.size()), k - 1);
+    Eigen::VectorXd rhs(static_cast<Eigen::Index>(links.size()));
+    for (std::size_t l = 0; l < links.size(); ++l) {
+      const auto row = static_cast<Eigen::Index>(l);
+      const double w = 1.0 / std::sqrt(axis == 0 ? links[l].var.x : links[l].var.y);
+      if (links[l].j > 0) a(row, static_cast<Eigen::Index>(links[l].j - 1)) += w;
+      if (links[l].i > 0) a(row, static_cast<Eigen::Index>(links[l].i - 1)) -= w;
+      rhs(row) = w * (axis == 0 ? links[l].d.x : links[l].d.y);
+    }
+    const Eigen::VectorXd p = a.colPivHouseholderQr().solve(rhs);
+    pos[axis].assign(k, 0.0);
+    for (std::size_t b = 1; b < k; ++b)
+      pos[axis][b] = p(static_cast<Eigen::Index>(b - 1));
+  }
+  const std::vector<double>&px = pos[0], &py = pos[1];
+  double mt = 0.0, mx = 0.0, my = 0.0;
+  for (std::size_t b = 0; b < k; ++b)
+    mt += blocks[b].tS / k, mx += px[b] / k, my += py[b] / k;
+  double stt = 0.0, stx = 0.0, sty = 0.0;
+  for (std::size_t b = 0; b < k; ++b) {
+    const double t = blocks[b].tS - mt;
+    stt += t * t, stx += t * (px[b] - mx), sty += t * (py[b] - my);
+  }
+  *rate = {stx / stt, sty / stt};
+  for (std::size_t b = 0; b < k; ++b) {
+    const double t = blocks[b].tS - mt;
+    blocks[b].offsetPx = {px[b] - mx - rate->vx * t, py[b] - my - rate->vy * t};
+  }
+}
+
+// True when every frame keeps its whole-pixel shift within its block at rate `b` as at rate `a`: the
+// stacks, hence the measurement, would not change.
+bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const std::vector<double>& dt,
+                Velocity a, Velocity b) {
+  for (std::size_t k = 0; k < l.count(); ++k)
+    for (std::size_t n = l.first[k]; n < l.first[k + 1]; ++n) {
+      const double t = dt[n] - blocks[k].tS;
+      if (std::lround(a.vx * t) != std::lround(b.vx * t) || std::lround(a.vy * t) != std::lround(b.vy * t))
+        return false;
+    }
+  return true;
+}
+
+// The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
+// between them (neighbours always), measured in parallel; failed comparisons are left out.
+std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
+                               const SkyRateParams& params, int width, int height, CancelToken& cancel) {
+  const std::size_t k = stacks.size();
+  std::vector<Link> tried;
+  for (std::size_t i = 0; i < k; ++i)
+    for (std::size_t j = i + 1; j < k; ++j) {
+      const double t = stacks[j].tS - stacks[i].tS;
+      if (j > i + 1 && (std::fabs(rate.vx * t) > params.chainLinkFraction * width ||
+                        std::fabs(rate.vy * t) > params.chainLinkFraction * height))
+        continue;
+      tried.push_back({i, j, {}, {}, 0.0, false});
+    }
+  std::vector<char> ok(tried.size(), 0);
+  parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
+    for (std::size_t l = l0; l < l1; ++l) {
+      cancel.throwIfCancelled();
+      ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l]);
+    }
+  });
+  std::vector<Link> links;
+  for (std::size_t l = 0; l < tried.size(); ++l)
+    if (ok[l]) links.push_back(tried[l]);
+  // The paired stars' links alone when they connect every block: the phase correlation's peak is coarse.
+  std::vector<Link> byStars;
+  std::copy_if(links.begin(), links.end(), std::back_inserter(byStars),
+               [](const Link& l) { return l.byStars; });
+  if (connected(k, byStars)) return byStars;
+  return links;
+}
+
+}  // namespace
+
+ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
+                         const SkyRateParams& params, CancelToken& cancel) {
+  ChainResult out;
+  const Layout layout = layoutBlocks(cube, start, params);
+  if (layout.first.size() < 3) {
+    out.why = "too few frames for two blocks of " + std::to_string(params.chainMinBlockFrames);
+    return out;
+  }
+  const std::size_t k = layout.count();
+  const auto dt = cube.timeOffsetsS();
+  cv::Mat window;
+  cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
+  Velocity rate = start;
+  for (int it = 0; it < 4; ++it) {
+    std::vector<BlockStack> stacks(k);
+    parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
+      for (std::size_t b = b0; b < b1; ++b) {
+        cancel.throwIfCancelled();
+        stacks[b] = stackBlock(cube, layout.first[b], layout.first[b + 1], rate, background, sigma, dt);
+      }
+    });
+    const std::vector<Link> links =
+        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel);
+    if (!connected(k, links)) {
+      // A later iteration that loses the chain keeps the earlier one's result.
+      if (!out.ok)
+        out.why = "the " + std::to_string(k) + " blocks could not all be linked by shared stars (" +
+                  std::to_string(links.size()) + " links)";
+      break;
+    }
+    std::vector<double> responses;
+    int starLinks = 0;
+    for (const Link& l : links)
+      responses.push_back(l.response), starLinks += l.byStars ? 1 : 0;
+    std::vector<SkyRateBlock> blocks(k);
+    for (std::size_t b = 0; b < k; ++b)
+      blocks[b] = {layout.first[b], layout.first[b + 1], stacks[b].tS, {}};
+    Velocity next;
+    solve(links, blocks, &next);
+    std::nth_element(responses.begin(), responses.begin() + responses.size() / 2, responses.end());
+    out.ok = true;
+    out.response = responses[responses.size() / 2];
+    out.links = static_cast<int>(links.size());
+    out.starLinks = starLinks;
+    out.rate = next;
+    out.blocks = std::move(blocks);
+    const bool stable = sameShifts(layout, out.blocks, dt, rate, next);
+    rate = next;
+    if (stable) break;
+  }
+  if (!out.ok) return out;
+  double ss = 0.0;
+  for (const SkyRateBlock& b : out.blocks)
+    ss += b.offsetPx.vx * b.offsetPx.vx + b.offsetPx.vy * b.offsetPx.vy;
+  out.residualRmsPx = std::sqrt(ss / static_cast<double>(out.blocks.size()));
+  return out;
+}
+
+}  // namespace st::detect::detail

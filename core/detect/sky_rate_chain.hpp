@@ -1,0 +1,26 @@
+#pragma once
+// Internal to the sky-rate measurement: the chained refinement (st/detect/sky_rate.hpp describes it).
+#include <string>
+#include <vector>
+
+#include "st/detect/sky_rate.hpp"
+
+namespace st::detect::detail {
+
+struct ChainResult {
+  bool ok = false;
+  Velocity rate;                     ///< px/s, when ok
+  double response = 0.0;             ///< median phase-correlation peak over the links
+  std::vector<SkyRateBlock> blocks;  ///< with their offsets from the linear model, when ok
+  double residualRmsPx = 0.0;
+  int links = 0;      ///< block comparisons used (last iteration)
+  int starLinks = 0;  ///< ... of which by the paired stars' windowed centroids (the others: phase peak)
+  std::string why;    ///< why it failed, when !ok
+};
+
+/// Chains blocks of `cube` starting from `start` (px/s): see measureSkyRate. Not ok (with `why`) when
+/// the cube is too short for two blocks or the blocks cannot all be linked.
+ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
+                         const SkyRateParams& params, CancelToken& cancel);
+
+}  // namespace st::detect::detail

@@ -1,0 +1,198 @@
+#include "sky_rate_match.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+namespace st::detect::detail {
+
+double minPeakCompressed() {
+  return std::log1p(4.0);
+}
+
+std::vector<Source> sourcesOf(const cv::Mat& image, double minPeak) {
+  constexpr int kMinSourcePixels = 4;
+  cv::Mat labels;
+  const cv::Mat on = image > 0.0;
+  const int n = cv::connectedComponents(on, labels, 8, CV_32S);
+  std::vector<Source> acc(static_cast<std::size_t>(std::max(0, n)));
+  std::vector<double> sw(acc.size(), 0.0);
+  std::vector<int> pixels(acc.size(), 0);
+  for (int y = 0; y < image.rows; ++y) {
+    const double* row = image.ptr<double>(y);
+    const int* lab = labels.ptr<int>(y);
+    for (int x = 0; x < image.cols; ++x) {
+      if (lab[x] <= 0) continue;
+      Source& s = acc[static_cast<std::size_t>(lab[x])];
+      s.x += row[x] * x, s.y += row[x] * y, s.peak = std::max(s.peak, row[x]);
+      sw[static_cast<std::size_t>(lab[x])] += row[x];
+      ++pixels[static_cast<std::size_t>(lab[x])];
+    }
+  }
+  std::vector<Source> out;
+  for (std::size_t k = 1; k < acc.size(); ++k)
+    if (pixels[k] >= kMinSourcePixels && acc[k].peak >= minPeak && sw[k] > 0)
+      out.push_back({acc[k].x / sw[k], acc[k].y / sw[k], acc[k].peak});
+  return out;
+}
+
+std::vector<SourcePair> pairSources(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak) {
+  constexpr double kMatchRadiusPx = 3.0;
+  const std::vector<Source> sa = sourcesOf(a, minPeak), sb = sourcesOf(b, minPeak);
+  std::vector<SourcePair> out;
+  for (const Source& s : sa) {
+    const Source* best = nullptr;
+    double bestD = kMatchRadiusPx;
+    for (const Source& t : sb) {
+      const double dist = std::hypot(t.x - s.x - coarse.x, t.y - s.y - coarse.y);
+      if (dist < bestD) bestD = dist, best = &t;
+    }
+    if (best) out.push_back({s, *best});
+  }
+  return out;
+}
+
+bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak, cv::Point2d* d) {
+  const std::vector<SourcePair> p = pairSources(a, b, coarse, minPeak);
+  if (p.size() < 3) return false;
+  std::vector<double> dx, dy;
+  for (const SourcePair& q : p)
+    dx.push_back(q.b.x - q.a.x), dy.push_back(q.b.y - q.a.y);
+  std::nth_element(dx.begin(), dx.begin() + dx.size() / 2, dx.end());
+  std::nth_element(dy.begin(), dy.begin() + dy.size() / 2, dy.end());
+  *d = {dx[dx.size() / 2], dy[dy.size() / 2]};
+  return true;
+}
+
+namespace {
+
+struct Centroid {
+  double x = 0.0, y = 0.0, varX = 0.0, varY = 0.0;
+};
+
+// SExtractor's windowed centroid: x <- x + 2 sum(w I (x_i - x)) / sum(w I) with a Gaussian window w of
+// sigma `sw` about x, over the valid pixels. False when less than kMinWindowValid of the window's weight
+// is valid, when the windowed flux is not positive, or when the centroid wanders off (to a neighbour).
+// Invalid pixels bias the centroid; the two images of an offset share one validity mask, so the bias is
+// common to both and drops out of their difference.
+bool windowedCentroid(const LinearImage& im, double x0, double y0, double sw, Centroid* c) {
+  constexpr double kMinWindowValid = 0.7;
+  const int r = static_cast<int>(std::ceil(3.0 * sw)) + 1;
+  double x = x0, y = y0;
+  for (int it = 0; it < 16; ++it) {
+    const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));
+    double sum = 0.0, sx = 0.0, sy = 0.0, vx = 0.0, vy = 0.0, wAll = 0.0, wValid = 0.0;
+    for (int j = cy - r; j <= cy + r; ++j) {
+      const bool rowIn = j >= 0 && j < im.value.rows;
+      for (int i = cx - r; i <= cx + r; ++i) {
+        const double dx = i - x, dy = j - y;
+        const double w = std::exp(-(dx * dx + dy * dy) / (2.0 * sw * sw));
+        wAll += w;
+        if (!rowIn || i < 0 || i >= im.value.cols || !im.valid.at<unsigned char>(j, i)) continue;
+        const double v = im.value.at<double>(j, i), n = im.noise.at<double>(j, i);
+        wValid += w;
+        sum += w * v, sx += w * v * dx, sy += w * v * dy;
+        vx += w * w * dx * dx * n * n, vy += w * w * dy * dy * n * n;
+      }
+    }
+    if (!(sum > 0.0) || wValid < kMinWindowValid * wAll) return false;
+    const double stepX = 2.0 * sx / sum, stepY = 2.0 * sy / sum;
+    x += stepX, y += stepY;
+    if (std::hypot(x - x0, y - y0) > 2.0 * sw) return false;
+    c->varX = 4.0 * vx / (sum * sum), c->varY = 4.0 * vy / (sum * sum);
+    if (std::fabs(stepX) < 1e-4 && std::fabs(stepY) < 1e-4) break;
+  }
+  c->x = x, c->y = y;
+  return true;
+}
+
+// The window of a source: the sigma of its light in `im` about (x, y) within 2.5 px, clamped to [1, 4] px
+// (a pixel-sampled PSF of FWHM 2.4 .. 9.4 px).
+double windowSigma(const LinearImage& im, double x, double y) {
+  const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));
+  double sum = 0.0, m2 = 0.0;
+  for (int j = std::max(0, cy - 3); j <= std::min(im.value.rows - 1, cy + 3); ++j)
+    for (int i = std::max(0, cx - 3); i <= std::min(im.value.cols - 1, cx + 3); ++i) {
+      const double d2 = (i - x) * (i - x) + (j - y) * (j - y);
+      const double v = im.value.at<double>(j, i);
+      if (d2 > 2.5 * 2.5 || v <= 0.0) continue;
+      sum += v, m2 += v * d2;
+    }
+  return sum > 0.0 ? std::clamp(std::sqrt(m2 / sum / 2.0), 1.0, 4.0) : 1.5;
+}
+
+// True for a saturated (flat-topped) source near (x, y): its brightest pixel stands less above the mean of
+// its 8 neighbours than 0.2 times their height above the mean of the next ring (a PSF of any width drops
+// at least ~0.4 times as much in the first ring as in the second), at a peak of >= 20 sigma. Saturated
+// stars are left out of the offsets: their cores are clipped at a level that varies with the flat and
+// the vignetting as they drift, and their bleed with their flux, moving their centroids by ~0.1 px.
+bool flatTopped(const LinearImage& im, double x, double y) {
+  const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));
+  if (cx < 3 || cy < 3 || cx >= im.value.cols - 3 || cy >= im.value.rows - 3) return false;
+  int px = cx, py = cy;  // the brightest pixel next to the centroid
+  for (int j = cy - 1; j <= cy + 1; ++j)
+    for (int i = cx - 1; i <= cx + 1; ++i)
+      if (im.value.at<double>(j, i) > im.value.at<double>(py, px)) px = i, py = j;
+  const double peak = im.value.at<double>(py, px);
+  if (!(peak > 20.0 * im.noise.at<double>(py, px))) return false;
+  double ring1 = 0.0, ring2 = 0.0;
+  int n1 = 0, n2 = 0;
+  for (int j = -2; j <= 2; ++j)
+    for (int i = -2; i <= 2; ++i) {
+      const int r = std::max(std::abs(i), std::abs(j));
+      if (r == 0) continue;
+      const double v = im.value.at<double>(py + j, px + i);
+      if (r == 1) ring1 += v, ++n1;
+      if (r == 2) ring2 += v, ++n2;
+    }
+  ring1 /= n1, ring2 /= n2;
+  return peak - ring1 < 0.2 * (ring1 - ring2);
+}
+
+}  // namespace
+
+bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vector<SourcePair>& pairs,
+                    cv::Point2d* d, cv::Point2d* var) {
+  struct Estimate {
+    double dx, dy, vx, vy;
+  };
+  std::vector<Estimate> e;
+  for (const SourcePair& p : pairs) {
+    if (flatTopped(a, p.a.x, p.a.y) || flatTopped(b, p.b.x, p.b.y)) continue;
+    const double sw = windowSigma(a, p.a.x, p.a.y);
+    Centroid ca, cb;
+    if (!windowedCentroid(a, p.a.x, p.a.y, sw, &ca) || !windowedCentroid(b, p.b.x, p.b.y, sw, &cb)) continue;
+    e.push_back({cb.x - ca.x, cb.y - ca.y, ca.varX + cb.varX, ca.varY + cb.varY});
+  }
+  if (e.size() < 2) return false;
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  std::vector<double> ex, ey;
+  for (const Estimate& q : e)
+    ex.push_back(q.dx), ey.push_back(q.dy);
+  const double mx = median(ex), my = median(ey);
+  constexpr double kFloorPx = 0.03;
+  double sx = 0.0, sy = 0.0, wx = 0.0, wy = 0.0;
+  int n = 0;
+  for (const Estimate& q : e) {
+    if (std::fabs(q.dx - mx) > 3.0 * std::sqrt(q.vx) + 0.1 ||
+        std::fabs(q.dy - my) > 3.0 * std::sqrt(q.vy) + 0.1)
+      continue;
+    const double ux = 1.0 / (q.vx + kFloorPx * kFloorPx), uy = 1.0 / (q.vy + kFloorPx * kFloorPx);
+    sx += ux * q.dx, wx += ux, sy += uy * q.dy, wy += uy;
+    ++n;
+  }
+  if (n < 2) return false;
+  *d = {sx / wx, sy / wy};
+  *var = {1.0 / wx, 1.0 / wy};
+  return true;
+}
+
+cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response) {
+  return cv::phaseCorrelate(a.clone(), b.clone(), window, response);
+}
+
+}  // namespace st::detect::detail

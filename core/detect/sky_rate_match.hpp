@@ -1,0 +1,62 @@
+#pragma once
+// Internal to the sky-rate measurement (sky_rate.cpp, sky_rate_chain.cpp): the offset of the star field
+// between two images of it. Sources are found and paired on thresholded, compressed images (0 where faint,
+// log1p(value / threshold) elsewhere); the chain then measures them on the linear images.
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace st::detect::detail {
+
+/// Sources voting in the consensus offsets peak at >= 4 times the detection threshold (log1p(4) in the
+/// compressed images): bright enough to centroid to a small fraction of a pixel.
+double minPeakCompressed();
+
+/// Centroid (weighted by the image values) and peak of one connected source of a thresholded image.
+struct Source {
+  double x = 0.0, y = 0.0, peak = 0.0;
+};
+
+/// The sources of a thresholded, compressed image: 8-connected components of at least 4 pixels whose peak
+/// reaches `minPeak`; each source counts once, however large.
+std::vector<Source> sourcesOf(const cv::Mat& image, double minPeak);
+
+/// A source of image `a` and the source of image `b` paired with it.
+struct SourcePair {
+  Source a, b;
+};
+
+/// Pairs each source of `a` (peak >= minPeak) with the source of `b` nearest to where `coarse` (offset of
+/// b relative to a, px) puts it, within 3 px; unpaired sources are dropped.
+std::vector<SourcePair> pairSources(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak);
+
+/// A linear image (background removed) with its per-pixel noise and where it is valid, for the windowed
+/// centroids of `windowedOffset`.
+struct LinearImage {
+  cv::Mat value;  ///< CV_64F, counts
+  cv::Mat noise;  ///< CV_64F, 1-sigma of each pixel, counts
+  cv::Mat valid;  ///< CV_8U, 255 where value is defined
+};
+
+/// The offset of the star field from `a` to `b` from paired sources: for each pair, Gaussian-windowed
+/// centroids (SExtractor's XWIN iteration, the window's sigma from the source's second moments in `a`,
+/// the same window in both images) on the linear images, whose difference is one estimate with its
+/// variance from the pixel noise; estimates further than 3 sigma + 0.1 px from their median are dropped
+/// (a moving object, a blend), the rest averaged with inverse-variance weights (each at least 0.03 px, so
+/// that no single star decides). False with fewer than 2 estimates. `var` gets the variance of the average
+/// along x and y, px^2.
+bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vector<SourcePair>& pairs,
+                    cv::Point2d* d, cv::Point2d* var);
+
+/// The stars' consensus offset of `b` relative to `a` (CV_64F images as above): each bright source of `a` is
+/// paired with the source of `b` nearest to where `coarse` puts it (within 3 px), and the median of the
+/// pairs' centroid offsets is the offset. One vote per source, so that a bright moving object (a streak,
+/// whose pixels all peak alike) counts as one outlier among the stars, not as many votes, and no source
+/// weighs more for being brighter. False with fewer than 3 pairs.
+bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak, cv::Point2d* d);
+
+/// cv::phaseCorrelate(a, b) (offset of b relative to a, px) on copies: when the images already have an
+/// optimal DFT size (128 x 128, say), OpenCV multiplies them by the window in place.
+cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response);
+
+}  // namespace st::detect::detail
