@@ -221,14 +221,31 @@ NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSig
   }
   if (std::count(valid.begin(), valid.end(), 1) == 0)
     throw InputError("noise model: no pixel has a measured frame-to-frame sigma");
-  const Image smooth = boxSmooth(raw, params.smoothBoxPx, valid);
+  // Smooth in two passes: the second leaves out pixels above twice the first (the frame-to-frame scatter of
+  // pixels that a mover or a star's residual crosses holds their signal, not noise).
+  const Image first = boxSmooth(raw, params.smoothBoxPx, valid);
+  std::vector<std::uint8_t> quiet = valid;
+  for (std::size_t i = 0; i < np; ++i)
+    if (quiet[i] && raw.pixels[i] > 2.0f * first.pixels[i]) quiet[i] = 0;
+  const Image smooth = boxSmooth(raw, params.smoothBoxPx, quiet);
+  // Holes wider than the box (a mover's whole track left out of the background, a masked star) take the
+  // median variance of the measured pixels: a weight of 0 there would throw away what crosses them.
+  std::vector<double> measured;
+  measured.reserve(np / 8 + 1);
+  for (std::size_t i = 0; i < np; i += 8)
+    if (valid[i]) measured.push_back(raw.pixels[i]);
+  if (measured.empty())
+    for (std::size_t i = 0; i < np; ++i)
+      if (valid[i]) measured.push_back(raw.pixels[i]);
+  const float fill = static_cast<float>(medianOf(measured));
   NoiseModel m;
   m.variance = Image(w, h);
   std::vector<double> vs;
   vs.reserve(np / 4);
   for (std::size_t i = 0; i < np; ++i) {
-    const float s = smooth.pixels[i];
-    const float v = valid[i] && raw.pixels[i] > params.noisyPixelRatio * s ? raw.pixels[i] : s;
+    const float s = smooth.pixels[i] > 0.0f ? smooth.pixels[i] : first.pixels[i] > 0.0f ? first.pixels[i] : fill;
+    const bool noisy = params.noisyPixelRatio > 0.0 && valid[i] && raw.pixels[i] > params.noisyPixelRatio * s;
+    const float v = noisy ? raw.pixels[i] : s;
     m.variance.pixels[i] = v > 0.0f && std::isfinite(v) ? v : 0.0f;
     if (m.variance.pixels[i] > 0.0f && (i % 4 == 0)) vs.push_back(m.variance.pixels[i]);
   }

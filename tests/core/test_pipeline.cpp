@@ -51,10 +51,11 @@ TEST_P(PipelineTest, PreparesZeroBiasedFilteredFramesAgainstTruth) {
   ASSERT_EQ(out.filtered.frames.frameCount(), raw.frameCount());
   EXPECT_GT(out.filtered.sigmaF, 0.0);
   EXPECT_NEAR(out.filtered.psfFwhmPx, out.psf.fwhm(), 1e-12);
-  // The moving object is untouched (its pixels are raw minus background), the stars are zero.
+  // The moving object is untouched (its pixels are raw minus its background), the stars are zero.
   const auto dt = out.frames.timeOffsetsS();
   const int w = sc.width;
   std::size_t kept = 0, objectZeroed = 0;
+  double sumDiff = 0.0;
   for (std::size_t n = 0; n < raw.frameCount(); ++n) {
     const auto [ox, oy] = sc.objectAt(dt[n]);
     const int x = static_cast<int>(std::lround(ox)), y = static_cast<int>(std::lround(oy));
@@ -66,7 +67,11 @@ TEST_P(PipelineTest, PreparesZeroBiasedFilteredFramesAgainstTruth) {
       hit |= h.frame == n && h.x == x && h.y == y;
     if (hit) continue;
     objectZeroed += v == 0.0f;
-    EXPECT_NEAR(v, raw.frame(n)[i] - out.background.pixels[i], 1e-3);
+    // Each frame's own background (frame level, the per-pixel mean without the frames near it, the residual
+    // local mean) differs from the one per-pixel mean by noise-level amounts; the object's flux is all there.
+    const double d = v - (raw.frame(n)[i] - out.background.pixels[i]);
+    EXPECT_NEAR(d, 0.0, 0.5 * sc.sigma);
+    sumDiff += d;
     ++kept;
     for (const auto& s : sc.stars) {
       const int sx = static_cast<int>(std::lround(s.x + sc.skyRate.vx * dt[n]));
@@ -78,6 +83,7 @@ TEST_P(PipelineTest, PreparesZeroBiasedFilteredFramesAgainstTruth) {
   }
   EXPECT_GT(kept, 40u);
   EXPECT_EQ(objectZeroed, 0u);
+  EXPECT_LT(std::fabs(sumDiff / std::max<std::size_t>(kept, 1)), 0.1 * sc.sigma) << "the object's flux changed";
 
   test::TempDir dir;
   const std::string path = (dir / "prepared.json").string();

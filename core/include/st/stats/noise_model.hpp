@@ -12,8 +12,7 @@
 //     ~ 6x more than noise; a one-sided clip on skewed EMCCD noise leaves +0.012 sigma, i.e. +0.073 sqrt(N) of
 //     SNR on every track.
 //  3. estimateNoiseModel: the variance of frame n at pixel q is modelled as s_n^2 v(q): v from the per-pixel
-//     frame-to-frame scatter (smoothed; single noisy pixels kept), s_n^2 each frame's robust variance relative
-//     to v. stack::filterCube then forms the inverse-variance-weighted matched filter from it.
+//     frame-to-frame scatter (smoothed robustly), s_n^2 each frame's robust variance relative to v. stack::filterCube then forms the inverse-variance-weighted matched filter from it.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -61,7 +60,11 @@ struct NoiseModel {
 
 struct NoiseModelParams {
   int smoothBoxPx = 15;          ///< box of the smoothing of the per-pixel variance
-  double noisyPixelRatio = 2.0;  ///< a pixel whose own variance exceeds this x the smooth one keeps its own
+  /// > 0: a pixel whose own variance exceeds this x the smooth one keeps its own. Off: a mover's or a star
+  /// residual's signal inflates the frame-to-frame scatter of the pixels it crosses, and weighting those down
+  /// cost a bright slow mover 70% of its SNR (tests/core/test_pipeline_movers.cpp); noisy pixels are masked
+  /// by the hot-pixel and calibration stages instead.
+  double noisyPixelRatio = 0.0;
   int sampleStride = 3;          ///< every n-th pixel enters s_n
 };
 
