@@ -289,7 +289,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     for (int p : comp)
       if (snr[p] >= maskSnr || st.saturated) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
     // The Moffat wings down to one stack sigma per pixel (two of one frame's sigma in a static field, where
-    // only the wing's seeing and guiding residual, a fraction of it, is left; the radius grows with the flux).
+    // only the wing's seeing and guiding residual, a fraction of it, is left; the radius grows with the
+    // flux).
     if (params.maskWings)
       detail::setDisc(out.mask, st.x, st.y,
                       detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames,

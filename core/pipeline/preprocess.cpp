@@ -193,7 +193,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.8, 0.83);
     out.residualMeanRms = stats::removeResidualMeans(cube, params.residualMeshPx, 5.0, sub, cancel);
   }
-  if (params.weightedFilter) out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
+  if (params.weightedFilter)
+    out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
   lap("residual means and noise model");
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.83, 1.0);
@@ -206,8 +207,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     f.wcs = cube.wcs;
     f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
-    const stack::MatchedFilterResult mf = stack::filterCube(out.filtered.frames, kernel, sub, cancel,
-                                                            params.weightedFilter ? &out.noiseModel : nullptr);
+    const stack::MatchedFilterResult mf = stack::filterCube(
+        out.filtered.frames, kernel, sub, cancel, params.weightedFilter ? &out.noiseModel : nullptr);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

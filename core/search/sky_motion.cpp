@@ -36,7 +36,9 @@ SkyMotion skyMotion(const FrameCube& cube, double x, double y, Velocity v) {
   return m;
 }
 
-double staticRateLimitPxS(double fwhmPx, double spanS) { return spanS > 0.0 ? fwhmPx / spanS : 0.0; }
+double staticRateLimitPxS(double fwhmPx, double spanS) {
+  return spanS > 0.0 ? fwhmPx / spanS : 0.0;
+}
 
 std::string staticRateLimitNote(const FrameCube& cube, double fwhmPx) {
   const double v = staticRateLimitPxS(fwhmPx, cube.timeSpanS());
@@ -47,10 +49,11 @@ std::string staticRateLimitNote(const FrameCube& cube, double fwhmPx) {
                   "relative to the stars look static and are removed with them",
                   v, v * *cube.plateScaleArcsecPerPx * 86400.0 / 3600.0, fwhmPx, cube.timeSpanS());
   } else {
-    std::snprintf(buf, sizeof buf,
-                  "movers slower than %.3g px/s (one PSF FWHM of %.2f px over the %.0f s span) relative to the "
-                  "stars look static and are removed with them",
-                  v, fwhmPx, cube.timeSpanS());
+    std::snprintf(
+        buf, sizeof buf,
+        "movers slower than %.3g px/s (one PSF FWHM of %.2f px over the %.0f s span) relative to the "
+        "stars look static and are removed with them",
+        v, fwhmPx, cube.timeSpanS());
   }
   return buf;
 }

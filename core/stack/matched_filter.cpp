@@ -73,8 +73,8 @@ Weights makeWeights(const FrameCube& cube, const FilterKernel& kernel, const sta
   if (m.variance.width != w || m.variance.height != h || m.frameScale.size() != nf)
     throw InputError("matched filter: the noise model (" + std::to_string(m.variance.width) + "x" +
                      std::to_string(m.variance.height) + ", " + std::to_string(m.frameScale.size()) +
-                     " frames) does not match the cube (" + std::to_string(w) + "x" + std::to_string(h) + ", " +
-                     std::to_string(nf) + " frames)");
+                     " frames) does not match the cube (" + std::to_string(w) + "x" + std::to_string(h) +
+                     ", " + std::to_string(nf) + " frames)");
   Weights out;
   out.invVar.resize(np);
   for (std::size_t i = 0; i < np; ++i) {
@@ -118,7 +118,8 @@ Weights makeWeights(const FrameCube& cube, const FilterKernel& kernel, const sta
     const auto* row = phi.ptr<float>(y);
     for (int x = 0; x < w; ++x) {
       const double p = row[x];
-      out.outScale[std::size_t(y) * w + x] = p > 1e-9 * phiMax ? static_cast<float>(scale / std::sqrt(p)) : 0.0f;
+      out.outScale[std::size_t(y) * w + x] =
+          p > 1e-9 * phiMax ? static_cast<float>(scale / std::sqrt(p)) : 0.0f;
     }
   }
   return out;

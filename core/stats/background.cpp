@@ -255,7 +255,8 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
         // samples (at least 4) still beats taking a mover's own flux into its background.
         const std::size_t c = totalC[x] - winC[x];
         const std::size_t need = std::min(params.minSamples, std::max<std::size_t>(4, totalC[x] / 3));
-        level[x] = validRow[x] && c >= need ? static_cast<float>((total[x] - winS[x]) / double(c)) : levelRow[x];
+        level[x] =
+            validRow[x] && c >= need ? static_cast<float>((total[x] - winS[x]) / double(c)) : levelRow[x];
       }
       const std::size_t off = n * np + y * w;
       float* f = pix + off;

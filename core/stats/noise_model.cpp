@@ -164,7 +164,8 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
               const float v = f[static_cast<std::size_t>(y) * w + x];
               if (v != 0.0f && std::isfinite(v)) values.push_back(v);
             }
-          const double m = clippedMean(values, clipSigma, std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16));
+          const double m = clippedMean(values, clipSigma,
+                                       std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16));
           means[static_cast<std::size_t>(j) * nx + i] = m;
           if (std::isfinite(m)) good.push_back(m);
         }
@@ -208,8 +209,8 @@ NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSig
   const int w = zeroBiased.width(), h = zeroBiased.height();
   if (pixelSigma.width != w || pixelSigma.height != h)
     throw InputError("noise model: per-pixel sigma of " + std::to_string(pixelSigma.width) + "x" +
-                     std::to_string(pixelSigma.height) + " does not match frames of " + std::to_string(w) + "x" +
-                     std::to_string(h));
+                     std::to_string(pixelSigma.height) + " does not match frames of " + std::to_string(w) +
+                     "x" + std::to_string(h));
   const std::size_t np = zeroBiased.framePixels(), nf = zeroBiased.frameCount();
   Image raw(w, h);
   std::vector<std::uint8_t> valid(np, 0);
@@ -243,7 +244,9 @@ NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSig
   std::vector<double> vs;
   vs.reserve(np / 4);
   for (std::size_t i = 0; i < np; ++i) {
-    const float s = smooth.pixels[i] > 0.0f ? smooth.pixels[i] : first.pixels[i] > 0.0f ? first.pixels[i] : fill;
+    const float s = smooth.pixels[i] > 0.0f  ? smooth.pixels[i]
+                    : first.pixels[i] > 0.0f ? first.pixels[i]
+                                             : fill;
     const bool noisy = params.noisyPixelRatio > 0.0 && valid[i] && raw.pixels[i] > params.noisyPixelRatio * s;
     const float v = noisy ? raw.pixels[i] : s;
     m.variance.pixels[i] = v > 0.0f && std::isfinite(v) ? v : 0.0f;

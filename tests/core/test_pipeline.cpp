@@ -83,7 +83,8 @@ TEST_P(PipelineTest, PreparesZeroBiasedFilteredFramesAgainstTruth) {
   }
   EXPECT_GT(kept, 40u);
   EXPECT_EQ(objectZeroed, 0u);
-  EXPECT_LT(std::fabs(sumDiff / std::max<std::size_t>(kept, 1)), 0.1 * sc.sigma) << "the object's flux changed";
+  EXPECT_LT(std::fabs(sumDiff / std::max<std::size_t>(kept, 1)), 0.1 * sc.sigma)
+      << "the object's flux changed";
 
   test::TempDir dir;
   const std::string path = (dir / "prepared.json").string();

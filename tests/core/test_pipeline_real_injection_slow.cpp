@@ -6,7 +6,8 @@
 // span; slower movers look static), expected SNR 4-20: the optimal matched-filter SNR of the whole track,
 // SNR^2 = sum_n sum_q (flux P_n(q))^2 / sigma_n(q)^2, with sigma_n(q) the frame-to-frame noise of the
 // uninjected frames (their pre-processing's noise model). 3 seeds x 40 movers.
-// Targets: completeness >= 90% at expected SNR >= 12 and >= 50% at 8-12; median recovered/expected SNR >= 0.8;
+// Targets: completeness >= 90% at expected SNR >= 12 and >= 50% at 8-12; median recovered/expected SNR >=
+// 0.8;
 // <= 5 candidates at SNR >= 7 per cube that are neither an injected mover nor an object of the uninjected
 // frames (5945 and the fainter asteroids of the field, or a bright one's sidelobe), and 5945 found in every
 // cube. ~4 minutes on 2 cores.
@@ -117,7 +118,8 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   FrameCube raw = loadFolder(dir / "science", true);
   const FrameCube bias = loadFolder(dir / "bias", false), flat = loadFolder(dir / "flat", false);
   PreprocessParams params;
-  const calib::MasterCalibration masters = calib::buildMasters(bias, FrameCube{}, flat, raw, params.calib, np, c);
+  const calib::MasterCalibration masters =
+      calib::buildMasters(bias, FrameCube{}, flat, raw, params.calib, np, c);
   // The headers carry no GAIN: AGAIN_01 (4.95 e-/ADU) is the gain of amplifier 1, the only one read out.
   const double gain = raw.header.getDouble("GAIN").value_or(raw.header.getDouble("AGAIN_01").value_or(1.0));
   // Calibrate once; the injected cubes are copies of the calibrated frames (flux in calibrated counts, so the
@@ -138,23 +140,28 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   const stack::FilterKernel kernel = stack::makeFilterKernel(psf);
   std::printf("clean: sigma_F %.2f measured, %.2f for white noise of the model (sigma_ref sqrt(sum K^2))\n",
               clean.filtered.sigmaF, clean.noiseModel.sigmaRef * std::sqrt(kernel.sumSquares));
-  std::printf("clean: PSF FWHM %.2f px beta %.2f, sigma_F %.2f, masked %.1f%% of pixel-frames, sky rate (%.4g, %.4g)\n",
-              psf.fwhm(), psf.beta, clean.filtered.sigmaF, 100.0 * masked / clean.frames.pixels().size(),
-              clean.skyRate.vx, clean.skyRate.vy);
+  std::printf(
+      "clean: PSF FWHM %.2f px beta %.2f, sigma_F %.2f, masked %.1f%% of pixel-frames, sky rate (%.4g, "
+      "%.4g)\n",
+      psf.fwhm(), psf.beta, clean.filtered.sigmaF, 100.0 * masked / clean.frames.pixels().size(),
+      clean.skyRate.vx, clean.skyRate.vy);
 
   // What the sky itself holds: the search of the uninjected frames. Its candidates are real (5945 and a dozen
-  // fainter objects moving in the same direction as it (the CLI's pa_deg 105-170): main-belt asteroids; false alarms would
-  // spread over every direction) or artifacts of these frames; either way they are not the injections' doing.
+  // fainter objects moving in the same direction as it (the CLI's pa_deg 105-170): main-belt asteroids; false
+  // alarms would spread over every direction) or artifacts of these frames; either way they are not the
+  // injections' doing.
   const search::SearchResult sky = searchLowell(clean);
   for (const auto& cd : sky.candidates)
-    std::printf("uninjected frames: candidate (%d, %d) v (%.5f, %.5f) px/s SNR %.1f direction %.0f deg "
-                "(pixel axes)\n",
-                cd.x, cd.y, cd.v.vx - clean.skyRate.vx, cd.v.vy - clean.skyRate.vy, cd.snr,
-                std::atan2(cd.v.vy - clean.skyRate.vy, cd.v.vx - clean.skyRate.vx) * 180 / M_PI);
+    std::printf(
+        "uninjected frames: candidate (%d, %d) v (%.5f, %.5f) px/s SNR %.1f direction %.0f deg "
+        "(pixel axes)\n",
+        cd.x, cd.y, cd.v.vx - clean.skyRate.vx, cd.v.vy - clean.skyRate.vy, cd.snr,
+        std::atan2(cd.v.vy - clean.skyRate.vy, cd.v.vx - clean.skyRate.vx) * 180 / M_PI);
   auto onSky = [&](const search::Candidate& cd) {
     for (const auto& s : sky.candidates) {
       const double d = std::hypot(cd.x - s.x, cd.y - s.y);
-      if (d <= 3.0 || (s.snr >= 50.0 && d <= 15.0)) return true;  // the same object, or a bright one's sidelobe
+      if (d <= 3.0 || (s.snr >= 50.0 && d <= 15.0))
+        return true;  // the same object, or a bright one's sidelobe
     }
     return false;
   };
@@ -187,10 +194,10 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
       }
     }
     const Prepared prep = preprocess(std::move(cube), pp, np, c);
-    std::printf("seed %u: %zu cosmic-ray pixels (uninjected %zu), %zu single-frame source pixels zeroed\n", seed,
-                prep.cosmicRays, clean.cosmicRays,
-                std::accumulate(prep.singleFrame.zeroedPerFrame.begin(), prep.singleFrame.zeroedPerFrame.end(),
-                                std::size_t{0}));
+    std::printf("seed %u: %zu cosmic-ray pixels (uninjected %zu), %zu single-frame source pixels zeroed\n",
+                seed, prep.cosmicRays, clean.cosmicRays,
+                std::accumulate(prep.singleFrame.zeroedPerFrame.begin(),
+                                prep.singleFrame.zeroedPerFrame.end(), std::size_t{0}));
     const search::SearchResult r = searchLowell(prep);
     const double step = r.grid.stepPxS, span = prep.filtered.frames.timeSpanS();
     std::vector<bool> used(r.candidates.size(), false);
@@ -211,11 +218,13 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
         midFound += best > 0;
       }
       if (best > 0) ratios.push_back(best / m.snr);
-      // The statistic on the true track (no grid, no pixel rounding of the start): what the search could reach.
+      // The statistic on the true track (no grid, no pixel rounding of the start): what the search could
+      // reach.
       double atTruth = 0.0;
       int nIn = 0;
       for (std::size_t n = 0; n < nf; ++n) {
-        const int x = static_cast<int>(std::lround(m.x + m.vx * tOff[n])), y = static_cast<int>(std::lround(m.y + m.vy * tOff[n]));
+        const int x = static_cast<int>(std::lround(m.x + m.vx * tOff[n])),
+                  y = static_cast<int>(std::lround(m.y + m.vy * tOff[n]));
         if (x < 0 || y < 0 || x >= w || y >= h) continue;
         atTruth += prep.filtered.frames.frame(n)[static_cast<std::size_t>(y) * w + x];
         ++nIn;
@@ -231,10 +240,11 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
           added += m.flux * p;
           if (prep.frames.frame(n)[i] == 0.0f && clean.frames.frame(n)[i] != 0.0f) zeroed += m.flux * p;
         });
-      std::printf("seed %u mover (%.1f, %.1f) v (%.5f, %.5f) expected SNR %.1f flux %.0f: %s %.1f; on the true "
-                  "track %.1f; flux kept %.2f, zeroed %.2f\n",
-                  seed, m.x, m.y, m.vx, m.vy, m.snr, m.flux, best > 0 ? "found at SNR" : "missed", best, atTruth,
-                  added > 0 ? kept / added : 0.0, added > 0 ? zeroed / added : 0.0);
+      std::printf(
+          "seed %u mover (%.1f, %.1f) v (%.5f, %.5f) expected SNR %.1f flux %.0f: %s %.1f; on the true "
+          "track %.1f; flux kept %.2f, zeroed %.2f\n",
+          seed, m.x, m.y, m.vx, m.vy, m.snr, m.flux, best > 0 ? "found at SNR" : "missed", best, atTruth,
+          added > 0 ? kept / added : 0.0, added > 0 ? zeroed / added : 0.0);
     }
     int unmatched = 0;
     bool asteroid = false;
@@ -246,8 +256,8 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
       }
       if (!used[k] && cd.snr >= 7.0 && !onSky(cd)) {
         ++unmatched;
-        std::printf("seed %u unmatched candidate (%d, %d) v (%.5f, %.5f) SNR %.1f\n", seed, cd.x, cd.y, cd.v.vx,
-                    cd.v.vy, cd.snr);
+        std::printf("seed %u unmatched candidate (%d, %d) v (%.5f, %.5f) SNR %.1f\n", seed, cd.x, cd.y,
+                    cd.v.vx, cd.v.vy, cd.snr);
       }
     }
     EXPECT_TRUE(asteroid) << "seed " << seed << ": 5945 not found";
@@ -259,8 +269,8 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
               brightFound, bright, midFound, mid, median);
   EXPECT_GE(brightFound, 0.9 * bright);
   EXPECT_GE(midFound, 0.5 * mid);
-  // Issue 14 asks for >= 0.8; measured 0.791 over the 3 seeds (2026-11-25): IPSA sums whole pixels, and with an
-  // undersampled PSF (FWHM 1.9 px) the track's sub-pixel phase costs ~5%; each frame's mover-excluding
+  // Issue 14 asks for >= 0.8; measured 0.791 over the 3 seeds (2026-11-25): IPSA sums whole pixels, and with
+  // an undersampled PSF (FWHM 1.9 px) the track's sub-pixel phase costs ~5%; each frame's mover-excluding
   // background comes from 8-11 frames (~5%); the grid's velocity step ~2%. Held here at the measured level.
   EXPECT_GE(median, 0.77);
 }

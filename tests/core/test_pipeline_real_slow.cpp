@@ -3,8 +3,9 @@
 // biases and 3 twilight flats, searched over +-0.2 deg/day around the sky rate in 1 px steps over the span
 // (what `synthtrack-cli preprocess ... && synthtrack-cli search --preprocessed --vmax-deg-day 0.2` does).
 // The asteroid moves ~10 px over the sequence, so the sky-rate stack sees it as a star; pre-processing must
-// find that it moves (not mask it) and the search must find it as its best candidate: within 2 px of (673, 723.5) (0-based,
-// trimmed frame, t_ref) and with a velocity within 20% of (-0.00087, -0.0021) px/s (the README's
+// find that it moves (not mask it) and the search must find it as its best candidate: within 2 px of (673,
+// 723.5) (0-based, trimmed frame, t_ref) and with a velocity within 20% of (-0.00087, -0.0021) px/s (the
+// README's
 // (-0.27, -0.64) px per ~309 s frame). ~20 s on 2 cores.
 #include <gtest/gtest.h>
 
@@ -95,8 +96,8 @@ TEST(PipelineReal, Lowell5945SlowAsteroidIsNotMaskedAndIsFound) {
     for (const auto* half : {&first, &second}) {
       const Image s = vet::stackStamp(out.filtered.frames, *half, cd.x, cd.y, cd.v, 0.0, 0);
       const double snrHalf = s.at(0, 0) / (out.filtered.sigmaF * std::sqrt(double(half->size())));
-      EXPECT_GE(snrHalf, cd.snr / std::sqrt(2.0) / 3.0)
-          << "candidate (" << cd.x << ", " << cd.y << ") SNR " << cd.snr << ": SNR " << snrHalf << " in a half";
+      EXPECT_GE(snrHalf, cd.snr / std::sqrt(2.0) / 3.0) << "candidate (" << cd.x << ", " << cd.y << ") SNR "
+                                                        << cd.snr << ": SNR " << snrHalf << " in a half";
     }
   }
 }

@@ -116,7 +116,8 @@ TEST(WeightedFilter, VaryingNoiseIsNormalisedAndGivesTheLikelihoodStatistic) {
   // sigma_F is measured (robust) where the exact statistic uses the model: agree within the estimate's ~2%.
   EXPECT_NEAR(stacked, likelihood, 0.03 * std::fabs(likelihood)) << "sigma_F " << r.sigmaF;
   // Same noise on the quiet and the noisy side, in the frames of every scale (pooled over the 4 frames of
-  // each scale: the filtered noise is correlated over ~30 px, so one frame's half has ~600 independent values).
+  // each scale: the filtered noise is correlated over ~30 px, so one frame's half has ~600 independent
+  // values).
   for (std::size_t k = 0; k < 3; ++k) {
     std::vector<float> left, right;
     for (std::size_t n = k; n < nf; n += 3)
@@ -155,7 +156,7 @@ TEST(NoiseModel, ResidualMeansAreRemovedAndZerosKept) {
       for (int x = 0; x < 256; ++x) {
         float& v = cube.frame(n)[std::size_t(y) * 256 + x];
         v += static_cast<float>(0.2 + 0.002 * x - 0.001 * y);  // a residual offset and gradient, in sigma
-        if (x > 100 && x < 120) v = 0.0f;                       // a masked stripe
+        if (x > 100 && x < 120) v = 0.0f;                      // a masked stripe
       }
   NullProgress p;
   CancelToken c;
@@ -182,8 +183,8 @@ TEST(NoiseModel, FrameBackgroundsRemoveOffsetsAndGradients) {
   for (std::size_t n = 0; n < 6; ++n)
     for (int y = 0; y < 256; ++y)
       for (int x = 0; x < 256; ++x)
-        cube.frame(n)[std::size_t(y) * 256 + x] += static_cast<float>(1000.0 + 100.0 * n - 80.0 * (n % 2) +
-                                                                      0.3 * n * x);
+        cube.frame(n)[std::size_t(y) * 256 + x] +=
+            static_cast<float>(1000.0 + 100.0 * n - 80.0 * (n % 2) + 0.3 * n * x);
   NullProgress p;
   CancelToken c;
   const FrameBackgrounds b = removeFrameBackgrounds(cube, {}, p, c);
@@ -215,7 +216,8 @@ TEST(PixelBackground, SlowMoverKeepsItsFlux) {
     for (std::size_t n = 0; n < nf; ++n)
       for (int y = 0; y < h; ++y)
         for (int x = 0; x < w; ++x)
-          cube.frame(n)[std::size_t(y) * w + x] += static_cast<float>(3.0 * psf(x - (30.0 + 1.2 * n), y - 20.0));
+          cube.frame(n)[std::size_t(y) * w + x] +=
+              static_cast<float>(3.0 * psf(x - (30.0 + 1.2 * n), y - 20.0));
     return cube;
   };
   // Along the track: an aperture of 3 px radius about the mover in each frame.

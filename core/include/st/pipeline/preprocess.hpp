@@ -51,12 +51,12 @@ struct PreprocessParams {
   double psfFwhmPx = 3.0;            ///< footprint dilation before the fit, and the fallback PSF
   double psfBeta = 4.0;              ///< beta of the fallback PSF (paper §3.3)
   std::optional<std::pair<double, double>>
-      psfStar;                ///< the star the user names for the PSF (0-based px, t_ref)
-  bool matchedFilter = true;  ///< produce Prepared::filtered (one extra cube)
+      psfStar;                                   ///< the star the user names for the PSF (0-based px, t_ref)
+  bool matchedFilter = true;                     ///< produce Prepared::filtered (one extra cube)
   stats::FrameBackgroundParams frameBackground;  ///< each frame's smooth background (SEP), before all else
   bool removeResidualMean = true;  ///< remove each zero-biased frame's residual local mean (mesh)
   int residualMeshPx = 64;         ///< its mesh cell
-  bool weightedFilter = true;      ///< inverse-variance-weighted matched filter (else the paper's uniform one)
+  bool weightedFilter = true;  ///< inverse-variance-weighted matched filter (else the paper's uniform one)
   stats::NoiseModelParams noise;
 };
 
@@ -89,8 +89,8 @@ struct Prepared {
   search::FilteredCube filtered;                       ///< matched-filtered frames and sigma_F for the search
   std::vector<std::string> notes;              ///< what the user should know (sky rate, PSF fallback, ...)
   std::vector<std::uint64_t> cosmicRayPixels;  ///< flat cube indices of the pixels zeroed as cosmic rays
-  stats::FrameBackgrounds frameBackgrounds;  ///< each frame's SEP level and rms (before all else)
-  double residualMeanRms = 0.0;              ///< rms of the residual local means removed, counts
+  stats::FrameBackgrounds frameBackgrounds;    ///< each frame's SEP level and rms (before all else)
+  double residualMeanRms = 0.0;                ///< rms of the residual local means removed, counts
   stats::NoiseModel noiseModel;  ///< variance s_n^2 v(q) used by the weighted filter (empty when off)
   std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage
   double elapsedS = 0.0;

@@ -41,7 +41,7 @@ void filterFrame(float* frame, int width, int height, const FilterKernel& kernel
 
 /// What filterCube measured.
 struct MatchedFilterResult {
-  double sigmaF = 0.0;  ///< noise of one filtered frame: rms over frames of each one's 1.4826 x MAD
+  double sigmaF = 0.0;           ///< noise of one filtered frame: rms over frames of each one's 1.4826 x MAD
   std::size_t noiseSamples = 0;  ///< pixels that entered sigmaF
   int kernelHalfSize = 0;
   double kernelSumSquares = 0.0;
@@ -56,10 +56,11 @@ struct MatchedFilterResult {
 /// track (noise separable into a frame factor and a smooth map); for uniform noise sigma (v = sigma^2,
 /// s_n = 1) the output is exactly the unweighted K conv F away from edges and zeroed pixels, and sigma_F is
 /// sigma sqrt(sum K^2) everywhere: every pixel is scaled to the same noise, so vignetted corners and noisy
-/// frames neither raise false alarms nor dilute the rest. Masked and non-finite pixels are set to 0 first. sigma_F is measured on up to 64 frames spread
-/// over the cube from every 3rd pixel that is at least halfSize away from the frame edge and from any
-/// zero/masked input pixel (there the noise is lower and would bias sigma_F). Reports progress; throws
-/// st::Cancelled, and st::InputError when too few pixels are left to measure sigma_F (< 1000).
+/// frames neither raise false alarms nor dilute the rest. Masked and non-finite pixels are set to 0 first.
+/// sigma_F is measured on up to 64 frames spread over the cube from every 3rd pixel that is at least halfSize
+/// away from the frame edge and from any zero/masked input pixel (there the noise is lower and would bias
+/// sigma_F). Reports progress; throws st::Cancelled, and st::InputError when too few pixels are left to
+/// measure sigma_F (< 1000).
 MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
                                CancelToken& cancel, const stats::NoiseModel* noise = nullptr);
 

@@ -4,15 +4,16 @@
 // (vignetting); one pooled sigma is wrong for all of them. Three steps, in the pre-processing order:
 //
 //  1. removeFrameBackgrounds: each frame's own smooth background (SEP, the SExtractor library: a mesh of
-//     clipped modes, median-filtered, spline-interpolated) is subtracted and the cube's median sky level added
-//     back, before the per-pixel background, so that frame-to-frame sky offsets and gradients do not inflate
-//     the per-pixel scatter (on Lowell 42-inch frames they did 4-7x).
+//     clipped modes, median-filtered, spline-interpolated) is subtracted and the cube's median sky level
+//     added back, before the per-pixel background, so that frame-to-frame sky offsets and gradients do not
+//     inflate the per-pixel scatter (on Lowell 42-inch frames they did 4-7x).
 //  2. removeResidualMeans: after the per-pixel background and the masking, each zero-biased frame's residual
-//     local *mean* (a mesh of clipped means) is removed. The matched filter amplifies a mean sum(K)/sqrt(sum K^2)
-//     ~ 6x more than noise; a one-sided clip on skewed EMCCD noise leaves +0.012 sigma, i.e. +0.073 sqrt(N) of
-//     SNR on every track.
+//     local *mean* (a mesh of clipped means) is removed. The matched filter amplifies a mean sum(K)/sqrt(sum
+//     K^2) ~ 6x more than noise; a one-sided clip on skewed EMCCD noise leaves +0.012 sigma, i.e. +0.073
+//     sqrt(N) of SNR on every track.
 //  3. estimateNoiseModel: the variance of frame n at pixel q is modelled as s_n^2 v(q): v from the per-pixel
-//     frame-to-frame scatter (smoothed robustly), s_n^2 each frame's robust variance relative to v. stack::filterCube then forms the inverse-variance-weighted matched filter from it.
+//     frame-to-frame scatter (smoothed robustly), s_n^2 each frame's robust variance relative to v.
+//     stack::filterCube then forms the inverse-variance-weighted matched filter from it.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -30,9 +31,9 @@ struct FrameBackgroundParams {
 };
 
 struct FrameBackgrounds {
-  std::vector<double> level;  ///< each frame's global background (SEP's global mean), counts
-  std::vector<double> rms;    ///< each frame's global background rms (SEP), counts
-  double restoredLevel = 0.0; ///< the median of `level`, added back to every frame
+  std::vector<double> level;      ///< each frame's global background (SEP's global mean), counts
+  std::vector<double> rms;        ///< each frame's global background rms (SEP), counts
+  double restoredLevel = 0.0;     ///< the median of `level`, added back to every frame
   std::size_t framesSkipped = 0;  ///< frames SEP could not model (left as they were)
 };
 
@@ -50,22 +51,22 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
 
 /// Variance of frame n at pixel q: frameScale[n]^2 * variance(q).
 struct NoiseModel {
-  Image variance;                 ///< v(q), counts^2; 0 where unknown (weight 0)
-  std::vector<double> frameScale; ///< s_n, ~1 (median 1)
-  double sigmaRef = 0.0;          ///< sqrt(median v) * median s: the uniform-noise equivalent, counts
+  Image variance;                  ///< v(q), counts^2; 0 where unknown (weight 0)
+  std::vector<double> frameScale;  ///< s_n, ~1 (median 1)
+  double sigmaRef = 0.0;           ///< sqrt(median v) * median s: the uniform-noise equivalent, counts
   [[nodiscard]] bool empty() const noexcept { return variance.empty(); }
   /// A uniform model: variance sigma^2 everywhere, every s_n = 1 (the paper's statistic).
   static NoiseModel uniform(int width, int height, std::size_t frames, double sigma);
 };
 
 struct NoiseModelParams {
-  int smoothBoxPx = 15;          ///< box of the smoothing of the per-pixel variance
+  int smoothBoxPx = 15;  ///< box of the smoothing of the per-pixel variance
   /// > 0: a pixel whose own variance exceeds this x the smooth one keeps its own. Off: a mover's or a star
   /// residual's signal inflates the frame-to-frame scatter of the pixels it crosses, and weighting those down
   /// cost a bright slow mover 70% of its SNR (tests/core/test_pipeline_movers.cpp); noisy pixels are masked
   /// by the hot-pixel and calibration stages instead.
   double noisyPixelRatio = 0.0;
-  int sampleStride = 3;          ///< every n-th pixel enters s_n
+  int sampleStride = 3;  ///< every n-th pixel enters s_n
 };
 
 /// The model from zero-biased frames and the per-pixel frame-to-frame sigma of the background stage
