@@ -35,20 +35,6 @@ namespace {
 
 constexpr double kAstX = 673.0, kAstY = 723.5;  // 5945 at t_ref (test_pipeline_real_slow.cpp)
 
-FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
-  std::vector<std::string> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    files.push_back(e.path().string());
-  std::sort(files.begin(), files.end());
-  io::LoadOptions opt;
-  if (!science) {
-    opt.startMjd = 0.0;
-    opt.frameRateHz = 1.0;
-  }
-  NullProgress p;
-  CancelToken c;
-  return io::loadFrames(files, opt, p, c);
-}
 
 struct Mover {
   double x, y, vx, vy, snr, flux = 0.0;
@@ -115,8 +101,8 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   const auto dir = root / "lowell42-5945";
   NullProgress np;
   CancelToken c;
-  FrameCube raw = loadFolder(dir / "science", true);
-  const FrameCube bias = loadFolder(dir / "bias", false), flat = loadFolder(dir / "flat", false);
+  FrameCube raw = test::loadFolder(dir / "science", true);
+  const FrameCube bias = test::loadFolder(dir / "bias", false), flat = test::loadFolder(dir / "flat", false);
   PreprocessParams params;
   const calib::MasterCalibration masters =
       calib::buildMasters(bias, FrameCube{}, flat, raw, params.calib, np, c);

@@ -1,5 +1,12 @@
 #include "test_support.hpp"
 
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "st/common/progress.hpp"
+#include "st/io/fits_reader.hpp"
+
 #include <atomic>
 #include <cstdlib>
 #include <random>
@@ -44,6 +51,21 @@ void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double
   h.setNumber("CD1_2", 0.0);
   h.setNumber("CD2_1", 0.0);
   h.setNumber("CD2_2", arcsecPerPx / 3600.0);
+}
+
+FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    files.push_back(e.path().string());
+  std::sort(files.begin(), files.end());
+  io::LoadOptions opt;
+  if (!science) {
+    opt.startMjd = 0.0;
+    opt.frameRateHz = 1.0;
+  }
+  NullProgress p;
+  CancelToken c;
+  return io::loadFrames(files, opt, p, c);
 }
 
 }  // namespace st::test

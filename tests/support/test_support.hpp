@@ -4,6 +4,7 @@
 #include <string>
 
 #include "st/common/fits_header.hpp"
+#include "st/common/frame_cube.hpp"
 
 namespace st::test {
 
@@ -24,6 +25,10 @@ class TempDir {
 /// The folder with real telescope data (../shared/data/real, or $ST_REAL_DATA), or empty when absent.
 /// Tests that need it call GTEST_SKIP() when this is empty.
 std::filesystem::path realDataDir();
+
+/// Every file of `dir` (sorted by name) loaded as one cube; calibration frames (`science` false) get a
+/// nominal clock, since they need no times.
+FrameCube loadFolder(const std::filesystem::path& dir, bool science);
 
 /// Writes a TAN WCS into `h`: (raDeg, decDeg) at the 1-based pixel (crpix1, crpix2), north up, east left,
 /// `arcsecPerPx` (CD matrix diagonal, no rotation).
