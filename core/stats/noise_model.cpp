@@ -64,18 +64,11 @@ double clippedMean(std::vector<float>& v, double k, std::size_t minCount) {
   return centre;
 }
 
-/// Bilinear interpolation of a mesh of nx x ny cell values (cell centres at (i + 0.5) * mesh, clamped at the
-/// outer centres) at pixel (x, y).
-float meshAt(const std::vector<double>& mesh, int nx, int ny, int meshPx, int x, int y) {
-  const double u = std::clamp((x + 0.5) / meshPx - 0.5, 0.0, static_cast<double>(nx - 1));
-  const double w = std::clamp((y + 0.5) / meshPx - 0.5, 0.0, static_cast<double>(ny - 1));
-  const int i0 = static_cast<int>(u), j0 = static_cast<int>(w);
-  const int i1 = std::min(i0 + 1, nx - 1), j1 = std::min(j0 + 1, ny - 1);
-  const double fu = u - i0, fw = w - j0;
-  const double top = mesh[j0 * nx + i0] * (1 - fu) + mesh[j0 * nx + i1] * fu;
-  const double bottom = mesh[j1 * nx + i0] * (1 - fu) + mesh[j1 * nx + i1] * fu;
-  return static_cast<float>(top * (1 - fw) + bottom * fw);
-}
+/// Where column x falls between the mesh's cell centres: cells i0, i1 and the weight f of i1.
+struct ColumnWeight {
+  int i0 = 0, i1 = 0;
+  double f = 0.0;
+};
 
 }  // namespace
 
@@ -148,6 +141,13 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
   const std::size_t nf = cube.frameCount();
   std::vector<double> sumSq(nf, 0.0);
   std::vector<std::size_t> cells(nf, 0);
+  std::vector<ColumnWeight> columns(static_cast<std::size_t>(w));
+  for (int x = 0; x < w; ++x) {
+    const double u = std::clamp((x + 0.5) / mesh - 0.5, 0.0, static_cast<double>(nx - 1));
+    columns[x].i0 = static_cast<int>(u);
+    columns[x].i1 = std::min(columns[x].i0 + 1, nx - 1);
+    columns[x].f = u - columns[x].i0;
+  }
   std::atomic<std::size_t> done{0};
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
     std::vector<float> values;
@@ -176,11 +176,23 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
         sumSq[n] += m * m;
         ++cells[n];
       }
-      for (int y = 0; y < h; ++y)
+      // Bilinear between cell centres, separably: the mesh row interpolated at y, then along x by tables.
+      std::vector<double> rowMesh(static_cast<std::size_t>(nx));
+      for (int y = 0; y < h; ++y) {
+        const double wy = std::clamp((y + 0.5) / mesh - 0.5, 0.0, static_cast<double>(ny - 1));
+        const int j0 = static_cast<int>(wy), j1 = std::min(j0 + 1, ny - 1);
+        const double fy = wy - j0;
+        for (int i = 0; i < nx; ++i)
+          rowMesh[i] = means[static_cast<std::size_t>(j0) * nx + i] * (1.0 - fy) +
+                       means[static_cast<std::size_t>(j1) * nx + i] * fy;
+        float* row = f + static_cast<std::size_t>(y) * w;
         for (int x = 0; x < w; ++x) {
-          float& v = f[static_cast<std::size_t>(y) * w + x];
-          if (v != 0.0f && std::isfinite(v)) v -= meshAt(means, nx, ny, mesh, x, y);
+          float& v = row[x];
+          if (v == 0.0f || !std::isfinite(v)) continue;
+          const ColumnWeight& c = columns[x];
+          v -= static_cast<float>(rowMesh[c.i0] * (1.0 - c.f) + rowMesh[c.i1] * c.f);
         }
+      }
       const std::size_t d = ++done;
       if (d % 32 == 0) progress.report(double(d) / double(nf), "residual means");
     }
