@@ -42,18 +42,19 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
     expectedFalse += stats::expectedFalseAlarms(r.snrThreshold, r.trials.total());
     const search::Candidate* hit = nullptr;
     for (const auto& cd : r.candidates) {
-      // Detected: at the asteroid's place (2.5 px) and near its velocity (4 grid steps); "on its velocity"
+      // Detected: at the asteroid's place (2.5 px) and near its velocity (5 grid steps); "on its velocity"
       // within 2 steps, counted apart (a track partly under a star's mask is found at a neighbouring one).
       const double dvx = std::fabs(cd.v.vx - truth.vxPxPerS) / grid.stepPxS,
                    dvy = std::fabs(cd.v.vy - truth.vyPxPerS) / grid.stepPxS;
-      const bool isObject = std::hypot(cd.x - truth.xRefPx, cd.y - truth.yRefPx) <= 2.5 && dvx <= 4.0 + 1e-9 &&
-                            dvy <= 4.0 + 1e-9;
+      const double d = std::hypot(cd.x - truth.xRefPx, cd.y - truth.yRefPx);
+      const bool isObject = d <= 2.5 && dvx <= 5.0 + 1e-9 && dvy <= 5.0 + 1e-9;
       if (isObject && !hit) onVelocity += dvx <= 2.0 + 1e-9 && dvy <= 2.0 + 1e-9;
       if (isObject && !hit) {
         hit = &cd;
         continue;
       }
-      if (cd.snr >= 7.0) {
+      // The asteroid's own partial detections at other velocities are not false alarms.
+      if (cd.snr >= 7.0 && d > 5.0) {
         ++others;
         std::printf("seed %u: other candidate (%d, %d) v (%.2f, %.2f) px/s SNR %.2f\n", seed, cd.x, cd.y,
                     cd.v.vx, cd.v.vy, cd.snr);
