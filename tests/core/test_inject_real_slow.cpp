@@ -23,33 +23,15 @@
 namespace st::inject {
 namespace {
 
-std::vector<std::string> filesIn(const std::filesystem::path& dir) {
-  std::vector<std::string> files;
-  for (const auto& e : std::filesystem::directory_iterator(dir))
-    files.push_back(e.path().string());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-FrameCube load(const std::vector<std::string>& files, bool science) {
-  io::LoadOptions opt;
-  if (!science) {
-    opt.startMjd = 0.0;
-    opt.frameRateHz = 1.0;
-  }
-  NullProgress p;
-  CancelToken c;
-  return io::loadFrames(files, opt, p, c);
-}
-
 TEST(InjectReal, Lowell5945CopiesReadBackWithTheInjectedSignal) {
   const auto root = test::realDataDir();
   if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) GTEST_SKIP() << "no real data";
   const auto dir = root / "lowell42-5945";
-  const std::vector<std::string> science = filesIn(dir / "science");
-  FrameCube raw = load(science, true);
+  const std::vector<std::string> science = test::filesIn(dir / "science");
+  FrameCube raw = test::loadFiles(science, true);
   ASSERT_EQ(raw.frameCount(), 15u);
-  const FrameCube bias = load(filesIn(dir / "bias"), false), flat = load(filesIn(dir / "flat"), false);
+  const FrameCube bias = test::loadFiles(test::filesIn(dir / "bias"), false),
+                  flat = test::loadFiles(test::filesIn(dir / "flat"), false);
   NullProgress p;
   CancelToken c;
   const calib::CalibParams cp;
@@ -80,7 +62,7 @@ TEST(InjectReal, Lowell5945CopiesReadBackWithTheInjectedSignal) {
   const nlohmann::json truth = truthToJson(run, {});
   EXPECT_EQ(truth["objects"].size(), 12u);
 
-  const FrameCube injected = load(run.written, true);
+  const FrameCube injected = test::loadFiles(run.written, true);
   ASSERT_EQ(injected.frameCount(), 15u);
   for (std::size_t n = 0; n < injected.frameCount(); ++n) {
     EXPECT_EQ(injected.info()[n].hdu, 2) << "the image stays in HDU 2";
@@ -96,7 +78,8 @@ TEST(InjectReal, Lowell5945CopiesReadBackWithTheInjectedSignal) {
     for (const auto& s : o.stamps)
       for (int y = s.y0; y < s.y0 + s.height; ++y)
         for (int x = s.x0; x < s.x0 + s.width; ++x)
-          inStamp[static_cast<std::size_t>(y + run.geometry.offsetY) * raw.width() + x + run.geometry.offsetX] = 1;
+          inStamp[static_cast<std::size_t>(y + run.geometry.offsetY) * raw.width() + x +
+                  run.geometry.offsetX] = 1;
   std::size_t changedOutside = 0, nonInteger = 0;
   for (std::size_t n = 0; n < raw.frameCount(); ++n)
     for (std::size_t i = 0; i < raw.framePixels(); ++i) {
@@ -122,8 +105,8 @@ TEST(InjectReal, Lowell5945CopiesReadBackWithTheInjectedSignal) {
         }
     }
     const double perFrame = sum / static_cast<double>(calIn.frameCount());
-    std::printf("mover %2d: flux %.1f, measured %.1f counts/frame, expected SNR %.2f\n", o.id, o.flux, perFrame,
-                o.expectedSnr);
+    std::printf("mover %2d: flux %.1f, measured %.1f counts/frame, expected SNR %.2f\n", o.id, o.flux,
+                perFrame, o.expectedSnr);
     EXPECT_NEAR(perFrame / o.flux, 1.0, 0.05) << "mover " << o.id;
     total += perFrame;
     expected += o.flux;

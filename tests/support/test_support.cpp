@@ -53,11 +53,15 @@ void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double
   h.setNumber("CD2_2", arcsecPerPx / 3600.0);
 }
 
-FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
+std::vector<std::string> filesIn(const std::filesystem::path& dir) {
   std::vector<std::string> files;
   for (const auto& e : std::filesystem::directory_iterator(dir))
     files.push_back(e.path().string());
   std::sort(files.begin(), files.end());
+  return files;
+}
+
+FrameCube loadFiles(const std::vector<std::string>& files, bool science) {
   io::LoadOptions opt;
   if (!science) {
     opt.startMjd = 0.0;
@@ -66,6 +70,10 @@ FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
   NullProgress p;
   CancelToken c;
   return io::loadFrames(files, opt, p, c);
+}
+
+FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
+  return loadFiles(filesIn(dir), science);
 }
 
 }  // namespace st::test

@@ -2,6 +2,7 @@
 // Helpers shared by the test suites: temporary folders, the real-data location, a simple TAN WCS.
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "st/common/fits_header.hpp"
 #include "st/common/frame_cube.hpp"
@@ -25,6 +26,12 @@ class TempDir {
 /// The folder with real telescope data (../shared/data/real, or $ST_REAL_DATA), or empty when absent.
 /// Tests that need it call GTEST_SKIP() when this is empty.
 std::filesystem::path realDataDir();
+
+/// The files of `dir`, sorted by name.
+std::vector<std::string> filesIn(const std::filesystem::path& dir);
+
+/// `files` loaded as one cube; calibration frames (`science` false) get a nominal clock.
+FrameCube loadFiles(const std::vector<std::string>& files, bool science);
 
 /// Every file of `dir` (sorted by name) loaded as one cube; calibration frames (`science` false) get a
 /// nominal clock, since they need no times.
