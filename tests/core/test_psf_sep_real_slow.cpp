@@ -236,7 +236,7 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   params.matchedFilter = false;  // only the PSF is needed here
   params.masters = calib::buildMasters(bias, FrameCube{}, flat, cube, params.calib, p, c);
   FrameCube calibrated = cube;
-  calib::applyCalibration(calibrated, *params.masters, params.calib, p, c);
+  const calib::CalibrationReport report = calib::applyCalibration(calibrated, *params.masters, params.calib, p, c);
   const pipeline::Prepared out = pipeline::preprocess(std::move(cube), params, p, c);
   ASSERT_TRUE(out.psfFitted);
   const Moffat& m = out.psf;
@@ -258,9 +258,11 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   const double bitpix = calibrated.header.getDouble("BITPIX").value_or(-32.0);
   ASSERT_EQ(bitpix, 16.0);
   const double fullScale = std::pow(2.0, bitpix - 1.0) - 1.0 + calibrated.header.getDouble("BZERO").value_or(0.0);
-  std::vector<float> b = params.masters->bias.pixels;
-  std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
-  const double level = 0.95 * (fullScale - b[b.size() / 2]);
+  // The raw zero of a calibrated count: the frame's overscan level plus the master bias (after overscan).
+  std::vector<double> b(params.masters->bias.pixels.begin(), params.masters->bias.pixels.end());
+  std::vector<double> os(report.overscanLevel.begin(), report.overscanLevel.end());
+  const double level = 0.95 * (fullScale - median(os) - median(b));
+  std::printf("raw full scale %.0f, overscan %.1f, bias %.1f counts\n", fullScale, median(os), median(b));
   auto reachesLevel = [&](double x, double y) {  // any pixel of the 5 x 5 box about (x, y), stack canvas
     const int ix = static_cast<int>(std::lround(x)), iy = static_cast<int>(std::lround(y));
     for (int dy = -2; dy <= 2; ++dy)
