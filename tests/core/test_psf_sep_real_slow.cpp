@@ -39,10 +39,10 @@ extern "C" {
 namespace st::psf {
 namespace {
 
-constexpr double kRmax = 8.0;         // aperture of sep_flux_radius (the total flux is that within it), px
-constexpr int kSubpix = 5;            // SEP's sub-pixel sampling of the aperture edge
+constexpr double kRmax = 8.0;          // aperture of sep_flux_radius (the total flux is that within it), px
+constexpr int kSubpix = 5;             // SEP's sub-pixel sampling of the aperture edge
 constexpr double kMinPeakSnr = 100.0;  // peak pixel / background rms
-constexpr double kMaxPeak = 20000.0;  // counts above background: unsaturated and linear
+constexpr double kMaxPeak = 20000.0;   // counts above background: unsaturated and linear
 constexpr double kIsolationPx = 15.0;
 constexpr int kEdgePx = 40;
 
@@ -75,7 +75,9 @@ struct View {
 };
 
 /// 2 r_half of the continuous profile (all its flux): 2 R sqrt(2^(1/(beta - 1)) - 1).
-double twoRHalf(const Moffat& m) { return 2.0 * m.radius * std::sqrt(std::pow(2.0, 1.0 / (m.beta - 1.0)) - 1.0); }
+double twoRHalf(const Moffat& m) {
+  return 2.0 * m.radius * std::sqrt(std::pow(2.0, 1.0 / (m.beta - 1.0)) - 1.0);
+}
 
 /// SEP's half-light radius of the star at (x, y) (0-based, pixel centres at integers), relative to the flux
 /// within kRmax; NAN when SEP flags it.
@@ -217,10 +219,12 @@ Comparison compare(View v, const std::vector<Moffat>& models, const SmearKernel&
 
 /// "2 r_half SEP a, model b (b/a - 1 %); direct FWHM data c, model d (%)" for model k.
 void printComparison(const char* what, const char* model, const Comparison& c, std::size_t k) {
-  std::printf("%s, %d stars, %s: 2 r_half SEP %.3f model %.3f px (%+.1f%%); direct FWHM data %.3f model %.3f px "
-              "(%+.1f%%)\n",
-              what, c.stars, model, c.dataTwoRHalf, c.modelTwoRHalf[k], 100.0 * (c.modelTwoRHalf[k] / c.dataTwoRHalf - 1.0),
-              c.dataFwhm, c.modelFwhm[k], 100.0 * (c.modelFwhm[k] / c.dataFwhm - 1.0));
+  std::printf(
+      "%s, %d stars, %s: 2 r_half SEP %.3f model %.3f px (%+.1f%%); direct FWHM data %.3f model %.3f px "
+      "(%+.1f%%)\n",
+      what, c.stars, model, c.dataTwoRHalf, c.modelTwoRHalf[k],
+      100.0 * (c.modelTwoRHalf[k] / c.dataTwoRHalf - 1.0), c.dataFwhm, c.modelFwhm[k],
+      100.0 * (c.modelFwhm[k] / c.dataFwhm - 1.0));
 }
 
 TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
@@ -236,12 +240,13 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   params.matchedFilter = false;  // only the PSF is needed here
   params.masters = calib::buildMasters(bias, FrameCube{}, flat, cube, params.calib, p, c);
   FrameCube calibrated = cube;
-  const calib::CalibrationReport report = calib::applyCalibration(calibrated, *params.masters, params.calib, p, c);
+  const calib::CalibrationReport report =
+      calib::applyCalibration(calibrated, *params.masters, params.calib, p, c);
   const pipeline::Prepared out = pipeline::preprocess(std::move(cube), params, p, c);
   ASSERT_TRUE(out.psfFitted);
   const Moffat& m = out.psf;
-  std::printf("pre-processing's PSF: FWHM %.3f px, beta %.3f, R %.3f px; continuous 2 r_half %.3f px\n", m.fwhm(),
-              m.beta, m.radius, twoRHalf(m));
+  std::printf("pre-processing's PSF: FWHM %.3f px, beta %.3f, R %.3f px; continuous 2 r_half %.3f px\n",
+              m.fwhm(), m.beta, m.radius, twoRHalf(m));
   for (const auto& note : out.notes)
     if (note.rfind("PSF", 0) == 0) std::printf("%s\n", note.c_str());
 
@@ -254,10 +259,11 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   // the brightest of the field, saturated in some frames (raw 65535; their mean in the stack is not
   // flat-topped): a flattened core, fitted with a high beta. The same fit with the stars whose largest value
   // in any frame reaches 95% of the full scale of the raw integers (BITPIX 16, BZERO 32768: 65535) less the
-  // bias left out, as pre-processing would with a saturation level:
+  // overscan and bias left out, as pre-processing would with a saturation level:
   const double bitpix = calibrated.header.getDouble("BITPIX").value_or(-32.0);
   ASSERT_EQ(bitpix, 16.0);
-  const double fullScale = std::pow(2.0, bitpix - 1.0) - 1.0 + calibrated.header.getDouble("BZERO").value_or(0.0);
+  const double fullScale =
+      std::pow(2.0, bitpix - 1.0) - 1.0 + calibrated.header.getDouble("BZERO").value_or(0.0);
   // The raw zero of a calibrated count: the frame's overscan level plus the master bias (after overscan).
   std::vector<double> b(params.masters->bias.pixels.begin(), params.masters->bias.pixels.end());
   std::vector<double> os(report.overscanLevel.begin(), report.overscanLevel.end());
@@ -289,13 +295,15 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   opt.fit.smear = smear;
   const PsfMeasurement unsat = measurePsf(s.mean, candidates, opt);
   const Moffat& u = unsat.fit.model;
-  std::printf("with a saturation level of %.0f counts (%d more stars saturated): FWHM %.3f px, beta %.3f; "
-              "continuous 2 r_half %.3f px; %zu stars accepted, FWHM %.3f to %.3f px\n",
-              level, flagged, u.fwhm(), u.beta, twoRHalf(u), unsat.acceptedFwhm.size(), unsat.acceptedFwhm.front(),
-              unsat.acceptedFwhm.back());
+  std::printf(
+      "with a saturation level of %.0f counts (%d more stars saturated): FWHM %.3f px, beta %.3f; "
+      "continuous 2 r_half %.3f px; %zu stars accepted, FWHM %.3f to %.3f px\n",
+      level, flagged, u.fwhm(), u.beta, twoRHalf(u), unsat.acceptedFwhm.size(), unsat.acceptedFwhm.front(),
+      unsat.acceptedFwhm.back());
 
   std::vector<std::uint8_t> noData(s.mean.size());
-  for (std::size_t i = 0; i < noData.size(); ++i) noData[i] = s.count.pixels[i] < 15.0f;
+  for (std::size_t i = 0; i < noData.size(); ++i)
+    noData[i] = s.count.pixels[i] < 15.0f;
   const Comparison st = compare({s.mean.data(), noData.data(), s.mean.width, s.mean.height}, {m, u}, smear);
   printComparison("sky-rate stack", "pre-processing's PSF", st, 0);
   printComparison("sky-rate stack", "PSF without saturated stars", st, 1);
@@ -304,7 +312,8 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
   for (std::size_t n = 0; n < calibrated.frameCount(); ++n) {
     const std::uint8_t* mask =
         calibrated.mask().empty() ? nullptr : calibrated.mask().data() + n * calibrated.framePixels();
-    const Comparison f = compare({calibrated.frame(n), mask, calibrated.width(), calibrated.height()}, {m, u}, {});
+    const Comparison f =
+        compare({calibrated.frame(n), mask, calibrated.width(), calibrated.height()}, {m, u}, {});
     fR.push_back(f.dataTwoRHalf);
     fF.push_back(f.dataFwhm);
     fN.push_back(f.stars);
@@ -315,7 +324,11 @@ TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
     std::printf("frame %2zu, %d stars: 2 r_half SEP %.3f, direct FWHM %.3f px\n", n, f.stars, f.dataTwoRHalf,
                 f.dataFwhm);
   }
-  Comparison frames{static_cast<int>(median(fN)), median(fR), median(fF), {median(fMR[0]), median(fMR[1])}, {median(fMF[0]), median(fMF[1])}};
+  Comparison frames{static_cast<int>(median(fN)),
+                    median(fR),
+                    median(fF),
+                    {median(fMR[0]), median(fMR[1])},
+                    {median(fMF[0]), median(fMF[1])}};
   printComparison("frames (median of 15; stars per frame)", "pre-processing's PSF", frames, 0);
   printComparison("frames (median of 15; stars per frame)", "PSF without saturated stars", frames, 1);
 
