@@ -26,35 +26,37 @@ for s in $(seq 1 "$n"); do
 done
 small=("$work"/small/obs*.fits)
 
-# Runs batch (prefix in "$@" before --) over the given inputs into a fresh folder; prints "seconds".
+# Runs batch (prefix in "$@") over the given inputs into a fresh folder; prints "WALL CPU" seconds (CPU: user +
+# system of the command and the ranks it waited for, as /usr/bin/time counts them).
 timed_batch() {
   local out="$work/out-$RANDOM-$(date +%s%N)"
-  local start end
-  start=$(date +%s.%N)
-  "$@" --out "$out" >/dev/null 2>"$out.stderr" || { tail -n 5 "$out.stderr" >&2; return 1; }
-  end=$(date +%s.%N)
-  python3 -c "print('%.2f' % ($end - $start))"
+  /usr/bin/time -f "%e %U %S" -o "$out.time" "$@" --out "$out" >/dev/null 2>"$out.stderr" ||
+    { tail -n 5 "$out.stderr" >&2; return 1; }
+  python3 -c "w, u, s = map(float, open('$out.time').read().split()[-3:]); print('%.2f %.2f' % (w, u + s))"
 }
 
 declare -A secs
 secs[one]=$(timed_batch "$cli" batch "${small[@]}" --vmax-deg-day 40 --backend cpu)
-echo "one process, 1 thread: ${secs[one]} s"
+echo "one process, 1 thread: wall, CPU s: ${secs[one]}"
 if command -v mpirun >/dev/null; then
   for w in 1 2 3; do
     secs[$w]=$(timed_batch mpirun --oversubscribe -np $((w + 1)) "$cli" batch "${small[@]}" --vmax-deg-day 40 \
                  --backend cpu)
-    echo "mpirun -np $((w + 1)) ($w worker ranks, 1 thread each): ${secs[$w]} s"
+    echo "mpirun -np $((w + 1)) ($w worker ranks, 1 thread each): wall, CPU s: ${secs[$w]}"
   done
 fi
-python3 - "$n" "${secs[one]}" "${secs[1]:-0}" "${secs[2]:-0}" "${secs[3]:-0}" <<'PY'
+python3 - "$n" "${secs[one]}" "${secs[1]:-0 0}" "${secs[2]:-0 0}" "${secs[3]:-0 0}" <<'PY'
 import sys
-n = int(sys.argv[1]); one, w1, w2, w3 = map(float, sys.argv[2:6])
-print("%d small observations (128^2 x 64, 71^2 velocities):" % n)
-print("  one process          %7.0f obs/h" % (n * 3600 / one))
-for w, s in ((1, w1), (2, w2), (3, w3)):
-    if s > 0:
-        print("  %d worker rank(s)     %7.0f obs/h in all, %6.0f per rank, ratio to 1 rank %.2f" %
-              (w, n * 3600 / s, n * 3600 / s / w, w1 / s))
+n = int(sys.argv[1])
+runs = [("one process", 1, sys.argv[2])] + [("%d worker rank(s)" % w, w, a) for w, a in ((1, sys.argv[3]), (2, sys.argv[4]), (3, sys.argv[5]))]
+base = float(sys.argv[3].split()[0]) or float(sys.argv[2].split()[0])
+print("%d small observations (128^2 x 64, 71^2 velocities, fits); 'cores got' = CPU s / wall s:" % n)
+for label, w, a in runs:
+    wall, cpu = map(float, a.split())
+    if wall <= 0:
+        continue
+    print("  %-18s %6.0f obs/h in all, %5.0f per rank, ratio to 1 worker %.2f; CPU %.2f s/obs, cores got %.2f" %
+          (label, n * 3600 / wall, n * 3600 / wall / w, base / wall, cpu / n, cpu / wall))
 PY
 
 if [ "$paper" -gt 0 ]; then
@@ -65,5 +67,8 @@ if [ "$paper" -gt 0 ]; then
   pobs=("$work"/paper/paper-neo-s*.fits)
   pobs=("${pobs[@]:0:$paper}")
   p=$(timed_batch "$cli" batch "${pobs[@]}" --backend cpu)
-  python3 -c "print('%d paper-neo observations (500 x 512^2, +-12 deg/day) on one CPU rank of 1 thread: %s s, %.1f obs/h, %.1f s per observation' % ($paper, '$p', $paper * 3600 / $p, $p / $paper))"
+  python3 -c "
+w, c = map(float, '$p'.split()); n = $paper
+print('%d paper-neo observations (500 x 512^2, +-12 deg/day, fits) on one CPU rank of 1 thread: wall %.1f s '
+      '(%.1f obs/h), CPU %.1f s per observation (%.1f obs/h per fully available core)' % (n, w, n * 3600 / w, c / n, n * 3600 / c))"
 fi
