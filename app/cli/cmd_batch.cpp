@@ -44,7 +44,8 @@ constexpr const char* kHelp =
     "  --overlap K           ... consecutive cubes sharing K frames (default N/4), so a mover is whole in "
     "one\n"
     "  --worker-timeout S    a worker silent for S seconds is declared dead (default 120)\n"
-    "  --track-max-mpix M    an object seen across cubes of one night gets its full-track SNR from a fit over\n"
+    "  --track-max-mpix M    an object seen across cubes of one night gets its full-track SNR from a fit "
+    "over\n"
     "                        the cubes its track crosses, loaded together, when they hold at most M million\n"
     "                        pixels x frames (default 800; 0: never)\n"
     "  Search options (as for 'synthtrack-cli search'):\n";

@@ -100,11 +100,11 @@ void addTrackSnr(nlohmann::json& catalogue, const std::vector<batch::Observation
       const std::vector<std::string> inputs(unique.begin(), unique.end());
       const double megaVoxels = static_cast<double>(inputs.size()) * w * h / 1e6;
       if (megaVoxels > track.maxMegaVoxels) {
-        entry["track"] = notMeasured(
-            "not measured", std::to_string(inputs.size()) + " frames of " + std::to_string(w) + "x" +
-                                std::to_string(h) + " px exceed the limit of " +
-                                std::to_string(static_cast<long long>(track.maxMegaVoxels)) +
-                                " million pixels x frames");
+        entry["track"] =
+            notMeasured("not measured", std::to_string(inputs.size()) + " frames of " + std::to_string(w) +
+                                            "x" + std::to_string(h) + " px exceed the limit of " +
+                                            std::to_string(static_cast<long long>(track.maxMegaVoxels)) +
+                                            " million pixels x frames");
         entry["track"]["observations"] = names;
         entry["track_snr"] = nullptr;
         continue;
@@ -114,7 +114,8 @@ void addTrackSnr(nlohmann::json& catalogue, const std::vector<batch::Observation
       const ObservationInput in{inputs, loadOptionsFromArgs(cli), false, obs.bias, obs.dark, obs.flat};
       NullProgress progress;
       std::vector<std::string> warnings;
-      const pipeline::Prepared prepared = prepareObservation(in, so, progress, processCancelToken(), warnings);
+      const pipeline::Prepared prepared =
+          prepareObservation(in, so, progress, processCancelToken(), warnings);
       const double tRefU = prepared.frames.tRefMjd();
       const double dt = (tRefU - tRef) * kSecondsPerDay;
       search::Candidate c;
@@ -133,7 +134,8 @@ void addTrackSnr(nlohmann::json& catalogue, const std::vector<batch::Observation
                         {"t_ref_mjd", tRefU},
                         {"fit", fit}};
       entry["track_snr"] = fit.value("snr", 0.0);
-      std::fprintf(stderr, "batch: track of %s (%.1f, %.1f) over %zu frames of %zu observations: SNR %.1f (%s)\n",
+      std::fprintf(stderr,
+                   "batch: track of %s (%.1f, %.1f) over %zu frames of %zu observations: SNR %.1f (%s)\n",
                    obs.name.c_str(), state[0], state[1], prepared.frames.frameCount(), cubes.size(),
                    fit.value("snr", 0.0), fit.value("status", std::string()).c_str());
     } catch (const Cancelled&) {

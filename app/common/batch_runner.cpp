@@ -25,7 +25,6 @@ std::map<std::string, std::string> digestOptions(std::map<std::string, std::stri
   return options;
 }
 
-
 void writeLog(const BatchSettings& s, const std::string& name, const nlohmann::json& log) {
   std::error_code ec;
   fs::create_directories(s.layout.logFile(name).parent_path(), ec);

@@ -163,9 +163,9 @@ nlohmann::json mergeCatalogue(const std::vector<Outcome>& outcomes, const MatchP
         entries.emplace_back(d, std::move(e));
       }
       entries[entryOf.at(r)].second["seen_in"].push_back({{"observation", outcomes[d.outcome].name},
-                                                           {"x", (*d.candidate)["x"]},
-                                                           {"y", (*d.candidate)["y"]},
-                                                           {"snr", d.snr}});
+                                                          {"x", (*d.candidate)["x"]},
+                                                          {"y", (*d.candidate)["y"]},
+                                                          {"snr", d.snr}});
     }
   }
   std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {

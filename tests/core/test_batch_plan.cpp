@@ -187,7 +187,8 @@ TEST(Catalogue, AMoverAcrossCubesIsOneEntryEvenWhereACubeSawItPartly) {
       {"n_c003", "n", {"d"}, S::Done, {}, cube(t0 + 21.0 / day, 10.0, {mover(26.0, 3.44, 2.0, 13.0)})}};
   const nlohmann::json cat = batch::mergeCatalogue(o);
   ASSERT_EQ(cat["candidates"].size(), 2u) << cat.dump(2);
-  const auto& e = cat["candidates"][0]["observation"] == "n_c003" ? cat["candidates"][0] : cat["candidates"][1];
+  const auto& e =
+      cat["candidates"][0]["observation"] == "n_c003" ? cat["candidates"][0] : cat["candidates"][1];
   EXPECT_EQ(e["observation"], "n_c003");
   EXPECT_EQ(e["snr"], 13.0);
   EXPECT_EQ(e["seen_in"].size(), 4u) << e.dump(2);
