@@ -5,7 +5,8 @@
 #   then runs `batch --backend cuda` over them into a fresh output folder and prints observations/hour.
 #   RANKS=0: one process (one GPU); RANKS=K>0: `mpirun -np K+1` (rank 0 hands out, K GPU workers, one GPU
 #   each when the node has K). Search options: the paper's defaults (+-12 deg/day, fits of every candidate).
-#   WORK (default /tmp/st-bench-batch-gpu) holds the cubes (~0.5 GB each at 500 frames) and the outputs.
+#   BACKEND: default cuda (cpu to try the script without a GPU). WORK (default /tmp/st-bench-batch-gpu)
+#   holds the cubes (~0.5 GB each at 500 frames) and the outputs.
 #   Prints the device, the per-observation seconds from the batch logs and the figure for the README:
 #   "per GPU rank: X observations/h of FRAMES x 512^2".
 set -euo pipefail
@@ -30,7 +31,7 @@ obs=("$work"/obs/paper-neo-"$frames"-s*.fits)
 obs=("${obs[@]:0:$n}")
 
 out="$work/out-$(date +%s)"
-cmd=("$cli" batch "${obs[@]}" --out "$out" --backend cuda)
+cmd=("$cli" batch "${obs[@]}" --out "$out" --backend "${BACKEND:-cuda}")
 if [ "$ranks" -gt 0 ]; then
   cmd=(mpirun --allow-run-as-root --oversubscribe -np $((ranks + 1)) "${cmd[@]}")
 fi
