@@ -26,10 +26,9 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
   return io::loadFrames(files, opt, progress, cancel);
 }
 
-namespace {
-
-pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, ProgressSink& progress,
-                           CancelToken& cancel, std::vector<std::string>& warnings) {
+pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOptions& o,
+                                      ProgressSink& progress, CancelToken& cancel,
+                                      std::vector<std::string>& warnings) {
   FrameCube raw;
   {
     SubProgress loadProgress(progress, 0.0, 0.2);
@@ -53,6 +52,8 @@ pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, P
   if (o.sigmaF) prepared.filtered.sigmaF = *o.sigmaF;
   return prepared;
 }
+
+namespace {
 
 pipeline::PreparedSearchInput loadPrepared(const ObservationInput& in, const SearchOptions& o,
                                            ProgressSink& progress, CancelToken& cancel) {
@@ -81,7 +82,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     warnings = std::move(loaded->warnings);
     notes = std::move(loaded->notes);
   } else {
-    prepared = prepare(in, o, progress, cancel, warnings);
+    prepared = prepareObservation(in, o, progress, cancel, warnings);
   }
   const search::FilteredCube& fc = in.preprocessed ? loaded->cube : prepared->filtered;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);

@@ -14,6 +14,7 @@
 #include "search_options.hpp"
 #include "st/common/progress.hpp"
 #include "st/io/fits_reader.hpp"
+#include "st/pipeline/preprocess.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/types.hpp"
 
@@ -52,6 +53,13 @@ struct ObservationHooks {
                                      const search::SearchParams&)>
       search;
 };
+
+/// Loads and pre-processes a raw observation as runObservation does (the loader's and calibration's
+/// warnings in `warnings`); --fwhm / --sigma-f of `options` applied. Used by batch to re-measure a track
+/// over several cubes.
+pipeline::Prepared prepareObservation(const ObservationInput& input, const SearchOptions& options,
+                                      ProgressSink& progress, CancelToken& cancel,
+                                      std::vector<std::string>& warnings);
 
 /// Runs the observation and returns the result JSON (report::searchResultToJson plus t_ref_utc, and with
 /// `fit` a "fit" object for each of the first options.fitMax candidates). Throws what loading,
