@@ -37,11 +37,14 @@ constexpr const char* kHelp =
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
-void printEstimate(const search::FilteredCube& fc, const search::VelocityGrid& grid,
-                   const search::MethodEstimate& e, const search::MethodChoice& choice) {
+void printEstimate(const PlannedSearch& p) {
+  const search::FilteredCube& fc = p.cube;
+  const search::VelocityGrid& grid = p.grid;
+  const search::MethodEstimate& e = p.estimate;
+  const search::MethodChoice& choice = p.choice;
   const double mb = 1048576.0;
   std::fprintf(stderr, "search: %d x %d px, %zu frames, %d x %d velocities (step %.4g px/s); cube %.0f MB\n",
-               fc.frames.width(), fc.frames.height(), fc.frames.frameCount(), grid.nvx, grid.nvy,
+               p.width, p.height, fc.frames.frameCount(), grid.nvx, grid.nvy,
                grid.stepPxS, e.cubeBytes / mb);
   const bool tree = choice.method == "tree";
   std::fprintf(stderr, "  %s exact: %.3g additions, %.0f MB working, estimate %.3g s\n", tree ? " " : ">",
@@ -55,6 +58,8 @@ void printEstimate(const search::FilteredCube& fc, const search::VelocityGrid& g
         e.treeTileRows, e.treeSeconds);
   }
   std::fprintf(stderr, "method: %s (%s)\n", choice.method.c_str(), choice.reason.c_str());
+  for (const auto& line : p.memory.lines)
+    std::fprintf(stderr, "memory: %s\n", line.c_str());
 }
 
 void printTable(const nlohmann::json& j) {
@@ -111,7 +116,7 @@ int cmdSearch(const Args& args) {
       std::fprintf(stderr, "note: %s\n", n.c_str());
     std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(p.cube.frames, p.cube.psfFwhmPx).c_str());
     std::fprintf(stderr, "%s\n", sel.message.c_str());
-    printEstimate(p.cube, p.grid, p.estimate, p.choice);
+    printEstimate(p);
   };
   hooks.searched = [&](const search::SearchResult& r) {
     progress.finish();

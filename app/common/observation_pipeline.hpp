@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "st/calib/calibration.hpp"
+#include "st/common/memory_budget.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -33,14 +34,28 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
                                 const std::optional<io::CropRegion>& crop, ProgressSink& progress,
                                 CancelToken& cancel);
 
+/// The memory plan of the run (issue 20), printed with the search plan.
+struct MemoryPlan {
+  MemoryBudget budget;
+  MemoryEstimate inMemory;           ///< the in-memory path's peak
+  bool outOfCore = false;            ///< searched in tiles (the in-memory path does not fit)
+  std::size_t tiles = 0;             ///< tiles of the out-of-core search
+  int overlapPx = 0;                 ///< their overlap
+  MemoryEstimate perTile;            ///< the out-of-core peak
+  std::vector<std::string> lines;    ///< the plan in words, for the log
+};
+
 /// What is known just before the search: for printing the plan.
 struct PlannedSearch {
-  const search::FilteredCube& cube;
+  const search::FilteredCube& cube;  ///< out of core: a small corner of the frames (times, header, WCS)
   const search::VelocityGrid& grid;
   const search::MethodEstimate& estimate;
   const search::MethodChoice& choice;
   const std::vector<std::string>& warnings;  ///< the loader's
   const std::vector<std::string>& notes;     ///< pre-processing's
+  int width = 0;                             ///< the whole image's
+  int height = 0;
+  const MemoryPlan& memory;
 };
 
 struct ObservationHooks {
@@ -53,7 +68,12 @@ struct ObservationHooks {
       search;
 };
 
-/// Runs the observation and returns the result JSON (report::searchResultToJson plus t_ref_utc, and with
+/// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
+/// or the default; raw input whose in-memory pre-processing does not fit stops with st::InputError before
+/// any pixel is read (naming the need and the budget); a pre-processed cube whose in-memory search does not
+/// fit is searched out of core (search/tiled_search.hpp), or stops so when not even one tile fits. Without
+/// `fit` the matched filter runs in place (no zero-biased copy).
+/// Returns the result JSON (report::searchResultToJson plus t_ref_utc, and with
 /// `fit` a "fit" object for each of the first options.fitMax candidates). Throws what loading,
 /// pre-processing and the search throw (st::InputError, st::FitsError, st::Cancelled), and st::InputError
 /// when `fit` is asked of a pre-processed input.
