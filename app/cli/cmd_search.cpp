@@ -9,6 +9,7 @@
 #include "search_options.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "st/common/memory_budget.hpp"
 #include "st/report/search_report.hpp"
 #include "load_args.hpp"
 #include "st/search/method_choice.hpp"
@@ -58,8 +59,12 @@ void printEstimate(const PlannedSearch& p) {
         e.treeTileRows, e.treeSeconds);
   }
   std::fprintf(stderr, "method: %s (%s)\n", choice.method.c_str(), choice.reason.c_str());
-  for (const auto& line : p.memory.lines)
-    std::fprintf(stderr, "memory: %s\n", line.c_str());
+}
+
+/// Memory plan lines from `from` on.
+void printMemory(const MemoryPlan& m, std::size_t& printed) {
+  for (; printed < m.lines.size(); ++printed)
+    std::fprintf(stderr, "memory: %s\n", m.lines[printed].c_str());
 }
 
 void printTable(const nlohmann::json& j) {
@@ -108,6 +113,8 @@ int cmdSearch(const Args& args) {
   BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method);
   TerminalProgress progress;
   ObservationHooks hooks;
+  std::size_t memoryLines = 0;
+  hooks.memory = [&](const MemoryPlan& m) { printMemory(m, memoryLines); };
   hooks.planned = [&](const PlannedSearch& p) {
     progress.finish();
     for (const auto& w : p.warnings)
@@ -117,6 +124,7 @@ int cmdSearch(const Args& args) {
     std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(p.cube.frames, p.cube.psfFwhmPx).c_str());
     std::fprintf(stderr, "%s\n", sel.message.c_str());
     printEstimate(p);
+    printMemory(p.memory, memoryLines);
   };
   hooks.searched = [&](const search::SearchResult& r) {
     progress.finish();
@@ -125,6 +133,7 @@ int cmdSearch(const Args& args) {
   const nlohmann::json j =
       runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
   progress.finish();
+  std::fprintf(stderr, "memory: peak resident %s\n", formatBytes(static_cast<double>(peakResidentBytes())).c_str());
   writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
   return 0;
 }

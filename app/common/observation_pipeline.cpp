@@ -176,6 +176,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
               std::to_string(shape.height) + " px: pre-processing in memory",
           memory.inMemory, memory.budget));
     }
+    if (hooks.memory) hooks.memory(memory);
     prepared = prepare(in, o, fit, progress, cancel, warnings);
   } else {
     // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
@@ -187,7 +188,11 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     const search::MethodChoice c0 =
         search::chooseMethod(o.request.params.method, e0, backend.supportsMethod("tree"), backend.name());
     memory.inMemory = pipeline::estimateSearchPeak(shape, e0, c0.method);
-    if (memory.inMemory.total() <= budget) {
+    const bool fits = memory.inMemory.total() <= budget;
+    memory.lines.push_back("search in memory: estimated peak " + memory.inMemory.describe() +
+                           (fits ? "" : ": over the budget, out of core"));
+    if (hooks.memory) hooks.memory(memory);
+    if (fits) {
       loaded = loadPrepared(in, o, progress, cancel);
       warnings = std::move(loaded->warnings);
       notes = std::move(loaded->notes);
@@ -206,7 +211,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   const search::MethodEstimate e =
       search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),
                               threads, o.request.params.bufferBytes);
-  const search::MethodChoice method =
+  search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supportsMethod("tree"), backend.name());
   std::vector<search::SearchTile> tiles;
   if (ooc) {
@@ -220,8 +225,14 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                                      : *ooc->header.psf;
       overlap += stack::makeFilterKernel(psf).halfSize;
     }
-    const pipeline::TiledSearchPlan plan =
+    pipeline::TiledSearchPlan plan =
         pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, method.method, threads);
+    if (plan.tiles.empty() && method.method == "tree" && o.request.params.method == "auto") {
+      // The tree's partial stacks do not fit beside a tile: the exact kernel's scratch is small.
+      plan = pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, "exact", threads);
+      if (!plan.tiles.empty())
+        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget beside a tile)"};
+    }
     if (plan.tiles.empty()) {
       throw InputError(pipeline::overBudgetMessage(
           "searching " + std::to_string(shape.frames) + " frames out of core (the smallest tile, " +
@@ -238,15 +249,16 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       fc.sigmaF = centralSigmaF(in, o, width, height, std::min(side, 1024), ooc->notes, cancel);
     }
     notes = ooc->notes;
-    memory.lines.push_back("search in memory: estimated peak " + memory.inMemory.describe() +
-                           ": over the budget");
     memory.lines.push_back("out of core: " + std::to_string(tiles.size()) + " tiles (overlap " +
                            std::to_string(overlap) + " px), estimated peak " + memory.perTile.describe());
   } else {
     const pipeline::CubeShape held{width, height, fc.frames.frameCount()};
-    MemoryEstimate searchPeak = pipeline::estimateSearchPeak(held, e, method.method);
-    if (prepared && fit) searchPeak.add("zero-biased cube (for --fit)", 4.0 * held.samples());
-    memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe());
+    if (prepared) {
+      MemoryEstimate searchPeak = pipeline::estimateSearchPeak(held, e, method.method);
+      searchPeak.add("per-pixel images", pipeline::kPreprocessImageBytesPerPixel * width * height);
+      if (fit) searchPeak.add("zero-biased cube (for --fit)", 4.0 * held.samples());
+      memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe());
+    }
   }
   if (hooks.planned)
     hooks.planned(PlannedSearch{fc, grid, e, method, warnings, notes, width, height, memory});
@@ -280,7 +292,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                  {"budget_source", memory.budget.source},
                  {"in_memory_estimate_bytes", memory.inMemory.total()},
                  {"out_of_core", memory.outOfCore},
-                 {"tiles", memory.tiles}};
+                 {"tiles", memory.tiles},
+                 {"peak_resident_bytes", peakResidentBytes()}};
   if (fit) {
     const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
     for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < o.fitMax; ++i) {

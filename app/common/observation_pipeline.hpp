@@ -59,6 +59,9 @@ struct PlannedSearch {
 };
 
 struct ObservationHooks {
+  /// The memory budget and the estimate of the first stage, before any pixel is read (MemoryPlan::lines so
+  /// far); planned() gets the lines added after it.
+  std::function<void(const MemoryPlan&)> memory;
   std::function<void(const PlannedSearch&)> planned;          ///< before the search
   std::function<void(const search::SearchResult&)> searched;  ///< after it, before the fits
   /// Replaces backend.search (search --mpi: the grid split over ranks). Gets the grid and the parameters
