@@ -8,7 +8,9 @@
 #include "search_test_cubes.hpp"
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
+#include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
+#include "st/sim/simulator.hpp"
 #include "st/search/tiled_search.hpp"
 #include "st/search/tree_search.hpp"
 
@@ -117,6 +119,26 @@ TEST(OutOfCorePlan, TreeBuffersAreSharedByTheThreads) {
   EXPECT_EQ(search::treeTileBudgetPerThread(16) * 16, search::kTreeBuffersBytes);
   EXPECT_EQ(search::treeTileBudgetPerThread(64), search::kTreeMinTileBudgetBytes);
   EXPECT_EQ(search::treeTileBudgetPerThread(4, std::size_t{64} << 20), search::kTreeMinTileBudgetBytes);
+}
+
+// Without --fit the matched filter runs in place (one cube less): the same filtered frames and sigma_F as
+// the copy.
+TEST(OutOfCorePlan, InPlaceFilterGivesTheCopysFrames) {
+  NullProgress p;
+  CancelToken c;
+  const sim::SimResult sim = sim::simulate(sim::preset("small"), 7, p, c);
+  pipeline::PreprocessParams params;
+  params.masters = sim::exactMasters(sim);
+  const pipeline::Prepared copy = pipeline::preprocess(sim.cube, params, p, c);
+  params.keepZeroBiased = false;
+  const pipeline::Prepared inPlace = pipeline::preprocess(sim.cube, params, p, c);
+  EXPECT_TRUE(inPlace.frames.empty());
+  EXPECT_FALSE(copy.frames.empty());
+  EXPECT_EQ(inPlace.filtered.sigmaF, copy.filtered.sigmaF);
+  EXPECT_TRUE(inPlace.filtered.frames.mask().empty());
+  EXPECT_EQ(inPlace.filtered.frames.width(), copy.filtered.frames.width());
+  EXPECT_TRUE(inPlace.filtered.frames.pixels() == copy.filtered.frames.pixels());
+  EXPECT_EQ(inPlace.filtered.frames.timeOffsetsS(), copy.filtered.frames.timeOffsetsS());
 }
 
 TEST(MemoryBudget, ParsesSizes) {
