@@ -95,6 +95,13 @@ class OutOfCoreCli : public ::testing::Test {
     h.setNumber("SKYVX", 0.0);
     h.setNumber("SKYVY", 0.0);
     io::writeCube((*s_dir / "F.fits").string(), cube, h);
+    // The same frames as a zero-biased cube (filtered on loading, tile by tile with the filter's reach).
+    FitsHeader z;
+    z.setNumber("STPREP", 1);
+    z.set("STFILT", "F");
+    z.setNumber("PSFFWHM", 2.5);
+    z.setNumber("PSFBETA", 4.0);
+    io::writeCube((*s_dir / "Z.fits").string(), cube, z);
   }
   static void TearDownTestSuite() {
     delete s_dir;
@@ -108,8 +115,9 @@ class OutOfCoreCli : public ::testing::Test {
   /// search F.fits --preprocessed with `extra`; (exit, peak RSS, JSON).
   static std::tuple<int, std::size_t, nlohmann::json> search(const std::string& method,
                                                              std::vector<std::string> extra,
-                                                             const std::string& tag) {
-    std::vector<std::string> args{"search", path("F.fits").string(), "--preprocessed", "--vmax-px-s", "0.1",
+                                                             const std::string& tag,
+                                                             const std::string& file = "F.fits") {
+    std::vector<std::string> args{"search", path(file).string(), "--preprocessed", "--vmax-px-s", "0.1",
                                   "--snr", "6", "--backend", "cpu", "--method", method, "--json"};
     args.insert(args.end(), extra.begin(), extra.end());
     const auto [rc, rss] = runMeasured(args, path(tag + ".json"), path(tag + ".err"));
@@ -150,6 +158,28 @@ TEST_P(OutOfCoreMethods, CubeThreeTimesTheBudgetGivesTheInMemoryCandidatesWithin
 }
 
 INSTANTIATE_TEST_SUITE_P(Cpu, OutOfCoreMethods, ::testing::Values("exact", "tree"));
+
+// A zero-biased cube, cropped (the tiles are read at the crop's offset): filtered tile by tile with the
+// matched filter's reach added to the overlap, the same candidates as in memory for the same sigma_F.
+TEST_F(OutOfCoreCli, ZeroBiasedCroppedCubeGivesTheInMemoryCandidates) {
+  const std::vector<std::string> opts{"--crop", "[1:480,101:340]", "--sigma-f", "1.3"};
+  auto big = opts;
+  big.insert(big.end(), {"--memory-limit", "4G"});
+  auto small = opts;
+  small.insert(small.end(), {"--memory-limit", "100M"});
+  const auto [rcMem, rssMem, mem] = search("exact", big, "z-mem", "Z.fits");
+  ASSERT_EQ(rcMem, 0) << readText(path("z-mem.err"));
+  const auto [rcOoc, rssOoc, ooc] = search("exact", small, "z-ooc", "Z.fits");
+  ASSERT_EQ(rcOoc, 0) << readText(path("z-ooc.err"));
+  EXPECT_FALSE(mem["memory"]["out_of_core"].get<bool>());
+  EXPECT_TRUE(ooc["memory"]["out_of_core"].get<bool>());
+  ASSERT_GE(mem["candidates"].size(), 2u);
+  EXPECT_EQ(mem["candidates"], ooc["candidates"]);
+  EXPECT_EQ(mem["cells_above_threshold"], ooc["cells_above_threshold"]);
+  EXPECT_LT(ooc["memory"]["peak_resident_bytes"].get<std::size_t>(), std::size_t{100} << 20);
+  (void)rssMem;
+  (void)rssOoc;
+}
 
 TEST_F(OutOfCoreCli, BudgetTooSmallForOneTileExitsOneBeforeTheWork) {
   const auto [rc, rss, j] = search("exact", {"--memory-limit", "20M"}, "tiny");
