@@ -254,10 +254,20 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   } else {
     const pipeline::CubeShape held{width, height, fc.frames.frameCount()};
     if (prepared) {
-      MemoryEstimate searchPeak = pipeline::estimateSearchPeak(held, e, method.method);
-      searchPeak.add("per-pixel images", pipeline::kPreprocessImageBytesPerPixel * width * height);
-      if (fit) searchPeak.add("zero-biased cube (for --fit)", 4.0 * held.samples());
-      memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe());
+      const auto peakOf = [&](const std::string& m) {
+        MemoryEstimate p = pipeline::estimateSearchPeak(held, e, m);
+        p.add("per-pixel images", pipeline::kPreprocessImageBytesPerPixel * width * height);
+        if (fit) p.add("zero-biased cube (for --fit)", 4.0 * held.samples());
+        return p;
+      };
+      MemoryEstimate searchPeak = peakOf(method.method);
+      if (searchPeak.total() > budget && method.method == "tree" && o.request.params.method == "auto" &&
+          peakOf("exact").total() <= budget) {
+        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget)"};
+        searchPeak = peakOf("exact");
+      }
+      memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe() +
+                             (searchPeak.total() > budget ? " (over the budget)" : ""));
     }
   }
   if (hooks.planned)

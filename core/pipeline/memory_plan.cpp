@@ -23,6 +23,7 @@ MemoryEstimate estimatePreprocessPeak(const CubeShape& s, bool keepZeroBiased, u
   e.add("pixel mask", 1.0 * s.samples());
   if (keepZeroBiased) e.add("filtered copy", 4.0 * s.samples());
   e.add("per-pixel images", kPreprocessImageBytesPerPixel * pixels);
+  e.add("per-frame records", kPreprocessBytesPerFrame * static_cast<double>(s.frames));
   const double rowBuffers = static_cast<double>(std::min<std::size_t>(s.frames, 2000)) * s.width * 8.0 * 4.0;
   e.add("per-thread buffers", std::max(1u, threads) * (rowBuffers + 4.0 * pixels));
   e.add("base", kBaseBytes);

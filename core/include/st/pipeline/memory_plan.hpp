@@ -8,7 +8,8 @@
 // The terms (bytes; N frames of W x H px, "sample" = one pixel of one frame):
 // - in-memory pre-processing of raw frames: the cube 4/sample, its pixel mask 1/sample (hot pixels, BLANK),
 //   the zero-biased copy 4/sample only when it is kept (--fit; otherwise the matched filter runs in place),
-//   kPreprocessImageBytesPerPixel per frame pixel (background, noise, stacks, masks, filter weights),
+//   kPreprocessImageBytesPerPixel per frame pixel (background, noise, stacks, masks, filter weights) and
+//   kPreprocessBytesPerFrame per frame,
 //   per-thread row buffers of the per-pixel background (min(N, 2000) x W x 8) and the filter's frame;
 // - a search: the filtered cube 4/sample (+ mask), the backend's working set (MethodEstimate: exact kernel
 //   scratch, or the tree's partial stacks sized by SearchParams::bufferBytes), the map and the cells above
@@ -26,8 +27,13 @@
 
 namespace st::pipeline {
 
-/// Frame-sized images held by the in-memory pre-processing, bytes per frame pixel (measured: see README).
-inline constexpr double kPreprocessImageBytesPerPixel = 96.0;
+/// Frame-sized images held by the in-memory pre-processing (background, noise, stacks on their canvases,
+/// masks, filter weights), bytes per frame pixel, and per-frame records (frame backgrounds, meshes), bytes
+/// per frame. Fitted to VmHWM of `search` on simulated cubes (2-core VM, 2026-11-25): 200 x 512^2 346 MB,
+/// 400 x 256^2 173 MB, 100 x 1024x512 421 MB are ~300 B/px + 5 B/sample + ~21 MB; the constants are
+/// rounded up so that the estimate is 10-15% above those peaks.
+inline constexpr double kPreprocessImageBytesPerPixel = 320.0;
+inline constexpr double kPreprocessBytesPerFrame = 32.0 * 1024;
 /// Bytes held per cell above threshold (CellHit plus sorting and clustering).
 inline constexpr double kHitBytes = 80.0;
 /// Cells above threshold assumed by the estimate (a field with bright residuals; at most maxCandidates).
