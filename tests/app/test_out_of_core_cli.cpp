@@ -57,8 +57,11 @@ std::pair<int, std::size_t> runMeasured(const std::vector<std::string>& args, co
 
 class OutOfCoreCli : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    s_dir = new test::TempDir;
+  static void SetUpTestSuite() { s_dir = new test::TempDir; }
+
+  /// Writes F.fits (filtered) or Z.fits (zero-biased) on first use: ctest runs each test in its own process.
+  static void writeCube(const std::string& file) {
+    if (std::filesystem::exists(path(file))) return;
     // Filtered frames: Gaussian noise (sigma 1) plus moving Moffat sources, four of them across the tile
     // borders of the out-of-core plan, one leaving the frame.
     FrameCube cube(kW, kH, kFrames);
@@ -94,14 +97,14 @@ class OutOfCoreCli : public ::testing::Test {
     h.setNumber("SIGMAF", 1.0);
     h.setNumber("SKYVX", 0.0);
     h.setNumber("SKYVY", 0.0);
-    io::writeCube((*s_dir / "F.fits").string(), cube, h);
+    if (file == "F.fits") io::writeCube((*s_dir / "F.fits").string(), cube, h);
     // The same frames as a zero-biased cube (filtered on loading, tile by tile with the filter's reach).
     FitsHeader z;
     z.setNumber("STPREP", 1);
     z.set("STFILT", "F");
     z.setNumber("PSFFWHM", 2.5);
     z.setNumber("PSFBETA", 4.0);
-    io::writeCube((*s_dir / "Z.fits").string(), cube, z);
+    if (file == "Z.fits") io::writeCube((*s_dir / "Z.fits").string(), cube, z);
   }
   static void TearDownTestSuite() {
     delete s_dir;
@@ -117,6 +120,7 @@ class OutOfCoreCli : public ::testing::Test {
                                                              std::vector<std::string> extra,
                                                              const std::string& tag,
                                                              const std::string& file = "F.fits") {
+    writeCube(file);
     std::vector<std::string> args{"search", path(file).string(), "--preprocessed", "--vmax-px-s", "0.1",
                                   "--snr", "6", "--backend", "cpu", "--method", method, "--json"};
     args.insert(args.end(), extra.begin(), extra.end());
