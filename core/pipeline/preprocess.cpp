@@ -259,12 +259,20 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.83, 1.0);
     // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
     FrameCube& f = out.filtered.frames;
-    f = FrameCube(cube.width(), cube.height(), 0);
-    f.pixels() = cube.pixels();
-    f.info() = cube.info();
-    f.header = cube.header;
-    f.wcs = cube.wcs;
-    f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+    if (params.keepZeroBiased) {
+      f = FrameCube(cube.width(), cube.height(), 0);
+      f.pixels() = cube.pixels();
+      f.info() = cube.info();
+      f.header = cube.header;
+      f.wcs = cube.wcs;
+      f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+    } else {
+      // In place: the same pixels as the copy, and no mask (the copy has none; masked samples are 0).
+      f = std::move(cube);
+      cube = FrameCube();
+      f.mask().clear();
+      f.mask().shrink_to_fit();
+    }
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
     const stack::MatchedFilterResult mf = stack::filterCube(
         out.filtered.frames, kernel, sub, cancel, params.weightedFilter ? &out.noiseModel : nullptr);
