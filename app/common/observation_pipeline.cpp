@@ -3,6 +3,7 @@
 #include <optional>
 
 #include "candidate_fit.hpp"
+#include "backend_factory.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
@@ -29,7 +30,8 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
 namespace {
 
 pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, ProgressSink& progress,
-                           CancelToken& cancel, std::vector<std::string>& warnings) {
+                           CancelToken& cancel, std::vector<std::string>& warnings,
+                           pipeline::PreprocessAccelerator* accelerator) {
   FrameCube raw;
   {
     SubProgress loadProgress(progress, 0.0, 0.2);
@@ -38,6 +40,7 @@ pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, P
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
   pipeline::PreprocessParams params;
+  params.accelerator = accelerator;
   params.calib = in.calib;
   const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
   const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
@@ -81,7 +84,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     warnings = std::move(loaded->warnings);
     notes = std::move(loaded->notes);
   } else {
-    prepared = prepare(in, o, progress, cancel, warnings);
+    std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
+    const auto accel = makePreprocessAccelerator(backend, accelMessage);
+    prepared = prepare(in, o, progress, cancel, warnings, accel.get());
   }
   const search::FilteredCube& fc = in.preprocessed ? loaded->cube : prepared->filtered;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
