@@ -209,9 +209,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     f.wcs = cube.wcs;
     f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
+    out.filtered.revision = search::nextCubeRevision();
     const stack::MatchedFilterResult mf =
         filterCubeOn(params.accelerator, out.filtered.frames, kernel, sub, cancel,
-                     params.weightedFilter ? &out.noiseModel : nullptr, out.notes);
+                     params.weightedFilter ? &out.noiseModel : nullptr, out.notes, out.filtered.revision);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

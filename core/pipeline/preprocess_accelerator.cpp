@@ -29,10 +29,10 @@ stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameC
 stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube& cube,
                                         const stack::FilterKernel& kernel, ProgressSink& progress,
                                         CancelToken& cancel, const stats::NoiseModel* noise,
-                                        std::vector<std::string>& notes) {
+                                        std::vector<std::string>& notes, std::uint64_t revision) {
   if (accel) {
     try {
-      return accel->filterCube(cube, kernel, progress, cancel, noise);
+      return accel->filterCube(cube, kernel, progress, cancel, noise, revision);
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "matched filter", e));
     }

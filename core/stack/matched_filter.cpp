@@ -265,6 +265,7 @@ search::FilteredCube makeFilteredCube(FrameCube prepared, const psf::Moffat& psf
   out.sigmaF = filterCube(out.frames, kernel, progress, cancel).sigmaF;
   out.skyRate = skyRate;
   out.psfFwhmPx = psf.fwhm();
+  out.revision = search::nextCubeRevision();
   return out;
 }
 

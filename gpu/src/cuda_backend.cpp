@@ -57,8 +57,11 @@ class CudaBackend final : public CudaSearchBackend {
     const auto start = std::chrono::steady_clock::now();
     search::validateSearchInput(cube, grid, params);
     validateForGpu(cube);
-    m_cubeKey = cubeKey(cube.frames);
-    releaseOtherCubes(m_ordinals.data(), static_cast<int>(m_ordinals.size()), m_cubeKey);
+    m_cubeKey = m_options.keepCubeResident ? residentKey(cube.frames, cube.revision) : 0;
+    // Another cube's resident copy is freed (its memory is this search's); a backend that keeps nothing
+    // leaves the slots alone.
+    if (m_options.keepCubeResident)
+      releaseOtherCubes(m_ordinals.data(), static_cast<int>(m_ordinals.size()), m_cubeKey);
     if (params.method == "tree") return searchTree(cube, grid, params, progress, cancel, start);
     if (params.method != "exact") {
       throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
@@ -131,7 +134,7 @@ class CudaBackend final : public CudaSearchBackend {
                             job.cellCapacity = cap;
                             job.profile = m_options.profileTree;
                             job.treeRootShape = m_options.treeRootShape;
-                            job.cubeKey = m_options.keepCubeResident ? m_cubeKey : 0;
+                            job.cubeKey = m_cubeKey;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
                             return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
@@ -183,7 +186,7 @@ class CudaBackend final : public CudaSearchBackend {
       // The cube already resident is counted below as the cube's bytes.
       ResidentSlot& slot = residentSlot(m_devices.front().ordinal);
       std::lock_guard lock(slot.mutex);
-      if (m_options.keepCubeResident && slot.holds(m_cubeKey, cube.frames.pixels().size()))
+      if (slot.holds(m_cubeKey, cube.frames.pixels().size()))
         freeBytes += slot.cube.bytes();
     }
     std::size_t budget = freeBytes > kReserve ? freeBytes - kReserve : 0;
@@ -307,7 +310,7 @@ class CudaBackend final : public CudaSearchBackend {
       job.cellCapacity = capacity;
       job.naiveKernel = m_options.naiveKernel;
       job.uploadChunkBytes = m_options.uploadChunkBytes;
-      job.cubeKey = m_options.keepCubeResident ? m_cubeKey : 0;
+      job.cubeKey = m_cubeKey;
       return runOnDevice(plan, cube.frames.pixels().data(), job, report, cancel, m_abort);
     });
   }

@@ -238,7 +238,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
 
   stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
                                         ProgressSink& progress, CancelToken& cancel,
-                                        const stats::NoiseModel* noise) override {
+                                        const stats::NoiseModel* noise, std::uint64_t revision) override {
     Stopwatch sw;
     const int w = cube.width(), h = cube.height();
     const std::size_t nf = cube.frameCount(), np = cube.framePixels();
@@ -361,12 +361,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     download(r, cube.pixels().data(), out.get(), nf * np * sizeof(float), s);
     const double down = sw.lap();
     std::string resident = "not kept on the device";
-    if (m_keepResident) {
+    if (m_keepResident && revision != 0) {
       ResidentSlot& slot = residentSlot(m_device.ordinal);
       std::lock_guard lock(slot.mutex);
       slot.clear();
       slot.cube = std::move(out);
-      slot.key = cubeKey(cube);
+      slot.key = residentKey(cube, revision);
       resident = "kept on the device for the search";
     }
     m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +

@@ -40,6 +40,12 @@ std::uint64_t cubeKey(const FrameCube& f) {
   return h == 0 ? 1 : h;
 }
 
+std::uint64_t residentKey(const FrameCube& frames, std::uint64_t revision) {
+  if (revision == 0) return 0;
+  const std::uint64_t h = mix(cubeKey(frames), revision);
+  return h == 0 ? 1 : h;
+}
+
 void releaseOtherCubes(const int* devices, int count, std::uint64_t key) {
   for (int d = 0; d < count; ++d) {
     ResidentSlot& slot = residentSlot(devices[d]);

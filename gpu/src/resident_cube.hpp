@@ -9,6 +9,7 @@
 
 #include "cuda_check.hpp"
 #include "st/common/frame_cube.hpp"
+#include "st/search/types.hpp"
 
 namespace st::gpu {
 
@@ -33,8 +34,14 @@ struct ResidentSlot {
 /// The slot of device `ordinal` (process-wide).
 ResidentSlot& residentSlot(int ordinal);
 
-/// Identity of a host cube (never 0).
+/// Identity of a host cube's layout and a sample of its pixels (never 0): buffer address, sizes, frame times,
+/// 4096 sampled pixels. Not proof of equal pixels on its own (a new cube of the same noise in a reused
+/// buffer can match it), hence residentKey.
 std::uint64_t cubeKey(const FrameCube& frames);
+
+/// The key under which a search keeps and finds `cube` on a device: cubeKey mixed with
+/// FilteredCube::revision; 0 (never resident) when the cube has no revision.
+std::uint64_t residentKey(const FrameCube& frames, std::uint64_t revision);
 
 /// Frees the resident cube of every device in [devices, devices + count) that does not hold `key`.
 void releaseOtherCubes(const int* devices, int count, std::uint64_t key);

@@ -17,8 +17,10 @@ constexpr int kStackGroups = 16;
 
 }  // namespace
 
-const float* StackEngine::ensureResident(const FrameCube& frames, ResidentSlot& slot) {
-  const std::uint64_t key = cubeKey(frames);
+const float* StackEngine::ensureResident(const search::FilteredCube& cube, ResidentSlot& slot) {
+  const FrameCube& frames = cube.frames;
+  // A cube with a revision is the searches' (resident_cube.hpp); without one, its sampled key (as before).
+  const std::uint64_t key = cube.revision != 0 ? residentKey(frames, cube.revision) : cubeKey(frames);
   if (!slot.holds(key, frames.pixels().size())) {
     slot.clear();  // free the old cube before taking the new one
     slot.cube = DeviceBuffer<float>(frames.pixels().size());
@@ -46,7 +48,7 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
   ST_CUDA_CHECK(cudaSetDevice(m_device));
   ResidentSlot& slot = residentSlot(m_device);
   std::lock_guard lock(slot.mutex);
-  const float* frames = ensureResident(f, slot);
+  const float* frames = ensureResident(cube, slot);
   const std::vector<double> dt = f.timeOffsetsS();
   const std::size_t n = dt.size();
   std::vector<int> shifts(2 * n);

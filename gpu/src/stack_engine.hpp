@@ -21,7 +21,7 @@ class StackEngine {
  private:
   /// The cube on the device: the device's resident cube (resident_cube.hpp) when it holds this one, else
   /// uploaded into it.
-  const float* ensureResident(const FrameCube& frames, ResidentSlot& slot);
+  const float* ensureResident(const search::FilteredCube& cube, ResidentSlot& slot);
   int m_device;
   DeviceBuffer<float> m_partial;
   DeviceBuffer<float> m_out;

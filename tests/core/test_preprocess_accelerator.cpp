@@ -26,7 +26,7 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
   }
   stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
                                         ProgressSink& progress, CancelToken& cancel,
-                                        const stats::NoiseModel* noise) override {
+                                        const stats::NoiseModel* noise, std::uint64_t) override {
     ++calls;
     act();
     return stack::filterCube(cube, kernel, progress, cancel, noise);

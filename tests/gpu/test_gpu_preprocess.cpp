@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
 
 #include "gpu_test_cubes.hpp"
@@ -159,7 +160,7 @@ FrameCube zeroBiased(int w, int h, int n, unsigned seed, bool withMask, stats::N
   model.sigmaRef = 4.0;
   if (withMask) {
     c.mask().assign(c.pixels().size(), 0);
-    for (std::size_t i = 5; i < c.mask().size(); i += 131)
+    for (std::size_t i = 5; i < c.mask().size(); i += 1009)
       c.mask()[i] = 1;
   }
   return c;
@@ -184,7 +185,7 @@ TEST_P(GpuFilter, MatchesCpu) {
   CancelToken cancel;
   FrameCube cpu = in, dev = in;
   const auto a = stack::filterCube(cpu, kernel, progress, cancel, fc.weighted ? &model : nullptr);
-  const auto b = accel->filterCube(dev, kernel, progress, cancel, fc.weighted ? &model : nullptr);
+  const auto b = accel->filterCube(dev, kernel, progress, cancel, fc.weighted ? &model : nullptr, 0);
   std::printf("%s\n", accel->lastNote().c_str());
   ASSERT_GT(a.sigmaF, 0.0);
   std::size_t bad = 0;
@@ -208,14 +209,15 @@ INSTANTIATE_TEST_SUITE_P(Cases, GpuFilter,
 TEST(GpuFilter, KernelTooLargeIsAGpuErrorAndTheCubeIsUntouched) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   stats::NoiseModel model;
-  FrameCube in = zeroBiased(96, 80, 5, 3, false, model);
+  FrameCube in = zeroBiased(160, 150, 12, 3, false, model);
   const FrameCube before = in;
-  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(30.0));
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(10.5));
   ASSERT_GT(kernel.halfSize, 24);
   NullProgress progress;
   CancelToken cancel;
-  EXPECT_THROW(accel->filterCube(in, kernel, progress, cancel, nullptr), GpuError);
-  EXPECT_EQ(in.pixels(), before.pixels());
+  EXPECT_THROW(accel->filterCube(in, kernel, progress, cancel, nullptr, 0), GpuError);
+  ASSERT_EQ(in.pixels().size(), before.pixels().size());
+  EXPECT_EQ(std::memcmp(in.pixels().data(), before.pixels().data(), in.pixels().size() * sizeof(float)), 0);
   // Through the pipeline's helper: the CPU does it, with a warning.
   std::vector<std::string> notes;
   const auto r = pipeline::filterCubeOn(accel.get(), in, kernel, progress, cancel, nullptr, notes);
@@ -238,7 +240,8 @@ TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
   const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.0));
   NullProgress progress;
   CancelToken cancel;
-  cube.sigmaF = accel->filterCube(cube.frames, kernel, progress, cancel, &model).sigmaF;
+  cube.revision = search::nextCubeRevision();
+  cube.sigmaF = accel->filterCube(cube.frames, kernel, progress, cancel, &model, cube.revision).sigmaF;
   cube.psfFwhmPx = 2.0;
   EXPECT_NE(accel->lastNote().find("kept on the device"), std::string::npos) << accel->lastNote();
   search::VelocityGrid grid{{4.0, 0.0}, 1.0, 9, 9};
@@ -261,11 +264,18 @@ TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
   const Image s1 = resident->stackAt(cube, {6.0, 0.0}, search::StackMode::Ipsa);
   const stack::StackResult ref = stack::stackIpsa(cube.frames, {6.0, 0.0});
   expectNear(s1.pixels, ref.sum.pixels, 1e-4, "stackAt on the resident cube");
-  // A changed cube is uploaded again (the key sees the pixels), never served stale.
-  cube.frames.pixels()[0] += 1000.0f;
+  // A new revision (new pixels) is uploaded again, never served stale; a cube without one is never kept.
+  cube.frames.pixels()[1] += 1000.0f;
+  cube.revision = search::nextCubeRevision();
   params.method = "exact";
   resident->search(cube, grid, params, progress, cancel);
   EXPECT_EQ(resident->lastNote().find("no upload"), std::string::npos) << resident->lastNote();
+  EXPECT_NE(resident->lastNote().find("kept"), std::string::npos) << resident->lastNote();
+  resident->search(cube, grid, params, progress, cancel);
+  EXPECT_NE(resident->lastNote().find("no upload"), std::string::npos) << resident->lastNote();
+  cube.revision = 0;
+  resident->search(cube, grid, params, progress, cancel);
+  EXPECT_EQ(resident->lastNote().find("kept"), std::string::npos) << resident->lastNote();
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 // implementation must give their results within float tolerance, and throw st::GpuError, leaving the cube as
 // it was, when its device fails. core knows only this interface; the CUDA one is in gpu/
 // (st::gpu::makeCudaPreprocessAccelerator).
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -26,10 +27,11 @@ class PreprocessAccelerator {
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                                     const detect::MovingMask* exclude, ProgressSink& progress,
                                                     CancelToken& cancel) = 0;
-  /// Same contract as stack::filterCube.
+  /// Same contract as stack::filterCube. `revision` (search::FilteredCube::revision, 0 = none): the
+  /// filtered frames will carry it, so a device may keep them for the search under it.
   virtual stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
                                                 ProgressSink& progress, CancelToken& cancel,
-                                                const stats::NoiseModel* noise) = 0;
+                                                const stats::NoiseModel* noise, std::uint64_t revision) = 0;
 };
 
 /// stats::subtractPixelBackground on `accel` when given, else (or when the device fails: st::GpuError) on
@@ -43,6 +45,6 @@ stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameC
 stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube& cube,
                                         const stack::FilterKernel& kernel, ProgressSink& progress,
                                         CancelToken& cancel, const stats::NoiseModel* noise,
-                                        std::vector<std::string>& notes);
+                                        std::vector<std::string>& notes, std::uint64_t revision = 0);
 
 }  // namespace st::pipeline

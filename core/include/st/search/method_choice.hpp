@@ -35,6 +35,15 @@ inline constexpr double kAutoTreeMinSpeedup = 2.0;
 /// ...and saves at least this many seconds (a sub-second search is not worth any SNR loss).
 inline constexpr double kAutoTreeMinSavingS = 1.0;
 
+/// ...and loses at most this fraction of the exact search's SNR for the cube's PSF (treeSnrLoss; issue 16).
+inline constexpr double kAutoTreeMaxSnrLoss = 0.03;
+
+/// The tree search's median SNR loss against the exact search on matched-filtered point sources of PSF FWHM
+/// `fwhmPx` (Moffat beta 4, the paper's cadence and grid design: the tree's tracks deviate from the exact
+/// ones by up to 1-2 px). Measured by tests/core/test_tree_snr_loss.cpp at FWHM 1.5, 2, 2.5 and 3.5 px (the
+/// table in README "Performance"); linear in between, clamped outside. NaN for a non-positive FWHM.
+double treeSnrLoss(double fwhmPx);
+
 /// Throughputs and fixed costs of one backend. Rates are for the whole backend (all threads or devices).
 struct MethodCostModel {
   double exactAdditionsPerS = 0.0;  ///< exact search, additions per second
@@ -69,6 +78,8 @@ struct MethodEstimate {
   int width = 0;                      ///< image width, px (for priceMethods)
   int treeTileRows = 0;               ///< rows per tile (treeTileRows)
   int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
+  double psfFwhmPx = 0.0;             ///< the cube's PSF FWHM, px (0: unknown)
+  double treeSnrLoss = 0.0;           ///< treeSnrLoss(psfFwhmPx), 0 when the FWHM is unknown
 };
 
 /// Estimates both methods for frames of width x height at offsets `dtS` (t_n - t_ref, s) over `grid`, with
