@@ -38,10 +38,11 @@ inline constexpr double kAutoTreeMinSavingS = 1.0;
 /// ...and loses at most this fraction of the exact search's SNR for the cube's PSF (treeSnrLoss; issue 16).
 inline constexpr double kAutoTreeMaxSnrLoss = 0.03;
 
-/// The tree search's median SNR loss against the exact search on matched-filtered point sources of PSF FWHM
-/// `fwhmPx` (Moffat beta 4, the paper's cadence and grid design: the tree's tracks deviate from the exact
-/// ones by up to 1-2 px). Measured by tests/core/test_tree_snr_loss.cpp at FWHM 1.5, 2, 2.5 and 3.5 px (the
-/// table in README "Performance"); linear in between, clamped outside. NaN for a non-positive FWHM.
+/// The tree search's SNR loss against the exact search (the worst of 12 objects) on matched-filtered point
+/// sources of PSF FWHM `fwhmPx` (Moffat beta 4, the paper's problem's tree: tracks within 2 px of the exact
+/// ones). Measured by tests/core/test_tree_snr_loss_slow.cpp at FWHM 1.5, 2, 2.5 and 3.5 px (3.0, 2.2, 1.6,
+/// 1.0%; README "Performance"); linear in between, constant above, the first slope extrapolated below (so
+/// `auto` keeps the exact search for PSFs narrower than ~1.5 px). NaN for a non-positive FWHM.
 double treeSnrLoss(double fwhmPx);
 
 /// Throughputs and fixed costs of one backend. Rates are for the whole backend (all threads or devices).
