@@ -8,6 +8,7 @@
 #include "st/common/error.hpp"
 #include "st/detect/hot_pixels.hpp"
 #include "st/detect/sky_stack.hpp"
+#include "st/detect/star_subtraction.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -152,7 +153,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.4, 0.65);
     // The movers are left out too: a slow one covers a pixel for a good part of the frames and would
     // raise its background (and lose that much of its signal).
+    // Where the stars are subtracted (a drifting field), their wide footprints are left out as well.
     detect::MovingMask exclude = stars.mask;
+    if (!stars.subtractRegion.empty()) {
+      const auto& wide = stars.subtractRegion.canvas();
+      for (std::size_t i = 0; i < wide.size(); ++i)
+        if (wide[i])
+          exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
+                      exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
+    }
     const auto& movers = stars.moverMask.canvas();
     for (std::size_t i = 0; i < movers.size(); ++i)
       if (movers[i])
@@ -172,15 +181,33 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
           "the global mean");
     }
   }
+  lap("per-pixel background");
+  if (!stars.subtractRegion.empty()) {
+    // Before the cosmic-ray pixels are zeroed: they hold their time neighbours' values until then.
+    SubProgress sub(progress, 0.65, 0.75);
+    out.starSubtraction = detect::subtractStarTemplate(cube, stars.subtractRegion, params.starSubtraction, sub, cancel);
+    std::ostringstream note;
+    if (out.starSubtraction.applied)
+      note << "stars subtracted (drifting field): a sky-registered template of "
+           << static_cast<long long>(std::lround(out.starSubtraction.meanTemplateFrames))
+           << " frames on average per pixel, leaving out +-" << params.starSubtraction.windowFraction
+           << " of the span around each frame; only their cores masked";
+    else
+      note << "stars not subtracted (the span is too short for a template outside each frame's window): "
+              "masked down to one stack sigma instead";
+    out.notes.push_back(note.str());
+    lap("star subtraction");
+  }
   calib::zeroPixels(cube, cr.pixels);
   out.cosmicRayPixels = std::move(cr.pixels);
-  lap("per-pixel background");
   measurePsfInto(out, psfStack, params);
   psfStack = {};
   lap("PSF");
   {
     SubProgress sub(progress, 0.75, 0.8);
     out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
+    if (!stars.subtractRegion.empty() && !out.starSubtraction.applied)
+      out.staticPixelsZeroed += detect::zeroMasked(cube, stars.subtractRegion, sub, cancel);
     out.unmeasuredPixelsZeroed = detect::zeroUnmeasured(cube, unmeasured, stars.moverMask);
     if (out.unmeasuredPixelsZeroed > 0) {
       out.notes.push_back(std::to_string(out.unmeasuredPixelsZeroed) +
