@@ -18,7 +18,9 @@ stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameC
                                             CancelToken& cancel, std::vector<std::string>& notes) {
   if (accel) {
     try {
-      return accel->subtractPixelBackground(cube, params, exclude, progress, cancel);
+      stats::Background out = accel->subtractPixelBackground(cube, params, exclude, progress, cancel);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return out;
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "per-pixel background", e));
     }
@@ -32,7 +34,9 @@ stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube&
                                         std::vector<std::string>& notes, std::uint64_t revision) {
   if (accel) {
     try {
-      return accel->filterCube(cube, kernel, progress, cancel, noise, revision);
+      stack::MatchedFilterResult out = accel->filterCube(cube, kernel, progress, cancel, noise, revision);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return out;
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "matched filter", e));
     }

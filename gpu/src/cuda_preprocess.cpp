@@ -96,7 +96,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   explicit CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {}
 
   [[nodiscard]] std::string name() const override { return "cuda: " + m_device.name; }
-  [[nodiscard]] std::string lastNote() const override { return m_note; }
+  [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
 
   stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,

@@ -23,6 +23,8 @@ class PreprocessAccelerator {
   virtual ~PreprocessAccelerator() = default;
   /// e.g. "cuda: NVIDIA H100 80GB HBM3", for notes and logs.
   [[nodiscard]] virtual std::string name() const = 0;
+  /// How the last stage ran on the device (times of upload, kernels, download), for the notes; may be empty.
+  [[nodiscard]] virtual std::string lastNote() const { return {}; }
   /// Same contract as stats::subtractPixelBackground.
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                                     const detect::MovingMask* exclude, ProgressSink& progress,
@@ -35,7 +37,8 @@ class PreprocessAccelerator {
 };
 
 /// stats::subtractPixelBackground on `accel` when given, else (or when the device fails: st::GpuError) on
-/// the CPU; a device failure adds a warning to `notes` naming the stage and the device's message.
+/// the CPU; a device failure adds a warning to `notes` naming the stage and the device's message, a device
+/// run its lastNote().
 stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameCube& cube,
                                             const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,

@@ -11,8 +11,6 @@ namespace st::gpu {
 
 class CudaPreprocessAccelerator : public pipeline::PreprocessAccelerator {
  public:
-  /// How the last stage ran: device seconds of upload, kernels, download, and host seconds.
-  [[nodiscard]] virtual std::string lastNote() const = 0;
   /// Keep the matched filter's output resident for the search (default on).
   virtual void setKeepResident(bool keep) = 0;
 };
