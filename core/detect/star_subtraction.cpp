@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <numeric>
 #include <vector>
 
@@ -50,8 +51,9 @@ int lanczos3Weights(double f, double w[6]) {
   return b - 2;
 }
 
-StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, const StarSubtractionParams& params,
-                                     ProgressSink& progress, CancelToken& cancel) {
+StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, const Image* sigma,
+                                     const StarSubtractionParams& params, ProgressSink& progress,
+                                     CancelToken& cancel) {
   StarSubtraction out;
   const std::size_t nf = cube.frameCount();
   if (region.empty() || nf < 4 || region.frameCount() != nf) return out;
@@ -149,7 +151,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
           s += sum[o][k];
           c += cnt[o][k];
         }
-      if (c >= 3.0) {
+      if (c >= params.minTemplateFrames) {
         tmpl[b][pix[k]] = static_cast<float>(s / c);
         valid[b][pix[k]] = 1;
         framesSum += c;
@@ -161,11 +163,19 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
   cnt.clear();
   out.meanTemplateFrames = framesN ? framesSum / framesN : 0.0;
 
-  // Subtract, in each frame, the template resampled at the frame's offset (taps must all be valid).
+  // Subtract, in each frame, the template resampled at the frame's offset (taps must all be valid; where
+  // they are not, the pixel is zeroed: a star seen only within one window has no template). The residuals'
+  // variance at each sky position is summed against the background's (sigma) for the excess test.
   const int ch = region.canvasHeight();
-  std::vector<std::size_t> perFrame(nf, 0);
+  const bool withSigma = sigma && sigma->size() == fp;
+  std::vector<std::size_t> perFrame(nf, 0), zeroedPerFrame(nf, 0);
+  std::vector<double> r2(targets.size(), 0.0), s2(targets.size(), 0.0);
+  std::vector<float> samples(targets.size(), 0.0f);
+  std::mutex reduce;
   SubProgress subtract(progress, 0.5, 1.0);
   parallelFor(nf, 8, [&](std::size_t n0, std::size_t n1) {
+    std::vector<double> lr2(withSigma ? targets.size() : 0, 0.0), ls2(lr2.size(), 0.0);
+    std::vector<float> lsamples(lr2.size(), 0.0f);
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const int b = blockOf[n];
@@ -177,13 +187,13 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
       const int sx = region.shiftX(n), sy = region.shiftY(n);
       const float* t = tmpl[b].data();
       const std::uint8_t* ok = valid[b].data();
-      for (const int p : targets) {
-        const int i = p % cw, j = p / cw;
+      for (std::size_t k = 0; k < targets.size(); ++k) {
+        const int i = targets[k] % cw, j = targets[k] / cw;
         const int x = region.x0() + i + sx, y = region.y0() + j + sy;
         if (x < 0 || y < 0 || x >= w || y >= h) continue;
-        if (i + ox < 0 || j + oy < 0 || i + ox + 5 >= cw || j + oy + 5 >= ch) continue;
+        float& px = f[static_cast<std::size_t>(y) * w + x];
+        bool bad = i + ox < 0 || j + oy < 0 || i + ox + 5 >= cw || j + oy + 5 >= ch;
         double v = 0.0;
-        bool bad = false;
         for (int jj = 0; jj < 6 && !bad; ++jj) {
           const std::size_t row = static_cast<std::size_t>(j + oy + jj) * cw;
           double r = 0.0;
@@ -197,14 +207,47 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
           }
           v += wy[jj] * r;
         }
-        if (bad) continue;
-        f[static_cast<std::size_t>(y) * w + x] -= static_cast<float>(v);
+        if (bad) {
+          if (px != 0.0f) ++zeroedPerFrame[n];
+          px = 0.0f;
+          continue;
+        }
+        px -= static_cast<float>(v);
         ++perFrame[n];
+        if (withSigma && px != 0.0f) {
+          const double sg = sigma->pixels[static_cast<std::size_t>(y) * w + x];
+          if (sg > 0) {
+            lr2[k] += static_cast<double>(px) * px;
+            ls2[k] += sg * sg;
+            lsamples[k] += 1.0f;
+          }
+        }
+      }
+    }
+    if (withSigma) {
+      std::lock_guard<std::mutex> lock(reduce);
+      for (std::size_t k = 0; k < targets.size(); ++k) {
+        r2[k] += lr2[k];
+        s2[k] += ls2[k];
+        samples[k] += lsamples[k];
       }
     }
     subtract.report(static_cast<double>(n1) / nf, "subtract star templates");
   });
   out.pixelsSubtracted = std::accumulate(perFrame.begin(), perFrame.end(), std::size_t{0});
+  out.pixelsZeroed = std::accumulate(zeroedPerFrame.begin(), zeroedPerFrame.end(), std::size_t{0});
+  // Sky positions where what is left varies more than the background allows (the star's photon noise, its
+  // seeing changes, the interpolation's error): masked like the cores.
+  out.excess = MovingMask(cube.width(), cube.height(), dt, region.rate());
+  if (withSigma) {
+    for (std::size_t k = 0; k < targets.size(); ++k)
+      // Significant too: the ratio of S samples scatters by sqrt(2 / S) about 1 (chi-square: a heavy upper tail).
+      if (samples[k] >= params.minExcessSamples &&
+          r2[k] > std::max(params.maxVarianceRatio, 1.0 + 5.0 * std::sqrt(2.0 / samples[k])) * s2[k])
+        out.excess.set(region.x0() + targets[k] % cw, region.y0() + targets[k] / cw);
+    out.excessPositions = out.excess.count();
+    out.excess.dilate(1);
+  }
   out.applied = true;
   return out;
 }
