@@ -66,9 +66,8 @@ void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes
     const std::size_t off = p * piece, len = std::min(piece, bytes - off);
     char* dst = static_cast<char*>(host) + off;
     const char* src = static_cast<const char*>(r.staging[p & 1].get());
-    parallelFor(len, std::size_t{1} << 21, [&](std::size_t lo, std::size_t hi) {
-      std::memcpy(dst + lo, src + lo, hi - lo);
-    });
+    parallelFor(len, std::size_t{1} << 21,
+                [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); });
   }
 }
 
@@ -106,8 +105,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     const int w = cube.width(), h = cube.height();
     const std::size_t nf = cube.frameCount(), np = cube.framePixels();
     if (exclude && !exclude->empty() && exclude->frameCount() != nf)
-      throw GpuError("the exclusion mask has " + std::to_string(exclude->frameCount()) + " frames, the cube " +
-                     std::to_string(nf));
+      throw GpuError("the exclusion mask has " + std::to_string(exclude->frameCount()) +
+                     " frames, the cube " + std::to_string(nf));
     stats::Background out;
     out.global = stats::globalBackground(cube, params.global);
     const std::vector<std::size_t> frames = evenlySpaced(nf, params.maxFrames);
@@ -248,11 +247,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     if (half > kMaxFilterHalf)
       throw GpuError("matched-filter kernel of half size " + std::to_string(half) + " px (at most " +
                      std::to_string(kMaxFilterHalf) + " on the GPU)");
-    if (weighted && (noise->variance.width != w || noise->variance.height != h || noise->frameScale.size() != nf))
+    if (weighted &&
+        (noise->variance.width != w || noise->variance.height != h || noise->frameScale.size() != nf))
       throw InputError("matched filter: the noise model (" + std::to_string(noise->variance.width) + "x" +
-                       std::to_string(noise->variance.height) + ", " + std::to_string(noise->frameScale.size()) +
-                       " frames) does not match the cube (" + std::to_string(w) + "x" + std::to_string(h) +
-                       ", " + std::to_string(nf) + " frames)");
+                       std::to_string(noise->variance.height) + ", " +
+                       std::to_string(noise->frameScale.size()) + " frames) does not match the cube (" +
+                       std::to_string(w) + "x" + std::to_string(h) + ", " + std::to_string(nf) + " frames)");
     ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
     DeviceResources& r = ensureResources(m_res);
     cudaStream_t s = r.compute.get();
@@ -345,8 +345,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                            samplesD.get() + k * perFrame, nx, ny, s);
     std::vector<float> samplesH(perFrame * sampleFrames.size());
     if (!samplesH.empty())
-      ST_CUDA_CHECK(cudaMemcpyAsync(samplesH.data(), samplesD.get(), samplesH.size() * 4,
-                                    cudaMemcpyDeviceToHost, s));
+      ST_CUDA_CHECK(
+          cudaMemcpyAsync(samplesH.data(), samplesD.get(), samplesH.size() * 4, cudaMemcpyDeviceToHost, s));
     r.compute.sync();
     const double kernels = sw.lap();
     std::vector<std::vector<float>> samples(sampleFrames.size());

@@ -33,7 +33,8 @@ __global__ void backgroundPrepareKernel(BackgroundLaunch p) {
   const std::size_t off = static_cast<std::size_t>(n) * np + i;
   const float v = p.pix[off];
   const int x = static_cast<int>(i % p.width), y = static_cast<int>(i / p.width);
-  const bool out = !isfinite(v) || static_cast<double>(v) > p.strong || (p.mask && p.mask[off]) || covered(p, n, x, y);
+  const bool out =
+      !isfinite(v) || static_cast<double>(v) > p.strong || (p.mask && p.mask[off]) || covered(p, n, x, y);
   p.buf[static_cast<std::size_t>(k) * np + i] = out ? __int_as_float(0x7fc00000) : v;
 }
 
@@ -177,8 +178,8 @@ __global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const do
   omega[i] = static_cast<float>(__dmul_rn(acc / static_cast<double>(nf), static_cast<double>(invVar[i])));
 }
 
-__global__ void noiseSamplesKernel(const float* in, const std::uint8_t* mask, const float* filtered, int width,
-                                   int height, int n, int half, float* out, int nx, int ny) {
+__global__ void noiseSamplesKernel(const float* in, const std::uint8_t* mask, const float* filtered,
+                                   int width, int height, int n, int half, float* out, int nx, int ny) {
   const int i = blockIdx.x * blockDim.x + threadIdx.x, j = blockIdx.y * blockDim.y + threadIdx.y;
   if (i >= nx || j >= ny) return;
   const int x = half + 3 * i, y = half + 3 * j;
@@ -235,7 +236,8 @@ void launchBackgroundSubtract(const BackgroundLaunch& p, cudaStream_t s) {
 
 void setFilterKernel(const float* kernel, int half, cudaStream_t s) {
   const int k = 2 * half + 1;
-  ST_CUDA_CHECK(cudaMemcpyToSymbolAsync(c_filter, kernel, sizeof(float) * k * k, 0, cudaMemcpyHostToDevice, s));
+  ST_CUDA_CHECK(
+      cudaMemcpyToSymbolAsync(c_filter, kernel, sizeof(float) * k * k, 0, cudaMemcpyHostToDevice, s));
 }
 
 void launchFilter(const FilterLaunch& p, cudaStream_t s) {

@@ -14,12 +14,12 @@ inline constexpr int kMaxFilterHalf = 24;
 
 /// Per-pixel background (stats::subtractPixelBackground).
 struct BackgroundLaunch {
-  float* pix;                   ///< the cube, nf frames; frames are made zero-biased in place
-  const std::uint8_t* mask;     ///< nf frames of 1 = masked, or null
-  float* buf;                   ///< nk frames: the samples of the used frames, NaN where left out
-  const int* usedFrames;        ///< [nk] indices of the frames used (evenly spaced)
-  const std::uint8_t* canvas;   ///< exclude mask at t_ref (cw x ch, 1 = excluded), or null
-  const int* canvasShiftX;      ///< [nf] the exclude mask's shift of frame n
+  float* pix;                  ///< the cube, nf frames; frames are made zero-biased in place
+  const std::uint8_t* mask;    ///< nf frames of 1 = masked, or null
+  float* buf;                  ///< nk frames: the samples of the used frames, NaN where left out
+  const int* usedFrames;       ///< [nk] indices of the frames used (evenly spaced)
+  const std::uint8_t* canvas;  ///< exclude mask at t_ref (cw x ch, 1 = excluded), or null
+  const int* canvasShiftX;     ///< [nf] the exclude mask's shift of frame n
   const int* canvasShiftY;
   int canvasX0, canvasY0, canvasW, canvasH;
   int width, height;
@@ -49,11 +49,11 @@ struct FilterLaunch {
   const std::uint8_t* mask;  ///< 1 = masked (input taken as 0), or null
   float* out;                ///< filtered frames
   int width, height;
-  int f0, f1;                ///< frames of this launch
-  int half;                  ///< kernel half size (<= kMaxFilterHalf); the kernel is in constant memory
-  const float* invVar;       ///< weighted: 1/v per pixel, else null
-  const float* invS2;        ///< weighted: [nf] 1/s_n^2 (float)
-  const float* outScale;     ///< weighted: per-pixel output scale, else null
+  int f0, f1;             ///< frames of this launch
+  int half;               ///< kernel half size (<= kMaxFilterHalf); the kernel is in constant memory
+  const float* invVar;    ///< weighted: 1/v per pixel, else null
+  const float* invS2;     ///< weighted: [nf] 1/s_n^2 (float)
+  const float* outScale;  ///< weighted: per-pixel output scale, else null
 };
 
 /// Copies the (2 half + 1)^2 kernel (row-major) to constant memory.

@@ -33,7 +33,8 @@ TEST(MethodSnrChoice, TableIsTheMeasuredWorstLossAndRisesBelowOnePointFivePx) {
 TEST(MethodSnrChoice, AutoKeepsExactWhereTheTreeLosesMoreThanThreePercent) {
   const MethodChoice narrow = chooseMethod("auto", clearlyFasterTree(1.2), true, "cpu");
   EXPECT_EQ(narrow.method, "exact");
-  EXPECT_NE(narrow.reason.find("lose ~3.5% of the SNR at PSF FWHM 1.20 px"), std::string::npos) << narrow.reason;
+  EXPECT_NE(narrow.reason.find("lose ~3.5% of the SNR at PSF FWHM 1.20 px"), std::string::npos)
+      << narrow.reason;
   const MethodChoice wide = chooseMethod("auto", clearlyFasterTree(2.0), true, "cpu");
   EXPECT_EQ(wide.method, "tree");
   EXPECT_NE(wide.reason.find("SNR cost ~2.2% at PSF FWHM 2.00 px"), std::string::npos) << wide.reason;

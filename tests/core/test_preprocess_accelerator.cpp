@@ -88,7 +88,8 @@ TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {
   EXPECT_EQ(work.calls, 1);
   EXPECT_TRUE(notes.empty());
   FakeAccelerator bad(FakeAccelerator::Mode::InputFault);
-  EXPECT_THROW(pipeline::subtractPixelBackgroundOn(&bad, a, {}, nullptr, progress, cancel, notes), InputError);
+  EXPECT_THROW(pipeline::subtractPixelBackgroundOn(&bad, a, {}, nullptr, progress, cancel, notes),
+               InputError);
   // No device: the CPU, silently.
   EXPECT_NO_THROW(pipeline::subtractPixelBackgroundOn(nullptr, a, {}, nullptr, progress, cancel, notes));
   EXPECT_TRUE(notes.empty());

@@ -28,9 +28,9 @@
 namespace st {
 namespace {
 
-#define ST_REQUIRE_GPU_PREPROCESS(var)                                \
-  std::string whyNot_;                                                \
-  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_);             \
+#define ST_REQUIRE_GPU_PREPROCESS(var)                    \
+  std::string whyNot_;                                    \
+  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_); \
   if (!var) GTEST_SKIP() << "no usable CUDA device: " << whyNot_;
 
 /// A raw-looking cube: sky 100 + a gradient, per-pixel offsets, noise whose sigma varies over the frame,
@@ -58,7 +58,8 @@ FrameCube rawCube(int w, int h, int n, unsigned seed, bool withMask) {
     const int sx = 10 + k / 5, sy = h / 2;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx)
-        if (sx + dx < w) f[static_cast<std::size_t>(sy + dy) * w + sx + dx] += dx == 0 && dy == 0 ? 80.0f : 30.0f;
+        if (sx + dx < w)
+          f[static_cast<std::size_t>(sy + dy) * w + sx + dx] += dx == 0 && dy == 0 ? 80.0f : 30.0f;
   }
   if (withMask) {
     c.mask().assign(c.pixels().size(), 0);
@@ -250,7 +251,8 @@ TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
   for (const char* method : {"exact", "tree", "exact"}) {
     params.method = method;
     const search::SearchResult a = resident->search(cube, grid, params, progress, cancel);
-    EXPECT_NE(resident->lastNote().find("no upload"), std::string::npos) << method << ": " << resident->lastNote();
+    EXPECT_NE(resident->lastNote().find("no upload"), std::string::npos)
+        << method << ": " << resident->lastNote();
     const search::SearchResult b = uploading->search(cube, grid, params, progress, cancel);
     EXPECT_EQ(b.map.maxSnr, a.map.maxSnr) << method;
     ASSERT_EQ(a.candidates.size(), b.candidates.size()) << method;
