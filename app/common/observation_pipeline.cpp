@@ -90,9 +90,10 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   }
   const search::FilteredCube& fc = in.preprocessed ? loaded->cube : prepared->filtered;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
-  const search::MethodEstimate e =
+  search::MethodEstimate e =
       search::estimateMethods(fc.frames.width(), fc.frames.height(), fc.frames.timeOffsetsS(), grid,
                               search::costModelFor(backend), workerCount());
+  search::setPsf(e, fc.psfFwhmPx);  // auto's SNR rule for the tree (issue 16)
   const search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supportsMethod("tree"), backend.name());
   if (hooks.planned) hooks.planned(PlannedSearch{fc, grid, e, method, warnings, notes});

@@ -72,6 +72,11 @@ double treeSnrLoss(double fwhmPx) {
   return kTable[n - 1][1];
 }
 
+void setPsf(MethodEstimate& e, double psfFwhmPx) {
+  e.psfFwhmPx = psfFwhmPx > 0.0 ? psfFwhmPx : 0.0;
+  e.treeSnrLoss = e.psfFwhmPx > 0.0 ? treeSnrLoss(e.psfFwhmPx) : 0.0;
+}
+
 MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditionsPerS) {
   MethodCostModel m;
   m.exactAdditionsPerS = exactAdditionsPerS.value_or(kCpuAdditionsPerSecondPerThread *
@@ -180,8 +185,7 @@ MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cub
     e = estimateMethods(cube.frames.width(), cube.frames.height(), cube.frames.timeOffsetsS(), grid,
                         costModelFor(backend), workerCount());
   }
-  e.psfFwhmPx = cube.psfFwhmPx > 0.0 ? cube.psfFwhmPx : 0.0;
-  e.treeSnrLoss = e.psfFwhmPx > 0.0 ? treeSnrLoss(e.psfFwhmPx) : 0.0;
+  setPsf(e, cube.psfFwhmPx);
   if (estimate) *estimate = e;
   return chooseMethod(requested, e, treeSupported, backend.name());
 }

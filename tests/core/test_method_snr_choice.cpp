@@ -15,8 +15,7 @@ MethodEstimate clearlyFasterTree(double fwhm) {
   e.treeSeconds = 5.0;
   e.exactAdditions = 1e12;
   e.treeAdditions = 1e10;
-  e.psfFwhmPx = fwhm;
-  e.treeSnrLoss = fwhm > 0.0 ? treeSnrLoss(fwhm) : 0.0;
+  setPsf(e, fwhm);
   return e;
 }
 

@@ -89,6 +89,10 @@ struct MethodEstimate {
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads);
 
+/// Records the cube's PSF FWHM in `estimate` (psfFwhmPx, treeSnrLoss) for chooseMethod's SNR rule; a
+/// non-positive FWHM leaves it unknown (the rule off).
+void setPsf(MethodEstimate& estimate, double psfFwhmPx);
+
 /// (Re)prices `estimate`'s additions with `model`: exactSeconds and treeSeconds (infinite without a tree
 /// plan). For a new measured throughput without rebuilding the tree plan.
 void priceMethods(MethodEstimate& estimate, const MethodCostModel& model);
