@@ -143,13 +143,19 @@ int cmdDemo(const Args& args) {
   const double gain = sim.cube.header.getDouble("GAIN").value_or(1.0);
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
+  // On the search's device when it is a GPU (per-pixel background and matched filter, issue 16).
+  BackendSelection backend = makeBackendForMethod(o.backend, o.method);
+  std::string accelMessage;
+  const auto accel = makePreprocessAccelerator(*backend.backend, accelMessage);
+  pipeline::PreprocessParams prepParams;
+  prepParams.accelerator = accel.get();
   SubProgress prepProgress(progress, 0.25, 0.5);
-  pipeline::Prepared prepared =
-      pipeline::preprocess(std::move(sim.cube), pipeline::PreprocessParams{}, prepProgress, cancel);
+  pipeline::Prepared prepared = pipeline::preprocess(std::move(sim.cube), prepParams, prepProgress, cancel);
   pipeline::writePreparedSidecar(path("prepared.json"), prepared);
+  for (const auto& note : prepared.notes)
+    if (note.rfind("warning:", 0) == 0) std::fprintf(stderr, "%s\n", note.c_str());
 
   // 3. The velocity search, +-vmax deg/day around the sky rate.
-  BackendSelection backend = makeBackendForMethod(o.backend, o.method);
   SubProgress searchProgress(progress, 0.5, 0.9);
   const search::SearchResult result = demoSearch(o, prepared, *backend.backend, searchProgress, cancel);
   std::fputs(searchNotesText(result).c_str(), stderr);
@@ -176,9 +182,9 @@ int cmdDemo(const Args& args) {
               static_cast<unsigned long long>(o.seed));
   std::printf(
       "  pre-processing: sigma_n %.3f, PSF FWHM %.2f px (%s), sky rate (%.3f, %.3f) px/s, %zu stars, "
-      "%zu cosmic-ray pixels, %.1f s\n",
+      "%zu cosmic-ray pixels, %.1f s (%s)\n",
       prepared.sigmaN, prepared.psf.fwhm(), prepared.psfFitted ? "fitted" : "fallback", prepared.skyRate.vx,
-      prepared.skyRate.vy, prepared.stars.size(), prepared.cosmicRays, prepared.elapsedS);
+      prepared.skyRate.vy, prepared.stars.size(), prepared.cosmicRays, prepared.elapsedS, accelMessage.c_str());
   std::printf(
       "  search: %s, method %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, "
       "%.1f s\n",

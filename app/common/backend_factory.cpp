@@ -12,6 +12,7 @@
 #include "st/search/fallback_backend.hpp"
 #if ST_HAVE_CUDA
 #include "st/gpu/cuda_backend.hpp"
+#include "st/gpu/preprocess.hpp"
 #endif
 
 namespace st::app {
@@ -25,6 +26,26 @@ BackendChoice parseBackendChoice(const std::string& text) {
 
 bool cudaCompiledIn() {
   return ST_HAVE_CUDA != 0;
+}
+
+std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(const search::SearchBackend& backend,
+                                                                           std::string& message) {
+  if (backend.name().rfind("cuda", 0) != 0) {
+    message = "pre-processing on the CPU";
+    return nullptr;
+  }
+#if ST_HAVE_CUDA
+  std::string whyNot;
+  auto accel = gpu::makeCudaPreprocessAccelerator(whyNot);
+  if (accel) {
+    message = "per-pixel background and matched filter on " + accel->name();
+    return accel;
+  }
+  message = "pre-processing on the CPU (" + whyNot + ")";
+#else
+  message = "pre-processing on the CPU";
+#endif
+  return nullptr;
 }
 
 BackendSelection makeBackend(BackendChoice choice) {

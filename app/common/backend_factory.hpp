@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/search/types.hpp"
 
 namespace st::app {
@@ -47,6 +48,12 @@ std::vector<std::string> gpuNames();
 /// The device names in the text of st::gpu::deviceSummary() (lines "0: NAME, 79.1 GiB, sm_90"): "NAME, 79.1
 /// GiB" per device line; lines of another form (e.g. "no CUDA device: ...") are skipped.
 std::vector<std::string> parseDeviceSummary(const std::string& summary);
+
+/// The device for the pre-processing's per-pixel background and matched filter (issue 16) that goes with a
+/// search on `backend`: the CUDA one when the backend is CUDA (its name starts with "cuda") and a device is
+/// usable, else null (the CPU). `message` says which, for the log.
+std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(const search::SearchBackend& backend,
+                                                                           std::string& message);
 
 /// Whether this build has the CUDA backend compiled in.
 bool cudaCompiledIn();

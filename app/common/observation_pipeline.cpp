@@ -3,6 +3,7 @@
 #include <optional>
 
 #include "candidate_fit.hpp"
+#include "backend_factory.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
@@ -31,7 +32,8 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
 
 pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOptions& o,
                                       ProgressSink& progress, CancelToken& cancel,
-                                      std::vector<std::string>& warnings, bool keepZeroBiased) {
+                                      std::vector<std::string>& warnings, bool keepZeroBiased,
+                                      pipeline::PreprocessAccelerator* accelerator) {
   FrameCube raw;
   {
     SubProgress loadProgress(progress, 0.0, 0.2);
@@ -40,6 +42,7 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
   pipeline::PreprocessParams params;
+  params.accelerator = accelerator;
   params.calib = in.calib;
   params.keepZeroBiased = keepZeroBiased;
   const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
@@ -178,7 +181,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
           memory.inMemory, memory.budget));
     }
     if (hooks.memory) hooks.memory(memory);
-    prepared = prepareObservation(in, o, progress, cancel, warnings, fit);
+    std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
+    const auto accel = makePreprocessAccelerator(backend, accelMessage);
+    prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
   } else {
     // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
     OutOfCoreInput m = outOfCoreMeta(in, o, shape.width, shape.height, cancel);
@@ -209,9 +214,10 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   search::FilteredCube& fc = *fcp;
   const int width = shape.width, height = shape.height;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
-  const search::MethodEstimate e =
+  search::MethodEstimate e =
       search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),
                               threads, o.request.params.bufferBytes);
+  search::setPsf(e, fc.psfFwhmPx);  // auto's SNR rule for the tree (issue 16)
   search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supportsMethod("tree"), backend.name());
   std::vector<search::SearchTile> tiles;

@@ -78,7 +78,8 @@ struct ObservationHooks {
 /// so no co-moving fit afterwards).
 pipeline::Prepared prepareObservation(const ObservationInput& input, const SearchOptions& options,
                                       ProgressSink& progress, CancelToken& cancel,
-                                      std::vector<std::string>& warnings, bool keepZeroBiased = true);
+                                      std::vector<std::string>& warnings, bool keepZeroBiased = true,
+                                      pipeline::PreprocessAccelerator* accelerator = nullptr);
 
 /// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
 /// or the default; raw input whose in-memory pre-processing does not fit stops with st::InputError before

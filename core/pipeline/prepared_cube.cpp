@@ -154,6 +154,7 @@ PreparedSearchInput searchInputFromPrepared(FrameCube loaded, const PreparedOver
                        numberText(in.cube.sigmaF) + " measured");
   } else {
     in.cube.frames = std::move(loaded);
+    in.cube.revision = search::nextCubeRevision();
     in.cube.skyRate = h.skyRate;
     in.cube.psfFwhmPx = overrides.psfFwhmPx.value_or(h.psf ? h.psf->fwhm() : 3.0);
     if (!overrides.psfFwhmPx && !h.psf) {

@@ -9,6 +9,7 @@
 #include "st/detect/hot_pixels.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
+#include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
 
@@ -190,7 +191,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       if (movers[i])
         exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
                     exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
-    stats::Background bg = stats::subtractPixelBackground(cube, params.background, &exclude, sub, cancel);
+    stats::Background bg = subtractPixelBackgroundOn(params.accelerator, cube, params.background, &exclude,
+                                                       sub, cancel, out.notes);
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
@@ -274,8 +276,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       f.mask().shrink_to_fit();
     }
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
-    const stack::MatchedFilterResult mf = stack::filterCube(
-        out.filtered.frames, kernel, sub, cancel, params.weightedFilter ? &out.noiseModel : nullptr);
+    out.filtered.revision = search::nextCubeRevision();
+    const stack::MatchedFilterResult mf =
+        filterCubeOn(params.accelerator, out.filtered.frames, kernel, sub, cancel,
+                     params.weightedFilter ? &out.noiseModel : nullptr, out.notes, out.filtered.revision);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

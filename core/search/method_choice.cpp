@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <limits>
 
 #include "st/common/error.hpp"
@@ -42,7 +43,7 @@ std::string formatSeconds(double s) {
 }
 
 std::string autoReason(const char* verdict, const MethodEstimate& e) {
-  char text[256];
+  char text[400];
   std::snprintf(text, sizeof text, "auto: %s (estimated exact %s, tree %s; %.0fx fewer additions)", verdict,
                 formatSeconds(e.exactSeconds).c_str(), formatSeconds(e.treeSeconds).c_str(),
                 e.treeAdditions > 0.0 ? e.exactAdditions / e.treeAdditions : 0.0);
@@ -50,6 +51,31 @@ std::string autoReason(const char* verdict, const MethodEstimate& e) {
 }
 
 }  // namespace
+
+double treeSnrLoss(double fwhmPx) {
+  if (!(fwhmPx > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  // FWHM px, the worst of 12 objects (tests/core/test_tree_snr_loss_slow.cpp, 2026-11-25; medians 2.0, 1.2,
+  // 0.8, 0.4%). Below 1.5 px the first segment's slope is extrapolated (a single-pixel source lost 41% in
+  // the GPU benchmark of 2026-11-22).
+  static constexpr double kTable[][2] = {{1.5, 0.030}, {2.0, 0.022}, {2.5, 0.016}, {3.5, 0.010}};
+  constexpr std::size_t n = std::size(kTable);
+  if (fwhmPx <= kTable[0][0]) {
+    const double slope = (kTable[0][1] - kTable[1][1]) / (kTable[1][0] - kTable[0][0]);
+    return std::min(1.0, kTable[0][1] + slope * (kTable[0][0] - fwhmPx));
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    if (fwhmPx <= kTable[i][0]) {
+      const double f = (fwhmPx - kTable[i - 1][0]) / (kTable[i][0] - kTable[i - 1][0]);
+      return kTable[i - 1][1] + f * (kTable[i][1] - kTable[i - 1][1]);
+    }
+  }
+  return kTable[n - 1][1];
+}
+
+void setPsf(MethodEstimate& e, double psfFwhmPx) {
+  e.psfFwhmPx = psfFwhmPx > 0.0 ? psfFwhmPx : 0.0;
+  e.treeSnrLoss = e.psfFwhmPx > 0.0 ? treeSnrLoss(e.psfFwhmPx) : 0.0;
+}
 
 MethodCostModel cpuCostModel(unsigned threads, std::optional<double> exactAdditionsPerS) {
   MethodCostModel m;
@@ -136,6 +162,18 @@ MethodChoice chooseMethod(const std::string& requested, const MethodEstimate& es
     return {"exact", autoReason("exact, the tree would not be clearly faster", e)};
   if (e.exactSeconds - e.treeSeconds < kAutoTreeMinSavingS)
     return {"exact", autoReason("exact, too small for the tree's SNR loss to pay", e)};
+  if (e.psfFwhmPx > 0.0 && e.treeSnrLoss > kAutoTreeMaxSnrLoss) {
+    char text[160];
+    std::snprintf(text, sizeof text, "exact, the tree would lose ~%.1f%% of the SNR at PSF FWHM %.2f px (> %.0f%%)",
+                  100.0 * e.treeSnrLoss, e.psfFwhmPx, 100.0 * kAutoTreeMaxSnrLoss);
+    return {"exact", autoReason(text, e)};
+  }
+  if (e.psfFwhmPx > 0.0) {
+    char text[128];
+    std::snprintf(text, sizeof text, "tree, clearly faster, SNR cost ~%.1f%% at PSF FWHM %.2f px",
+                  100.0 * e.treeSnrLoss, e.psfFwhmPx);
+    return {"tree", autoReason(text, e)};
+  }
   return {"tree", autoReason("tree, clearly faster", e)};
 }
 
@@ -148,6 +186,7 @@ MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cub
     e = estimateMethods(cube.frames.width(), cube.frames.height(), cube.frames.timeOffsetsS(), grid,
                         costModelFor(backend), workerCount());
   }
+  setPsf(e, cube.psfFwhmPx);
   if (estimate) *estimate = e;
   return chooseMethod(requested, e, treeSupported, backend.name());
 }
@@ -160,6 +199,15 @@ SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, 
   SearchResult result = backend.search(cube, grid, resolved, progress, cancel);
   result.method = choice.method;
   result.methodReason = choice.reason;
+  if (choice.method == "tree" && cube.psfFwhmPx > 0.0) {
+    // What the tree costs for this cube (issue 16), in the note every front end shows.
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "tree search: SNR cost against the exact search up to ~%.1f%% (worst on filtered point "
+                  "sources at PSF FWHM %.2f px)",
+                  100.0 * treeSnrLoss(cube.psfFwhmPx), cube.psfFwhmPx);
+    result.backendNote = result.backendNote.empty() ? std::string(text) : result.backendNote + "\n" + text;
+  }
   return result;
 }
 

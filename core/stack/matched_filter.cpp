@@ -167,7 +167,7 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
   const bool hasMask = cube.mask().size() == cube.pixels().size();
   const bool weighted = noise && !noise->empty();
   const Weights weights = weighted ? makeWeights(cube, kernel, *noise, cancel) : Weights{};
-  const std::vector<std::size_t> sampleFrames = spreadFrames(nFrames, 64);
+  const std::vector<std::size_t> sampleFrames = filterNoiseFrames(nFrames);
   std::vector<std::vector<float>> samples(sampleFrames.size());
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "matched filter");
@@ -204,6 +204,14 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
       if (d % 16 == 0 || d == nFrames) progress.report(double(d) / double(nFrames), "matched filter");
     }
   });
+  return filterNoiseFromSamples(samples, kernel);
+}
+
+std::vector<std::size_t> filterNoiseFrames(std::size_t frameCount) {
+  return spreadFrames(frameCount, 64);
+}
+
+MatchedFilterResult filterNoiseFromSamples(std::vector<std::vector<float>>& samples, const FilterKernel& kernel) {
   std::vector<float> all;
   for (auto& s : samples)
     all.insert(all.end(), s.begin(), s.end());
@@ -257,6 +265,7 @@ search::FilteredCube makeFilteredCube(FrameCube prepared, const psf::Moffat& psf
   out.sigmaF = filterCube(out.frames, kernel, progress, cancel).sigmaF;
   out.skyRate = skyRate;
   out.psfFwhmPx = psf.fwhm();
+  out.revision = search::nextCubeRevision();
   return out;
 }
 

@@ -18,6 +18,7 @@
 
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
+#include "st/psf/moffat.hpp"
 #include "stack_engine.hpp"
 
 namespace {
@@ -31,6 +32,7 @@ FilteredCube makeCube(int n, int size, st::Velocity src) {
   c.frames = st::FrameCube(size, size, static_cast<std::size_t>(n));
   c.sigmaF = 1.0;
   c.psfFwhmPx = 2.5;
+  c.revision = st::search::nextCubeRevision();  // kept on the device between searches
   for (int k = 0; k < n; ++k)
     c.frames.info()[k].mjdMid = 60000.0 + (k / 16.7) / st::kSecondsPerDay;
   std::vector<float>& px = c.frames.pixels();
@@ -55,12 +57,19 @@ FilteredCube makeCube(int n, int size, st::Velocity src) {
   }
   for (auto& t : pool)
     t.join();
+  // The source: a matched-filtered point source (the PSF convolved with itself: a Moffat of FWHM
+  // sqrt(2) x psfFwhmPx, peak 0.4 sigma) at its true sub-pixel position in each frame (issue 16: the tree's
+  // SNR cost is measured on a PSF, not on a single pixel, which loses whole frames to +-1 px track errors).
+  const st::psf::Moffat filtered = st::psf::Moffat::fromFwhm(std::sqrt(2.0) * c.psfFwhmPx);
   const std::vector<double> dt = c.frames.timeOffsetsS();
   for (int k = 0; k < n; ++k) {
-    const int x = 200 + static_cast<int>(std::lround(src.vx * dt[k]));
-    const int y = 300 + static_cast<int>(std::lround(src.vy * dt[k]));
-    if (x >= 0 && y >= 0 && x < size && y < size)
-      c.frames.frame(k)[static_cast<std::size_t>(y) * size + x] += 0.4f;
+    const double xc = 200 + src.vx * dt[k], yc = 300 + src.vy * dt[k];
+    const int x0 = static_cast<int>(std::lround(xc)), y0 = static_cast<int>(std::lround(yc));
+    for (int y = y0 - 5; y <= y0 + 5; ++y)
+      for (int x = x0 - 5; x <= x0 + 5; ++x)
+        if (x >= 0 && y >= 0 && x < size && y < size)
+          c.frames.frame(k)[static_cast<std::size_t>(y) * size + x] +=
+              0.4f * static_cast<float>(filtered.pixelMean(x - xc, y - yc, 4));
   }
   return c;
 }

@@ -11,6 +11,7 @@
 
 #include "device_info.hpp"
 #include "device_search.hpp"
+#include "resident_cube.hpp"
 #include "search_plan.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
@@ -36,6 +37,8 @@ class CudaBackend final : public CudaSearchBackend {
       m_devices.resize(static_cast<std::size_t>(m_options.maxDevices));
     }
     m_resources.resize(m_devices.size());
+    for (const auto& d : m_devices)
+      m_ordinals.push_back(d.ordinal);
   }
 
   [[nodiscard]] std::string name() const override {
@@ -54,6 +57,11 @@ class CudaBackend final : public CudaSearchBackend {
     const auto start = std::chrono::steady_clock::now();
     search::validateSearchInput(cube, grid, params);
     validateForGpu(cube);
+    m_cubeKey = m_options.keepCubeResident ? residentKey(cube.frames, cube.revision) : 0;
+    // Another cube's resident copy is freed (its memory is this search's); a backend that keeps nothing
+    // leaves the slots alone.
+    if (m_options.keepCubeResident)
+      releaseOtherCubes(m_ordinals.data(), static_cast<int>(m_ordinals.size()), m_cubeKey);
     if (params.method == "tree") return searchTree(cube, grid, params, progress, cancel, start);
     if (params.method != "exact") {
       throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
@@ -126,6 +134,7 @@ class CudaBackend final : public CudaSearchBackend {
                             job.cellCapacity = cap;
                             job.profile = m_options.profileTree;
                             job.treeRootShape = m_options.treeRootShape;
+                            job.cubeKey = m_cubeKey;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
                             return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
@@ -173,6 +182,13 @@ class CudaBackend final : public CudaSearchBackend {
     std::size_t freeBytes = 0, totalBytes = 0;
     ST_CUDA_CHECK(cudaMemGetInfo(&freeBytes, &totalBytes));
     constexpr std::size_t kReserve = std::size_t{256} << 20;
+    {
+      // The cube already resident is counted below as the cube's bytes.
+      ResidentSlot& slot = residentSlot(m_devices.front().ordinal);
+      std::lock_guard lock(slot.mutex);
+      if (slot.holds(m_cubeKey, cube.frames.pixels().size()))
+        freeBytes += slot.cube.bytes();
+    }
     std::size_t budget = freeBytes > kReserve ? freeBytes - kReserve : 0;
     if (m_options.deviceMemoryLimitBytes > 0) budget = std::min(budget, m_options.deviceMemoryLimitBytes);
     const std::size_t cubeBytes = cube.frames.pixels().size() * sizeof(float);
@@ -294,6 +310,7 @@ class CudaBackend final : public CudaSearchBackend {
       job.cellCapacity = capacity;
       job.naiveKernel = m_options.naiveKernel;
       job.uploadChunkBytes = m_options.uploadChunkBytes;
+      job.cubeKey = m_cubeKey;
       return runOnDevice(plan, cube.frames.pixels().data(), job, report, cancel, m_abort);
     });
   }
@@ -339,6 +356,8 @@ class CudaBackend final : public CudaSearchBackend {
   double m_uploadSeconds = 0.0;
   double m_treeAdditions = 0.0;
   std::atomic<bool> m_abort{false};
+  std::vector<int> m_ordinals;
+  std::uint64_t m_cubeKey = 0;
 };
 
 }  // namespace

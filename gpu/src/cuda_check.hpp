@@ -126,6 +126,13 @@ class Event {
   cudaEvent_t get() const noexcept { return m_event; }
   void record(cudaStream_t s) { ST_CUDA_CHECK(cudaEventRecord(m_event, s)); }
   void sync() const { ST_CUDA_CHECK(cudaEventSynchronize(m_event)); }
+  /// Seconds from `a` to `b` (both recorded with timing; synchronises on b).
+  static double elapsed(const Event& a, const Event& b) {
+    b.sync();
+    float ms = 0.0f;
+    ST_CUDA_CHECK(cudaEventElapsedTime(&ms, a.m_event, b.m_event));
+    return ms * 1e-3;
+  }
 
  private:
   cudaEvent_t m_event = nullptr;

@@ -4,8 +4,10 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <mutex>
 
 #include "cuda_check.hpp"
+#include "resident_cube.hpp"
 #include "uploader.hpp"
 #include "wall_phases.hpp"
 #include "st/common/parallel.hpp"
@@ -210,11 +212,12 @@ int overlapRows(const HostPlan& plan, const MemoryLayout& m, int rows, int step)
 
 /// The layout for `job` within the memory the device has free (less a reserve) or the job allows. Throws
 /// st::GpuError naming the sizes when not even one velocity row of partial sums and two frames fit.
-MemoryLayout planMemory(const HostPlan& plan, const DeviceJob& job) {
+MemoryLayout planMemory(const HostPlan& plan, const DeviceJob& job, std::size_t residentBytes) {
   std::size_t freeBytes = 0;
   std::size_t totalBytes = 0;
   ST_CUDA_CHECK(cudaMemGetInfo(&freeBytes, &totalBytes));
   MemoryLayout m;
+  freeBytes += residentBytes;  // the cube already on the device is counted below as the cube's bytes
   m.budget = freeBytes > kReserveBytes ? freeBytes - kReserveBytes : 0;
   if (job.memoryLimitBytes > 0) m.budget = std::min(m.budget, job.memoryLimitBytes);
   const int n = plan.frameCount;
@@ -238,7 +241,7 @@ MemoryLayout planMemory(const HostPlan& plan, const DeviceJob& job) {
   m.resident = m.fixedBytes + m.offsetBytes(m.chunkRows) + cubeBytes <= m.budget;
   m.frameChunk = n;
   if (m.resident) {
-    m.firstRows = overlapRows(plan, m, rows, step);
+    m.firstRows = residentBytes > 0 ? 0 : overlapRows(plan, m, rows, step);
     return m;
   }
   if (m.naive) {
@@ -294,6 +297,12 @@ class JobRun {
     ST_CUDA_CHECK(cudaMemsetAsync(m_t.count.get(), 0, sizeof(unsigned long long), compute()));
   }
 
+  /// The device's resident cube: `have` = it holds this job's cube already (no upload).
+  void useResident(ResidentSlot* slot, bool have) {
+    m_slot = slot;
+    m_have = have;
+  }
+
   DeviceOutcome run(WallPhases& wall) {
     wall.mark("set-up");
     DeviceOutcome out;
@@ -336,8 +345,14 @@ class JobRun {
   std::string runResident(WallPhases& wall) {
     const int n = m_plan.frameCount;
     const std::size_t cubeBytes = m_m.frameBytes * n;
-    DeviceBuffer<float> cube(static_cast<std::size_t>(n) * plane());
-    m_p.frames = cube.get();
+    DeviceBuffer<float> own;
+    if (m_have) {
+      m_p.frames = m_slot->cube.get();
+    } else {
+      (m_slot ? m_slot->cube : own) = DeviceBuffer<float>(static_cast<std::size_t>(n) * plane());
+      m_p.frames = (m_slot ? m_slot->cube : own).get();
+    }
+    float* cube = const_cast<float*>(m_p.frames);
     m_p.frameBase = 0;
     const int firstEnd = m_job.iyBegin + m_m.firstRows;
     const int uploadFrames = std::max<int>(1, static_cast<int>(m_m.uploadChunkBytes / m_m.frameBytes));
@@ -346,9 +361,9 @@ class JobRun {
     wall.mark("allocation");
     if (overlap) m_launcher.prepare(m_p, m_job.iyBegin, firstEnd);
     m_p.partial = partial.get();
-    for (int n0 = 0; n0 < n; n0 += uploadFrames) {
+    for (int n0 = 0; n0 < n && !m_have; n0 += uploadFrames) {
       const int n1 = std::min(n, n0 + uploadFrames);
-      upload(cube.get() + static_cast<std::size_t>(n0) * plane(), n0, n1);
+      upload(cube + static_cast<std::size_t>(n0) * plane(), n0, n1);
       if (overlap) launchFrames(n0, n1);
       m_poll();
     }
@@ -370,7 +385,16 @@ class JobRun {
       report(iy1 - iy);
     }
     wall.mark("other chunks");
-    return "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB), " +
+    if (m_slot && !m_have) {
+      m_res.copy.sync();
+      m_slot->key = m_job.cubeKey;  // uploaded whole: kept for the next search and stackAt
+      ++m_slot->uploads;
+    } else if (m_have) {
+      ++m_slot->reused;
+    }
+    if (m_have)
+      return "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB), already on the device: no upload";
+    return "cube resident (" + std::to_string(cubeBytes >> 20) + " MiB" + (m_slot ? ", kept" : "") + "), " +
            (overlap ? "upload overlapped with the first " + std::to_string(m_m.firstRows) + " velocity rows"
                     : std::string("upload then search"));
   }
@@ -432,6 +456,8 @@ class JobRun {
   Uploader m_uploader;
   Event m_uploaded;
   int m_rowsDone = 0;
+  ResidentSlot* m_slot = nullptr;
+  bool m_have = false;
 };
 
 }  // namespace
@@ -443,11 +469,19 @@ DeviceOutcome runOnDevice(const HostPlan& plan, const float* frames, const Devic
   ST_CUDA_CHECK(cudaSetDevice(job.device));
   std::unique_ptr<DeviceResources> own;
   DeviceResources& res = ensureResources(job.resources ? *job.resources : own);
-  const MemoryLayout layout = planMemory(plan, job);
+  const std::size_t cubeFloats = static_cast<std::size_t>(plan.width) * plan.height * plan.frameCount;
+  ResidentSlot* slot = job.cubeKey != 0 ? &residentSlot(job.device) : nullptr;
+  std::unique_lock<std::mutex> lock;
+  if (slot) lock = std::unique_lock<std::mutex>(slot->mutex);
+  const bool have = slot && slot->holds(job.cubeKey, cubeFloats);
+  if (slot && !have) slot->clear();
+  const MemoryLayout layout = planMemory(plan, job, have ? slot->cube.bytes() : 0);
+  if (!layout.resident && have) slot->clear();  // streamed: the frames go through chunk buffers
   JobRun run(plan, frames, job, res, layout, progress, [&] {
     cancel.throwIfCancelled();
     if (abort.load(std::memory_order_relaxed)) throw Cancelled();
   });
+  run.useResident(layout.resident ? slot : nullptr, have && layout.resident);
   return run.run(wall);
 }
 

@@ -31,6 +31,9 @@ struct DeviceJob {
   bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
   int treeRootShape = 0;             ///< tree search: TreeRootLaunch::shape
   bool profile = false;              ///< tree search: time each level of the first tile (for the note)
+  /// Identity of the host cube (resident_cube.hpp cubeKey): the device's resident cube is used without an
+  /// upload when it holds this one, else the cube is uploaded into it and kept. 0 = upload, keep nothing.
+  std::uint64_t cubeKey = 0;
 };
 
 struct DeviceOutcome {

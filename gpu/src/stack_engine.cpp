@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <mutex>
 #include <vector>
 
 #include "kernel_params.hpp"
+#include "resident_cube.hpp"
 #include "st/common/error.hpp"
 
 namespace st::gpu {
@@ -13,44 +15,28 @@ namespace {
 
 constexpr int kStackGroups = 16;
 
-std::uint64_t mix(std::uint64_t h, std::uint64_t v) {
-  h ^= v + 0x9E3779B97F4A7C15ull + (h << 6) + (h >> 2);
-  return h;
-}
-
-/// Identity of a cube: buffer address, sizes, frame times and 4096 sampled pixels.
-std::uint64_t cubeKey(const FrameCube& f) {
-  std::uint64_t h = mix(0, reinterpret_cast<std::uintptr_t>(f.pixels().data()));
-  h = mix(h, f.pixels().size());
-  h = mix(h, static_cast<std::uint64_t>(f.width()) << 32 | static_cast<std::uint32_t>(f.height()));
-  for (const auto& info : f.info()) {
-    std::uint64_t bits = 0;
-    std::memcpy(&bits, &info.mjdMid, sizeof(bits));
-    h = mix(h, bits);
-  }
-  const std::size_t n = f.pixels().size();
-  const std::size_t step = std::max<std::size_t>(1, n / 4096);
-  for (std::size_t i = 0; i < n; i += step) {
-    std::uint32_t bits = 0;
-    std::memcpy(&bits, &f.pixels()[i], sizeof(bits));
-    h = mix(h, bits);
-  }
-  return h;
-}
-
 }  // namespace
 
-void StackEngine::ensureResident(const FrameCube& frames) {
-  const std::uint64_t key = cubeKey(frames);
-  if (key == m_key && m_cube.size() == frames.pixels().size()) return;
-  m_key = 0;
-  m_cube = DeviceBuffer<float>();  // free the old cube before taking the new one
-  m_cube = DeviceBuffer<float>(frames.pixels().size());
-  ST_CUDA_CHECK(cudaMemcpy(m_cube.get(), frames.pixels().data(), m_cube.bytes(), cudaMemcpyHostToDevice));
-  m_partial = DeviceBuffer<float>(static_cast<std::size_t>(kStackGroups) * frames.framePixels());
-  m_out = DeviceBuffer<float>(frames.framePixels());
-  m_shifts = DeviceBuffer<int>(2 * frames.frameCount());
-  m_key = key;
+const float* StackEngine::ensureResident(const search::FilteredCube& cube, ResidentSlot& slot) {
+  const FrameCube& frames = cube.frames;
+  // A cube with a revision is the searches' (resident_cube.hpp); without one, its sampled key (as before).
+  const std::uint64_t key = cube.revision != 0 ? residentKey(frames, cube.revision) : cubeKey(frames);
+  if (!slot.holds(key, frames.pixels().size())) {
+    slot.clear();  // free the old cube before taking the new one
+    slot.cube = DeviceBuffer<float>(frames.pixels().size());
+    ST_CUDA_CHECK(
+        cudaMemcpy(slot.cube.get(), frames.pixels().data(), slot.cube.bytes(), cudaMemcpyHostToDevice));
+    slot.key = key;
+    ++slot.uploads;
+  } else {
+    ++slot.reused;
+  }
+  if (m_out.size() != frames.framePixels() || m_shifts.size() != 2 * frames.frameCount()) {
+    m_partial = DeviceBuffer<float>(static_cast<std::size_t>(kStackGroups) * frames.framePixels());
+    m_out = DeviceBuffer<float>(frames.framePixels());
+    m_shifts = DeviceBuffer<int>(2 * frames.frameCount());
+  }
+  return slot.cube.get();
 }
 
 Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
@@ -60,7 +46,9 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
     throw InputError("the cube's pixel buffer does not match its frames");
   }
   ST_CUDA_CHECK(cudaSetDevice(m_device));
-  ensureResident(f);
+  ResidentSlot& slot = residentSlot(m_device);
+  std::lock_guard lock(slot.mutex);
+  const float* frames = ensureResident(cube, slot);
   const std::vector<double> dt = f.timeOffsetsS();
   const std::size_t n = dt.size();
   std::vector<int> shifts(2 * n);
@@ -71,7 +59,7 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
   ST_CUDA_CHECK(
       cudaMemcpy(m_shifts.get(), shifts.data(), shifts.size() * sizeof(int), cudaMemcpyHostToDevice));
   StackLaunch p{};
-  p.frames = m_cube.get();
+  p.frames = frames;
   p.width = f.width();
   p.height = f.height();
   p.frameCount = static_cast<int>(n);

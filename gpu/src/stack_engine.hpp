@@ -1,9 +1,10 @@
 #pragma once
-// stackAt on the GPU for live scrubbing: the cube is uploaded once to device 0 and kept while the same
-// cube is stacked again (identified by its buffer address, sizes, times and a sample of its pixels).
+// stackAt on the GPU for live scrubbing: the cube is the device's resident cube (resident_cube.hpp, shared
+// with the searches and the GPU matched filter), uploaded only when it holds another cube.
 #include <cstdint>
 
 #include "cuda_check.hpp"
+#include "resident_cube.hpp"
 #include "st/search/types.hpp"
 
 namespace st::gpu {
@@ -18,10 +19,10 @@ class StackEngine {
   [[nodiscard]] double lastKernelSeconds() const noexcept { return m_lastSeconds; }
 
  private:
-  void ensureResident(const FrameCube& frames);
+  /// The cube on the device: the device's resident cube (resident_cube.hpp) when it holds this one, else
+  /// uploaded into it.
+  const float* ensureResident(const search::FilteredCube& cube, ResidentSlot& slot);
   int m_device;
-  std::uint64_t m_key = 0;
-  DeviceBuffer<float> m_cube;
   DeviceBuffer<float> m_partial;
   DeviceBuffer<float> m_out;
   DeviceBuffer<int> m_shifts;

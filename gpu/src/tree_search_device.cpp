@@ -2,9 +2,11 @@
 
 #include <cstdio>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "cuda_check.hpp"
+#include "resident_cube.hpp"
 #include "uploader.hpp"
 
 namespace st::gpu {
@@ -47,7 +49,17 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   const std::size_t cubeFloats = plane * static_cast<std::size_t>(plan.frameCount);
   Stream& compute = res.compute;
   Stream& copy = res.copy;
-  DeviceBuffer<float> cube(cubeFloats);
+  // The device's resident cube (resident_cube.hpp): no upload when it holds this cube, else uploaded into it.
+  ResidentSlot* slot = job.cubeKey != 0 ? &residentSlot(job.device) : nullptr;
+  std::unique_lock<std::mutex> lock;
+  if (slot) lock = std::unique_lock<std::mutex>(slot->mutex);
+  const bool have = slot && slot->holds(job.cubeKey, cubeFloats);
+  DeviceBuffer<float> ownCube;
+  if (!have) {
+    if (slot) slot->clear();
+    (slot ? slot->cube : ownCube) = DeviceBuffer<float>(cubeFloats);
+  }
+  DeviceBuffer<float>& cube = slot ? slot->cube : ownCube;
   DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[0], 1)),
                                   DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[1], 1))};
   DeviceBuffer<TreeJob> jobs = toDevice(tree.jobs);
@@ -67,11 +79,18 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
 
   Event up0(true), up1(true), k0(true), k1(true);
   up0.record(copy.get());
-  {
+  if (!have) {
     Uploader uploader(res, frames, plane);
     uploader.upload(cube.get(), 0, plan.frameCount, copy.get());
     up1.record(copy.get());
     copy.sync();
+    if (slot) {
+      slot->key = job.cubeKey;
+      ++slot->uploads;
+    }
+  } else {
+    up1.record(copy.get());
+    ++slot->reused;
   }
   poll();
   ST_CUDA_CHECK(cudaStreamWaitEvent(compute.get(), up1.get(), 0));
@@ -166,8 +185,10 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     }
   }
   out.note =
-      "tree: cube resident (" + std::to_string(cubeFloats * 4 >> 20) + " MiB, upload " +
-      std::to_string(static_cast<int>(out.uploadSeconds * 1e3)) + " ms), tiles " + std::to_string(tileBegin) +
+      "tree: cube resident (" + std::to_string(cubeFloats * 4 >> 20) + " MiB, " +
+      (have ? std::string("already on the device: no upload")
+            : "upload " + std::to_string(static_cast<int>(out.uploadSeconds * 1e3)) + " ms") +
+      "), tiles " + std::to_string(tileBegin) +
       ".." + std::to_string(tileEnd - 1) + " of " + std::to_string(tree.tileRows) + " rows, partial stacks " +
       std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " + std::to_string(tree.tableBytes() >> 20) +
       " MiB, top " + std::to_string(tree.cut) + " levels in registers" + levels;

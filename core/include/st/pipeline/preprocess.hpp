@@ -38,6 +38,8 @@
 
 namespace st::pipeline {
 
+class PreprocessAccelerator;
+
 struct PreprocessParams {
   std::optional<calib::MasterCalibration> masters;  ///< from calib::buildMasters; none = overscan/trim only
   calib::CalibParams calib;
@@ -64,6 +66,9 @@ struct PreprocessParams {
   detect::StarSubtractionParams starSubtraction;
   bool weightedFilter = true;  ///< inverse-variance-weighted matched filter (else the paper's uniform one)
   stats::NoiseModelParams noise;
+  /// Runs the per-pixel background and the matched filter on a device (preprocess_accelerator.hpp); null =
+  /// the CPU. Not owned. A device failure falls back to the CPU with a note.
+  PreprocessAccelerator* accelerator = nullptr;
 };
 
 struct Prepared {

@@ -35,6 +35,16 @@ inline constexpr double kAutoTreeMinSpeedup = 2.0;
 /// ...and saves at least this many seconds (a sub-second search is not worth any SNR loss).
 inline constexpr double kAutoTreeMinSavingS = 1.0;
 
+/// ...and loses at most this fraction of the exact search's SNR for the cube's PSF (treeSnrLoss; issue 16).
+inline constexpr double kAutoTreeMaxSnrLoss = 0.03;
+
+/// The tree search's SNR loss against the exact search (the worst of 12 objects) on matched-filtered point
+/// sources of PSF FWHM `fwhmPx` (Moffat beta 4, the paper's problem's tree: tracks within 2 px of the exact
+/// ones). Measured by tests/core/test_tree_snr_loss_slow.cpp at FWHM 1.5, 2, 2.5 and 3.5 px (3.0, 2.2, 1.6,
+/// 1.0%; README "Performance"); linear in between, constant above, the first slope extrapolated below (so
+/// `auto` keeps the exact search for PSFs narrower than ~1.5 px). NaN for a non-positive FWHM.
+double treeSnrLoss(double fwhmPx);
+
 /// Throughputs and fixed costs of one backend. Rates are for the whole backend (all threads or devices).
 struct MethodCostModel {
   double exactAdditionsPerS = 0.0;  ///< exact search, additions per second
@@ -69,6 +79,8 @@ struct MethodEstimate {
   int width = 0;                      ///< image width, px (for priceMethods)
   int treeTileRows = 0;               ///< rows per tile (treeTileRows)
   int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
+  double psfFwhmPx = 0.0;             ///< the cube's PSF FWHM, px (0: unknown)
+  double treeSnrLoss = 0.0;           ///< treeSnrLoss(psfFwhmPx), 0 when the FWHM is unknown
 };
 
 /// Estimates both methods for frames of width x height at offsets `dtS` (t_n - t_ref, s) over `grid`, with
@@ -78,6 +90,10 @@ struct MethodEstimate {
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads,
                                std::size_t bufferBytes = 0);
+
+/// Records the cube's PSF FWHM in `estimate` (psfFwhmPx, treeSnrLoss) for chooseMethod's SNR rule; a
+/// non-positive FWHM leaves it unknown (the rule off).
+void setPsf(MethodEstimate& estimate, double psfFwhmPx);
 
 /// (Re)prices `estimate`'s additions with `model`: exactSeconds and treeSeconds (infinite without a tree
 /// plan). For a new measured throughput without rebuilding the tree plan.

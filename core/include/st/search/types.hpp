@@ -1,6 +1,7 @@
 #pragma once
 // The velocity-search contract shared by every backend (CPU exact, CPU tree, CUDA). The CPU exact backend
 // is the reference the others are tested against (ARCHITECTURE.md, "Interfaces that matter").
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -20,7 +21,17 @@ struct FilteredCube {
   double sigmaF = 0.0;     ///< noise of one filtered frame, measured robustly from the data
   Velocity skyRate;        ///< motion of the stars, px/s (zero for a tracked telescope)
   double psfFwhmPx = 0.0;  ///< FWHM of the PSF used for the matched filter
+  /// Identity of these frames' pixels for a device that keeps them between searches (issue 16): set by
+  /// whoever makes the cube (nextCubeRevision()), never reused for other pixels. 0 = unknown: every search
+  /// uploads the frames. Code that changes `frames` after a revision was set must set a new one (or 0).
+  std::uint64_t revision = 0;
 };
+
+/// A process-wide unique, non-zero FilteredCube::revision.
+inline std::uint64_t nextCubeRevision() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1);
+}
 
 /// A regular 2-D grid of trial velocities (px/s), nvx x nvy points, index (ix, iy) at
 /// centre + ((ix - (nvx-1)/2) * step, (iy - (nvy-1)/2) * step).

@@ -7,6 +7,7 @@
 // sigma_n * sqrt(sum K^2); real frames have correlated, masked noise, so sigma_F is always measured from
 // the filtered data (ARCHITECTURE.md, SNR convention).
 #include <cstddef>
+#include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
@@ -63,6 +64,13 @@ struct MatchedFilterResult {
 /// measure sigma_F (< 1000).
 MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, ProgressSink& progress,
                                CancelToken& cancel, const stats::NoiseModel* noise = nullptr);
+
+/// The frames filterCube samples for sigma_F (up to 64 spread over `frameCount`, ascending).
+std::vector<std::size_t> filterNoiseFrames(std::size_t frameCount);
+
+/// filterCube's sigma_F from the samples of each frame of filterNoiseFrames (in that order; each frame's
+/// values in any order, consumed), for a device implementation of filterCube. Same errors as filterCube.
+MatchedFilterResult filterNoiseFromSamples(std::vector<std::vector<float>>& samples, const FilterKernel& kernel);
 
 /// Robust noise (1.4826 x MAD about the median) of already-filtered frames: non-zero pixels of up to
 /// maxFrames frames spread over the cube, every `stride`-th pixel, `border` px from the edges. Returns 0 when

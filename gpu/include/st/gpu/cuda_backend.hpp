@@ -48,6 +48,10 @@ struct CudaOptions {
   /// Tree search, benchmarks: root kernel shape (TreeRootLaunch::shape in gpu/src/tree_kernel_params.hpp),
   /// 0 = the default.
   int treeRootShape = 0;
+  /// Keep the cube on each device between searches (and use the one the GPU matched filter left there):
+  /// re-searches, the tree search and stackAt of the same cube then upload nothing. Off: every search
+  /// uploads (benchmarks of the upload).
+  bool keepCubeResident = true;
 };
 
 /// Tree search default: the top 4 levels below the root are summed in registers (their stacks are used by

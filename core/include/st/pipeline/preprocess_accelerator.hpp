@@ -1,0 +1,53 @@
+#pragma once
+// A device that can run the heavy pre-processing stages (issue 16): the per-pixel background (the clipped
+// per-pixel statistics and the subtraction of stats::subtractPixelBackground) and the matched filter
+// (stack::filterCube, weighted or not). The CPU functions stay the reference and the fallback: an
+// implementation must give their results within float tolerance, and throw st::GpuError, leaving the cube as
+// it was, when its device fails. core knows only this interface; the CUDA one is in gpu/
+// (st::gpu::makeCudaPreprocessAccelerator).
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/progress.hpp"
+#include "st/detect/moving_mask.hpp"
+#include "st/stack/matched_filter.hpp"
+#include "st/stats/background.hpp"
+#include "st/stats/noise_model.hpp"
+
+namespace st::pipeline {
+
+class PreprocessAccelerator {
+ public:
+  virtual ~PreprocessAccelerator() = default;
+  /// e.g. "cuda: NVIDIA H100 80GB HBM3", for notes and logs.
+  [[nodiscard]] virtual std::string name() const = 0;
+  /// How the last stage ran on the device (times of upload, kernels, download), for the notes; may be empty.
+  [[nodiscard]] virtual std::string lastNote() const { return {}; }
+  /// Same contract as stats::subtractPixelBackground.
+  virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                                    const detect::MovingMask* exclude, ProgressSink& progress,
+                                                    CancelToken& cancel) = 0;
+  /// Same contract as stack::filterCube. `revision` (search::FilteredCube::revision, 0 = none): the
+  /// filtered frames will carry it, so a device may keep them for the search under it.
+  virtual stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
+                                                ProgressSink& progress, CancelToken& cancel,
+                                                const stats::NoiseModel* noise, std::uint64_t revision) = 0;
+};
+
+/// stats::subtractPixelBackground on `accel` when given, else (or when the device fails: st::GpuError) on
+/// the CPU; a device failure adds a warning to `notes` naming the stage and the device's message, a device
+/// run its lastNote().
+stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                            const stats::BackgroundParams& params,
+                                            const detect::MovingMask* exclude, ProgressSink& progress,
+                                            CancelToken& cancel, std::vector<std::string>& notes);
+
+/// stack::filterCube on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on the CPU.
+stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                        const stack::FilterKernel& kernel, ProgressSink& progress,
+                                        CancelToken& cancel, const stats::NoiseModel* noise,
+                                        std::vector<std::string>& notes, std::uint64_t revision = 0);
+
+}  // namespace st::pipeline

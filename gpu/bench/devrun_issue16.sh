@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Issue 16 on the GPU machine, from binaries packed by scripts/devrun-pack.sh into this script's folder:
+# GPU tests (preprocess, backend, tree), memcheck of the pre-processing tests, the paper problem's
+# pre-processing per stage on the GPU, the search benchmark (exact + tree, PSF source), the demo.
+# Usage: devrun_issue16.sh [tests] [memcheck] [prep] [bench] [demo] [prepcpu]
+set -uo pipefail
+D=$(cd "$(dirname "$0")" && pwd)
+export LD_LIBRARY_PATH=$D/lib
+O=${OUT:-/tmp/st_out}
+mkdir -p "$O"
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
+date -u
+for step in "$@"; do
+  echo "=== $step $(date -u +%H:%M:%S)"
+  case $step in
+    tests) for t in "$D"/st_gpu_test_*; do
+             timeout 150 "$t" >"$O/$(basename "$t").log" 2>&1; echo "$(basename "$t") rc=$?"
+             grep -E "^\[ +(FAILED|PASSED|SKIPPED) |Failure|Expected|Which|actual|worst| on cuda" "$O/$(basename "$t").log" | head -40
+           done ;;
+    memcheck) for t in "$D"/st_gpu_test_*; do
+                timeout 200 compute-sanitizer --tool memcheck --leak-check full "$t" --gtest_filter=-*LongCube* \
+                  >"$O/memcheck_$(basename "$t").log" 2>&1; echo "memcheck $(basename "$t") rc=$?"
+                grep -E "ERROR SUMMARY|LEAK SUMMARY|PASSED|FAILED" "$O/memcheck_$(basename "$t").log" | head -4
+              done ;;
+    prep) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cuda 2>"$O/prep_gpu.err" | tee "$O/prep_gpu.log" ;;
+    prepcpu) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cpu 2>/dev/null | tee "$O/prep_cpu16.log" ;;
+    bench) "$D/st_gpu_bench" 1500 512 100 12 500 tree 2>&1 | tee "$O/treebench.log" | grep -vE "^  device 0: tree" ;;
+    demo) /usr/bin/time -f "demo wall %e s" "$D/synthtrack-cli" demo --backend cuda --out /tmp/demo 2>"$O/demo.err" | tee "$O/demo.log"
+          grep -E "warning|demo wall|GPU" "$O/demo.err" | head ;;
+  esac
+done
+echo "=== done $(date -u +%H:%M:%S)"

@@ -1,0 +1,21 @@
+#pragma once
+// Pre-processing on the GPU (issue 16): the per-pixel background and the matched filter of the pipeline
+// (st::pipeline::PreprocessAccelerator) on the first usable device. The filtered cube it makes stays on the
+// device, where the CUDA search backend's exact and tree searches and stackAt find it without an upload.
+#include <memory>
+#include <string>
+
+#include "st/pipeline/preprocess_accelerator.hpp"
+
+namespace st::gpu {
+
+class CudaPreprocessAccelerator : public pipeline::PreprocessAccelerator {
+ public:
+  /// Keep the matched filter's output resident for the search (default on).
+  virtual void setKeepResident(bool keep) = 0;
+};
+
+/// The accelerator on the first device of compute capability 9.0 or newer, or nullptr with `whyNot` set.
+std::unique_ptr<CudaPreprocessAccelerator> makeCudaPreprocessAccelerator(std::string& whyNot);
+
+}  // namespace st::gpu

@@ -1,0 +1,400 @@
+// The CUDA pre-processing accelerator (gpu/include/st/gpu/preprocess.hpp). Host side: the CPU's tables
+// (frames used, windows, weights) are made here exactly as core makes them, the kernels
+// (preprocess_kernels.cu) do the per-pixel and per-frame work, and the host cube is written only after every
+// kernel has succeeded, so a st::GpuError leaves it as it was (the caller falls back to the CPU).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <mutex>
+
+#include "cuda_check.hpp"
+#include "device_info.hpp"
+#include "preprocess_params.hpp"
+#include "resident_cube.hpp"
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+#include "st/gpu/preprocess.hpp"
+#include "uploader.hpp"
+
+namespace st::gpu {
+namespace {
+
+template <class T>
+DeviceBuffer<T> toDevice(const std::vector<T>& host) {
+  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
+  if (!host.empty())
+    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+  return d;
+}
+
+template <class T>
+std::vector<T> toHost(const DeviceBuffer<T>& d, std::size_t count) {
+  std::vector<T> out(count);
+  if (count) ST_CUDA_CHECK(cudaMemcpy(out.data(), d.get(), count * sizeof(T), cudaMemcpyDeviceToHost));
+  return out;
+}
+
+// stats/background.cpp evenlySpaced.
+std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted) {
+  std::vector<std::size_t> idx;
+  if (total == 0) return idx;
+  const std::size_t n = std::min(total, std::max<std::size_t>(1, wanted));
+  for (std::size_t i = 0; i < n; ++i)
+    idx.push_back(n == total ? i : (i * total) / n);
+  return idx;
+}
+
+/// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
+/// core while the next piece's DMA runs).
+void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s) {
+  r.copy.sync();  // the staging buffers may still feed an upload
+  const std::size_t piece = kStagingBytes;
+  const std::size_t pieces = (bytes + piece - 1) / piece;
+  Event ready[2];
+  auto enqueue = [&](std::size_t p) {
+    const std::size_t off = p * piece, len = std::min(piece, bytes - off);
+    ST_CUDA_CHECK(cudaMemcpyAsync(r.staging[p & 1].get(), static_cast<const char*>(dev) + off, len,
+                                  cudaMemcpyDeviceToHost, s));
+    ready[p & 1].record(s);
+  };
+  if (pieces > 0) enqueue(0);
+  for (std::size_t p = 0; p < pieces; ++p) {
+    if (p + 1 < pieces) enqueue(p + 1);
+    ready[p & 1].sync();
+    const std::size_t off = p * piece, len = std::min(piece, bytes - off);
+    char* dst = static_cast<char*>(host) + off;
+    const char* src = static_cast<const char*>(r.staging[p & 1].get());
+    parallelFor(len, std::size_t{1} << 21,
+                [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); });
+  }
+}
+
+class Stopwatch {
+ public:
+  double lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - m_last).count();
+    m_last = now;
+    return s;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point m_last = std::chrono::steady_clock::now();
+};
+
+std::string ms(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f ms", s * 1e3);
+  return text;
+}
+
+class CudaPreprocess final : public CudaPreprocessAccelerator {
+ public:
+  explicit CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {}
+
+  [[nodiscard]] std::string name() const override { return "cuda: " + m_device.name; }
+  [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
+  void setKeepResident(bool keep) override { m_keepResident = keep; }
+
+  stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                            const detect::MovingMask* exclude, ProgressSink& progress,
+                                            CancelToken& cancel) override {
+    Stopwatch sw;
+    const int w = cube.width(), h = cube.height();
+    const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+    if (exclude && !exclude->empty() && exclude->frameCount() != nf)
+      throw GpuError("the exclusion mask has " + std::to_string(exclude->frameCount()) +
+                     " frames, the cube " + std::to_string(nf));
+    stats::Background out;
+    out.global = stats::globalBackground(cube, params.global);
+    const std::vector<std::size_t> frames = evenlySpaced(nf, params.maxFrames);
+    out.framesUsed = frames.size();
+    const std::size_t nk = frames.size();
+    // Frame n's window of used frames (stats::subtractPixelBackground).
+    const std::vector<double> t = cube.timeOffsetsS();
+    const bool sorted = std::is_sorted(t.begin(), t.end());
+    const double window = sorted ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
+    std::vector<int> lo(nf, 0), hi(nf, 0);
+    if (window > 0.0) {
+      for (std::size_t n = 0; n < nf; ++n) {
+        lo[n] = static_cast<int>(
+            std::lower_bound(frames.begin(), frames.end(), n,
+                             [&](std::size_t k, std::size_t m) { return t[k] < t[m] - window; }) -
+            frames.begin());
+        hi[n] = static_cast<int>(
+            std::upper_bound(frames.begin(), frames.end(), n,
+                             [&](std::size_t m, std::size_t k) { return t[m] + window < t[k]; }) -
+            frames.begin());
+      }
+    }
+    const double hostTables = sw.lap();
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    cudaStream_t s = r.compute.get();
+    DeviceBuffer<float> pix(nf * np), buf(nk * np), level(np), sigma(np);
+    DeviceBuffer<double> hiBuf(np);
+    DeviceBuffer<std::uint8_t> valid(np);
+    DeviceBuffer<std::uint8_t> mask;
+    if (!cube.mask().empty()) mask = toDevice(cube.mask());
+    std::vector<int> used(frames.begin(), frames.end());
+    DeviceBuffer<int> usedD = toDevice(used), loD = toDevice(lo), hiD = toDevice(hi);
+    DeviceBuffer<std::uint8_t> canvas;
+    DeviceBuffer<int> csx, csy;
+    BackgroundLaunch p{};
+    if (exclude && !exclude->empty()) {
+      canvas = toDevice(exclude->canvas());
+      std::vector<int> sx(nf), sy(nf);
+      for (std::size_t n = 0; n < nf; ++n) {
+        sx[n] = exclude->shiftX(n);
+        sy[n] = exclude->shiftY(n);
+      }
+      csx = toDevice(sx);
+      csy = toDevice(sy);
+      p.canvas = canvas.get();
+      p.canvasShiftX = csx.get();
+      p.canvasShiftY = csy.get();
+      p.canvasX0 = exclude->x0();
+      p.canvasY0 = exclude->y0();
+      p.canvasW = exclude->canvasWidth();
+      p.canvasH = exclude->canvasHeight();
+    }
+    Uploader up(r, cube.pixels().data(), np);
+    up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
+    r.copy.sync();
+    const double upload = sw.lap();
+    progress.report(0.2, "per-pixel background (GPU)");
+    cancel.throwIfCancelled();
+    p.pix = pix.get();
+    p.mask = cube.mask().empty() ? nullptr : mask.get();
+    p.buf = buf.get();
+    p.usedFrames = usedD.get();
+    p.width = w;
+    p.height = h;
+    p.nf = static_cast<int>(nf);
+    p.nk = static_cast<int>(nk);
+    p.strong = out.global.mean + params.strongSignalXi * out.global.sigma;
+    p.xi = params.xi;
+    p.minSamples = params.minSamples;
+    p.globalMean = out.global.mean;
+    p.globalSigma = out.global.sigma;
+    p.level = level.get();
+    p.sigma = sigma.get();
+    p.valid = valid.get();
+    p.hi = hiBuf.get();
+    p.winLo = loD.get();
+    p.winHi = hiD.get();
+    p.window = window > 0.0 ? 1 : 0;
+    Event k0(true), k1(true), k2(true), k3(true);
+    k0.record(s);
+    launchBackgroundPrepare(p, s);
+    k1.record(s);
+    launchBackgroundClip(p, s);
+    k2.record(s);
+    r.compute.sync();
+    cancel.throwIfCancelled();
+    progress.report(0.5, "per-pixel background (GPU)");
+    launchBackgroundSubtract(p, s);
+    k3.record(s);
+    out.level = Image(w, h);
+    out.sigma = Image(w, h);
+    std::vector<std::uint8_t> ok(np);
+    ST_CUDA_CHECK(cudaMemcpyAsync(out.level.data(), level.get(), np * 4, cudaMemcpyDeviceToHost, s));
+    ST_CUDA_CHECK(cudaMemcpyAsync(out.sigma.data(), sigma.get(), np * 4, cudaMemcpyDeviceToHost, s));
+    ST_CUDA_CHECK(cudaMemcpyAsync(ok.data(), valid.get(), np, cudaMemcpyDeviceToHost, s));
+    r.compute.sync();
+    const double kernels = sw.lap();
+    double sumVar = 0.0;
+    std::size_t nValid = 0;
+    for (std::size_t i = 0; i < np; ++i) {
+      if (!ok[i]) continue;
+      sumVar += static_cast<double>(out.sigma.pixels[i]) * out.sigma.pixels[i];
+      ++nValid;
+    }
+    if (nValid == 0) {
+      throw InputError("per-pixel background: no pixel has " + std::to_string(params.minSamples) +
+                       " unmasked background samples (frames used: " + std::to_string(nk) + ")");
+    }
+    cancel.throwIfCancelled();
+    // Every kernel succeeded: the host cube is written now.
+    download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), s);
+    const double down = sw.lap();
+    out.pixelsFilled = np - nValid;
+    out.filled.resize(np);
+    for (std::size_t i = 0; i < np; ++i)
+      out.filled[i] = !ok[i];
+    out.sigmaN = std::sqrt(sumVar / static_cast<double>(nValid));
+    if (params.noiseMap) out.noiseMap = stats::boxSmooth(out.sigma, params.noiseMapBoxPx, ok);
+    const double host = sw.lap();
+    m_note = "per-pixel background on " + name() + ": global background and tables " + ms(hostTables) +
+             ", upload " + ms(upload) + ", kernels " + ms(kernels) + " (prepare " +
+             ms(Event::elapsed(k0, k1)) + ", clip " + ms(Event::elapsed(k1, k2)) + ", subtract " +
+             ms(Event::elapsed(k2, k3)) + "), download " + ms(down) + ", host " + ms(host);
+    progress.report(1.0, "per-pixel background (GPU)");
+    return out;
+  }
+
+  stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
+                                        ProgressSink& progress, CancelToken& cancel,
+                                        const stats::NoiseModel* noise, std::uint64_t revision) override {
+    Stopwatch sw;
+    const int w = cube.width(), h = cube.height();
+    const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+    const bool hasMask = cube.mask().size() == cube.pixels().size();
+    const bool weighted = noise && !noise->empty();
+    const int half = kernel.halfSize;
+    if (half > kMaxFilterHalf)
+      throw GpuError("matched-filter kernel of half size " + std::to_string(half) + " px (at most " +
+                     std::to_string(kMaxFilterHalf) + " on the GPU)");
+    if (weighted &&
+        (noise->variance.width != w || noise->variance.height != h || noise->frameScale.size() != nf))
+      throw InputError("matched filter: the noise model (" + std::to_string(noise->variance.width) + "x" +
+                       std::to_string(noise->variance.height) + ", " +
+                       std::to_string(noise->frameScale.size()) + " frames) does not match the cube (" +
+                       std::to_string(w) + "x" + std::to_string(h) + ", " + std::to_string(nf) + " frames)");
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    cudaStream_t s = r.compute.get();
+    progress.report(0.0, "matched filter (GPU)");
+    DeviceBuffer<float> in(nf * np), out(nf * np);
+    DeviceBuffer<std::uint8_t> mask;
+    if (hasMask) mask = toDevice(cube.mask());
+    Uploader up(r, cube.pixels().data(), np);
+    up.upload(in.get(), 0, static_cast<int>(nf), r.copy.get());
+    r.copy.sync();
+    const double upload = sw.lap();
+    FilterLaunch p{};
+    p.in = in.get();
+    p.mask = hasMask ? mask.get() : nullptr;
+    p.width = w;
+    p.height = h;
+    p.half = half;
+    DeviceBuffer<float> invVarD, invS2D, outScaleD;
+    Event k0(true), k1(true), k2(true);
+    k0.record(s);
+    if (weighted) {
+      std::vector<float> invVar(np);
+      for (std::size_t i = 0; i < np; ++i) {
+        const float v = noise->variance.pixels[i];
+        invVar[i] = v > 0.0f && std::isfinite(v) ? 1.0f / v : 0.0f;
+      }
+      std::vector<double> invS2(nf);
+      std::vector<float> invS2f(nf);
+      for (std::size_t n = 0; n < nf; ++n) {
+        invS2[n] = 1.0 / (noise->frameScale[n] * noise->frameScale[n]);
+        invS2f[n] = static_cast<float>(invS2[n]);
+      }
+      invVarD = toDevice(invVar);
+      invS2D = toDevice(invS2f);
+      DeviceBuffer<double> invS2d = toDevice(invS2);
+      DeviceBuffer<float> omega(np), phi(np);
+      launchOmega(in.get(), p.mask, invS2d.get(), invVarD.get(), omega.get(), w, h, static_cast<int>(nf), s);
+      std::vector<float> k2v(kernel.kernel.pixels.size());
+      for (std::size_t i = 0; i < k2v.size(); ++i)
+        k2v[i] = kernel.kernel.pixels[i] * kernel.kernel.pixels[i];
+      setFilterKernel(k2v.data(), half, s);
+      FilterLaunch q = p;
+      q.in = omega.get();
+      q.mask = nullptr;
+      q.out = phi.get();
+      q.f0 = 0;
+      q.f1 = 1;
+      launchFilter(q, s);
+      std::vector<float> phiH(np);
+      ST_CUDA_CHECK(cudaMemcpyAsync(phiH.data(), phi.get(), np * 4, cudaMemcpyDeviceToHost, s));
+      r.compute.sync();
+      double phiMax = 0.0;
+      for (float v : phiH)
+        phiMax = std::max(phiMax, static_cast<double>(v));
+      const double scale = noise->sigmaRef * std::sqrt(kernel.sumSquares);
+      std::vector<float> outScale(np);
+      for (std::size_t i = 0; i < np; ++i) {
+        const double v = phiH[i];
+        outScale[i] = v > 1e-9 * phiMax ? static_cast<float>(scale / std::sqrt(v)) : 0.0f;
+      }
+      outScaleD = toDevice(outScale);
+      p.invVar = invVarD.get();
+      p.invS2 = invS2D.get();
+      p.outScale = outScaleD.get();
+    }
+    k1.record(s);
+    setFilterKernel(kernel.kernel.data(), half, s);
+    p.out = out.get();
+    constexpr int kFramesPerLaunch = 128;
+    for (std::size_t f0 = 0; f0 < nf; f0 += kFramesPerLaunch) {
+      p.f0 = static_cast<int>(f0);
+      p.f1 = static_cast<int>(std::min(nf, f0 + kFramesPerLaunch));
+      launchFilter(p, s);
+      if (f0 % (4 * kFramesPerLaunch) == 0) {
+        r.compute.sync();
+        cancel.throwIfCancelled();
+        progress.report(0.1 + 0.7 * static_cast<double>(p.f1) / nf, "matched filter (GPU)");
+      }
+    }
+    k2.record(s);
+    // sigma_F from the samples of up to 64 frames (stack::filterCube).
+    const std::vector<std::size_t> sampleFrames = stack::filterNoiseFrames(nf);
+    const int nx = w - 2 * half > 0 ? (w - 2 * half + 2) / 3 : 0;
+    const int ny = h - 2 * half > 0 ? (h - 2 * half + 2) / 3 : 0;
+    const std::size_t perFrame = static_cast<std::size_t>(nx) * ny;
+    DeviceBuffer<float> samplesD(std::max<std::size_t>(1, perFrame * sampleFrames.size()));
+    if (perFrame > 0)
+      for (std::size_t k = 0; k < sampleFrames.size(); ++k)
+        launchNoiseSamples(in.get(), p.mask, out.get(), w, h, static_cast<int>(sampleFrames[k]), half,
+                           samplesD.get() + k * perFrame, nx, ny, s);
+    std::vector<float> samplesH(perFrame * sampleFrames.size());
+    if (!samplesH.empty())
+      ST_CUDA_CHECK(
+          cudaMemcpyAsync(samplesH.data(), samplesD.get(), samplesH.size() * 4, cudaMemcpyDeviceToHost, s));
+    r.compute.sync();
+    const double kernels = sw.lap();
+    std::vector<std::vector<float>> samples(sampleFrames.size());
+    for (std::size_t k = 0; k < sampleFrames.size(); ++k)
+      for (std::size_t i = 0; i < perFrame; ++i) {
+        const float v = samplesH[k * perFrame + i];
+        if (!std::isnan(v)) samples[k].push_back(v);
+      }
+    stack::MatchedFilterResult result = stack::filterNoiseFromSamples(samples, kernel);
+    cancel.throwIfCancelled();
+    in = DeviceBuffer<float>();
+    download(r, cube.pixels().data(), out.get(), nf * np * sizeof(float), s);
+    const double down = sw.lap();
+    std::string resident = "not kept on the device";
+    if (m_keepResident && revision != 0) {
+      ResidentSlot& slot = residentSlot(m_device.ordinal);
+      std::lock_guard lock(slot.mutex);
+      slot.clear();
+      slot.cube = std::move(out);
+      slot.key = residentKey(cube, revision);
+      resident = "kept on the device for the search";
+    }
+    m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
+             (weighted ? ", weighted" : "") + "): upload " + ms(upload) + ", kernels " + ms(kernels) +
+             " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " + ms(Event::elapsed(k1, k2)) +
+             "), download " + ms(down) + "; filtered cube " + resident;
+    progress.report(1.0, "matched filter (GPU)");
+    return result;
+  }
+
+ private:
+  DeviceInfo m_device;
+  std::unique_ptr<DeviceResources> m_res;
+  std::string m_note;
+  bool m_keepResident = true;
+};
+
+}  // namespace
+
+std::unique_ptr<CudaPreprocessAccelerator> makeCudaPreprocessAccelerator(std::string& whyNot) {
+  try {
+    std::vector<DeviceInfo> devices = usableDevices(whyNot);
+    if (devices.empty()) return nullptr;
+    return std::make_unique<CudaPreprocess>(devices.front());
+  } catch (const std::exception& e) {
+    whyNot = e.what();
+    return nullptr;
+  }
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,275 @@
+// Pre-processing kernels (issue 16): the per-pixel background of stats::subtractPixelBackground and the
+// matched filter of stack::filterCube. The clip and the subtraction run one thread per pixel over the frames
+// in the CPU's order with the CPU's double arithmetic (no fused multiply-adds: __dmul_rn/__dadd_rn), so
+// their results are the CPU's bit for bit; the convolution sums in float in another order than OpenCV's
+// filter2D (float tolerance).
+#include <cmath>
+#include <cstdint>
+
+#include "cuda_check.hpp"
+#include "preprocess_params.hpp"
+
+namespace st::gpu {
+namespace {
+
+constexpr int kTileX = 32;
+constexpr int kTileY = 8;
+__constant__ float c_filter[(2 * kMaxFilterHalf + 1) * (2 * kMaxFilterHalf + 1)];
+
+__device__ __forceinline__ bool covered(const BackgroundLaunch& p, int n, int x, int y) {
+  if (!p.canvas) return false;
+  const int cx = x - p.canvasShiftX[n] - p.canvasX0;
+  const int cy = y - p.canvasShiftY[n] - p.canvasY0;
+  if (cx < 0 || cy < 0 || cx >= p.canvasW || cy >= p.canvasH) return false;
+  return p.canvas[static_cast<std::size_t>(cy) * p.canvasW + cx] != 0;
+}
+
+__global__ void backgroundPrepareKernel(BackgroundLaunch p) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  const int k = blockIdx.y;
+  if (i >= np || k >= p.nk) return;
+  const int n = p.usedFrames[k];
+  const std::size_t off = static_cast<std::size_t>(n) * np + i;
+  const float v = p.pix[off];
+  const int x = static_cast<int>(i % p.width), y = static_cast<int>(i / p.width);
+  const bool out =
+      !isfinite(v) || static_cast<double>(v) > p.strong || (p.mask && p.mask[off]) || covered(p, n, x, y);
+  p.buf[static_cast<std::size_t>(k) * np + i] = out ? __int_as_float(0x7fc00000) : v;
+}
+
+// stats/background.cpp clipRow for one pixel.
+__global__ void backgroundClipKernel(BackgroundLaunch p) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (i >= np) return;
+  const float* b = p.buf + i;
+  double shift = 0.0, mean = 0.0, sig = 0.0, hi = INFINITY;
+  std::size_t count = 0, prev = static_cast<std::size_t>(-1);
+  bool done = true;
+  for (int k = 0; k < p.nk; ++k) {
+    const float v = b[static_cast<std::size_t>(k) * np];
+    if (!isnan(v)) {
+      shift = v;
+      done = false;
+      break;
+    }
+  }
+  for (int it = 0; it < 100 && !done; ++it) {
+    double s = 0.0, ss = 0.0;
+    std::size_t c = 0;
+    for (int k = 0; k < p.nk; ++k) {
+      const double y = b[static_cast<std::size_t>(k) * np];
+      if (!(y <= hi)) continue;
+      const double d = __dsub_rn(y, shift);
+      ++c;
+      s = __dadd_rn(s, d);
+      ss = __dadd_rn(ss, __dmul_rn(d, d));
+    }
+    count = c;
+    if (c == 0) break;
+    const double m = s / static_cast<double>(c);
+    mean = __dadd_rn(shift, m);
+    sig = c > 1 ? sqrt(fmax(0.0, __dsub_rn(ss, __dmul_rn(s, m)) / static_cast<double>(c - 1))) : 0.0;
+    if (c == prev) break;
+    prev = c;
+    hi = __dadd_rn(mean, __dmul_rn(p.xi, sig));
+  }
+  const bool ok = count >= p.minSamples;
+  p.valid[i] = ok ? 1 : 0;
+  p.level[i] = static_cast<float>(ok ? mean : p.globalMean);
+  p.sigma[i] = static_cast<float>(ok ? sig : p.globalSigma);
+  p.hi[i] = hi;
+}
+
+// stats/background.cpp subtractPixelBackground's onRow for one pixel: running window sums in the CPU's order.
+__global__ void backgroundSubtractKernel(BackgroundLaunch p) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (i >= np) return;
+  const float* b = p.buf + i;
+  const double hi = p.hi[i];
+  double total = 0.0, winS = 0.0;
+  std::size_t totalC = 0, winC = 0;
+  for (int k = 0; k < p.nk; ++k) {
+    const float v = b[static_cast<std::size_t>(k) * np];
+    if (!isnan(v) && v <= hi) {
+      total = __dadd_rn(total, static_cast<double>(v));
+      ++totalC;
+    }
+  }
+  const bool validPx = p.valid[i] != 0;
+  const float levelPx = p.level[i];
+  const std::size_t need3 = totalC / 3 > 4 ? totalC / 3 : 4;
+  const std::size_t need = p.minSamples < need3 ? p.minSamples : need3;
+  int curLo = 0, curHi = 0;
+  for (int n = 0; n < p.nf; ++n) {
+    if (p.window) {
+      for (; curHi < p.winHi[n]; ++curHi) {
+        const float v = b[static_cast<std::size_t>(curHi) * np];
+        if (!isnan(v) && v <= hi) {
+          winS = __dadd_rn(winS, static_cast<double>(v));
+          ++winC;
+        }
+      }
+      for (; curLo < p.winLo[n]; ++curLo) {
+        const float v = b[static_cast<std::size_t>(curLo) * np];
+        if (!isnan(v) && v <= hi) {
+          winS = __dsub_rn(winS, static_cast<double>(v));
+          --winC;
+        }
+      }
+    }
+    const std::size_t c = totalC - winC;
+    const float level =
+        validPx && c >= need ? static_cast<float>(__dsub_rn(total, winS) / static_cast<double>(c)) : levelPx;
+    const std::size_t off = static_cast<std::size_t>(n) * np + i;
+    const float v = __fsub_rn(p.pix[off], level);
+    p.pix[off] = ((p.mask && p.mask[off]) || !isfinite(v)) ? 0.0f : v;
+  }
+}
+
+__global__ void filterKernel(FilterLaunch p) {
+  extern __shared__ float tile[];
+  const int K = 2 * p.half + 1;
+  const int tw = kTileX + 2 * p.half, th = kTileY + 2 * p.half;
+  const int n = p.f0 + static_cast<int>(blockIdx.z);
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t base = static_cast<std::size_t>(n) * np;
+  const int x0 = blockIdx.x * kTileX - p.half, y0 = blockIdx.y * kTileY - p.half;
+  const float invS2 = p.invVar ? p.invS2[n] : 1.0f;
+  for (int t = threadIdx.y * kTileX + threadIdx.x; t < tw * th; t += kTileX * kTileY) {
+    const int gx = x0 + t % tw, gy = y0 + t / tw;
+    float v = 0.0f;
+    if (gx >= 0 && gy >= 0 && gx < p.width && gy < p.height) {
+      const std::size_t q = static_cast<std::size_t>(gy) * p.width + gx;
+      v = p.in[base + q];
+      if (!isfinite(v) || (p.mask && p.mask[base + q])) v = 0.0f;
+      if (p.invVar) v = __fmul_rn(v, __fmul_rn(p.invVar[q], invS2));
+    }
+    tile[t] = v;
+  }
+  __syncthreads();
+  const int x = blockIdx.x * kTileX + threadIdx.x, y = blockIdx.y * kTileY + threadIdx.y;
+  if (x >= p.width || y >= p.height) return;
+  float acc = 0.0f;
+  for (int dy = 0; dy < K; ++dy) {
+    const float* row = tile + (threadIdx.y + dy) * tw + threadIdx.x;
+    const float* krow = c_filter + dy * K;
+    for (int dx = 0; dx < K; ++dx)
+      acc = fmaf(krow[dx], row[dx], acc);
+  }
+  const std::size_t q = static_cast<std::size_t>(y) * p.width + x;
+  if (p.outScale) acc = __fmul_rn(acc, p.outScale[q]);
+  p.out[base + q] = acc;
+}
+
+__global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const double* invS2,
+                            const float* invVar, float* omega, int width, int height, int nf) {
+  const std::size_t np = static_cast<std::size_t>(width) * height;
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (i >= np) return;
+  double acc = 0.0;
+  for (int n = 0; n < nf; ++n) {
+    const std::size_t off = static_cast<std::size_t>(n) * np + i;
+    const float f = pix[off];
+    if (f != 0.0f && isfinite(f) && !(mask && mask[off])) acc = __dadd_rn(acc, invS2[n]);
+  }
+  omega[i] = static_cast<float>(__dmul_rn(acc / static_cast<double>(nf), static_cast<double>(invVar[i])));
+}
+
+__global__ void noiseSamplesKernel(const float* in, const std::uint8_t* mask, const float* filtered,
+                                   int width, int height, int n, int half, float* out, int nx, int ny) {
+  const int i = blockIdx.x * blockDim.x + threadIdx.x, j = blockIdx.y * blockDim.y + threadIdx.y;
+  if (i >= nx || j >= ny) return;
+  const int x = half + 3 * i, y = half + 3 * j;
+  const std::size_t np = static_cast<std::size_t>(width) * height;
+  const std::size_t base = static_cast<std::size_t>(n) * np;
+  bool bad = false;
+  for (int yy = y - half; yy <= y + half && !bad; ++yy)
+    for (int xx = x - half; xx <= x + half; ++xx) {
+      if (xx < 0 || yy < 0 || xx >= width || yy >= height) {
+        bad = true;
+        break;
+      }
+      const std::size_t q = base + static_cast<std::size_t>(yy) * width + xx;
+      const float v = in[q];
+      if (v == 0.0f || !isfinite(v) || (mask && mask[q])) {
+        bad = true;
+        break;
+      }
+    }
+  out[static_cast<std::size_t>(j) * nx + i] =
+      bad ? __int_as_float(0x7fc00000) : filtered[base + static_cast<std::size_t>(y) * width + x];
+}
+
+unsigned blocksFor(std::size_t n, unsigned threads) {
+  return static_cast<unsigned>((n + threads - 1) / threads);
+}
+
+}  // namespace
+
+void launchBackgroundPrepare(const BackgroundLaunch& p, cudaStream_t s) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  for (int k0 = 0; k0 < p.nk; k0 += 65535) {
+    BackgroundLaunch q = p;
+    const int count = p.nk - k0 < 65535 ? p.nk - k0 : 65535;
+    q.usedFrames = p.usedFrames + k0;
+    q.buf = p.buf + static_cast<std::size_t>(k0) * np;
+    q.nk = count;
+    backgroundPrepareKernel<<<dim3(blocksFor(np, 256), count), 256, 0, s>>>(q);
+    checkLaunch("backgroundPrepareKernel");
+  }
+}
+
+void launchBackgroundClip(const BackgroundLaunch& p, cudaStream_t s) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  backgroundClipKernel<<<blocksFor(np, 128), 128, 0, s>>>(p);
+  checkLaunch("backgroundClipKernel");
+}
+
+void launchBackgroundSubtract(const BackgroundLaunch& p, cudaStream_t s) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  backgroundSubtractKernel<<<blocksFor(np, 128), 128, 0, s>>>(p);
+  checkLaunch("backgroundSubtractKernel");
+}
+
+void setFilterKernel(const float* kernel, int half, cudaStream_t s) {
+  const int k = 2 * half + 1;
+  ST_CUDA_CHECK(
+      cudaMemcpyToSymbolAsync(c_filter, kernel, sizeof(float) * k * k, 0, cudaMemcpyHostToDevice, s));
+}
+
+void launchFilter(const FilterLaunch& p, cudaStream_t s) {
+  const std::size_t shared = sizeof(float) * (kTileX + 2 * p.half) * (kTileY + 2 * p.half);
+  static bool configured = false;
+  if (!configured) {
+    ST_CUDA_CHECK(cudaFuncSetAttribute(filterKernel, cudaFuncAttributeMaxDynamicSharedMemorySize, 96 * 1024));
+    configured = true;
+  }
+  for (int f0 = p.f0; f0 < p.f1; f0 += 65535) {
+    FilterLaunch q = p;
+    q.f0 = f0;
+    q.f1 = p.f1 - f0 < 65535 ? p.f1 : f0 + 65535;
+    const dim3 grid((p.width + kTileX - 1) / kTileX, (p.height + kTileY - 1) / kTileY, q.f1 - q.f0);
+    filterKernel<<<grid, dim3(kTileX, kTileY), shared, s>>>(q);
+    checkLaunch("filterKernel");
+  }
+}
+
+void launchOmega(const float* pix, const std::uint8_t* mask, const double* invS2, const float* invVar,
+                 float* omega, int width, int height, int nf, cudaStream_t s) {
+  const std::size_t np = static_cast<std::size_t>(width) * height;
+  omegaKernel<<<blocksFor(np, 256), 256, 0, s>>>(pix, mask, invS2, invVar, omega, width, height, nf);
+  checkLaunch("omegaKernel");
+}
+
+void launchNoiseSamples(const float* in, const std::uint8_t* mask, const float* filtered, int width,
+                        int height, int n, int half, float* out, int nx, int ny, cudaStream_t s) {
+  const dim3 block(32, 8);
+  const dim3 grid(blocksFor(nx, 32), blocksFor(ny, 8));
+  noiseSamplesKernel<<<grid, block, 0, s>>>(in, mask, filtered, width, height, n, half, out, nx, ny);
+  checkLaunch("noiseSamplesKernel");
+}
+
+}  // namespace st::gpu

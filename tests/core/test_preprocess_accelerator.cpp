@@ -1,0 +1,99 @@
+// The pipeline's device hook (st/pipeline/preprocess_accelerator.hpp): a device that fails (st::GpuError)
+// leaves the stage to the CPU, with a warning naming the stage and the device's message, and the result is
+// the CPU's; a device that works is used; other errors are not swallowed.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "st/common/error.hpp"
+#include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st {
+namespace {
+
+class FakeAccelerator final : public pipeline::PreprocessAccelerator {
+ public:
+  enum class Mode { Fail, Work, InputFault };
+  explicit FakeAccelerator(Mode m) : m_mode(m) {}
+  std::string name() const override { return "fake device"; }
+  stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                            const detect::MovingMask* exclude, ProgressSink& progress,
+                                            CancelToken& cancel) override {
+    ++calls;
+    act();
+    return stats::subtractPixelBackground(cube, params, exclude, progress, cancel);
+  }
+  stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
+                                        ProgressSink& progress, CancelToken& cancel,
+                                        const stats::NoiseModel* noise, std::uint64_t) override {
+    ++calls;
+    act();
+    return stack::filterCube(cube, kernel, progress, cancel, noise);
+  }
+  int calls = 0;
+
+ private:
+  void act() const {
+    if (m_mode == Mode::Fail) throw GpuError("cudaMalloc(1610612736 bytes) failed: out of memory");
+    if (m_mode == Mode::InputFault) throw InputError("bad input");
+  }
+  Mode m_mode;
+};
+
+FrameCube noiseCube(int w, int h, int n) {
+  FrameCube c(w, h, static_cast<std::size_t>(n));
+  std::mt19937 rng(5);
+  std::normal_distribution<float> g(100.0f, 3.0f);
+  for (auto& p : c.pixels())
+    p = g(rng);
+  for (int k = 0; k < n; ++k)
+    c.info()[k].mjdMid = 60000.0 + k / 86400.0;
+  return c;
+}
+
+TEST(PreprocessAccelerator, DeviceFailureFallsBackToTheCpuWithAWarning) {
+  FakeAccelerator fail(FakeAccelerator::Mode::Fail);
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube a = noiseCube(48, 40, 30), b = a;
+  std::vector<std::string> notes;
+  const stats::Background ra =
+      pipeline::subtractPixelBackgroundOn(&fail, a, {}, nullptr, progress, cancel, notes);
+  const stats::Background rb = stats::subtractPixelBackground(b, {}, nullptr, progress, cancel);
+  EXPECT_EQ(fail.calls, 1);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("per-pixel background on fake device failed"), std::string::npos) << notes[0];
+  EXPECT_NE(notes[0].find("out of memory"), std::string::npos) << notes[0];
+  EXPECT_EQ(a.pixels(), b.pixels());
+  EXPECT_EQ(ra.level.pixels, rb.level.pixels);
+
+  const stack::FilterKernel k = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.0));
+  FrameCube fa = a, fb = a;
+  const auto ma = pipeline::filterCubeOn(&fail, fa, k, progress, cancel, nullptr, notes);
+  const auto mb = stack::filterCube(fb, k, progress, cancel, nullptr);
+  ASSERT_EQ(notes.size(), 2u);
+  EXPECT_NE(notes[1].find("matched filter on fake device failed"), std::string::npos) << notes[1];
+  EXPECT_EQ(fa.pixels(), fb.pixels());
+  EXPECT_EQ(ma.sigmaF, mb.sigmaF);
+}
+
+TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {
+  NullProgress progress;
+  CancelToken cancel;
+  std::vector<std::string> notes;
+  FakeAccelerator work(FakeAccelerator::Mode::Work);
+  FrameCube a = noiseCube(48, 40, 30);
+  pipeline::subtractPixelBackgroundOn(&work, a, {}, nullptr, progress, cancel, notes);
+  EXPECT_EQ(work.calls, 1);
+  EXPECT_TRUE(notes.empty());
+  FakeAccelerator bad(FakeAccelerator::Mode::InputFault);
+  EXPECT_THROW(pipeline::subtractPixelBackgroundOn(&bad, a, {}, nullptr, progress, cancel, notes),
+               InputError);
+  // No device: the CPU, silently.
+  EXPECT_NO_THROW(pipeline::subtractPixelBackgroundOn(nullptr, a, {}, nullptr, progress, cancel, notes));
+  EXPECT_TRUE(notes.empty());
+}
+
+}  // namespace
+}  // namespace st

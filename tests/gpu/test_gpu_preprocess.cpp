@@ -1,0 +1,284 @@
+// Pre-processing on the GPU (issue 16) against the CPU reference, and the resident filtered cube.
+//  - per-pixel background (stats::subtractPixelBackground): the clip and the windowed subtraction run in
+//    the CPU's order with its double arithmetic, so level, sigma, the filled flags, sigma_n and the
+//    zero-biased cube must be equal (tolerance 1e-6 relative, i.e. float rounding at most);
+//  - matched filter (stack::filterCube), uniform and inverse-variance weighted, kernels of FWHM 2 and 3.5 px
+//    (the second past OpenCV's switch to a DFT): every filtered pixel within 2e-5 of the filtered noise and
+//    sigma_F within 1e-4 relative (float summation in another order);
+//  - the filtered cube left on the device is used by the exact and tree searches and stackAt without an
+//    upload, with the same results as a search that uploads.
+// Every test skips when no CUDA device is usable.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "gpu_test_cubes.hpp"
+#include "st/common/error.hpp"
+#include "st/gpu/preprocess.hpp"
+#include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/psf/moffat.hpp"
+#include "st/search/ipsa.hpp"
+#include "st/stack/ipsa.hpp"
+#include "st/stack/matched_filter.hpp"
+#include "st/stats/background.hpp"
+#include "st/stats/noise_model.hpp"
+
+namespace st {
+namespace {
+
+#define ST_REQUIRE_GPU_PREPROCESS(var)                    \
+  std::string whyNot_;                                    \
+  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_); \
+  if (!var) GTEST_SKIP() << "no usable CUDA device: " << whyNot_;
+
+/// A raw-looking cube: sky 100 + a gradient, per-pixel offsets, noise whose sigma varies over the frame,
+/// a few masked and NaN samples, strong outliers (cosmic rays) and a slow star; times sorted with jitter.
+FrameCube rawCube(int w, int h, int n, unsigned seed, bool withMask) {
+  FrameCube c(w, h, static_cast<std::size_t>(n));
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<float> offset(static_cast<std::size_t>(w) * h);
+  for (auto& o : offset)
+    o = 3.0f * g(rng);
+  for (int k = 0; k < n; ++k) {
+    c.info()[k].mjdMid = 60000.0 + (0.5 * k + 0.1 * u(rng)) / kSecondsPerDay;
+    float* f = c.frame(k);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        const float sigma = 2.0f + 2.0f * x / w;
+        f[i] = 100.0f + 0.1f * y + offset[i] + sigma * g(rng);
+        if (u(rng) < 0.002) f[i] += 500.0f;  // a cosmic ray
+      }
+    f[static_cast<std::size_t>(5 + k % 7) * w + 9] = std::numeric_limits<float>::quiet_NaN();
+    // A star moving 0.2 px per frame along x.
+    const int sx = 10 + k / 5, sy = h / 2;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (sx + dx < w)
+          f[static_cast<std::size_t>(sy + dy) * w + sx + dx] += dx == 0 && dy == 0 ? 80.0f : 30.0f;
+  }
+  if (withMask) {
+    c.mask().assign(c.pixels().size(), 0);
+    for (std::size_t i = 0; i < c.mask().size(); i += 97)
+      c.mask()[i] = 1;
+    // A column masked in every frame: too few samples there (filled with the global mean).
+    for (int k = 0; k < n; ++k)
+      for (int y = 0; y < h; ++y)
+        c.mask()[static_cast<std::size_t>(k) * c.framePixels() + static_cast<std::size_t>(y) * w + 3] = 1;
+  }
+  return c;
+}
+
+void expectNear(const std::vector<float>& a, const std::vector<float>& b, double tol, const char* what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  std::size_t bad = 0, first = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double d = std::fabs(double(a[i]) - double(b[i]));
+    if (!(d <= tol * std::max(1.0, std::fabs(double(b[i]))))) {
+      if (bad++ == 0) first = i;
+    }
+  }
+  EXPECT_EQ(bad, 0u) << what << ": first at " << first << ": " << a[first] << " vs " << b[first];
+}
+
+struct BackgroundCase {
+  bool mask;
+  bool exclude;
+  double window;
+  std::size_t maxFrames;
+};
+
+class GpuBackground : public ::testing::TestWithParam<BackgroundCase> {};
+
+TEST_P(GpuBackground, MatchesCpu) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  const BackgroundCase bc = GetParam();
+  const FrameCube raw = rawCube(70, 45, 60, 7, bc.mask);
+  stats::BackgroundParams params;
+  params.moverWindowFraction = bc.window;
+  params.maxFrames = bc.maxFrames;
+  params.noiseMap = true;
+  detect::MovingMask exclude(raw.width(), raw.height(), raw.timeOffsetsS(), Velocity{0.4, 0.0});
+  for (int y = 20; y < 26; ++y)
+    for (int x = 30; x < 36; ++x)
+      exclude.set(x, y);
+  const detect::MovingMask* ex = bc.exclude ? &exclude : nullptr;
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube cpu = raw, dev = raw;
+  const stats::Background a = stats::subtractPixelBackground(cpu, params, ex, progress, cancel);
+  const stats::Background b = accel->subtractPixelBackground(dev, params, ex, progress, cancel);
+  std::printf("%s\n", accel->lastNote().c_str());
+  expectNear(b.level.pixels, a.level.pixels, 1e-6, "level");
+  expectNear(b.sigma.pixels, a.sigma.pixels, 1e-6, "sigma");
+  expectNear(b.noiseMap.pixels, a.noiseMap.pixels, 1e-6, "noise map");
+  expectNear(dev.pixels(), cpu.pixels(), 1e-6, "zero-biased cube");
+  EXPECT_EQ(b.filled, a.filled);
+  EXPECT_EQ(b.pixelsFilled, a.pixelsFilled);
+  EXPECT_EQ(b.framesUsed, a.framesUsed);
+  EXPECT_NEAR(b.sigmaN, a.sigmaN, 1e-9 * a.sigmaN);
+  EXPECT_EQ(b.global.mean, a.global.mean);
+  if (bc.mask) EXPECT_GT(a.pixelsFilled, 0u);  // the masked column
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, GpuBackground,
+                         ::testing::Values(BackgroundCase{false, false, 0.25, 2000},
+                                           BackgroundCase{true, true, 0.25, 2000},
+                                           BackgroundCase{true, true, 0.0, 2000},
+                                           BackgroundCase{true, false, 0.25, 25}));
+
+/// Zero-biased frames: noise with a frame scale and a smooth variance map, some zeroed pixels (masked,
+/// stars), a few NaN, a moving source.
+FrameCube zeroBiased(int w, int h, int n, unsigned seed, bool withMask, stats::NoiseModel& model) {
+  FrameCube c(w, h, static_cast<std::size_t>(n));
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  model.variance = Image(w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      model.variance.at(x, y) = static_cast<float>(std::pow(3.0 + 2.0 * x / w + 1.0 * y / h, 2));
+  model.variance.at(4, 4) = 0.0f;  // unknown: weight 0
+  model.frameScale.resize(n);
+  for (int k = 0; k < n; ++k) {
+    model.frameScale[k] = 0.8 + 0.4 * k / n;
+    c.info()[k].mjdMid = 60000.0 + 0.5 * k / kSecondsPerDay;
+    float* f = c.frame(k);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        f[static_cast<std::size_t>(y) * w + x] =
+            static_cast<float>(model.frameScale[k] * std::sqrt(model.variance.at(x, y))) * g(rng);
+    for (int y = 30; y < 36; ++y)
+      for (int x = 40; x < 47; ++x)
+        f[static_cast<std::size_t>(y) * w + x] = 0.0f;  // a zeroed star
+    f[static_cast<std::size_t>(10 + k % 5) * w + 60] = std::numeric_limits<float>::quiet_NaN();
+    const int sx = 20 + k / 3, sy = 50;
+    if (sx < w) f[static_cast<std::size_t>(sy) * w + sx] += 40.0f;
+  }
+  model.sigmaRef = 4.0;
+  if (withMask) {
+    c.mask().assign(c.pixels().size(), 0);
+    for (std::size_t i = 5; i < c.mask().size(); i += 1009)
+      c.mask()[i] = 1;
+  }
+  return c;
+}
+
+struct FilterCase {
+  double fwhm;
+  bool weighted;
+  bool mask;
+};
+
+class GpuFilter : public ::testing::TestWithParam<FilterCase> {};
+
+TEST_P(GpuFilter, MatchesCpu) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  accel->setKeepResident(false);
+  const FilterCase fc = GetParam();
+  stats::NoiseModel model;
+  const FrameCube in = zeroBiased(96, 80, 70, 3, fc.mask, model);
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(fc.fwhm));
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube cpu = in, dev = in;
+  const auto a = stack::filterCube(cpu, kernel, progress, cancel, fc.weighted ? &model : nullptr);
+  const auto b = accel->filterCube(dev, kernel, progress, cancel, fc.weighted ? &model : nullptr, 0);
+  std::printf("%s\n", accel->lastNote().c_str());
+  ASSERT_GT(a.sigmaF, 0.0);
+  std::size_t bad = 0;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < cpu.pixels().size(); ++i) {
+    const double d = std::fabs(double(dev.pixels()[i]) - double(cpu.pixels()[i]));
+    worst = std::max(worst, d / a.sigmaF);
+    bad += !(d <= 2e-5 * a.sigmaF);
+  }
+  EXPECT_EQ(bad, 0u) << "worst difference " << worst << " sigma_F";
+  EXPECT_NEAR(b.sigmaF, a.sigmaF, 1e-4 * a.sigmaF);
+  EXPECT_EQ(b.noiseSamples, a.noiseSamples);
+  EXPECT_EQ(b.kernelHalfSize, a.kernelHalfSize);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, GpuFilter,
+                         ::testing::Values(FilterCase{2.0, false, false}, FilterCase{2.0, true, true},
+                                           FilterCase{3.5, true, false}, FilterCase{3.5, false, true},
+                                           FilterCase{1.5, true, true}));
+
+TEST(GpuFilter, KernelTooLargeIsAGpuErrorAndTheCubeIsUntouched) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  stats::NoiseModel model;
+  FrameCube in = zeroBiased(160, 150, 12, 3, false, model);
+  const FrameCube before = in;
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(10.5));
+  ASSERT_GT(kernel.halfSize, 24);
+  NullProgress progress;
+  CancelToken cancel;
+  EXPECT_THROW(accel->filterCube(in, kernel, progress, cancel, nullptr, 0), GpuError);
+  ASSERT_EQ(in.pixels().size(), before.pixels().size());
+  EXPECT_EQ(std::memcmp(in.pixels().data(), before.pixels().data(), in.pixels().size() * sizeof(float)), 0);
+  // Through the pipeline's helper: the CPU does it, with a warning.
+  std::vector<std::string> notes;
+  const auto r = pipeline::filterCubeOn(accel.get(), in, kernel, progress, cancel, nullptr, notes);
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("the CPU did it instead"), std::string::npos) << notes[0];
+  EXPECT_GT(r.sigmaF, 0.0);
+}
+
+// The filtered cube stays on the device: the exact search, the tree search and stackAt of that cube upload
+// nothing and give what a backend that uploads gives.
+TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  ST_REQUIRE_GPU(resident);
+  gpu::CudaOptions uploadEach;
+  uploadEach.keepCubeResident = false;
+  ST_REQUIRE_GPU(uploading, uploadEach);
+  stats::NoiseModel model;
+  search::FilteredCube cube;
+  cube.frames = zeroBiased(128, 96, 64, 11, false, model);
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.0));
+  NullProgress progress;
+  CancelToken cancel;
+  cube.revision = search::nextCubeRevision();
+  cube.sigmaF = accel->filterCube(cube.frames, kernel, progress, cancel, &model, cube.revision).sigmaF;
+  cube.psfFwhmPx = 2.0;
+  EXPECT_NE(accel->lastNote().find("kept on the device"), std::string::npos) << accel->lastNote();
+  search::VelocityGrid grid{{4.0, 0.0}, 1.0, 9, 9};
+  search::SearchParams params;
+  params.snrThreshold = 5.0;
+  for (const char* method : {"exact", "tree", "exact"}) {
+    params.method = method;
+    const search::SearchResult a = resident->search(cube, grid, params, progress, cancel);
+    EXPECT_NE(resident->lastNote().find("no upload"), std::string::npos)
+        << method << ": " << resident->lastNote();
+    const search::SearchResult b = uploading->search(cube, grid, params, progress, cancel);
+    EXPECT_EQ(b.map.maxSnr, a.map.maxSnr) << method;
+    ASSERT_EQ(a.candidates.size(), b.candidates.size()) << method;
+    ASSERT_FALSE(a.candidates.empty()) << method;  // the moving source
+    for (std::size_t i = 0; i < a.candidates.size(); ++i) {
+      EXPECT_EQ(a.candidates[i].x, b.candidates[i].x);
+      EXPECT_EQ(a.candidates[i].y, b.candidates[i].y);
+      EXPECT_EQ(a.candidates[i].snr, b.candidates[i].snr);
+    }
+  }
+  const Image s1 = resident->stackAt(cube, {6.0, 0.0}, search::StackMode::Ipsa);
+  const stack::StackResult ref = stack::stackIpsa(cube.frames, {6.0, 0.0});
+  expectNear(s1.pixels, ref.sum.pixels, 1e-4, "stackAt on the resident cube");
+  // A new revision (new pixels) is uploaded again, never served stale; a cube without one is never kept.
+  cube.frames.pixels()[1] += 1000.0f;
+  cube.revision = search::nextCubeRevision();
+  params.method = "exact";
+  resident->search(cube, grid, params, progress, cancel);
+  EXPECT_EQ(resident->lastNote().find("no upload"), std::string::npos) << resident->lastNote();
+  EXPECT_NE(resident->lastNote().find("kept"), std::string::npos) << resident->lastNote();
+  resident->search(cube, grid, params, progress, cancel);
+  EXPECT_NE(resident->lastNote().find("no upload"), std::string::npos) << resident->lastNote();
+  cube.revision = 0;
+  resident->search(cube, grid, params, progress, cancel);
+  EXPECT_EQ(resident->lastNote().find("kept"), std::string::npos) << resident->lastNote();
+}
+
+}  // namespace
+}  // namespace st
