@@ -59,7 +59,7 @@ bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, const std::vector<i
   std::size_t k = 0;
   for (std::size_t i = 1; i < dt.size(); ++i)
     if (std::abs(dt[i]) < std::abs(dt[k])) k = i;
-  const MovingMask geom(cube.width(), cube.height(), dt, skyRate);
+  const MovingMask geom(cube, skyRate);
   const int w = cube.width(), h = cube.height(), cw = s.mean.width;
   const float* f = cube.frame(k);
   const auto& mask = cube.mask();
@@ -211,7 +211,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 const StaticSourceParams& params, ProgressSink& progress,
                                 CancelToken& cancel) {
   StaticSources out;
-  out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  out.mask = MovingMask(cube, skyRate);
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);

@@ -84,7 +84,7 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, const Filter
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
       mergeSidelobes(result.candidates, cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(),
-                     cube.psfFwhmPx, result.snrThreshold));
+                     cube.psfFwhmPx, result.snrThreshold, cube.frames.frameOffsets()));
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,
