@@ -202,6 +202,99 @@ double theilSen(const std::vector<double>& t, const std::vector<double>& p, std:
   return median(std::move(slopes));
 }
 
+/// Prefix sums of one axis for the segmented fit: the common rate of p over t with one free level per
+/// segment, its residual sum of squares in O(segments).
+class SegmentFit {
+ public:
+  SegmentFit(const std::vector<double>& t, const std::vector<double>& p) : m_n(t.size()) {
+    m_s.assign(5 * (m_n + 1), 0.0);
+    for (std::size_t k = 0; k < m_n; ++k) {
+      const double v[5] = {t[k], p[k], t[k] * t[k], t[k] * p[k], p[k] * p[k]};
+      for (int j = 0; j < 5; ++j)
+        m_s[5 * (k + 1) + j] = m_s[5 * k + j] + v[j];
+    }
+  }
+  /// Rate and residual sum of squares for segments [cuts_i, cuts_i+1); sxx: the within-segment sum of
+  /// (t - mean)^2 (the rate's variance is sigma^2 / sxx).
+  [[nodiscard]] double fit(const std::vector<std::size_t>& cuts, double& rss, double& sxx) const {
+    double sxy = 0.0, syy = 0.0;
+    sxx = 0.0;
+    for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+      const std::size_t a = cuts[i], b = cuts[i + 1];
+      const double n = static_cast<double>(b - a);
+      const auto sum = [&](int j) { return m_s[5 * b + j] - m_s[5 * a + j]; };
+      sxx += sum(2) - sum(0) * sum(0) / n;
+      sxy += sum(3) - sum(0) * sum(1) / n;
+      syy += sum(4) - sum(1) * sum(1) / n;
+    }
+    const double rate = sxx > 0.0 ? sxy / sxx : 0.0;
+    rss = std::max(0.0, syy - rate * sxy);
+    return rate;
+  }
+
+ private:
+  std::size_t m_n;
+  std::vector<double> m_s;
+};
+
+/// The linear rate of the chained positions (time order) for the per-frame model: a common rate with a
+/// level per pointing, the pointings found by binary segmentation (at most 4 re-pointings, at least 3
+/// frames each; a cut is kept when it removes more than max(12, 4 ln N) sigma^2 of squared residual, sigma
+/// the frame-to-frame scatter from the median of successive differences).
+/// An axis whose rate is not significant (below 3 sigma) is 0: dithers and re-pointings of a tracked
+/// telescope do not make the stars drift. `note` says what was found.
+Velocity robustRate(const std::vector<double>& t, const std::vector<double>& px, const std::vector<double>& py,
+                    std::string& note) {
+  const std::size_t n = t.size();
+  std::vector<double> d;
+  for (std::size_t k = 1; k < n; ++k)
+    d.push_back(std::hypot(px[k] - px[k - 1], py[k] - py[k - 1]));
+  // The 2-D distance of two independent Gaussian scatters of sigma per axis has median 1.1774 sqrt(2) sigma.
+  const double sigma = std::max(1e-3, median(d) / (1.1774 * std::sqrt(2.0)));
+  const SegmentFit fx(t, px), fy(t, py);
+  std::vector<std::size_t> cuts{0, n};
+  // A cut adds a level per axis and a position: kept above max(12, 4 ln N) sigma^2 (random dithers alone
+  // reach ~2 ln N + 2).
+  const double cutGain = std::max(12.0, 4.0 * std::log(static_cast<double>(n)));
+  const auto total = [&](const std::vector<std::size_t>& c) {
+    double rx = 0.0, ry = 0.0, sxx = 0.0;
+    (void)fx.fit(c, rx, sxx);
+    (void)fy.fit(c, ry, sxx);
+    return rx + ry;
+  };
+  double rss = total(cuts);
+  for (int jumps = 0; jumps < 4; ++jumps) {
+    double best = rss;
+    std::vector<std::size_t> bestCuts;
+    for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+      for (std::size_t m = cuts[i] + 3; m + 3 <= cuts[i + 1]; ++m) {
+        std::vector<std::size_t> c = cuts;
+        c.insert(c.begin() + static_cast<std::ptrdiff_t>(i) + 1, m);
+        const double v = total(c);
+        if (v < best) best = v, bestCuts = std::move(c);
+      }
+    }
+    if (bestCuts.empty() || rss - best <= cutGain * sigma * sigma) break;
+    cuts = std::move(bestCuts);
+    rss = best;
+  }
+  double dummy = 0.0, sxx = 0.0;
+  double rate[2] = {fx.fit(cuts, dummy, sxx), fy.fit(cuts, dummy, sxx)};
+  const double sigmaRate = sxx > 0.0 ? sigma / std::sqrt(sxx) : 0.0;
+  std::ostringstream s;
+  s.precision(3);
+  s << cuts.size() - 1 << " pointing(s)";
+  const char* axis[2] = {"x", "y"};
+  for (int a = 0; a < 2; ++a) {
+    if (std::abs(rate[a]) < 3.0 * sigmaRate) {
+      s << ", no significant drift along " << axis[a] << " (" << rate[a] << " +- " << sigmaRate << " px/s): 0";
+      rate[a] = 0.0;
+    }
+  }
+  note = s.str();
+  return {rate[0], rate[1]};
+}
+
 std::string modelNote(const Registration& r, std::size_t frames) {
   std::ostringstream s;
   s.precision(3);
@@ -214,6 +307,7 @@ std::string modelNote(const Registration& r, std::size_t frames) {
       s << "registration: the linear sky rate (" << r.rate.vx << ", " << r.rate.vy
         << ") px/s leaves the star field off by rms " << r.rmsPx << " px, max " << r.maxPx
         << " px (dithers, guiding, re-pointing): per-frame offsets are used";
+      if (!r.rateNote.empty()) s << " (" << r.rateNote << ")";
       break;
     case Registration::Model::Unmeasured:
       s << "registration: the star field could not be followed from frame to frame (" << r.linksMeasured
@@ -321,28 +415,69 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
     r.note = modelNote(r, nf);
     return r;
   }
-  const std::size_t gap = std::max<std::size_t>(1, nf / 4);
-  r.rate = givenRate.value_or(Velocity{theilSen(t, px, gap), theilSen(t, py, gap)});
-  r.position.assign(nf, PixelOffset{});
-  std::vector<PixelOffset> resid(nf);
-  double sum2 = 0.0;
-  for (std::size_t k = 0; k < nf; ++k) {
-    r.position[order[k]] = {px[k], py[k]};
-    const PixelOffset o{px[k] - r.rate.vx * (t[k] - t[0]), py[k] - r.rate.vy * (t[k] - t[0])};
-    resid[order[k]] = o;
-    sum2 += o.x * o.x + o.y * o.y;
-    r.maxPx = std::max(r.maxPx, std::hypot(o.x, o.y));
+  // Second pass, against anchors: every frame measured directly against the last anchor frame whose field it
+  // still largely shares (chained positions within 0.4 of the frame), anchors linked to each other,
+  // so the errors of the neighbour chain do not add up over the whole sequence (sidereal data: one anchor).
+  const double reach = 0.4 * std::min(cube.width(), cube.height());
+  std::vector<std::size_t> anchorOf(nf, 0);
+  std::vector<std::size_t> anchors{0};
+  for (std::size_t k = 1; k < nf; ++k) {
+    const std::size_t a = anchors.back();
+    if (std::hypot(px[k] - px[a], py[k] - py[a]) > reach) anchors.push_back(k - 1);
+    anchorOf[k] = anchors.back();
   }
-  // The rms about the residuals' own mean (a constant offset is no departure from a linear motion); the
-  // offsets themselves keep o_0 = 0.
-  double mx = 0.0, my = 0.0;
-  for (const auto& o : resid)
-    mx += o.x / static_cast<double>(nf), my += o.y / static_cast<double>(nf);
-  double var = 0.0;
-  for (const auto& o : resid)
-    var += (o.x - mx) * (o.x - mx) + (o.y - my) * (o.y - my);
-  (void)sum2;
-  r.rmsPx = std::sqrt(var / static_cast<double>(nf));
+  // anchorOf[k] < k: an anchor frame itself is measured against the anchor before it.
+  std::vector<Link> direct(nf);
+  parallelFor(nf - 1, 1, [&](std::size_t b, std::size_t e) {
+    for (std::size_t k = b + 1; k < e + 1; ++k) {
+      cancel.throwIfCancelled();
+      const std::size_t ref = anchorOf[k];
+      direct[k] = ref + back[k] == k ? links[k] : measureLink(images, order[k], order[ref], params.minPeakSnr);
+    }
+  });
+  {
+    std::vector<double> qx(px), qy(py);
+    for (std::size_t k = 1; k < nf; ++k) {
+      const std::size_t ref = anchorOf[k];
+      if (direct[k].ok) {
+        qx[k] = qx[ref] + direct[k].step.x;
+        qy[k] = qy[ref] + direct[k].step.y;
+      } else {  // the chained step from the anchor
+        qx[k] = qx[ref] + (px[k] - px[ref]);
+        qy[k] = qy[ref] + (py[k] - py[ref]);
+      }
+    }
+    px = std::move(qx);
+    py = std::move(qy);
+  }
+  const std::size_t gapPairs = std::max<std::size_t>(1, nf / 4);
+  r.position.assign(nf, PixelOffset{});
+  for (std::size_t k = 0; k < nf; ++k)
+    r.position[order[k]] = {px[k], py[k]};
+  // Residuals from a rate, o_0 = 0 (frame 0 keeps the WCS's mapping); rms about their own mean (a constant
+  // offset is no departure from a linear motion), largest.
+  std::vector<PixelOffset> resid(nf);
+  const auto residuals = [&](Velocity rate) {
+    double mx = 0.0, my = 0.0;
+    r.maxPx = 0.0;
+    for (std::size_t k = 0; k < nf; ++k) {
+      const PixelOffset o{px[k] - rate.vx * (t[k] - t[0]), py[k] - rate.vy * (t[k] - t[0])};
+      resid[order[k]] = o;
+      mx += o.x / static_cast<double>(nf), my += o.y / static_cast<double>(nf);
+    }
+    double var = 0.0;
+    for (const auto& o : resid) {
+      var += (o.x - mx) * (o.x - mx) + (o.y - my) * (o.y - my);
+      r.maxPx = std::max(r.maxPx, std::hypot(o.x - mx, o.y - my));
+    }
+    r.rmsPx = std::sqrt(var / static_cast<double>(nf));
+  };
+  r.rate = givenRate.value_or(Velocity{theilSen(t, px, gapPairs), theilSen(t, py, gapPairs)});
+  residuals(r.rate);
+  if (r.rmsPx > params.linearRmsPx && !givenRate) {
+    r.rate = robustRate(t, px, py, r.rateNote);
+    residuals(r.rate);
+  }
   if (r.rmsPx <= params.linearRmsPx) {
     r.model = Registration::Model::Linear;
   } else {

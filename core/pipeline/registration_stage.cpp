@@ -19,7 +19,7 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
     out.skyRate = reg.rate;
     out.skyRateMeasured = true;
     std::ostringstream note;
-    note << "sky rate from the registered star field (median of pairwise slopes): (" << reg.rate.vx << ", "
+    note << "sky rate from the registered star field (" << reg.rateNote << "): (" << reg.rate.vx << ", "
          << reg.rate.vy << ") px/s";
     out.notes.push_back(note.str());
   }

@@ -49,6 +49,7 @@ struct Registration {
   double rmsPx = 0.0;                   ///< rms of the residuals from the linear model, px
   double maxPx = 0.0;                   ///< largest residual, px
   int linksMeasured = 0;                ///< links whose peak was significant
+  std::string rateNote;                 ///< how the rate was taken (an axis without significant drift is 0)
   std::string note;                     ///< for the user: which model, with the rms
 };
 
