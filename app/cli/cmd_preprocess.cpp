@@ -61,6 +61,9 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
+    "  --no-register           no per-frame registration: the linear sky rate is the model even when the\n"
+    "                          star field jumps (by default per-frame offsets, when used, are written to\n"
+    "                          the output's FRAMES table as REGX_PX/REGY_PX and used by search and stack)\n"
     "  (with --crop, the calibration frames are cropped alike)\n"
     "  --json                  print the sidecar to stdout as well\n";
 
@@ -76,7 +79,7 @@ int cmdPreprocess(const Args& args) {
        {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background"})
     names.insert(n);
   auto flags = calibFlagNames();
-  flags.insert({"no-cosmic-rays", "json"});
+  flags.insert({"no-cosmic-rays", "no-register", "json"});
   const CliArgs cli(args, names, flags);
   if (cli.positionals().empty()) throw UsageError("give at least one INPUT (a FITS file or a folder)");
   const auto out = cli.value("o");
@@ -92,6 +95,7 @@ int cmdPreprocess(const Args& args) {
   if (!(params.psfFwhmPx > 0.5 && params.psfFwhmPx < 100.0))
     throw UsageError("--fwhm must be in (0.5, 100) px");
   params.removeCosmicRays = !cli.flag("no-cosmic-rays");
+  params.registerFrames = !cli.flag("no-register");
   params.matchedFilter = cli.has("filtered");
 
   TerminalProgress progress;

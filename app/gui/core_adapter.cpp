@@ -58,6 +58,7 @@ bool enabled(const std::vector<ui::StageSpec>& stages, const std::string& name) 
 }
 
 const char* const kCalibrationStage = "Calibration (overscan, trim, bad pixels)";
+const char* const kRegistrationStage = "Registration (per-frame offsets from the stars)";
 
 std::vector<ui::StageSpec> stageSpecs() {
   const pipeline::PreprocessParams d;
@@ -66,6 +67,13 @@ std::vector<ui::StageSpec> stageSpecs() {
       // Off: the headers' image sections (BIASSEC, TRIMSEC, DATASEC) are ignored, for headers that describe
       // another readout; on, a section that does not fit the frames is clipped with a warning.
       {kCalibrationStage, true, true, {}},
+      {kRegistrationStage,
+       d.registerFrames,
+       true,
+       {P{"reg.linearRms", "Linear sky rate up to rms", "px", d.registration.linearRmsPx, 0.0, 1000.0, 2,
+          "each frame's star field is followed from frame to frame; while it stays within this rms of one "
+          "linear sky rate that is the model, beyond it (dithers, guiding, re-pointing) per-frame offsets "
+          "are used by every stage and the search"}}},
       {"Cosmic rays",
        d.removeCosmicRays,
        true,
@@ -112,6 +120,8 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
     p.calib.subtractOverscan = false;
     p.calib.useHeaderSections = false;
   }
+  p.registerFrames = enabled(stages, kRegistrationStage);
+  p.registration.linearRmsPx = param(stages, "reg.linearRms", p.registration.linearRmsPx);
   p.removeCosmicRays = enabled(stages, "Cosmic rays");
   p.cosmicRays.thresholdSigma = param(stages, "cr.threshold", p.cosmicRays.thresholdSigma);
   p.cosmicRays.growSigma = param(stages, "cr.grow", p.cosmicRays.growSigma);

@@ -371,6 +371,10 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
       worst = std::max(worst, std::hypot(ex, ey));
       sum2 += ex * ex + ey * ey;
     }
+    if (r.linksMeasured < kQuickFrames / 2) {  // faint frames (EMCCD at 16.7 Hz): not worth every frame
+      r.note = modelNote(r, nf) + " (" + std::to_string(kQuickFrames) + " sampled frame pairs)";
+      return r;
+    }
     if (linear && worst <= params.quickTolerancePx) {
       r.model = Registration::Model::Linear;
       r.rate = rate;

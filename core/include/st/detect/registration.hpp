@@ -17,7 +17,8 @@
 // linearRmsPx: the linear model fits and o_n = 0 is kept; above: the per-frame residuals are used.
 // Long sequences (more than 2 x kQuickFrames frames): first kQuickFrames evenly spaced links (frame n with
 // n + 1); when each agrees with the linear model within quickTolerancePx the linear model is kept without
-// measuring every frame (the paper's scanning telescope, 1500 frames at 16.7 Hz).
+// measuring every frame (the paper's scanning telescope, 1500 frames at 16.7 Hz); when fewer than half of
+// them are significant (frames too faint to follow one by one) the registration is Unmeasured at once.
 // Cost: two real FFTs of a frame per link, parallel over links; memory: a frame's spectrum per link in flight.
 #include <optional>
 #include <string>
