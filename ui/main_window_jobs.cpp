@@ -22,6 +22,7 @@
 #include "search_panel.hpp"
 #include "session_controller.hpp"
 #include "st/pipeline/demo_search.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "stack_scrubber.hpp"
@@ -61,7 +62,18 @@ void MainWindow::startLoad(const QString& label, std::function<FrameCube(Progres
   const bool started =
       m_jobs->start("Loading", [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
-        return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
+        return std::function<void()>([this, cube, label] {
+          m_obs->setRaw(cube, label);
+          // A cube written by `synthtrack-cli preprocess` opens as prepared: its header's PSF, noise and sky
+          // rate are taken (the pre-processing service does not run the pipeline on it again).
+          bool prepared = false;
+          try {
+            prepared = pipeline::recognisePreparedHeader(cube->header, pipeline::cubeSource(*cube)).has_value();
+          } catch (const std::exception&) {
+            prepared = true;  // inconsistent prepared header: running it shows the error
+          }
+          if (prepared) QTimer::singleShot(0, this, [this] { runPreprocess(); });
+        });
       });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
 }
