@@ -259,7 +259,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // background removes each star's light as far as it is constant: what is left to mask is where single
   // frames see the star (its photon noise, seeing and guiding residuals), not where a stack would. A drifting
   // field crosses the pixels, so there every star is masked down to one stack sigma.
-  const bool staticField = std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
+  // Registered frames with per-frame offsets (dithers, re-pointing): the stars move across the detector, so
+  // the field is not static there even at a zero sky rate.
+  const bool staticField = !cube.hasFrameOffsets() &&
+                           std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
   // A drifting field whose stars are subtracted afterwards (subtractStarTemplate over the wide footprints
   // kept in subtractRegion) is masked like a static one, where single frames see the stars.
   const bool subtracted = !staticField && params.subtractStars;
