@@ -17,10 +17,13 @@ namespace {
 std::size_t framesInside(const FrameCube& cube, const std::vector<std::size_t>& frames,
                          const std::vector<double>& timesS, int x, int y, Velocity v) {
   std::vector<double> t;
+  std::vector<PixelOffset> o;  // registration offsets: the search's round(o_n + v dt_n)
   t.reserve(frames.size());
-  for (std::size_t n : frames)
+  for (std::size_t n : frames) {
     t.push_back(timesS[n]);
-  const auto shifts = stack::ipsaShifts(t, v);
+    o.push_back({cube.info()[n].offsetXPx, cube.info()[n].offsetYPx});
+  }
+  const auto shifts = stack::ipsaShifts(t, v, o);
   std::size_t count = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const int xx = x + shifts[k].dx;
@@ -100,8 +103,9 @@ void cutMovie(const InspectionInput& in, const std::vector<double>& timesS, Insp
   for (std::size_t k = 0; k < take; ++k) {
     if (k % 64 == 0) cancel.throwIfCancelled();
     const std::size_t f = take == n ? k : k * (n - 1) / std::max<std::size_t>(1, take - 1);
-    const int cx = in.candidate.x + static_cast<int>(std::lround(in.candidate.v.vx * timesS[f]));
-    const int cy = in.candidate.y + static_cast<int>(std::lround(in.candidate.v.vy * timesS[f]));
+    const FrameInfo& fi = frames.info()[f];
+    const int cx = in.candidate.x + static_cast<int>(std::lround(fi.offsetXPx + in.candidate.v.vx * timesS[f]));
+    const int cy = in.candidate.y + static_cast<int>(std::lround(fi.offsetYPx + in.candidate.v.vy * timesS[f]));
     Image cut(side, side, 0.0f);
     const float* img = frames.frame(f);
     for (int y = 0; y < side; ++y)

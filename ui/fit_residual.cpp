@@ -12,8 +12,8 @@ Image residualAlongTrack(const FrameCube& frames, const fit::FitParams& p, const
   const fit::PixelPsfTable table(psf, 1.5 * half + 2.0);
   const std::vector<double> times = frames.timeOffsetsS();
   for (std::size_t n = 0; n < frames.frameCount(); ++n) {
-    const double px = p.xc + p.v.vx * times[n];
-    const double py = p.yc + p.v.vy * times[n];
+    const double px = p.xc + frames.info()[n].offsetXPx + p.v.vx * times[n];
+    const double py = p.yc + frames.info()[n].offsetYPx + p.v.vy * times[n];
     const int ox = static_cast<int>(std::lround(px)) - half;
     const int oy = static_cast<int>(std::lround(py)) - half;
     const float* img = frames.frame(n);

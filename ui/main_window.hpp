@@ -77,6 +77,8 @@ class MainWindow : public QMainWindow {
   /// selection without searching again. A corrupted or newer file gets a message naming the backup copy.
   void openSession(const QString& path);
   void runPreprocess();
+  /// The loaded cube was written by `synthtrack-cli preprocess` (header STPREP, pipeline/prepared_cube.hpp).
+  [[nodiscard]] bool rawIsPrepared() const;
   void runSearch();
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
   void selectCandidate(int index);

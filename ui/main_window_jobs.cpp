@@ -22,6 +22,7 @@
 #include "search_panel.hpp"
 #include "session_controller.hpp"
 #include "st/pipeline/demo_search.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "stack_scrubber.hpp"
@@ -64,6 +65,16 @@ void MainWindow::startLoad(const QString& label, std::function<FrameCube(Progres
         return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
       });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+}
+
+bool MainWindow::rawIsPrepared() const {
+  const auto& raw = m_obs->raw();
+  if (!raw) return false;
+  try {
+    return pipeline::recognisePreparedHeader(raw->header, pipeline::cubeSource(*raw)).has_value();
+  } catch (const std::exception&) {
+    return true;  // a prepared header that does not add up: running it shows the error
+  }
 }
 
 void MainWindow::runPreprocess() {
@@ -136,7 +147,9 @@ void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, con
   } else {
     m_jobLabel->setText(QString("%1 done in %2 s").arg(name).arg(elapsedS, 0, 'f', 1));
   }
-  if (ok && name == "Loading" && m_autoPreprocess) runPreprocess();
+  // A cube written by `synthtrack-cli preprocess` opens as prepared whatever the setting: the service takes
+  // its header's PSF, noise and sky rate and does not run the pipeline on it again.
+  if (ok && name == "Loading" && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
   if (m_script) advanceScript(name, ok && !cancelled);
   if (!ok && m_script && !cancelled) finishScript(false, message);
 }
@@ -227,7 +240,7 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
     finishScript(true, {});
     return;
   }
-  if (finishedJob == "Loading" && !m_autoPreprocess) runPreprocess();
+  if (finishedJob == "Loading" && !m_autoPreprocess && !rawIsPrepared()) runPreprocess();
   if (finishedJob == "Pre-processing") {
     if (m_script->search)
       runSearch();

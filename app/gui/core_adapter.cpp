@@ -16,6 +16,7 @@
 #include "st/psf/moffat_fit.hpp"
 #include "st/sim/simulator.hpp"
 #if __has_include("st/pipeline/preprocess.hpp")
+#include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/preprocess.hpp"
 #define ST_GUI_HAVE_PIPELINE 1
 #endif
@@ -58,6 +59,7 @@ bool enabled(const std::vector<ui::StageSpec>& stages, const std::string& name) 
 }
 
 const char* const kCalibrationStage = "Calibration (overscan, trim, bad pixels)";
+const char* const kRegistrationStage = "Registration (per-frame offsets from the stars)";
 
 std::vector<ui::StageSpec> stageSpecs() {
   const pipeline::PreprocessParams d;
@@ -66,6 +68,13 @@ std::vector<ui::StageSpec> stageSpecs() {
       // Off: the headers' image sections (BIASSEC, TRIMSEC, DATASEC) are ignored, for headers that describe
       // another readout; on, a section that does not fit the frames is clipped with a warning.
       {kCalibrationStage, true, true, {}},
+      {kRegistrationStage,
+       d.registerFrames,
+       true,
+       {P{"reg.linearRms", "Linear sky rate up to rms", "px", d.registration.linearRmsPx, 0.0, 1000.0, 2,
+          "each frame's star field is followed from frame to frame; while it stays within this rms of one "
+          "linear sky rate that is the model, beyond it (dithers, guiding, re-pointing) per-frame offsets "
+          "are used by every stage and the search"}}},
       {"Cosmic rays",
        d.removeCosmicRays,
        true,
@@ -104,14 +113,58 @@ std::vector<ui::StageSpec> stageSpecs() {
   };
 }
 
+/// A cube written by `synthtrack-cli preprocess` (header STPREP): opened as prepared, not pre-processed again
+/// (that would find no stars or background, and measure the sky rate from whatever moves): the header's PSF,
+/// sigma_n and sky rate are taken, a zero-biased cube is matched-filtered with the header's PSF
+/// (pipeline::searchInputFromPrepared, as `search --preprocessed`), a filtered one searched as is.
+ui::PreparedView openPrepared(const FrameCube& raw, const pipeline::PreparedHeader& h, ProgressSink& progress,
+                              CancelToken& cancel) {
+  pipeline::PreparedSearchInput in = pipeline::searchInputFromPrepared(raw, {}, progress, cancel);
+  auto prep = std::make_shared<pipeline::Prepared>();
+  prep->psfFitted = h.psf.has_value();
+  prep->psf = h.psf.value_or(psf::Moffat::fromFwhm(3.0, pipeline::kDefaultPsfBeta));
+  prep->sigmaN = h.sigmaN.value_or(0.0);
+  prep->skyRate = h.skyRate;
+  prep->skyRateMeasured = true;
+  prep->notes = in.notes;
+  ui::PreparedView view;
+  if (h.state == pipeline::PreparedState::ZeroBiased) {
+    auto unfiltered = std::make_shared<search::FilteredCube>();
+    unfiltered->frames = raw;  // the fit's frames (the GUI keeps `raw` for viewing: one more copy)
+    unfiltered->sigmaF = prep->sigmaN;
+    unfiltered->skyRate = h.skyRate;
+    unfiltered->psfFwhmPx = prep->psf.fwhm();
+    view.unfiltered = std::move(unfiltered);
+  }
+  auto filtered = std::make_shared<search::FilteredCube>(std::move(in.cube));
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "opened as a prepared cube (%s), not pre-processed again · PSF FWHM %.2f px (header) · σ_F %.3g "
+                "· sky rate (%.4g, %.4g) px/s (header)%s",
+                h.evidence.c_str(), prep->psf.fwhm(), filtered->sigmaF, h.skyRate.vx, h.skyRate.vy,
+                raw.hasFrameOffsets() ? " · registered frames (per-frame offsets from the FRAMES table)" : "");
+  view.summary = line;
+  for (const auto& w : in.warnings)
+    view.summary += "\n• warning: " + w;
+  for (const auto& note : in.notes)
+    view.summary += "\n• " + note;
+  view.filtered = std::move(filtered);
+  view.products = std::move(prep);
+  return view;
+}
+
 ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>& stages,
                                ProgressSink& progress, CancelToken& cancel) {
+  if (const auto h = pipeline::recognisePreparedHeader(raw->header, pipeline::cubeSource(*raw)))
+    return openPrepared(*raw, *h, progress, cancel);
   pipeline::PreprocessParams p;
   // The calibration stage off: the headers' image sections (overscan, trim) are ignored.
   if (!enabled(stages, kCalibrationStage)) {
     p.calib.subtractOverscan = false;
     p.calib.useHeaderSections = false;
   }
+  p.registerFrames = enabled(stages, kRegistrationStage);
+  p.registration.linearRmsPx = param(stages, "reg.linearRms", p.registration.linearRmsPx);
   p.removeCosmicRays = enabled(stages, "Cosmic rays");
   p.cosmicRays.thresholdSigma = param(stages, "cr.threshold", p.cosmicRays.thresholdSigma);
   p.cosmicRays.growSigma = param(stages, "cr.grow", p.cosmicRays.growSigma);

@@ -74,7 +74,7 @@ struct Protection {
 
 Protection protection(const FrameCube& cube, const CosmicRayParams& params, double sigma,
                       ProgressSink& progress, CancelToken& cancel) {
-  detect::MovingMask mask(cube.width(), cube.height(), cube.timeOffsetsS(), params.skyRate);
+  detect::MovingMask mask(cube, params.skyRate);
   const std::size_t nf = cube.frameCount();
   const int blocks = static_cast<int>(std::clamp<std::size_t>(params.protectBlocks, 1, nf));
   // A block observes a canvas pixel when enough of its frames cover it (a drifting star is in the field for
@@ -128,7 +128,7 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
   const std::size_t nf = cube.frameCount();
   TailModel t;
   if (nf < 3) return t;
-  const detect::MovingMask geom(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  const detect::MovingMask geom(cube, skyRate);
   const TimeReference ref(cube, geom);
   const std::size_t np = cube.framePixels();
   const int w = cube.width();

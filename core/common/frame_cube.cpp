@@ -42,6 +42,18 @@ std::vector<double> FrameCube::timeOffsetsS() const {
   return out;
 }
 
+std::vector<PixelOffset> FrameCube::frameOffsets() const {
+  std::vector<PixelOffset> out(m_info.size());
+  for (std::size_t n = 0; n < m_info.size(); ++n)
+    out[n] = {m_info[n].offsetXPx, m_info[n].offsetYPx};
+  return out;
+}
+
+bool FrameCube::hasFrameOffsets() const noexcept {
+  return std::any_of(m_info.begin(), m_info.end(),
+                     [](const FrameInfo& f) { return f.offsetXPx != 0.0 || f.offsetYPx != 0.0; });
+}
+
 double FrameCube::timeSpanS() const {
   if (m_info.empty()) return 0.0;
   const auto [lo, hi] = std::minmax_element(m_info.begin(), m_info.end(),

@@ -6,13 +6,19 @@
 
 namespace st::detect {
 
-MovingMask::MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate)
+MovingMask::MovingMask(const FrameCube& cube, Velocity rate)
+    : MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), rate, cube.frameOffsets()) {}
+
+MovingMask::MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate,
+                       const std::vector<PixelOffset>& frameOffsets)
     : m_w(width), m_h(height), m_rate(rate) {
   m_sx.reserve(timeOffsetsS.size());
   m_sy.reserve(timeOffsetsS.size());
-  for (double dt : timeOffsetsS) {
-    m_sx.push_back(static_cast<int>(std::lround(rate.vx * dt)));
-    m_sy.push_back(static_cast<int>(std::lround(rate.vy * dt)));
+  for (std::size_t n = 0; n < timeOffsetsS.size(); ++n) {
+    const double dt = timeOffsetsS[n];
+    const PixelOffset o = n < frameOffsets.size() ? frameOffsets[n] : PixelOffset{};
+    m_sx.push_back(static_cast<int>(std::lround(o.x + rate.vx * dt)));
+    m_sy.push_back(static_cast<int>(std::lround(o.y + rate.vy * dt)));
   }
   const auto [minX, maxX] = std::minmax_element(m_sx.begin(), m_sx.end());
   const auto [minY, maxY] = std::minmax_element(m_sy.begin(), m_sy.end());

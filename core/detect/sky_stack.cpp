@@ -13,7 +13,7 @@ namespace st::detect {
 SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
                         CancelToken& cancel, std::size_t first, std::size_t last) {
   if (last == 0 || last > cube.frameCount()) last = cube.frameCount();
-  const MovingMask geom(cube.width(), cube.height(), cube.timeOffsetsS(), rate);
+  const MovingMask geom(cube, rate);
   SkyStack s;
   s.x0 = geom.x0();
   s.y0 = geom.y0();

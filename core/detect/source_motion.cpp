@@ -37,7 +37,8 @@ ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double backgrou
     const double nk = out.frames[k];
     for (std::size_t f = bounds[k]; f < bounds[k + 1]; ++f) {
       out.meanTimeS[k] += dt[f] / nk;
-      const double sx = skyRate.vx * dt[f], sy = skyRate.vy * dt[f];
+      const FrameInfo& fi = cube.info()[f];
+      const double sx = fi.offsetXPx + skyRate.vx * dt[f], sy = fi.offsetYPx + skyRate.vy * dt[f];
       out.residualX[k] += (sx - static_cast<double>(std::lround(sx))) / nk;
       out.residualY[k] += (sy - static_cast<double>(std::lround(sy))) / nk;
     }

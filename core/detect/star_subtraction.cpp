@@ -30,10 +30,13 @@ std::vector<int> regionPixels(const MovingMask& region) {
   return out;
 }
 
-// The frame's sub-pixel offset beyond the mask's integer shift: the true sky motion is shift + f.
-std::pair<double, double> fractionalOffset(const MovingMask& region, std::size_t n, double dt) {
+// The frame's sub-pixel offset beyond the mask's integer shift: the true sky motion (the frame's
+// registration offset o_n plus the linear motion) is shift + f.
+std::pair<double, double> fractionalOffset(const MovingMask& region, const FrameCube& cube, std::size_t n,
+                                           double dt) {
   const Velocity v = region.rate();
-  return {v.vx * dt - region.shiftX(n), v.vy * dt - region.shiftY(n)};
+  const FrameInfo& f = cube.info()[n];
+  return {f.offsetXPx + v.vx * dt - region.shiftX(n), f.offsetYPx + v.vy * dt - region.shiftY(n)};
 }
 
 }  // namespace
@@ -101,7 +104,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
       for (std::size_t n = 0; n < nf; ++n) {
         if (blockOf[n] != static_cast<int>(b)) continue;
         cancel.throwIfCancelled();
-        const auto [fx, fy] = fractionalOffset(region, n, dt[n]);
+        const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
         double wx[6], wy[6];
         const int ox = lanczos3Weights(fx, wx), oy = lanczos3Weights(fy, wy);
         const float* f = cube.frame(n);
@@ -179,7 +182,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const int b = blockOf[n];
-      const auto [fx, fy] = fractionalOffset(region, n, dt[n]);
+      const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
       // Template at canvas position X - f: base X, offset -f.
       double wx[6], wy[6];
       const int ox = lanczos3Weights(-fx, wx), oy = lanczos3Weights(-fy, wy);
@@ -238,7 +241,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
   out.pixelsZeroed = std::accumulate(zeroedPerFrame.begin(), zeroedPerFrame.end(), std::size_t{0});
   // Sky positions where what is left varies more than the background allows (the star's photon noise, its
   // seeing changes, the interpolation's error): masked like the cores.
-  out.excess = MovingMask(cube.width(), cube.height(), dt, region.rate());
+  out.excess = MovingMask(cube, region.rate());
   if (withSigma) {
     for (std::size_t k = 0; k < targets.size(); ++k)
       // Significant too: the ratio of S samples scatters by sqrt(2 / S) about 1 (chi-square: a heavy upper tail).

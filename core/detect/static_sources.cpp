@@ -59,7 +59,7 @@ bool flatTopInFrame(const FrameCube& cube, Velocity skyRate, const std::vector<i
   std::size_t k = 0;
   for (std::size_t i = 1; i < dt.size(); ++i)
     if (std::abs(dt[i]) < std::abs(dt[k])) k = i;
-  const MovingMask geom(cube.width(), cube.height(), dt, skyRate);
+  const MovingMask geom(cube, skyRate);
   const int w = cube.width(), h = cube.height(), cw = s.mean.width;
   const float* f = cube.frame(k);
   const auto& mask = cube.mask();
@@ -211,7 +211,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 const StaticSourceParams& params, ProgressSink& progress,
                                 CancelToken& cancel) {
   StaticSources out;
-  out.mask = MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), skyRate);
+  out.mask = MovingMask(cube, skyRate);
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
@@ -259,7 +259,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // background removes each star's light as far as it is constant: what is left to mask is where single
   // frames see the star (its photon noise, seeing and guiding residuals), not where a stack would. A drifting
   // field crosses the pixels, so there every star is masked down to one stack sigma.
-  const bool staticField = std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
+  // Registered frames with per-frame offsets (dithers, re-pointing): the stars move across the detector, so
+  // the field is not static there even at a zero sky rate.
+  const bool staticField = !cube.hasFrameOffsets() &&
+                           std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
   // A drifting field whose stars are subtracted afterwards (subtractStarTemplate over the wide footprints
   // kept in subtractRegion) is masked like a static one, where single frames see the stars.
   const bool subtracted = !staticField && params.subtractStars;

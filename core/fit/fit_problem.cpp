@@ -18,29 +18,36 @@ FitProblem::FitProblem(const FrameCube& cube, std::vector<std::size_t> frames, s
       m_cy(m_frames.size(), 0),
       m_psf(psf),
       m_table(psf, 2.0 * halfSize + 4.0),
-      m_half(halfSize) {}
+      m_half(halfSize) {
+  // The frames' registration offsets: the track in frame n is at (xc + ox_n + vx t, yc + oy_n + vy t).
+  for (const std::size_t n : m_frames) {
+    m_ox.push_back(n < cube.frameCount() ? cube.info()[n].offsetXPx : 0.0);
+    m_oy.push_back(n < cube.frameCount() ? cube.info()[n].offsetYPx : 0.0);
+  }
+}
 
 void FitProblem::centreStamps(const FitParams& p) {
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    m_cx[k] = static_cast<int>(std::lround(p.xc + p.v.vx * m_times[k]));
-    m_cy[k] = static_cast<int>(std::lround(p.yc + p.v.vy * m_times[k]));
+    m_cx[k] = static_cast<int>(std::lround(p.xc + m_ox[k] + p.v.vx * m_times[k]));
+    m_cy[k] = static_cast<int>(std::lround(p.yc + m_oy[k] + p.v.vy * m_times[k]));
   }
 }
 
 int FitProblem::centreDrift(const FitParams& p) const {
   double drift = 0.0;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    drift = std::max(drift, std::abs(std::round(p.xc + p.v.vx * m_times[k]) - m_cx[k]));
-    drift = std::max(drift, std::abs(std::round(p.yc + p.v.vy * m_times[k]) - m_cy[k]));
+    drift = std::max(drift, std::abs(std::round(p.xc + m_ox[k] + p.v.vx * m_times[k]) - m_cx[k]));
+    drift = std::max(drift, std::abs(std::round(p.yc + m_oy[k] + p.v.vy * m_times[k]) - m_cy[k]));
   }
   return drift > 1e6 ? 1000000 : static_cast<int>(drift);
 }
 
 std::size_t FitProblem::framesInside(const FitParams& p) const {
   std::size_t n = 0;
-  for (double t : m_times) {
-    const double x = p.xc + p.v.vx * t;
-    const double y = p.yc + p.v.vy * t;
+  for (std::size_t k = 0; k < m_times.size(); ++k) {
+    const double t = m_times[k];
+    const double x = p.xc + m_ox[k] + p.v.vx * t;
+    const double y = p.yc + m_oy[k] + p.v.vy * t;
     if (x >= -0.5 && y >= -0.5 && x < m_cube.width() - 0.5 && y < m_cube.height() - 0.5) ++n;
   }
   return n;
@@ -76,8 +83,8 @@ NormalEquations FitProblem::evaluate(const FitParams& p, bool withJacobian) cons
     ParamVector j;
     for (std::size_t k = b; k < e; ++k) {
       const double t = m_times[k];
-      const double px = p.xc + p.v.vx * t;
-      const double py = p.yc + p.v.vy * t;
+      const double px = p.xc + m_ox[k] + p.v.vx * t;
+      const double py = p.yc + m_oy[k] + p.v.vy * t;
       forEachPixel(k, [&](int x, int y, double d) {
         const PsfSample s = m_table.sample(x - px, y - py);
         const double r = d - (p.alpha * s.value + p.i0);
@@ -108,8 +115,8 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
   ParamVector j;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
     const double t = m_times[k];
-    const double px = p.xc + p.v.vx * t;
-    const double py = p.yc + p.v.vy * t;
+    const double px = p.xc + m_ox[k] + p.v.vx * t;
+    const double py = p.yc + m_oy[k] + p.v.vy * t;
     forEachPixel(k, [&](int x, int y, double) {
       const PsfSample s = m_table.sample(x - px, y - py);
       const double var = sigmaN2 + std::max(p.alpha * s.value, 0.0) / gain;
@@ -124,8 +131,8 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
 FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
   LinearSums l;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double px = p.xc + p.v.vx * m_times[k];
-    const double py = p.yc + p.v.vy * m_times[k];
+    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
+    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
     forEachPixel(k, [&](int x, int y, double d) {
       const double v = m_table.value(x - px, y - py);
       l.sp += v;
@@ -161,8 +168,8 @@ void FitProblem::stacks(const FitParams& p, Image& data, Image& model, Image& re
   model = Image(side, side);
   residual = Image(side, side);
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double px = p.xc + p.v.vx * m_times[k];
-    const double py = p.yc + p.v.vy * m_times[k];
+    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
+    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
     const int ox = static_cast<int>(std::lround(px)) - m_half;
     const int oy = static_cast<int>(std::lround(py)) - m_half;
     const float* img = m_cube.frame(m_frames[k]);

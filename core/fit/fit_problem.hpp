@@ -55,6 +55,7 @@ class FitProblem {
   const FrameCube& m_cube;
   std::vector<std::size_t> m_frames;
   std::vector<double> m_times;
+  std::vector<double> m_ox, m_oy;  ///< registration offsets of m_frames (FrameInfo::offsetXPx/offsetYPx)
   std::vector<int> m_cx;
   std::vector<int> m_cy;
   psf::Moffat m_psf;

@@ -256,7 +256,8 @@ FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& 
   for (std::size_t n = 0; n < plan.frames.size(); ++n) {
     const PlaneRef& p = plan.frames[n];
     const ScannedFile& s = plan.files[p.fileIndex];
-    cube.info()[n] = FrameInfo{*p.mjdMid, p.exposureS.value_or(0.0), s.path, s.hdu, p.plane};
+    cube.info()[n] = FrameInfo{*p.mjdMid, p.exposureS.value_or(0.0), s.path, s.hdu, p.plane, p.offsetXPx,
+                               p.offsetYPx};
   }
   cube.warnings = plan.warnings;
   cube.header = frameHeader(plan, cube.warnings);

@@ -109,14 +109,18 @@ void writeFramesTable(const FitsFile& f, const FrameCube& cube) {
   for (const auto& i : cube.info())
     width = std::max(width, i.file.size());
   const std::string fileForm = std::to_string(width) + "A";
+  // REGX_PX/REGY_PX: the frames' registration offsets, only when some frame has one.
   char* ttype[] = {const_cast<char*>("MJD_MID"), const_cast<char*>("EXPTIME"), const_cast<char*>("FILE"),
-                   const_cast<char*>("HDU"), const_cast<char*>("PLANE")};
+                   const_cast<char*>("HDU"),     const_cast<char*>("PLANE"),   const_cast<char*>("REGX_PX"),
+                   const_cast<char*>("REGY_PX")};
   char* tform[] = {const_cast<char*>("1D"), const_cast<char*>("1D"), const_cast<char*>(fileForm.c_str()),
-                   const_cast<char*>("1J"), const_cast<char*>("1J")};
-  char* tunit[] = {const_cast<char*>("d"), const_cast<char*>("s"), const_cast<char*>(""),
-                   const_cast<char*>(""), const_cast<char*>("")};
+                   const_cast<char*>("1J"), const_cast<char*>("1J"), const_cast<char*>("1D"),
+                   const_cast<char*>("1D")};
+  char* tunit[] = {const_cast<char*>("d"), const_cast<char*>("s"),  const_cast<char*>(""), const_cast<char*>(""),
+                   const_cast<char*>(""),  const_cast<char*>("px"), const_cast<char*>("px")};
+  const bool registered = cube.hasFrameOffsets();
   int status = 0;
-  fits_create_tbl(f.get(), BINARY_TBL, n, 5, ttype, tform, tunit, "FRAMES", &status);
+  fits_create_tbl(f.get(), BINARY_TBL, n, registered ? 7 : 5, ttype, tform, tunit, "FRAMES", &status);
   f.check(status, "creating the FRAMES table");
   std::vector<double> mjd, exp;
   std::vector<int> hdu, plane;
@@ -136,6 +140,15 @@ void writeFramesTable(const FitsFile& f, const FrameCube& cube) {
   fits_write_col(f.get(), TSTRING, 3, 1, 1, n, filePtrs.data(), &status);
   fits_write_col(f.get(), TINT, 4, 1, 1, n, hdu.data(), &status);
   fits_write_col(f.get(), TINT, 5, 1, 1, n, plane.data(), &status);
+  if (registered) {
+    std::vector<double> rx, ry;
+    for (const auto& i : cube.info()) {
+      rx.push_back(i.offsetXPx);
+      ry.push_back(i.offsetYPx);
+    }
+    fits_write_col(f.get(), TDOUBLE, 6, 1, 1, n, rx.data(), &status);
+    fits_write_col(f.get(), TDOUBLE, 7, 1, 1, n, ry.data(), &status);
+  }
   f.check(status, "writing the FRAMES table");
   fits_write_comment(f.get(),
                      "One row per plane of the primary cube: mid-exposure MJD (UTC), exposure (s), origin.",

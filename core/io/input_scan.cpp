@@ -4,9 +4,11 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <utility>
 
 #include "fits_file.hpp"
 #include "rice_check.hpp"
@@ -74,7 +76,25 @@ bool timesFromFramesTable(const FitsFile& f, ScannedFile& s) {
     fits_clear_errmsg();
     status = 0;
   }
+  // Registration offsets (written when the frames were registered), optional.
+  std::vector<double> regX(static_cast<std::size_t>(rows), 0.0), regY(static_cast<std::size_t>(rows), 0.0);
+  for (auto [name, out] : {std::pair{"REGX_PX", &regX}, std::pair{"REGY_PX", &regY}}) {
+    int col = 0;
+    char colName[16];
+    std::snprintf(colName, sizeof colName, "%s", name);
+    fits_get_colnum(f.get(), CASEINSEN, colName, &col, &status);
+    if (status != 0) {
+      fits_clear_errmsg();
+      status = 0;
+      continue;
+    }
+    double zero = 0.0;
+    fits_read_col(f.get(), TDOUBLE, col, 1, 1, rows, &zero, out->data(), &anynul, &status);
+    f.check(status, std::string("reading column ") + name + " of the FRAMES table");
+  }
   for (long r = 0; r < rows; ++r) {
+    s.frames[r].offsetXPx = std::isfinite(regX[r]) ? regX[r] : 0.0;
+    s.frames[r].offsetYPx = std::isfinite(regY[r]) ? regY[r] : 0.0;
     if (!std::isfinite(mjd[r]))
       throw InputError(where + ": row " + std::to_string(r + 1) + " has no MJD_MID");
     s.frames[r].mjdMid = mjdFromMjdOrJd(mjd[r]);

@@ -16,6 +16,8 @@ struct PlaneRef {
   int plane = 0;                 ///< 0-based plane of a 3-D HDU (0 for 2-D)
   std::optional<double> mjdMid;  ///< from the headers/table; empty when unknown
   std::optional<double> exposureS;
+  double offsetXPx = 0.0;  ///< registration offset from a FRAMES table's REGX_PX/REGY_PX (FrameInfo)
+  double offsetYPx = 0.0;
 };
 
 /// One file's chosen image HDU, described from its header only.

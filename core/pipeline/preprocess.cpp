@@ -10,6 +10,7 @@
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/pipeline/registration_stage.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
 
@@ -86,9 +87,16 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     const auto hot = detect::findHotPixels(cube, out.global.mean, out.global.sigma, {}, cancel);
     out.hotPixels = detect::maskPixelsInAllFrames(cube, hot);
   }
+  lap("global background");
+  bool rateFromRegistration = false;
+  {
+    SubProgress sub(progress, 0.1, 0.12);
+    rateFromRegistration = registerFramesStage(out, cube, params, sub, cancel);
+  }
+  lap("registration");
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
-  } else {
+  } else if (!rateFromRegistration) {
     const detect::SkyRate r =
         detect::measureSkyRate(cube, out.global.mean, out.global.sigma, params.skyRateParams, cancel);
     out.skyRate = r.rate;
@@ -97,7 +105,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
   }
-  lap("global background and sky rate");
+  lap("sky rate");
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);

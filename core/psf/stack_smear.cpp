@@ -16,8 +16,10 @@ SmearKernel stackSmear(const FrameCube& cube, Velocity rate, double binPx) {
   bool spread = false;
   for (std::size_t n = 0; n < dt.size(); ++n) {
     // The same rounding as detect::MovingMask (std::lround).
-    const double rx = rate.vx * dt[n] - static_cast<double>(std::lround(rate.vx * dt[n]));
-    const double ry = rate.vy * dt[n] - static_cast<double>(std::lround(rate.vy * dt[n]));
+    const double px = cube.info()[n].offsetXPx + rate.vx * dt[n];
+    const double py = cube.info()[n].offsetYPx + rate.vy * dt[n];
+    const double rx = px - static_cast<double>(std::lround(px));
+    const double ry = py - static_cast<double>(std::lround(py));
     const double tx = rate.vx * cube.info()[n].exposureS, ty = rate.vy * cube.info()[n].exposureS;
     const int steps = std::max(1, static_cast<int>(std::ceil(std::hypot(tx, ty) / (0.5 * binPx))));
     for (int s = 0; s < steps; ++s) {

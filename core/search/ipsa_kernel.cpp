@@ -24,6 +24,8 @@ int roundUp8(int v) {
 struct TimeOrder {
   std::vector<std::size_t> frame;  ///< frame index of the k-th frame in time order
   std::vector<double> dt;          ///< its t - t_ref, seconds
+  std::vector<double> ox, oy;      ///< its registration offset, px (FrameInfo::offsetXPx/offsetYPx)
+  bool registered = false;         ///< some offset is non-zero: shifts need not be monotone in time
 };
 
 TimeOrder timeOrder(const FrameCube& cube) {
@@ -34,8 +36,14 @@ TimeOrder timeOrder(const FrameCube& cube) {
   std::stable_sort(t.frame.begin(), t.frame.end(),
                    [&](std::size_t a, std::size_t b) { return dt[a] < dt[b]; });
   t.dt.resize(dt.size());
-  for (std::size_t k = 0; k < dt.size(); ++k)
+  t.ox.resize(dt.size());
+  t.oy.resize(dt.size());
+  for (std::size_t k = 0; k < dt.size(); ++k) {
     t.dt[k] = dt[t.frame[k]];
+    t.ox[k] = cube.info()[t.frame[k]].offsetXPx;
+    t.oy[k] = cube.info()[t.frame[k]].offsetYPx;
+  }
+  t.registered = cube.hasFrameOffsets();
   return t;
 }
 
@@ -61,6 +69,7 @@ struct Scratch {
   std::vector<float> tile;         ///< [frame in block][tile row][pw]
   std::vector<int> sx, sy;         ///< [velocity][k] shifts in time order
   std::vector<int> loX, hiX;       ///< [velocity][column] valid frame range
+  std::vector<int> nInRow, diff;   ///< registered frames: N_in of one row, and its scratch
   std::vector<const float*> ptrs;  ///< kFrameBlock row pointers
   std::vector<CellHit> hits;
 };
@@ -146,8 +155,8 @@ void computeShifts(Shared& sh, Scratch& s, int iv0, int nv) {
     const int iv = iv0 + v;
     const Velocity vel = sh.grid.at(iv % sh.grid.nvx, iv / sh.grid.nvx);
     for (int k = 0; k < n; ++k) {
-      s.sx[v * n + k] = std::clamp(ipsaShift(vel.vx, sh.order.dt[k]), -w, w);
-      s.sy[v * n + k] = std::clamp(ipsaShift(vel.vy, sh.order.dt[k]), -h, h);
+      s.sx[v * n + k] = std::clamp(ipsaShift(vel.vx, sh.order.dt[k], sh.order.ox[k]), -w, w);
+      s.sy[v * n + k] = std::clamp(ipsaShift(vel.vy, sh.order.dt[k], sh.order.oy[k]), -h, h);
     }
   }
 }
@@ -203,6 +212,16 @@ void evaluate(Shared& sh, Scratch& s, int iv0, int nv, int y0, int rows) {
   for (int v = 0; v < nv; ++v) {
     const int* sxv = s.sx.data() + static_cast<std::size_t>(v) * n;
     const int* syv = s.sy.data() + static_cast<std::size_t>(v) * n;
+    if (sh.order.registered) {  // shifts not monotone in time: N_in counted frame by frame, per row
+      s.nInRow.resize(static_cast<std::size_t>(roi.width));
+      for (int r = 0; r < rows; ++r) {
+        const int y = y0 + r;
+        countFramesInRow(sxv, syv, n, y, w, h, roi.x0, roi.width, s.diff, s.nInRow.data());
+        const float* acc = s.acc.data() + (static_cast<std::size_t>(v) * kRowTile + r) * sh.wp;
+        scanSpan(sh, s, scan, acc, 0, roi.width, v, iv0 + v, y, [&](int c) { return s.nInRow[c]; });
+      }
+      continue;
+    }
     const auto [sxMin, sxMax] = std::minmax({sxv[0], sxv[n - 1]});  // monotone in time order
     // Interior columns [cA, cB): x + sx in [0, w) for every frame.
     const int cA = std::clamp(-sxMin - roi.x0, 0, roi.width);

@@ -67,11 +67,12 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params) {
   setCandidates(result, std::move(hits), cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.frames.width(),
-                cube.frames.height(), params);
+                cube.frames.height(), params, cube.frames.frameOffsets());
 }
 
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
-                   const std::vector<double>& dtS, int width, int height, const SearchParams& params) {
+                   const std::vector<double>& dtS, int width, int height, const SearchParams& params,
+                   const std::vector<PixelOffset>& offsets) {
   // Total order (SNR descending, then y, x, ivy, ivx ascending): the cells kept at the cap and the
   // representative cell of a cluster do not depend on the order in which a backend found them.
   const auto before = [](const CellHit& a, const CellHit& b) {
@@ -89,7 +90,7 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
   std::sort(hits.begin(), hits.end(), before);
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
-      mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold));
+      mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold, offsets));
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

@@ -57,23 +57,25 @@ class FilterResponse {
 /// the number of those frames.
 std::pair<double, int> responseSum(const Candidate& source, const Candidate& cell,
                                    const std::vector<double>& dtS, int width, int height,
-                                   const FilterResponse& k) {
+                                   const FilterResponse& k, const std::vector<PixelOffset>& offsets) {
   double sum = 0.0;
   int inside = 0;
-  for (const double dt : dtS) {
-    const int sx = cell.x + ipsaShift(cell.v.vx, dt);
-    const int sy = cell.y + ipsaShift(cell.v.vy, dt);
+  for (std::size_t n = 0; n < dtS.size(); ++n) {
+    const double dt = dtS[n];
+    const PixelOffset o = offsets.empty() ? PixelOffset{} : offsets[n];
+    const int sx = cell.x + ipsaShift(cell.v.vx, dt, o.x);
+    const int sy = cell.y + ipsaShift(cell.v.vy, dt, o.y);
     if (sx < 0 || sy < 0 || sx >= width || sy >= height) continue;
     ++inside;
-    sum += k(sx - (source.x + source.v.vx * dt), sy - (source.y + source.v.vy * dt));
+    sum += k(sx - (source.x + o.x + source.v.vx * dt), sy - (source.y + o.y + source.v.vy * dt));
   }
   return {sum, inside};
 }
 
 double sidelobeSnr(const Candidate& source, const Candidate& cell, const std::vector<double>& dtS, int width,
-                   int height, const FilterResponse& k) {
-  const auto [own, nSource] = responseSum(source, source, dtS, width, height, k);
-  const auto [cross, nCell] = responseSum(source, cell, dtS, width, height, k);
+                   int height, const FilterResponse& k, const std::vector<PixelOffset>& offsets) {
+  const auto [own, nSource] = responseSum(source, source, dtS, width, height, k, offsets);
+  const auto [cross, nCell] = responseSum(source, cell, dtS, width, height, k, offsets);
   if (nSource == 0 || nCell == 0 || !(own > 0.0)) return 0.0;
   return source.snr * std::sqrt(static_cast<double>(nSource) / nCell) * cross / own;
 }
@@ -91,11 +93,12 @@ double closestApproach(const Candidate& a, const Candidate& b, double t0, double
 
 double sidelobeSnr(const Candidate& source, const Candidate& cell, const std::vector<double>& dtS, int width,
                    int height, double psfFwhmPx) {
-  return sidelobeSnr(source, cell, dtS, width, height, FilterResponse(psfFwhmPx));
+  return sidelobeSnr(source, cell, dtS, width, height, FilterResponse(psfFwhmPx), {});
 }
 
 std::size_t mergeSidelobes(std::vector<Candidate>& candidates, const std::vector<double>& dtS, int width,
-                           int height, double psfFwhmPx, double snrThreshold) {
+                           int height, double psfFwhmPx, double snrThreshold,
+                           const std::vector<PixelOffset>& offsets) {
   if (candidates.size() < 2 || dtS.empty() || !(psfFwhmPx > 0.0)) return 0;
   const auto [t0, t1] = std::minmax_element(dtS.begin(), dtS.end());
   const FilterResponse k(psfFwhmPx);
@@ -108,7 +111,7 @@ std::size_t mergeSidelobes(std::vector<Candidate>& candidates, const std::vector
     std::size_t into = 0;
     for (std::size_t j = 0; j < i; ++j) {
       if (merged[j] || closestApproach(candidates[i], candidates[j], *t0, *t1) > reach) continue;
-      const double snr = sidelobeSnr(candidates[j], candidates[i], dtS, width, height, k);
+      const double snr = sidelobeSnr(candidates[j], candidates[i], dtS, width, height, k, offsets);
       if (snr > best) best = snr, into = j;
     }
     if (best > 0.0 && candidates[i].snr - best < snrThreshold) {

@@ -80,6 +80,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   SearchResult result;
   std::vector<CellHit> hits;
   std::vector<double> dtS;
+  std::vector<PixelOffset> offsets;  // the frames' registration offsets (FRAMES table), for the sidelobes
   double psfFwhm = 0.0;
   VelocityMap& map = result.map;
   map.nvx = grid.nvx;
@@ -110,6 +111,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
         result.backend = "cpu";
         result.method = params.method;
         dtS = cube.frames.timeOffsetsS();
+        offsets = cube.frames.frameOffsets();
         psfFwhm = cube.psfFwhmPx;
       } else if (cube.frames.frameCount() != dtS.size()) {
         throw InputError("out-of-core search: a tile has " + std::to_string(cube.frames.frameCount()) +
@@ -156,7 +158,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
       }
     }
   }
-  setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params);
+  setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params, offsets);
   result.backendNote = "out of core: " + std::to_string(tiles.size()) + " tile(s)";
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.report(1.0, params.method == "tree" ? "velocity search (tree)" : "velocity search");

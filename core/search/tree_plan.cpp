@@ -75,7 +75,7 @@ struct Pick {
 };
 
 Pick pickChild(const TreePlan& plan, const TreeNode& child, const TreeAxis& ca, const std::vector<int>& pre,
-               double v, bool root) {
+               double v, bool root, bool isX) {
   const int m = child.last - child.first;
   const int nv = static_cast<int>(ca.v.size());
   int nearest = 0;
@@ -85,7 +85,8 @@ Pick pickChild(const TreePlan& plan, const TreeNode& child, const TreeAxis& ca, 
   std::vector<double> target(static_cast<std::size_t>(m));
   for (int k = 0; k < m; ++k) {
     const int f = child.first + k;
-    target[k] = (root ? ipsaShift(v, plan.dt[f]) : v * plan.dt[f]) - pre[f];
+    const double o = isX ? plan.ox[f] : plan.oy[f];
+    target[k] = (root ? ipsaShift(v, plan.dt[f], o) : o + v * plan.dt[f]) - pre[f];
   }
   Pick best;
   for (int j = std::max(0, nearest - kTreeNeighbours); j <= std::min(nv - 1, nearest + kTreeNeighbours);
@@ -117,12 +118,13 @@ int planAxis(TreePlan& plan, int index, bool isX) {
   TreeNode& n = plan.nodes[index];
   TreeAxis& a = isX ? n.x : n.y;
   const std::vector<int>& pre = isX ? plan.preX : plan.preY;
+  const std::vector<double>& off = isX ? plan.ox : plan.oy;
   const int m = n.last - n.first;
   a.pattern.assign(a.v.size() * static_cast<std::size_t>(m), 0);
   if (n.leaf()) {
     for (std::size_t i = 0; i < a.v.size(); ++i) {
       for (int k = 0; k < m; ++k)
-        a.pattern[i * m + k] = ipsaShift(a.v[i], plan.dt[n.first + k]) - pre[n.first + k];
+        a.pattern[i * m + k] = ipsaShift(a.v[i], plan.dt[n.first + k], off[n.first + k]) - pre[n.first + k];
     }
     return 0;
   }
@@ -136,8 +138,8 @@ int planAxis(TreePlan& plan, int index, bool isX) {
   a.left.resize(a.v.size());
   a.right.resize(a.v.size());
   for (std::size_t i = 0; i < a.v.size(); ++i) {
-    const Pick pl = pickChild(plan, l, la, pre, a.v[i], root);
-    const Pick pr = pickChild(plan, r, ra, pre, a.v[i], root);
+    const Pick pl = pickChild(plan, l, la, pre, a.v[i], root, isX);
+    const Pick pr = pickChild(plan, r, ra, pre, a.v[i], root, isX);
     a.left[i] = pl.choice;
     a.right[i] = pr.choice;
     worst = std::max({worst, pl.maxErr, pr.maxErr});
@@ -202,8 +204,13 @@ void planExtents(TreePlan& plan, int index, const std::vector<std::pair<int, int
 
 }  // namespace
 
-TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid) {
+TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
+                       const std::vector<PixelOffset>& offsets) {
   if (dtS.size() < 2) throw InputError("the tree search needs at least 2 frames");
+  if (!offsets.empty() && offsets.size() != dtS.size()) {
+    throw InputError("the tree search got " + std::to_string(offsets.size()) + " frame offsets for " +
+                     std::to_string(dtS.size()) + " frames");
+  }
   if (grid.nvx <= 0 || grid.nvy <= 0 || !(grid.stepPxS > 0.0)) {
     throw InputError("the tree search needs a non-empty velocity grid with a positive step");
   }
@@ -213,9 +220,12 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid)
   std::stable_sort(plan.frame.begin(), plan.frame.end(),
                    [&](std::size_t a, std::size_t b) { return dtS[a] < dtS[b]; });
   for (const std::size_t f : plan.frame) {
+    const PixelOffset o = offsets.empty() ? PixelOffset{} : offsets[f];
     plan.dt.push_back(dtS[f]);
-    plan.preX.push_back(ipsaShift(grid.centre.vx, dtS[f]));
-    plan.preY.push_back(ipsaShift(grid.centre.vy, dtS[f]));
+    plan.ox.push_back(o.x);
+    plan.oy.push_back(o.y);
+    plan.preX.push_back(ipsaShift(grid.centre.vx, dtS[f], o.x));
+    plan.preY.push_back(ipsaShift(grid.centre.vy, dtS[f], o.y));
   }
   if (!(plan.dt.back() > plan.dt.front())) throw InputError("the tree search needs a positive time span");
   buildNodes(plan, 0, static_cast<int>(dtS.size()), 0, grid);

@@ -107,6 +107,7 @@ struct WorkerState {
   std::int64_t hitsTotal = 0;
   float floor = 0.0f;
   std::vector<float> row;
+  std::vector<int> nIn, diff;  ///< registered frames: N_in of one row, and its scratch
   BufferPool pool;
 };
 
@@ -122,7 +123,20 @@ struct Context {
   std::vector<float> invNorm;
   AxisRanges rx, ry;
   CancelToken& cancel;
+  /// Registered frames (shifts not monotone in time): the exact shifts round(o_k + v dt_k), time order,
+  /// [axis velocity][k], clamped to +-width/height, for N_in counted frame by frame.
+  bool registered = false;
+  std::vector<int> exactX, exactY;
 };
+
+std::vector<int> exactShifts(const std::vector<double>& axisV, const std::vector<double>& dt,
+                             const std::vector<double>& off, int size) {
+  std::vector<int> s(axisV.size() * dt.size());
+  for (std::size_t i = 0; i < axisV.size(); ++i)
+    for (std::size_t k = 0; k < dt.size(); ++k)
+      s[i * dt.size() + k] = std::clamp(ipsaShift(axisV[i], dt[k], off[k]), -size, size);
+  return s;
+}
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 __attribute__((target("avx2"))) void addTwoAvx2(float* out, const float* a, const float* __restrict b,
@@ -280,6 +294,16 @@ void scanSpan(const Context& cx, WorkerState& ws, const float* s, int c0, int c1
 
 void scanRow(const Context& cx, WorkerState& ws, const float* s, int ix, int iy, int y) {
   const int w = cx.width;
+  if (cx.registered) {
+    const std::size_t n = cx.plan.dt.size();
+    ws.nIn.resize(static_cast<std::size_t>(w));
+    countFramesInRow(cx.exactX.data() + ix * n, cx.exactY.data() + iy * n, static_cast<int>(n), y, w, cx.height,
+                     0, w, ws.diff, ws.nIn.data());
+    // Only the region's columns (all of them but in an out-of-core tile).
+    scanSpan(cx, ws, s, cx.roi.x0, cx.roi.x0 + cx.roi.width, ix, iy, y,
+             [&](int c) { return ws.nIn[static_cast<std::size_t>(c)]; });
+    return;
+  }
   const int* lx = cx.rx.lo.data() + static_cast<std::size_t>(ix) * w;
   const int* hx = cx.rx.hi.data() + static_cast<std::size_t>(ix) * w;
   const int ly = cx.ry.lo[static_cast<std::size_t>(iy) * cx.height + y];
@@ -355,7 +379,7 @@ namespace detail {
 
 KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
                               const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
-  const TreePlan plan = buildTreePlan(frames.timeOffsetsS(), grid);
+  const TreePlan plan = buildTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
   SearchParams params;
   params.maxCandidates = p.maxHits;
   Context cx{frames, plan, params, frames.width(), frames.height(), 0, roi, 0.0f, 1, 0, {}, {}, {}, cancel};
@@ -367,8 +391,14 @@ KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid,
   cx.invNorm.assign(static_cast<std::size_t>(nf) + 1, 0.0f);
   for (int k = 1; k <= nf; ++k)
     cx.invNorm[k] = static_cast<float>(1.0 / (p.sigmaF * std::sqrt(double(k))));
-  cx.rx = axisRanges(plan.nodes[0].x.v, plan.dt, cx.width);
-  cx.ry = axisRanges(plan.nodes[0].y.v, plan.dt, cx.height);
+  cx.registered = frames.hasFrameOffsets();
+  if (cx.registered) {
+    cx.exactX = exactShifts(plan.nodes[0].x.v, plan.dt, plan.ox, cx.width);
+    cx.exactY = exactShifts(plan.nodes[0].y.v, plan.dt, plan.oy, cx.height);
+  } else {
+    cx.rx = axisRanges(plan.nodes[0].x.v, plan.dt, cx.width);
+    cx.ry = axisRanges(plan.nodes[0].y.v, plan.dt, cx.height);
+  }
 
   const std::size_t nv = grid.count();
   std::mutex mutex;

@@ -166,15 +166,16 @@ StackResult stackCsa(const FrameCube& cube, const std::vector<double>& offsetsS,
     throw InputError("CSA stack: " + std::to_string(offsetsS.size()) + " time offsets for " +
                      std::to_string(cube.frameCount()) + " frames");
   const int w = cube.width(), h = cube.height();
-  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v);
+  const std::vector<PixelOffset> reg = cube.frameOffsets();
+  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v, reg);
   // Frames shifted entirely out of the image are skipped; the others set the padding.
   std::vector<std::size_t> used;
   double maxX = 0.0, maxY = 0.0;
   for (std::size_t n = 0; n < shifts.size(); ++n) {
     if (std::abs(shifts[n].dx) >= w || std::abs(shifts[n].dy) >= h) continue;
     used.push_back(n);
-    maxX = std::max(maxX, std::fabs(v.vx * offsetsS[n]));
-    maxY = std::max(maxY, std::fabs(v.vy * offsetsS[n]));
+    maxX = std::max(maxX, std::fabs(reg[n].x + v.vx * offsetsS[n]));
+    maxY = std::max(maxY, std::fabs(reg[n].y + v.vy * offsetsS[n]));
   }
   const int margin = std::max(0, o.marginPx);
   const int nx = fftFriendlySize(w + int(std::ceil(maxX)) + margin);
@@ -202,8 +203,8 @@ StackResult stackCsa(const FrameCube& cube, const std::vector<double>& offsetsS,
         for (int y = 0; y < h; ++y)
           std::memcpy(in.get() + std::size_t(y) * nx, f + std::size_t(y) * w, sizeof(float) * w);
         fftwf_execute_dft_r2c(plans.forward, in.get(), spec.get());
-        phaseRamp(nx, hx, v.vx * offsetsS[n], px);
-        phaseRamp(ny, ny, v.vy * offsetsS[n], py);
+        phaseRamp(nx, hx, reg[n].x + v.vx * offsetsS[n], px);
+        phaseRamp(ny, ny, reg[n].y + v.vy * offsetsS[n], py);
         accumulateShifted(spec.get(), accs[wk].get(), hx, ny, px, py, row);
         const std::size_t d = ++done;
         if (d % 16 == 0) progress.report(0.95 * double(d) / double(used.size()), "CSA stack");

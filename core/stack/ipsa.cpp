@@ -36,10 +36,17 @@ inline void addRow(float* __restrict acc, const float* __restrict src, int n) {
 
 }  // namespace
 
-std::vector<IntShift> ipsaShifts(const std::vector<double>& offsetsS, Velocity v) {
+std::vector<IntShift> ipsaShifts(const std::vector<double>& offsetsS, Velocity v,
+                                 const std::vector<PixelOffset>& frameOffsets) {
+  if (!frameOffsets.empty() && frameOffsets.size() != offsetsS.size()) {
+    throw InputError("IPSA shifts: " + std::to_string(frameOffsets.size()) + " frame offsets for " +
+                     std::to_string(offsetsS.size()) + " frames");
+  }
   std::vector<IntShift> s(offsetsS.size());
-  for (std::size_t n = 0; n < offsetsS.size(); ++n)
-    s[n] = {roundShift(v.vx * offsetsS[n]), roundShift(v.vy * offsetsS[n])};
+  for (std::size_t n = 0; n < offsetsS.size(); ++n) {
+    const PixelOffset o = frameOffsets.empty() ? PixelOffset{} : frameOffsets[n];
+    s[n] = {roundShift(o.x + v.vx * offsetsS[n]), roundShift(o.y + v.vy * offsetsS[n])};
+  }
   return s;
 }
 
@@ -90,7 +97,7 @@ StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS
   r.velocity = v;
   r.tRefMjd = cube.tRefMjd();
   r.mode = search::StackMode::Ipsa;
-  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v);
+  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v, cube.frameOffsets());
   const std::size_t blocks = (std::size_t(cube.height()) + kBlockRows - 1) / kBlockRows;
   parallelFor(blocks, 2, [&](std::size_t b, std::size_t e) {
     const int y0 = int(b) * kBlockRows, y1 = std::min(cube.height(), int(e) * kBlockRows);

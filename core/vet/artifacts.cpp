@@ -204,8 +204,8 @@ ArtifactFlag checkMasked(const ArtifactContext& ctx, const Track& track, const A
   std::size_t samples = 0, masked = 0;
   for (std::size_t f = 0; f < cube.frameCount(); ++f) {
     const double t = ctx.timesS[f];
-    const int cx = static_cast<int>(std::lround(track.xAt(t))),
-              cy = static_cast<int>(std::lround(track.yAt(t)));
+    const int cx = static_cast<int>(std::lround(track.xAt(t) + cube.info()[f].offsetXPx)),
+              cy = static_cast<int>(std::lround(track.yAt(t) + cube.info()[f].offsetYPx));
     for (int dy = -ir; dy <= ir; ++dy) {
       for (int dx = -ir; dx <= ir; ++dx) {
         const int x = cx + dx, y = cy + dy;
@@ -233,8 +233,11 @@ ArtifactFlag checkTransient(const ArtifactContext& ctx, const Track& track, cons
     std::vector<double> c;
     for (std::size_t f = 0; f < cube.frameCount(); ++f) {
       // The search's own rounding: the IPSA sample of this frame (ARCHITECTURE.md, "IPSA").
-      const int x = static_cast<int>(std::lround(track.x + std::round(track.v.vx * ctx.timesS[f])));
-      const int y = static_cast<int>(std::lround(track.y + std::round(track.v.vy * ctx.timesS[f])));
+      const FrameInfo& fi = cube.info()[f];
+      const int x =
+          static_cast<int>(std::lround(track.x + std::round(fi.offsetXPx + track.v.vx * ctx.timesS[f])));
+      const int y =
+          static_cast<int>(std::lround(track.y + std::round(fi.offsetYPx + track.v.vy * ctx.timesS[f])));
       if (x < 0 || y < 0 || x >= cube.width() || y >= cube.height() || cube.isMasked(f, x, y)) continue;
       c.push_back(cube.frame(f)[static_cast<std::size_t>(y) * cube.width() + x]);
     }

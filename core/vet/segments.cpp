@@ -33,10 +33,14 @@ Image stackStamp(const FrameCube& cube, const std::vector<std::size_t>& frames, 
   Image out(side, side);
   const std::vector<double> all = cube.timeOffsetsS();
   std::vector<double> t;
-  for (std::size_t n : frames)
+  std::vector<PixelOffset> o;
+  for (std::size_t n : frames) {
     t.push_back(all[n] - t0OffsetS);
-  // The search's own rounding convention (st::stack::ipsaShifts), so segment stacks match full stacks.
-  const std::vector<stack::IntShift> shifts = stack::ipsaShifts(t, v);
+    o.push_back({cube.info()[n].offsetXPx, cube.info()[n].offsetYPx});
+  }
+  // The search's own rounding convention (st::stack::ipsaShifts, with the frames' registration offsets), so
+  // segment stacks match full stacks.
+  const std::vector<stack::IntShift> shifts = stack::ipsaShifts(t, v, o);
   const int cx = static_cast<int>(std::lround(x));
   const int cy = static_cast<int>(std::lround(y));
   for (std::size_t k = 0; k < frames.size(); ++k) {

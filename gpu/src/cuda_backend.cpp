@@ -120,7 +120,8 @@ class CudaBackend final : public CudaSearchBackend {
                                   CancelToken& cancel, std::chrono::steady_clock::time_point start) {
     search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "tree");
     const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
-    const search::TreePlan tree = search::buildTreePlan(cube.frames.timeOffsetsS(), grid);
+    const search::TreePlan tree =
+        search::buildTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());
     std::size_t capacity = initialCapacity(params);
     const int cut = m_options.treeCut > 0 ? m_options.treeCut : kTreeDefaultCut;
     const TreeDevicePlan dplan = chooseTreeTiles(tree, plan, cube, capacity, cut);

@@ -38,6 +38,7 @@ DeviceBuffer<T> toDevice(const std::vector<T>& host) {
 /// Everything one device holds for the whole search besides frames and partial sums.
 struct DeviceTables {
   DeviceBuffer<int> shiftX, shiftY, spanX, spanY;
+  DeviceBuffer<unsigned> maskX, maskY;  ///< registered frames only (1 word each otherwise, unused)
   DeviceBuffer<float> invNorm;
   DeviceBuffer<unsigned long long> mapKeys;
   DeviceBuffer<DeviceCell> cells;
@@ -45,7 +46,9 @@ struct DeviceTables {
 };
 
 std::size_t tableBytes(const HostPlan& plan, std::size_t cellCapacity) {
-  return (plan.shiftX.size() + plan.shiftY.size() + plan.spanX.size() + plan.spanY.size()) * sizeof(int) +
+  return (plan.shiftX.size() + plan.shiftY.size() + plan.spanX.size() + plan.spanY.size() +
+          plan.maskX.size() + plan.maskY.size()) *
+             sizeof(int) +
          plan.invNorm.size() * sizeof(float) + static_cast<std::size_t>(plan.nvx) * plan.nvy * 8 +
          cellCapacity * sizeof(DeviceCell) + 64;
 }
@@ -59,6 +62,9 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.shiftY = t.shiftY.get();
   p.spanX = reinterpret_cast<const int2*>(t.spanX.get());
   p.spanY = reinterpret_cast<const int2*>(t.spanY.get());
+  p.maskX = plan.maskX.empty() ? nullptr : t.maskX.get();
+  p.maskY = plan.maskY.empty() ? nullptr : t.maskY.get();
+  p.maskWords = plan.maskWords;
   p.nvx = plan.nvx;
   p.nvy = plan.nvy;
   p.invNorm = t.invNorm.get();
@@ -271,6 +277,8 @@ DeviceTables makeTables(const HostPlan& plan, std::size_t cellCapacity) {
                       toDevice(plan.shiftY),
                       toDevice(plan.spanX),
                       toDevice(plan.spanY),
+                      toDevice(plan.maskX),
+                      toDevice(plan.maskY),
                       toDevice(plan.invNorm),
                       DeviceBuffer<unsigned long long>(static_cast<std::size_t>(plan.nvx) * plan.nvy),
                       DeviceBuffer<DeviceCell>(std::max<std::size_t>(cellCapacity, 1)),

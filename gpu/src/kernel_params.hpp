@@ -30,10 +30,16 @@ struct SearchLaunch {
   int frameCount;     ///< N_f of the whole cube
   int f0;             ///< first frame of this launch (absolute index)
   int f1;             ///< one past the last frame of this launch
-  const int* shiftX;  ///< [nvx][frameCount] round(vx * dt_n)
-  const int* shiftY;  ///< [nvy][frameCount] round(vy * dt_n)
+  const int* shiftX;  ///< [nvx][frameCount] round(ox_n + vx * dt_n)
+  const int* shiftY;  ///< [nvy][frameCount] round(oy_n + vy * dt_n)
   const int2* spanX;  ///< [nvx][width]  frames (in time order) whose x-shift keeps column x in frame
   const int2* spanY;  ///< [nvy][height] same for rows
+  /// Registered frames (shifts not monotone in time, spans meaningless): N_in = popcount(maskX & maskY),
+  /// maskX [nvx][width][maskWords] bit n set when frame n's x-shift keeps column x in frame, maskY the same
+  /// for rows. Null when the frames carry no registration offsets (N_in from the spans).
+  const unsigned* maskX;
+  const unsigned* maskY;
+  int maskWords;
   int nvx;
   int nvy;
   int iy0;  ///< velocity chunk: rows [iy0, iy1) of the grid

@@ -27,6 +27,25 @@ __device__ __forceinline__ int framesInBoth(int2 a, int2 b) {
   return hi >= lo ? hi - lo + 1 : 0;
 }
 
+/// N_in of cell (x, y) at velocity (ix, iy) for registered frames: the frames that keep both the column and
+/// the row in frame (search::countFramesInRow on the CPU).
+__device__ __forceinline__ int framesInMasks(const unsigned* maskX, const unsigned* maskY, int words, int ix,
+                                             int x, int width, int iy, int y, int height) {
+  const unsigned* a = maskX + (static_cast<long long>(ix) * width + x) * words;
+  const unsigned* b = maskY + (static_cast<long long>(iy) * height + y) * words;
+  int n = 0;
+  for (int w = 0; w < words; ++w)
+    n += __popc(__ldg(a + w) & __ldg(b + w));
+  return n;
+}
+
+/// N_in of a cell: from the masks when the frames are registered, else from the frame spans.
+__device__ __forceinline__ int cellFrames(const SearchLaunch& p, int ix, int x, int iy, int y) {
+  if (p.maskX) return framesInMasks(p.maskX, p.maskY, p.maskWords, ix, x, p.width, iy, y, p.height);
+  return framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
+                      p.spanY[static_cast<long long>(iy) * p.height + y]);
+}
+
 /// Scores one cell; returns its map key (0 when the cell is ignored) and appends it when above threshold.
 __device__ __forceinline__ unsigned long long scoreCell(const SearchLaunch& p, float sum, int nIn, int x,
                                                         int y, int ix, int iy) {
@@ -48,8 +67,7 @@ __device__ __forceinline__ unsigned long long finishCell(const SearchLaunch& p, 
     p.partial[partialIndex] = sum;
     return 0ull;
   }
-  const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
-                               p.spanY[static_cast<long long>(iy) * p.height + y]);
+  const int nIn = cellFrames(p, ix, x, iy, y);
   return scoreCell(p, sum, nIn, x, y, ix, iy);
 }
 

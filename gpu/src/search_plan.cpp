@@ -10,8 +10,9 @@
 namespace st::gpu {
 namespace {
 
-int ipsaShift(double v, double dt) {
-  return static_cast<int>(std::lround(v * dt));
+/// round(o + v dt), halves away from zero: search::ipsaShift(v, dt, o) (o = 0 unless registered).
+int ipsaShift(double v, double dt, double o) {
+  return static_cast<int>(std::lround(o + v * dt));
 }
 
 /// For every column (or row) c in [0, extent): the inclusive range [lo, hi] of time-ordered frames k with
@@ -44,8 +45,8 @@ void validSpans(const int* s, int n, int extent, int* out) {
 }
 
 /// Shifts [nv][N] in frame order, and the spans from the same shifts in time order.
-void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, const std::vector<int>& order,
-               int extent, std::vector<int>& shifts, std::vector<int>& spans) {
+void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, const std::vector<double>& off,
+               const std::vector<int>& order, int extent, std::vector<int>& shifts, std::vector<int>& spans) {
   const int n = static_cast<int>(dt.size());
   const int nv = static_cast<int>(vel.size());
   shifts.resize(static_cast<std::size_t>(nv) * n);
@@ -53,11 +54,25 @@ void buildAxis(const std::vector<double>& vel, const std::vector<double>& dt, co
   std::vector<int> sorted(static_cast<std::size_t>(n));
   for (std::size_t i = 0; i < static_cast<std::size_t>(nv); ++i) {
     for (int k = 0; k < n; ++k) {
-      shifts[i * n + k] = ipsaShift(vel[i], dt[k]);
-      sorted[k] = ipsaShift(vel[i], dt[order[k]]);
+      shifts[i * n + k] = ipsaShift(vel[i], dt[k], off[k]);
+      sorted[k] = ipsaShift(vel[i], dt[order[k]], off[order[k]]);
     }
     validSpans(sorted.data(), n, extent, &spans[i * extent * 2]);
   }
+}
+
+/// Registered frames: [nv][extent][words] bit n set when frame n's shift keeps position c in [0, extent).
+std::vector<unsigned> frameMasks(const std::vector<int>& shifts, int nv, int n, int extent, int words) {
+  std::vector<unsigned> m(static_cast<std::size_t>(nv) * extent * words, 0u);
+  for (std::size_t i = 0; i < static_cast<std::size_t>(nv); ++i) {
+    for (int k = 0; k < n; ++k) {
+      const int s = shifts[i * n + k];
+      const int lo = std::clamp(-s, 0, extent), hi = std::clamp(extent - s, lo, extent);
+      for (int c = lo; c < hi; ++c)
+        m[(i * extent + c) * words + k / 32] |= 1u << (k % 32);
+    }
+  }
+  return m;
 }
 
 /// Largest shift difference, over frames, between velocities `len` grid steps apart (tiles can start
@@ -185,8 +200,18 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
     vx[i] = grid.at(i, 0).vx;
   for (int i = 0; i < grid.nvy; ++i)
     vy[i] = grid.at(0, i).vy;
-  buildAxis(vx, dt, order, plan.width, plan.shiftX, plan.spanX);
-  buildAxis(vy, dt, order, plan.height, plan.shiftY, plan.spanY);
+  std::vector<double> ox(dt.size(), 0.0), oy(dt.size(), 0.0);
+  for (std::size_t k = 0; k < dt.size(); ++k) {
+    ox[k] = f.info()[k].offsetXPx;
+    oy[k] = f.info()[k].offsetYPx;
+  }
+  buildAxis(vx, dt, ox, order, plan.width, plan.shiftX, plan.spanX);
+  buildAxis(vy, dt, oy, order, plan.height, plan.shiftY, plan.spanY);
+  if (f.hasFrameOffsets()) {  // shifts not monotone in time: N_in from per-frame masks, not spans
+    plan.maskWords = (plan.frameCount + 31) / 32;
+    plan.maskX = frameMasks(plan.shiftX, plan.nvx, plan.frameCount, plan.width, plan.maskWords);
+    plan.maskY = frameMasks(plan.shiftY, plan.nvy, plan.frameCount, plan.height, plan.maskWords);
+  }
   plan.invNorm.assign(static_cast<std::size_t>(plan.frameCount) + 1, 0.0f);
   for (int k = 1; k <= plan.frameCount; ++k) {
     plan.invNorm[k] = static_cast<float>(1.0 / (cube.sigmaF * std::sqrt(static_cast<double>(k))));

@@ -19,6 +19,10 @@ struct HostPlan {
   std::vector<int> shiftY;  ///< [nvy][N]
   std::vector<int> spanX;   ///< [nvx][W][2] inclusive range of time-ordered frames keeping column x in frame
   std::vector<int> spanY;   ///< [nvy][H][2] same for rows
+  /// Registered frames only (else empty): [nvx][W][maskWords] and [nvy][H][maskWords] bit masks of the
+  /// frames keeping the column / row in frame (SearchLaunch::maskX).
+  std::vector<unsigned> maskX, maskY;
+  int maskWords = 0;
   std::vector<float> invNorm;  ///< [N + 1] float(1 / (sigma_F sqrt(n)))
   float snrThreshold = 0.0f;   ///< cells strictly above are candidates
   int minFrames = 1;           ///< cells with fewer contributing frames are ignored

@@ -53,8 +53,8 @@ Image StackEngine::stack(const search::FilteredCube& cube, Velocity v) {
   const std::size_t n = dt.size();
   std::vector<int> shifts(2 * n);
   for (std::size_t k = 0; k < n; ++k) {
-    shifts[k] = static_cast<int>(std::lround(v.vx * dt[k]));
-    shifts[n + k] = static_cast<int>(std::lround(v.vy * dt[k]));
+    shifts[k] = static_cast<int>(std::lround(f.info()[k].offsetXPx + v.vx * dt[k]));
+    shifts[n + k] = static_cast<int>(std::lround(f.info()[k].offsetYPx + v.vy * dt[k]));
   }
   ST_CUDA_CHECK(
       cudaMemcpy(m_shifts.get(), shifts.data(), shifts.size() * sizeof(int), cudaMemcpyHostToDevice));

@@ -181,8 +181,7 @@ __device__ __forceinline__ void finishStairTile(const SearchLaunch& p, const flo
         }
         const int x = x0 + lane + 32 * j;
         const int y = y0 + r;
-        const int nIn = framesInBoth(p.spanX[static_cast<long long>(ix) * p.width + x],
-                                     p.spanY[static_cast<long long>(iy) * p.height + y]);
+        const int nIn = cellFrames(p, ix, x, iy, y);
         const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
         best = key > best ? key : best;
       }

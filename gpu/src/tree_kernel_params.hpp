@@ -80,6 +80,9 @@ struct TreeRootLaunch {
   int nvy;
   const int2* spanX;  ///< as SearchLaunch (N_in from the exact shifts)
   const int2* spanY;
+  const unsigned* maskX;  ///< as SearchLaunch (registered frames), or null
+  const unsigned* maskY;
+  int maskWords;
   const float* invNorm;
   float snrThreshold;
   int minFrames;

@@ -132,9 +132,12 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
             v[k][i] = v[k][i] + v[k][i + s];
         }
         const float sum = v[k][0];
-        const int nIn = framesInBoth(sx[gx][k], sy);
-        if (nIn <= 0 || nIn < p.minFrames) continue;
         const int x = x0 + lane + 32 * k;
+        const int nIn = !p.maskX      ? framesInBoth(sx[gx][k], sy)
+                        : x < p.width ? framesInMasks(p.maskX, p.maskY, p.maskWords, ix, x, p.width, iy, y,
+                                                      p.height)
+                                      : 0;
+        if (nIn <= 0 || nIn < p.minFrames) continue;
         const float snr = sum * p.invNorm[nIn];
         if (snr > p.snrThreshold) {
           const unsigned long long slot = atomicAdd(p.cellCount, 1ull);

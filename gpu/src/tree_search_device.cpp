@@ -29,7 +29,8 @@ float elapsedSeconds(const Event& a, const Event& b) {
 }  // namespace
 
 std::size_t treeDeviceBytes(const TreeDevicePlan& tree, const HostPlan& plan, std::size_t cellCapacity) {
-  return tree.arenaBytes() + tree.tableBytes() + (plan.spanX.size() + plan.spanY.size()) * sizeof(int) +
+  return tree.arenaBytes() + tree.tableBytes() +
+         (plan.spanX.size() + plan.spanY.size() + plan.maskX.size() + plan.maskY.size()) * sizeof(int) +
          plan.invNorm.size() * sizeof(float) + static_cast<std::size_t>(plan.nvx) * plan.nvy * 8 +
          cellCapacity * sizeof(DeviceCell) + 4096;
 }
@@ -69,6 +70,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
                     frameIndex = toDevice(tree.frameIndex), cutPitch = toDevice(tree.cutPitch),
                     colBase = toDevice(tree.colBase), rowBase = toDevice(tree.rowBase),
                     spanX = toDevice(plan.spanX), spanY = toDevice(plan.spanY);
+  DeviceBuffer<unsigned> maskX = toDevice(plan.maskX), maskY = toDevice(plan.maskY);
   DeviceBuffer<long long> cutBase = toDevice(tree.cutBase);
   DeviceBuffer<float> invNorm = toDevice(plan.invNorm);
   const std::size_t nv = static_cast<std::size_t>(plan.nvx) * plan.nvy;
@@ -120,6 +122,9 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   rt.nvy = plan.nvy;
   rt.spanX = reinterpret_cast<const int2*>(spanX.get());
   rt.spanY = reinterpret_cast<const int2*>(spanY.get());
+  rt.maskX = plan.maskX.empty() ? nullptr : maskX.get();
+  rt.maskY = plan.maskY.empty() ? nullptr : maskY.get();
+  rt.maskWords = plan.maskWords;
   rt.invNorm = invNorm.get();
   rt.snrThreshold = plan.snrThreshold;
   rt.minFrames = plan.minFrames;

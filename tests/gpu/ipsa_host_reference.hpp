@@ -21,8 +21,9 @@ struct RefSearch {
   std::vector<double> snr;      ///< [nvy][nvx][H][W] every cell's SNR (NaN where ignored)
 };
 
-inline int refShift(double v, double dt) {
-  return static_cast<int>(std::lround(v * dt));
+/// round(o + v dt): o is the frame's registration offset (FrameInfo::offsetXPx/offsetYPx, usually 0).
+inline int refShift(double v, double dt, double o = 0.0) {
+  return static_cast<int>(std::lround(o + v * dt));
 }
 
 inline RefSearch refSearch(const search::FilteredCube& cube, const search::VelocityGrid& grid,
@@ -43,8 +44,8 @@ inline RefSearch refSearch(const search::FilteredCube& cube, const search::Veloc
     for (int ix = 0; ix < grid.nvx; ++ix) {
       const Velocity v = grid.at(ix, iy);
       for (int k = 0; k < n; ++k) {
-        sx[k] = refShift(v.vx, dt[k]);
-        sy[k] = refShift(v.vy, dt[k]);
+        sx[k] = refShift(v.vx, dt[k], f.info()[k].offsetXPx);
+        sy[k] = refShift(v.vy, dt[k], f.info()[k].offsetYPx);
       }
       const std::size_t iv = static_cast<std::size_t>(iy) * grid.nvx + ix;
       double best = -1e300;
@@ -89,8 +90,8 @@ inline Image refStack(const FrameCube& f, Velocity v, bool csa) {
       for (int x = 0; x < w; ++x) {
         double s = 0.0;
         if (!csa) {
-          const int xx = x + refShift(v.vx, dt[k]);
-          const int yy = y + refShift(v.vy, dt[k]);
+          const int xx = x + refShift(v.vx, dt[k], f.info()[k].offsetXPx);
+          const int yy = y + refShift(v.vy, dt[k], f.info()[k].offsetYPx);
           if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
           s = fr[static_cast<std::size_t>(yy) * w + xx];
         } else {

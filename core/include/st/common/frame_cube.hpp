@@ -22,6 +22,17 @@ struct FrameInfo {
   std::string file;        ///< file the frame was read from (empty when made in memory)
   int hdu = 0;             ///< 1-based HDU number in that file (CFITSIO's numbering)
   int plane = 0;           ///< 0-based plane index within a 3-D cube HDU
+  /// Registration offset o_n of ARCHITECTURE.md, px: where the star field of this frame lies beyond the
+  /// linear sky-rate model (a dither, a guiding error, a re-pointing), so that frame n's IPSA shift for
+  /// velocity v is round(o_n + v (t_n - t_ref)). 0 when the linear model fits (detect/registration.hpp).
+  double offsetXPx = 0.0;
+  double offsetYPx = 0.0;
+};
+
+/// A frame's registration offset (FrameInfo::offsetXPx, offsetYPx), px.
+struct PixelOffset {
+  double x = 0.0;
+  double y = 0.0;
 };
 
 class FrameCube {
@@ -62,6 +73,11 @@ class FrameCube {
   [[nodiscard]] double tRefMjd() const;
   /// t_n - t_ref in seconds for every frame.
   [[nodiscard]] std::vector<double> timeOffsetsS() const;
+  /// Every frame's registration offset o_n (FrameInfo::offsetXPx/offsetYPx), in cube order.
+  [[nodiscard]] std::vector<PixelOffset> frameOffsets() const;
+  /// True when some frame has a non-zero registration offset (the search's shifts are then not monotone in
+  /// time, and N_in is counted frame by frame).
+  [[nodiscard]] bool hasFrameOffsets() const noexcept;
   /// Last mid-time minus first mid-time, seconds.
   [[nodiscard]] double timeSpanS() const;
 

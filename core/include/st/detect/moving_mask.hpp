@@ -1,13 +1,15 @@
 #pragma once
 // A set of pixels given at the reference epoch t_ref and carried along with the sky motion: in frame n the
 // pixel (x, y) is covered when (x - sx_n, y - sy_n) is set at t_ref, with (sx_n, sy_n) =
-// (round(vx (t_n - t_ref)), round(vy (t_n - t_ref))), the integer shift of ARCHITECTURE.md's IPSA
+// (round(ox_n + vx (t_n - t_ref)), round(oy_n + vy (t_n - t_ref))) (o_n the frame's registration offset),
+// the integer shift of ARCHITECTURE.md's IPSA
 // convention. Its canvas spans every reference position that some frame sees, so stars that drift into or
 // out of the field are covered too. Used to exclude static sources from the background and to zero them.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
+#include "st/common/frame_cube.hpp"
 #include "st/common/units.hpp"
 
 namespace st::detect {
@@ -16,7 +18,12 @@ class MovingMask {
  public:
   MovingMask() = default;
   /// A mask for frames of width x height at the given offsets t_n - t_ref (seconds) and sky rate (px/s).
-  MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate);
+  /// `frameOffsets` are the frames' registration offsets o_n (FrameCube::frameOffsets(); empty = all 0): the
+  /// shift of frame n is then round(o_n + rate (t_n - t_ref)), the search's own (ARCHITECTURE.md).
+  MovingMask(int width, int height, const std::vector<double>& timeOffsetsS, Velocity rate,
+             const std::vector<PixelOffset>& frameOffsets = {});
+  /// The mask of `cube`'s frames (size, times and registration offsets) at sky rate `rate`.
+  MovingMask(const FrameCube& cube, Velocity rate);
 
   [[nodiscard]] bool empty() const noexcept { return m_canvas.empty(); }
   /// Canvas geometry: canvas pixel (i, j) is the reference position (x0 + i, y0 + j).

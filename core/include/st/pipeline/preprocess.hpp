@@ -2,6 +2,8 @@
 // Pre-processing of one observation (paper §4.2-4.3, ARCHITECTURE.md data flow):
 //   calibrate (overscan, bias, dark, flat, trim, bad pixels)
 //   -> each frame's own smooth background (SEP mesh) removed, the cube's median sky level kept
+//   -> registration: each frame's star-field offset, chained frame to frame; the linear sky rate when it
+//      fits, else per-frame offsets o_n (FrameInfo) that every later stage and the search use
 //   -> global background (50 frames, xi = 5) and sky rate (given, or measured from the stars)
 //   -> cosmic rays (stars protected by sky-rate stacks; hits filled from their time neighbours for now)
 //   -> static sources in the sky-rate stack (SNR >= 7 per pixel or after the PSF filter; wings, spikes and
@@ -28,6 +30,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
+#include "st/detect/registration.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/detect/static_sources.hpp"
 #include "st/detect/star_subtraction.hpp"
@@ -49,6 +52,10 @@ struct PreprocessParams {
   stats::BackgroundParams background;  ///< paper: global 50 frames xi 5, per-pixel <= 2000 frames xi 4
   std::optional<Velocity> skyRate;     ///< px/s; none = measure it from the stars
   detect::SkyRateParams skyRateParams;
+  /// Per-frame registration (pipeline/registration_stage.hpp): offsets of the star field beyond the linear
+  /// sky rate (dithers, guiding, re-pointing), used by every later stage and the search.
+  bool registerFrames = true;
+  detect::RegistrationParams registration;
   detect::StaticSourceParams stars;  ///< paper §4.3: SNR 7
   double singleFrameSnr = 7.0;       ///< paper §4.3: bright objects in single frames, SNR 7
   double psfFwhmPx = 3.0;            ///< footprint dilation before the fit, and the fallback PSF
@@ -85,6 +92,8 @@ struct Prepared {
   std::vector<detect::MovingSource> movers;
   Velocity skyRate;  ///< px/s
   bool skyRateMeasured = false;
+  /// The registration measured (model, rate, rms); the offsets themselves are in frames.info().
+  detect::Registration registration;
   calib::CalibrationReport calibration;
   std::size_t hotPixels = 0;  ///< found in the science frames and masked in every frame
   std::vector<std::size_t> cosmicRaysPerFrame;

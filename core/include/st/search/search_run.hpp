@@ -44,8 +44,9 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params);
 /// The same with the cube's properties given (an out-of-core search holds no whole cube): PSF FWHM, the
-/// frames' t - t_ref (s) and the whole image's size.
+/// frames' t - t_ref (s), the whole image's size and the frames' registration offsets (empty = all 0).
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
-                   const std::vector<double>& dtS, int width, int height, const SearchParams& params);
+                   const std::vector<double>& dtS, int width, int height, const SearchParams& params,
+                   const std::vector<PixelOffset>& offsets = {});
 
 }  // namespace st::search

@@ -29,7 +29,10 @@ namespace st::search {
 /// Merges every candidate that is a sidelobe of a brighter one (model above) into it. `candidates` are
 /// sorted by decreasing SNR and stay so. Pairs whose tracks never come within the distance where K falls
 /// below 1e-3 (+1 px) over the span are skipped without evaluating the sums. Returns the number merged.
+/// `offsets` are the frames' registration offsets (FrameCube::frameOffsets(); empty = all 0): a sample of
+/// frame n is at round(o_n + v dt_n), a source at o_n + v dt_n.
 std::size_t mergeSidelobes(std::vector<Candidate>& candidates, const std::vector<double>& dtS, int width,
-                           int height, double psfFwhmPx, double snrThreshold);
+                           int height, double psfFwhmPx, double snrThreshold,
+                           const std::vector<PixelOffset>& offsets = {});
 
 }  // namespace st::search

@@ -12,8 +12,8 @@
 // Combination (per axis, x and y are independent because every grid is a product grid): a parent stack for
 // axis velocity v is child(u) shifted by an integer offset a, for each of its two children. u is taken among
 // the child's grid velocity nearest to v and its two neighbours, and a is chosen, so that the child's implied
-// per-frame shifts plus a deviate least (max, then sum of |deviation|) from the exact shifts round(v dt_k) of
-// ARCHITECTURE.md. All shifts are "at t_ref": a node's stack at pixel q sums F_k(q + s_k) with s_k close to
+// per-frame shifts plus a deviate least (max, then sum of |deviation|) from the exact shifts round(o_k + v dt_k)
+// of ARCHITECTURE.md (o_k the frame's registration offset, usually 0). All shifts are "at t_ref": a node's stack at pixel q sums F_k(q + s_k) with s_k close to
 // round(v dt_k), so no error accumulates from re-anchoring at node times; the deviation is measured and
 // exposed (TreePlan::maxAbsErr*), and the tests check it is at most 1 px at every frame.
 // Shifts are computed relative to the grid centre's own motion P_k = round(c dt_k), so the margins the
@@ -73,7 +73,8 @@ struct TreeNode {
 struct TreePlan {
   std::vector<std::size_t> frame;  ///< cube frame index of the k-th frame in time order
   std::vector<double> dt;          ///< its t - t_ref, seconds
-  std::vector<int> preX, preY;     ///< P_k = round(centre dt_k) per axis
+  std::vector<double> ox, oy;      ///< its registration offset o_k, px (0 unless registered)
+  std::vector<int> preX, preY;     ///< P_k = round(o_k + centre dt_k) per axis
   std::vector<TreeNode> nodes;     ///< nodes[0] is the root; its axes are the search grid's
   int depth = 0;                   ///< deepest node level (root 0)
   int maxAbsErrX = 0;              ///< max over grid velocities and frames of |implied - round(v dt)|, px
@@ -82,7 +83,10 @@ struct TreePlan {
 
 /// Builds the plan for frames with offsets `dtS` (t_n - t_ref, seconds, in cube order; at least 2 distinct
 /// times) and `grid` (non-empty, positive step). Throws st::InputError otherwise. O(N_f x axis velocities).
-TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid);
+/// `offsets` (cube order, FrameCube::frameOffsets(); empty = all 0) are the frames' registration offsets
+/// o_k: the exact shifts the plan approximates are then round(o_k + v dt_k) (ARCHITECTURE.md).
+TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
+                       const std::vector<PixelOffset>& offsets = {});
 
 /// The tree's implied integer shift (sx, sy) of every frame, in cube frame order, for grid velocity (ix, iy):
 /// the root's stack at pixel (x, y) sums F_n(x + sx_n, y + sy_n) over frames with the sample inside.

@@ -31,9 +31,11 @@ struct StackResult {
   search::StackMode mode = search::StackMode::Ipsa;
 };
 
-/// round(v * (t_n - t_ref)) for every frame (std::round; values beyond +-2^30 are clamped, such a frame is
-/// out of any image anyway).
-std::vector<IntShift> ipsaShifts(const std::vector<double>& offsetsS, Velocity v);
+/// round(o_n + v * (t_n - t_ref)) for every frame (std::round; values beyond +-2^30 are clamped, such a frame
+/// is out of any image anyway). `frameOffsets` are the frames' registration offsets o_n
+/// (FrameCube::frameOffsets(), one per entry of offsetsS); empty = all 0.
+std::vector<IntShift> ipsaShifts(const std::vector<double>& offsetsS, Velocity v,
+                                 const std::vector<PixelOffset>& frameOffsets = {});
 
 /// The IPSA kernel on rows [y0, y1) only, single-threaded: writes those rows of `sum` and `nIn`, which
 /// point to full width x height outputs. For callers that schedule their own threads (search backends).
@@ -45,7 +47,7 @@ void ipsaRows(const FrameCube& cube, const std::vector<IntShift>& shifts, int y0
 StackResult stackIpsa(const FrameCube& cube, Velocity v);
 
 /// As above with precomputed t_n - t_ref (seconds, one per frame), to avoid recomputing them when
-/// scrubbing. Throws st::InputError when offsetsS.size() != cube.frameCount().
+/// scrubbing. Both use the cube's registration offsets (FrameInfo::offsetXPx/offsetYPx). Throws st::InputError when offsetsS.size() != cube.frameCount().
 StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS, Velocity v);
 
 }  // namespace st::stack

@@ -1,0 +1,71 @@
+#pragma once
+// Per-frame registration (issue 15, item 1; ARCHITECTURE.md "Registration"): where each frame's star field
+// lies, so that a dithered, badly guided or re-pointed sequence is searched as well as a perfectly tracked
+// one. Frame n's IPSA shift for velocity v is round(o_n + v (t_n - t_ref)), with o_n the frame's offset beyond
+// the linear sky-rate model (FrameInfo::offsetXPx/offsetYPx).
+//
+// Measurement: each frame's star image (background-subtracted, in single-frame sigmas, clipped to
+// [0, kClipSigma] and zero below kFloorSigma, masked pixels 0; binned 2x2 when the frame is wider or taller
+// than 1024 px) is cross-correlated (FFT, the whole frame, so any shift up to half the frame is found) with
+// its predecessor's; the peak (parabolic sub-pixel) gives the star field's step between the two. The steps are
+// chained (P_0 = 0, P_n = P_{n-1} + step_n), so the field may change completely over the sequence: only
+// neighbours need to share stars. A link whose peak is not significant (SNR < minPeakSnr) is retried against
+// the frame before (up to 3 back); a frame no link reaches leaves the registration unmeasured.
+// Model: the linear sky rate r is the median of the pairwise slopes (P_j - P_i) / (t_j - t_i) over pairs at
+// most a quarter of the sequence apart (Theil-Sen, robust to dithers and to a jump), or the given rate. The
+// residuals o_n = P_n - r (t_n - t_0) (so o_0 = 0: frame 0 keeps the WCS's mapping) have an rms; at most
+// linearRmsPx: the linear model fits and o_n = 0 is kept; above: the per-frame residuals are used.
+// Long sequences (more than 2 x kQuickFrames frames): first kQuickFrames evenly spaced links (frame n with
+// n + 1); when each agrees with the linear model within quickTolerancePx the linear model is kept without
+// measuring every frame (the paper's scanning telescope, 1500 frames at 16.7 Hz); when fewer than half of
+// them are significant (frames too faint to follow one by one) the registration is Unmeasured at once.
+// Cost: two real FFTs of a frame per link, parallel over links; memory: a frame's spectrum per link in flight.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/progress.hpp"
+#include "st/common/units.hpp"
+
+namespace st::detect {
+
+struct RegistrationParams {
+  double linearRmsPx = 0.35;      ///< residual rms (px) up to which the linear sky rate is the model
+  double minPeakSnr = 8.0;        ///< correlation peak over its surface's rms for a link to count
+  double quickTolerancePx = 0.6;  ///< long sequences: a sampled link agrees with the linear model
+};
+
+struct Registration {
+  enum class Model {
+    Linear,      ///< the linear sky rate fits (o_n = 0)
+    PerFrame,    ///< per-frame residual offsets are used
+    Unmeasured,  ///< the star field could not be followed (faint frames): the linear model is kept
+  };
+  Model model = Model::Unmeasured;
+  Velocity rate;                        ///< the linear rate r, px/s (Theil-Sen, or the given one)
+  std::vector<PixelOffset> position;    ///< measured star-field position P_n relative to frame 0, px (empty
+                                        ///< when not every frame was measured)
+  std::vector<PixelOffset> offsets;     ///< o_n to apply (all 0 unless PerFrame), cube order
+  double rmsPx = 0.0;                   ///< rms of the residuals from the linear model, px
+  double maxPx = 0.0;                   ///< largest residual, px
+  int linksMeasured = 0;                ///< links whose peak was significant
+  std::string rateNote;                 ///< how the rate was taken (an axis without significant drift is 0)
+  std::string note;                     ///< for the user: which model, with the rms
+};
+
+/// Measures the registration of `cube` (model above). `givenRate` (px/s) replaces the Theil-Sen rate when
+/// set. Frames need not be in time order (they are linked in time order). Never throws for unusable data
+/// (the result says Unmeasured); throws st::Cancelled.
+Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> givenRate,
+                                 const RegistrationParams& params, ProgressSink& progress, CancelToken& cancel);
+
+/// Writes reg.offsets into the frames (FrameInfo::offsetXPx/offsetYPx); all 0 unless reg.model is PerFrame.
+void applyRegistration(FrameCube& cube, const Registration& reg);
+
+/// The step of the star field from image `b` to image `a` (a star at p in b is at p + step in a), both
+/// width x height, by FFT cross-correlation of their star images (as above); `snr` is the peak's
+/// significance. For tests and for measureRegistration.
+PixelOffset correlationStep(const float* a, const float* b, int width, int height, double& snr);
+
+}  // namespace st::detect

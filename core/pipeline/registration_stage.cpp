@@ -1,0 +1,30 @@
+#include "st/pipeline/registration_stage.hpp"
+
+#include <sstream>
+
+namespace st::pipeline {
+
+bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params, ProgressSink& progress,
+                         CancelToken& cancel) {
+  if (!params.registerFrames) {
+    detect::applyRegistration(cube, {});
+    out.registration = {};
+    return false;
+  }
+  detect::Registration reg = detect::measureRegistration(cube, params.skyRate, params.registration, progress, cancel);
+  detect::applyRegistration(cube, reg);
+  out.notes.push_back(reg.note);
+  const bool perFrame = reg.model == detect::Registration::Model::PerFrame;
+  if (perFrame && !params.skyRate) {
+    out.skyRate = reg.rate;
+    out.skyRateMeasured = true;
+    std::ostringstream note;
+    note << "sky rate from the registered star field (" << reg.rateNote << "): (" << reg.rate.vx << ", "
+         << reg.rate.vy << ") px/s";
+    out.notes.push_back(note.str());
+  }
+  out.registration = std::move(reg);
+  return perFrame && !params.skyRate;
+}
+
+}  // namespace st::pipeline

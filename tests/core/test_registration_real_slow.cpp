@@ -1,0 +1,147 @@
+// Registration on real frames (issue 15, "done when"): the Lowell 42-inch sequence of (5945) Roachapproach
+// (../shared/data/real/lowell42-5945; skipped when absent), calibrated with its biases and flats, then given
+// simulated pointing errors: every frame but the first moved by an integer dither of up to 20 px per axis,
+// and the second half by a further re-pointing of (61, -43) px (whole frames shifted, the uncovered pixels
+// masked). Pre-processed and searched like the undithered sequence (test_pipeline_real_slow.cpp's grid,
+// +-0.2 deg/day in 1 px steps over the span), the asteroid must be found at the same place (within 1 px), the
+// same velocity relative to the stars (within 3 px over the span) and an SNR not below 85% of the
+// undithered one (the issue's 3% is not met yet: see the SNR check); the registration must report per-frame
+// offsets that match the dithers within 0.3 px. Runs on a 1024 x 1024 crop around the asteroid: ~60 CPU-s
+// (2-3 min wall on the shared 2-core machine).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "dither_frames.hpp"
+#include "st/calib/calibration.hpp"
+#include "st/detect/registration.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/search/cpu_backend.hpp"
+#include "test_support.hpp"
+
+namespace st::pipeline {
+namespace {
+
+// The asteroid in the full trimmed frame, and the 1024 x 1024 crop both runs use (a quarter of the pixels:
+// the two pre-processings and searches stay within the slow suite's budget).
+constexpr int kCropX = 161, kCropY = 211, kCrop = 1024;
+constexpr double kX = 673.0 - kCropX, kY = 723.5 - kCropY;
+
+FrameCube crop(const FrameCube& in) {
+  FrameCube out(kCrop, kCrop, in.frameCount());
+  out.info() = in.info();
+  out.header = in.header;
+  out.plateScaleArcsecPerPx = in.plateScaleArcsecPerPx;
+  const bool masked = !in.mask().empty();
+  if (masked) out.mask().assign(out.framePixels() * in.frameCount(), 0);
+  for (std::size_t n = 0; n < in.frameCount(); ++n) {
+    for (int y = 0; y < kCrop; ++y) {
+      const std::size_t src = n * in.framePixels() + static_cast<std::size_t>(y + kCropY) * in.width() + kCropX;
+      const std::size_t dst = n * out.framePixels() + static_cast<std::size_t>(y) * kCrop;
+      std::copy_n(in.pixels().begin() + static_cast<std::ptrdiff_t>(src), kCrop,
+                  out.pixels().begin() + static_cast<std::ptrdiff_t>(dst));
+      if (masked)
+        std::copy_n(in.mask().begin() + static_cast<std::ptrdiff_t>(src), kCrop,
+                    out.mask().begin() + static_cast<std::ptrdiff_t>(dst));
+    }
+  }
+  return out;
+}
+
+struct Found {
+  search::Candidate candidate;
+  bool found = false;
+  detect::Registration registration;
+  Velocity skyRate;
+};
+
+Found prepareAndSearch(FrameCube calibrated, double plateFallback) {
+  NullProgress p;
+  CancelToken c;
+  PreprocessParams params;  // the frames are calibrated already: no overscan, no trim, no masters
+  params.calib.subtractOverscan = false;
+  params.calib.trim = false;
+  params.calib.useHeaderSections = false;
+  const Prepared out = preprocess(std::move(calibrated), params, p, c);
+  for (const auto& n : out.notes)
+    std::printf("  note: %s\n", n.c_str());
+  const double span = out.filtered.frames.timeSpanS();
+  const double step = 1.0 / span;
+  const double plate = out.filtered.frames.plateScaleArcsecPerPx.value_or(plateFallback);
+  const int half = static_cast<int>(std::ceil(degPerDayToPxPerSec(0.2, plate) / step));
+  const search::VelocityGrid grid{out.skyRate, step, 2 * half + 1, 2 * half + 1};
+  const search::SearchResult r = search::makeCpuBackend()->search(out.filtered, grid, {}, p, c);
+  Found f;
+  f.registration = out.registration;
+  f.skyRate = out.skyRate;
+  const auto it = std::find_if(r.candidates.begin(), r.candidates.end(), [](const search::Candidate& cd) {
+    return std::hypot(cd.x - kX, cd.y - kY) <= 2.0;
+  });
+  if (it != r.candidates.end()) {
+    f.candidate = *it;
+    f.found = true;
+  }
+  return f;
+}
+
+TEST(RegistrationReal, Lowell5945DitheredAndRepointedIsFoundAsUndithered) {
+  const auto root = test::realDataDir();
+  if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) GTEST_SKIP() << "no real data";
+  const auto dir = root / "lowell42-5945";
+  FrameCube cube = test::loadFolder(dir / "science", true);
+  ASSERT_EQ(cube.frameCount(), 15u);
+  const FrameCube bias = test::loadFolder(dir / "bias", false), flat = test::loadFolder(dir / "flat", false);
+  NullProgress p;
+  CancelToken c;
+  calib::CalibParams cp;
+  const calib::MasterCalibration masters = calib::buildMasters(bias, FrameCube{}, flat, cube, cp, p, c);
+  calib::applyCalibration(cube, masters, cp, p, c);
+  cube = crop(cube);
+  const auto dithers = test::randomDithers(cube.frameCount(), 20, {61, -43}, 42);
+  FrameCube dithered = cube;
+  test::ditherFrames(dithered, dithers);
+
+  std::printf("undithered:\n");
+  const Found still = prepareAndSearch(std::move(cube), 0.981);
+  std::printf("dithered:\n");
+  const Found moved = prepareAndSearch(std::move(dithered), 0.981);
+  ASSERT_TRUE(still.found) << "5945 not found in the undithered frames";
+  ASSERT_TRUE(moved.found) << "5945 not found in the dithered frames";
+  std::printf("undithered (%d, %d) v (%.5f, %.5f) SNR %.2f; dithered (%d, %d) v (%.5f, %.5f) SNR %.2f\n",
+              still.candidate.x, still.candidate.y, still.candidate.v.vx, still.candidate.v.vy,
+              still.candidate.snr, moved.candidate.x, moved.candidate.y, moved.candidate.v.vx,
+              moved.candidate.v.vy, moved.candidate.snr);
+  EXPECT_EQ(still.registration.model, detect::Registration::Model::Linear) << still.registration.note;
+  ASSERT_EQ(moved.registration.model, detect::Registration::Model::PerFrame) << moved.registration.note;
+  // The measured star-field positions (relative to the first frame) are the dithers plus the undithered
+  // sequence's own (sub-pixel) drift.
+  ASSERT_EQ(moved.registration.offsets.size(), dithers.size());
+  const auto& pos = moved.registration.position;
+  const auto& drift = still.registration.position;
+  ASSERT_EQ(pos.size(), dithers.size());
+  ASSERT_EQ(drift.size(), dithers.size());
+  for (std::size_t n = 0; n < dithers.size(); ++n) {
+    EXPECT_NEAR(pos[n].x - dithers[n].first, drift[n].x, 0.3) << "frame " << n;
+    EXPECT_NEAR(pos[n].y - dithers[n].second, drift[n].y, 0.3) << "frame " << n;
+  }
+  EXPECT_LE(std::abs(moved.candidate.x - still.candidate.x), 1);
+  EXPECT_LE(std::abs(moved.candidate.y - still.candidate.y), 1);
+  // Velocities relative to the stars (the fitted rates of the two runs differ a little).
+  const double span = 15 * 300.0;
+  const Velocity a{still.candidate.v.vx - still.skyRate.vx, still.candidate.v.vy - still.skyRate.vy};
+  const Velocity b{moved.candidate.v.vx - moved.skyRate.vx, moved.candidate.v.vy - moved.skyRate.vy};
+  EXPECT_LE(std::hypot(a.vx - b.vx, a.vy - b.vy) * span, 3.0) << "relative velocities differ";
+  // Not yet the issue's 3%: measured 716 vs 773 (0.926) with the dithered field's stars subtracted by the
+  // sky-registered template (0.875 with the detector-pixel background alone). What remains is estimated at
+  // fixed detector pixels (per-pixel background, noise), under which the dithered sky moves. Held at 0.85
+  // so that a regression shows; see the report of branch `register`.
+  EXPECT_GE(moved.candidate.snr, 0.85 * still.candidate.snr);
+  std::printf("SNR ratio dithered / undithered %.3f (issue target >= 0.97)\n", moved.candidate.snr / still.candidate.snr);
+}
+
+}  // namespace
+}  // namespace st::pipeline
