@@ -240,7 +240,7 @@ void CandidateInspector::start() {
     Outcome out;
     out.index = index;
     try {
-      out.inspection = std::make_shared<const Inspection>(inspectCandidate(in, *cancel));
+      out.inspection = std::make_shared<const Inspection>(candidate::inspectCandidate(in, *cancel));
     } catch (const Cancelled&) {
       out.cancelled = true;
     } catch (const std::exception& e) {
@@ -279,9 +279,7 @@ void CandidateInspector::onFinished() {
 
 bool CandidateInspector::storeFlags() {
   if (!m_shown || m_shownIndex < 0) return false;
-  nlohmann::json flags = nlohmann::json::array();
-  for (const auto& f : m_shown->flags)
-    flags.push_back(vet::toJson(f));
+  const std::vector<vet::ArtifactFlag>& flags = m_shown->flags;
   const auto* state = m_obs->candidateState(m_shownIndex);
   if (!state) return false;
   if (state->artifacts != flags) m_obs->setCandidateArtifacts(m_shownIndex, flags);

@@ -74,15 +74,15 @@ class Observation : public QObject {
       emit candidateStateChanged(index);
     }
   }
-  /// An accepted co-moving fit (the JSON object app::fitCandidateJson makes).
-  void setCandidateFit(int index, nlohmann::json fit) {
+  /// An accepted co-moving fit (candidate::fitCandidate).
+  void setCandidateFit(int index, std::optional<candidate::FitSummary> fit) {
     if (auto* s = mutableState(index)) {
       s->fit = std::move(fit);
       emit candidateStateChanged(index);
     }
   }
-  /// Artifact flags (st::vet toJson(ArtifactFlag) objects).
-  void setCandidateArtifacts(int index, nlohmann::json flags) {
+  /// Artifact flags (st::vet checks and the known-object check).
+  void setCandidateArtifacts(int index, std::vector<vet::ArtifactFlag> flags) {
     if (auto* s = mutableState(index)) {
       s->artifacts = std::move(flags);
       emit candidateStateChanged(index);

@@ -32,6 +32,7 @@ struct ArtifactFlag {
   double value = 0.0;    ///< the measured number the decision is made on (its unit is in `evidence`)
   std::string evidence;  ///< one sentence, e.g. "on bleed column 212 of the saturated star at (212.0, 80.4)
                          ///< in 96% of the frames (480/500)"
+  friend bool operator==(const ArtifactFlag&, const ArtifactFlag&) = default;
 };
 
 /// A straight track: 0-based pixel position at t_ref and velocity in the frames (px/s).

@@ -1,4 +1,4 @@
-#include "candidate_inspection.hpp"
+#include "st/candidate/inspection.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "st/common/error.hpp"
 #include "st/stack/ipsa.hpp"
 
-namespace st::ui {
+namespace st::candidate {
 namespace {
 
 /// Frames of `frames` whose IPSA sample of the cell (x, y) at velocity v is inside the frame and unmasked:
@@ -161,4 +161,4 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   return out;
 }
 
-}  // namespace st::ui
+}  // namespace st::candidate

@@ -22,7 +22,7 @@
 #include "st/vet/known_objects.hpp"
 #include "st/vet/segments.hpp"
 
-namespace st::ui {
+namespace st::candidate {
 
 struct InspectionInput {
   std::shared_ptr<const search::FilteredCube> filtered;  ///< the search's cube (required)
@@ -64,4 +64,4 @@ struct Inspection {
 /// st::Cancelled when cancelled.
 [[nodiscard]] Inspection inspectCandidate(const InspectionInput& input, CancelToken& cancel);
 
-}  // namespace st::ui
+}  // namespace st::candidate
