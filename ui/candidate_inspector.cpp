@@ -11,6 +11,7 @@
 #include <QPushButton>
 #include <QSettings>
 #include <QSlider>
+#include <QStyle>
 #include <QToolButton>
 #include <QTreeWidget>
 #include <QVBoxLayout>
@@ -39,6 +40,8 @@ QString kindLabel(vet::ArtifactKind kind) {
       return "transient";
     case vet::ArtifactKind::KnownObject:
       return "known object";
+    case vet::ArtifactKind::StaticSource:
+      return "static source (sky-rate SNR)";
   }
   return "?";
 }
@@ -74,7 +77,9 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_slider = new QSlider(Qt::Horizontal, this);
   m_slider->setEnabled(false);
   m_play = new QToolButton(this);
-  m_play->setText("▶");
+  // The style's icons: the "⏸" glyph is missing from common fonts and showed as an empty box.
+  m_play->setIcon(style()->standardIcon(QStyle::SP_MediaPlay));
+  m_play->setObjectName("inspector.play");
   m_play->setCheckable(true);
   m_play->setToolTip("Play / pause the frames along the track");
   m_frameLabel = new QLabel(this);
@@ -369,7 +374,8 @@ void CandidateInspector::setPlaying(bool on) {
     m_playTimer.stop();
   const QSignalBlocker block(m_play);
   m_play->setChecked(on);
-  m_play->setText(on ? "⏸" : "▶");
+  m_play->setIcon(style()->standardIcon(on ? QStyle::SP_MediaPause : QStyle::SP_MediaPlay));
+  m_play->setToolTip(on ? "Pause the frames along the track" : "Play the frames along the track");
 }
 
 void CandidateInspector::chooseKnownObjects() {

@@ -159,6 +159,9 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
 }
 
 QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, int role) const {
+  if (orientation == Qt::Horizontal && role == Qt::ToolTipRole && section == Fap)
+    return QString("Expected number of false alarms at this SNR over all trials (the paper's Prob_false); "
+                   "a count, not a probability: values above 1 are common for faint candidates");
   if (orientation != Qt::Horizontal || role != Qt::DisplayRole)
     return QAbstractTableModel::headerData(section, orientation, role);
   const QString u = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
@@ -178,7 +181,7 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
     case Snr:
       return "SNR";
     case Fap:
-      return "FAP";
+      return "false alarms";
     case NIn:
       return "N_in";
     case Cells:
@@ -300,7 +303,7 @@ void CandidatePanel::buildFilterBar() {
   m_count = new QLabel(this);
   auto* bar = new QHBoxLayout;
   bar->addWidget(m_minSnr);
-  bar->addWidget(new QLabel("FAP ≤", this));
+  bar->addWidget(new QLabel("false alarms ≤", this));
   bar->addWidget(m_maxFap);
   bar->addWidget(m_flags, 1);
   bar->addWidget(m_labelFilter);
@@ -337,6 +340,12 @@ void CandidatePanel::updateCount() {
     vetted += s.label != session::Label::Unvetted ? 1 : 0;
   m_count->setText(
       QString("%1 of %2, %3 vetted").arg(m_filter->rowCount()).arg(m_model->rowCount()).arg(vetted));
+  std::vector<bool> shown(static_cast<std::size_t>(m_model->rowCount()), false);
+  for (int r = 0; r < m_filter->rowCount(); ++r) {
+    const int source = m_filter->mapToSource(m_filter->index(r, 0)).row();
+    if (source >= 0 && source < static_cast<int>(shown.size())) shown[static_cast<std::size_t>(source)] = true;
+  }
+  m_obs->setCandidatesShown(std::move(shown));
 }
 
 void CandidatePanel::onResult() {

@@ -330,7 +330,7 @@ void FitPanel::fillTable(const FitOutcome& out) {
   const auto& result = m_obs->result();
   if (result && result->trials.total() > 0) {
     const auto& t = result->trials;
-    row("FAP (Prob_false)", num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3), "", "",
+    row("FAP: expected false alarms (Prob_false)", num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3), "", "",
         QString("%1 trials").arg(t.total(), 0, 'g', 3));
   }
   row("frames inside / used", QString("%1 / %2").arg(r.framesInside).arg(r.framesUsed));

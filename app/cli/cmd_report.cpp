@@ -28,6 +28,7 @@ namespace {
 constexpr const char* kHelp =
     "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note "
     "N=TEXT]...\n"
+    "                             [--candidates-json C.json] [--csv C.csv]\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--ades-xml out.xml] [--mpc out.txt]\n"
     "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
     "                             [--telescope-aperture M] [--telescope-design D]\n"
@@ -40,6 +41,8 @@ constexpr const char* kHelp =
     "  --label N=LABEL   label candidate N (1-based): real, unsure, unvetted, artifact or\n"
     "                    artifact:REASON (charge_leakage, diffraction, cosmic_ray, ghost, other)\n"
     "  --note N=TEXT     a note on candidate N\n"
+    "  --candidates-json FILE  the candidates with fits, labels, notes and artifact flags (as the GUI's\n"
+    "                    export; 'report' reads it back)   --csv FILE  the same as CSV\n"
     "  --ds9 FILE        DS9 regions of every candidate (fk5 with --wcs, else image coordinates)\n"
     "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
     "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to); also gives real "
@@ -76,7 +79,7 @@ constexpr const char* kHelp =
 const std::set<std::string> kValuedOptions = {
     "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
     "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
-    "mpc-cat", "prepared", "known", "known-radius"};
+    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv"};
 // clang-format on
 
 nlohmann::json readJson(const std::string& path) {
@@ -325,7 +328,9 @@ int cmdReport(const Args& args) {
   runVetting(cli, editor, wcs);
   report::ReportRequest request;
   request.session = withSkyPositions(editor.session(), wcs);
-  for (const auto& [option, file] : {std::pair{"ds9", report::ReportFile::Ds9},
+  for (const auto& [option, file] : {std::pair{"candidates-json", report::ReportFile::CandidatesJson},
+                                     std::pair{"csv", report::ReportFile::CandidatesCsv},
+                                     std::pair{"ds9", report::ReportFile::Ds9},
                                      std::pair{"ades", report::ReportFile::AdesPsv},
                                      std::pair{"ades-xml", report::ReportFile::AdesXml},
                                      std::pair{"mpc", report::ReportFile::Mpc80}})
@@ -354,6 +359,8 @@ int cmdReport(const Args& args) {
       std::printf("ADES PSV, %zu detections: %s\n", out.detections, path.c_str());
     else if (is("ades-xml"))
       std::printf("ADES XML, %zu detections: %s\n", out.detections, path.c_str());
+    else if (is("candidates-json") || is("csv"))
+      std::printf("candidates with their vetting state: %s\n", path.c_str());
     else if (is("mpc"))
       std::printf("MPC 80-column, %zu detections: %s\n", out.detections, path.c_str());
     else

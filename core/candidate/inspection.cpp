@@ -158,6 +158,7 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
                                                           : "the frames have no WCS: the candidate "
                                                             "cannot be placed on the sky"});
   }
+  out.flags.push_back(vet::staticSourceFlag(out.trackSnr, out.skySnr));
   return out;
 }
 

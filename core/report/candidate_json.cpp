@@ -44,7 +44,7 @@ fit::FitStatus statusFromString(const std::string& text, const std::string& wher
 vet::ArtifactKind kindFromString(const std::string& text, const std::string& where) {
   using K = vet::ArtifactKind;
   for (K k : {K::ChargeLeakage, K::BrightStar, K::Diffraction, K::Edge, K::Masked, K::Transient,
-              K::KnownObject})
+              K::KnownObject, K::StaticSource})
     if (text == vet::toString(k)) return k;
   throw InputError(where + ": unknown artifact check '" + text + "'");
 }

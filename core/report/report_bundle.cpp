@@ -75,6 +75,8 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
     p.tRefMjd = cube.tRefMjd();
     p.frames = cube.frameCount();
     p.inputs = r.session.inputs;
+    p.bunit = cube.header.getString("BUNIT").value_or("adu");
+    p.bunitComment = "mean per frame, background subtracted";
     char name[48];
     if (r.stacksObjectOnly)
       std::snprintf(name, sizeof name, "%03zu.fits", i + 1);
@@ -82,7 +84,8 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
       std::snprintf(name, sizeof name, "_c%03zu_%s.fits", i + 1, object ? "object" : "sky");
     const std::string path = r.stacksStem + name;
     makeParent(path);
-    writeStackFits(path, stack::stackIpsa(cube, dt, p.velocity).sum, p, cube.wcs.get(), dt.front());
+    const stack::StackResult st = stack::stackIpsa(cube, dt, p.velocity);
+    writeStackFits(path, backgroundSubtractedMean(st.sum, st.nIn), p, cube.wcs.get(), dt.front(), &st.nIn);
     out.written.push_back(path);
   }
 }

@@ -56,7 +56,7 @@ struct Inspection {
   std::vector<Image> movie;
   std::vector<std::size_t> movieFrameIndex;
   std::vector<double> movieTimeS;
-  /// Every st::vet check in ArtifactKind order, known object last.
+  /// Every st::vet check in ArtifactKind order: ..., known object, static source (vet::staticSourceFlag).
   std::vector<vet::ArtifactFlag> flags;
 };
 
