@@ -260,8 +260,13 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // frames see the star (its photon noise, seeing and guiding residuals), not where a stack would. A drifting
   // field crosses the pixels, so there every star is masked down to one stack sigma.
   const bool staticField = std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
-  const double maskFrames = staticField ? 1.0 : frames;
-  const double maskSnr = staticField ? params.growSnr * std::sqrt(frames) : 0.0;
+  // A drifting field whose stars are subtracted afterwards (subtractStarTemplate over the wide footprints
+  // kept in subtractRegion) is masked like a static one, where single frames see the stars.
+  const bool subtracted = !staticField && params.subtractStars;
+  const bool narrow = staticField || subtracted;
+  const double maskFrames = narrow ? 1.0 : frames;
+  const double maskSnr = narrow ? params.growSnr * std::sqrt(frames) : 0.0;
+  if (subtracted) out.subtractRegion = out.mask;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
@@ -286,15 +291,21 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     } else if (keptAsMover(motion, k, comp, s, cw, skyRate, params, st, out)) {
       continue;
     }
-    for (int p : comp)
+    for (int p : comp) {
       if (snr[p] >= maskSnr || st.saturated) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+      if (subtracted) out.subtractRegion.set(s.x0 + p % cw, s.y0 + p / cw);
+    }
     // The Moffat wings down to one stack sigma per pixel (two of one frame's sigma in a static field, where
     // only the wing's seeing and guiding residual, a fraction of it, is left; the radius grows with the
     // flux).
-    if (params.maskWings)
+    if (params.maskWings) {
       detail::setDisc(out.mask, st.x, st.y,
                       detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames,
-                                           staticField ? 2.0 * noise.sigma : noise.sigma));
+                                           narrow ? 2.0 * noise.sigma : noise.sigma));
+      if (subtracted)
+        detail::setDisc(out.subtractRegion, st.x, st.y,
+                        detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
+    }
     // Diffraction spikes along the detector axes and the column bleed of saturated (or very bright) stars.
     if (st.saturated || st.snr >= params.spikeSnr) {
       // Followed in the stack with only the global background removed: the mesh background is raised by
@@ -306,7 +317,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   }
   // The dilation covers the stars' sub-pixel motion under the sky rate's integer shifts; a static field has
   // none, so one pixel there.
-  out.mask.dilate(staticField ? 1 : base);
+  out.mask.dilate(narrow ? 1 : base);
+  out.subtractRegion.dilate(base);
   out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   progress.report(1.0, "static sources");

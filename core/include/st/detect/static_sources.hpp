@@ -53,6 +53,10 @@ struct StaticSourceParams {
   /// floor covers what the sigma (stack noise only) leaves out: the source's photon noise, the sky rate's
   /// integer shifts (<= 0.5 px) and guiding; a star's shift is a few tenths of a pixel.
   bool keepMovers = true;
+  /// In a drifting field (the stars move >= one FWHM over the span) the stars are subtracted by
+  /// subtractStarTemplate over StaticSources::subtractRegion, and `mask` covers only where single frames see
+  /// them (as in a static field); off: every star is masked down to one stack sigma.
+  bool subtractStars = true;
   double minMoverShiftPx = 1.0;
   double moverShiftSigmas = 5.0;
 };
@@ -90,6 +94,9 @@ struct StaticSources {
   MovingMask mask;                   ///< footprints, dilated, at t_ref; follows the sky rate
   std::vector<MovingSource> movers;  ///< sources of the stack that moved: not in `stars`, not masked
   MovingMask moverMask;     ///< the movers' footprints (streaks in the sky-rate stack), dilated like `mask`
+  /// Drifting field with subtractStars: the stars' wide footprints (down to one stack sigma, dilated for
+  /// sub-pixel motion) where their template is subtracted; empty otherwise.
+  MovingMask subtractRegion;
   double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
 };
 

@@ -30,6 +30,7 @@
 #include "st/common/progress.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/detect/static_sources.hpp"
+#include "st/detect/star_subtraction.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/search/types.hpp"
 #include "st/stats/background.hpp"
@@ -56,6 +57,8 @@ struct PreprocessParams {
   stats::FrameBackgroundParams frameBackground;  ///< each frame's smooth background (SEP), before all else
   bool removeResidualMean = true;  ///< remove each zero-biased frame's residual local mean (mesh)
   int residualMeshPx = 64;         ///< its mesh cell
+  /// Drifting fields: the stars' sky-registered template subtraction (stars.subtractStars turns it off).
+  detect::StarSubtractionParams starSubtraction;
   bool weightedFilter = true;  ///< inverse-variance-weighted matched filter (else the paper's uniform one)
   stats::NoiseModelParams noise;
 };
@@ -90,6 +93,7 @@ struct Prepared {
   std::vector<std::string> notes;              ///< what the user should know (sky rate, PSF fallback, ...)
   std::vector<std::uint64_t> cosmicRayPixels;  ///< flat cube indices of the pixels zeroed as cosmic rays
   stats::FrameBackgrounds frameBackgrounds;    ///< each frame's SEP level and rms (before all else)
+  detect::StarSubtraction starSubtraction;     ///< drifting fields: what the star template removed
   double residualMeanRms = 0.0;                ///< rms of the residual local means removed, counts
   stats::NoiseModel noiseModel;  ///< variance s_n^2 v(q) used by the weighted filter (empty when off)
   std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage

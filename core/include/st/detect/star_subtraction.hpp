@@ -1,0 +1,59 @@
+#pragma once
+// Static stars removed from a drifting field by subtracting a sky-registered template (issue 14): where the
+// star field drifts across the detector, masking each star down to one *stack* sigma zeroes wide discs
+// that follow the stars, and an object moving slowly relative to the stars (the paper's NEO moves 0.7 px/s
+// against 16.4 px/s of drift) spends much of the span under them. Instead, each frame is resampled onto the
+// sky (Lanczos-3 at its fractional offset), the template of frame n is the mean of the resampled frames
+// outside +-window of t_n (so a mover, which has left its place by then, does not subtract itself), and the
+// template, resampled back to frame n's offset, is subtracted there. Only the stars' cores, where single
+// frames see them, are masked afterwards.
+#include <cstddef>
+
+#include "st/common/frame_cube.hpp"
+#include "st/common/image.hpp"
+#include "st/common/progress.hpp"
+#include "st/detect/moving_mask.hpp"
+
+namespace st::detect {
+
+struct StarSubtractionParams {
+  /// Frames within +- windowFraction * span of a frame are left out of its template (as for the per-pixel
+  /// background: an object moving >= one FWHM relative to the sky in that time keeps its flux).
+  double windowFraction = 0.25;
+  int blocks = 16;  ///< frames are grouped in this many blocks of consecutive times, one template per block
+  /// A sky position whose residuals, over the frames, have more than maxVarianceRatio times the
+  /// background's variance there (sum of r^2 against sum of sigma^2, >= minExcessSamples frames) is masked:
+  /// the star's photon noise (an EMCCD's star at 2 single-frame sigma doubles the variance), seeing changes
+  /// and the interpolation's error, which the detector-fixed noise model cannot carry along with the sky.
+  /// The ratio must also be significant: above 1 + 5 sqrt(2 / S) for S samples.
+  double maxVarianceRatio = 1.3;
+  double minExcessSamples = 20.0;
+  /// A template pixel needs this many frames (its noise adds 1/minTemplateFrames of the variance).
+  double minTemplateFrames = 10.0;
+};
+
+struct StarSubtraction {
+  bool applied = false;
+  std::size_t pixelsSubtracted = 0;  ///< pixel-frames from which a template value was subtracted
+  std::size_t pixelsZeroed = 0;      ///< pixel-frames of the region without a template there: zeroed
+  std::size_t excessPositions = 0;   ///< sky positions with excess residual variance (before dilation)
+  /// Those positions, dilated by 1 px, following the sky (same geometry as the region): to be zeroed.
+  MovingMask excess;
+  double meanTemplateFrames = 0.0;   ///< frames averaged per template pixel, mean over the region
+};
+
+/// Subtracts, in every frame of the zero-biased `cube`, the sky-registered template of the stars at the
+/// positions that `region` (a MovingMask at `region.rate()`, e.g. the stars' wide footprints) covers in
+/// that frame. Pixels whose template lacks samples (a star seen only within one window, canvas edges) are
+/// zeroed. With `sigma` (the per-pixel frame-to-frame sigma of the background, detector pixels), the sky
+/// positions with excess residual variance are returned in `excess`. Not applied (cube untouched,
+/// `applied` false) when no block lies outside another's window. Throws st::Cancelled.
+StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, const Image* sigma,
+                                     const StarSubtractionParams& params, ProgressSink& progress,
+                                     CancelToken& cancel);
+
+/// Lanczos-3 weights for sampling at position f relative to an integer pixel: six taps starting at the
+/// returned offset (floor(f) - 2), normalised to 1.
+int lanczos3Weights(double f, double w[6]);
+
+}  // namespace st::detect
