@@ -6,6 +6,8 @@
 #include <QHBoxLayout>
 #include <QHeaderView>
 #include <QLabel>
+#include <QProxyStyle>
+#include <QStyleOptionHeader>
 #include <QLineEdit>
 #include <QTableView>
 #include <QVBoxLayout>
@@ -241,6 +243,33 @@ bool CandidateFilter::filterAcceptsRow(int row, const QModelIndex& parent) const
   return true;
 }
 
+namespace {
+
+/// QHeaderView hands the style SortDown for an ascending sort and SortUp for a descending one, so the table
+/// sorted by SNR, largest first, showed an up arrow (issue 18 §6: "the sort indicator is inverted"). This
+/// style swaps them: a down arrow when the largest values come first, as spreadsheets and file managers do.
+class SortArrowStyle : public QProxyStyle {
+ public:
+  using QProxyStyle::QProxyStyle;
+  void drawPrimitive(PrimitiveElement element, const QStyleOption* option, QPainter* painter,
+                     const QWidget* widget) const override {
+    if (element == PE_IndicatorHeaderArrow) {
+      if (const auto* header = qstyleoption_cast<const QStyleOptionHeader*>(option)) {
+        QStyleOptionHeader swapped(*header);
+        if (header->sortIndicator == QStyleOptionHeader::SortUp)
+          swapped.sortIndicator = QStyleOptionHeader::SortDown;
+        else if (header->sortIndicator == QStyleOptionHeader::SortDown)
+          swapped.sortIndicator = QStyleOptionHeader::SortUp;
+        QProxyStyle::drawPrimitive(element, &swapped, painter, widget);
+        return;
+      }
+    }
+    QProxyStyle::drawPrimitive(element, option, painter, widget);
+  }
+};
+
+}  // namespace
+
 CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
     : QWidget(parent), m_obs(observation) {
   m_model = new CandidateModel(observation, this);
@@ -251,6 +280,9 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->setModel(m_filter);
   m_table->setSortingEnabled(true);
   m_table->sortByColumn(CandidateModel::Snr, Qt::DescendingOrder);
+  auto* arrows = new SortArrowStyle;
+  arrows->setParent(m_table->horizontalHeader());
+  m_table->horizontalHeader()->setStyle(arrows);
   m_table->setSelectionBehavior(QAbstractItemView::SelectRows);
   m_table->setSelectionMode(QAbstractItemView::SingleSelection);
   m_table->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);

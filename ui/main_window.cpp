@@ -17,6 +17,7 @@
 #include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QSettings>
 #include <QSpinBox>
 #include <QStatusBar>
@@ -172,10 +173,21 @@ QWidget* MainWindow::buildCentral() {
 }
 
 void MainWindow::buildDocks() {
-  auto dock = [this](const QString& title, const QString& name, QWidget* w, Qt::DockWidgetArea area) {
+  // Panels with many controls scroll inside their dock, so the window fits a 1366 x 768 laptop screen (issue
+  // 18 §6: the docks' minimum sizes made the window 1556 x 1013, the status bar with the warnings cut off).
+  auto dock = [this](const QString& title, const QString& name, QWidget* w, Qt::DockWidgetArea area,
+                     bool scroll = false) {
     auto* d = new QDockWidget(title, this);
     d->setObjectName(name);
-    d->setWidget(w);
+    if (scroll) {
+      auto* scrollArea = new QScrollArea(d);
+      scrollArea->setWidgetResizable(true);
+      scrollArea->setFrameShape(QFrame::NoFrame);
+      scrollArea->setWidget(w);
+      d->setWidget(scrollArea);
+    } else {
+      d->setWidget(w);
+    }
     addDockWidget(area, d);
     return d;
   };
@@ -184,12 +196,12 @@ void MainWindow::buildDocks() {
   m_velocityMap = new VelocityMapWidget(m_obs, this);
   m_candidates = new CandidatePanel(m_obs, this);
   m_inspector = new InspectorPanel(m_obs, m_scrubber, &m_services, this);
-  auto* proc = dock("Processing", "dock.processing", m_processing, Qt::LeftDockWidgetArea);
-  auto* search = dock("Search", "dock.search", m_search, Qt::LeftDockWidgetArea);
+  auto* proc = dock("Processing", "dock.processing", m_processing, Qt::LeftDockWidgetArea, true);
+  auto* search = dock("Search", "dock.search", m_search, Qt::LeftDockWidgetArea, true);
   tabifyDockWidget(proc, search);
   proc->raise();
   auto* vmap = dock("Velocity space", "dock.velocity", m_velocityMap, Qt::RightDockWidgetArea);
-  auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea);
+  auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea, true);
   splitDockWidget(vmap, insp, Qt::Vertical);
   auto* cands = dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
   buildVettingDocks(insp, cands);

@@ -9,7 +9,6 @@
 #include "st/common/error.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
-#include "st/stats/background.hpp"
 
 namespace st::report {
 
@@ -28,11 +27,14 @@ FitsHeader wcsCardsAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochO
 
 namespace {
 
+/// The median (the mean of the two middle values for an even count); 0 for none.
 double median(std::vector<float> v) {
   if (v.empty()) return 0.0;
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  if (v.size() % 2 == 1) return *mid;
+  const double upper = *mid;
+  return 0.5 * (upper + *std::max_element(v.begin(), mid));
 }
 
 /// Appends the coverage map as an image extension "COVERAGE".
@@ -65,37 +67,57 @@ void appendCoverage(const std::string& path, int width, int height, const std::v
 
 Image backgroundSubtractedMean(const Image& sum, const std::vector<std::uint16_t>& coverage, int box) {
   if (coverage.size() != sum.size()) throw InputError("stack and coverage sizes differ");
-  const float nan = std::numeric_limits<float>::quiet_NaN();
-  if (box <= 0) box = std::max(15, std::min(sum.width, sum.height) / 8);
-  if (box % 2 == 0) ++box;
-  Image mean(sum.width, sum.height, 0.0f);
-  std::vector<std::uint8_t> valid(sum.size(), 0);
-  std::vector<float> values;
+  const int w = sum.width, h = sum.height;
+  if (box <= 0) box = std::max(16, std::min(w, h) / 8);
+  Image mean(w, h, std::numeric_limits<float>::quiet_NaN());
+  std::vector<float> all;
   for (std::size_t i = 0; i < sum.size(); ++i) {
     if (coverage[i] == 0 || !std::isfinite(sum.pixels[i])) continue;
     mean.pixels[i] = sum.pixels[i] / coverage[i];
-    valid[i] = 1;
-    values.push_back(mean.pixels[i]);
+    all.push_back(mean.pixels[i]);
   }
-  const double fallback = median(values);
-  const Image first = stats::boxSmooth(mean, box, valid);
-  std::vector<float> residuals;
-  for (std::size_t i = 0; i < sum.size(); ++i)
-    if (valid[i]) residuals.push_back(std::abs(mean.pixels[i] - first.pixels[i]));
-  const double sigma = 1.4826 * median(residuals);
-  std::vector<std::uint8_t> quiet(sum.size(), 0);
-  Image indicator(sum.width, sum.height, 0.0f);
-  for (std::size_t i = 0; i < sum.size(); ++i) {
-    quiet[i] = valid[i] && std::abs(mean.pixels[i] - first.pixels[i]) <= 3.0 * sigma ? 1 : 0;
-    indicator.pixels[i] = quiet[i];
-  }
-  const Image background = stats::boxSmooth(mean, box, quiet);
-  const Image weight = stats::boxSmooth(indicator, box);
-  Image out(sum.width, sum.height, nan);
-  for (std::size_t i = 0; i < sum.size(); ++i) {
-    if (!valid[i]) continue;
-    const double bg = weight.pixels[i] > 0.0f ? background.pixels[i] : fallback;
-    out.pixels[i] = static_cast<float>(mean.pixels[i] - bg);
+  const double fallback = median(all);
+  // A mesh of box x box cells, each its median (robust to the sources), interpolated bilinearly between the
+  // cells' centres and extrapolated linearly beyond them: a gradient across the frame is removed up to the
+  // edges (SExtractor's background mesh, without the filtering).
+  const int nx = (w + box - 1) / box, ny = (h + box - 1) / box;
+  std::vector<double> cx(static_cast<std::size_t>(nx)), cy(static_cast<std::size_t>(ny));
+  for (int i = 0; i < nx; ++i)
+    cx[static_cast<std::size_t>(i)] = 0.5 * (i * box + std::min(w, (i + 1) * box) - 1);
+  for (int j = 0; j < ny; ++j)
+    cy[static_cast<std::size_t>(j)] = 0.5 * (j * box + std::min(h, (j + 1) * box) - 1);
+  std::vector<double> mesh(static_cast<std::size_t>(nx) * ny, fallback);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      std::vector<float> v;
+      for (int y = j * box; y < std::min(h, (j + 1) * box); ++y)
+        for (int x = i * box; x < std::min(w, (i + 1) * box); ++x)
+          if (const float m = mean.at(x, y); std::isfinite(m)) v.push_back(m);
+      const std::size_t area = static_cast<std::size_t>(std::min(w, (i + 1) * box) - i * box) *
+                               static_cast<std::size_t>(std::min(h, (j + 1) * box) - j * box);
+      if (v.size() * 4 >= area) mesh[static_cast<std::size_t>(j) * nx + i] = median(v);
+    }
+  // Segment and weight of `x` among the centres `c` (linear beyond the ends).
+  auto locate = [](const std::vector<double>& c, double x) {
+    if (c.size() < 2) return std::pair<std::size_t, double>{0, 0.0};
+    std::size_t k = 0;
+    while (k + 2 < c.size() && x > c[k + 1])
+      ++k;
+    return std::pair<std::size_t, double>{k, (x - c[k]) / (c[k + 1] - c[k])};
+  };
+  Image out(w, h, std::numeric_limits<float>::quiet_NaN());
+  for (int y = 0; y < h; ++y) {
+    const auto [j, ty] = locate(cy, y);
+    const std::size_t j1 = ny > 1 ? j + 1 : j;
+    for (int x = 0; x < w; ++x) {
+      const float m = mean.at(x, y);
+      if (!std::isfinite(m)) continue;
+      const auto [i, tx] = locate(cx, x);
+      const std::size_t i1 = nx > 1 ? i + 1 : i;
+      auto at = [&](std::size_t a, std::size_t b) { return mesh[b * static_cast<std::size_t>(nx) + a]; };
+      const double bg = (1 - ty) * ((1 - tx) * at(i, j) + tx * at(i1, j)) + ty * ((1 - tx) * at(i, j1) + tx * at(i1, j1));
+      out.at(x, y) = static_cast<float>(m - bg);
+    }
   }
   return out;
 }

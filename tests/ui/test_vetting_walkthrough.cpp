@@ -10,6 +10,7 @@
 #include <QMessageBox>
 #include <QTableView>
 #include <QTest>
+#include <QStatusBar>
 #include <QToolButton>
 
 #include "candidate_inspector.hpp"
@@ -105,6 +106,13 @@ TEST(VettingWalkthrough, EscClosingADropDownDoesNotCancelTheSearchAndTheOldMapSt
   QCoreApplication::processEvents();
   EXPECT_EQ(QApplication::activePopupWidget(), nullptr);
   EXPECT_TRUE(w->jobs()->busy()) << "Esc for the drop-down cancelled the search";
+  // The same through Run > Cancel's slot itself (what the Esc shortcut calls), with the popup open.
+  combo->showPopup();
+  ASSERT_TRUE(test::waitFor([&] { return QApplication::activePopupWidget() != nullptr; }, 3000));
+  w->cancelFromKey();
+  QCoreApplication::processEvents();
+  EXPECT_EQ(QApplication::activePopupWidget(), nullptr);
+  EXPECT_TRUE(w->jobs()->busy()) << "Run > Cancel with a drop-down open cancelled the search";
   // Meanwhile the previous result and its map are still shown.
   EXPECT_EQ(w->observation()->result(), first);
   EXPECT_EQ(w->velocityMap()->candidatePoints(Label::Unvetted), static_cast<int>(first->candidates.size()));
@@ -133,6 +141,17 @@ TEST(VettingWalkthrough, PlayButtonUsesIconsAndFalseAlarmsAreCounts) {
     }
   }
   EXPECT_TRUE(found);
+}
+
+TEST(VettingWalkthrough, TheWindowFitsA1366x768Screen) {
+  auto w = searchedWindow();
+  const QSize min = w->minimumSizeHint().expandedTo(w->minimumSize());
+  EXPECT_LE(min.width(), 1366) << min.width() << " x " << min.height();
+  EXPECT_LE(min.height(), 768 - 40) << min.width() << " x " << min.height();  // a taskbar of 40 px
+  w->resize(1366, 728);
+  QCoreApplication::processEvents();
+  EXPECT_LE(w->height(), 728);
+  EXPECT_LE(w->statusBar()->geometry().bottom(), w->height());
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

@@ -29,10 +29,10 @@ struct StackProvenance {
 
 /// A stack as it is useful in DS9 (issue 18 §6: raw sums carried a background varying 260k-522k counts
 /// across the demo frame, the asteroid's +2.6k invisible): the mean over the frames that contributed to each
-/// pixel (S / N_in, so the edges and masked areas are not darker), minus a smooth background (box mean of
-/// side `box` px, 0 = max(15, min(width, height) / 8) made odd, computed twice: the second time without the
-/// pixels more than 3 sigma (1.4826 MAD of the first residual) from the first; where a box has none left, the
-/// median of the valid pixels). Pixels no frame covered are NaN. `coverage` is row-major like `sum`.
+/// pixel (S / N_in, so the edges and masked areas are not darker), minus a smooth background: the median of
+/// each `box` x `box` cell (0 = max(16, min(width, height) / 8) px; cells less than a quarter covered take the
+/// median of all covered pixels), interpolated bilinearly between the cells' centres and extrapolated
+/// linearly to the edges. Pixels no frame covered are NaN. `coverage` is row-major like `sum`.
 [[nodiscard]] Image backgroundSubtractedMean(const Image& sum, const std::vector<std::uint16_t>& coverage,
                                              int box = 0);
 
