@@ -147,6 +147,7 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   const vet::Track track{static_cast<double>(in.candidate.x), static_cast<double>(in.candidate.y),
                          in.candidate.v};
   out.flags = vet::checkArtifacts(ctx, track, in.artifactParams, &out.segments);
+  out.flags.push_back(vet::staticSourceFlag(out.trackSnr, out.skySnr));
   static const std::vector<vet::KnownObject> kNone;
   const auto& objects = in.knownObjects ? *in.knownObjects : kNone;
   if (in.skyPosition) {
@@ -158,7 +159,6 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
                                                           : "the frames have no WCS: the candidate "
                                                             "cannot be placed on the sky"});
   }
-  out.flags.push_back(vet::staticSourceFlag(out.trackSnr, out.skySnr));
   return out;
 }
 

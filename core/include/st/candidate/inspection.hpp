@@ -56,7 +56,8 @@ struct Inspection {
   std::vector<Image> movie;
   std::vector<std::size_t> movieFrameIndex;
   std::vector<double> movieTimeS;
-  /// Every st::vet check in ArtifactKind order: ..., known object, static source (vet::staticSourceFlag).
+  /// The st::vet artifact checks (checkArtifacts' order), the static-source check (vet::staticSourceFlag),
+  /// and the known-object match last.
   std::vector<vet::ArtifactFlag> flags;
 };
 
