@@ -12,6 +12,7 @@
 
 #include "batch_dispatch.hpp"
 #include "cli_args.hpp"
+#include "cmd_batch_track.hpp"
 #include "commands.hpp"
 #include "load_args.hpp"
 #include "mpi_cluster.hpp"
@@ -43,6 +44,10 @@ constexpr const char* kHelp =
     "  --overlap K           ... consecutive cubes sharing K frames (default N/4), so a mover is whole in "
     "one\n"
     "  --worker-timeout S    a worker silent for S seconds is declared dead (default 120)\n"
+    "  --track-max-mpix M    an object seen across cubes of one night gets its full-track SNR from a fit "
+    "over\n"
+    "                        the cubes its track crosses, loaded together, when they hold at most M million\n"
+    "                        pixels x frames (default 800; 0: never)\n"
     "  Search options (as for 'synthtrack-cli search'):\n";
 
 std::atomic<bool> g_stop{false};
@@ -121,7 +126,7 @@ int cmdBatch(const Args& args) {
   std::set<std::string> valued = searchOptionNames();
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  for (const char* n : {"out", "manifest", "split", "overlap", "worker-timeout"})
+  for (const char* n : {"out", "manifest", "split", "overlap", "worker-timeout", "track-max-mpix"})
     valued.insert(n);
   const CliArgs cli(args, valued, {"grid-step-fwhm", "help"});
   if (cli.flag("help")) {
@@ -138,6 +143,9 @@ int cmdBatch(const Args& args) {
       throw UsageError("observation " + obs.name + ": " + e.what());
     }
   }
+  TrackSettings track;
+  track.maxMegaVoxels = cli.number("track-max-mpix", track.maxMegaVoxels);
+  if (!(track.maxMegaVoxels >= 0.0)) throw UsageError("--track-max-mpix must be 0 or more");
   DispatchSettings dispatch;
   dispatch.workerTimeoutS = cli.number("worker-timeout", dispatch.workerTimeoutS);
   if (!(dispatch.workerTimeoutS > 2.0 * dispatch.heartbeatS))
@@ -209,7 +217,8 @@ int cmdBatch(const Args& args) {
   std::vector<batch::Outcome> outcomes(observations.size());
   for (std::size_t k = 0; k < order.size(); ++k)
     outcomes[order[k]] = std::move(byOrder[k]);
-  const nlohmann::json catalogue = batch::mergeCatalogue(outcomes);
+  nlohmann::json catalogue = batch::mergeCatalogue(outcomes);
+  addTrackSnr(catalogue, observations, outcomes, settings, track);
   batch::writeJsonAtomically(settings.layout.catalogue(), catalogue);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   writeSummary(settings, outcomes, skipped, seconds, cluster.size());

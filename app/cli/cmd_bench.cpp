@@ -18,6 +18,7 @@ int cmdBench(const Args& args) {
       {"stack", benchStack, "one IPSA and one CSA stack of 500 x 512^2"},
       {"search", benchSearch, "velocity search, the paper's problem or a smaller one"},
       {"fit", benchFit, "co-moving PSF fit"},
+      {"memory", benchMemory, "out-of-core vs in-memory search: peak memory and time"},
   };
   if (args.empty() || args[0] == "--help") {
     std::printf("usage: synthtrack-cli bench WHAT [options]\n\n");

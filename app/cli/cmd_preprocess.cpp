@@ -12,12 +12,16 @@
 #include "observation_pipeline.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
+#include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/prepared_json.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "terminal_progress.hpp"
+#include "st/common/memory_budget.hpp"
+#include "st/common/parallel.hpp"
+#include "st/pipeline/memory_plan.hpp"
 
 namespace st::app {
 namespace {
@@ -61,6 +65,9 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
+    "  --memory-limit SIZE     memory budget, e.g. 8G or 500M (default: 70% of the memory available now,\n"
+    "                          within the cgroup's limit); the peak is estimated and printed first, and an\n"
+    "                          input that does not fit stops with exit 1 before any pixel is read\n"
     "  (with --crop, the calibration frames are cropped alike)\n"
     "  --json                  print the sidecar to stdout as well\n";
 
@@ -73,7 +80,8 @@ int cmdPreprocess(const Args& args) {
   }
   auto names = loadOptionNames();
   for (const char* n :
-       {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background"})
+       {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background",
+        "memory-limit"})
     names.insert(n);
   auto flags = calibFlagNames();
   flags.insert({"no-cosmic-rays", "json"});
@@ -98,6 +106,22 @@ int cmdPreprocess(const Args& args) {
   CancelToken& cancel = processCancelToken();
   FrameCube cube;
   const io::LoadOptions loadOptions = loadOptionsFromArgs(cli);
+  {
+    // The memory plan before any pixel is read (issue 20).
+    const MemoryBudget budget = resolveMemoryBudget(cli.value("memory-limit"));
+    const io::InputSummary summary = io::summarizeInputs(cli.positionals(), loadOptions);
+    const pipeline::CubeShape shape{summary.width, summary.height, summary.frames};
+    const MemoryEstimate need = pipeline::estimatePreprocessPeak(shape, params.matchedFilter, workerCount());
+    std::fprintf(stderr, "memory: budget %s (%s)\nmemory: pre-processing in memory: estimated peak %s\n",
+                 formatBytes(static_cast<double>(budget.bytes)).c_str(), budget.source.c_str(),
+                 need.describe().c_str());
+    if (need.total() > static_cast<double>(budget.bytes)) {
+      throw InputError(pipeline::overBudgetMessage(std::to_string(shape.frames) + " frames of " +
+                                                       std::to_string(shape.width) + " x " +
+                                                       std::to_string(shape.height) + " px: pre-processing",
+                                                   need, budget));
+    }
+  }
   {
     SubProgress sub(progress, 0.0, 0.2);
     cube = io::loadFrames(cli.positionals(), loadOptions, sub, cancel);

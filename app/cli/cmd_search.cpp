@@ -9,6 +9,7 @@
 #include "search_options.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
+#include "st/common/memory_budget.hpp"
 #include "st/report/search_report.hpp"
 #include "load_args.hpp"
 #include "st/search/method_choice.hpp"
@@ -37,11 +38,14 @@ constexpr const char* kHelp =
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
-void printEstimate(const search::FilteredCube& fc, const search::VelocityGrid& grid,
-                   const search::MethodEstimate& e, const search::MethodChoice& choice) {
+void printEstimate(const PlannedSearch& p) {
+  const search::FilteredCube& fc = p.cube;
+  const search::VelocityGrid& grid = p.grid;
+  const search::MethodEstimate& e = p.estimate;
+  const search::MethodChoice& choice = p.choice;
   const double mb = 1048576.0;
   std::fprintf(stderr, "search: %d x %d px, %zu frames, %d x %d velocities (step %.4g px/s); cube %.0f MB\n",
-               fc.frames.width(), fc.frames.height(), fc.frames.frameCount(), grid.nvx, grid.nvy,
+               p.width, p.height, fc.frames.frameCount(), grid.nvx, grid.nvy,
                grid.stepPxS, e.cubeBytes / mb);
   const bool tree = choice.method == "tree";
   std::fprintf(stderr, "  %s exact: %.3g additions, %.0f MB working, estimate %.3g s\n", tree ? " " : ">",
@@ -55,6 +59,12 @@ void printEstimate(const search::FilteredCube& fc, const search::VelocityGrid& g
         e.treeTileRows, e.treeSeconds);
   }
   std::fprintf(stderr, "method: %s (%s)\n", choice.method.c_str(), choice.reason.c_str());
+}
+
+/// Memory plan lines from `from` on.
+void printMemory(const MemoryPlan& m, std::size_t& printed) {
+  for (; printed < m.lines.size(); ++printed)
+    std::fprintf(stderr, "memory: %s\n", m.lines[printed].c_str());
 }
 
 void printTable(const nlohmann::json& j) {
@@ -103,6 +113,8 @@ int cmdSearch(const Args& args) {
   BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method);
   TerminalProgress progress;
   ObservationHooks hooks;
+  std::size_t memoryLines = 0;
+  hooks.memory = [&](const MemoryPlan& m) { printMemory(m, memoryLines); };
   hooks.planned = [&](const PlannedSearch& p) {
     progress.finish();
     for (const auto& w : p.warnings)
@@ -111,7 +123,8 @@ int cmdSearch(const Args& args) {
       std::fprintf(stderr, "note: %s\n", n.c_str());
     std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(p.cube.frames, p.cube.psfFwhmPx).c_str());
     std::fprintf(stderr, "%s\n", sel.message.c_str());
-    printEstimate(p.cube, p.grid, p.estimate, p.choice);
+    printEstimate(p);
+    printMemory(p.memory, memoryLines);
   };
   hooks.searched = [&](const search::SearchResult& r) {
     progress.finish();
@@ -120,6 +133,7 @@ int cmdSearch(const Args& args) {
   const nlohmann::json j =
       runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
   progress.finish();
+  std::fprintf(stderr, "memory: peak resident %s\n", formatBytes(static_cast<double>(peakResidentBytes())).c_str());
   writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
   return 0;
 }

@@ -42,5 +42,6 @@ int benchPreprocess(const Args& args);
 int benchStack(const Args& args);
 int benchSearch(const Args& args);
 int benchFit(const Args& args);
+int benchMemory(const Args& args);
 
 }  // namespace st::app

@@ -25,18 +25,6 @@ std::map<std::string, std::string> digestOptions(std::map<std::string, std::stri
   return options;
 }
 
-CliArgs argsFor(const std::map<std::string, std::string>& options) {
-  std::vector<std::string> args;
-  for (const auto& [k, v] : options) {
-    args.push_back("--" + k);
-    if (k != "grid-step-fwhm") args.push_back(v);
-  }
-  std::set<std::string> valued = searchOptionNames();
-  for (const auto& n : loadOptionNames())
-    valued.insert(n);
-  return CliArgs(args, valued, {"grid-step-fwhm"});
-}
-
 void writeLog(const BatchSettings& s, const std::string& name, const nlohmann::json& log) {
   std::error_code ec;
   fs::create_directories(s.layout.logFile(name).parent_path(), ec);
@@ -48,6 +36,18 @@ void writeLog(const BatchSettings& s, const std::string& name, const nlohmann::j
 }
 
 }  // namespace
+
+CliArgs argsForOptions(const std::map<std::string, std::string>& options) {
+  std::vector<std::string> args;
+  for (const auto& [k, v] : options) {
+    args.push_back("--" + k);
+    if (k != "grid-step-fwhm") args.push_back(v);
+  }
+  std::set<std::string> valued = searchOptionNames();
+  for (const auto& n : loadOptionNames())
+    valued.insert(n);
+  return CliArgs(args, valued, {"grid-step-fwhm"});
+}
 
 std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings,
                                                     const batch::Observation& obs) {
@@ -69,7 +69,7 @@ std::map<std::string, std::string> effectiveOptions(const BatchSettings& setting
 }
 
 void validateOptions(const std::map<std::string, std::string>& options) {
-  const CliArgs cli = argsFor(options);
+  const CliArgs cli = argsForOptions(options);
   (void)parseSearchOptions(cli);
   (void)loadOptionsFromArgs(cli);
 }
@@ -131,13 +131,25 @@ RunOutcome runBatchObservation(const batch::Observation& obs, const BatchSetting
   writeLog(settings, obs.name, log);
   out.outcome = {obs.name, obs.group, obs.inputs, batch::Outcome::Status::Failed, {}, {}};
   try {
-    const CliArgs cli = argsFor(options);
+    const CliArgs cli = argsForOptions(options);
     const SearchOptions so = parseSearchOptions(cli);
     const ObservationInput input{obs.inputs, loadOptionsFromArgs(cli), false, obs.bias, obs.dark, obs.flat};
     std::string backendMessage;
     search::SearchBackend& backend = backends.get(so.backend, so.request.params.method, backendMessage);
     NullProgress progress;
-    nlohmann::json result = runObservation(input, so, true, backend, progress, processCancelToken());
+    // The span of its frames, so that the catalogue can tell which observations share frames.
+    double tFirst = 0.0, tLast = 0.0;
+    ObservationHooks hooks;
+    hooks.planned = [&](const PlannedSearch& p) {
+      const auto& info = p.cube.frames.info();
+      if (!info.empty()) {
+        tFirst = info.front().mjdMid;
+        tLast = info.back().mjdMid;
+      }
+    };
+    nlohmann::json result = runObservation(input, so, true, backend, progress, processCancelToken(), hooks);
+    result["t_first_mjd"] = tFirst;
+    result["t_last_mjd"] = tLast;
     batch::StagedFolder folder(settings.layout.observationDir(obs.name));
     batch::writeJsonAtomically(folder.path() / batch::kResultFile, result);
     report::writeCandidatesCsv((folder.path() / "candidates.csv").string(), result);

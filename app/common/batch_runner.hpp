@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "backend_factory.hpp"
+#include "cli_args.hpp"
 #include "st/batch/batch_state.hpp"
 #include "st/batch/catalogue.hpp"
 #include "st/batch/observation_list.hpp"
@@ -25,6 +26,9 @@ struct BatchSettings {
 /// The options in force for `obs`: the batch's, overridden by the observation's own.
 std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings,
                                                     const batch::Observation& obs);
+
+/// `options` (name without "--" -> value) as the command-line arguments `search` parses.
+CliArgs argsForOptions(const std::map<std::string, std::string>& options);
 
 /// Checks `options` parse as `search` options (UsageError naming the one at fault) without running.
 void validateOptions(const std::map<std::string, std::string>& options);

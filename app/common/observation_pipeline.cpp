@@ -8,7 +8,10 @@
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/prepared_cube.hpp"
+#include "st/search/tiled_search.hpp"
+#include "st/stack/matched_filter.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/search_report.hpp"
 #include "st/search/velocity_grid.hpp"
@@ -27,10 +30,9 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
   return io::loadFrames(files, opt, progress, cancel);
 }
 
-namespace {
-
-pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, ProgressSink& progress,
-                           CancelToken& cancel, std::vector<std::string>& warnings) {
+pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOptions& o,
+                                      ProgressSink& progress, CancelToken& cancel,
+                                      std::vector<std::string>& warnings, bool keepZeroBiased) {
   FrameCube raw;
   {
     SubProgress loadProgress(progress, 0.0, 0.2);
@@ -40,6 +42,7 @@ pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, P
   warnings = raw.warnings;
   pipeline::PreprocessParams params;
   params.calib = in.calib;
+  params.keepZeroBiased = keepZeroBiased;
   const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
   const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
   const FrameCube flat = loadCalibrationFrames(in.flat, in.load.crop, progress, cancel);
@@ -55,6 +58,8 @@ pipeline::Prepared prepare(const ObservationInput& in, const SearchOptions& o, P
   return prepared;
 }
 
+namespace {
+
 pipeline::PreparedSearchInput loadPrepared(const ObservationInput& in, const SearchOptions& o,
                                            ProgressSink& progress, CancelToken& cancel) {
   FrameCube frames;
@@ -68,32 +73,225 @@ pipeline::PreparedSearchInput loadPrepared(const ObservationInput& in, const Sea
 
 }  // namespace
 
-nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o, bool fit,
+namespace {
+
+/// The image's offset in the files (the user's --crop).
+std::pair<int, int> cropOrigin(const ObservationInput& in) {
+  return in.load.crop ? std::pair{in.load.crop->x0, in.load.crop->y0} : std::pair{0, 0};
+}
+
+/// Frames of `r` (image coordinates) of the input, read with CFITSIO's subset reader.
+FrameCube loadRegion(const ObservationInput& in, const search::TileRect& r, CancelToken& cancel) {
+  io::LoadOptions lo = in.load;
+  const auto [bx, by] = cropOrigin(in);
+  lo.crop = io::CropRegion{bx + r.x0, by + r.y0, r.width, r.height};
+  NullProgress quiet;
+  return io::loadFrames(in.inputs, lo, quiet, cancel);
+}
+
+/// A pre-processed input too large for memory: its header, times and WCS from a small corner (the WCS of
+/// a corner at the image's origin is the image's), sigma_F from the header or the options, else measured on
+/// a central region of `sigmaRegionPx` x `sigmaRegionPx` px.
+struct OutOfCoreInput {
+  search::FilteredCube meta;
+  pipeline::PreparedHeader header;
+  std::vector<std::string> warnings, notes;
+};
+
+OutOfCoreInput outOfCoreMeta(const ObservationInput& in, const SearchOptions& o, int width, int height,
+                             CancelToken& cancel) {
+  OutOfCoreInput m;
+  FrameCube corner = loadRegion(in, {0, 0, std::min(width, 16), std::min(height, 16)}, cancel);
+  const std::string source = pipeline::cubeSource(corner);
+  m.header = pipeline::readPreparedHeader(corner.header, source);
+  m.warnings = corner.warnings;
+  m.meta.skyRate = m.header.skyRate;
+  const std::optional<psf::Moffat> psf = m.header.psf;
+  if (o.fwhm) {
+    m.meta.psfFwhmPx = *o.fwhm;
+  } else if (psf) {
+    m.meta.psfFwhmPx = psf->fwhm();
+  } else {
+    throw InputError(source + ": no PSFFWHM in the header: give --fwhm");
+  }
+  if (o.sigmaF) {
+    m.meta.sigmaF = *o.sigmaF;
+  } else if (m.header.state == pipeline::PreparedState::Filtered && m.header.sigmaF) {
+    m.meta.sigmaF = *m.header.sigmaF;
+  }
+  m.meta.frames = std::move(corner);
+  return m;
+}
+
+/// sigma_F of an out-of-core zero-biased (or SIGMAF-less) cube: filtered and measured on the central region.
+double centralSigmaF(const ObservationInput& in, const SearchOptions& o, int width, int height, int side,
+                     std::vector<std::string>& notes, CancelToken& cancel) {
+  const int w = std::min(width, side), h = std::min(height, side);
+  const search::TileRect r{(width - w) / 2, (height - h) / 2, w, h};
+  NullProgress quiet;
+  pipeline::PreparedSearchInput p =
+      pipeline::searchInputFromPrepared(loadRegion(in, r, cancel), {o.fwhm, std::nullopt}, quiet, cancel);
+  notes.push_back("out of core: sigma_F " + std::to_string(p.cube.sigmaF) + " measured on the central " +
+                  std::to_string(w) + " x " + std::to_string(h) +
+                  " px (give --sigma-f, or a filtered cube with SIGMAF, for the in-memory value)");
+  return p.cube.sigmaF;
+}
+
+nlohmann::json resultJson(const search::FilteredCube& fc, const search::SearchResult& r,
+                          const ObservationInput& in) {
+  nlohmann::json j = report::searchResultToJson(fc, r, in.inputs);
+  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
+  j["min_frames"] = r.minFrames;
+  j["cells_above_threshold"] = r.cellsAboveThreshold;
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& optionsIn, bool fit,
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks) {
   if (fit && in.preprocessed)
     throw InputError(
         "the co-moving fit needs the unfiltered frames: give the raw input, not a pre-processed one");
+  SearchOptions o = optionsIn;
+  MemoryPlan memory;
+  memory.budget = resolveMemoryBudget(o.memoryLimit);
+  o.request.params.bufferBytes = pipeline::searchBufferBytes(memory.budget.bytes);
+  const unsigned threads = workerCount();
+  const io::InputSummary summary = io::summarizeInputs(in.inputs, in.load);
+  const pipeline::CubeShape shape{summary.width, summary.height, summary.frames};
+  const double budget = static_cast<double>(memory.budget.bytes);
+  memory.lines.push_back("memory budget " + formatBytes(budget) + " (" + memory.budget.source + ")");
+
   std::optional<pipeline::Prepared> prepared;
   std::optional<pipeline::PreparedSearchInput> loaded;
+  std::optional<OutOfCoreInput> ooc;
   std::vector<std::string> warnings, notes;
-  if (in.preprocessed) {
-    loaded = loadPrepared(in, o, progress, cancel);
-    warnings = std::move(loaded->warnings);
-    notes = std::move(loaded->notes);
+  if (!in.preprocessed) {
+    // Raw frames are pre-processed in memory: the whole cube must fit (the search is counted below).
+    memory.inMemory = pipeline::estimatePreprocessPeak(shape, fit, threads);
+    memory.lines.push_back("pre-processing in memory: estimated peak " + memory.inMemory.describe());
+    if (memory.inMemory.total() > budget) {
+      throw InputError(pipeline::overBudgetMessage(
+          std::to_string(shape.frames) + " frames of " + std::to_string(shape.width) + " x " +
+              std::to_string(shape.height) + " px: pre-processing in memory",
+          memory.inMemory, memory.budget));
+    }
+    if (hooks.memory) hooks.memory(memory);
+    prepared = prepareObservation(in, o, progress, cancel, warnings, fit);
   } else {
-    prepared = prepare(in, o, progress, cancel, warnings);
+    // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
+    OutOfCoreInput m = outOfCoreMeta(in, o, shape.width, shape.height, cancel);
+    const search::VelocityGrid grid0 = search::makeVelocityGrid(o.request.grid, m.meta);
+    const search::MethodEstimate e0 =
+        search::estimateMethods(shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0,
+                                search::costModelFor(backend), threads, o.request.params.bufferBytes);
+    const search::MethodChoice c0 =
+        search::chooseMethod(o.request.params.method, e0, backend.supportsMethod("tree"), backend.name());
+    memory.inMemory = pipeline::estimateSearchPeak(shape, e0, c0.method);
+    const bool fits = memory.inMemory.total() <= budget;
+    memory.lines.push_back("search in memory: estimated peak " + memory.inMemory.describe() +
+                           (fits ? "" : ": over the budget, out of core"));
+    if (hooks.memory) hooks.memory(memory);
+    if (fits) {
+      loaded = loadPrepared(in, o, progress, cancel);
+      warnings = std::move(loaded->warnings);
+      notes = std::move(loaded->notes);
+    } else {
+      ooc = std::move(m);
+      warnings = ooc->warnings;
+    }
   }
-  const search::FilteredCube& fc = in.preprocessed ? loaded->cube : prepared->filtered;
+  search::FilteredCube* fcp = nullptr;
+  if (prepared) fcp = &prepared->filtered;
+  if (loaded) fcp = &loaded->cube;
+  if (ooc) fcp = &ooc->meta;
+  search::FilteredCube& fc = *fcp;
+  const int width = shape.width, height = shape.height;
   const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
   const search::MethodEstimate e =
-      search::estimateMethods(fc.frames.width(), fc.frames.height(), fc.frames.timeOffsetsS(), grid,
-                              search::costModelFor(backend), workerCount());
-  const search::MethodChoice method =
+      search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),
+                              threads, o.request.params.bufferBytes);
+  search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supportsMethod("tree"), backend.name());
-  if (hooks.planned) hooks.planned(PlannedSearch{fc, grid, e, method, warnings, notes});
+  std::vector<search::SearchTile> tiles;
+  if (ooc) {
+    memory.outOfCore = true;
+    // The search's overlap, plus the matched filter's reach when tiles are filtered on loading.
+    int overlap = search::searchOverlapPx(grid, fc.frames.timeOffsetsS());
+    const bool filterTiles = ooc->header.state == pipeline::PreparedState::ZeroBiased;
+    if (filterTiles) {
+      const psf::Moffat psf = o.fwhm ? psf::Moffat::fromFwhm(*o.fwhm, ooc->header.psf ? ooc->header.psf->beta
+                                                                                      : pipeline::kDefaultPsfBeta)
+                                     : *ooc->header.psf;
+      overlap += stack::makeFilterKernel(psf).halfSize;
+    }
+    pipeline::TiledSearchPlan plan =
+        pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, method.method, threads);
+    if (plan.tiles.empty() && method.method == "tree" && o.request.params.method == "auto") {
+      // The tree's partial stacks do not fit beside a tile: the exact kernel's scratch is small.
+      plan = pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, "exact", threads);
+      if (!plan.tiles.empty())
+        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget beside a tile)"};
+    }
+    if (plan.tiles.empty()) {
+      throw InputError(pipeline::overBudgetMessage(
+          "searching " + std::to_string(shape.frames) + " frames out of core (the smallest tile, " +
+              std::to_string(8 + 2 * overlap) + " x " + std::to_string(8 + 2 * overlap) +
+              " px with the overlap of the largest shift)",
+          plan.smallestTile, memory.budget));
+    }
+    tiles = plan.tiles;
+    memory.tiles = tiles.size();
+    memory.overlapPx = overlap;
+    memory.perTile = plan.perTile;
+    if (!(fc.sigmaF > 0.0)) {
+      const int side = std::max(64, static_cast<int>(std::sqrt(static_cast<double>(tiles.front().read.pixels()))));
+      fc.sigmaF = centralSigmaF(in, o, width, height, std::min(side, 1024), ooc->notes, cancel);
+    }
+    notes = ooc->notes;
+    memory.lines.push_back("out of core: " + std::to_string(tiles.size()) + " tiles (overlap " +
+                           std::to_string(overlap) + " px), estimated peak " + memory.perTile.describe());
+  } else {
+    const pipeline::CubeShape held{width, height, fc.frames.frameCount()};
+    if (prepared) {
+      const auto peakOf = [&](const std::string& m) {
+        MemoryEstimate p = pipeline::estimateSearchPeak(held, e, m);
+        p.add("per-pixel images", pipeline::kPreprocessImageBytesPerPixel * width * height);
+        if (fit) p.add("zero-biased cube (for --fit)", 4.0 * held.samples());
+        return p;
+      };
+      MemoryEstimate searchPeak = peakOf(method.method);
+      if (searchPeak.total() > budget && method.method == "tree" && o.request.params.method == "auto" &&
+          peakOf("exact").total() <= budget) {
+        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget)"};
+        searchPeak = peakOf("exact");
+      }
+      memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe() +
+                             (searchPeak.total() > budget ? " (over the budget)" : ""));
+    }
+  }
+  if (hooks.planned)
+    hooks.planned(PlannedSearch{fc, grid, e, method, warnings, notes, width, height, memory});
   search::SearchResult r;
-  if (hooks.search) {
+  if (ooc) {
+    search::SearchParams params = o.request.params;
+    params.method = method.method;
+    const search::FilteredCube& meta = fc;
+    const bool filterTiles = ooc->header.state == pipeline::PreparedState::ZeroBiased;
+    const search::TileLoader load = [&](const search::TileRect& t) {
+      NullProgress quiet;
+      pipeline::PreparedSearchInput p =
+          pipeline::searchInputFromPrepared(loadRegion(in, t, cancel), {o.fwhm, meta.sigmaF}, quiet, cancel);
+      (void)filterTiles;
+      return std::move(p.cube);
+    };
+    r = search::searchTiled(load, tiles, width, height, grid, params, progress, cancel);
+    r.methodReason = method.reason;
+    r.backendNote += ", " + std::to_string(memory.overlapPx) + " px overlap";
+    if (backend.name().rfind("cpu", 0) != 0) r.warnings.push_back("out of core: the search ran on the CPU");
+  } else if (hooks.search) {
     search::SearchParams params = o.request.params;
     params.method = method.method;
     r = hooks.search(fc, grid, params);
@@ -101,10 +299,13 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     r = search::searchWithChoice(backend, fc, grid, o.request.params, method, progress, cancel);
   }
   if (hooks.searched) hooks.searched(r);
-  nlohmann::json j = report::searchResultToJson(fc, r, in.inputs);
-  j["t_ref_utc"] = isoFromMjd(r.tRefMjd);
-  j["min_frames"] = r.minFrames;
-  j["cells_above_threshold"] = r.cellsAboveThreshold;
+  nlohmann::json j = resultJson(fc, r, in);
+  j["memory"] = {{"budget_bytes", memory.budget.bytes},
+                 {"budget_source", memory.budget.source},
+                 {"in_memory_estimate_bytes", memory.inMemory.total()},
+                 {"out_of_core", memory.outOfCore},
+                 {"tiles", memory.tiles},
+                 {"peak_resident_bytes", peakResidentBytes()}};
   if (fit) {
     const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
     for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < o.fitMax; ++i) {

@@ -8,12 +8,14 @@
 #include <vector>
 
 #include "st/calib/calibration.hpp"
+#include "st/common/memory_budget.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include "search_options.hpp"
 #include "st/common/progress.hpp"
 #include "st/io/fits_reader.hpp"
+#include "st/pipeline/preprocess.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/types.hpp"
 
@@ -33,17 +35,34 @@ FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
                                 const std::optional<io::CropRegion>& crop, ProgressSink& progress,
                                 CancelToken& cancel);
 
+/// The memory plan of the run (issue 20), printed with the search plan.
+struct MemoryPlan {
+  MemoryBudget budget;
+  MemoryEstimate inMemory;           ///< the in-memory path's peak
+  bool outOfCore = false;            ///< searched in tiles (the in-memory path does not fit)
+  std::size_t tiles = 0;             ///< tiles of the out-of-core search
+  int overlapPx = 0;                 ///< their overlap
+  MemoryEstimate perTile;            ///< the out-of-core peak
+  std::vector<std::string> lines;    ///< the plan in words, for the log
+};
+
 /// What is known just before the search: for printing the plan.
 struct PlannedSearch {
-  const search::FilteredCube& cube;
+  const search::FilteredCube& cube;  ///< out of core: a small corner of the frames (times, header, WCS)
   const search::VelocityGrid& grid;
   const search::MethodEstimate& estimate;
   const search::MethodChoice& choice;
   const std::vector<std::string>& warnings;  ///< the loader's
   const std::vector<std::string>& notes;     ///< pre-processing's
+  int width = 0;                             ///< the whole image's
+  int height = 0;
+  const MemoryPlan& memory;
 };
 
 struct ObservationHooks {
+  /// The memory budget and the estimate of the first stage, before any pixel is read (MemoryPlan::lines so
+  /// far); planned() gets the lines added after it.
+  std::function<void(const MemoryPlan&)> memory;
   std::function<void(const PlannedSearch&)> planned;          ///< before the search
   std::function<void(const search::SearchResult&)> searched;  ///< after it, before the fits
   /// Replaces backend.search (search --mpi: the grid split over ranks). Gets the grid and the parameters
@@ -53,7 +72,20 @@ struct ObservationHooks {
       search;
 };
 
-/// Runs the observation and returns the result JSON (report::searchResultToJson plus t_ref_utc, and with
+/// Loads and pre-processes a raw observation as runObservation does (the loader's and calibration's
+/// warnings in `warnings`); --fwhm / --sigma-f of `options` applied. Used by batch to re-measure a track
+/// over several cubes. Without keepZeroBiased the matched filter runs in place (no zero-biased frames kept,
+/// so no co-moving fit afterwards).
+pipeline::Prepared prepareObservation(const ObservationInput& input, const SearchOptions& options,
+                                      ProgressSink& progress, CancelToken& cancel,
+                                      std::vector<std::string>& warnings, bool keepZeroBiased = true);
+
+/// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
+/// or the default; raw input whose in-memory pre-processing does not fit stops with st::InputError before
+/// any pixel is read (naming the need and the budget); a pre-processed cube whose in-memory search does not
+/// fit is searched out of core (search/tiled_search.hpp), or stops so when not even one tile fits. Without
+/// `fit` the matched filter runs in place (no zero-biased copy).
+/// Returns the result JSON (report::searchResultToJson plus t_ref_utc, and with
 /// `fit` a "fit" object for each of the first options.fitMax candidates). Throws what loading,
 /// pre-processing and the search throw (st::InputError, st::FitsError, st::Cancelled), and st::InputError
 /// when `fit` is asked of a pre-processed input.

@@ -2,6 +2,8 @@
 
 #include <cstdio>
 
+#include "st/common/memory_budget.hpp"
+
 namespace st::app {
 
 namespace {
@@ -31,7 +33,8 @@ std::set<std::string> searchOptionNames() {
           "fwhm",
           "backend",
           "method",
-          "fit-max"};
+          "fit-max",
+          "memory-limit"};
 }
 
 const char* searchOptionsHelp() {
@@ -53,6 +56,10 @@ const char* searchOptionsHelp() {
          "  --fwhm PX             PSF FWHM (default: fitted, or header PSFFWHM with --preprocessed; for a\n"
          "                        zero-biased cube it is the matched filter's)\n"
          "  --fit-max N           candidates refined by the co-moving fit (default 50)\n"
+         "  --memory-limit SIZE   memory budget, e.g. 8G or 500M (default: 70% of the memory available now,\n"
+         "                        within the cgroup's limit). The peak is estimated and printed before any\n"
+         "                        work; a pre-processed cube that does not fit is searched out of core in\n"
+         "                        tiles (the same candidates); what cannot fit stops with exit 1 before the work\n"
          "  --backend auto|cpu|cuda  (default auto)\n"
          "  --method auto|exact|tree  exact IPSA (every frame at its exact shift) or the hierarchical tree "
          "search\n"
@@ -99,6 +106,10 @@ SearchOptions parseSearchOptions(const CliArgs& cli) {
     if (*m != "auto" && *m != "exact" && *m != "tree")
       throw UsageError("--method must be 'auto', 'exact' or 'tree', got '" + *m + "'");
     p.method = *m;
+  }
+  if (auto m = cli.value("memory-limit")) {
+    parseMemorySize(*m);  // refuse a bad size before any work
+    o.memoryLimit = *m;
   }
   if (auto n = cli.integer("fit-max")) {
     if (*n < 0) throw UsageError("--fit-max must be >= 0");

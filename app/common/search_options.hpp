@@ -16,6 +16,8 @@ struct SearchOptions {
   std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
   std::string backend = "auto";
   long long fitMax = 50;  ///< candidates refined by the co-moving fit (--fit-max)
+  /// --memory-limit ("8G", "500M"); none = the default budget (st/common/memory_budget.hpp)
+  std::optional<std::string> memoryLimit;
 };
 
 /// Names of the valued options parseSearchOptions reads (without "--").

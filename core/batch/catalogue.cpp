@@ -2,13 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <optional>
+#include <set>
 
 namespace st::batch {
 
 namespace {
 
 constexpr double kSecondsPerDay = 86400.0;
+constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
 
 /// One detection on its way into the catalogue.
 struct Detection {
@@ -18,9 +22,36 @@ struct Detection {
   double stepPxS = 0.0;
   std::array<double, 4> state{};  ///< x, y, vx, vy
   double snr = 0.0;
+  double tFirstMjd = kUnknown;  ///< mid-times of the observation's first and last frames (when known)
+  double tLastMjd = kUnknown;
 };
 
+/// Where `d`'s track is at `mjd`.
+std::array<double, 2> positionAt(const Detection& d, double mjd) {
+  const double dt = (mjd - d.tRefMjd) * kSecondsPerDay;
+  return {d.state[0] + d.state[2] * dt, d.state[1] + d.state[3] * dt};
+}
+
+/// Two detections from observations that share frames (overlapping cubes of one night): the same object
+/// when their tracks stay within `overlapTolPx` of each other at the start, middle and end of the shared
+/// frames. Both saw the object there, so their positions agree even when one track is a partial detection
+/// at a cube's edge whose velocity is off; two different objects would have to coincide throughout.
+/// nullopt when the spans are unknown or do not overlap.
+std::optional<bool> sameInSharedFrames(const Detection& a, const Detection& b, const MatchParams& m) {
+  if (std::isnan(a.tFirstMjd) || std::isnan(b.tFirstMjd)) return std::nullopt;
+  const double t0 = std::max(a.tFirstMjd, b.tFirstMjd);
+  const double t1 = std::min(a.tLastMjd, b.tLastMjd);
+  if (!(t1 >= t0)) return std::nullopt;
+  for (const double t : {t0, 0.5 * (t0 + t1), t1}) {
+    const auto pa = positionAt(a, t);
+    const auto pb = positionAt(b, t);
+    if (std::hypot(pa[0] - pb[0], pa[1] - pb[1]) > m.overlapTolPx) return false;
+  }
+  return true;
+}
+
 bool sameObject(const Detection& a, const Detection& b, const MatchParams& m) {
+  if (const auto shared = sameInSharedFrames(a, b, m)) return *shared;
   const double step = std::max(a.stepPxS, b.stepPxS);
   if (std::abs(a.state[2] - b.state[2]) > m.velocityTolSteps * step) return false;
   if (std::abs(a.state[3] - b.state[3]) > m.velocityTolSteps * step) return false;
@@ -81,10 +112,14 @@ nlohmann::json mergeCatalogue(const std::vector<Outcome>& outcomes, const MatchP
     const double tRef = o.result.value("t_ref_mjd", 0.0);
     const double step = o.result.contains("grid") ? o.result["grid"].value("step_px_s", 0.0) : 0.0;
     if (!o.result.contains("candidates")) continue;
+    const double tFirst = o.result.value("t_first_mjd", kUnknown);
+    const double tLast = o.result.value("t_last_mjd", kUnknown);
     for (const auto& c : o.result["candidates"])
-      list.push_back({i, &c, tRef, step, bestState(c), c.value("snr", 0.0)});
+      list.push_back({i, &c, tRef, step, bestState(c), c.value("snr", 0.0), tFirst, tLast});
   }
-  // Within a group, brightest first: each detection joins the first brighter entry it matches.
+  // Within a group: single-linkage clusters of matching detections (a mover crossing several cubes is
+  // matched cube to cube along its track), never two detections of one observation in one cluster. Pairs
+  // are linked brightest first; each cluster is one entry quoting its brightest detection.
   std::vector<std::pair<Detection, nlohmann::json>> entries;
   for (const auto& key : groupOrder) {
     auto& list = groups[key];
@@ -92,25 +127,45 @@ nlohmann::json mergeCatalogue(const std::vector<Outcome>& outcomes, const MatchP
       if (a.snr != b.snr) return a.snr > b.snr;
       return a.outcome < b.outcome;
     });
-    const std::size_t first = entries.size();
-    for (const Detection& d : list) {
-      bool merged = false;
-      for (std::size_t e = first; e < entries.size() && !merged; ++e) {
-        if (entries[e].first.outcome == d.outcome || !sameObject(entries[e].first, d, match)) continue;
-        entries[e].second["seen_in"].push_back({{"observation", outcomes[d.outcome].name},
-                                                {"x", (*d.candidate)["x"]},
-                                                {"y", (*d.candidate)["y"]},
-                                                {"snr", d.snr}});
-        merged = true;
+    std::vector<std::size_t> root(list.size());
+    std::vector<std::set<std::size_t>> seen(list.size());  // a cluster's observations, at its root
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      root[i] = i;
+      seen[i].insert(list[i].outcome);
+    }
+    const auto find = [&](std::size_t i) {
+      while (root[i] != i)
+        i = root[i] = root[root[i]];
+      return i;
+    };
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      for (std::size_t j = i + 1; j < list.size(); ++j) {
+        std::size_t ri = find(i), rj = find(j);
+        if (ri == rj || list[i].outcome == list[j].outcome || !sameObject(list[i], list[j], match)) continue;
+        if (rj < ri) std::swap(ri, rj);  // the brighter root stays
+        bool disjoint = true;
+        for (const std::size_t o : seen[rj])
+          disjoint = disjoint && seen[ri].count(o) == 0;
+        if (!disjoint) continue;
+        root[rj] = ri;
+        seen[ri].insert(seen[rj].begin(), seen[rj].end());
+        seen[rj].clear();
       }
-      if (merged) continue;
-      nlohmann::json e = entryFor(d, outcomes[d.outcome].name);
-      e["seen_in"] = nlohmann::json::array();
-      e["seen_in"].push_back({{"observation", outcomes[d.outcome].name},
-                              {"x", (*d.candidate)["x"]},
-                              {"y", (*d.candidate)["y"]},
-                              {"snr", d.snr}});
-      entries.emplace_back(d, std::move(e));
+    }
+    std::map<std::size_t, std::size_t> entryOf;  // root -> index in entries
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const Detection& d = list[i];
+      const std::size_t r = find(i);
+      if (r == i) {
+        nlohmann::json e = entryFor(d, outcomes[d.outcome].name);
+        e["seen_in"] = nlohmann::json::array();
+        entryOf[i] = entries.size();
+        entries.emplace_back(d, std::move(e));
+      }
+      entries[entryOf.at(r)].second["seen_in"].push_back({{"observation", outcomes[d.outcome].name},
+                                                          {"x", (*d.candidate)["x"]},
+                                                          {"y", (*d.candidate)["y"]},
+                                                          {"snr", d.snr}});
     }
   }
   std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) {

@@ -286,13 +286,24 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       for (int p : comp)
         if (snrF[p] > snrF[peak]) peak = p;
       if (!halves.isStatic(peak, cw, static_cast<int>(std::ceil(params.psfFwhmPx)) + 1,
-                           params.maxHalfShiftPx))
+                           params.maxHalfShiftPx)) {
+        // Where the stars are subtracted it need not be decided: the template leaves out each frame's
+        // neighbours in time, so a mover keeps its flux, and a faint star (or a pair of them, whose halves
+        // peak on either) is removed instead of being searched as a candidate at the sky rate.
+        if (subtracted) {
+          for (int p : comp)
+            out.subtractRegion.set(s.x0 + p % cw, s.y0 + p / cw);
+          detail::setDisc(out.subtractRegion, st.x, st.y, 1.5 * params.psfFwhmPx);
+        }
         continue;
+      }
     } else if (keptAsMover(motion, k, comp, s, cw, skyRate, params, st, out)) {
       continue;
     }
     for (int p : comp) {
-      if (snr[p] >= maskSnr || st.saturated) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
+      // A saturated star in a drifting field is masked whole; where single frames are the measure (a static
+      // field, or stars subtracted), its clipped core is far above maskSnr anyway.
+      if (snr[p] >= maskSnr || (st.saturated && !narrow)) out.mask.set(s.x0 + p % cw, s.y0 + p / cw);
       if (subtracted) out.subtractRegion.set(s.x0 + p % cw, s.y0 + p / cw);
     }
     // The Moffat wings down to one stack sigma per pixel (two of one frame's sigma in a static field, where

@@ -111,17 +111,30 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   detect::StaticSources stars;
   detect::StaticSourceParams sp = params.stars;
   sp.psfFwhmPx = params.psfFwhmPx;
-  // The ADC full scale of the raw frames (SATURATE), less the bias, in calibrated counts, with a 5% margin
-  // for the flat and the bias pattern.
+  // The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
+  // BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the
+  // master bias), in calibrated counts, with a 5% margin for the flat and the bias pattern. Without it, stars
+  // clipped in a few frames show no flat top in the stack and are taken for the PSF (Lowell: FWHM +11%).
   if (!sp.saturationLevel) {
-    if (const auto sat = cube.header.getDouble("SATURATE")) {
+    std::optional<double> fullScale = cube.header.getDouble("SATURATE");
+    if (!fullScale) {
+      const auto bitpix = cube.header.getDouble("BITPIX");
+      if (bitpix && *bitpix > 0 && *bitpix <= 32)
+        fullScale = std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
+    }
+    if (fullScale) {
       double biasLevel = 0.0;
       if (params.masters && !params.masters->bias.empty()) {
         std::vector<float> b = params.masters->bias.pixels;
         std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
         biasLevel = b[b.size() / 2];
       }
-      sp.saturationLevel = 0.95 * (*sat - biasLevel);
+      if (!out.calibration.overscanLevel.empty()) {
+        std::vector<float> o = out.calibration.overscanLevel;
+        std::nth_element(o.begin(), o.begin() + o.size() / 2, o.end());
+        biasLevel += o[o.size() / 2];
+      }
+      sp.saturationLevel = 0.95 * (*fullScale - biasLevel);
     }
   }
   {
@@ -246,12 +259,20 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.83, 1.0);
     // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
     FrameCube& f = out.filtered.frames;
-    f = FrameCube(cube.width(), cube.height(), 0);
-    f.pixels() = cube.pixels();
-    f.info() = cube.info();
-    f.header = cube.header;
-    f.wcs = cube.wcs;
-    f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+    if (params.keepZeroBiased) {
+      f = FrameCube(cube.width(), cube.height(), 0);
+      f.pixels() = cube.pixels();
+      f.info() = cube.info();
+      f.header = cube.header;
+      f.wcs = cube.wcs;
+      f.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+    } else {
+      // In place: the same pixels as the copy, and no mask (the copy has none; masked samples are 0).
+      f = std::move(cube);
+      cube = FrameCube();
+      f.mask().clear();
+      f.mask().shrink_to_fit();
+    }
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
     const stack::MatchedFilterResult mf = stack::filterCube(
         out.filtered.frames, kernel, sub, cancel, params.weightedFilter ? &out.noiseModel : nullptr);

@@ -89,7 +89,8 @@ void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
 }
 
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
-                               const VelocityGrid& grid, const MethodCostModel& model, unsigned threads) {
+                               const VelocityGrid& grid, const MethodCostModel& model, unsigned threads,
+                               std::size_t bufferBytes) {
   MethodEstimate e;
   const SearchEstimate exact =
       estimateSearch(width, height, dtS.size(), grid, std::max(1u, threads), model.exactAdditionsPerS);
@@ -102,7 +103,7 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
                                                     *std::min_element(dtS.begin(), dtS.end());
   if (!distinctTimes || grid.count() == 0 || !(grid.stepPxS > 0.0) || width <= 0 || height <= 0) return e;
   const TreePlan plan = buildTreePlan(dtS, grid);
-  e.treeTileRows = treeTileRows(plan, width);
+  e.treeTileRows = treeTileRows(plan, width, treeTileBudgetPerThread(threads, bufferBytes));
   e.treeAdditions = treeAdditions(plan, width, height, e.treeTileRows);
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
   priceMethods(e, model);

@@ -66,6 +66,12 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params) {
+  setCandidates(result, std::move(hits), cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.frames.width(),
+                cube.frames.height(), params);
+}
+
+void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
+                   const std::vector<double>& dtS, int width, int height, const SearchParams& params) {
   // Total order (SNR descending, then y, x, ivy, ivx ascending): the cells kept at the cap and the
   // representative cell of a cluster do not depend on the order in which a backend found them.
   const auto before = [](const CellHit& a, const CellHit& b) {
@@ -81,10 +87,9 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, const Filter
     hits.resize(params.maxCandidates);
   }
   std::sort(hits.begin(), hits.end(), before);
-  result.candidates = clusterCells(hits, result.grid, defaultClusterParams(cube.psfFwhmPx), result.trials);
+  result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
-      mergeSidelobes(result.candidates, cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(),
-                     cube.psfFwhmPx, result.snrThreshold));
+      mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold));
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

@@ -14,6 +14,7 @@
 #include <tuple>
 
 #include "ipsa_kernel.hpp"
+#include "tree_region.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/search/candidates.hpp"
@@ -114,6 +115,7 @@ struct Context {
   const TreePlan& plan;
   const SearchParams& params;
   int width = 0, height = 0, tileRows = 0;
+  detail::Roi roi;  ///< output cells scanned (the owned part of an out-of-core tile; the image otherwise)
   float threshold = 0.0f;
   int minFrames = 1;
   std::size_t cap = 0;
@@ -284,16 +286,22 @@ void scanRow(const Context& cx, WorkerState& ws, const float* s, int ix, int iy,
   const int hy = cx.ry.hi[static_cast<std::size_t>(iy) * cx.height + y];
   const int a = cx.rx.a[ix];
   const int b = cx.rx.b[ix];
+  // Only the region's columns [xa, xb) are scanned (all of them but in an out-of-core tile).
+  const int xa = cx.roi.x0;
+  const int xb = cx.roi.x0 + cx.roi.width;
+  const int ca = std::clamp(a, xa, xb);
+  const int cb = std::clamp(b, ca, xb);
+  (void)w;
   const auto edge = [&](int c) { return std::min(hx[c], hy) - std::max(lx[c], ly); };
-  scanSpan(cx, ws, s, 0, a, ix, iy, y, edge);
+  scanSpan(cx, ws, s, xa, ca, ix, iy, y, edge);
   const int nIn = hy - ly;
-  if (b > a && nIn >= cx.minFrames && nIn > 0) {
+  if (cb > ca && nIn >= cx.minFrames && nIn > 0) {
     const std::size_t iv = static_cast<std::size_t>(iy) * cx.plan.nodes[0].x.v.size() + ix;
-    const float top = detail::maxOf(s + a, b - a) * cx.invNorm[nIn];
+    const float top = detail::maxOf(s + ca, cb - ca) * cx.invNorm[nIn];
     if (top > ws.bestSnr[iv] || top > cx.threshold)
-      scanSpan(cx, ws, s, a, b, ix, iy, y, [nIn](int) { return nIn; });
+      scanSpan(cx, ws, s, ca, cb, ix, iy, y, [nIn](int) { return nIn; });
   }
-  scanSpan(cx, ws, s, b, w, ix, iy, y, edge);
+  scanSpan(cx, ws, s, cb, xb, ix, iy, y, edge);
 }
 
 void trimHits(WorkerState& ws, std::size_t cap) {
@@ -313,7 +321,7 @@ void runTile(const Context& cx, WorkerState& ws, int y0) {
   auto [lp, rp] = childPlanes(cx, ws.pool, root, y0);
   const TreeNode& l = cx.plan.nodes[root.left];
   const TreeNode& rn = cx.plan.nodes[root.right];
-  const int rows = std::min(cx.tileRows, cx.height - y0);
+  const int rows = std::min(cx.tileRows, cx.roi.y0 + cx.roi.height - y0);
   ws.row.resize(static_cast<std::size_t>(cx.width) + 8);
   for (int iy = 0; iy < static_cast<int>(root.y.v.size()); ++iy) {
     cx.cancel.throwIfCancelled();
@@ -331,29 +339,34 @@ void runTile(const Context& cx, WorkerState& ws, int y0) {
 
 }  // namespace
 
-int treeTileRows(const TreePlan& plan, int width) {
+int treeTileRows(const TreePlan& plan, int width, std::size_t tileBudgetBytes) {
   for (int rows = 64; rows > 1; --rows) {
-    if (treeTileBytes(plan, width, rows) <= kTreeTileBudgetBytes) return rows;
+    if (treeTileBytes(plan, width, rows) <= tileBudgetBytes) return rows;
   }
   return 1;
 }
 
-SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
-                        ProgressSink& progress, CancelToken& cancel) {
-  const auto start = std::chrono::steady_clock::now();
-  SearchResult result = startSearchResult(cube, grid, params, "cpu", "tree");
+std::size_t treeTileBudgetPerThread(unsigned threads, std::size_t totalBytes) {
+  const std::size_t total = totalBytes > 0 ? totalBytes : kTreeBuffersBytes;
+  return std::clamp(total / std::max(1u, threads), kTreeMinTileBudgetBytes, kTreeTileBudgetBytes);
+}
 
-  const TreePlan plan = buildTreePlan(cube.frames.timeOffsetsS(), grid);
-  Context cx{cube.frames, plan, params, cube.frames.width(), cube.frames.height(), 0, 0.0f, 1, 0, {},
-             {},          {},   cancel};
-  cx.tileRows = treeTileRows(plan, cx.width);
-  cx.threshold = static_cast<float>(result.snrThreshold);
-  cx.minFrames = result.minFrames;
-  cx.cap = params.maxCandidates;
-  const int nf = static_cast<int>(cube.frames.frameCount());
+namespace detail {
+
+KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
+                              const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
+  const TreePlan plan = buildTreePlan(frames.timeOffsetsS(), grid);
+  SearchParams params;
+  params.maxCandidates = p.maxHits;
+  Context cx{frames, plan, params, frames.width(), frames.height(), 0, roi, 0.0f, 1, 0, {}, {}, {}, cancel};
+  cx.tileRows = treeTileRows(plan, cx.width, treeTileBudgetPerThread(workerCount(), p.bufferBytes));
+  cx.threshold = static_cast<float>(p.snrThreshold);
+  cx.minFrames = p.minFrames;
+  cx.cap = p.maxHits;
+  const int nf = static_cast<int>(frames.frameCount());
   cx.invNorm.assign(static_cast<std::size_t>(nf) + 1, 0.0f);
   for (int k = 1; k <= nf; ++k)
-    cx.invNorm[k] = static_cast<float>(1.0 / (cube.sigmaF * std::sqrt(double(k))));
+    cx.invNorm[k] = static_cast<float>(1.0 / (p.sigmaF * std::sqrt(double(k))));
   cx.rx = axisRanges(plan.nodes[0].x.v, plan.dt, cx.width);
   cx.ry = axisRanges(plan.nodes[0].y.v, plan.dt, cx.height);
 
@@ -372,13 +385,13 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
     w->floor = cx.threshold;
     return w;
   };
-  const std::size_t tiles = static_cast<std::size_t>((cx.height + cx.tileRows - 1) / cx.tileRows);
+  const std::size_t tiles = static_cast<std::size_t>((roi.height + cx.tileRows - 1) / cx.tileRows);
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "velocity search (tree)");
   parallelFor(tiles, 1, [&](std::size_t b, std::size_t e) {
     std::unique_ptr<WorkerState> ws = acquire();
     for (std::size_t t = b; t < e; ++t) {
-      runTile(cx, *ws, static_cast<int>(t) * cx.tileRows);
+      runTile(cx, *ws, roi.y0 + static_cast<int>(t) * cx.tileRows);
       progress.report(static_cast<double>(done.fetch_add(1) + 1) / static_cast<double>(tiles),
                       "velocity search (tree)");
     }
@@ -386,13 +399,13 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
     pool.push_back(std::move(ws));
   });
 
-  VelocityMap& map = result.map;
+  KernelOutput out;
+  VelocityMap& map = out.map;
   map.nvx = grid.nvx;
   map.nvy = grid.nvy;
   map.maxSnr.assign(nv, 0.0f);
   map.argX.assign(nv, -1);
   map.argY.assign(nv, -1);
-  std::vector<CellHit> hits;
   for (const auto& w : pool) {
     if (!w) continue;
     for (std::size_t iv = 0; iv < nv; ++iv) {
@@ -408,10 +421,29 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
         map.argY[iv] = w->bestY[iv];
       }
     }
-    result.cellsAboveThreshold += w->hitsTotal;
-    hits.insert(hits.end(), w->hits.begin(), w->hits.end());
+    out.hitsTotal += w->hitsTotal;
+    out.hits.insert(out.hits.end(), w->hits.begin(), w->hits.end());
   }
-  setCandidates(result, std::move(hits), cube, params);
+  return out;
+}
+
+}  // namespace detail
+
+SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
+                        ProgressSink& progress, CancelToken& cancel) {
+  const auto start = std::chrono::steady_clock::now();
+  SearchResult result = startSearchResult(cube, grid, params, "cpu", "tree");
+  detail::TreeRegionParams p;
+  p.sigmaF = cube.sigmaF;
+  p.snrThreshold = result.snrThreshold;
+  p.minFrames = result.minFrames;
+  p.maxHits = params.maxCandidates;
+  p.bufferBytes = params.bufferBytes;
+  const detail::Roi roi{0, 0, cube.frames.width(), cube.frames.height()};
+  detail::KernelOutput out = detail::treeSearchRegion(cube.frames, grid, roi, p, progress, cancel);
+  result.map = std::move(out.map);
+  result.cellsAboveThreshold = out.hitsTotal;
+  setCandidates(result, std::move(out.hits), cube, params);
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.report(1.0, "velocity search (tree)");
   return result;

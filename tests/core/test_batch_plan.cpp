@@ -156,6 +156,55 @@ TEST(Catalogue, OneObjectInOverlappingCubesIsOneEntry) {
   EXPECT_EQ(cat["observations"].size(), 5u);
 }
 
+/// A cube's result with its frame span [t0, t0 + spanS] (t_ref in the middle) and candidates whose position
+/// is given at t_ref.
+nlohmann::json cube(double t0Mjd, double spanS, std::vector<std::array<double, 5>> cands) {
+  nlohmann::json r = result(t0Mjd + 0.5 * spanS / 86400.0, std::move(cands));
+  r["t_first_mjd"] = t0Mjd;
+  r["t_last_mjd"] = t0Mjd + spanS / 86400.0;
+  return r;
+}
+
+TEST(Catalogue, AMoverAcrossCubesIsOneEntryEvenWhereACubeSawItPartly) {
+  using S = batch::Outcome::Status;
+  // Cubes of 10 s sharing 3 s: [0,10], [7,17], [14,24], [21,31] s. The mover: x = 0 + 3.46 t, y = 20 + 2 t
+  // (t in s from the first frame).
+  const double t0 = 60000.0, day = 86400.0;
+  const auto at = [](double t) { return std::array<double, 2>{3.46 * t, 20.0 + 2.0 * t}; };
+  const auto mover = [&](double tRef, double vx, double vy, double snr) {
+    const auto p = at(tRef);
+    return std::array<double, 5>{p[0], p[1], vx, vy, snr};
+  };
+  // Cube 0 sees it for its last seconds only: a partial detection, the position of its evidence right but
+  // the velocity 1 px/s off (its track agrees within ~2 px over the 3 shared seconds).
+  auto partial = mover(5.0, 2.46, 2.0, 7.5);
+  partial[0] += (3.46 - 2.46) * (8.5 - 5.0);  // right at 8.5 s, the middle of the frames it shares
+  std::vector<batch::Outcome> o{
+      {"n_c000", "n", {"a"}, S::Done, {}, cube(t0, 10.0, {partial, {5.0, 5.0, 0.0, 0.0, 9.0}})},
+      {"n_c001", "n", {"b"}, S::Done, {}, cube(t0 + 7.0 / day, 10.0, {mover(12.0, 3.5, 2.02, 11.0)})},
+      {"n_c002", "n", {"c"}, S::Done, {}, cube(t0 + 14.0 / day, 10.0, {mover(19.0, 3.45, 1.98, 12.0)})},
+      // The brightest in the last cube: the chain reaches cube 0 only through cubes 1 and 2.
+      {"n_c003", "n", {"d"}, S::Done, {}, cube(t0 + 21.0 / day, 10.0, {mover(26.0, 3.44, 2.0, 13.0)})}};
+  const nlohmann::json cat = batch::mergeCatalogue(o);
+  ASSERT_EQ(cat["candidates"].size(), 2u) << cat.dump(2);
+  const auto& e =
+      cat["candidates"][0]["observation"] == "n_c003" ? cat["candidates"][0] : cat["candidates"][1];
+  EXPECT_EQ(e["observation"], "n_c003");
+  EXPECT_EQ(e["snr"], 13.0);
+  EXPECT_EQ(e["seen_in"].size(), 4u) << e.dump(2);
+
+  // Tracks that meet in the middle of the shared frames but are 10 px apart at their ends: two objects.
+  std::vector<batch::Outcome> crossing{
+      {"n_c000", "n", {"a"}, S::Done, {}, cube(t0, 10.0, {mover(5.0, 3.46, 2.0, 9.0)})},
+      {"n_c001",
+       "n",
+       {"b"},
+       S::Done,
+       {},
+       cube(t0 + 7.0 / day, 10.0, {{at(8.5)[0], at(8.5)[1] - 14.0, 0.0, -4.0, 8.0}})}};
+  EXPECT_EQ(batch::mergeCatalogue(crossing)["candidates"].size(), 2u);
+}
+
 TEST(BatchQueue, HandsOutInOrderAndNamesWhatADeadWorkerHeld) {
   batch::BatchQueue q({2, 0, 1});
   EXPECT_EQ(q.next(1), 2u);

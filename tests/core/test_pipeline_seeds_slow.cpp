@@ -2,12 +2,12 @@
 // paper-neo (500 frames of 512^2, EMCCD, stars drifting 16.4 px/s, one V = 23.1 asteroid of expected SNR
 // ~15), pre-process with the defaults, search as the demo does (+-8 deg/day, 1.5 px steps over the span,
 // method auto). Issue 14 asks, over the 20 seeds: the asteroid found in all (2 px, one grid step), SNR within
-// 5% on average and 15% in each, other candidates at most 2 x Prob_false + 1. Measured 2026-11-25 (README):
-// at its place in 19 of 20 (not seed 24, below), 16 of them within 2 velocity steps, the others at 2-5 steps
-// with SNR 8.9-11.9 (their tracks cross bright stars' masked wings: the asteroid moves only 0.7 px/s relative
-// to the stars); search SNR -7% to +19% (mean +3.7%) where found at its velocity (the search maximises over
-// x, y and v). Held here at what was measured, to catch a regression; subtracting stars instead of masking
-// them would close the gap. ~8 minutes on 2 idle cores.
+// 5% on average and 15% in each, other candidates at most 2 x Prob_false + 1. The stars drift 16.4 px/s and
+// the asteroid only 0.7 px/s relative to them, so its track runs through stars' footprints for hundreds of
+// frames: masking every star down to one stack sigma lost seed 24 and put 3 more at the wrong velocity;
+// pre-processing now subtracts the stars (a sky-registered template) and masks only their cores and the sky
+// positions whose residuals vary more than the background. Figures at the end of the test. ~8 minutes on 2
+// idle cores, 3 minutes on 16.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -29,7 +29,7 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   NullProgress p;
   CancelToken c;
   const auto backend = search::makeCpuBackend();
-  int found = 0, seeds = 0, others = 0, onVelocity = 0;
+  int found = 0, seeds = 0, others = 0, onVelocity = 0, oneStep = 0, within15 = 0;
   double sumRatio = 0.0, expectedFalse = 0.0;
   for (unsigned seed = 21; seed <= 40; ++seed) {
     sim::SimResult sim = sim::simulate(sim::preset("paper-neo"), seed, p, c);
@@ -50,6 +50,8 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
       const double d = std::hypot(cd.x - truth.xRefPx, cd.y - truth.yRefPx);
       const bool isObject = d <= 2.5 && dvx <= 5.0 + 1e-9 && dvy <= 5.0 + 1e-9;
       if (isObject && !hit) onVelocity += dvx <= 2.0 + 1e-9 && dvy <= 2.0 + 1e-9;
+      // One grid step: the cell next to the one nearest the truth (which is within half a step of it).
+      if (isObject && !hit) oneStep += dvx <= 1.5 + 1e-9 && dvy <= 1.5 + 1e-9;
       if (isObject && !hit) {
         hit = &cd;
         continue;
@@ -75,21 +77,24 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
           truth.vyPxPerS, (hit->v.vx - truth.vxPxPerS) / grid.stepPxS,
           (hit->v.vy - truth.vyPxPerS) / grid.stepPxS, r.method.c_str());
       EXPECT_NEAR(ratio, 1.0, 0.45) << "seed " << seed;
+      within15 += std::fabs(ratio - 1.0) <= 0.15;
     } else {
       std::printf(" (expected SNR %.2f at (%.1f, %.1f))\n", truth.expectedSnr, truth.xRefPx, truth.yRefPx);
     }
   }
   const double mean = found > 0 ? sumRatio / found : 0.0;
   std::printf(
-      "found %d of %d; mean search/expected SNR %.3f; %d other candidates at SNR >= 7 (Prob_false "
-      "predicts %.3f)\n",
-      found, seeds, mean, others, expectedFalse);
-  // Seed 24 is the one miss (2026-11-25): the asteroid moves only 0.7 px/s relative to the stars and crosses
-  // a bright star's masked wings, which zero it in 319 of its 500 frames (track SNR 5.6 left). Subtracting
-  // stars instead of masking them is what would find it; until then one miss in 20 is allowed.
-  EXPECT_GE(found, seeds - 1);
-  EXPECT_GE(onVelocity, 15);
-  EXPECT_NEAR(mean, 1.0, 0.12);
+      "found %d of %d (%d within one grid step, %d within two); mean search/expected SNR %.3f, %d within "
+      "15%%; %d other candidates at SNR >= 7 (Prob_false predicts %.3f)\n",
+      found, seeds, oneStep, onVelocity, mean, within15, others, expectedFalse);
+  // Measured 2026-11-25 (16-core device machine, CPU): found 20 of 20, 19 within one step, 20 within two;
+  // mean 0.996, 17 of 20 within 15% (seed 24 -38% and 28 -23%: their tracks cross bright stars' cores;
+  // seed 21 +18%); 1 other candidate (an edge detection, SNR 7.08; issue 14's bound: 2 x 0.014 + 1).
+  EXPECT_EQ(found, seeds);
+  EXPECT_GE(oneStep, seeds - 2);
+  EXPECT_GE(onVelocity, seeds - 1);
+  EXPECT_NEAR(mean, 1.0, 0.05);
+  EXPECT_GE(within15, seeds - 4);
   EXPECT_LE(others, 2.0 * expectedFalse + 1.0);
 }
 

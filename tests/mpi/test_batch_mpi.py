@@ -1,6 +1,6 @@
 """`batch` and `search --mpi` under mpirun (issue 17; registered only when MPI was found). Usage:
-test_batch_mpi.py CLI MPIEXEC. With 3 ranks (rank 0 hands out, 2 workers): the catalogue equals the
-one-process one; a worker killed with SIGKILL mid-run ends the job (no hang) with a message naming what was
+test_batch_mpi.py CLI MPIEXEC. With 3 ranks (rank 0 hands out, 2 workers) over 6 small simulated
+observations: the catalogue equals the one-process one and 6 separate `search --fit` runs; a worker killed with SIGKILL mid-run ends the job (no hang) with a message naming what was
 not done, and a rerun gives the clean catalogue; under --enable-recovery rank 0 notices the silent worker by
 its heartbeat and names it; `search --mpi` returns exactly the candidates of `search`."""
 import json
@@ -13,7 +13,7 @@ import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "python"))
 from _support import check, finish, run_cli  # noqa: E402
-from _batch_support import SEARCH, load, same, simulate  # noqa: E402
+from _batch_support import SEARCH, differences_from_searches, load, same, simulate  # noqa: E402
 
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", ST_THREADS="1")
@@ -42,7 +42,7 @@ def kill_a_worker_mid_run(out, timeout=60):
 
 def main(cli, mpiexec):
     with tempfile.TemporaryDirectory() as tmp:
-        obs = simulate(cli, tmp, [1, 2, 3, 4])
+        obs = simulate(cli, tmp, [1, 2, 3, 4, 5, 6])
         clean = os.path.join(tmp, "clean")
         r = subprocess.run([cli, "batch"] + obs + ["--out", clean] + SEARCH, capture_output=True, text=True,
                            env=ENV)
@@ -54,8 +54,12 @@ def main(cli, mpiexec):
                            text=True, env=ENV, timeout=300)
         check(r.returncode == 0, "mpirun -np 3 batch: %s" % r.stderr)
         check("2 worker ranks" in r.stderr, "rank 0 hands out to 2 workers: %s" % r.stderr[:300])
+        check("6/6 observations" in r.stderr and "ETA" in r.stderr and "/h" in r.stderr,
+              "rank 0 prints done/total, rate and ETA: %s" % r.stderr[-400:])
         d = same(load(os.path.join(out, "catalogue.json")), want)
         check(not d, "MPI catalogue equals the one-process one: %s" % d[:5])
+        d = differences_from_searches(cli, load(os.path.join(out, "catalogue.json")), obs)
+        check(not d, "MPI catalogue equals 6 separate search --fit runs: %s" % d[:5])
         ranks = {load(os.path.join(out, "logs", f))["rank"] for f in os.listdir(os.path.join(out, "logs"))}
         check(ranks == {1, 2}, "both workers ran observations, rank 0 none: %s" % ranks)
 
@@ -98,7 +102,10 @@ def main(cli, mpiexec):
         cat = load(os.path.join(rec, "catalogue.json"))
         check([e["observation"] for e in cat["not_done"]] == [victim], "recovery: only %s not done: %s" %
               (victim, cat["not_done"]))
-        check(len(cat["candidates"]) >= 3, "recovery: the others were done by the surviving worker")
+        others = [c for c in want["candidates"] if c["observation"] != victim]
+        d = same(cat["candidates"], others)
+        check(not d, "recovery: the surviving worker did the other 5, their candidates as the clean run's: %s" %
+              d[:5])
 
         # search --mpi: the vy rows over 3 ranks give exactly the candidates of one search.
         one = run_cli(cli, ["search", obs[1], "--method", "exact", "--json"] + SEARCH)

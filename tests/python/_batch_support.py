@@ -59,3 +59,25 @@ def same(a, b, path="", ignore=("iterations",)):
     elif a == b:
         return []
     return ["%s: %r != %r" % (path, a, b)]
+
+
+def differences_from_searches(cli, catalogue, observations, options=SEARCH):
+    """What differs between `catalogue` and separate `synthtrack-cli search OBS --fit --json` runs of each
+    observation (candidates in order, x, y, velocity, SNR, frames and the fit): a list of strings, empty
+    when the catalogue holds exactly what the separate searches found."""
+    out = []
+    for p in observations:
+        name = os.path.basename(p)[:-5]
+        s = subprocess.run([cli, "search", p, "--fit", "--json"] + list(options), capture_output=True, text=True)
+        if s.returncode != 0:
+            out.append("search --fit %s exited %d: %s" % (p, s.returncode, s.stderr[-300:]))
+            continue
+        want = json.loads(s.stdout)["candidates"]
+        got = [c for c in catalogue["candidates"] if c["observation"] == name]
+        if len(got) != len(want):
+            out.append("%s: %d candidates in the catalogue, search --fit found %d" % (name, len(got), len(want)))
+            continue
+        for g, w in zip(got, want):
+            for k in ("x", "y", "vx_px_s", "vy_px_s", "snr", "n_frames", "fit"):
+                out += ["%s: %s" % (name, d) for d in same(g.get(k), w.get(k), k)[:3]]
+    return out

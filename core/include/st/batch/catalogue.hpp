@@ -25,6 +25,11 @@ struct MatchParams {
   double positionTolPx = 3.0;
   /// ...and their velocities by at most this many grid steps (the coarser grid of the two) per component.
   double velocityTolSteps = 2.0;
+  /// Detections from observations that share frames (overlapping cubes: both results carry t_first_mjd and
+  /// t_last_mjd) are instead one object when their tracks stay within this (px) of each other at the start,
+  /// middle and end of the shared frames (about two PSF FWHM of the paper's camera); this also joins a
+  /// partial detection at a cube's edge, whose velocity is off, to the object's full track.
+  double overlapTolPx = 5.0;
 };
 
 /// The position and velocity a catalogue entry quotes for a candidate of `result`: the fit's when it
@@ -34,7 +39,8 @@ std::array<double, 4> bestState(const nlohmann::json& candidate);
 /// The catalogue: {"observations": [names in list order], "candidates": [...], "errors": [...],
 /// "not_done": [...]}. A candidate entry: observation, t_ref_mjd, x, y, vx_px_s, vy_px_s (search cell),
 /// snr, n_frames, fap, flags, the sky rate/PA when known, "fit" (when fitted) and "seen_in" (every
-/// observation of its group that saw the same object: observation, x, y, snr), ordered by observation then
+/// observation of its group that saw the same object: observation, x, y, snr; an entry is a single-linkage
+/// cluster of matching detections, never two of one observation), ordered by observation then
 /// SNR. An error entry: observation, inputs, error. A not_done entry: observation, reason. Deterministic:
 /// the same outcomes give the same JSON, whatever order they finished in.
 nlohmann::json mergeCatalogue(const std::vector<Outcome>& outcomes, const MatchParams& match = {});

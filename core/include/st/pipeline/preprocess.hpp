@@ -15,7 +15,7 @@
 //   -> the inverse-variance-weighted matched filter (stats/noise_model.hpp, stack/matched_filter.hpp).
 //
 // Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
-// cube is the matched-filtered copy (Prepared::filtered). Per-pixel images (background, noise), the
+// cube is the matched-filtered copy (Prepared::filtered), none when !keepZeroBiased (filtered in place). Per-pixel images (background, noise), the
 // stacks and masks are frame-sized; the cube's pixel mask (1 byte per sample, a quarter of a float cube)
 // exists only when the loader or the bad-pixel mask needs one.
 #include <cstdint>
@@ -54,6 +54,9 @@ struct PreprocessParams {
   std::optional<std::pair<double, double>>
       psfStar;                                   ///< the star the user names for the PSF (0-based px, t_ref)
   bool matchedFilter = true;                     ///< produce Prepared::filtered (one extra cube)
+  /// Keep the zero-biased cube (Prepared::frames) beside the filtered one. False: the matched filter runs
+  /// in place on it (one cube less at the peak; Prepared::frames is left empty), for a search without fits.
+  bool keepZeroBiased = true;
   stats::FrameBackgroundParams frameBackground;  ///< each frame's smooth background (SEP), before all else
   bool removeResidualMean = true;  ///< remove each zero-biased frame's residual local mean (mesh)
   int residualMeshPx = 64;         ///< its mesh cell

@@ -74,8 +74,10 @@ struct MethodEstimate {
 /// Estimates both methods for frames of width x height at offsets `dtS` (t_n - t_ref, s) over `grid`, with
 /// `threads` workers. The tree is priced only when a plan can be built (at least 2 distinct times, a
 /// non-empty grid); otherwise treeSeconds is infinite. Never throws for such input.
+/// `bufferBytes`: the tree's partial stacks of all threads together (SearchParams::bufferBytes; 0 = default).
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
-                               const VelocityGrid& grid, const MethodCostModel& model, unsigned threads);
+                               const VelocityGrid& grid, const MethodCostModel& model, unsigned threads,
+                               std::size_t bufferBytes = 0);
 
 /// (Re)prices `estimate`'s additions with `model`: exactSeconds and treeSeconds (infinite without a tree
 /// plan). For a new measured throughput without rebuilding the tree plan.

@@ -43,5 +43,9 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 /// bright candidates into them (sidelobes.hpp; result.sidelobesMerged counts them).
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params);
+/// The same with the cube's properties given (an out-of-core search holds no whole cube): PSF FWHM, the
+/// frames' t - t_ref (s) and the whole image's size.
+void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
+                   const std::vector<double>& dtS, int width, int height, const SearchParams& params);
 
 }  // namespace st::search

@@ -13,7 +13,7 @@
 // tree's samples deviate from the exact ones by at most TreePlan::maxAbsErr* px (tested <= 1). Memory: per
 // thread about treeTileBytes(plan, width, tileRows) of partial stacks (the depth-first peak; held in a
 // per-thread pool of reused buffers, best fit, so a little more), tileRows chosen as the largest <= 64 whose
-// peak fits kTreeTileBudgetBytes (at least 1 row), plus 12 bytes per velocity for the map and (width +
+// peak fits treeTileBudgetPerThread(threads, SearchParams::bufferBytes) (at least 1 row), plus 12 bytes per velocity for the map and (width +
 // height) x (nvx + nvy) x 8 bytes of N_in ranges. Thresholds, minimum frames, capping and clustering: exactly
 // the exact backend's (search_run.hpp, candidates.hpp). Cancellation polled per row of node velocities;
 // progress per tile. Measured (`synthtrack-cli bench search --method tree`, 2-core AMD EPYC dev machine,
@@ -24,12 +24,22 @@
 
 namespace st::search {
 
-/// Partial-stack budget of one thread's tile (bytes): with 2 threads the paper problem stays within the
-/// exact search's rule (1.5 x the cube + 300 MB).
+/// Partial-stack budget of one thread's tile at most (bytes): with 2 threads the paper problem stays within
+/// the exact search's rule (1.5 x the cube + 300 MB).
 inline constexpr std::size_t kTreeTileBudgetBytes = std::size_t{320} << 20;
+/// Partial stacks of ALL threads together, by default (issue 20): the working set does not grow with the
+/// thread count (16 threads used to hold 16 x 320 MB). Each thread gets this / threads, between
+/// kTreeMinTileBudgetBytes and kTreeTileBudgetBytes (SearchParams::bufferBytes replaces it).
+inline constexpr std::size_t kTreeBuffersBytes = 2 * kTreeTileBudgetBytes;
+/// The smallest share of one thread (the stated per-thread term of the tree search's working set).
+inline constexpr std::size_t kTreeMinTileBudgetBytes = std::size_t{24} << 20;
 
-/// The row count of a tile for this plan (see above).
-int treeTileRows(const TreePlan& plan, int width);
+/// The row count of a tile for this plan: the most rows (<= 64) whose partial stacks fit `tileBudgetBytes`.
+int treeTileRows(const TreePlan& plan, int width, std::size_t tileBudgetBytes = kTreeTileBudgetBytes);
+
+/// One thread's tile budget when `threads` share `totalBytes` (0: kTreeBuffersBytes), clamped to
+/// [kTreeMinTileBudgetBytes, kTreeTileBudgetBytes].
+std::size_t treeTileBudgetPerThread(unsigned threads, std::size_t totalBytes = 0);
 
 /// Runs the tree search. Validates like the exact backend (validateSearchInput); result.method = "tree",
 /// result.backend = "cpu". Throws st::InputError, st::Cancelled.

@@ -50,6 +50,9 @@ struct SearchParams {
   /// "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp); "auto" is resolved to one of
   /// them by searchWithMethod (method_choice.hpp) before a backend sees it.
   std::string method = "exact";
+  /// Search buffers of all threads together (the tree's partial stacks), bytes; 0 = the default
+  /// (kTreeBuffersBytes, tree_search.hpp). Sized from the memory budget (issue 20); no effect on results.
+  std::size_t bufferBytes = 0;
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).

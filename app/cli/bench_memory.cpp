@@ -1,0 +1,162 @@
+// synthtrack-cli bench memory: the out-of-core search (issue 20) beside the in-memory one on a cube that
+// fits. Writes a filtered pre-processed cube (Gaussian noise, SIGMAF 1, a few moving sources) of FRAMES x
+// (W x H) float32 to a temporary folder, then runs `synthtrack-cli search CUBE --preprocessed` as a child
+// process (so that each run's peak resident memory, VmHWM, is its own) in memory and with --memory-limit
+// (default: a third of the cube), and prints wall time, CPU time, peak memory, tiles and whether the
+// candidates are identical. The page cache is warm for both (the file was just written and read once).
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sys/resource.h>
+#include <sys/wait.h>
+
+#include "bench_util.hpp"
+#include "cli_args.hpp"
+#include "commands.hpp"
+#include "st/common/error.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/common/memory_budget.hpp"
+#include "st/common/parallel.hpp"
+#include "st/io/fits_writer.hpp"
+#include "st/psf/moffat.hpp"
+
+namespace st::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  double wallS = 0.0;
+  double cpuS = 0.0;
+  nlohmann::json j;
+};
+
+Run runSearch(const fs::path& cube, const fs::path& dir, const std::string& tag,
+              const std::vector<std::string>& extra) {
+  std::vector<std::string> args{"search", cube.string(), "--preprocessed", "--json"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const fs::path out = dir / (tag + ".json");
+  const fs::path err = dir / (tag + ".err");
+  const auto t0 = std::chrono::steady_clock::now();
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::vector<char*> argv{const_cast<char*>("synthtrack-cli")};
+    for (auto& a : args)
+      argv.push_back(a.data());
+    argv.push_back(nullptr);
+    if (!std::freopen(out.c_str(), "w", stdout) || !std::freopen(err.c_str(), "w", stderr)) _exit(127);
+    execv("/proc/self/exe", argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage ru{};
+  if (pid < 0 || wait4(pid, &status, 0, &ru) != pid) throw InputError("bench memory: cannot run the search");
+  Run r;
+  r.wallS = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cpuS = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+           1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    std::ifstream in(err);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    throw InputError("bench memory: the search (" + tag + ") failed: " + text);
+  }
+  std::ifstream(out) >> r.j;
+  return r;
+}
+
+}  // namespace
+
+int benchMemory(const Args& args) {
+  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method", "keep"}, {"help"});
+  if (cli.flag("help")) {
+    std::printf(
+        "usage: synthtrack-cli bench memory [--frames N] [--size WxH] [--vmax-px-s V] [--method exact|tree]\n"
+        "                                   [--memory-limit SIZE]\n"
+        "  in-memory vs out-of-core search of a filtered cube (default 400 x 512x512, 0.1 px/s, exact,\n"
+        "  out of core under a third of the cube)\n");
+    return 0;
+  }
+  const long long frames = cli.integer("frames").value_or(400);
+  int w = 512, h = 512;
+  if (auto s = cli.value("size")) {
+    if (std::sscanf(s->c_str(), "%dx%d", &w, &h) != 2 || w < 32 || h < 32)
+      throw UsageError("--size must be WxH with both >= 32, got '" + *s + "'");
+  }
+  if (frames < 8) throw UsageError("--frames must be >= 8");
+  const double vmax = cli.number("vmax-px-s").value_or(0.1);
+  const std::string method = cli.value("method").value_or("exact");
+  const double cubeBytes = 4.0 * w * h * static_cast<double>(frames);
+  const std::string limit = cli.value("memory-limit").value_or(
+      std::to_string(static_cast<long long>(cubeBytes / 3.0 / 1048576.0)) + "M");
+
+  const fs::path dir = fs::temp_directory_path() / ("st-bench-memory-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path path = dir / "filtered.fits";
+  {
+    FrameCube cube(w, h, static_cast<std::size_t>(frames));
+    std::mt19937_64 rng(7);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    for (auto& p : cube.pixels())
+      p = noise(rng);
+    for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+      cube.info()[n].mjdMid = 60000.0 + 0.1 * static_cast<double>(n) / 86400.0;
+      cube.info()[n].exposureS = 0.1;
+    }
+    const psf::Moffat psf = psf::Moffat::fromFwhm(2.5, 4.0);
+    const std::vector<double> dt = cube.timeOffsetsS();
+    for (int k = 0; k < 6; ++k) {
+      const double x0 = w * (0.15 + 0.14 * k), y0 = h * (0.8 - 0.12 * k);
+      const double vx = vmax * (k % 3 - 1) * 0.6, vy = vmax * ((k + 1) % 3 - 1) * 0.5;
+      for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+        const double xc = x0 + vx * dt[n], yc = y0 + vy * dt[n];
+        for (int y = static_cast<int>(yc) - 8; y <= static_cast<int>(yc) + 8; ++y)
+          for (int x = static_cast<int>(xc) - 8; x <= static_cast<int>(xc) + 8; ++x)
+            if (x >= 0 && y >= 0 && x < w && y < h)
+              cube.frame(n)[static_cast<std::size_t>(y) * w + x] += static_cast<float>(1.3 * psf(x - xc, y - yc));
+      }
+    }
+    FitsHeader hd;
+    hd.setNumber("STPREP", 1);
+    hd.set("STFILT", "T");
+    hd.setNumber("PSFFWHM", 2.5);
+    hd.setNumber("PSFBETA", 4.0);
+    hd.setNumber("SIGMAF", 1.0);
+    io::writeCube(path.string(), cube, hd);
+  }
+  const std::vector<std::string> common{"--vmax-px-s", std::to_string(vmax), "--backend", "cpu", "--method", method};
+  std::vector<std::string> mem = common, ooc = common;
+  mem.insert(mem.end(), {"--memory-limit", "64G"});
+  ooc.insert(ooc.end(), {"--memory-limit", limit});
+  runSearch(path, dir, "warm", mem);  // page cache and allocator warm for both
+  const Run a = runSearch(path, dir, "in-memory", mem);
+  const Run b = runSearch(path, dir, "out-of-core", ooc);
+  if (!cli.has("keep")) fs::remove_all(dir);
+  const bool same = a.j["candidates"] == b.j["candidates"] &&
+                    a.j["cells_above_threshold"] == b.j["cells_above_threshold"];
+  std::printf("bench memory: %s, %u threads, %s\n", cpuModel().c_str(), workerCount(), utcNow().c_str());
+  std::printf("problem: %lld frames x %d x %d px (%.0f MB float32), %s search, |v| <= %g px/s, %d x %d "
+              "velocities\n",
+              frames, w, h, cubeBytes / 1048576.0, method.c_str(), vmax, a.j["trials"]["nvx"].get<int>(),
+              a.j["trials"]["nvy"].get<int>());
+  const auto line = [](const char* name, const Run& r) {
+    std::printf("  %-12s wall %7.2f s, CPU %7.2f s, peak resident %s, %zu candidates%s\n", name, r.wallS, r.cpuS,
+                formatBytes(r.j["memory"]["peak_resident_bytes"].get<double>()).c_str(), r.j["candidates"].size(),
+                r.j["memory"]["out_of_core"].get<bool>()
+                    ? (", " + std::to_string(r.j["memory"]["tiles"].get<int>()) + " tiles").c_str()
+                    : "");
+  };
+  line("in memory", a);
+  std::printf("  (budget %s)\n", limit.c_str());
+  line("out of core", b);
+  std::printf("out of core / in memory: wall %.2fx, peak %.2fx; candidates %s\n", b.wallS / a.wallS,
+              b.j["memory"]["peak_resident_bytes"].get<double>() / a.j["memory"]["peak_resident_bytes"].get<double>(),
+              same ? "identical" : "DIFFER");
+  return same ? 0 : 1;
+}
+
+}  // namespace st::app

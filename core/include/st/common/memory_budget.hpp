@@ -1,0 +1,62 @@
+#pragma once
+// The memory budget of one run (issue 20): how many bytes a run may hold, what the system allows, a typed
+// estimate of a run's peak with its parts, and the process's own peak resident memory (for tests and bench).
+//
+// Default budget: kDefaultBudgetFraction of the memory available now (MemAvailable in /proc/meminfo), capped
+// by the same fraction of what the cgroup still allows (cgroup v2 memory.max - memory.current, or v1
+// memory.limit_in_bytes - memory.usage_in_bytes), so that the run is never the one the OOM killer picks.
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace st {
+
+/// Fraction of the available memory a run takes by default.
+inline constexpr double kDefaultBudgetFraction = 0.7;
+
+/// Parses a size such as "8G", "500M", "1.5GiB", "2048K" or "123456" (bytes). K/M/G/T are powers of 1024
+/// (with or without a trailing "B" or "iB"). Throws st::InputError naming `what` and the text when it is not
+/// a positive size.
+std::size_t parseMemorySize(const std::string& text, const std::string& what = "--memory-limit");
+
+/// "1.23 GB" / "456 MB" / "12 kB" (powers of 1024, one unit per size).
+std::string formatBytes(double bytes);
+
+/// What the system says now.
+struct SystemMemory {
+  std::size_t availableBytes = 0;           ///< MemAvailable (or physical memory when unreadable)
+  std::optional<std::size_t> cgroupLimit;   ///< memory.max / memory.limit_in_bytes when limited
+  std::optional<std::size_t> cgroupUsage;   ///< memory.current / memory.usage_in_bytes
+  [[nodiscard]] std::size_t usableBytes() const;  ///< min(available, cgroup limit - usage)
+};
+
+SystemMemory readSystemMemory();
+
+/// kDefaultBudgetFraction x readSystemMemory().usableBytes(), at least 64 MB.
+std::size_t defaultMemoryBudget();
+
+/// The budget of a run: `given` (parsed with parseMemorySize) or the default; `source` says which.
+struct MemoryBudget {
+  std::size_t bytes = 0;
+  std::string source;  ///< "--memory-limit 8G" or "default: 70% of 12.3 GB available"
+};
+MemoryBudget resolveMemoryBudget(const std::optional<std::string>& given);
+
+/// A run's estimated peak: its parts (name, bytes) and their sum.
+struct MemoryEstimate {
+  struct Part {
+    std::string what;
+    double bytes = 0.0;
+  };
+  std::vector<Part> parts;
+  void add(std::string what, double bytes) { parts.push_back({std::move(what), bytes}); }
+  [[nodiscard]] double total() const;
+  /// "1.2 GB (cube 512 MB, filtered cube 512 MB, ...)"
+  [[nodiscard]] std::string describe() const;
+};
+
+/// Peak resident set of this process so far (VmHWM, bytes); 0 when unreadable.
+std::size_t peakResidentBytes();
+
+}  // namespace st

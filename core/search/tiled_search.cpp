@@ -1,0 +1,166 @@
+#include "st/search/tiled_search.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+
+#include "ipsa_kernel.hpp"
+#include "st/common/error.hpp"
+#include "st/search/ipsa.hpp"
+#include "st/search/search_run.hpp"
+#include "st/search/velocity_grid.hpp"
+#include "tree_region.hpp"
+
+namespace st::search {
+
+int searchOverlapPx(const VelocityGrid& grid, const std::vector<double>& dtS, int marginPx) {
+  int most = 0;
+  for (const int ix : {0, grid.nvx - 1}) {
+    for (const int iy : {0, grid.nvy - 1}) {
+      const Velocity v = grid.at(ix, iy);
+      for (const double dt : dtS)
+        most = std::max({most, std::abs(ipsaShift(v.vx, dt)), std::abs(ipsaShift(v.vy, dt))});
+    }
+  }
+  return most + std::max(0, marginPx);
+}
+
+std::vector<SearchTile> planSearchTiles(int width, int height, int overlapPx, std::size_t maxReadPixels,
+                                        int minOwnedRows) {
+  std::vector<SearchTile> tiles;
+  if (width <= 0 || height <= 0) return tiles;
+  const auto readOf = [&](const TileRect& o) {
+    const int x0 = std::max(0, o.x0 - overlapPx);
+    const int y0 = std::max(0, o.y0 - overlapPx);
+    const int x1 = std::min(width, o.x0 + o.width + overlapPx);
+    const int y1 = std::min(height, o.y0 + o.height + overlapPx);
+    return TileRect{x0, y0, x1 - x0, y1 - y0};
+  };
+  // The whole image in one tile.
+  if (static_cast<std::size_t>(width) * height <= maxReadPixels) {
+    tiles.push_back({{0, 0, width, height}, {0, 0, width, height}});
+    return tiles;
+  }
+  // Strips of whole rows: owned rows r, read rows r + 2 overlap (fewer at the image's edges).
+  const long long rowsFit = static_cast<long long>(maxReadPixels / static_cast<std::size_t>(width));
+  const long long strip = rowsFit - 2LL * overlapPx;
+  if (strip >= std::min(minOwnedRows, height)) {
+    const int n = static_cast<int>((height + strip - 1) / strip);
+    const int rows = (height + n - 1) / n;  // even strips
+    for (int y = 0; y < height; y += rows) {
+      const TileRect owned{0, y, width, std::min(rows, height - y)};
+      tiles.push_back({readOf(owned), owned});
+    }
+    return tiles;
+  }
+  // Square-ish rectangles: side s with (s + 2 overlap)^2 <= maxReadPixels.
+  const double side = std::floor(std::sqrt(static_cast<double>(maxReadPixels))) - 2.0 * overlapPx;
+  if (side < 8.0) return tiles;
+  const int s = static_cast<int>(side);
+  const int nx = (width + s - 1) / s, ny = (height + s - 1) / s;
+  const int tw = (width + nx - 1) / nx, th = (height + ny - 1) / ny;
+  for (int y = 0; y < height; y += th) {
+    for (int x = 0; x < width; x += tw) {
+      const TileRect owned{x, y, std::min(tw, width - x), std::min(th, height - y)};
+      tiles.push_back({readOf(owned), owned});
+    }
+  }
+  return tiles;
+}
+
+SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& tiles, int width, int height,
+                         const VelocityGrid& grid, const SearchParams& params, ProgressSink& progress,
+                         CancelToken& cancel) {
+  if (tiles.empty()) throw InputError("the out-of-core search got no tiles");
+  if (params.method != "exact" && params.method != "tree") {
+    throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+  }
+  const auto start = std::chrono::steady_clock::now();
+  SearchResult result;
+  std::vector<CellHit> hits;
+  std::vector<double> dtS;
+  double psfFwhm = 0.0;
+  VelocityMap& map = result.map;
+  map.nvx = grid.nvx;
+  map.nvy = grid.nvy;
+  map.maxSnr.assign(grid.count(), 0.0f);
+  map.argX.assign(grid.count(), -1);
+  map.argY.assign(grid.count(), -1);
+  for (std::size_t t = 0; t < tiles.size(); ++t) {
+    cancel.throwIfCancelled();
+    const SearchTile& tile = tiles[t];
+    const double p0 = static_cast<double>(t) / static_cast<double>(tiles.size());
+    const double p1 = static_cast<double>(t + 1) / static_cast<double>(tiles.size());
+    detail::KernelOutput out;
+    {
+      const FilteredCube cube = load(tile.read);
+      if (cube.frames.width() != tile.read.width || cube.frames.height() != tile.read.height) {
+        throw InputError("out-of-core search: a tile was read as " + std::to_string(cube.frames.width()) + " x " +
+                         std::to_string(cube.frames.height()) + " px instead of " +
+                         std::to_string(tile.read.width) + " x " + std::to_string(tile.read.height));
+      }
+      if (t == 0) {
+        validateSearchInput(cube, grid, params);
+        result.grid = grid;
+        result.trials = trialCounts(width, height, grid);
+        result.snrThreshold = effectiveThreshold(params, result.trials);
+        result.minFrames = minFramesFor(params, cube.frames.frameCount());
+        result.tRefMjd = cube.frames.tRefMjd();
+        result.backend = "cpu";
+        result.method = params.method;
+        dtS = cube.frames.timeOffsetsS();
+        psfFwhm = cube.psfFwhmPx;
+      } else if (cube.frames.frameCount() != dtS.size()) {
+        throw InputError("out-of-core search: a tile has " + std::to_string(cube.frames.frameCount()) +
+                         " frames, the first had " + std::to_string(dtS.size()));
+      }
+      const detail::Roi roi{tile.owned.x0 - tile.read.x0, tile.owned.y0 - tile.read.y0, tile.owned.width,
+                            tile.owned.height};
+      SubProgress sub(progress, p0, p1);
+      if (params.method == "exact") {
+        detail::KernelParams kp;
+        kp.sigmaF = cube.sigmaF;
+        kp.snrThreshold = result.snrThreshold;
+        kp.minFrames = result.minFrames;
+        kp.maxHits = params.maxCandidates;
+        out = detail::runIpsaKernel(cube.frames, grid, roi, kp, sub, cancel);
+      } else {
+        detail::TreeRegionParams tp;
+        tp.sigmaF = cube.sigmaF;
+        tp.snrThreshold = result.snrThreshold;
+        tp.minFrames = result.minFrames;
+        tp.maxHits = params.maxCandidates;
+        tp.bufferBytes = params.bufferBytes;
+        out = detail::treeSearchRegion(cube.frames, grid, roi, tp, sub, cancel);
+      }
+    }
+    for (CellHit& h : out.hits) {
+      h.x += tile.read.x0;
+      h.y += tile.read.y0;
+    }
+    hits.insert(hits.end(), out.hits.begin(), out.hits.end());
+    result.cellsAboveThreshold += out.hitsTotal;
+    for (std::size_t iv = 0; iv < grid.count(); ++iv) {
+      if (out.map.argX[iv] < 0) continue;
+      const float snr = out.map.maxSnr[iv];
+      const int x = out.map.argX[iv] + tile.read.x0;
+      const int y = out.map.argY[iv] + tile.read.y0;
+      // Ties go to the lowest (y, x), as in the in-memory search.
+      const bool better = map.argX[iv] < 0 || snr > map.maxSnr[iv] ||
+                          (snr == map.maxSnr[iv] && (y < map.argY[iv] || (y == map.argY[iv] && x < map.argX[iv])));
+      if (better) {
+        map.maxSnr[iv] = snr;
+        map.argX[iv] = x;
+        map.argY[iv] = y;
+      }
+    }
+  }
+  setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params);
+  result.backendNote = "out of core: " + std::to_string(tiles.size()) + " tile(s)";
+  result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  progress.report(1.0, params.method == "tree" ? "velocity search (tree)" : "velocity search");
+  return result;
+}
+
+}  // namespace st::search

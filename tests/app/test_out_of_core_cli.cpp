@@ -1,0 +1,218 @@
+// Issue 20 end to end: a filtered pre-processed cube about 3x a small --memory-limit is searched out of core
+// (tiles read with CFITSIO's subset reader) and gives exactly the candidates of the in-memory search, for
+// the CPU exact and tree methods, with the child process's peak resident memory (wait4's ru_maxrss) under
+// the budget; a budget too small for even one tile exits 1 before the work, naming the need and the budget.
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "cli_runner.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/io/fits_writer.hpp"
+#include "st/psf/moffat.hpp"
+#include "test_support.hpp"
+
+extern char** environ;
+
+namespace st {
+namespace {
+
+using test::cliPath;
+using test::readText;
+
+constexpr int kW = 480, kH = 480;
+constexpr std::size_t kFrames = 400;  // 369 MB of float32 pixels: 2.9x the budget
+constexpr const char* kBudget = "128M";
+constexpr std::size_t kBudgetBytes = std::size_t{128} << 20;
+
+/// Runs the CLI with `args`, stdout and stderr to files; returns (exit status, ru_maxrss bytes). ru_maxrss of
+/// a spawned child includes the parent's high-water mark (the child shares its address space until exec),
+/// so the budget is checked on the child's own VmHWM, which `search` writes to the JSON.
+std::pair<int, std::size_t> runMeasured(const std::vector<std::string>& args, const std::filesystem::path& out,
+                                        const std::filesystem::path& err) {
+  const std::string cli = cliPath().string();
+  std::vector<char*> argv{const_cast<char*>(cli.c_str())};
+  for (const auto& a : args)
+    argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, cli.c_str(), &fa, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) return {-1, 0};
+  int status = 0;
+  rusage ru{};
+  if (wait4(pid, &status, 0, &ru) != pid) return {-1, 0};
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, static_cast<std::size_t>(ru.ru_maxrss) * 1024};
+}
+
+class OutOfCoreCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { s_dir = new test::TempDir; }
+
+  /// Writes F.fits (filtered) or Z.fits (zero-biased) on first use: ctest runs each test in its own process.
+  static void writeCube(const std::string& file) {
+    if (std::filesystem::exists(path(file))) return;
+    // Filtered frames: Gaussian noise (sigma 1) plus moving Moffat sources, four of them across the tile
+    // borders of the out-of-core plan, one leaving the frame.
+    FrameCube cube(kW, kH, kFrames);
+    std::mt19937_64 rng(5);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    for (auto& p : cube.pixels())
+      p = noise(rng);
+    for (std::size_t n = 0; n < kFrames; ++n) {
+      cube.info()[n].mjdMid = 60000.0 + 0.1 * static_cast<double>(n) / 86400.0;
+      cube.info()[n].exposureS = 0.1;
+    }
+    const psf::Moffat psf = psf::Moffat::fromFwhm(2.5, 4.0);
+    struct Obj {
+      double x, y, vx, vy, alpha;
+    };
+    const std::vector<double> dt = cube.timeOffsetsS();
+    for (const Obj& o : {Obj{100, 57, 0.05, -0.03, 1.2}, Obj{300, 112, -0.04, 0.06, 1.0},
+                         Obj{224, 300, 0.07, 0.0, 1.5}, Obj{470, 400, 0.08, 0.05, 1.4},
+                         Obj{30, 224, 0.0, -0.06, 1.1}}) {
+      for (std::size_t n = 0; n < kFrames; ++n) {
+        const double xc = o.x + o.vx * dt[n], yc = o.y + o.vy * dt[n];
+        for (int y = static_cast<int>(yc) - 8; y <= static_cast<int>(yc) + 8; ++y)
+          for (int x = static_cast<int>(xc) - 8; x <= static_cast<int>(xc) + 8; ++x)
+            if (x >= 0 && y >= 0 && x < kW && y < kH)
+              cube.frame(n)[static_cast<std::size_t>(y) * kW + x] += static_cast<float>(o.alpha * psf(x - xc, y - yc));
+      }
+    }
+    FitsHeader h;
+    h.setNumber("STPREP", 1);
+    h.set("STFILT", "T");
+    h.setNumber("PSFFWHM", 2.5);
+    h.setNumber("PSFBETA", 4.0);
+    h.setNumber("SIGMAF", 1.0);
+    h.setNumber("SKYVX", 0.0);
+    h.setNumber("SKYVY", 0.0);
+    if (file == "F.fits") io::writeCube((*s_dir / "F.fits").string(), cube, h);
+    // The same frames as a zero-biased cube (filtered on loading, tile by tile with the filter's reach).
+    FitsHeader z;
+    z.setNumber("STPREP", 1);
+    z.set("STFILT", "F");
+    z.setNumber("PSFFWHM", 2.5);
+    z.setNumber("PSFBETA", 4.0);
+    if (file == "Z.fits") io::writeCube((*s_dir / "Z.fits").string(), cube, z);
+  }
+  static void TearDownTestSuite() {
+    delete s_dir;
+    s_dir = nullptr;
+  }
+  void SetUp() override {
+    if (cliPath().empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  }
+  static std::filesystem::path path(const std::string& name) { return *s_dir / name; }
+
+  /// search F.fits --preprocessed with `extra`; (exit, peak RSS, JSON).
+  static std::tuple<int, std::size_t, nlohmann::json> search(const std::string& method,
+                                                             std::vector<std::string> extra,
+                                                             const std::string& tag,
+                                                             const std::string& file = "F.fits") {
+    writeCube(file);
+    std::vector<std::string> args{"search", path(file).string(), "--preprocessed", "--vmax-px-s", "0.1",
+                                  "--snr", "6", "--backend", "cpu", "--method", method, "--json"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const auto [rc, rss] = runMeasured(args, path(tag + ".json"), path(tag + ".err"));
+    nlohmann::json j;
+    if (rc == 0) std::ifstream(path(tag + ".json")) >> j;
+    return {rc, rss, j};
+  }
+  static test::TempDir* s_dir;
+};
+test::TempDir* OutOfCoreCli::s_dir = nullptr;
+
+class OutOfCoreMethods : public OutOfCoreCli, public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(OutOfCoreMethods, CubeThreeTimesTheBudgetGivesTheInMemoryCandidatesWithinTheBudget) {
+  const std::string method = GetParam();
+  const auto [rcMem, rssMem, mem] = search(method, {}, method + "-mem");
+  ASSERT_EQ(rcMem, 0) << readText(path(method + "-mem.err"));
+  const auto [rcOoc, rssOoc, ooc] = search(method, {"--memory-limit", kBudget}, method + "-ooc");
+  ASSERT_EQ(rcOoc, 0) << readText(path(method + "-ooc.err"));
+  const std::string err = readText(path(method + "-ooc.err"));
+  EXPECT_NE(err.find("out of core:"), std::string::npos) << err;
+  std::printf("%s: in memory %zu candidates; --memory-limit %s: %llu tiles\n", method.c_str(),
+              mem["candidates"].size(), kBudget, ooc["memory"]["tiles"].get<unsigned long long>());
+  EXPECT_FALSE(mem["memory"]["out_of_core"].get<bool>());
+  EXPECT_TRUE(ooc["memory"]["out_of_core"].get<bool>());
+  EXPECT_GE(ooc["memory"]["tiles"].get<int>(), 3);
+  // The cube alone is 3.2x the budget; the out-of-core run stays under it, the in-memory one cannot.
+  const auto peakMem = mem["memory"]["peak_resident_bytes"].get<std::size_t>();
+  const auto peakOoc = ooc["memory"]["peak_resident_bytes"].get<std::size_t>();
+  std::printf("  VmHWM: in memory %.0f MB, out of core %.0f MB\n", peakMem / 1048576.0, peakOoc / 1048576.0);
+  EXPECT_GT(peakMem, std::size_t{2} * kBudgetBytes);
+  EXPECT_LT(peakOoc, kBudgetBytes);
+  (void)rssMem;
+  (void)rssOoc;
+  ASSERT_GE(mem["candidates"].size(), 4u);
+  EXPECT_EQ(mem["candidates"], ooc["candidates"]);
+  EXPECT_EQ(mem["cells_above_threshold"], ooc["cells_above_threshold"]);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cpu, OutOfCoreMethods, ::testing::Values("exact", "tree"));
+
+// A zero-biased cube, cropped (the tiles are read at the crop's offset): filtered tile by tile with the
+// matched filter's reach added to the overlap, the same candidates as in memory for the same sigma_F.
+TEST_F(OutOfCoreCli, ZeroBiasedCroppedCubeGivesTheInMemoryCandidates) {
+  const std::vector<std::string> opts{"--crop", "[1:480,101:340]", "--sigma-f", "1.3"};
+  auto big = opts;
+  big.insert(big.end(), {"--memory-limit", "4G"});
+  auto small = opts;
+  small.insert(small.end(), {"--memory-limit", "100M"});
+  const auto [rcMem, rssMem, mem] = search("exact", big, "z-mem", "Z.fits");
+  ASSERT_EQ(rcMem, 0) << readText(path("z-mem.err"));
+  const auto [rcOoc, rssOoc, ooc] = search("exact", small, "z-ooc", "Z.fits");
+  ASSERT_EQ(rcOoc, 0) << readText(path("z-ooc.err"));
+  EXPECT_FALSE(mem["memory"]["out_of_core"].get<bool>());
+  EXPECT_TRUE(ooc["memory"]["out_of_core"].get<bool>());
+  ASSERT_GE(mem["candidates"].size(), 2u);
+  EXPECT_EQ(mem["candidates"], ooc["candidates"]);
+  EXPECT_EQ(mem["cells_above_threshold"], ooc["cells_above_threshold"]);
+  EXPECT_LT(ooc["memory"]["peak_resident_bytes"].get<std::size_t>(), std::size_t{100} << 20);
+  (void)rssMem;
+  (void)rssOoc;
+}
+
+TEST_F(OutOfCoreCli, BudgetTooSmallForOneTileExitsOneBeforeTheWork) {
+  const auto [rc, rss, j] = search("exact", {"--memory-limit", "20M"}, "tiny");
+  EXPECT_EQ(rc, 1);
+  const std::string err = readText(path("tiny.err"));
+  EXPECT_NE(err.find("needs"), std::string::npos) << err;
+  EXPECT_NE(err.find("more than the memory budget of 20 MB (--memory-limit 20M)"), std::string::npos) << err;
+  EXPECT_EQ(err.find("velocity search"), std::string::npos) << err;  // no search started
+  (void)rss;
+}
+
+TEST_F(OutOfCoreCli, RawInputOverTheBudgetExitsOneNamingTheNeed) {
+  const auto [rcSim, rssSim] = runMeasured(
+      {"simulate", "--preset", "small", "-o", path("raw.fits").string()}, path("sim.out"), path("sim.err"));
+  ASSERT_EQ(rcSim, 0) << readText(path("sim.err"));
+  const auto [rc, rss] = runMeasured({"search", path("raw.fits").string(), "--backend", "cpu", "--memory-limit", "30M"},
+                                     path("raw.out"), path("raw.err"));
+  EXPECT_EQ(rc, 1);
+  const std::string err = readText(path("raw.err"));
+  EXPECT_NE(err.find("64 frames of 128 x 128 px: pre-processing in memory needs"), std::string::npos) << err;
+  EXPECT_NE(err.find("more than the memory budget of 30 MB (--memory-limit 30M)"), std::string::npos) << err;
+  // The same input with room runs.
+  const auto [rcOk, rssOk] = runMeasured({"search", path("raw.fits").string(), "--backend", "cpu",
+                                          "--memory-limit", "1G", "--vmax-deg-day", "40"},
+                                         path("rawok.out"), path("rawok.err"));
+  EXPECT_EQ(rcOk, 0) << readText(path("rawok.err"));
+  (void)rss;
+  (void)rssOk;
+}
+
+}  // namespace
+}  // namespace st

@@ -1,0 +1,158 @@
+// Out-of-core search (issue 20): tiles with the shift overlap give exactly the in-memory candidates, cells
+// above threshold and velocity map, for the exact and the tree method, in strips and in 2-D tiles; the tree
+// search's tile buffers do not grow with the thread count; memory sizes parse.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+
+#include "search_test_cubes.hpp"
+#include "st/common/error.hpp"
+#include "st/common/memory_budget.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/search/cpu_backend.hpp"
+#include "st/sim/simulator.hpp"
+#include "st/search/tiled_search.hpp"
+#include "st/search/tree_search.hpp"
+
+namespace st {
+namespace {
+
+search::FilteredCube testCube() {
+  const auto times = test::unevenTimes(24, 1.0, 3);
+  FrameCube c = test::noiseCube(96, 80, times, 1.0, 11);
+  const psf::Moffat psf = psf::Moffat::fromFwhm(2.5, 4.0);
+  // Objects near tile borders, at the image's edges and moving out of the frame.
+  test::injectMoffat(c, psf, 14.0, 40.0, 27.5, {0.6, -0.4});
+  test::injectMoffat(c, psf, 12.0, 3.0, 60.0, {-0.5, 0.3});
+  test::injectMoffat(c, psf, 16.0, 70.0, 41.0, {0.2, 0.7});
+  test::injectMoffat(c, psf, 12.0, 90.0, 5.0, {0.9, 0.1});
+  test::matchedFilter(c, psf, 3);
+  search::FilteredCube fc;
+  fc.frames = std::move(c);
+  fc.sigmaF = 1.6;
+  fc.psfFwhmPx = 2.5;
+  return fc;
+}
+
+search::FilteredCube crop(const search::FilteredCube& full, const search::TileRect& r) {
+  search::FilteredCube t;
+  t.sigmaF = full.sigmaF;
+  t.psfFwhmPx = full.psfFwhmPx;
+  t.skyRate = full.skyRate;
+  t.frames = FrameCube(r.width, r.height, full.frames.frameCount());
+  t.frames.info() = full.frames.info();
+  for (std::size_t n = 0; n < full.frames.frameCount(); ++n)
+    for (int y = 0; y < r.height; ++y)
+      for (int x = 0; x < r.width; ++x)
+        t.frames.frame(n)[static_cast<std::size_t>(y) * r.width + x] =
+            full.frames.frame(n)[static_cast<std::size_t>(y + r.y0) * full.frames.width() + x + r.x0];
+  return t;
+}
+
+void expectSame(const search::SearchResult& a, const search::SearchResult& b) {
+  EXPECT_EQ(a.cellsAboveThreshold, b.cellsAboveThreshold);
+  EXPECT_EQ(a.snrThreshold, b.snrThreshold);
+  ASSERT_EQ(a.candidates.size(), b.candidates.size());
+  for (std::size_t i = 0; i < a.candidates.size(); ++i) {
+    const auto& p = a.candidates[i];
+    const auto& q = b.candidates[i];
+    EXPECT_EQ(p.x, q.x) << i;
+    EXPECT_EQ(p.y, q.y) << i;
+    EXPECT_EQ(p.ivx, q.ivx) << i;
+    EXPECT_EQ(p.ivy, q.ivy) << i;
+    EXPECT_EQ(p.snr, q.snr) << i;
+    EXPECT_EQ(p.nIn, q.nIn) << i;
+    EXPECT_EQ(p.clusterCells, q.clusterCells) << i;
+  }
+  EXPECT_EQ(a.map.maxSnr, b.map.maxSnr);
+  EXPECT_EQ(a.map.argX, b.map.argX);
+  EXPECT_EQ(a.map.argY, b.map.argY);
+}
+
+class OutOfCore : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(OutOfCore, TilesGiveTheInMemoryResult) {
+  const search::FilteredCube fc = testCube();
+  const search::VelocityGrid grid{{0.0, 0.0}, 0.1, 21, 21};
+  search::SearchParams params;
+  params.method = GetParam();
+  params.snrThreshold = 5.0;
+  NullProgress progress;
+  CancelToken cancel;
+  auto backend = search::makeCpuBackend();
+  const search::SearchResult whole = backend->search(fc, grid, params, progress, cancel);
+  ASSERT_GE(whole.candidates.size(), 4u);
+  const int overlap = search::searchOverlapPx(grid, fc.frames.timeOffsetsS());
+  EXPECT_GE(overlap, 13);  // 1 px/s x ~13.5 s from t_ref at the ends
+  const search::TileLoader load = [&](const search::TileRect& r) { return crop(fc, r); };
+  // Strips of whole rows, then 2-D tiles.
+  for (const std::size_t maxPixels : {std::size_t{96} * 50, std::size_t{45} * 45}) {
+    const auto tiles = search::planSearchTiles(96, 80, overlap, maxPixels);
+    ASSERT_GE(tiles.size(), 2u) << maxPixels;
+    std::size_t owned = 0;
+    for (const auto& t : tiles) {
+      EXPECT_LE(t.read.pixels(), maxPixels);
+      owned += t.owned.pixels();
+    }
+    EXPECT_EQ(owned, std::size_t{96} * 80);
+    const search::SearchResult tiled = search::searchTiled(load, tiles, 96, 80, grid, params, progress, cancel);
+    SCOPED_TRACE(std::to_string(tiles.size()) + " tiles");
+    expectSame(whole, tiled);
+  }
+  // Overlap too small: the cells near the borders differ (the test can fail).
+  const auto tiles = search::planSearchTiles(96, 80, 1, std::size_t{96} * 30);
+  const search::SearchResult bad = search::searchTiled(load, tiles, 96, 80, grid, params, progress, cancel);
+  EXPECT_NE(bad.cellsAboveThreshold + static_cast<std::int64_t>(bad.candidates.size()) * 1000,
+            whole.cellsAboveThreshold + static_cast<std::int64_t>(whole.candidates.size()) * 1000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, OutOfCore, ::testing::Values("exact", "tree"));
+
+TEST(OutOfCorePlan, NoTileWhenNotEvenASmallOneFits) {
+  EXPECT_TRUE(search::planSearchTiles(1000, 1000, 50, 100 * 100).empty());
+  EXPECT_EQ(search::planSearchTiles(100, 100, 50, 100 * 100).size(), 1u);
+}
+
+TEST(OutOfCorePlan, TreeBuffersAreSharedByTheThreads) {
+  EXPECT_EQ(search::treeTileBudgetPerThread(1), search::kTreeTileBudgetBytes);
+  EXPECT_EQ(search::treeTileBudgetPerThread(2), search::kTreeTileBudgetBytes);
+  EXPECT_EQ(search::treeTileBudgetPerThread(16) * 16, search::kTreeBuffersBytes);
+  EXPECT_EQ(search::treeTileBudgetPerThread(64), search::kTreeMinTileBudgetBytes);
+  EXPECT_EQ(search::treeTileBudgetPerThread(4, std::size_t{64} << 20), search::kTreeMinTileBudgetBytes);
+}
+
+// Without --fit the matched filter runs in place (one cube less): the same filtered frames and sigma_F as
+// the copy.
+TEST(OutOfCorePlan, InPlaceFilterGivesTheCopysFrames) {
+  NullProgress p;
+  CancelToken c;
+  const sim::SimResult sim = sim::simulate(sim::preset("small"), 7, p, c);
+  pipeline::PreprocessParams params;
+  params.masters = sim::exactMasters(sim);
+  const pipeline::Prepared copy = pipeline::preprocess(sim.cube, params, p, c);
+  params.keepZeroBiased = false;
+  const pipeline::Prepared inPlace = pipeline::preprocess(sim.cube, params, p, c);
+  EXPECT_TRUE(inPlace.frames.empty());
+  EXPECT_FALSE(copy.frames.empty());
+  EXPECT_EQ(inPlace.filtered.sigmaF, copy.filtered.sigmaF);
+  EXPECT_TRUE(inPlace.filtered.frames.mask().empty());
+  EXPECT_EQ(inPlace.filtered.frames.width(), copy.filtered.frames.width());
+  EXPECT_TRUE(inPlace.filtered.frames.pixels() == copy.filtered.frames.pixels());
+  EXPECT_EQ(inPlace.filtered.frames.timeOffsetsS(), copy.filtered.frames.timeOffsetsS());
+}
+
+TEST(MemoryBudget, ParsesSizes) {
+  EXPECT_EQ(parseMemorySize("8G"), std::size_t{8} << 30);
+  EXPECT_EQ(parseMemorySize("500M"), std::size_t{500} << 20);
+  EXPECT_EQ(parseMemorySize("1.5GiB"), std::size_t{3} << 29);
+  EXPECT_EQ(parseMemorySize("2048k"), std::size_t{2} << 20);
+  EXPECT_EQ(parseMemorySize("12345"), 12345u);
+  EXPECT_THROW(parseMemorySize("lots"), InputError);
+  EXPECT_THROW(parseMemorySize("-1G"), InputError);
+  EXPECT_THROW(parseMemorySize("8X"), InputError);
+  EXPECT_GE(defaultMemoryBudget(), std::size_t{64} << 20);
+  EXPECT_GT(peakResidentBytes(), 0u);
+}
+
+}  // namespace
+}  // namespace st
