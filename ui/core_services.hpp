@@ -110,7 +110,7 @@ struct CoreServices {
   std::function<std::optional<std::pair<double, double>>(const FrameCube& cube, double x, double y)>
       pixelToSky;
   /// Co-moving PSF fit of a candidate on the unfiltered frames with the pre-processing's PSF and sigma_n
-  /// (app::fitCandidateJson); `onStep` sees every accepted iteration. Throws st::Cancelled.
+  /// (candidate::fitCandidate); `onStep` sees every accepted iteration. Throws st::Cancelled.
   std::function<FitOutcome(const PreparedView& prepared, const search::Candidate& candidate,
                            CancelToken& cancel, const FitStepCallback& onStep)>
       fitCandidate;
