@@ -11,6 +11,7 @@
 #include <QPushButton>
 #include <QSettings>
 #include <QSlider>
+#include <QStyle>
 #include <QToolButton>
 #include <QTreeWidget>
 #include <QVBoxLayout>
@@ -39,6 +40,8 @@ QString kindLabel(vet::ArtifactKind kind) {
       return "transient";
     case vet::ArtifactKind::KnownObject:
       return "known object";
+    case vet::ArtifactKind::StaticSource:
+      return "static source (sky-rate SNR)";
   }
   return "?";
 }
@@ -74,7 +77,9 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_slider = new QSlider(Qt::Horizontal, this);
   m_slider->setEnabled(false);
   m_play = new QToolButton(this);
-  m_play->setText("▶");
+  // The style's icons: the "⏸" glyph is missing from common fonts and showed as an empty box.
+  m_play->setIcon(style()->standardIcon(QStyle::SP_MediaPlay));
+  m_play->setObjectName("inspector.play");
   m_play->setCheckable(true);
   m_play->setToolTip("Play / pause the frames along the track");
   m_frameLabel = new QLabel(this);
@@ -240,7 +245,7 @@ void CandidateInspector::start() {
     Outcome out;
     out.index = index;
     try {
-      out.inspection = std::make_shared<const Inspection>(inspectCandidate(in, *cancel));
+      out.inspection = std::make_shared<const Inspection>(candidate::inspectCandidate(in, *cancel));
     } catch (const Cancelled&) {
       out.cancelled = true;
     } catch (const std::exception& e) {
@@ -279,9 +284,7 @@ void CandidateInspector::onFinished() {
 
 bool CandidateInspector::storeFlags() {
   if (!m_shown || m_shownIndex < 0) return false;
-  nlohmann::json flags = nlohmann::json::array();
-  for (const auto& f : m_shown->flags)
-    flags.push_back(vet::toJson(f));
+  const std::vector<vet::ArtifactFlag>& flags = m_shown->flags;
   const auto* state = m_obs->candidateState(m_shownIndex);
   if (!state) return false;
   if (state->artifacts != flags) m_obs->setCandidateArtifacts(m_shownIndex, flags);
@@ -371,7 +374,8 @@ void CandidateInspector::setPlaying(bool on) {
     m_playTimer.stop();
   const QSignalBlocker block(m_play);
   m_play->setChecked(on);
-  m_play->setText(on ? "⏸" : "▶");
+  m_play->setIcon(style()->standardIcon(on ? QStyle::SP_MediaPause : QStyle::SP_MediaPlay));
+  m_play->setToolTip(on ? "Pause the frames along the track" : "Play the frames along the track");
 }
 
 void CandidateInspector::chooseKnownObjects() {

@@ -1,6 +1,6 @@
 #pragma once
 // The candidate inspector (issue 8, part 1): for the selected candidate, computed in a worker
-// (inspectCandidate, candidate_inspection.hpp): the stamps at the sky rate and at the candidate's velocity
+// (candidate::inspectCandidate, st/candidate/inspection.hpp): the stamps at the sky rate and at the candidate's velocity
 // side by side on one scale, the segment strip (K = 4 equal-time stacks with their SNRs, flagged ones
 // framed in red), the frame-by-frame cutouts along the track as a scrubbable strip with a play/pause movie,
 // and the artifact flags of st::vet with their evidence, which are stored on the candidate
@@ -14,7 +14,7 @@
 #include <memory>
 #include <vector>
 
-#include "candidate_inspection.hpp"
+#include "st/candidate/inspection.hpp"
 #include "core_services.hpp"
 #include "observation.hpp"
 
@@ -28,6 +28,9 @@ class QCheckBox;
 class QGroupBox;
 
 namespace st::ui {
+
+using candidate::Inspection;
+using candidate::InspectionInput;
 
 class StampStrip;
 

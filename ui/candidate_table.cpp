@@ -6,6 +6,8 @@
 #include <QHBoxLayout>
 #include <QHeaderView>
 #include <QLabel>
+#include <QProxyStyle>
+#include <QStyleOptionHeader>
 #include <QLineEdit>
 #include <QTableView>
 #include <QVBoxLayout>
@@ -159,6 +161,9 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
 }
 
 QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, int role) const {
+  if (orientation == Qt::Horizontal && role == Qt::ToolTipRole && section == Fap)
+    return QString("Expected number of false alarms at this SNR over all trials (the paper's Prob_false); "
+                   "a count, not a probability: values above 1 are common for faint candidates");
   if (orientation != Qt::Horizontal || role != Qt::DisplayRole)
     return QAbstractTableModel::headerData(section, orientation, role);
   const QString u = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
@@ -178,7 +183,7 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
     case Snr:
       return "SNR";
     case Fap:
-      return "FAP";
+      return "false alarms";
     case NIn:
       return "N_in";
     case Cells:
@@ -238,6 +243,33 @@ bool CandidateFilter::filterAcceptsRow(int row, const QModelIndex& parent) const
   return true;
 }
 
+namespace {
+
+/// QHeaderView hands the style SortDown for an ascending sort and SortUp for a descending one, so the table
+/// sorted by SNR, largest first, showed an up arrow (issue 18 §6: "the sort indicator is inverted"). This
+/// style swaps them: a down arrow when the largest values come first, as spreadsheets and file managers do.
+class SortArrowStyle : public QProxyStyle {
+ public:
+  using QProxyStyle::QProxyStyle;
+  void drawPrimitive(PrimitiveElement element, const QStyleOption* option, QPainter* painter,
+                     const QWidget* widget) const override {
+    if (element == PE_IndicatorHeaderArrow) {
+      if (const auto* header = qstyleoption_cast<const QStyleOptionHeader*>(option)) {
+        QStyleOptionHeader swapped(*header);
+        if (header->sortIndicator == QStyleOptionHeader::SortUp)
+          swapped.sortIndicator = QStyleOptionHeader::SortDown;
+        else if (header->sortIndicator == QStyleOptionHeader::SortDown)
+          swapped.sortIndicator = QStyleOptionHeader::SortUp;
+        QProxyStyle::drawPrimitive(element, &swapped, painter, widget);
+        return;
+      }
+    }
+    QProxyStyle::drawPrimitive(element, option, painter, widget);
+  }
+};
+
+}  // namespace
+
 CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
     : QWidget(parent), m_obs(observation) {
   m_model = new CandidateModel(observation, this);
@@ -248,6 +280,9 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->setModel(m_filter);
   m_table->setSortingEnabled(true);
   m_table->sortByColumn(CandidateModel::Snr, Qt::DescendingOrder);
+  auto* arrows = new SortArrowStyle;
+  arrows->setParent(m_table->horizontalHeader());
+  m_table->horizontalHeader()->setStyle(arrows);
   m_table->setSelectionBehavior(QAbstractItemView::SelectRows);
   m_table->setSelectionMode(QAbstractItemView::SingleSelection);
   m_table->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);
@@ -300,7 +335,7 @@ void CandidatePanel::buildFilterBar() {
   m_count = new QLabel(this);
   auto* bar = new QHBoxLayout;
   bar->addWidget(m_minSnr);
-  bar->addWidget(new QLabel("FAP ≤", this));
+  bar->addWidget(new QLabel("false alarms ≤", this));
   bar->addWidget(m_maxFap);
   bar->addWidget(m_flags, 1);
   bar->addWidget(m_labelFilter);
@@ -337,6 +372,12 @@ void CandidatePanel::updateCount() {
     vetted += s.label != session::Label::Unvetted ? 1 : 0;
   m_count->setText(
       QString("%1 of %2, %3 vetted").arg(m_filter->rowCount()).arg(m_model->rowCount()).arg(vetted));
+  std::vector<bool> shown(static_cast<std::size_t>(m_model->rowCount()), false);
+  for (int r = 0; r < m_filter->rowCount(); ++r) {
+    const int source = m_filter->mapToSource(m_filter->index(r, 0)).row();
+    if (source >= 0 && source < static_cast<int>(shown.size())) shown[static_cast<std::size_t>(source)] = true;
+  }
+  m_obs->setCandidatesShown(std::move(shown));
 }
 
 void CandidatePanel::onResult() {

@@ -5,6 +5,8 @@
 // the application's factory and handed in).
 #include <functional>
 #include <nlohmann/json.hpp>
+
+#include "st/candidate/candidate_measurement.hpp"
 #include <memory>
 #include <optional>
 #include <string>
@@ -84,7 +86,7 @@ struct FitStep {
 
 /// A finished co-moving fit of one candidate.
 struct FitOutcome {
-  nlohmann::json json;    ///< what "Accept" stores on the candidate (app::fitCandidateJson's object)
+  candidate::FitSummary summary;  ///< what "Accept" stores on the candidate (candidate::fitCandidate)
   fit::FitResult result;  ///< every number: Hessian and noise-model sigmas, the paper's formulas, stacks
 };
 using FitStepCallback = std::function<void(const FitStep&)>;
@@ -108,7 +110,7 @@ struct CoreServices {
   std::function<std::optional<std::pair<double, double>>(const FrameCube& cube, double x, double y)>
       pixelToSky;
   /// Co-moving PSF fit of a candidate on the unfiltered frames with the pre-processing's PSF and sigma_n
-  /// (app::fitCandidateJson); `onStep` sees every accepted iteration. Throws st::Cancelled.
+  /// (candidate::fitCandidate); `onStep` sees every accepted iteration. Throws st::Cancelled.
   std::function<FitOutcome(const PreparedView& prepared, const search::Candidate& candidate,
                            CancelToken& cancel, const FitStepCallback& onStep)>
       fitCandidate;

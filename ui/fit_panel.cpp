@@ -139,7 +139,7 @@ void FitPanel::updateTitle() {
   } else {
     const int index = *m_obs->selected();
     const auto& states = m_obs->candidateStates();
-    const bool stored = index < static_cast<int>(states.size()) && !states[index].fit.is_null();
+    const bool stored = index < static_cast<int>(states.size()) && states[index].fit.has_value();
     text = QString("Candidate %1 selected: (%2, %3) px, v (%4, %5) px/s — ")
                .arg(index + 1)
                .arg(c->x)
@@ -147,7 +147,7 @@ void FitPanel::updateTitle() {
                .arg(c->v.vx, 0, 'g', 4)
                .arg(c->v.vy, 0, 'g', 4);
     if (m_outcome && m_fittedIndex == index)
-      text += stored && m_outcome->json == states[index].fit
+      text += stored && m_outcome->summary == *states[index].fit
                   ? "fit done and stored on the candidate."
                   : QString("fit done (%1): Accept stores it.")
                         .arg(QString::fromStdString(fit::toString(m_outcome->result.status)));
@@ -330,23 +330,22 @@ void FitPanel::fillTable(const FitOutcome& out) {
   const auto& result = m_obs->result();
   if (result && result->trials.total() > 0) {
     const auto& t = result->trials;
-    row("FAP (Prob_false)", num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3), "", "",
+    row("FAP: expected false alarms (Prob_false)", num(stats::detectionFap(r.snr, t.nx, t.ny, t.nvx, t.nvy), 3), "", "",
         QString("%1 trials").arg(t.total(), 0, 'g', 3));
   }
   row("frames inside / used", QString("%1 / %2").arg(r.framesInside).arg(r.framesUsed));
   row("reduced χ²", num(r.reducedChi2));
-  if (out.json.contains("segments_flagged"))
-    row("segments (K = 4)", out.json["segments_flagged"].get<bool>() ? "flagged" : "consistent");
-  if (out.json.contains("ra_deg")) {
-    row("RA [deg] at t_ref", QString::number(out.json["ra_deg"].get<double>(), 'f', 6));
-    row("Dec [deg] at t_ref", QString::number(out.json["dec_deg"].get<double>(), 'f', 6));
-    row("rate [arcsec/min]", num(out.json["rate_arcsec_min"].get<double>()));
+  if (const auto& seg = out.summary.segments) row("segments (K = 4)", seg->flagged ? "flagged" : "consistent");
+  if (const auto& sky = out.summary.sky) {
+    row("RA [deg] at t_ref", QString::number(sky->raDeg, 'f', 6));
+    row("Dec [deg] at t_ref", QString::number(sky->decDeg, 'f', 6));
+    row("rate [arcsec/min]", num(sky->rateArcsecPerMin));
   }
 }
 
 void FitPanel::accept() {
   if (!m_outcome || m_fittedIndex < 0) return;
-  m_obs->setCandidateFit(m_fittedIndex, m_outcome->json);
+  m_obs->setCandidateFit(m_fittedIndex, m_outcome->summary);
   m_status->setText(QString("Fit stored on candidate %1.").arg(m_fittedIndex + 1));
   updateTitle();
   emit accepted(m_fittedIndex);

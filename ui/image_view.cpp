@@ -133,7 +133,7 @@ void ImageView::paintEvent(QPaintEvent*) {
   for (const ImageMarker& m : m_markers) {
     const QPointF c = imageToWidget(m.pixel);
     const double r = std::max(5.0, m.radiusPx * m_zoom);
-    p.setPen(QPen(m.colour, 1.5));
+    p.setPen(QPen(m.colour, m.width));
     p.setBrush(Qt::NoBrush);
     p.drawEllipse(c, r, r);
     if (!m.label.isEmpty()) p.drawText(c + QPointF(r + 3, -r), m.label);

@@ -20,6 +20,7 @@ struct ImageMarker {
   double radiusPx = 6.0;
   QColor colour = QColor(0, 220, 120);
   QString label;
+  double width = 1.5;  ///< pen width, screen pixels
 };
 
 class ImageView : public QWidget {

@@ -17,6 +17,7 @@
 #include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QSettings>
 #include <QSpinBox>
 #include <QStatusBar>
@@ -59,6 +60,8 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   connect(m_obs, &Observation::rawChanged, this, &MainWindow::onRawChanged);
   connect(m_obs, &Observation::preparedChanged, this, &MainWindow::onPreparedChanged);
   connect(m_obs, &Observation::resultChanged, this, &MainWindow::updateMarkers);
+  connect(m_obs, &Observation::candidatesShownChanged, this, &MainWindow::updateMarkers);
+  connect(m_obs, &Observation::candidateStateChanged, this, &MainWindow::updateMarkers);
   connect(m_obs, &Observation::selectionChanged, this, &MainWindow::onSelection);
   connect(m_obs, &Observation::velocityChanged, this, &MainWindow::requestCentralStack);
   // IPSA/CSA and filtered/unfiltered stacks have different scales: new display limits for those.
@@ -170,10 +173,21 @@ QWidget* MainWindow::buildCentral() {
 }
 
 void MainWindow::buildDocks() {
-  auto dock = [this](const QString& title, const QString& name, QWidget* w, Qt::DockWidgetArea area) {
+  // Panels with many controls scroll inside their dock, so the window fits a 1366 x 768 laptop screen (issue
+  // 18 §6: the docks' minimum sizes made the window 1556 x 1013, the status bar with the warnings cut off).
+  auto dock = [this](const QString& title, const QString& name, QWidget* w, Qt::DockWidgetArea area,
+                     bool scroll = false) {
     auto* d = new QDockWidget(title, this);
     d->setObjectName(name);
-    d->setWidget(w);
+    if (scroll) {
+      auto* scrollArea = new QScrollArea(d);
+      scrollArea->setWidgetResizable(true);
+      scrollArea->setFrameShape(QFrame::NoFrame);
+      scrollArea->setWidget(w);
+      d->setWidget(scrollArea);
+    } else {
+      d->setWidget(w);
+    }
     addDockWidget(area, d);
     return d;
   };
@@ -182,12 +196,12 @@ void MainWindow::buildDocks() {
   m_velocityMap = new VelocityMapWidget(m_obs, this);
   m_candidates = new CandidatePanel(m_obs, this);
   m_inspector = new InspectorPanel(m_obs, m_scrubber, &m_services, this);
-  auto* proc = dock("Processing", "dock.processing", m_processing, Qt::LeftDockWidgetArea);
-  auto* search = dock("Search", "dock.search", m_search, Qt::LeftDockWidgetArea);
+  auto* proc = dock("Processing", "dock.processing", m_processing, Qt::LeftDockWidgetArea, true);
+  auto* search = dock("Search", "dock.search", m_search, Qt::LeftDockWidgetArea, true);
   tabifyDockWidget(proc, search);
   proc->raise();
   auto* vmap = dock("Velocity space", "dock.velocity", m_velocityMap, Qt::RightDockWidgetArea);
-  auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea);
+  auto* insp = dock("Inspector", "dock.inspector", m_inspector, Qt::RightDockWidgetArea, true);
   splitDockWidget(vmap, insp, Qt::Vertical);
   auto* cands = dock("Candidates", "dock.candidates", m_candidates, Qt::BottomDockWidgetArea);
   buildVettingDocks(insp, cands);
@@ -231,7 +245,7 @@ void MainWindow::buildMenus() {
   QMenu* run = menuBar()->addMenu("&Run");
   run->addAction("&Pre-process", QKeySequence("Ctrl+P"), this, &MainWindow::runPreprocess);
   run->addAction("&Search", QKeySequence("Ctrl+R"), this, &MainWindow::runSearch);
-  run->addAction("&Cancel", QKeySequence("Esc"), m_jobs, &JobRunner::cancel);
+  run->addAction("&Cancel", QKeySequence("Esc"), this, &MainWindow::cancelFromKey);
   run->addActions(m_candidates->table()->actions());  // "Fit selected candidate" (F), built with the docks
   auto* autoPre = run->addAction("Pre-process after loading");
   autoPre->setCheckable(true);
@@ -283,6 +297,7 @@ void MainWindow::buildStatusBar() {
   statusBar()->addPermanentWidget(m_cancel);
   connect(m_cancel, &QPushButton::clicked, m_jobs, &JobRunner::cancel);
   connect(m_jobs, &JobRunner::started, this, [this](const QString& name) {
+    m_jobElapsedS = 0.0;
     m_jobLabel->setText(name + "…");
     m_progress->setValue(0);
     m_progress->show();
@@ -291,10 +306,35 @@ void MainWindow::buildStatusBar() {
     m_search->setRunning(true);
   });
   connect(m_jobs, &JobRunner::progress, this, [this](double f, const QString& stage, double elapsed) {
+    m_jobElapsedS = elapsed;
     m_progress->setValue(static_cast<int>(f * 1000));
     m_jobLabel->setText(QString("%1: %2 · %3 s").arg(m_jobs->currentName(), stage).arg(elapsed, 0, 'f', 1));
     if (m_jobs->currentName() == "Searching") m_search->setProgress(f, stage, elapsed);
   });
+}
+
+void MainWindow::cancelFromKey() {
+  // Esc meant for a drop-down or menu (Qt delivers the shortcut before the popup sees the key): close it only.
+  if (QWidget* popup = QApplication::activePopupWidget()) {
+    popup->close();
+    return;
+  }
+  if (!m_jobs->busy() || m_cancelQuestion) return;
+  if (m_jobs->currentName() != "Searching" || m_jobElapsedS < kAskBeforeCancelS) {
+    m_jobs->cancel();
+    return;
+  }
+  auto* box = new QMessageBox(QMessageBox::Question, "Cancel the search?",
+                              QString("The search has run for %1 s. Cancel it? The previous result stays.")
+                                  .arg(m_jobElapsedS, 0, 'f', 0),
+                              QMessageBox::Yes | QMessageBox::No, this);
+  box->setDefaultButton(QMessageBox::No);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  connect(box, &QMessageBox::finished, this, [this](int answer) {
+    if (answer == QMessageBox::Yes && m_jobs->busy() && m_jobs->currentName() == "Searching") m_jobs->cancel();
+  });
+  m_cancelQuestion = box;
+  box->open();
 }
 
 void MainWindow::closeEvent(QCloseEvent* event) {

@@ -4,6 +4,8 @@
 // and the progress of the running job (with Cancel). All long work goes through JobRunner (search, load,
 // pre-process) or StackScrubber (live stacks); see job_runner.hpp for the threading rules.
 #include <QMainWindow>
+#include <QMessageBox>
+#include <QPointer>
 #include <QStringList>
 #include <memory>
 #include <optional>
@@ -80,6 +82,13 @@ class MainWindow : public QMainWindow {
   /// The loaded cube was written by `synthtrack-cli preprocess` (header STPREP, pipeline/prepared_cube.hpp).
   [[nodiscard]] bool rawIsPrepared() const;
   void runSearch();
+  /// Esc (Run > Cancel): closes an open drop-down or menu and nothing else; otherwise cancels the running
+  /// job, after asking when a search has run for kAskBeforeCancelS or more (the question is non-modal).
+  void cancelFromKey();
+  /// Seconds a search runs before Esc asks instead of cancelling at once.
+  static constexpr double kAskBeforeCancelS = 10.0;
+  /// The open "Cancel the search?" question, or null.
+  [[nodiscard]] QMessageBox* cancelQuestion() const { return m_cancelQuestion; }
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
   void selectCandidate(int index);
   void showSource(Source source, int layer = 0);
@@ -173,6 +182,8 @@ class MainWindow : public QMainWindow {
   QLabel* m_pixelLabel = nullptr;
   QLabel* m_stackLabel = nullptr;
   QLabel* m_jobLabel = nullptr;
+  QPointer<QMessageBox> m_cancelQuestion;
+  double m_jobElapsedS = 0.0;  ///< of the running job, from its progress
   QProgressBar* m_progress = nullptr;
   QPushButton* m_cancel = nullptr;
   QMenu* m_recentMenu = nullptr;

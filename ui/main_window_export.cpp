@@ -1,6 +1,7 @@
 // MainWindow: the Export menu (figures and reports). The dialogs do the work in workers.
 #include <QMenu>
 #include <QTimer>
+#include <algorithm>
 #include <cstdio>
 
 #include "figure_dialog.hpp"
@@ -10,6 +11,7 @@
 #include "report_dialog.hpp"
 #include "session_controller.hpp"
 #include "st/common/error.hpp"
+#include "st/report/submission_settings.hpp"
 
 namespace st::ui {
 
@@ -127,7 +129,27 @@ void MainWindow::runScriptExports(const ScriptOptions& script, std::function<voi
     if (script.exportReports.isEmpty()) return showDialog();
     ReportDialog* r = reportDialog();
     r->setOutput(script.exportReports, "synthtrack");
-    r->setOutputs(true, true, true, false, false, false);
+    // ADES and MPC 80-column too when a candidate is labelled real and a station is set; settings that would
+    // not make a valid file are named (the other reports are still written).
+    const report::SubmissionSettings settings = r->submissionSettings();
+    const auto& states = m_obs->candidateStates();
+    const bool submit = !settings.stationCode.empty() &&
+                        std::any_of(states.begin(), states.end(),
+                                    [](const auto& s) { return s.label == session::Label::Real; });
+    bool ades = false, mpc = false;
+    if (submit) {
+      const auto adesProblems = report::submissionProblems(settings, report::SubmissionFormat::Ades);
+      const auto mpcProblems = report::submissionProblems(settings, report::SubmissionFormat::Mpc80);
+      ades = adesProblems.empty();
+      mpc = mpcProblems.empty();
+      if (!ades)
+        std::printf("reports: no ADES file: %s\n",
+                    report::problemsText(adesProblems, report::SubmissionFormat::Ades).c_str());
+      if (!mpc)
+        std::printf("reports: no MPC 80-column file: %s\n",
+                    report::problemsText(mpcProblems, report::SubmissionFormat::Mpc80).c_str());
+    }
+    r->setOutputs(true, true, true, false, ades, mpc);
     once(r, &ReportDialog::exportFinished, this, [=](bool good, const QString& message) {
       report("reports", good, message);
       showDialog();

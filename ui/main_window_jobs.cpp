@@ -139,8 +139,13 @@ void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, con
   m_cancel->hide();
   m_processing->setRunEnabled(m_obs->raw() != nullptr);
   m_search->setRunning(false);
+  if (m_cancelQuestion) m_cancelQuestion->close();
   if (cancelled) {
     m_jobLabel->setText(name + " cancelled");
+    if (name == "Searching")
+      m_search->setStatusText(QString("Search cancelled after %1 s%2")
+                                  .arg(elapsedS, 0, 'f', 1)
+                                  .arg(m_obs->result() ? "; the previous result is shown" : ""));
   } else if (!ok) {
     m_jobLabel->setText(name + " failed");
     showError(name + " failed", message);

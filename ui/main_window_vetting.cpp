@@ -27,7 +27,11 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   tabifyDockWidget(besideInspector, cand);
   auto* fit = new QDockWidget("Co-moving fit", this);
   fit->setObjectName("dock.fit");
-  fit->setWidget(m_fitPanel);
+  auto* fitScroll = new QScrollArea(fit);  // the fit's table and plots scroll when the dock is small
+  fitScroll->setWidgetResizable(true);
+  fitScroll->setFrameShape(QFrame::NoFrame);
+  fitScroll->setWidget(m_fitPanel);
+  fit->setWidget(fitScroll);
   addDockWidget(Qt::BottomDockWidgetArea, fit);
   splitDockWidget(candidates, fit, Qt::Horizontal);
   resizeDocks({candidates}, {260}, Qt::Vertical);

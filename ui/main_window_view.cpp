@@ -113,15 +113,23 @@ void MainWindow::updateMarkers() {
   const auto& result = m_obs->result();
   if (result) {
     const auto selected = m_obs->selected();
-    for (std::size_t i = 0; i < result->candidates.size() && i < 100; ++i) {
+    // Coloured by label as in the DS9 regions; hidden when the table's filters hide the candidate (the
+    // selected one stays, drawn thicker).
+    int drawn = 0;
+    for (std::size_t i = 0; i < result->candidates.size() && drawn < 100; ++i) {
       const auto& c = result->candidates[i];
-      const bool isSelected = selected && *selected == static_cast<int>(i);
+      const int index = static_cast<int>(i);
+      const bool isSelected = selected && *selected == index;
+      if (!isSelected && !m_obs->candidateShown(index)) continue;
+      const auto* state = m_obs->candidateState(index);
       ImageMarker m;
       m.pixel = QPointF(c.x, c.y);
-      m.radiusPx = 8.0;
+      m.radiusPx = isSelected ? 10.0 : 8.0;
+      m.width = isSelected ? 3.0 : 1.5;
       if (i < 10 || isSelected) m.label = QString("#%1").arg(i + 1);
-      m.colour = isSelected ? QColor(255, 210, 0) : QColor(0, 220, 120);
+      m.colour = QColor(candidate::labelColour(state ? state->label : session::Label::Unvetted));
       markers.push_back(m);
+      ++drawn;
     }
   }
   m_view->setMarkers(std::move(markers));

@@ -74,15 +74,15 @@ class Observation : public QObject {
       emit candidateStateChanged(index);
     }
   }
-  /// An accepted co-moving fit (the JSON object app::fitCandidateJson makes).
-  void setCandidateFit(int index, nlohmann::json fit) {
+  /// An accepted co-moving fit (candidate::fitCandidate).
+  void setCandidateFit(int index, std::optional<candidate::FitSummary> fit) {
     if (auto* s = mutableState(index)) {
       s->fit = std::move(fit);
       emit candidateStateChanged(index);
     }
   }
-  /// Artifact flags (st::vet toJson(ArtifactFlag) objects).
-  void setCandidateArtifacts(int index, nlohmann::json flags) {
+  /// Artifact flags (st::vet checks and the known-object check).
+  void setCandidateArtifacts(int index, std::vector<vet::ArtifactFlag> flags) {
     if (auto* s = mutableState(index)) {
       s->artifacts = std::move(flags);
       emit candidateStateChanged(index);
@@ -142,6 +142,16 @@ class Observation : public QObject {
     m_unit = unit;
     emit unitChanged();
   }
+  /// Which candidates the candidates table's filters (SNR, false alarms, flags, label) let through; the
+  /// image and velocity-map markers show those only. A candidate beyond the vector is shown.
+  void setCandidatesShown(std::vector<bool> shown) {
+    if (shown == m_shown) return;
+    m_shown = std::move(shown);
+    emit candidatesShownChanged();
+  }
+  [[nodiscard]] bool candidateShown(int index) const noexcept {
+    return index < 0 || index >= static_cast<int>(m_shown.size()) || m_shown[static_cast<std::size_t>(index)];
+  }
 
  signals:
   void rawChanged();
@@ -154,6 +164,8 @@ class Observation : public QObject {
   void unitChanged();
   /// A candidate's label, note, fit or artifact flags changed (the session autosaves on it).
   void candidateStateChanged(int index);
+  /// The table's filters changed which candidates are shown (setCandidatesShown).
+  void candidatesShownChanged();
 
  private:
   std::shared_ptr<const FrameCube> m_raw;
@@ -166,6 +178,7 @@ class Observation : public QObject {
 
   std::shared_ptr<const search::SearchResult> m_result;
   std::vector<session::CandidateState> m_states;
+  std::vector<bool> m_shown;
   search::VelocityGrid m_grid;
   Velocity m_velocity;
   search::StackMode m_mode = search::StackMode::Ipsa;

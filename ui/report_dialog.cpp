@@ -1,5 +1,7 @@
 #include "report_dialog.hpp"
 
+#include <filesystem>
+
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDialogButtonBox>
@@ -254,7 +256,7 @@ void ReportDialog::refreshWarnings() {
   if (m_ctx.makeSession && m_ctx.observation && m_ctx.observation->result()) {
     try {
       const auto s = m_ctx.makeSession(toJson(submissionSettings()));
-      for (const auto& w : submissionWarnings(s, m_safeSnr->value()))
+      for (const auto& w : report::submissionWarnings(s, m_safeSnr->value()))
         lines << "⚠ " + QString::fromStdString(w);
     } catch (const std::exception& e) {
       lines << "⚠ " + QString::fromStdString(e.what());
@@ -275,7 +277,7 @@ QString ReportDialog::resultText() const {
 }
 
 bool ReportDialog::exportReports() {
-  ReportRequest r;
+  report::ReportRequest r;
   try {
     if (busy()) throw InputError("reports are being written");
     if (!m_ctx.makeSession) throw InputError("no session to report on");
@@ -286,14 +288,21 @@ bool ReportDialog::exportReports() {
     return false;
   }
   r.raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
-  r.folder = m_folder->text().trimmed().toStdString();
-  r.baseName = m_base->text().trimmed().isEmpty() ? "synthtrack" : m_base->text().trimmed().toStdString();
-  r.candidatesJson = m_json->isChecked();
-  r.candidatesCsv = m_csv->isChecked();
-  r.ds9 = m_ds9->isChecked();
-  r.stacks = m_stacks->isChecked();
-  r.ades = m_ades->isChecked();
-  r.mpc = m_mpc->isChecked();
+  const std::string folder = m_folder->text().trimmed().toStdString();
+  const std::string base =
+      m_base->text().trimmed().isEmpty() ? "synthtrack" : m_base->text().trimmed().toStdString();
+  if (folder.empty()) {
+    m_result->setPlainText("Failed: reports: no output folder given");
+    emit exportFinished(false, m_result->toPlainText());
+    return false;
+  }
+  using report::ReportFile;
+  for (const auto& [box, file] : {std::pair{m_json, ReportFile::CandidatesJson},
+                                  std::pair{m_csv, ReportFile::CandidatesCsv}, std::pair{m_ds9, ReportFile::Ds9},
+                                  std::pair{m_ades, ReportFile::AdesPsv}, std::pair{m_mpc, ReportFile::Mpc80}})
+    if (box->isChecked()) r.files[file] = report::defaultFileName(folder, base, file);
+  r.regions = report::regionContext(r.raw.get(), r.session);
+  if (m_stacks->isChecked()) r.stacksStem = (std::filesystem::path(folder) / base).string();
   r.stackChoice = static_cast<StackChoice>(m_stackChoice->currentData().toInt());
   r.selected = m_ctx.observation ? m_ctx.observation->selected() : std::nullopt;
   r.submission = submissionSettings();
@@ -306,7 +315,7 @@ bool ReportDialog::exportReports() {
     try {
       NullProgress progress;
       CancelToken cancel;
-      out.outcome = writeReports(r, progress, cancel);
+      out.outcome = report::writeReports(r, progress, cancel);
     } catch (const std::exception& e) {
       out.error = QString::fromStdString(e.what());
     }

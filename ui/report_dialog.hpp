@@ -1,7 +1,7 @@
 #pragma once
 // "Reports…" (Export menu): candidates CSV and JSON, DS9 regions, FITS stacks (sky-tracked and
 // object-tracked, WCS at t_ref, provenance), ADES PSV and MPC 80-column astrometry of the candidates
-// labelled real (report_export.hpp). An "Observatory" page holds the MPC station code, observers, measurer,
+// labelled real (st/report/report_bundle.hpp, the function `synthtrack-cli report` calls). An "Observatory" page holds the MPC station code, observers, measurer,
 // submitter and telescope fields; they are kept in QSettings (reportSettings()) and written into the
 // session's settings; the catalogue is filled from the frames' header when it names one. While ADES or MPC
 // output is chosen and a value it requires is missing (report::submissionProblems), the warning line says
@@ -16,7 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "observation.hpp"
-#include "report_export.hpp"
+#include "st/report/report_bundle.hpp"
 
 class QCheckBox;
 class QComboBox;
@@ -27,6 +27,9 @@ class QPlainTextEdit;
 class QPushButton;
 
 namespace st::ui {
+
+using report::ReportOutcome;
+using report::StackChoice;
 
 /// The report settings kept in QSettings ("report/settings", JSON text; keys of toJson(SubmissionSettings)).
 [[nodiscard]] nlohmann::json loadReportSettings();

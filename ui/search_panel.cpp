@@ -498,6 +498,10 @@ void SearchPanel::setProgress(double fraction, const QString& stage, double elap
       QString("%1 %2% · %3 s").arg(stage).arg(fraction * 100, 0, 'f', 0).arg(elapsedS, 0, 'f', 1));
 }
 
+void SearchPanel::setStatusText(const QString& text) {
+  m_status->setText(text);
+}
+
 void SearchPanel::setBackendMessage(const QString& text) {
   m_backendInfo->setText(text);
 }

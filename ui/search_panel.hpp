@@ -61,6 +61,8 @@ class SearchPanel : public QWidget {
   [[nodiscard]] QString statusText() const;
   void setRunning(bool running);
   void setReady(bool ready);
+  /// Replaces the progress line (e.g. after a cancelled search).
+  void setStatusText(const QString& text);
   void setProgress(double fraction, const QString& stage, double elapsedS);
   void setBackendMessage(const QString& text);
   /// Seconds one velocity's stack took, measured by the scrubber (feeds the time estimate).

@@ -210,7 +210,7 @@ void SessionController::requestSave() {
   }
   m_hadVetting =
       std::any_of(m_obs->candidateStates().begin(), m_obs->candidateStates().end(), [](const auto& s) {
-        return s.label != session::Label::Unvetted || !s.note.empty() || !s.fit.is_null();
+        return s.label != session::Label::Unvetted || !s.note.empty() || s.fit.has_value();
       });
   if (m_suspended) return;
   m_saver->request(m_path, currentSession());

@@ -140,7 +140,7 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
   const auto& states = obs.candidateStates();
   for (std::size_t i = 0; i < result->candidates.size(); ++i) {
     session::CandidateState state = i < states.size() ? states[i] : session::CandidateState{};
-    state.candidate = report::candidateToJson(cube, result->grid, result->candidates[i]);
+    state.search = candidate::measureSearch(cube, result->grid, result->candidates[i]);
     s.candidates.push_back(std::move(state));
   }
   return s;
@@ -173,14 +173,14 @@ SessionSnapshot restoreSnapshot(const session::Session& session, const std::vect
   search::SearchResult result;
   try {
     result = report::searchResultFromJson(session.search);
-    for (const auto& state : session.candidates)
-      result.candidates.push_back(report::candidateFromJson(state.candidate));
   } catch (const InputError& e) {
     throw InputError(where + ": " + e.what());
   }
+  for (const auto& state : session.candidates)
+    result.candidates.push_back(state.search.cell);
   snap.states = session.candidates;
   for (auto& state : snap.states)
-    state.candidate = json::object();
+    state.search = {};
   const int selected = valueOr<int>(view, "selected", -1, where);
   if (selected >= 0 && selected < static_cast<int>(result.candidates.size())) snap.selected = selected;
   snap.parameters.grid = snap.parameters.grid.count() > 0 ? snap.parameters.grid : result.grid;

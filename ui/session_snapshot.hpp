@@ -18,7 +18,7 @@
 // "demo_autosave") loads with the GUI's default for it (SessionParameters' defaults: SNR 7, method auto,
 // backend auto); keys are only ever added, so Session::version does not change for them (an older build
 // ignores a key it does not know). Session::search is report::searchResultToJson() without "candidates", plus
-// "velocity_map" (report::velocityMapToJson). Each CandidateState::candidate is report::candidateToJson().
+// "velocity_map" (report::velocityMapToJson). Each CandidateState::search is candidate::measureSearch().
 #include <memory>
 #include <optional>
 #include <string>
@@ -50,7 +50,7 @@ struct SessionParameters {
 
 /// The session of the GUI's current state. `inputs` are the frame files as opened (absolute paths);
 /// `settings` the report settings (station code, observers, ...), kept as given. Candidates are written with
-/// report::candidateToJson() against the pre-processed cube (sky rates and flags included) and carry the
+/// candidate::measureSearch() against the pre-processed cube (sky rates and flags included) and carry the
 /// Observation's vetting states. Session::changes is 0; SessionStore::save() counts.
 [[nodiscard]] session::Session makeSession(const Observation& observation,
                                            const std::vector<std::string>& inputs,
@@ -65,7 +65,7 @@ struct SessionSnapshot {
   /// The saved search result (candidates rebuilt with report::candidateFromJson); null when the session has
   /// no search yet.
   std::shared_ptr<const search::SearchResult> result;
-  /// One per candidate of `result`, in its order; their `candidate` member is cleared (the Observation keeps
+  /// One per candidate of `result`, in its order; their `search` member is cleared (the Observation keeps
   /// search::Candidate, see Observation::candidateStates()).
   std::vector<session::CandidateState> states;
   std::optional<int> selected;  ///< 0-based, within range of the result

@@ -43,9 +43,12 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
     g->setName(name);
     return g;
   };
-  m_candidates =
-      makeGraph(QCPScatterStyle(QCPScatterStyle::ssCircle, QPen(QColor(255, 80, 80), 1.5), Qt::NoBrush, 11),
-                "candidates");
+  for (const auto label : {session::Label::Unvetted, session::Label::Real, session::Label::Artifact,
+                           session::Label::Unsure})
+    m_candidates[static_cast<std::size_t>(label)] = makeGraph(
+        QCPScatterStyle(QCPScatterStyle::ssCircle, QPen(QColor(candidate::labelColour(label)), 1.5), Qt::NoBrush,
+                        11),
+        QString("candidates (%1)").arg(session::toString(label)));
   m_sky =
       makeGraph(QCPScatterStyle(QCPScatterStyle::ssCross, QPen(Qt::white, 2), Qt::NoBrush, 12), "sky rate");
   m_current =
@@ -57,7 +60,8 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   m_hint->setColor(Qt::white);
   m_hint->setText("no search yet");
   m_legend = new QLabel(
-      "<span style='color:#ff5050'>○</span> candidates &nbsp; ✕ sky rate &nbsp; "
+      "○ candidates: <span style='color:cyan'>unvetted</span> <span style='color:green'>real</span> "
+      "<span style='color:red'>artifact</span> <span style='color:#d4a000'>unsure</span> &nbsp; ✕ sky rate &nbsp; "
       "<span style='color:#d4a000'>⊕</span> current velocity",
       this);
   m_readout = new QLabel(this);
@@ -74,6 +78,8 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   connect(m_obs, &Observation::gridChanged, this, &VelocityMapWidget::rebuild);
   connect(m_obs, &Observation::unitChanged, this, &VelocityMapWidget::rebuild);
   connect(m_obs, &Observation::preparedChanged, this, &VelocityMapWidget::updateMarkers);
+  connect(m_obs, &Observation::candidatesShownChanged, this, &VelocityMapWidget::updateCandidates);
+  connect(m_obs, &Observation::candidateStateChanged, this, &VelocityMapWidget::updateCandidates);
   connect(m_obs, &Observation::velocityChanged, this, &VelocityMapWidget::updateMarkers);
   rebuild();
 }
@@ -86,17 +92,21 @@ double VelocityMapWidget::fromUnit(double value) const {
 }
 
 void VelocityMapWidget::rebuild() {
-  const search::VelocityGrid& grid = m_obs->grid();
   const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
   m_plot->xAxis->setLabel("vx [" + unit + "]");
   m_plot->yAxis->setLabel("vy [" + unit + "]");
   const auto& result = m_obs->result();
+  // The last search's map stays (on its own grid) until a new search completes, also while the panel's grid
+  // is being changed or a new search runs; before any search the panel's grid plane is shown for scrubbing.
+  const bool haveResultMap = result && result->grid.nvx > 0 && result->grid.nvy > 0 &&
+                             result->map.nvx == result->grid.nvx && result->map.nvy == result->grid.nvy;
+  const search::VelocityGrid& grid = haveResultMap ? result->grid : m_obs->grid();
   if (grid.nvx > 0 && grid.nvy > 0) {
     const Velocity lo = grid.at(0, 0);
     const Velocity hi = grid.at(grid.nvx - 1, grid.nvy - 1);
     m_map->data()->setSize(grid.nvx, grid.nvy);
     m_map->data()->setRange(QCPRange(toUnit(lo.vx), toUnit(hi.vx)), QCPRange(toUnit(lo.vy), toUnit(hi.vy)));
-    const bool haveMap = result && result->map.nvx == grid.nvx && result->map.nvy == grid.nvy;
+    const bool haveMap = haveResultMap;
     for (int iy = 0; iy < grid.nvy; ++iy)
       for (int ix = 0; ix < grid.nvx; ++ix)
         m_map->data()->setCell(
@@ -110,15 +120,29 @@ void VelocityMapWidget::rebuild() {
   } else {
     m_map->setVisible(false);
   }
-  QVector<double> cx, cy;
-  if (result) {
-    for (const auto& c : result->candidates) {
-      cx.push_back(toUnit(c.v.vx));
-      cy.push_back(toUnit(c.v.vy));
+  updateCandidates();
+  updateMarkers();
+}
+
+int VelocityMapWidget::candidatePoints(session::Label label) const {
+  return m_candidates[static_cast<std::size_t>(label)]->dataCount();
+}
+
+void VelocityMapWidget::updateCandidates() {
+  std::array<QVector<double>, 4> cx, cy;
+  if (const auto& result = m_obs->result()) {
+    for (std::size_t i = 0; i < result->candidates.size(); ++i) {
+      const int index = static_cast<int>(i);
+      if (!m_obs->candidateShown(index)) continue;
+      const auto* state = m_obs->candidateState(index);
+      const auto k = static_cast<std::size_t>(state ? state->label : session::Label::Unvetted);
+      cx[k].push_back(toUnit(result->candidates[i].v.vx));
+      cy[k].push_back(toUnit(result->candidates[i].v.vy));
     }
   }
-  m_candidates->setData(cx, cy);
-  updateMarkers();
+  for (std::size_t k = 0; k < m_candidates.size(); ++k)
+    m_candidates[k]->setData(cx[k], cy[k]);
+  m_plot->replot(QCustomPlot::rpQueuedReplot);
 }
 
 void VelocityMapWidget::updateMarkers() {

@@ -4,6 +4,7 @@
 // velocity (crosshair). Click or drag to scrub; arrow keys step one grid cell; a readout shows velocity and
 // SNR under the cursor. Before a search it shows the empty grid plane, so scrubbing works already.
 #include <QWidget>
+#include <array>
 
 #include "observation.hpp"
 
@@ -26,6 +27,8 @@ class VelocityMapWidget : public QWidget {
   /// Plot-pixel position of a velocity (px/s), for tests.
   [[nodiscard]] QPointF plotPixelOf(Velocity v) const;
   [[nodiscard]] QCustomPlot* plot() const noexcept { return m_plot; }
+  /// Candidates drawn with `label`'s colour (the ones the table's filters show), for tests.
+  [[nodiscard]] int candidatePoints(session::Label label) const;
 
  protected:
   void keyPressEvent(QKeyEvent* event) override;
@@ -33,6 +36,8 @@ class VelocityMapWidget : public QWidget {
  private:
   void rebuild();
   void updateMarkers();
+  /// The candidates' circles: the ones the table shows, coloured by label.
+  void updateCandidates();
   void onMouse(QMouseEvent* event, bool press);
   [[nodiscard]] double toUnit(double pxPerS) const;
   [[nodiscard]] double fromUnit(double value) const;
@@ -41,7 +46,8 @@ class VelocityMapWidget : public QWidget {
   QCustomPlot* m_plot = nullptr;
   QCPColorMap* m_map = nullptr;
   QCPColorScale* m_scale = nullptr;
-  QCPGraph* m_candidates = nullptr;
+  /// The candidates by label (unvetted, real, artifact, unsure), coloured as the DS9 regions.
+  std::array<QCPGraph*, 4> m_candidates{};
   QCPGraph* m_sky = nullptr;
   QCPGraph* m_current = nullptr;
   QLabel* m_readout = nullptr;

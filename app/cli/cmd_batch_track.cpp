@@ -7,7 +7,8 @@
 #include <map>
 #include <set>
 
-#include "candidate_fit.hpp"
+#include "st/candidate/candidate_fit.hpp"
+#include "st/report/candidate_json.hpp"
 #include "load_args.hpp"
 #include "observation_pipeline.hpp"
 #include "search_options.hpp"
@@ -125,7 +126,8 @@ void addTrackSnr(nlohmann::json& catalogue, const std::vector<batch::Observation
       c.snr = entry.value("snr", 0.0);
       c.nIn = static_cast<int>(prepared.frames.frameCount());
       const double gain = prepared.frames.header.getDouble("GAIN").value_or(1.0);
-      nlohmann::json fit = fitCandidateJson(prepared, c, gain, processCancelToken());
+      nlohmann::json fit =
+          report::toFlatJson(candidate::fitCandidate(prepared, c, gain, processCancelToken()));
       entry["track"] = {{"status", fit.value("status", std::string())},
                         {"snr", fit.value("snr", 0.0)},
                         {"method", "co-moving fit over the union of the observations its track crosses"},

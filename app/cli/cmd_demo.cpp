@@ -8,7 +8,8 @@
 #include <string>
 
 #include "backend_factory.hpp"
-#include "candidate_fit.hpp"
+#include "st/candidate/candidate_fit.hpp"
+#include "st/report/candidate_json.hpp"
 #include "cli_args.hpp"
 #include "commands.hpp"
 #include "st/io/fits_writer.hpp"
@@ -165,7 +166,8 @@ int cmdDemo(const Args& args) {
   const int nFits = std::min<int>(o.fits, static_cast<int>(result.candidates.size()));
   for (int i = 0; i < nFits; ++i) {
     progress.report(0.9 + 0.1 * i / std::max(1, nFits), "co-moving fits");
-    report["candidates"][i]["fit"] = fitCandidateJson(prepared, result.candidates[i], gain, cancel);
+    report["candidates"][i]["fit"] =
+        report::toFlatJson(candidate::fitCandidate(prepared, result.candidates[i], gain, cancel));
   }
   progress.finish();
   report::writeJsonFile(path("candidates.json"), report);

@@ -13,11 +13,11 @@
 #include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
-#include "st/report/fits_stack.hpp"
+#include "st/report/regions.hpp"
+#include "st/report/report_bundle.hpp"
 #include "st/report/session_report.hpp"
 #include "st/report/star_catalogues.hpp"
 #include "st/session/session.hpp"
-#include "st/stack/ipsa.hpp"
 #include "st/vet/artifacts.hpp"
 #include "st/vet/known_objects.hpp"
 #include "terminal_progress.hpp"
@@ -28,6 +28,7 @@ namespace {
 constexpr const char* kHelp =
     "usage: synthtrack-cli report CANDIDATES.json [--session S.json] [--label N=LABEL]... [--note "
     "N=TEXT]...\n"
+    "                             [--candidates-json C.json] [--csv C.csv]\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--ades-xml out.xml] [--mpc out.txt]\n"
     "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
     "                             [--telescope-aperture M] [--telescope-design D]\n"
@@ -40,6 +41,8 @@ constexpr const char* kHelp =
     "  --label N=LABEL   label candidate N (1-based): real, unsure, unvetted, artifact or\n"
     "                    artifact:REASON (charge_leakage, diffraction, cosmic_ray, ghost, other)\n"
     "  --note N=TEXT     a note on candidate N\n"
+    "  --candidates-json FILE  the candidates with fits, labels, notes and artifact flags (as the GUI's\n"
+    "                    export; 'report' reads it back)   --csv FILE  the same as CSV\n"
     "  --ds9 FILE        DS9 regions of every candidate (fk5 with --wcs, else image coordinates)\n"
     "  --wcs FITS        a FITS file whose WCS maps the frames (the observation cube, or a stack written by\n"
     "                    synthtrack: WCSEPOCH names the epoch its WCS belongs to); also gives real "
@@ -76,7 +79,7 @@ constexpr const char* kHelp =
 const std::set<std::string> kValuedOptions = {
     "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
     "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
-    "mpc-cat", "prepared", "known", "known-radius"};
+    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv"};
 // clang-format on
 
 nlohmann::json readJson(const std::string& path) {
@@ -135,13 +138,6 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
     settings["mpc_catalog_code"] = *s;
   }
   if (settings != ed.session().settings) ed.setSettings(settings);
-}
-
-void writeText(const std::string& path, const std::string& text) {
-  std::ofstream out(path);
-  if (!out) throw InputError("cannot write '" + path + "'");
-  out << text;
-  if (!out) throw InputError("error writing '" + path + "'");
 }
 
 Velocity skyRateOf(const session::Session& s) {
@@ -214,33 +210,33 @@ session::Session withSkyPositions(session::Session s, const std::optional<WcsMap
   if (!wcs) return s;
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     auto& c = s.candidates[i];
-    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
-    if (c.label != session::Label::Real || !fitted || c.fit.contains("ra_deg")) continue;
-    const auto p = wcs->toSky(c.fit.value("x", 0.0), c.fit.value("y", 0.0));
-    c.fit["ra_deg"] = p.raDeg;
-    c.fit["dec_deg"] = p.decDeg;
+    if (c.label != session::Label::Real || !c.fitted() || c.fit->sky) continue;
+    const auto p = wcs->toSky(c.fit->x, c.fit->y);
+    c.fit->sky = candidate::SkyPosition{p.raDeg, p.decDeg};
     std::fprintf(stderr, "note: candidate %zu: sky position from --wcs at its fitted position\n", i + 1);
   }
   return s;
 }
 
-void writeDs9(const std::string& path, const session::Session& s, const std::optional<WcsMapping>& wcs) {
-  // Track lines over the observation's span, from the frames' times (headers only).
-  double startS = 0.0, endS = 0.0;
+/// Where the regions go: the --wcs mapping, and track lines over the observation's span from the frames'
+/// times (headers only).
+report::RegionContext regionContext(const session::Session& s, const std::optional<WcsMapping>& wcs) {
+  report::RegionContext ctx;
   if (!s.inputs.empty() && s.search.contains("t_ref_mjd")) {
     try {
       const io::InputSummary frames = io::summarizeInputs(s.inputs);
       const double tRef = s.search["t_ref_mjd"].get<double>();
-      startS = (frames.firstMjd - tRef) * 86400.0;
-      endS = (frames.lastMjd - tRef) * 86400.0;
+      ctx.trackStartS = (frames.firstMjd - tRef) * 86400.0;
+      ctx.trackEndS = (frames.lastMjd - tRef) * 86400.0;
     } catch (const Error& e) {
       std::fprintf(stderr, "note: no track lines in the regions (%s)\n", e.what());
     }
   }
-  const auto marks = report::regionMarks(s, startS, endS);
-  const std::string frame = wcs ? report::ds9SkyFrame(*wcs->cube.wcs) : std::string("image coordinates");
-  report::writeDs9Regions(path, marks, wcs ? wcs->toSky : astro::PixelToSky{}, frame);
-  std::printf("DS9 regions of %zu candidates (%s): %s\n", marks.size(), frame.c_str(), path.c_str());
+  if (wcs) {
+    ctx.toSky = wcs->toSky;
+    ctx.frame = report::ds9SkyFrame(*wcs->cube.wcs);
+  }
+  return ctx;
 }
 
 /// Artifact flags (and the known-object flag) of every candidate, saved into the session.
@@ -264,16 +260,12 @@ void runVetting(const CliArgs& cli, session::SessionEditor& ed, const std::optio
                                {"artifacts", vet::toJson(vet::ArtifactParams{})}});
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     const auto& c = s.candidates[i];
-    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
-    const nlohmann::json& src = fitted ? c.fit : c.candidate;
-    const vet::Track track{
-        src.value("x", 0.0), src.value("y", 0.0), {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)}};
+    const vet::Track track = c.track();
     std::vector<vet::ArtifactFlag> flags;
     if (ctx) flags = vet::checkArtifacts(*ctx, track, vet::ArtifactParams{});
     if (known) {
-      if (c.fit.is_object() && c.fit.contains("ra_deg")) {
-        flags.push_back(vet::knownObjectFlag(objects, c.fit["ra_deg"].get<double>(),
-                                             c.fit["dec_deg"].get<double>(), tRef, radius));
+      if (c.fit && c.fit->sky) {
+        flags.push_back(vet::knownObjectFlag(objects, c.fit->sky->raDeg, c.fit->sky->decDeg, tRef, radius));
       } else if (wcs) {
         const auto p = wcs->toSky(track.x, track.y);
         flags.push_back(vet::knownObjectFlag(objects, p.raDeg, p.decDeg, tRef, radius));
@@ -282,42 +274,10 @@ void runVetting(const CliArgs& cli, session::SessionEditor& ed, const std::optio
             {vet::ArtifactKind::KnownObject, false, -1.0, "no sky position (no fitted RA/Dec, no --wcs)"});
       }
     }
-    nlohmann::json list = nlohmann::json::array();
-    for (const auto& f : flags) {
-      list.push_back(vet::toJson(f));
+    for (const auto& f : flags)
       if (f.triggered)
         std::printf("candidate %zu: %s: %s\n", i + 1, vet::toString(f.kind), f.evidence.c_str());
-    }
-    ed.setArtifacts(i, list);
-  }
-}
-
-void writeStacks(const std::string& dir, const session::Session& s) {
-  if (s.inputs.empty())
-    throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
-  std::filesystem::create_directories(dir);
-  TerminalProgress progress;
-  const FrameCube cube = io::loadFrames(s.inputs, io::LoadOptions{}, progress, processCancelToken());
-  progress.finish();
-  const double firstOffsetS = cube.timeOffsetsS().front();
-  for (std::size_t i = 0; i < s.candidates.size(); ++i) {
-    const auto& c = s.candidates[i];
-    if (c.label != session::Label::Real) continue;
-    const bool fitted = c.fit.is_object() && c.fit.value("status", std::string{}) == "converged";
-    const nlohmann::json& src = fitted ? c.fit : c.candidate;
-    report::StackProvenance p;
-    p.velocity = {src.value("vx_px_s", 0.0), src.value("vy_px_s", 0.0)};
-    p.what = "candidate " + std::to_string(i + 1) + ", IPSA at its " + (fitted ? "fitted" : "search") +
-             " velocity";
-    p.skyRate = skyRateOf(s);
-    p.tRefMjd = cube.tRefMjd();
-    p.frames = cube.frameCount();
-    p.inputs = s.inputs;
-    char name[64];
-    std::snprintf(name, sizeof name, "stack_candidate%03zu.fits", i + 1);
-    const std::string path = (std::filesystem::path(dir) / name).string();
-    report::writeStackFits(path, stack::stackIpsa(cube, p.velocity).sum, p, cube.wcs.get(), firstOffsetS);
-    std::printf("FITS stack of candidate %zu: %s\n", i + 1, path.c_str());
+    ed.setArtifacts(i, std::move(flags));
   }
 }
 
@@ -366,27 +326,48 @@ int cmdReport(const Args& args) {
   std::optional<report::SubmissionSettings> settings;
   if (submit) settings = submissionSettings(editor.session().settings, cli, wcs);
   runVetting(cli, editor, wcs);
-  const session::Session cur = withSkyPositions(editor.session(), wcs);
-  if (auto p = cli.value("ds9")) writeDs9(*p, cur, wcs);
-  if (auto p = cli.value("stacks")) writeStacks(*p, cur);
-  if (settings) {
-    std::vector<std::string> warnings;
-    const auto detections = report::realDetections(cur, warnings);
-    if (detections.empty())
-      warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
-    const auto write = [&](const char* option, const char* what, const report::SubmissionText& t) {
-      const std::string path = *cli.value(option);
-      writeText(path, t.text);
-      for (const auto& w : t.warnings)
-        if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
-      std::printf("%s, %zu detections: %s\n", what, detections.size(), path.c_str());
-    };
-    if (cli.has("ades")) write("ades", "ADES PSV", report::formatAdesPsv(detections, *settings));
-    if (cli.has("ades-xml")) write("ades-xml", "ADES XML", report::formatAdesXml(detections, *settings));
-    if (cli.has("mpc")) write("mpc", "MPC 80-column", report::formatMpc80(detections, *settings));
-    for (const auto& w : warnings)
-      std::fprintf(stderr, "warning: %s\n", w.c_str());
+  report::ReportRequest request;
+  request.session = withSkyPositions(editor.session(), wcs);
+  for (const auto& [option, file] : {std::pair{"candidates-json", report::ReportFile::CandidatesJson},
+                                     std::pair{"csv", report::ReportFile::CandidatesCsv},
+                                     std::pair{"ds9", report::ReportFile::Ds9},
+                                     std::pair{"ades", report::ReportFile::AdesPsv},
+                                     std::pair{"ades-xml", report::ReportFile::AdesXml},
+                                     std::pair{"mpc", report::ReportFile::Mpc80}})
+    if (auto p = cli.value(option)) request.files[file] = *p;
+  if (settings) request.submission = *settings;
+  if (cli.has("ds9")) request.regions = regionContext(request.session, wcs);
+  if (auto dir = cli.value("stacks")) {
+    if (request.session.inputs.empty())
+      throw InputError("the candidates name no input frames (\"inputs\"): --stacks needs them");
+    TerminalProgress progress;
+    request.raw = std::make_shared<const FrameCube>(
+        io::loadFrames(request.session.inputs, io::LoadOptions{}, progress, processCancelToken()));
+    progress.finish();
+    request.stacksStem = (std::filesystem::path(*dir) / "stack_candidate").string();
+    request.stacksObjectOnly = true;
+    request.stackChoice = report::StackChoice::Real;
   }
+  NullProgress quiet;
+  const report::ReportOutcome out = report::writeReports(request, quiet, processCancelToken());
+  for (const auto& path : out.written) {
+    const auto is = [&](const char* option) { return cli.value(option) == path; };
+    if (is("ds9"))
+      std::printf("DS9 regions of %zu candidates (%s): %s\n", request.session.candidates.size(),
+                  request.regions.frame.c_str(), path.c_str());
+    else if (is("ades"))
+      std::printf("ADES PSV, %zu detections: %s\n", out.detections, path.c_str());
+    else if (is("ades-xml"))
+      std::printf("ADES XML, %zu detections: %s\n", out.detections, path.c_str());
+    else if (is("candidates-json") || is("csv"))
+      std::printf("candidates with their vetting state: %s\n", path.c_str());
+    else if (is("mpc"))
+      std::printf("MPC 80-column, %zu detections: %s\n", out.detections, path.c_str());
+    else
+      std::printf("FITS stack: %s\n", path.c_str());
+  }
+  for (const auto& w : out.warnings)
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
   return 0;
 }
 

@@ -2,8 +2,9 @@
 
 #include <optional>
 
-#include "candidate_fit.hpp"
 #include "backend_factory.hpp"
+#include "st/candidate/candidate_fit.hpp"
+#include "st/report/candidate_json.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
@@ -315,7 +316,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
     for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < o.fitMax; ++i) {
       progress.report(static_cast<double>(i) / static_cast<double>(r.candidates.size()), "co-moving fits");
-      j["candidates"][i]["fit"] = fitCandidateJson(*prepared, r.candidates[i], gain, cancel);
+      j["candidates"][i]["fit"] =
+          report::toFlatJson(candidate::fitCandidate(*prepared, r.candidates[i], gain, cancel));
     }
   }
   return j;

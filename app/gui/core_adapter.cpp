@@ -31,7 +31,9 @@ ui::ProfileFit profileAt(const Image& image, double x, double y) {
   out.centreY = fit.y0;
   out.fwhmPx = fit.fwhm();
   out.beta = fit.model.beta;
-  out.ok = fit.converged() && std::isfinite(out.fwhmPx);
+  const std::string implausible =
+      fit.converged() ? psf::implausibleFit(fit, x, y, image.width, image.height) : std::string();
+  out.ok = fit.converged() && implausible.empty();
   const double maxRadius = std::clamp(3.0 * (out.ok ? out.fwhmPx : 3.0), 6.0, 30.0);
   for (const psf::RadialBin& b : psf::radialProfile(image, fit, maxRadius)) {
     out.radiusPx.push_back(b.radius);
@@ -41,7 +43,8 @@ ui::ProfileFit profileAt(const Image& image, double x, double y) {
   }
   out.message =
       out.ok ? "± " + std::to_string(fit.sigmaFwhm).substr(0, 5) + " px, " + psf::toString(fit.convergence)
-             : "Moffat fit did not converge (" + psf::toString(fit.convergence) + ")";
+             : !implausible.empty() ? "Moffat fit rejected: " + implausible
+                                    : "Moffat fit did not converge (" + psf::toString(fit.convergence) + ")";
   return out;
 }
 

@@ -3,9 +3,8 @@
 #include <chrono>
 #include <cmath>
 
-#include "candidate_fit.hpp"
+#include "st/candidate/candidate_fit.hpp"
 #include "st/common/error.hpp"
-#include "fit_residual.hpp"
 
 namespace st::app {
 
@@ -16,7 +15,8 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
   const FrameCube& frames = prepared.unfiltered->frames;
   const pipeline::Prepared& products = *prepared.products;
   const double gain = frames.header.getDouble("GAIN").value_or(1.0);
-  const int half = fit::defaultStampHalfSize(products.psf);
+  fit::FitOptions stackOptions;
+  stackOptions.psf = products.psf;
   using Clock = std::chrono::steady_clock;
   auto last = Clock::now() - std::chrono::hours(1);
   const fit::IterationCallback onIteration = [&](const fit::FitIteration& it) {
@@ -24,14 +24,13 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
     ui::FitStep step{it, nullptr};
     const auto now = Clock::now();
     if (now - last >= std::chrono::milliseconds(kResidualIntervalMs) && std::isfinite(it.params.alpha)) {
-      step.residual =
-          std::make_shared<const Image>(ui::residualAlongTrack(frames, it.params, products.psf, half));
+      step.residual = std::make_shared<const Image>(fit::stacksAt(frames, it.params, stackOptions).residual);
       last = now;
     }
     onStep(step);
   };
   ui::FitOutcome out;
-  out.json = fitCandidateJson(frames, products, candidate, gain, cancel, onIteration, &out.result);
+  out.summary = candidate::fitCandidate(frames, products, candidate, gain, cancel, onIteration, &out.result);
   return out;
 }
 

@@ -1,7 +1,7 @@
 #pragma once
-// The co-moving fit as the GUI calls it (CoreServices::fitCandidate): app::fitCandidateJson on the
+// The co-moving fit as the GUI calls it (CoreServices::fitCandidate): candidate::fitCandidate on the
 // unfiltered frames with the pre-processing's PSF and sigma_n, the GAIN keyword for photon counts, and a
-// live residual image (ui::residualAlongTrack) at most every kResidualIntervalMs.
+// live residual image (fit::stacksAt) at most every kResidualIntervalMs.
 #include "core_services.hpp"
 
 namespace st::app {

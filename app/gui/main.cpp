@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
                                   "selected candidate, else the central view.",
                                   "FILE");
   const QCommandLineOption dpi("figure-dpi", "Resolution of --export-figure PNGs (default 150).", "DPI");
-  const QCommandLineOption reports("export-reports", "Write the candidates JSON/CSV and DS9 regions to DIR.",
+  const QCommandLineOption reports("export-reports", "Write the candidates JSON/CSV and DS9 regions to DIR, and ADES/MPC 80-column when a candidate is labelled real and a station is set.",
                                    "DIR");
   const QCommandLineOption dialog("dialog", "Open a dialog (figure or reports), shown on the screenshot.",
                                   "NAME");

@@ -304,6 +304,15 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
 
 }  // namespace
 
+FitStacks stacksAt(const FrameCube& cube, const FitParams& params, const FitOptions& options) {
+  const Setup s = makeSetup(cube, options);
+  detail::FitProblem prob(cube, s.frames, s.times, options.psf, s.half);
+  prob.centreStamps(params);
+  FitStacks out;
+  prob.stacks(params, out.data, out.model, out.residual);
+  return out;
+}
+
 FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOptions& options) {
   CancelToken never;
   return fitComoving(cube, start, options, {}, never);

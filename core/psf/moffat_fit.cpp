@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -311,6 +312,34 @@ std::vector<RadialBin> radialProfile(const Image& image, const MoffatFit& fit, d
     out.push_back(b);
   }
   return out;
+}
+
+std::string implausibleFit(const MoffatFit& fit, double xGuess, double yGuess, int width, int height) {
+  char buf[160];
+  const double w = fit.fwhm();
+  if (!std::isfinite(fit.x0) || !std::isfinite(fit.y0) || !std::isfinite(w)) return "non-finite centre or FWHM";
+  if (fit.x0 < -0.5 || fit.y0 < -0.5 || fit.x0 > width - 0.5 || fit.y0 > height - 0.5) {
+    std::snprintf(buf, sizeof buf, "centre (%.1f, %.1f) outside the image", fit.x0, fit.y0);
+    return buf;
+  }
+  const double d = std::hypot(fit.x0 - xGuess, fit.y0 - yGuess);
+  if (d > std::max(5.0, 2.0 * w)) {
+    std::snprintf(buf, sizeof buf, "centre %.1f px from the point clicked", d);
+    return buf;
+  }
+  if (w < 0.5) {
+    std::snprintf(buf, sizeof buf, "FWHM %.2f px is narrower than a pixel", w);
+    return buf;
+  }
+  if (w > 0.25 * std::min(width, height)) {
+    std::snprintf(buf, sizeof buf, "FWHM %.1f px is wider than a quarter of the image", w);
+    return buf;
+  }
+  if (fit.model.beta >= 40.0) {
+    std::snprintf(buf, sizeof buf, "beta %.1f at its bound (no wings)", fit.model.beta);
+    return buf;
+  }
+  return {};
 }
 
 }  // namespace st::psf

@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "st/common/error.hpp"
+#include "st/report/candidate_json.hpp"
 #include "st/search/sky_motion.hpp"
 
 namespace st::report {
@@ -28,30 +29,7 @@ std::string csvQuoted(const std::string& text) {
 
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                                const search::Candidate& c) {
-  nlohmann::json j;
-  j["x"] = c.x;
-  j["y"] = c.y;
-  j["vx_px_s"] = c.v.vx;
-  j["vy_px_s"] = c.v.vy;
-  j["snr"] = c.snr;
-  j["n_frames"] = c.nIn;
-  j["fap"] = c.fap;
-  j["sum"] = c.sum;
-  j["cluster_cells"] = c.clusterCells;
-  j["ivx"] = c.ivx;
-  j["ivy"] = c.ivy;
-  const Velocity onSky{c.v.vx - cube.skyRate.vx, c.v.vy - cube.skyRate.vy};
-  nlohmann::json flags = nlohmann::json::array();
-  // Within one grid step of the stars' motion: a static source that pre-processing did not remove.
-  if (std::abs(onSky.vx) <= grid.stepPxS && std::abs(onSky.vy) <= grid.stepPxS)
-    flags.push_back("at_sky_rate");
-  // Fewer frames than the cube has: the track leaves the frame (edge of the field).
-  if (static_cast<std::size_t>(c.nIn) < cube.frames.frameCount()) flags.push_back("partial");
-  j["flags"] = flags;
-  const search::SkyMotion m = search::skyMotion(cube.frames, c.x, c.y, onSky);
-  if (m.rateDegPerDay) j["rate_deg_day"] = *m.rateDegPerDay;
-  if (m.paDeg) j["pa_deg"] = *m.paDeg;
-  return j;
+  return toJson(candidate::measureSearch(cube, grid, c));
 }
 
 nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& r,

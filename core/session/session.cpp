@@ -12,23 +12,12 @@
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/report/candidate_json.hpp"
 
 namespace st::session {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr std::pair<Label, const char*> kLabels[] = {{Label::Unvetted, "unvetted"},
-                                                     {Label::Real, "real"},
-                                                     {Label::Artifact, "artifact"},
-                                                     {Label::Unsure, "unsure"}};
-constexpr std::pair<ArtifactReason, const char*> kReasons[] = {
-    {ArtifactReason::None, ""},
-    {ArtifactReason::ChargeLeakage, "charge_leakage"},
-    {ArtifactReason::Diffraction, "diffraction"},
-    {ArtifactReason::CosmicRay, "cosmic_ray"},
-    {ArtifactReason::Ghost, "ghost"},
-    {ArtifactReason::Other, "other"}};
 
 std::string utcStamp() {
   const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
@@ -68,28 +57,6 @@ void writeAll(int fd, const std::string& data, const std::string& where) {
 
 }  // namespace
 
-const char* toString(Label label) noexcept {
-  for (const auto& [l, s] : kLabels)
-    if (l == label) return s;
-  return "unvetted";
-}
-const char* toString(ArtifactReason reason) noexcept {
-  for (const auto& [r, s] : kReasons)
-    if (r == reason) return s;
-  return "";
-}
-Label labelFromString(const std::string& text) {
-  for (const auto& [l, s] : kLabels)
-    if (text == s) return l;
-  throw InputError("unknown vetting label '" + text + "' (unvetted, real, artifact, unsure)");
-}
-ArtifactReason reasonFromString(const std::string& text) {
-  for (const auto& [r, s] : kReasons)
-    if (text == s) return r;
-  throw InputError("unknown artifact reason '" + text +
-                   "' (charge_leakage, diffraction, cosmic_ray, ghost, other)");
-}
-
 Session fromSearchJson(const nlohmann::json& result) {
   if (!result.is_object() || !result.contains("candidates") || !result["candidates"].is_array()) {
     throw InputError("not a search result: no \"candidates\" array");
@@ -98,22 +65,16 @@ Session fromSearchJson(const nlohmann::json& result) {
   if (result.contains("inputs")) s.inputs = result["inputs"].get<std::vector<std::string>>();
   s.search = result;
   s.search.erase("candidates");
-  for (const auto& c : result["candidates"]) {
-    CandidateState cs;
-    cs.candidate = c;
-    if (c.contains("fit")) {
-      cs.fit = c["fit"];
-      cs.candidate.erase("fit");
-    }
-    s.candidates.push_back(std::move(cs));
-  }
+  std::size_t n = 0;
+  for (const auto& c : result["candidates"])
+    s.candidates.push_back(report::fromCandidatesFileJson(c, "candidate " + std::to_string(++n)));
   return s;
 }
 
 nlohmann::json toJson(const Session& s) {
   nlohmann::json j;
   j["format"] = kSessionFormatName;
-  j["version"] = s.version;
+  j["version"] = kSessionFormatVersion;
   j["changes"] = s.changes;
   j["inputs"] = s.inputs;
   j["parameters"] = s.parameters;
@@ -122,15 +83,38 @@ nlohmann::json toJson(const Session& s) {
   j["notes"] = s.notes;
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : s.candidates) {
-    j["candidates"].push_back({{"candidate", c.candidate},
-                               {"fit", c.fit},
-                               {"artifacts", c.artifacts},
+    j["candidates"].push_back({{"search", report::toJson(c.search)},
+                               {"fit", c.fit ? report::toNestedJson(*c.fit) : nlohmann::json(nullptr)},
+                               {"artifacts", report::toJson(c.artifacts)},
                                {"label", toString(c.label)},
                                {"reason", toString(c.reason)},
                                {"note", c.note}});
   }
   return j;
 }
+
+namespace {
+
+/// One candidate of a session file of format `version` (1: "candidate" and a flat fit; 2: "search" and a
+/// nested fit).
+CandidateState candidateFromJson(const nlohmann::json& c, int version, const std::string& where) {
+  CandidateState cs;
+  const nlohmann::json& fit = c.at("fit");
+  if (version == 1) {
+    cs.search = report::searchMeasurementFromJson(c.at("candidate"), where);
+    if (!fit.is_null()) cs.fit = report::fitFromFlatJson(fit, where + ", fit");
+  } else {
+    cs.search = report::searchMeasurementFromJson(c.at("search"), where);
+    if (!fit.is_null()) cs.fit = report::fitFromNestedJson(fit, where + ", fit");
+  }
+  cs.artifacts = report::artifactsFromJson(c.at("artifacts"), where);
+  cs.label = labelFromString(c.at("label").get<std::string>());
+  cs.reason = reasonFromString(c.at("reason").get<std::string>());
+  cs.note = c.at("note").get<std::string>();
+  return cs;
+}
+
+}  // namespace
 
 Session fromJson(const nlohmann::json& j, const std::string& where) {
   try {
@@ -139,23 +123,20 @@ Session fromJson(const nlohmann::json& j, const std::string& where) {
                        kSessionFormatName + "\")");
     }
     Session s;
-    s.version = j.at("version").get<int>();
+    const int version = j.at("version").get<int>();
+    if (version < 1 || version > kSessionFormatVersion)
+      throw InputError("session '" + where + "': unknown format version " + std::to_string(version));
+    s.version = version;
     s.changes = j.at("changes").get<std::int64_t>();
     s.inputs = j.at("inputs").get<std::vector<std::string>>();
     s.parameters = j.at("parameters");
     s.search = j.at("search");
     s.settings = j.at("settings");
     s.notes = j.at("notes").get<std::string>();
-    for (const auto& c : j.at("candidates")) {
-      CandidateState cs;
-      cs.candidate = c.at("candidate");
-      cs.fit = c.at("fit");
-      cs.artifacts = c.at("artifacts");
-      cs.label = labelFromString(c.at("label").get<std::string>());
-      cs.reason = reasonFromString(c.at("reason").get<std::string>());
-      cs.note = c.at("note").get<std::string>();
-      s.candidates.push_back(std::move(cs));
-    }
+    std::size_t n = 0;
+    for (const auto& c : j.at("candidates"))
+      s.candidates.push_back(
+          candidateFromJson(c, version, "session '" + where + "', candidate " + std::to_string(++n)));
     return s;
   } catch (const nlohmann::json::exception& e) {
     throw InputError("session '" + where + "': " + e.what());
@@ -256,11 +237,11 @@ void SessionEditor::setNote(std::size_t i, std::string note) {
   at(i).note = std::move(note);
   save();
 }
-void SessionEditor::setFit(std::size_t i, nlohmann::json fit) {
+void SessionEditor::setFit(std::size_t i, std::optional<candidate::FitSummary> fit) {
   at(i).fit = std::move(fit);
   save();
 }
-void SessionEditor::setArtifacts(std::size_t i, nlohmann::json flags) {
+void SessionEditor::setArtifacts(std::size_t i, std::vector<vet::ArtifactFlag> flags) {
   at(i).artifacts = std::move(flags);
   save();
 }

@@ -59,6 +59,8 @@ const char* toString(ArtifactKind kind) noexcept {
       return "transient";
     case ArtifactKind::KnownObject:
       return "known_object";
+    case ArtifactKind::StaticSource:
+      return "static_source";
   }
   return "unknown";
 }
@@ -278,6 +280,22 @@ std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track
   return {checkChargeLeakage(ctx, track, params), checkBrightStar(ctx, track, params),
           checkDiffraction(ctx, track, params),   checkEdge(ctx, track, params),
           checkMasked(ctx, track, params),        checkTransient(ctx, track, params, segments)};
+}
+
+ArtifactFlag staticSourceFlag(double trackSnr, double skySnr, double maxRatio) {
+  ArtifactFlag f{ArtifactKind::StaticSource, false, 0.0, ""};
+  char buf[200];
+  if (!(trackSnr > 0.0)) {
+    f.evidence = "no SNR at the candidate's velocity";
+    return f;
+  }
+  f.value = skySnr / trackSnr;
+  f.triggered = f.value >= maxRatio;
+  std::snprintf(buf, sizeof buf, "SNR %.1f stacked at the sky rate against %.1f at its own velocity (%.0f%%; %s %.0f%%)",
+                skySnr, trackSnr, 100.0 * f.value, f.triggered ? "a static source reaches" : "threshold",
+                100.0 * maxRatio);
+  f.evidence = buf;
+  return f;
 }
 
 }  // namespace st::vet

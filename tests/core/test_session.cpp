@@ -63,9 +63,13 @@ TEST(Session, FromSearchJsonMovesFitsOut) {
   ASSERT_EQ(s.candidates.size(), 3u);
   EXPECT_EQ(s.inputs, std::vector<std::string>{"/data/obs.fits"});
   EXPECT_FALSE(s.search.contains("candidates"));
-  EXPECT_EQ(s.candidates[0].fit["status"], "converged");
-  EXPECT_FALSE(s.candidates[0].candidate.contains("fit"));
-  EXPECT_TRUE(s.candidates[1].fit.is_null());
+  ASSERT_TRUE(s.candidates[0].fit.has_value());
+  EXPECT_TRUE(s.candidates[0].fit->converged());
+  EXPECT_EQ(s.candidates[0].fit->x, 100.123456789012345);
+  ASSERT_TRUE(s.candidates[0].fit->sky.has_value());
+  EXPECT_EQ(s.candidates[0].fit->sky->raDeg, 150.00000001);
+  EXPECT_EQ(s.candidates[0].search.cell.x, 100);
+  EXPECT_FALSE(s.candidates[1].fit.has_value());
   EXPECT_THROW((void)fromSearchJson(nlohmann::json::object()), InputError);
 }
 
@@ -81,8 +85,7 @@ TEST(Session, RoundTripIsExact) {
   s.candidates[1].note = "spike of the star at (20, 30)";
   s.candidates[2].label = Label::Unsure;
   s.candidates[0].label = Label::Real;
-  s.candidates[0].artifacts =
-      nlohmann::json::array({{{"kind", "edge"}, {"triggered", false}, {"value", 12.5}}});
+  s.candidates[0].artifacts = {{vet::ArtifactKind::Edge, false, 12.5, ""}};
   store.save(s);
   EXPECT_EQ(s.changes, 1);
   const Session back = store.load();

@@ -6,7 +6,9 @@ stay in a temporary folder: a moving-dot cube with a TAN WCS (1"/px), candidates
 fits whose RA/Dec come from that WCS. Then:
   astropy: reads the object- and sky-tracked FITS stacks; their WCS maps candidate 1's pixel to its fitted
     RA/Dec (1e-7 deg; the sky rate is 0, so t_ref and the first frame's WCS agree); provenance keywords; the
-    object-tracked stack holds all 40 frames of the dot at the candidate's pixel, the sky-tracked one < 3;
+    object-tracked stack holds the dot at the candidate's pixel at 1 count per frame (the stacks are the mean per
+    contributing frame minus the background, BUNIT set, a COVERAGE extension of 40 frames there), the
+    sky-tracked one < 3;
   DS9 (Debian's saods9 under xvfb-run): loads the stack and our icrs region file and saves the regions in
     image coordinates: one circle per candidate, candidate 1's at its 1-based pixel (0.002 px with the stack
     labelled FK5 like the region file; 0.03 px with its RADESYS = ICRS, where DS9 applies the ~20 mas FK5-ICRS
@@ -56,6 +58,10 @@ def check_fits(out, cand, fit):
             h = hdul[0].header
             data = hdul[0].data
             wcs = WCS(h)
+            names = [x.name for x in hdul]
+            coverage = hdul["COVERAGE"].data if "COVERAGE" in names else None
+        check(coverage is not None and int(coverage[y, x]) == 40, "%s: COVERAGE extension (%s)" % (path, names))
+        check(h.get("BUNIT") == "adu", "%s: BUNIT %s" % (path, h.get("BUNIT")))
         check(data.shape == (96, 96), "%s: shape %s" % (path, data.shape))
         for key in ("STVX", "STVY", "SKYVX", "SKYVY", "TREFMJD", "NFRAMES", "STMODE", "WCSEPOCH"):
             check(key in h, "%s: no %s card" % (path, key))
@@ -66,7 +72,7 @@ def check_fits(out, cand, fit):
               (path, ra, dec, fit["ra_deg"], fit["dec_deg"]))
         peak = float(data[y, x])
         if kind == "object":
-            check(abs(peak - 40.0) < 1e-4, "%s: object-tracked value %.3f at the candidate, expected 40" % (path, peak))
+            check(abs(peak - 1.0) < 1e-6, "%s: object-tracked value %.3f at the candidate, expected 1 per frame" % (path, peak))
         else:
             check(float(data.max()) < 3.0, "%s: sky-tracked maximum %.3f, expected a streak < 3" % (path, data.max()))
 

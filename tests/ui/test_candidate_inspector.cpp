@@ -119,12 +119,13 @@ TEST(CandidateInspector, StampsSegmentsMovieAndFlagsOfAMovingDot) {
   inspector.setPlaying(false);
   EXPECT_FALSE(inspector.playing());
 
-  // Every check ran and nothing fired on a clean dot in the middle. Inspecting changed nothing on the
+  // Every check ran (the six artifact checks, the known-object and the static-source check) and nothing fired
+  // on a clean dot in the middle. Inspecting changed nothing on the
   // candidate until "Store on candidate" is checked; then the flags are on it.
-  ASSERT_EQ(in.flags.size(), 7u);
+  ASSERT_EQ(in.flags.size(), 8u);
   for (const auto& f : in.flags)
     EXPECT_FALSE(f.triggered) << vet::toString(f.kind) << ": " << f.evidence;
-  ASSERT_EQ(inspector.flagList()->topLevelItemCount(), 7);
+  ASSERT_EQ(inspector.flagList()->topLevelItemCount(), 8);
   const auto* state = obs.candidateState(0);
   ASSERT_TRUE(state);
   EXPECT_TRUE(state->artifacts.empty());
@@ -132,12 +133,12 @@ TEST(CandidateInspector, StampsSegmentsMovieAndFlagsOfAMovingDot) {
   QObject::connect(&obs, &Observation::candidateStateChanged, [&changes] { ++changes; });
   inspector.setStoreFlags(true);
   EXPECT_EQ(changes, 1);
-  ASSERT_EQ(state->artifacts.size(), 7u);
+  ASSERT_EQ(state->artifacts.size(), 8u);
   inspector.refresh();  // the same flags again: stored, but no change signalled
   ASSERT_TRUE(test::waitFor([&] { return !inspector.busy(); }, 5000));
   QApplication::processEvents();
   EXPECT_EQ(changes, 1);
-  EXPECT_EQ(state->artifacts[3]["kind"], "edge");
+  EXPECT_EQ(state->artifacts[3].kind, vet::ArtifactKind::Edge);
 }
 
 TEST(CandidateInspector, MarksTheSegmentsATransientMisses) {
@@ -164,7 +165,7 @@ TEST(CandidateInspector, MarksTheSegmentsATransientMisses) {
   EXPECT_EQ(transient.kind, vet::ArtifactKind::Transient);
   EXPECT_TRUE(transient.triggered);
   EXPECT_NE(transient.evidence.find("segment 2"), std::string::npos) << transient.evidence;
-  EXPECT_TRUE(obs.candidateState(0)->artifacts[5]["triggered"].get<bool>());
+  EXPECT_TRUE(obs.candidateState(0)->artifacts[5].triggered);
 }
 
 TEST(CandidateInspector, KnownObjectsLoadMatchAndReportBadLines) {

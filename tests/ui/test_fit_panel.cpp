@@ -19,7 +19,7 @@
 
 #include "fit_panel.hpp"
 #include "candidate_table.hpp"
-#include "fit_residual.hpp"
+#include "st/candidate/candidate_measurement.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "st/fit/pixel_psf.hpp"
@@ -86,14 +86,13 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
     opt.psf = kPsf;
     opt.sigmaN = 1.0;
     FitOutcome out;
-    const int half = fit::defaultStampHalfSize(kPsf);
     out.result = fit::fitComoving(
         *cube, fit::startFromCandidate(c), opt,
         [&](const fit::FitIteration& it) {
-          onStep({it, std::make_shared<const Image>(residualAlongTrack(*cube, it.params, kPsf, half))});
+          onStep({it, std::make_shared<const Image>(fit::stacksAt(*cube, it.params, opt).residual)});
         },
         cancel);
-    out.json = {{"status", fit::toString(out.result.status)}, {"snr", out.result.snr}};
+    out.summary = candidate::summarize(out.result);
     return out;
   };
   Observation obs;
@@ -119,9 +118,10 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
   ASSERT_GE(panel.costPoints(), 2);
   EXPECT_LT(graph->data()->at(graph->dataCount() - 1)->value, graph->data()->at(0)->value);
   EXPECT_EQ(panel.costPlot()->yAxis->scaleType(), QCPAxis::stLogarithmic);
-  // The live residual at the final parameters is the core's residual stack (same grid and rounding; the
-  // PSF tables differ by < 3e-6 of the peak per sample).
-  const Image live = residualAlongTrack(*cube, r.params, kPsf, fit::defaultStampHalfSize(kPsf));
+  // The live residual at the final parameters is the core's residual stack (same grid and rounding).
+  fit::FitOptions liveOptions;
+  liveOptions.psf = kPsf;
+  const Image live = fit::stacksAt(*cube, r.params, liveOptions).residual;
   ASSERT_EQ(live.width, r.residualStack.width);
   ASSERT_EQ(live.height, r.residualStack.height);
   for (std::size_t k = 0; k < live.size(); ++k)
@@ -140,10 +140,11 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
 
   // Accept stores the fit's JSON on the candidate.
   ASSERT_TRUE(panel.acceptButton()->isEnabled());
-  EXPECT_TRUE(obs.candidateState(0)->fit.is_null());
+  EXPECT_FALSE(obs.candidateState(0)->fit.has_value());
   panel.acceptButton()->click();
-  EXPECT_EQ(obs.candidateState(0)->fit, panel.outcome()->json);
-  EXPECT_EQ(obs.candidateState(0)->fit["status"], "converged");
+  ASSERT_TRUE(obs.candidateState(0)->fit.has_value());
+  EXPECT_EQ(*obs.candidateState(0)->fit, panel.outcome()->summary);
+  EXPECT_TRUE(obs.candidateState(0)->fit->converged());
 }
 
 TEST(FitPanel, ShowsLivePointsAndCancelsWithinASecond) {
@@ -201,7 +202,7 @@ TEST(FitPanel, LaunchedFromTheMainWindowWithF) {
       onStep({step, nullptr});
     }
     out.result.costHistory = {10.0, 9.0, 8.0};
-    out.json = {{"x", c.x}};
+    out.summary.x = c.x;
     return out;
   };
   MainWindow w(services);
@@ -245,7 +246,8 @@ TEST(FitPanel, TitleFollowsTheState) {
     FitOutcome out;
     out.result.status = fit::FitStatus::Converged;
     out.result.costHistory = {2.0, 1.0};
-    out.json = {{"x", c.x}, {"status", "converged"}};
+    out.summary.x = c.x;
+    out.summary.status = fit::FitStatus::Converged;
     return out;
   };
   Observation obs;

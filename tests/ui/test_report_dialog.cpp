@@ -58,19 +58,19 @@ std::string readAll(const std::string& path) {
 }
 
 // A converged fit at the candidate's cell with its sky position through the cube's WCS.
-nlohmann::json fitAt(const search::Candidate& c, const FrameCube& raw, double snr) {
+candidate::FitSummary fitAt(const search::Candidate& c, const FrameCube& raw, double snr) {
   const auto sky = raw.wcs->pixelToSky(c.x, c.y);
-  return {{"status", "converged"},
-          {"x", c.x},
-          {"y", c.y},
-          {"vx_px_s", c.v.vx},
-          {"vy_px_s", c.v.vy},
-          {"snr", snr},
-          {"ra_deg", sky.raDeg},
-          {"dec_deg", sky.decDeg},
-          {"t_ref_mjd", raw.tRefMjd()},
-          {"sigma_ra_arcsec", 0.1},
-          {"sigma_dec_arcsec", 0.1}};
+  candidate::FitSummary f;
+  f.status = fit::FitStatus::Converged;
+  f.x = c.x;
+  f.y = c.y;
+  f.v = c.v;
+  f.snr = snr;
+  f.sky = candidate::SkyPosition{sky.raDeg, sky.decDeg};
+  f.tRefMjd = raw.tRefMjd();
+  f.sigmaRaArcsec = 0.1;
+  f.sigmaDecArcsec = 0.1;
+  return f;
 }
 
 class ReportDialogTest : public ::testing::Test {
@@ -180,7 +180,10 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   EXPECT_EQ(object.header.getString("STMODE").value_or(""), "IPSA");
   EXPECT_NEAR(object.header.getDouble("STVX").value_or(0), cands[0].v.vx, 1e-9);
   EXPECT_NEAR(sky.header.getDouble("STVX").value_or(1), 0.0, 1e-12);
-  EXPECT_FLOAT_EQ(object.frame(0)[static_cast<std::size_t>(cands[0].y) * 96 + cands[0].x], 40.0f);
+  // Coverage-normalised and background-subtracted (issue 18 §6): the dot of 1 count in each of the 40 frames
+  // is 1 count per frame on a background of 0 (it was the raw sum, 40, before).
+  EXPECT_FLOAT_EQ(object.frame(0)[static_cast<std::size_t>(cands[0].y) * 96 + cands[0].x], 1.0f);
+  EXPECT_EQ(object.header.getString("BUNIT").value_or(""), "adu");
   EXPECT_TRUE(QFile::exists(QString::fromStdString(folder + "/run_c002_object.fits")));
   EXPECT_FALSE(QFile::exists(QString::fromStdString(folder + "/run_c003_object.fits")));
   // The stack's WCS at t_ref maps the candidate's pixel where the cube's does (sky rate 0 here).

@@ -150,8 +150,11 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   EXPECT_EQ(o1->candidateState(2)->reason, session::ArtifactReason::ChargeLeakage);
   EXPECT_EQ(o1->stackMode(), search::StackMode::Ipsa);
   o1->setCandidateNote(1, "spike of the star at (40, 12)");
-  o1->setCandidateFit(0, {{"ra_deg", 10.0 / 3.0}, {"sigma_x_px", 0.1 + 0.2}, {"cost", {3.0, 2.5, 2.4}}});
-  o1->setCandidateArtifacts(2, nlohmann::json::array({{{"kind", "edge"}, {"triggered", true}}}));
+  candidate::FitSummary fit;
+  fit.sky = candidate::SkyPosition{10.0 / 3.0};
+  fit.sigma.xPx = 0.1 + 0.2;
+  o1->setCandidateFit(0, fit);
+  o1->setCandidateArtifacts(2, {{vet::ArtifactKind::Edge, true}});
   o1->setSelected(1);
   // The candidate inspector computes the selected candidate's artifact flags in a worker and stores them (its
   // finished signal is queued after the worker stops): wait for them, so that this window's state is final

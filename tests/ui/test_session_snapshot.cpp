@@ -51,9 +51,12 @@ void fillObservation(Observation& obs) {
   obs.setResult(result);
   obs.setCandidateLabel(0, session::Label::Artifact, session::ArtifactReason::Diffraction);
   obs.setCandidateNote(0, "on a spike of the star at (12, 3) — \"bright\"");
-  obs.setCandidateFit(1, {{"ra_deg", 10.0 / 3.0}, {"cost", {1.0, 0.5}}});
+  candidate::FitSummary fit;
+  fit.sky = candidate::SkyPosition{10.0 / 3.0};
+  fit.iterations = 2;
+  obs.setCandidateFit(1, fit);
   obs.setCandidateLabel(1, session::Label::Real);
-  obs.setCandidateArtifacts(1, nlohmann::json::array({{{"kind", "edge"}, {"triggered", false}}}));
+  obs.setCandidateArtifacts(1, {{vet::ArtifactKind::Edge, false}});
   obs.setSelected(1);
   obs.setUnit(VelocityUnit::DegPerDay);
 }
@@ -74,7 +77,7 @@ TEST(SessionSnapshot, RoundTripIsExactThroughTheFileText) {
   params.backend = BackendKind::Cpu;
   const session::Session s = makeSession(obs, {"/data/a.fits", "/data/b.fits"}, params, {{"station", "G96"}});
   ASSERT_EQ(s.candidates.size(), 2u);
-  EXPECT_EQ(s.candidates[0].candidate["x"], 10);
+  EXPECT_EQ(s.candidates[0].search.cell.x, 10);
   EXPECT_FALSE(s.search.contains("candidates"));
   EXPECT_EQ(s.search["method"], "exact");  // what the result used, not the panel's next choice
 
@@ -126,10 +129,10 @@ TEST(SessionSnapshot, UnknownStagesAreIgnoredAndMissingOnesKeepDefaults) {
 TEST(SessionSnapshot, BrokenCandidateNamesTheFileAndKey) {
   Observation obs;
   fillObservation(obs);
-  session::Session s = makeSession(obs, {}, SessionParameters{});
-  s.candidates[1].candidate.erase("snr");
+  nlohmann::json j = session::toJson(makeSession(obs, {}, SessionParameters{}));
+  j["candidates"][1]["search"].erase("snr");
   try {
-    (void)restoreSnapshot(s, defaultStages(), "/tmp/x.json");
+    (void)session::fromJson(j, "/tmp/x.json");
     FAIL() << "accepted a candidate without snr";
   } catch (const InputError& e) {
     const std::string what = e.what();

@@ -155,4 +155,13 @@ struct ForcedPhotometry {
 /// The stamp half-size FitOptions::stampHalfSize = 0 stands for: ceil(3 W).
 [[nodiscard]] int defaultStampHalfSize(const psf::Moffat& psf) noexcept;
 
+/// The data, model and residual stacks of the co-moving model `params` (FitResult's dataStack, modelStack,
+/// residualStack, computed the same way: stamps of `options` centred on the rounded track of `params` in every
+/// frame the fit would use, times relative to its reference time). For the live residual while a fit
+/// converges. Throws st::InputError for the options fitComoving refuses. Cost: one pass over the stamps.
+struct FitStacks {
+  Image data, model, residual;
+};
+[[nodiscard]] FitStacks stacksAt(const FrameCube& cube, const FitParams& params, const FitOptions& options);
+
 }  // namespace st::fit

@@ -73,6 +73,14 @@ struct MoffatFit {
 /// A fit that does not converge is returned with its convergence reason; the caller decides.
 MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const MoffatFitOptions& options = {});
 
+/// Why a fit that converged numerically still does not describe a star near the guess, or "" when it
+/// does: the centre outside the image or more than max(5 px, 2 FWHM) from (xGuess, yGuess); a FWHM below
+/// 0.5 px (narrower than a pixel: a hot pixel or noise) or above a quarter of the smaller image side; beta at
+/// the fit's upper bound region (>= 40: no wings, a flat-topped blob). A radial-profile fit with an absurd
+/// centre (e.g. "(-1578.8, 7430.4): FWHM 0.05 px, beta 50.00") is then reported as rejected, not converged.
+[[nodiscard]] std::string implausibleFit(const MoffatFit& fit, double xGuess, double yGuess, int width,
+                                         int height);
+
 /// One bin of a radial profile.
 struct RadialBin {
   double radius = 0.0;  ///< mean distance of the bin's pixel centres from the centre, px

@@ -6,40 +6,33 @@
 // version, or one that cannot be parsed, is never overwritten silently: it is copied aside and the error
 // names the copy.
 //
-// Candidates, fits and parameters are kept as the JSON objects the other stages write (search_report.hpp
-// keys, the fit's keys), so nothing is lost between versions of those stages and a round trip is exact.
+// Candidates are typed records (st::candidate::CandidateMeasurement); parameters, the search summary and the
+// report settings are kept as the JSON objects their stages write. A round trip through the file is exact.
 #include <cstdint>
+#include <cstddef>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "st/candidate/candidate_measurement.hpp"
+
 namespace st::session {
 
-/// Format version written by this build. Files with a larger number are refused (with a backup copy).
-inline constexpr int kSessionFormatVersion = 1;
+/// Format version written by this build. Files with a larger number are refused (with a backup copy); older
+/// ones are migrated on reading (format 1, up to 2026-11-25: each candidate's "candidate" object and a flat
+/// "fit"; format 2: "search" and a fit with nested "sigma", "segments" and "sky", candidate_json.hpp).
+inline constexpr int kSessionFormatVersion = 2;
 inline constexpr const char* kSessionFormatName = "synthtrack-session";
 
-enum class Label { Unvetted, Real, Artifact, Unsure };
-enum class ArtifactReason { None, ChargeLeakage, Diffraction, CosmicRay, Ghost, Other };
+using candidate::ArtifactReason;
+using candidate::Label;
+using candidate::labelFromString;
+using candidate::reasonFromString;
+using candidate::toString;
 
-/// Stable keys: "unvetted", "real", "artifact", "unsure"; "", "charge_leakage", "diffraction", "cosmic_ray",
-/// "ghost", "other".
-[[nodiscard]] const char* toString(Label label) noexcept;
-[[nodiscard]] const char* toString(ArtifactReason reason) noexcept;
-/// Throws st::InputError naming the text when it is not one of the keys above.
-[[nodiscard]] Label labelFromString(const std::string& text);
-[[nodiscard]] ArtifactReason reasonFromString(const std::string& text);
-
-struct CandidateState {
-  nlohmann::json candidate = nlohmann::json::object();  ///< the search's candidate object (search_report.hpp)
-  nlohmann::json fit;                                   ///< the accepted co-moving fit (null when none)
-  nlohmann::json artifacts = nlohmann::json::array();   ///< artifact flags: kind, triggered, value, evidence
-  Label label = Label::Unvetted;
-  ArtifactReason reason = ArtifactReason::None;  ///< only for Label::Artifact
-  std::string note;
-  friend bool operator==(const CandidateState&, const CandidateState&) = default;
-};
+/// One candidate of the session: the typed record (candidate_measurement.hpp).
+using CandidateState = candidate::CandidateMeasurement;
 
 struct Session {
   int version = kSessionFormatVersion;
@@ -53,12 +46,14 @@ struct Session {
   friend bool operator==(const Session&, const Session&) = default;
 };
 
-/// A session from a search result object (searchResultToJson / `synthtrack-cli search --json`): inputs from
-/// its "inputs", candidates (with a "fit" member moved to CandidateState::fit), the rest as `search`.
+/// A session from a search result object (searchResultToJson / `synthtrack-cli search --json`, or the
+/// candidates file the reports write): inputs from its "inputs", candidates (report::fromCandidatesFileJson:
+/// the search keys, "fit", and "label", "reason", "note", "artifacts" when present), the rest as `search`.
 [[nodiscard]] Session fromSearchJson(const nlohmann::json& result);
 
 [[nodiscard]] nlohmann::json toJson(const Session& session);
-/// Throws st::InputError naming the key at fault (`where` names the file).
+/// Reads format 1 (migrating it) and 2. Throws st::InputError naming the key at fault (`where` names the
+/// file).
 [[nodiscard]] Session fromJson(const nlohmann::json& json, const std::string& where);
 
 /// The session file of one analysis.
@@ -96,8 +91,8 @@ class SessionEditor {
   /// Throws st::InputError for an index out of range, or a reason given with a label other than Artifact.
   void setLabel(std::size_t candidate, Label label, ArtifactReason reason = ArtifactReason::None);
   void setNote(std::size_t candidate, std::string note);
-  void setFit(std::size_t candidate, nlohmann::json fit);
-  void setArtifacts(std::size_t candidate, nlohmann::json flags);
+  void setFit(std::size_t candidate, std::optional<candidate::FitSummary> fit);
+  void setArtifacts(std::size_t candidate, std::vector<vet::ArtifactFlag> flags);
   void setParameters(const std::string& stage, nlohmann::json parameters);
   void setSettings(nlohmann::json settings);
   void setSessionNotes(std::string notes);

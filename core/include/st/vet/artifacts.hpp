@@ -21,7 +21,16 @@
 
 namespace st::vet {
 
-enum class ArtifactKind { ChargeLeakage, BrightStar, Diffraction, Edge, Masked, Transient, KnownObject };
+enum class ArtifactKind {
+  ChargeLeakage,
+  BrightStar,
+  Diffraction,
+  Edge,
+  Masked,
+  Transient,
+  KnownObject,
+  StaticSource  ///< as bright at the sky rate as at its own velocity (staticSourceFlag)
+};
 /// Stable lower-case key ("charge_leakage", "bright_star", ...), used in JSON.
 [[nodiscard]] const char* toString(ArtifactKind kind) noexcept;
 
@@ -32,6 +41,7 @@ struct ArtifactFlag {
   double value = 0.0;    ///< the measured number the decision is made on (its unit is in `evidence`)
   std::string evidence;  ///< one sentence, e.g. "on bleed column 212 of the saturated star at (212.0, 80.4)
                          ///< in 96% of the frames (480/500)"
+  friend bool operator==(const ArtifactFlag&, const ArtifactFlag&) = default;
 };
 
 /// A straight track: 0-based pixel position at t_ref and velocity in the frames (px/s).
@@ -103,6 +113,12 @@ struct ArtifactContext {
 /// flux-inconsistency flags also fire this check, with their reasons in the evidence.
 [[nodiscard]] ArtifactFlag checkTransient(const ArtifactContext& ctx, const Track& track,
                                           const ArtifactParams& params, const SegmentReport* segments);
+
+/// The static-source check (issue 18 §6: a Lowell streak scored SNR 14.6 stacked at the sky rate against 15.3
+/// at its own velocity, with every other check "ok"): triggered when the stack at the sky rate reaches
+/// `maxRatio` (default 0.8) of the candidate's own SNR, i.e. the source does not need its velocity to be
+/// seen. value = skySnr / trackSnr.
+[[nodiscard]] ArtifactFlag staticSourceFlag(double trackSnr, double skySnr, double maxRatio = 0.8);
 
 /// Every check above, in the order of ArtifactKind (the known-object check is separate: knownObjectFlag).
 [[nodiscard]] std::vector<ArtifactFlag> checkArtifacts(const ArtifactContext& ctx, const Track& track,

@@ -1,4 +1,4 @@
-#include "candidate_inspection.hpp"
+#include "st/candidate/inspection.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include "st/common/error.hpp"
 #include "st/stack/ipsa.hpp"
 
-namespace st::ui {
+namespace st::candidate {
 namespace {
 
 /// Frames of `frames` whose IPSA sample of the cell (x, y) at velocity v is inside the frame and unmasked:
@@ -151,6 +151,7 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   const vet::Track track{static_cast<double>(in.candidate.x), static_cast<double>(in.candidate.y),
                          in.candidate.v};
   out.flags = vet::checkArtifacts(ctx, track, in.artifactParams, &out.segments);
+  out.flags.push_back(vet::staticSourceFlag(out.trackSnr, out.skySnr));
   static const std::vector<vet::KnownObject> kNone;
   const auto& objects = in.knownObjects ? *in.knownObjects : kNone;
   if (in.skyPosition) {
@@ -165,4 +166,4 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   return out;
 }
 
-}  // namespace st::ui
+}  // namespace st::candidate

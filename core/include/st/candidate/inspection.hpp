@@ -22,7 +22,7 @@
 #include "st/vet/known_objects.hpp"
 #include "st/vet/segments.hpp"
 
-namespace st::ui {
+namespace st::candidate {
 
 struct InspectionInput {
   std::shared_ptr<const search::FilteredCube> filtered;  ///< the search's cube (required)
@@ -56,7 +56,8 @@ struct Inspection {
   std::vector<Image> movie;
   std::vector<std::size_t> movieFrameIndex;
   std::vector<double> movieTimeS;
-  /// Every st::vet check in ArtifactKind order, known object last.
+  /// The st::vet artifact checks (checkArtifacts' order), the static-source check (vet::staticSourceFlag),
+  /// and the known-object match last.
   std::vector<vet::ArtifactFlag> flags;
 };
 
@@ -64,4 +65,4 @@ struct Inspection {
 /// st::Cancelled when cancelled.
 [[nodiscard]] Inspection inspectCandidate(const InspectionInput& input, CancelToken& cancel);
 
-}  // namespace st::ui
+}  // namespace st::candidate
