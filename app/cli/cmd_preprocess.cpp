@@ -65,9 +65,10 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
-    "  --no-register           no per-frame registration: the linear sky rate is the model even when the\n"
-    "                          star field jumps (by default per-frame offsets, when used, are written to\n"
-    "                          the output's FRAMES table as REGX_PX/REGY_PX and used by search and stack)\n"
+    "  --register              per-frame registration for dithered or re-pointed sequences (off by default:\n"
+    "                          the linear sky rate is the model); per-frame offsets, when used, are written\n"
+    "                          to the output's FRAMES table as REGX_PX/REGY_PX and used by search and stack\n"
+    "  --no-register           no per-frame registration (the default)\n"
     "  --memory-limit SIZE     memory budget, e.g. 8G or 500M (default: 70% of the memory available now,\n"
     "                          within the cgroup's limit); the peak is estimated and printed first, and an\n"
     "                          input that does not fit stops with exit 1 before any pixel is read\n"
@@ -87,7 +88,7 @@ int cmdPreprocess(const Args& args) {
         "memory-limit"})
     names.insert(n);
   auto flags = calibFlagNames();
-  flags.insert({"no-cosmic-rays", "no-register", "json"});
+  flags.insert({"no-cosmic-rays", "register", "no-register", "json"});
   const CliArgs cli(args, names, flags);
   if (cli.positionals().empty()) throw UsageError("give at least one INPUT (a FITS file or a folder)");
   const auto out = cli.value("o");
@@ -103,7 +104,7 @@ int cmdPreprocess(const Args& args) {
   if (!(params.psfFwhmPx > 0.5 && params.psfFwhmPx < 100.0))
     throw UsageError("--fwhm must be in (0.5, 100) px");
   params.removeCosmicRays = !cli.flag("no-cosmic-rays");
-  params.registerFrames = !cli.flag("no-register");
+  params.registerFrames = cli.flag("register") && !cli.flag("no-register");
   params.matchedFilter = cli.has("filtered");
 
   TerminalProgress progress;

@@ -205,6 +205,7 @@ search::Candidate searchPrepared(FrameCube cube, const sim::SimResult& sim, std:
   NullProgress p;
   CancelToken c;
   pipeline::PreprocessParams params;
+  params.registerFrames = true;
   params.masters = sim::exactMasters(sim);
   const pipeline::Prepared out = pipeline::preprocess(std::move(cube), params, p, c);
   *note = out.registration.note;

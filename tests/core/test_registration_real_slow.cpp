@@ -63,6 +63,7 @@ Found prepareAndSearch(FrameCube calibrated, double plateFallback) {
   NullProgress p;
   CancelToken c;
   PreprocessParams params;  // the frames are calibrated already: no overscan, no trim, no masters
+  params.registerFrames = true;
   params.calib.subtractOverscan = false;
   params.calib.trim = false;
   params.calib.useHeaderSections = false;
