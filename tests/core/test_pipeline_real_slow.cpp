@@ -30,12 +30,12 @@ constexpr double kX = 673.0, kY = 723.5, kVx = -0.00087, kVy = -0.0021;
 
 
 TEST(PipelineReal, Lowell5945SlowAsteroidIsNotMaskedAndIsFound) {
-  const auto root = test::realDataDir();
-  if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) GTEST_SKIP() << "no real data";
-  const auto dir = root / "lowell42-5945";
-  FrameCube cube = test::loadFolder(dir / "science", true);
+  test::Lowell5945 lowell = test::loadLowell5945();
+  if (!lowell.found) GTEST_SKIP() << "no real data";
+  FrameCube cube = std::move(lowell.science);
   ASSERT_EQ(cube.frameCount(), 15u);
-  const FrameCube bias = test::loadFolder(dir / "bias", false), flat = test::loadFolder(dir / "flat", false);
+  const FrameCube& bias = lowell.bias;
+  const FrameCube& flat = lowell.flat;
   NullProgress p;
   CancelToken c;
   PreprocessParams params;

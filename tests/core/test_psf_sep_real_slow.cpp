@@ -228,12 +228,12 @@ void printComparison(const char* what, const char* model, const Comparison& c, s
 }
 
 TEST(PsfSepReal, Lowell5945FittedPsfAgreesWithSepOnTheSameStars) {
-  const auto root = test::realDataDir();
-  if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) GTEST_SKIP() << "no real data";
-  const auto dir = root / "lowell42-5945";
-  FrameCube cube = test::loadFolder(dir / "science", true);
+  test::Lowell5945 lowell = test::loadLowell5945();
+  if (!lowell.found) GTEST_SKIP() << "no real data";
+  FrameCube cube = std::move(lowell.science);
   ASSERT_EQ(cube.frameCount(), 15u);
-  const FrameCube bias = test::loadFolder(dir / "bias", false), flat = test::loadFolder(dir / "flat", false);
+  const FrameCube& bias = lowell.bias;
+  const FrameCube& flat = lowell.flat;
   NullProgress p;
   CancelToken c;
   pipeline::PreprocessParams params;

@@ -90,12 +90,12 @@ Found prepareAndSearch(FrameCube calibrated, double plateFallback) {
 }
 
 TEST(RegistrationReal, Lowell5945DitheredAndRepointedIsFoundAsUndithered) {
-  const auto root = test::realDataDir();
-  if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) GTEST_SKIP() << "no real data";
-  const auto dir = root / "lowell42-5945";
-  FrameCube cube = test::loadFolder(dir / "science", true);
+  test::Lowell5945 lowell = test::loadLowell5945();
+  if (!lowell.found) GTEST_SKIP() << "no real data";
+  FrameCube cube = std::move(lowell.science);
   ASSERT_EQ(cube.frameCount(), 15u);
-  const FrameCube bias = test::loadFolder(dir / "bias", false), flat = test::loadFolder(dir / "flat", false);
+  const FrameCube& bias = lowell.bias;
+  const FrameCube& flat = lowell.flat;
   NullProgress p;
   CancelToken c;
   calib::CalibParams cp;

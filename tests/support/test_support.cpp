@@ -76,4 +76,16 @@ FrameCube loadFolder(const std::filesystem::path& dir, bool science) {
   return loadFiles(filesIn(dir), science);
 }
 
+Lowell5945 loadLowell5945() {
+  Lowell5945 out;
+  const auto root = realDataDir();
+  if (root.empty() || !std::filesystem::is_directory(root / "lowell42-5945")) return out;
+  const auto dir = root / "lowell42-5945";
+  out.found = true;
+  out.science = loadFolder(dir / "science", true);
+  out.bias = loadFolder(dir / "bias", false);
+  out.flat = loadFolder(dir / "flat", false);
+  return out;
+}
+
 }  // namespace st::test

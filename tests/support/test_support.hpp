@@ -37,6 +37,14 @@ FrameCube loadFiles(const std::vector<std::string>& files, bool science);
 /// nominal clock, since they need no times.
 FrameCube loadFolder(const std::filesystem::path& dir, bool science);
 
+/// The shared Lowell 42-inch sequence of 5945 (realDataDir()/lowell42-5945): 15 science frames, its bias
+/// and flat frames as loaded cubes; `found` false (and the cubes empty) when the data are absent.
+struct Lowell5945 {
+  bool found = false;
+  FrameCube science, bias, flat;
+};
+Lowell5945 loadLowell5945();
+
 /// Writes a TAN WCS into `h`: (raDeg, decDeg) at the 1-based pixel (crpix1, crpix2), north up, east left,
 /// `arcsecPerPx` (CD matrix diagonal, no rotation).
 void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double crpix2, double arcsecPerPx);
