@@ -3,7 +3,9 @@
 // (STYLE.md: kbmod's GPUArray, OpenCV's checked launches). C++17: included from .cu and .cpp files.
 #include <cuda_runtime.h>
 
+#include <algorithm>
 #include <cstddef>
+#include <vector>
 #include <string>
 #include <utility>
 
@@ -64,6 +66,16 @@ class DeviceBuffer {
   T* m_ptr = nullptr;
   std::size_t m_count = 0;
 };
+
+/// `host` copied into a new device buffer (at least one element, so that an empty vector still gives a
+/// valid pointer).
+template <class T>
+DeviceBuffer<T> toDevice(const std::vector<T>& host) {
+  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
+  if (!host.empty())
+    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+  return d;
+}
 
 /// Page-locked host memory (staging for asynchronous uploads). Move-only.
 class PinnedBuffer {

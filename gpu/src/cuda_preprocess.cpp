@@ -22,14 +22,6 @@ namespace st::gpu {
 namespace {
 
 template <class T>
-DeviceBuffer<T> toDevice(const std::vector<T>& host) {
-  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
-  if (!host.empty())
-    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
-  return d;
-}
-
-template <class T>
 std::vector<T> toHost(const DeviceBuffer<T>& d, std::size_t count) {
   std::vector<T> out(count);
   if (count) ST_CUDA_CHECK(cudaMemcpy(out.data(), d.get(), count * sizeof(T), cudaMemcpyDeviceToHost));

@@ -27,14 +27,6 @@ constexpr int kVelocitiesPerLaunch = 2048;
 /// and gained nothing on a typical upload.
 constexpr double kSlowUploadBytesPerS = 25e9;
 
-template <class T>
-DeviceBuffer<T> toDevice(const std::vector<T>& host) {
-  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
-  if (!host.empty())
-    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
-  return d;
-}
-
 /// Everything one device holds for the whole search besides frames and partial sums.
 struct DeviceTables {
   DeviceBuffer<int> shiftX, shiftY, spanX, spanY;

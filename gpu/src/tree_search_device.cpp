@@ -12,14 +12,6 @@
 namespace st::gpu {
 namespace {
 
-template <class T>
-DeviceBuffer<T> toDevice(const std::vector<T>& host) {
-  DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
-  if (!host.empty())
-    ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
-  return d;
-}
-
 float elapsedSeconds(const Event& a, const Event& b) {
   float ms = 0.0f;
   ST_CUDA_CHECK(cudaEventElapsedTime(&ms, a.get(), b.get()));
