@@ -65,10 +65,11 @@ const char* kHelp =
     "  --filtered F.fits       also write the matched-filtered cube (STFILT = T, SIGMAF; searched as is)\n"
     "  --background F.fits     also write the background image that was subtracted\n"
     "  --no-cosmic-rays        skip cosmic-ray removal\n"
-    "  --register              per-frame registration for dithered or re-pointed sequences (off by default:\n"
-    "                          the linear sky rate is the model); per-frame offsets, when used, are written\n"
-    "                          to the output's FRAMES table as REGX_PX/REGY_PX and used by search and stack\n"
-    "  --no-register           no per-frame registration (the default)\n"
+    "  --no-register           no per-frame registration: the linear sky rate is the model even when the\n"
+    "                          star field jumps (by default the star field is followed from frame to frame;\n"
+    "                          per-frame offsets, when dithers, guiding or re-pointing need them, are written\n"
+    "                          to the output's FRAMES table as REGX_PX/REGY_PX and used by search and stack)\n"
+    "  --register              per-frame registration (the default; kept for scripts)\n"
     "  --memory-limit SIZE     memory budget, e.g. 8G or 500M (default: 70% of the memory available now,\n"
     "                          within the cgroup's limit); the peak is estimated and printed first, and an\n"
     "                          input that does not fit stops with exit 1 before any pixel is read\n"
@@ -104,7 +105,7 @@ int cmdPreprocess(const Args& args) {
   if (!(params.psfFwhmPx > 0.5 && params.psfFwhmPx < 100.0))
     throw UsageError("--fwhm must be in (0.5, 100) px");
   params.removeCosmicRays = !cli.flag("no-cosmic-rays");
-  params.registerFrames = cli.flag("register") && !cli.flag("no-register");
+  params.registerFrames = !cli.flag("no-register");
   params.matchedFilter = cli.has("filtered");
 
   TerminalProgress progress;

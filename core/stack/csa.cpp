@@ -1,94 +1,25 @@
 #include "st/stack/csa.hpp"
 
-#include <fftw3.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <complex>
 #include <cstring>
-#include <map>
-#include <memory>
-#include <mutex>
 #include <string>
-#include <tuple>
 
 #include "st/common/error.hpp"
+#include "st/common/fftw_plans.hpp"
 #include "st/common/parallel.hpp"
 
 namespace st::stack {
 namespace {
 
-struct FftwFree {
-  void operator()(void* p) const noexcept { fftwf_free(p); }
-};
-using RealBuf = std::unique_ptr<float[], FftwFree>;
-using CplxBuf = std::unique_ptr<fftwf_complex[], FftwFree>;
+using fftw::CplxBuf;
+using fftw::PlanPair;
+using fftw::RealBuf;
 
-RealBuf allocReal(std::size_t n) {
-  RealBuf b(static_cast<float*>(fftwf_malloc(sizeof(float) * n)));
-  if (!b) throw InputError("CSA stack: out of memory for an FFT buffer of " + std::to_string(n) + " floats");
-  return b;
-}
-CplxBuf allocCplx(std::size_t n) {
-  CplxBuf b(static_cast<fftwf_complex*>(fftwf_malloc(sizeof(fftwf_complex) * n)));
-  if (!b) throw InputError("CSA stack: out of memory for an FFT buffer of " + std::to_string(n) + " values");
-  return b;
-}
-
-/// A forward r2c and an inverse c2r plan for one padded size, created once and kept for the process. The
-/// plans are executed with fftwf_execute_dft_* on other (fftwf_malloc-aligned) arrays, which is thread-safe.
-struct PlanPair {
-  fftwf_plan forward = nullptr;
-  fftwf_plan inverse = nullptr;
-};
-
-/// The process's plans, one pair per (nx, ny, measure), destroyed at exit (so leak checkers see none). No
-/// fftwf_cleanup*: that would invalidate plans other code might still hold.
-class PlanCache {
- public:
-  ~PlanCache() {
-    for (auto& [key, p] : m_plans) {
-      fftwf_destroy_plan(p.forward);
-      fftwf_destroy_plan(p.inverse);
-    }
-  }
-  PlanPair get(int nx, int ny, bool measure) {
-    std::lock_guard lock(m_mutex);
-    auto it = m_plans.find({nx, ny, measure});
-    if (it != m_plans.end()) return it->second;
-    const std::size_t nReal = std::size_t(nx) * ny, nCplx = std::size_t(nx / 2 + 1) * ny;
-    RealBuf r = allocReal(nReal);
-    CplxBuf c = allocCplx(nCplx);
-    const unsigned flags = measure ? FFTW_MEASURE : FFTW_ESTIMATE;
-    fftwf_plan_with_nthreads(1);
-    PlanPair p;
-    p.forward = fftwf_plan_dft_r2c_2d(ny, nx, r.get(), c.get(), flags);
-    p.inverse = fftwf_plan_dft_c2r_2d(ny, nx, c.get(), r.get(), flags);
-    if (!p.forward || !p.inverse) {
-      if (p.forward) fftwf_destroy_plan(p.forward);
-      if (p.inverse) fftwf_destroy_plan(p.inverse);
-      throw InputError("CSA stack: FFTW could not plan a " + std::to_string(nx) + " x " + std::to_string(ny) +
-                       " FFT");
-    }
-    m_plans.emplace(std::make_tuple(nx, ny, measure), p);
-    return p;
-  }
-
- private:
-  std::mutex m_mutex;
-  std::map<std::tuple<int, int, bool>, PlanPair> m_plans;
-};
-
-PlanPair plansFor(int nx, int ny, bool measure) {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    fftwf_init_threads();
-    fftwf_make_planner_thread_safe();
-  });
-  static PlanCache cache;  // constructed after the init above, so destroyed before anything it needs
-  return cache.get(nx, ny, measure);
-}
+RealBuf allocReal(std::size_t n) { return fftw::allocReal(n, "CSA stack"); }
+CplxBuf allocCplx(std::size_t n) { return fftw::allocCplx(n, "CSA stack"); }
 
 /// exp(2 pi i k Delta / n) for k = 0..count-1 with signed frequencies (k > n/2 -> k - n). At the Nyquist
 /// frequency of an even n the factor is real, cos(pi Delta), so the shifted image stays real.
@@ -182,7 +113,7 @@ StackResult stackCsa(const FrameCube& cube, const std::vector<double>& offsetsS,
   const int ny = fftFriendlySize(h + int(std::ceil(maxY)) + margin);
   const int hx = nx / 2 + 1;
   const std::size_t nCplx = std::size_t(hx) * ny;
-  const PlanPair plans = plansFor(nx, ny, o.measurePlans);
+  const PlanPair plans = fftw::plans2d(nx, ny, o.measurePlans);
 
   const std::size_t workers = std::max<std::size_t>(1, std::min<std::size_t>(workerCount(), used.size()));
   std::vector<CplxBuf> accs(workers);

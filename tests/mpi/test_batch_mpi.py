@@ -92,7 +92,7 @@ def main(cli, mpiexec):
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
         victim = kill_a_worker_mid_run(rec)
         try:
-            _, err = p.communicate(timeout=120)
+            _, err = p.communicate(timeout=300)  # a hang detector: generous for a loaded 2-core CI machine
         except subprocess.TimeoutExpired:
             p.kill()
             _, err = p.communicate()

@@ -14,9 +14,15 @@
 // Model: the linear sky rate r is the median of the pairwise slopes (P_j - P_i) / (t_j - t_i) over pairs at
 // most a quarter of the sequence apart (Theil-Sen, robust to dithers and to a jump), or the given rate. The
 // residuals o_n = P_n - r (t_n - t_0) (so o_0 = 0: frame 0 keeps the WCS's mapping) have an rms; at most
-// linearRmsPx: the linear model fits and o_n = 0 is kept; above: the per-frame residuals are used.
+// linearRmsPx: the linear model fits and o_n = 0 is kept; above: the per-frame residuals are used, but only
+// for frames whose residual exceeds 5 sigma of their own position error (each link's error is 1.5 px / SNR
+// of its peak, inflated below SNR 15, propagated along the links that placed the frame); the others keep
+// o_n = 0, and with none the linear model stays. Star images are tapered at the frame edges and the
+// correlation is high-pass filtered (structure wider than 12 px is left out), and the re-measurement
+// against an anchor looks for its peak only near the chained estimate.
 // Long sequences (more than 2 x kQuickFrames frames): first kQuickFrames evenly spaced links (frame n with
-// n + 1); when each agrees with the linear model within quickTolerancePx the linear model is kept without
+// n + 1); when each agrees with the linear model within quickTolerancePx (or 5 sigma of its own error) the
+// linear model is kept without
 // measuring every frame (the paper's scanning telescope, 1500 frames at 16.7 Hz); when fewer than half of
 // them are significant (frames too faint to follow one by one) the registration is Unmeasured at once.
 // Cost: two real FFTs of a frame per link, parallel over links; memory: a frame's spectrum per link in flight.
@@ -50,6 +56,8 @@ struct Registration {
   double rmsPx = 0.0;                   ///< rms of the residuals from the linear model, px
   double maxPx = 0.0;                   ///< largest residual, px
   int linksMeasured = 0;                ///< links whose peak was significant
+  int significantFrames = 0;            ///< frames whose offset departs from the model beyond 5 sigma of
+                                        ///< its measurement (the others keep o_n = 0)
   std::string rateNote;                 ///< how the rate was taken (an axis without significant drift is 0)
   std::string note;                     ///< for the user: which model, with the rms
 };

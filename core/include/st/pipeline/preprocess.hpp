@@ -53,10 +53,10 @@ struct PreprocessParams {
   std::optional<Velocity> skyRate;     ///< px/s; none = measure it from the stars
   detect::SkyRateParams skyRateParams;
   /// Per-frame registration (pipeline/registration_stage.hpp): offsets of the star field beyond the linear
-  /// sky rate (dithers, guiding, re-pointing), used by every later stage and the search. Off by default
-  /// for now: on undithered simulated EMCCD cubes (256^2, few stars) it reported false pointing jumps
-  /// (rms 3.7 px) and cost the object 16% of its SNR (test_pipeline_residuals); opt in (CLI --register).
-  bool registerFrames = false;
+  /// sky rate (dithers, guiding, re-pointing), used by every later stage and the search. On by default:
+  /// a smoothly drifting or tracked field keeps the linear model (test_registration's drifting EMCCD cube);
+  /// CLI --no-register turns it off.
+  bool registerFrames = true;
   detect::RegistrationParams registration;
   detect::StaticSourceParams stars;  ///< paper §4.3: SNR 7
   double singleFrameSnr = 7.0;       ///< paper §4.3: bright objects in single frames, SNR 7
