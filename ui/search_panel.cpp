@@ -474,6 +474,10 @@ QString candidateSummary(const search::SearchResult& result) {
     text += QString(" (%1 sidelobe%2 merged)")
                 .arg(result.sidelobesMerged)
                 .arg(result.sidelobesMerged == 1 ? "" : "s");
+  if (!result.staticSources.empty())
+    text += QString("; %1 static source%2 at the sky rate set aside (not movers)")
+                .arg(result.staticSources.size())
+                .arg(result.staticSources.size() == 1 ? "" : "s");
   return text;
 }
 

@@ -1,5 +1,6 @@
 #include "backend_factory.hpp"
 
+#include <cstdio>
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -129,6 +130,14 @@ std::string searchNotesText(const search::SearchResult& result) {
     if (end == std::string::npos) end = result.backendNote.size();
     out += "  " + result.backendNote.substr(start, end - start) + "\n";
     start = end + 1;
+  }
+  if (!result.staticSources.empty()) {
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "note: %zu candidate(s) at the sky rate (best SNR %.1f) set aside as static sources, not "
+                  "movers (JSON: static_sources)\n",
+                  result.staticSources.size(), result.staticSources.front().snr);
+    out += line;
   }
   return out;
 }

@@ -65,6 +65,9 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : r.candidates)
     j["candidates"].push_back(candidateToJson(cube, r.grid, c));
+  j["static_sources"] = nlohmann::json::array();
+  for (const auto& c : r.staticSources)
+    j["static_sources"].push_back(candidateToJson(cube, r.grid, c));
   return j;
 }
 
@@ -166,6 +169,11 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
     if (!j["candidates"].is_array()) throw InputError("search result: 'candidates' is not an array");
     for (const auto& c : j["candidates"])
       r.candidates.push_back(candidateFromJson(c));
+  }
+  if (j.contains("static_sources")) {  // written since 2026-11-26
+    if (!j["static_sources"].is_array()) throw InputError("search result: 'static_sources' is not an array");
+    for (const auto& c : j["static_sources"])
+      r.staticSources.push_back(candidateFromJson(c));
   }
   return r;
 }

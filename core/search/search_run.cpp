@@ -6,6 +6,7 @@
 
 #include "st/common/error.hpp"
 #include "st/search/sidelobes.hpp"
+#include "st/search/sky_motion.hpp"
 #include "st/stats/false_alarm.hpp"
 
 namespace st::search {
@@ -67,12 +68,12 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params) {
   setCandidates(result, std::move(hits), cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.frames.width(),
-                cube.frames.height(), params, cube.frames.frameOffsets());
+                cube.frames.height(), params, cube.frames.frameOffsets(), cube.skyRate);
 }
 
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
                    const std::vector<double>& dtS, int width, int height, const SearchParams& params,
-                   const std::vector<PixelOffset>& offsets) {
+                   const std::vector<PixelOffset>& offsets, Velocity skyRate) {
   // Total order (SNR descending, then y, x, ivy, ivx ascending): the cells kept at the cap and the
   // representative cell of a cluster do not depend on the order in which a backend found them.
   const auto before = [](const CellHit& a, const CellHit& b) {
@@ -91,6 +92,25 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
       mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold, offsets));
+  // Static sources: relative to the stars, less than one FWHM over the span (the cell's velocity is the grid
+  // velocity, so the limit is compared with the offset of the grid cell from the sky rate).
+  double tMin = 0.0, tMax = 0.0;
+  if (!dtS.empty()) {
+    const auto [lo, hi] = std::minmax_element(dtS.begin(), dtS.end());
+    tMin = *lo;
+    tMax = *hi;
+  }
+  const double limit = staticRateLimitPxS(psfFwhmPx, tMax - tMin);
+  result.staticSources.clear();
+  if (limit > 0.0) {
+    auto isStatic = [&](const Candidate& c) {
+      return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) <= limit;
+    };
+    for (const Candidate& c : result.candidates)
+      if (isStatic(c)) result.staticSources.push_back(c);
+    result.candidates.erase(std::remove_if(result.candidates.begin(), result.candidates.end(), isStatic),
+                            result.candidates.end());
+  }
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

@@ -82,6 +82,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   std::vector<double> dtS;
   std::vector<PixelOffset> offsets;  // the frames' registration offsets (FRAMES table), for the sidelobes
   double psfFwhm = 0.0;
+  Velocity skyRate;
   VelocityMap& map = result.map;
   map.nvx = grid.nvx;
   map.nvy = grid.nvy;
@@ -113,6 +114,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
         dtS = cube.frames.timeOffsetsS();
         offsets = cube.frames.frameOffsets();
         psfFwhm = cube.psfFwhmPx;
+        skyRate = cube.skyRate;
       } else if (cube.frames.frameCount() != dtS.size()) {
         throw InputError("out-of-core search: a tile has " + std::to_string(cube.frames.frameCount()) +
                          " frames, the first had " + std::to_string(dtS.size()));
@@ -158,7 +160,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
       }
     }
   }
-  setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params, offsets);
+  setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params, offsets, skyRate);
   result.backendNote = "out of core: " + std::to_string(tiles.size()) + " tile(s)";
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.report(1.0, params.method == "tree" ? "velocity search (tree)" : "velocity search");

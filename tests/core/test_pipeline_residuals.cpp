@@ -16,12 +16,13 @@
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/sim/simulator.hpp"
+#include "residual_cube.hpp"
 #include "track_pixels.hpp"
 
 namespace st::pipeline {
 namespace {
 
-constexpr double kStarX = 145.0, kStarY = 165.0;  // the saturated star at t_ref (object at 128, 112)
+constexpr double kStarX = test::kSaturatedStarX, kStarY = test::kSaturatedStarY;  // at t_ref
 
 struct ResidualRun {
   sim::Truth truth;
@@ -33,12 +34,7 @@ const ResidualRun& residualRun() {
   static const ResidualRun r = [] {
     NullProgress p;
     CancelToken c;
-    sim::SimParams sp = sim::preset("paper-neo");
-    sim::resize(sp, 256, 256, 250);
-    sp.brightStars = 0;
-    sp.starCount = 25;
-    sp.fixedStars = {{kStarX, kStarY, 10.5}};
-    sim::SimResult sim = sim::simulate(sp, 11, p, c);
+    sim::SimResult sim = sim::simulate(test::residualCubeParams(), 11, p, c);
     ResidualRun out;
     out.truth = sim.truth;
     PreprocessParams params;

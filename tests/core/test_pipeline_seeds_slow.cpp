@@ -2,7 +2,8 @@
 // paper-neo (500 frames of 512^2, EMCCD, stars drifting 16.4 px/s, one V = 23.1 asteroid of expected SNR
 // ~15), pre-process with the defaults, search as the demo does (+-8 deg/day, 1.5 px steps over the span,
 // method auto). Issue 14 asks, over the 20 seeds: the asteroid found in all (2 px, one grid step), SNR within
-// 5% on average and 15% in each, other candidates at most 2 x Prob_false + 1. The stars drift 16.4 px/s and
+// 5% on average and 15% in each, other candidates at most 2 x Prob_false + 1 (static sources at the sky rate,
+// which the search sets aside, are listed but not counted). The stars drift 16.4 px/s and
 // the asteroid only 0.7 px/s relative to them, so its track runs through stars' footprints for hundreds of
 // frames: masking every star down to one stack sigma lost seed 24 and put 3 more at the wrong velocity;
 // pre-processing now subtracts the stars (a sky-registered template) and masks only their cores and the sky
@@ -29,7 +30,7 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   NullProgress p;
   CancelToken c;
   const auto backend = search::makeCpuBackend();
-  int found = 0, seeds = 0, others = 0, onVelocity = 0, oneStep = 0, within15 = 0;
+  int found = 0, seeds = 0, others = 0, onVelocity = 0, oneStep = 0, within15 = 0, staticSet = 0;
   double sumRatio = 0.0, expectedFalse = 0.0;
   for (unsigned seed = 21; seed <= 40; ++seed) {
     sim::SimResult sim = sim::simulate(sim::preset("paper-neo"), seed, p, c);
@@ -41,6 +42,11 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
         search::searchWithMethod(*backend, prep.filtered, grid, demoSearchParams(), p, c);
     ++seeds;
     expectedFalse += stats::expectedFalseAlarms(r.snrThreshold, r.trials.total());
+    for (const auto& st : r.staticSources) {
+      ++staticSet;
+      std::printf("seed %u: static source set aside (%d, %d) v (%.2f, %.2f) px/s SNR %.2f\n", seed, st.x, st.y,
+                  st.v.vx, st.v.vy, st.snr);
+    }
     const search::Candidate* hit = nullptr;
     for (const auto& cd : r.candidates) {
       // Detected: at the asteroid's place (2.5 px) and near its velocity (5 grid steps); "on its velocity"
@@ -85,19 +91,23 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   const double mean = found > 0 ? sumRatio / found : 0.0;
   std::printf(
       "found %d of %d (%d within one grid step, %d within two); mean search/expected SNR %.3f, %d within "
-      "15%%; %d other candidates at SNR >= 7 (Prob_false predicts %.3f)\n",
-      found, seeds, oneStep, onVelocity, mean, within15, others, expectedFalse);
+      "15%%; %d other candidates at SNR >= 7 (Prob_false predicts %.3f); %d static source(s) at the sky rate "
+      "set aside\n",
+      found, seeds, oneStep, onVelocity, mean, within15, others, expectedFalse, staticSet);
   // Measured 2026-11-25 (16-core device machine, CPU): found 20 of 20, 19 within one step, 20 within two;
   // mean 0.996, 17 of 20 within 15% (seed 24 -38% and 28 -23%: their tracks cross bright stars' cores;
   // seed 21 +18%); 1 other candidate (an edge detection, SNR 7.08; issue 14's bound: 2 x 0.014 + 1) while
   // weak non-static sources were subtracted too; that was taken back (it zeroed a mover's pixels in
   // test_pipeline_residuals), which brings back seed 34's pair of faint stars at the sky rate (SNR 11.0): 2.
+  // 2026-11-26 (H200 machine, CPU), registration on by default: the same figures (seed 24 -38.1%), 2 others.
+  // Candidates less than one FWHM over the span from the sky rate are now set aside as static sources
+  // (SearchResult::staticSources): seed 34's pair is one, so the issue's bound 2 x Prob_false + 1 holds.
   EXPECT_EQ(found, seeds);
   EXPECT_GE(oneStep, seeds - 2);
   EXPECT_GE(onVelocity, seeds - 1);
   EXPECT_NEAR(mean, 1.0, 0.05);
   EXPECT_GE(within15, seeds - 4);
-  EXPECT_LE(others, 2.0 * expectedFalse + 2.0);
+  EXPECT_LE(others, 2.0 * expectedFalse + 1.0);
 }
 
 }  // namespace

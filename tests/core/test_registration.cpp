@@ -10,6 +10,7 @@
 #include <random>
 
 #include "dither_frames.hpp"
+#include "residual_cube.hpp"
 #include "search_test_cubes.hpp"
 #include "st/detect/registration.hpp"
 #include "st/io/fits_reader.hpp"
@@ -208,12 +209,7 @@ TEST(Registration, DitheredSequenceIsMeasured) {
 TEST(Registration, DriftingEmccdFieldKeepsTheLinearModel) {
   NullProgress p;
   CancelToken c;
-  sim::SimParams sp = sim::preset("paper-neo");
-  sim::resize(sp, 256, 256, 250);
-  sp.brightStars = 0;
-  sp.starCount = 25;
-  sp.fixedStars = {{145.0, 165.0, 10.5}};
-  sim::SimResult sim = sim::simulate(sp, 11, p, c);
+  sim::SimResult sim = sim::simulate(test::residualCubeParams(), 11, p, c);
   pipeline::PreprocessParams params;
   params.registerFrames = true;
   params.masters = sim::exactMasters(sim);

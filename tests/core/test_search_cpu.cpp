@@ -168,6 +168,39 @@ TEST(SearchCpu, KernelEveryCellMatchesBruteForce) {
   }
 }
 
+// A source moving with the stars (less than one FWHM over the span from the sky rate) cannot be told from a
+// star: it is set aside as a static source, not reported as a mover; a mover in the same cube is reported.
+// Oracle: the injected velocities. Same cube as below, with a sky rate of (0.2, -0.1) px/s.
+TEST(SearchCpu, SourcesAtTheSkyRateAreSetAsideAsStatic) {
+  const psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
+  const int r = 6;
+  FilteredCube fc;
+  fc.frames = test::noiseCube(72, 64, test::unevenTimes(60, 0.6, 3), 1.0, 99);
+  const double span = fc.frames.timeSpanS();
+  VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 31, 31};
+  fc.skyRate = grid.at(17, 13);
+  const Velocity mover = grid.at(24, 9);
+  const double p2 = test::sumP2(psf, r);
+  const double alpha = 18.0 / (std::sqrt(60.0) * std::sqrt(p2));
+  test::injectMoffat(fc.frames, psf, alpha, 40.0, 30.0, mover);
+  test::injectMoffat(fc.frames, psf, alpha, 15.0, 45.0, fc.skyRate);
+  test::matchedFilter(fc.frames, psf, r);
+  fc.sigmaF = std::sqrt(p2);
+  fc.psfFwhmPx = psf.fwhm();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult res = makeCpuBackend()->search(fc, grid, SearchParams{}, progress, cancel);
+  ASSERT_EQ(res.candidates.size(), 1u);
+  EXPECT_NEAR(res.candidates[0].x, 40, 1);
+  EXPECT_NEAR(res.candidates[0].y, 30, 1);
+  ASSERT_EQ(res.staticSources.size(), 1u);
+  const Candidate& st = res.staticSources[0];
+  EXPECT_NEAR(st.x, 15, 1);
+  EXPECT_NEAR(st.y, 45, 1);
+  EXPECT_LE(std::hypot(st.v.vx - fc.skyRate.vx, st.v.vy - fc.skyRate.vy), fc.psfFwhmPx / span);
+  EXPECT_GT(st.snr, 0.8 * 18.0);
+}
+
 TEST(SearchCpu, FindsInjectedMovingSource) {
   // 72 x 64 px, 60 uneven frames over ~40 s, white noise sigma 1, Moffat FWHM ~3 px moving at a grid
   // velocity; frames matched-filtered with the PSF like pre-processing. Expected SNR (paper detection_snr)

@@ -40,13 +40,15 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
 /// Sorts `hits` by decreasing SNR (ties: increasing y, x, ivy, ivx, so every backend keeps the same cells
 /// and picks the same representative cell), keeps at most params.maxCandidates and clusters them into
 /// result.candidates (clusterCells with the cube's PSF FWHM and result.trials), then merges the sidelobes of
-/// bright candidates into them (sidelobes.hpp; result.sidelobesMerged counts them).
+/// bright candidates into them (sidelobes.hpp; result.sidelobesMerged counts them), and sets aside into
+/// result.staticSources the candidates within the static-rate limit of the cube's sky rate (types.hpp).
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, const FilteredCube& cube,
                    const SearchParams& params);
 /// The same with the cube's properties given (an out-of-core search holds no whole cube): PSF FWHM, the
-/// frames' t - t_ref (s), the whole image's size and the frames' registration offsets (empty = all 0).
+/// frames' t - t_ref (s), the whole image's size, the frames' registration offsets (empty = all 0) and the
+/// stars' motion, px/s.
 void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFwhmPx,
                    const std::vector<double>& dtS, int width, int height, const SearchParams& params,
-                   const std::vector<PixelOffset>& offsets = {});
+                   const std::vector<PixelOffset>& offsets, Velocity skyRate);
 
 }  // namespace st::search

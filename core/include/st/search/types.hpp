@@ -101,7 +101,12 @@ struct VelocityMap {
 struct SearchResult {
   VelocityGrid grid;
   VelocityMap map;
-  std::vector<Candidate> candidates;  ///< clustered, sorted by decreasing SNR
+  std::vector<Candidate> candidates;  ///< clustered, sorted by decreasing SNR; movers only
+  /// Candidates whose velocity relative to the stars (FilteredCube::skyRate) moves them less than one PSF
+  /// FWHM over the span (search::staticRateLimitPxS): static sources that pre-processing left (a star's
+  /// residual, a pair of faint stars), which no search can tell from a star. Set aside, sorted by SNR, not
+  /// counted as detections; a mover that slow is below the method's documented limit.
+  std::vector<Candidate> staticSources;
   TrialCounts trials;
   double snrThreshold = 0.0;  ///< the threshold actually used
   double tRefMjd = 0.0;
