@@ -99,4 +99,15 @@ inline double sumP2(const psf::Moffat& psf, int r) {
   return s;
 }
 
+/// The best result within `radius` px of (x, y), movers and static sources alike: an object injected at a
+/// velocity within one FWHM over the span of the sky rate (0 in these cubes) is set aside as static by the
+/// search (SearchResult::staticSources), and is still found.
+inline const search::Candidate* nearestFound(const search::SearchResult& r, double x, double y, int radius) {
+  const search::Candidate* best = nullptr;
+  for (const auto* list : {&r.candidates, &r.staticSources})
+    for (const search::Candidate& c : *list)
+      if (std::abs(c.x - x) <= radius && std::abs(c.y - y) <= radius && (!best || c.snr > best->snr)) best = &c;
+  return best;
+}
+
 }  // namespace st::test

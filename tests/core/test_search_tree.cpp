@@ -118,14 +118,8 @@ FilteredCube injectedCube(const std::vector<Injected>& objects, const psf::Moffa
   return fc;
 }
 
-/// The best candidate within `radius`, movers and static sources alike (an object injected at random
-/// velocities may move less than one FWHM over the span: set aside as static, still found).
 const Candidate* nearest(const SearchResult& r, double x, double y, int radius) {
-  const Candidate* best = nullptr;
-  for (const auto* list : {&r.candidates, &r.staticSources})
-    for (const Candidate& c : *list)
-      if (std::abs(c.x - x) <= radius && std::abs(c.y - y) <= radius && (!best || c.snr > best->snr)) best = &c;
-  return best;
+  return test::nearestFound(r, x, y, radius);
 }
 
 TEST(SearchTree, MatchesExactOnInjectedObjects) {

@@ -15,11 +15,7 @@ namespace st::search {
 namespace {
 
 const Candidate* nearestCandidate(const SearchResult& r, double x, double y, int radius) {
-  const Candidate* best = nullptr;
-  for (const Candidate& c : r.candidates) {
-    if (std::abs(c.x - x) <= radius && std::abs(c.y - y) <= radius && (!best || c.snr > best->snr)) best = &c;
-  }
-  return best;
+  return test::nearestFound(r, x, y, radius);
 }
 
 TEST(SearchTreeSlow, PaperCadenceInjectedObjects) {
