@@ -46,6 +46,7 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
   params.accelerator = accelerator;
   params.calib = in.calib;
   params.keepZeroBiased = keepZeroBiased;
+  params.registerFrames = o.registerFrames;
   const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
   const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
   const FrameCube flat = loadCalibrationFrames(in.flat, in.load.crop, progress, cancel);

@@ -46,6 +46,8 @@ const char* searchOptionsHelp() {
          "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's "
          "rule)\n"
          "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
+         "  --no-register         raw input: no per-frame registration in pre-processing (the linear sky\n"
+         "                        rate is the model even where the star field jumps)\n"
          "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all "
          "trials\n"
          "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
@@ -98,6 +100,7 @@ SearchOptions parseSearchOptions(const CliArgs& cli) {
     if (*n < 1) throw UsageError("--max-candidates must be >= 1");
     p.maxCandidates = static_cast<std::size_t>(*n);
   }
+  o.registerFrames = !cli.flag("no-register");
   o.sigmaF = cli.number("sigma-f");
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;

@@ -14,6 +14,7 @@ struct SearchOptions {
   search::SearchRequest request;
   std::optional<double> sigmaF;  ///< override of the filtered frames' noise
   std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
+  bool registerFrames = true;    ///< per-frame registration in pre-processing (--no-register turns it off)
   std::string backend = "auto";
   long long fitMax = 50;  ///< candidates refined by the co-moving fit (--fit-max)
   /// --memory-limit ("8G", "500M"); none = the default budget (st/common/memory_budget.hpp)

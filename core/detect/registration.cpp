@@ -88,7 +88,8 @@ void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin, 
 /// (the chained estimate), so that a second peak elsewhere (a static pattern) cannot be taken; the
 /// significance is still over the whole surface.
 PixelOffset correlate(const float* a, const float* b, int w, int h, double& snr,
-                      const std::optional<PixelOffset>& guide = std::nullopt, double guideRadius = 0.0) {
+                      const std::optional<PixelOffset>& guide = std::nullopt, double guideRadius = 0.0,
+                      bool* atGuideEdge = nullptr) {
   const fftw::PlanPair plans = fftw::plans2d(w, h, false);
   const std::size_t nr = static_cast<std::size_t>(w) * h, nc = static_cast<std::size_t>(w / 2 + 1) * h;
   RealBuf in = fftw::allocReal(nr, "registration");
@@ -138,6 +139,13 @@ PixelOffset correlate(const float* a, const float* b, int w, int h, double& snr,
   const double mean = sum / static_cast<double>(nr);
   const double rms = std::sqrt(std::max(0.0, sum2 / static_cast<double>(nr) - mean * mean));
   snr = rms > 0.0 ? (c[best] - mean) / rms : 0.0;
+  if (guide && atGuideEdge) {  // the best inside the disk on its rim: the slope of a peak outside it
+    double dx = static_cast<double>(best % static_cast<std::size_t>(w)) - guide->x;
+    double dy = static_cast<double>(best / static_cast<std::size_t>(w)) - guide->y;
+    dx -= w * std::round(dx / w);
+    dy -= h * std::round(dy / h);
+    *atGuideEdge = std::hypot(dx, dy) > guideRadius - 1.0;
+  }
   const int px = static_cast<int>(best % static_cast<std::size_t>(w));
   const int py = static_cast<int>(best / static_cast<std::size_t>(w));
   const auto at = [&](int x, int y) {
@@ -181,10 +189,13 @@ class StarImages {
 };
 
 struct Link {
-  PixelOffset step;  ///< from the earlier frame to the later, full-resolution px
+  PixelOffset step;    ///< from the earlier frame to the later, full-resolution px
   double snr = 0.0;
+  double sigma = 0.0;  ///< 1-sigma error of the step per axis, full-resolution px (linkSigmaPx x bin)
   bool ok = false;
 };
+
+double linkSigmaPx(double snr);
 
 /// `guide`/`guideRadius` (full-resolution px): see correlate.
 Link measureLink(const StarImages& images, std::size_t later, std::size_t earlier, double minSnr,
@@ -193,10 +204,12 @@ Link measureLink(const StarImages& images, std::size_t later, std::size_t earlie
   Link l;
   std::optional<PixelOffset> g;
   if (guide) g = PixelOffset{guide->x / images.bin(), guide->y / images.bin()};
-  const PixelOffset s =
-      correlate(a.data(), b.data(), images.width(), images.height(), l.snr, g, guideRadius / images.bin());
+  bool atEdge = false;
+  const PixelOffset s = correlate(a.data(), b.data(), images.width(), images.height(), l.snr, g,
+                                  guideRadius / images.bin(), &atEdge);
   l.step = {s.x * images.bin(), s.y * images.bin()};
-  l.ok = l.snr >= minSnr;
+  l.sigma = linkSigmaPx(l.snr) * images.bin();
+  l.ok = l.snr >= minSnr && !atEdge;
   return l;
 }
 
@@ -407,7 +420,7 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
       const double e = std::hypot(ex, ey);
       worst = std::max(worst, e);
       sum2 += ex * ex + ey * ey;
-      agree = agree && e <= std::max(params.quickTolerancePx, kSignificance * linkSigmaPx(quick[i].snr));
+      agree = agree && e <= std::max(params.quickTolerancePx, kSignificance * quick[i].sigma);
     }
     if (r.linksMeasured < kQuickFrames / 2) {  // faint frames (EMCCD at 16.7 Hz): not worth every frame
       r.note = modelNote(r, nf) + " (" + std::to_string(kQuickFrames) + " sampled frame pairs)";
@@ -471,6 +484,22 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
   // anchorOf[k] < k: an anchor frame itself is measured against the anchor before it.
   std::vector<Link> direct(nf);
   std::vector<double> posVar(nf, 0.0);  ///< variance of P_k (per axis, px^2) from the links that gave it
+  // Variance of the chained position (per axis) and of the chained step between two frames: along the
+  // back-pointer tree, through the frames' common ancestor.
+  std::vector<double> chainVar(nf, 0.0);
+  for (std::size_t k = 1; k < nf; ++k)
+    chainVar[k] = chainVar[k - back[k]] + links[k].sigma * links[k].sigma;
+  const auto chainStepVar = [&](std::size_t i, std::size_t j) {
+    std::size_t a = i, b = j;
+    while (a != b) {
+      if (a > b) {
+        a -= static_cast<std::size_t>(back[a]);
+      } else {
+        b -= static_cast<std::size_t>(back[b]);
+      }
+    }
+    return std::max(0.0, chainVar[i] + chainVar[j] - 2.0 * chainVar[a]);
+  };
   parallelFor(nf - 1, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t k = b + 1; k < e + 1; ++k) {
       cancel.throwIfCancelled();
@@ -479,29 +508,26 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
         direct[k] = links[k];
         continue;
       }
-      // Guided by the chained step: within 3 px plus 2% of the distance (the chain's error grows with it).
+      // Guided by the chained step: within 3 px plus 4 sigma of the chain between the two frames plus 2% of
+      // the distance; a best pixel on the disk's rim is not taken (the link falls back to the chain).
       const PixelOffset chained{px[k] - px[ref], py[k] - py[ref]};
-      const double radius = 3.0 + 0.02 * std::hypot(chained.x, chained.y) + 0.05 * static_cast<double>(k - ref);
+      const double radius =
+          3.0 + 4.0 * std::sqrt(2.0 * chainStepVar(k, ref)) + 0.02 * std::hypot(chained.x, chained.y);
       direct[k] = measureLink(images, order[k], order[ref], params.minPeakSnr, chained, radius);
     }
   });
   {
-    std::vector<double> qx(px), qy(py), chainVar(nf, 0.0);
-    for (std::size_t k = 1; k < nf; ++k) {
-      const double s = linkSigmaPx(links[k].snr);
-      chainVar[k] = chainVar[k - back[k]] + s * s;
-    }
+    std::vector<double> qx(px), qy(py);
     for (std::size_t k = 1; k < nf; ++k) {
       const std::size_t ref = anchorOf[k];
       if (direct[k].ok) {
         qx[k] = qx[ref] + direct[k].step.x;
         qy[k] = qy[ref] + direct[k].step.y;
-        const double s = linkSigmaPx(direct[k].snr);
-        posVar[k] = posVar[ref] + s * s;
+        posVar[k] = posVar[ref] + direct[k].sigma * direct[k].sigma;
       } else {  // the chained step from the anchor
         qx[k] = qx[ref] + (px[k] - px[ref]);
         qy[k] = qy[ref] + (py[k] - py[ref]);
-        posVar[k] = posVar[ref] + std::max(0.0, chainVar[k] - chainVar[ref]);
+        posVar[k] = posVar[ref] + chainStepVar(k, ref);
       }
     }
     px = std::move(qx);

@@ -104,7 +104,8 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
   result.staticSources.clear();
   if (limit > 0.0) {
     auto isStatic = [&](const Candidate& c) {
-      return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) <= limit;
+      // Strictly less than the limit (a grid of FWHM / span steps keeps its first ring of cells as movers).
+      return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) < limit * (1.0 - 1e-9);
     };
     for (const Candidate& c : result.candidates)
       if (isStatic(c)) result.staticSources.push_back(c);
