@@ -27,8 +27,50 @@ constexpr double kHighPassPx = 12.0; ///< structure wider than this (a saturated
 using fftw::CplxBuf;
 using fftw::RealBuf;
 
-/// The star image of one frame (model in the header), binned by `bin`, into `out` (w/bin x h/bin).
-void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin, float* out) {
+/// What depends only on the (binned) image size, made once per registration rather than per frame or link.
+/// Edge taper (cosine over the outer band): a star entering or leaving the frame is cut by the edge, and the
+/// cut is fixed on the detector; untapered, a bright star's cut pulls the correlation peak towards zero
+/// shift (a drifting EMCCD field measured 0.2 px steps for 1 px ones while a 10.5 mag star entered).
+/// High-pass on the r2c half spectrum (h rows of w / 2 + 1): 1 - exp(-(k s)^2 / 2), s = kHighPassPx /
+/// (2 pi), so broad clipped disks of saturated stars do not dominate and blur the peak.
+struct CorrelationWeights {
+  std::vector<float> taperX, taperY;  ///< per column / row of the star image
+  std::vector<float> highPass;        ///< per frequency of the half spectrum
+};
+
+CorrelationWeights correlationWeights(int w, int h) {
+  CorrelationWeights cw;
+  const int band = std::max(2, std::min(kTaperPx, std::min(w, h) / 8));
+  const auto taper = [band](int n) {
+    std::vector<float> t(static_cast<std::size_t>(n), 1.0f);
+    for (int i = 0; i < n; ++i) {
+      const int d = std::min(i, n - 1 - i);
+      if (d < band)
+        t[static_cast<std::size_t>(i)] =
+            static_cast<float>(0.5 - 0.5 * std::cos(M_PI * (d + 0.5) / static_cast<double>(band)));
+    }
+    return t;
+  };
+  cw.taperX = taper(w);
+  cw.taperY = taper(h);
+  const int hw = w / 2 + 1;
+  const double sx = 2.0 * M_PI / w, sy = 2.0 * M_PI / h, scale2 = kHighPassPx * kHighPassPx / (4.0 * M_PI * M_PI);
+  cw.highPass.resize(static_cast<std::size_t>(hw) * h);
+  for (int ky = 0; ky < h; ++ky) {
+    const int fy = ky <= h / 2 ? ky : ky - h;
+    const double ky2 = (sy * fy) * (sy * fy);
+    for (int kx = 0; kx < hw; ++kx) {
+      const double k2 = ky2 + (sx * kx) * (sx * kx);
+      cw.highPass[static_cast<std::size_t>(ky) * hw + kx] = static_cast<float>(1.0 - std::exp(-0.5 * k2 * scale2));
+    }
+  }
+  return cw;
+}
+
+/// The star image of one frame (model in the header), binned by `bin`, into `out` (w/bin x h/bin), tapered
+/// at the edges with `weights` (made for w/bin x h/bin).
+void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin, const CorrelationWeights& weights,
+               float* out) {
   const int bw = w / bin, bh = h / bin;
   std::vector<float> sample;
   sample.reserve(static_cast<std::size_t>(w) * h / 7 + 1);
@@ -64,32 +106,21 @@ void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin, 
       out[static_cast<std::size_t>(by) * bw + bx] = v;
     }
   }
-  // Edge taper (cosine over the outer band): a star entering or leaving the frame is cut by the edge, and
-  // the cut is fixed on the detector; untapered, a bright star's cut pulls the correlation peak towards
-  // zero shift (a drifting EMCCD field measured 0.2 px steps for 1 px ones while a 10.5 mag star entered).
-  const int band = std::max(2, std::min(kTaperPx, std::min(bw, bh) / 8));
-  std::vector<float> ramp(static_cast<std::size_t>(band));
-  for (int i = 0; i < band; ++i)
-    ramp[static_cast<std::size_t>(i)] =
-        static_cast<float>(0.5 - 0.5 * std::cos(M_PI * (i + 0.5) / static_cast<double>(band)));
-  const auto weight = [&](int i, int n) {
-    const int d = std::min(i, n - 1 - i);
-    return d < band ? ramp[static_cast<std::size_t>(d)] : 1.0f;
-  };
   for (int by = 0; by < bh; ++by) {
-    const float wy = weight(by, bh);
+    const float wy = weights.taperY[static_cast<std::size_t>(by)];
     for (int bx = 0; bx < bw; ++bx)
-      out[static_cast<std::size_t>(by) * bw + bx] *= wy * weight(bx, bw);
+      out[static_cast<std::size_t>(by) * bw + bx] *= wy * weights.taperX[static_cast<std::size_t>(bx)];
   }
 }
 
-/// Cross-correlation peak of two star images (w x h): the step from b to a, and its significance.
-/// `guide`: when set, the peak is taken within `guideRadius` (binned px, circular distance) of this step
-/// (the chained estimate), so that a second peak elsewhere (a static pattern) cannot be taken; the
-/// significance is still over the whole surface.
-PixelOffset correlate(const float* a, const float* b, int w, int h, double& snr,
-                      const std::optional<PixelOffset>& guide = std::nullopt, double guideRadius = 0.0,
-                      bool* atGuideEdge = nullptr) {
+/// Cross-correlation peak of two star images (w x h), high-pass filtered with `weights`: the step from b
+/// to a, and its significance. `guide`: when set, the peak is taken within `guideRadius` (binned px,
+/// circular distance) of this step (the chained estimate), so that a second peak elsewhere (a static
+/// pattern) cannot be taken; the significance is still over the whole surface. `atGuideEdge` says when that
+/// peak lies on the disk's rim (the slope of a peak outside it).
+PixelOffset correlate(const float* a, const float* b, int w, int h, const CorrelationWeights& weights,
+                      double& snr, const std::optional<PixelOffset>& guide = std::nullopt,
+                      double guideRadius = 0.0, bool* atGuideEdge = nullptr) {
   const fftw::PlanPair plans = fftw::plans2d(w, h, false);
   const std::size_t nr = static_cast<std::size_t>(w) * h, nc = static_cast<std::size_t>(w / 2 + 1) * h;
   RealBuf in = fftw::allocReal(nr, "registration");
@@ -99,53 +130,44 @@ PixelOffset correlate(const float* a, const float* b, int w, int h, double& snr,
   fftwf_execute_dft_r2c(plans.forward, in.get(), fa.get());
   std::memcpy(in.get(), b, sizeof(float) * nr);
   fftwf_execute_dft_r2c(plans.forward, in.get(), fb.get());
-  // A conj(B) (c(s) = sum_x a(x + s) b(x)), times a Gaussian high-pass 1 - exp(-(k s)^2 / 2), s =
-  // kHighPassPx / (2 pi): broad clipped disks of saturated stars would otherwise dominate and blur the peak.
-  const int hw = w / 2 + 1;
-  const double sx = 2.0 * M_PI / w, sy = 2.0 * M_PI / h, scale2 = kHighPassPx * kHighPassPx / (4.0 * M_PI * M_PI);
-  for (int ky = 0; ky < h; ++ky) {
-    const int fy = ky <= h / 2 ? ky : ky - h;
-    const double ky2 = (sy * fy) * (sy * fy);
-    for (int kx = 0; kx < hw; ++kx) {
-      const std::size_t i = static_cast<std::size_t>(ky) * hw + kx;
-      const double k2 = ky2 + (sx * kx) * (sx * kx);
-      const float g = static_cast<float>(1.0 - std::exp(-0.5 * k2 * scale2));
-      const float re = fa[i][0] * fb[i][0] + fa[i][1] * fb[i][1];
-      const float im = fa[i][1] * fb[i][0] - fa[i][0] * fb[i][1];
-      fa[i][0] = g * re;
-      fa[i][1] = g * im;
-    }
+  for (std::size_t i = 0; i < nc; ++i) {  // A conj(B): c(s) = sum_x a(x + s) b(x), high-passed
+    const float g = weights.highPass[i];
+    const float re = fa[i][0] * fb[i][0] + fa[i][1] * fb[i][1];
+    const float im = fa[i][1] * fb[i][0] - fa[i][0] * fb[i][1];
+    fa[i][0] = g * re;
+    fa[i][1] = g * im;
   }
   fftwf_execute_dft_c2r(plans.inverse, fa.get(), in.get());
   const float* c = in.get();
-  std::size_t best = 0;
   double sum = 0.0, sum2 = 0.0;
-  bool anyInside = false;
   for (std::size_t i = 0; i < nr; ++i) {
     sum += c[i];
     sum2 += static_cast<double>(c[i]) * c[i];
-    if (guide) {
-      double dx = static_cast<double>(i % static_cast<std::size_t>(w)) - guide->x;
-      double dy = static_cast<double>(i / static_cast<std::size_t>(w)) - guide->y;
-      dx -= w * std::round(dx / w);
-      dy -= h * std::round(dy / h);
-      if (dx * dx + dy * dy > guideRadius * guideRadius) continue;
-      if (!anyInside || c[i] > c[best]) best = i;
-      anyInside = true;
-    } else if (c[i] > c[best]) {
-      best = i;
+  }
+  std::size_t best = 0;
+  if (guide) {  // the box around the guide (wrapped), pixels within the radius
+    const auto wrap = [](int v, int n) { return ((v % n) + n) % n; };
+    const int r = static_cast<int>(std::ceil(guideRadius));
+    const int gx = static_cast<int>(std::lround(guide->x)), gy = static_cast<int>(std::lround(guide->y));
+    bool any = false;
+    double bestD = 0.0;
+    for (int y = gy - r; y <= gy + r; ++y) {
+      for (int x = gx - r; x <= gx + r; ++x) {
+        const double d = std::hypot(x - guide->x, y - guide->y);
+        if (d > guideRadius) continue;
+        const std::size_t i = static_cast<std::size_t>(wrap(y, h)) * w + wrap(x, w);
+        if (!any || c[i] > c[best]) best = i, bestD = d;
+        any = true;
+      }
     }
+    if (atGuideEdge) *atGuideEdge = bestD > guideRadius - 1.0;
+  } else {
+    for (std::size_t i = 1; i < nr; ++i)
+      if (c[i] > c[best]) best = i;
   }
   const double mean = sum / static_cast<double>(nr);
   const double rms = std::sqrt(std::max(0.0, sum2 / static_cast<double>(nr) - mean * mean));
   snr = rms > 0.0 ? (c[best] - mean) / rms : 0.0;
-  if (guide && atGuideEdge) {  // the best inside the disk on its rim: the slope of a peak outside it
-    double dx = static_cast<double>(best % static_cast<std::size_t>(w)) - guide->x;
-    double dy = static_cast<double>(best / static_cast<std::size_t>(w)) - guide->y;
-    dx -= w * std::round(dx / w);
-    dy -= h * std::round(dy / h);
-    *atGuideEdge = std::hypot(dx, dy) > guideRadius - 1.0;
-  }
   const int px = static_cast<int>(best % static_cast<std::size_t>(w));
   const int py = static_cast<int>(best / static_cast<std::size_t>(w));
   const auto at = [&](int x, int y) {
@@ -171,7 +193,9 @@ class StarImages {
     m_bin = std::max(cube.width(), cube.height()) > kBinAbove ? 2 : 1;
     m_w = cube.width() / m_bin;
     m_h = cube.height() / m_bin;
+    m_weights = correlationWeights(m_w, m_h);
   }
+  [[nodiscard]] const CorrelationWeights& weights() const noexcept { return m_weights; }
   [[nodiscard]] int bin() const noexcept { return m_bin; }
   [[nodiscard]] int width() const noexcept { return m_w; }
   [[nodiscard]] int height() const noexcept { return m_h; }
@@ -179,14 +203,23 @@ class StarImages {
     std::vector<float> out(static_cast<std::size_t>(m_w) * m_h);
     const auto& mask = m_cube.mask();
     starImage(m_cube.frame(n), mask.empty() ? nullptr : mask.data() + n * m_cube.framePixels(), m_cube.width(),
-              m_cube.height(), m_bin, out.data());
+              m_cube.height(), m_bin, m_weights, out.data());
     return out;
   }
 
  private:
   const FrameCube& m_cube;
   int m_bin = 1, m_w = 0, m_h = 0;
+  CorrelationWeights m_weights;
 };
+
+/// The 1-sigma error (px, per axis) of a correlation step measured at peak significance `snr`: 1.5 px / SNR
+/// (the scatter of links at SNR 80 on the paper's EMCCD cube: 0.016-0.02 px), inflated below SNR ~15, where
+/// the peak is broad and may blend with noise peaks (links at SNR 8-12 scatter by 0.3-0.7 px there).
+double linkSigmaPx(double snr) {
+  const double s = std::max(snr, 1.0);
+  return 1.5 / s * (1.0 + (15.0 / s) * (15.0 / s));
+}
 
 struct Link {
   PixelOffset step;    ///< from the earlier frame to the later, full-resolution px
@@ -194,8 +227,6 @@ struct Link {
   double sigma = 0.0;  ///< 1-sigma error of the step per axis, full-resolution px (linkSigmaPx x bin)
   bool ok = false;
 };
-
-double linkSigmaPx(double snr);
 
 /// `guide`/`guideRadius` (full-resolution px): see correlate.
 Link measureLink(const StarImages& images, std::size_t later, std::size_t earlier, double minSnr,
@@ -205,20 +236,12 @@ Link measureLink(const StarImages& images, std::size_t later, std::size_t earlie
   std::optional<PixelOffset> g;
   if (guide) g = PixelOffset{guide->x / images.bin(), guide->y / images.bin()};
   bool atEdge = false;
-  const PixelOffset s = correlate(a.data(), b.data(), images.width(), images.height(), l.snr, g,
-                                  guideRadius / images.bin(), &atEdge);
+  const PixelOffset s = correlate(a.data(), b.data(), images.width(), images.height(), images.weights(), l.snr,
+                                  g, guideRadius / images.bin(), &atEdge);
   l.step = {s.x * images.bin(), s.y * images.bin()};
   l.sigma = linkSigmaPx(l.snr) * images.bin();
   l.ok = l.snr >= minSnr && !atEdge;
   return l;
-}
-
-/// The 1-sigma error (px, per axis) of a correlation step measured at peak significance `snr`: 1.5 px / SNR
-/// (the scatter of links at SNR 80 on the paper's EMCCD cube: 0.016-0.02 px), inflated below SNR ~15, where
-/// the peak is broad and may blend with noise peaks (links at SNR 8-12 scatter by 0.3-0.7 px there).
-double linkSigmaPx(double snr) {
-  const double s = std::max(snr, 1.0);
-  return 1.5 / s * (1.0 + (15.0 / s) * (15.0 / s));
 }
 
 /// A frame's departure from the model is used only beyond this many sigmas of its measurement.
@@ -369,9 +392,10 @@ std::string modelNote(const Registration& r, std::size_t frames) {
 
 PixelOffset correlationStep(const float* a, const float* b, int width, int height, double& snr) {
   std::vector<float> sa(static_cast<std::size_t>(width) * height), sb(sa.size());
-  starImage(a, nullptr, width, height, 1, sa.data());
-  starImage(b, nullptr, width, height, 1, sb.data());
-  return correlate(sa.data(), sb.data(), width, height, snr);
+  const CorrelationWeights weights = correlationWeights(width, height);
+  starImage(a, nullptr, width, height, 1, weights, sa.data());
+  starImage(b, nullptr, width, height, 1, weights, sb.data());
+  return correlate(sa.data(), sb.data(), width, height, weights, snr);
 }
 
 Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> givenRate,
@@ -569,7 +593,8 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
   std::size_t significant = 0;
   for (std::size_t k = 0; k < nf; ++k) {
     PixelOffset& o = resid[order[k]];
-    if (std::hypot(o.x, o.y) > kSignificance * std::sqrt(posVar[k]) * std::sqrt(2.0)) {
+    // |o| of two axes, each of variance posVar: its scale is sqrt(2 posVar).
+    if (std::hypot(o.x, o.y) > kSignificance * std::sqrt(2.0 * posVar[k])) {
       ++significant;
     } else {
       o = {};

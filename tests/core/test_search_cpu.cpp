@@ -168,25 +168,40 @@ TEST(SearchCpu, KernelEveryCellMatchesBruteForce) {
   }
 }
 
+/// The cube of FindsInjectedMovingSource: 72 x 64 px, 60 uneven frames over ~40 s, white noise sigma 1, a
+/// Moffat PSF of FWHM ~3 px; the grid 31 x 31 at 1 px over the span around 0. `inject` adds sources of
+/// expected SNR 18 (at given positions and velocities) before the matched filter.
+struct InjectedCube {
+  psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
+  int r = 6;
+  FilteredCube fc;
+  VelocityGrid grid;
+  double alpha = 0.0;
+  InjectedCube() {
+    fc.frames = test::noiseCube(72, 64, test::unevenTimes(60, 0.6, 3), 1.0, 99);
+    grid = {{0.0, 0.0}, 1.0 / fc.frames.timeSpanS(), 31, 31};
+    alpha = 18.0 / (std::sqrt(60.0) * std::sqrt(test::sumP2(psf, r)));
+  }
+  void inject(double x, double y, Velocity v) { test::injectMoffat(fc.frames, psf, alpha, x, y, v); }
+  FilteredCube& filtered() {
+    test::matchedFilter(fc.frames, psf, r);
+    fc.sigmaF = std::sqrt(test::sumP2(psf, r));  // white noise through the filter
+    fc.psfFwhmPx = psf.fwhm();
+    return fc;
+  }
+};
+
 // A source moving with the stars (less than one FWHM over the span from the sky rate) cannot be told from a
 // star: it is set aside as a static source, not reported as a mover; a mover in the same cube is reported.
 // Oracle: the injected velocities. Same cube as below, with a sky rate of (0.2, -0.1) px/s.
 TEST(SearchCpu, SourcesAtTheSkyRateAreSetAsideAsStatic) {
-  const psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
-  const int r = 6;
-  FilteredCube fc;
-  fc.frames = test::noiseCube(72, 64, test::unevenTimes(60, 0.6, 3), 1.0, 99);
-  const double span = fc.frames.timeSpanS();
-  VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 31, 31};
-  fc.skyRate = grid.at(17, 13);
-  const Velocity mover = grid.at(24, 9);
-  const double p2 = test::sumP2(psf, r);
-  const double alpha = 18.0 / (std::sqrt(60.0) * std::sqrt(p2));
-  test::injectMoffat(fc.frames, psf, alpha, 40.0, 30.0, mover);
-  test::injectMoffat(fc.frames, psf, alpha, 15.0, 45.0, fc.skyRate);
-  test::matchedFilter(fc.frames, psf, r);
-  fc.sigmaF = std::sqrt(p2);
-  fc.psfFwhmPx = psf.fwhm();
+  InjectedCube cube;
+  const double span = cube.fc.frames.timeSpanS();
+  const VelocityGrid& grid = cube.grid;
+  cube.fc.skyRate = grid.at(17, 13);
+  cube.inject(40.0, 30.0, grid.at(24, 9));
+  cube.inject(15.0, 45.0, cube.fc.skyRate);
+  const FilteredCube& fc = cube.filtered();
   NullProgress progress;
   CancelToken cancel;
   const SearchResult res = makeCpuBackend()->search(fc, grid, SearchParams{}, progress, cancel);
@@ -206,19 +221,10 @@ TEST(SearchCpu, FindsInjectedMovingSource) {
   // velocity; frames matched-filtered with the PSF like pre-processing. Expected SNR (paper detection_snr)
   // alpha sqrt(N) sqrt(sum P^2) / sigma = 18; IPSA's integer shifts lose a little (samples up to 0.5 px off
   // the track), so the search SNR must be within [0.8, 1.1] of it.
-  const psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
-  const int r = 6;
-  FilteredCube fc;
-  fc.frames = test::noiseCube(72, 64, test::unevenTimes(60, 0.6, 3), 1.0, 99);
-  const double span = fc.frames.timeSpanS();
-  VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 31, 31};
-  const Velocity truth = grid.at(24, 9);
-  const double p2 = test::sumP2(psf, r);
-  const double alpha = 18.0 / (std::sqrt(60.0) * std::sqrt(p2));
-  test::injectMoffat(fc.frames, psf, alpha, 40.0, 30.0, truth);
-  test::matchedFilter(fc.frames, psf, r);
-  fc.sigmaF = std::sqrt(p2);  // white noise through the filter
-  fc.psfFwhmPx = psf.fwhm();
+  InjectedCube cube;
+  const VelocityGrid& grid = cube.grid;
+  cube.inject(40.0, 30.0, grid.at(24, 9));
+  const FilteredCube& fc = cube.filtered();
   auto backend = makeCpuBackend();
   NullProgress progress;
   CancelToken cancel;
