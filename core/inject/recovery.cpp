@@ -66,7 +66,9 @@ void summarise(RecoveryResult& r, const RecoveryParams& params) {
   std::vector<bool> found;
   bool allMags = !r.objects.empty();
   r.recovered = 0;
+  r.setAsideStatic = 0;
   for (const auto& o : r.objects) {
+    r.setAsideStatic += o.setAsideStatic() ? 1 : 0;
     if (o.recovered()) {
       ratios.push_back(o.snrRatio);
       ++r.recovered;
@@ -107,20 +109,29 @@ CandidateSet candidatesFromJson(const nlohmann::json& j) {
   } else if (!j.is_array()) {
     throw InputError("candidates: neither a search result object nor an array of candidates");
   }
-  for (std::size_t k = 0; k < list->size(); ++k) {
-    const auto& c = (*list)[k];
-    const std::string where = "candidate " + std::to_string(k);
-    CandidateRecord r;
-    r.index = static_cast<int>(k);
-    r.xPx = number(c, "x", where);
-    r.yPx = number(c, "y", where);
-    r.vxPxS = number(c, "vx_px_s", where);
-    r.vyPxS = number(c, "vy_px_s", where);
-    r.snr = number(c, "snr", where);
-    if (c.contains("flags") && c["flags"].is_array())
-      for (const auto& f : c["flags"])
-        if (f.is_string()) r.flags.push_back(f.get<std::string>());
-    set.candidates.push_back(r);
+  auto records = [](const nlohmann::json& arr, const std::string& what) {
+    std::vector<CandidateRecord> out;
+    for (std::size_t k = 0; k < arr.size(); ++k) {
+      const auto& c = arr[k];
+      const std::string where = what + " " + std::to_string(k);
+      CandidateRecord r;
+      r.index = static_cast<int>(k);
+      r.xPx = number(c, "x", where);
+      r.yPx = number(c, "y", where);
+      r.vxPxS = number(c, "vx_px_s", where);
+      r.vyPxS = number(c, "vy_px_s", where);
+      r.snr = number(c, "snr", where);
+      if (c.contains("flags") && c["flags"].is_array())
+        for (const auto& f : c["flags"])
+          if (f.is_string()) r.flags.push_back(f.get<std::string>());
+      out.push_back(r);
+    }
+    return out;
+  };
+  set.candidates = records(*list, "candidate");
+  if (j.is_object() && j.contains("static_sources")) {
+    if (!j["static_sources"].is_array()) throw InputError("candidates: 'static_sources' is not an array");
+    set.staticSources = records(j["static_sources"], "static source");
   }
   return set;
 }
@@ -189,16 +200,18 @@ RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& cands, cons
     std::size_t t, c;
     double d;
   };
+  // The position error when `c` qualifies for object `o`, else +inf.
+  auto matchError = [&](const TruthObject& o, const CandidateRecord& c) {
+    const auto [x, y] = posAtTruth(c);
+    const double d = std::hypot(x - o.xPx, y - o.yPx);
+    const bool ok = d <= r.matchPx && std::abs(c.vxPxS - o.vxPxS) <= r.matchVPxS &&
+                    std::abs(c.vyPxS - o.vyPxS) <= r.matchVPxS;
+    return ok ? d : kInf;
+  };
   std::vector<Pair> pairs;
   for (std::size_t t = 0; t < truth.objects.size(); ++t)
-    for (std::size_t c = 0; c < cs.size(); ++c) {
-      const auto& o = truth.objects[t];
-      const auto [x, y] = posAtTruth(cs[c]);
-      const double d = std::hypot(x - o.xPx, y - o.yPx);
-      if (d <= r.matchPx && std::abs(cs[c].vxPxS - o.vxPxS) <= r.matchVPxS &&
-          std::abs(cs[c].vyPxS - o.vyPxS) <= r.matchVPxS)
-        pairs.push_back({t, c, d});
-    }
+    for (std::size_t c = 0; c < cs.size(); ++c)
+      if (const double d = matchError(truth.objects[t], cs[c]); std::isfinite(d)) pairs.push_back({t, c, d});
   std::sort(pairs.begin(), pairs.end(), [&](const Pair& a, const Pair& b) {
     return a.d != b.d ? a.d < b.d : cs[a.c].snr > cs[b.c].snr;
   });
@@ -222,6 +235,14 @@ RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& cands, cons
       o.vyErrorPxS = c.vyPxS - o.truth.vyPxS;
       o.recoveredSnr = c.snr;
       o.snrRatio = o.truth.expectedSnr > 0.0 ? c.snr / o.truth.expectedSnr : 0.0;
+    } else {
+      double best = kInf;
+      for (std::size_t k = 0; k < cands.staticSources.size(); ++k)
+        if (const double d = matchError(o.truth, cands.staticSources[k]); d < best) {
+          best = d;
+          o.staticSource = static_cast<int>(k);
+          o.staticSnr = cands.staticSources[k].snr;
+        }
     }
     r.objects.push_back(o);
   }
@@ -268,6 +289,7 @@ nlohmann::json recoveryToJson(const RecoveryResult& r) {
   j["summary"] = {{"injected", r.total},
                   {"recovered", r.recovered},
                   {"completeness", r.total > 0 ? static_cast<double>(r.recovered) / r.total : 0.0},
+                  {"set_aside_static", r.setAsideStatic},
                   {"unmatched_candidates", r.unmatched.size()},
                   {"median_snr_ratio", r.medianSnrRatio ? nlohmann::json(*r.medianSnrRatio) : nlohmann::json(nullptr)},
                   {"match_px", r.matchPx},
@@ -294,6 +316,10 @@ nlohmann::json recoveryToJson(const RecoveryResult& r) {
       e["position_error_px"] = o.positionErrorPx;
       e["vx_error_px_s"] = o.vxErrorPxS;
       e["vy_error_px_s"] = o.vyErrorPxS;
+    }
+    if (o.setAsideStatic()) {
+      e["static_source"] = o.staticSource;
+      e["static_snr"] = o.staticSnr;
     }
     j["objects"].push_back(e);
   }
@@ -338,7 +364,7 @@ void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
     std::ofstream out;
     openCsv(out, d / "objects.csv");
     out << "set,id,x_px,y_px,vx_px_s,vy_px_s,expected_snr,magnitude,recovered,candidate,recovered_snr,snr_ratio,"
-           "position_error_px\n";
+           "position_error_px,static_source\n";
     for (const auto& o : r.objects) {
       out << o.set << ',' << o.truth.id << ',' << o.truth.xPx << ',' << o.truth.yPx << ',' << o.truth.vxPxS << ','
           << o.truth.vyPxS << ',' << o.truth.expectedSnr << ',' << magnitudeText(o.truth.magnitude) << ','
@@ -347,6 +373,8 @@ void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
         out << o.candidate << ',' << o.recoveredSnr << ',' << o.snrRatio << ',' << o.positionErrorPx;
       else
         out << ",,,";
+      out << ',';
+      if (o.setAsideStatic()) out << o.staticSource;
       out << '\n';
     }
     if (!out) throw InputError("error writing '" + (d / "objects.csv").string() + "'");
@@ -390,6 +418,13 @@ std::string recoveryText(const RecoveryResult& r) {
   };
   table("expected SNR", r.snrBins);
   if (!r.magBins.empty()) table("magnitude", r.magBins);
+  if (r.setAsideStatic > 0) {
+    std::snprintf(line, sizeof line,
+                  "%d more found but set aside as static sources (moving less than about one FWHM over the "
+                  "span; not counted as recovered)\n",
+                  r.setAsideStatic);
+    s += line;
+  }
   if (r.medianSnrRatio) {
     std::snprintf(line, sizeof line, "recovered / expected SNR: median %.3f over %d recovered\n", *r.medianSnrRatio,
                   r.recovered);

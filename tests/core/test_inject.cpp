@@ -418,6 +418,43 @@ TEST(Recovery, ReadsTheSearchJson) {
   EXPECT_EQ(candidatesFromJson(nlohmann::json::array()).candidates.size(), 0u);
 }
 
+// A mover that the search set aside as static (moving less than one FWHM over the span) is not recovered and
+// not an unmatched candidate; recovery names it apart, in the summary, the text and the JSON.
+TEST(Recovery, MoversSetAsideAsStaticAreCountedApart) {
+  Truth truth;
+  truth.objects.push_back({1, 100.0, 100.0, 0.001, 0.0, 100.0, 9.0, {}});
+  truth.objects.push_back({2, 300.0, 100.0, 0.001, 0.0, 100.0, 12.0, {}});
+  truth.objects.push_back({3, 500.0, 100.0, 0.001, 0.0, 100.0, 15.0, {}});
+  const nlohmann::json j = {
+      {"grid", {{"step_px_s", 0.002}}},
+      {"candidates", {{{"x", 300.4}, {"y", 100}, {"vx_px_s", 0.0}, {"vy_px_s", 0.0}, {"snr", 11.0}}}},
+      {"static_sources",
+       {{{"x", 900}, {"y", 900}, {"vx_px_s", 0.0}, {"vy_px_s", 0.0}, {"snr", 40.0}},   // a star
+        {{"x", 100.5}, {"y", 99.5}, {"vx_px_s", 0.0}, {"vy_px_s", 0.0}, {"snr", 8.0}},  // mover 1
+        {{"x", 300}, {"y", 100}, {"vx_px_s", 0.0}, {"vy_px_s", 0.0}, {"snr", 10.0}}}}}; // mover 2, also a mover
+  const CandidateSet c = candidatesFromJson(j);
+  ASSERT_EQ(c.staticSources.size(), 3u);
+  EXPECT_EQ(c.staticSources[1].snr, 8.0);
+  const RecoveryResult r = matchRecovery(truth, c, {});
+  EXPECT_EQ(r.recovered, 1);
+  EXPECT_EQ(r.setAsideStatic, 1);
+  EXPECT_EQ(r.objects[0].staticSource, 1);
+  EXPECT_EQ(r.objects[0].staticSnr, 8.0);
+  EXPECT_FALSE(r.objects[0].recovered());
+  EXPECT_EQ(r.objects[1].candidate, 0);
+  EXPECT_FALSE(r.objects[1].setAsideStatic()) << "recovered as a mover: not also static";
+  EXPECT_FALSE(r.objects[2].recovered() || r.objects[2].setAsideStatic());
+  EXPECT_TRUE(r.unmatched.empty()) << "static sources are never unmatched candidates";
+  EXPECT_NE(recoveryText(r).find("1 more found but set aside as static"), std::string::npos);
+  const nlohmann::json out = recoveryToJson(r);
+  EXPECT_EQ(out["summary"]["set_aside_static"], 1);
+  EXPECT_EQ(out["objects"][0]["static_source"], 1);
+  EXPECT_FALSE(out["objects"][2].contains("static_source"));
+  EXPECT_EQ(combineRecovery({r, r}, {}).setAsideStatic, 2);
+  EXPECT_THROW(candidatesFromJson(nlohmann::json{{"candidates", nlohmann::json::array()}, {"static_sources", 3}}),
+               InputError);
+}
+
 /// True when the '&' at `at` of `s` starts one of XML's five entities.
 bool entityAt(const std::string& s, std::size_t at) {
   for (const std::string e : {"&amp;", "&lt;", "&gt;", "&quot;", "&apos;"})

@@ -27,10 +27,14 @@ struct CandidateSet {
   std::optional<double> tRefMjd;     ///< the search's t_ref
   std::optional<double> gridStepPxS; ///< the search's velocity grid step (grid.step_px_s)
   std::vector<CandidateRecord> candidates;
+  /// Sources the search set aside as static (SearchResult::staticSources, JSON "static_sources"): found at
+  /// less than one FWHM over the span from the sky rate, so not reported as movers.
+  std::vector<CandidateRecord> staticSources;
 };
 
 /// Reads the JSON that `synthtrack-cli search --json` prints (report::searchResultToJson: "candidates" with
-/// x, y, vx_px_s, vy_px_s, snr, flags; t_ref_mjd; grid.step_px_s), or a bare array of candidates. Throws
+/// x, y, vx_px_s, vy_px_s, snr, flags; "static_sources" alike, when present; t_ref_mjd; grid.step_px_s), or a
+/// bare array of candidates. Throws
 /// st::InputError naming the key at fault.
 CandidateSet candidatesFromJson(const nlohmann::json& json);
 
@@ -67,7 +71,12 @@ struct ObjectOutcome {
   double vyErrorPxS = 0.0;
   double recoveredSnr = 0.0;
   double snrRatio = 0.0;  ///< recovered / expected SNR
+  /// Not recovered as a mover but found among the search's static sources (index there; -1 otherwise):
+  /// the mover moved less than about one FWHM over the span. Not counted in the completeness.
+  int staticSource = -1;
+  double staticSnr = 0.0;
   [[nodiscard]] bool recovered() const noexcept { return candidate >= 0; }
+  [[nodiscard]] bool setAsideStatic() const noexcept { return staticSource >= 0; }
 };
 
 struct UnmatchedCandidate {
@@ -84,6 +93,7 @@ struct RecoveryResult {
   double timeShiftS = 0.0;  ///< truth t_ref - search t_ref; candidates are moved to the truth's t_ref
   int total = 0;
   int recovered = 0;
+  int setAsideStatic = 0;  ///< objects not recovered but found among the static sources
   std::optional<double> medianSnrRatio;
   std::vector<ObjectOutcome> objects;
   std::vector<CompletenessBin> snrBins;
@@ -106,7 +116,9 @@ std::vector<CompletenessBin> completenessBins(const std::vector<double>& values,
 /// to the truth's t_ref along its own velocity, is within matchPx of the object's and each velocity
 /// component within the tolerance; pairs are taken in order of increasing position error (then decreasing
 /// SNR), each object and candidate at most once. Candidates left over are unmatched (flagged duplicate when
-/// they qualified for an object already taken). Throws st::InputError when no velocity tolerance can be
+/// they qualified for an object already taken). An object left unrecovered is then looked for among the
+/// static sources with the same tolerances (ObjectOutcome::staticSource); static sources are never
+/// unmatched candidates. Throws st::InputError when no velocity tolerance can be
 /// set (no matchVPxS and no grid step in the candidates) or params are invalid.
 RecoveryResult matchRecovery(const Truth& truth, const CandidateSet& candidates, const RecoveryParams& params);
 
