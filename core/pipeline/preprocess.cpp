@@ -233,7 +233,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
            << " frames on average per pixel, leaving out +-" << params.starSubtraction.windowFraction
            << " of the span around each frame; their cores masked, and " << ss.excessPositions
            << " sky positions whose residuals vary more than " << params.starSubtraction.maxVarianceRatio
-           << "x the background; " << ss.pixelsZeroed << " pixel-frames without a template zeroed";
+           << "x the background; the residuals of " << ss.whitenedPositions
+           << " sky positions with a smaller excess divided by its square root; " << ss.pixelsZeroed << " pixel-frames without a template zeroed";
     }
     else
       note << "stars not subtracted (the span is too short for a template outside each frame's window): "

@@ -102,11 +102,15 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   // 2026-11-26 (H200 machine, CPU), registration on by default: the same figures (seed 24 -38.1%), 2 others.
   // Candidates less than one FWHM over the span from the sky rate are now set aside as static sources
   // (SearchResult::staticSources): seed 34's pair is one, so the bound 2 x Prob_false + 1 holds.
+  // 2026-11-26 (H200 host, CPU, 199 s): the template's rim fixed (a ring of zeros around every star), a
+  // saturated star's spikes subtracted instead of masked, moderate residual excess whitened instead of
+  // masked: 20 of 20, 20 within one grid step, mean 1.021, 19 of 20 within 15% (seed 24 -17.5%, was -38%;
+  // seed 28 +9.8%, was -23%; seed 21 +14.4%, was +18%), 1 other candidate (the edge one, SNR 7.12).
   EXPECT_EQ(found, seeds);
-  EXPECT_GE(oneStep, seeds - 2);
-  EXPECT_GE(onVelocity, seeds - 1);
+  EXPECT_GE(oneStep, seeds - 1);
+  EXPECT_EQ(onVelocity, seeds);
   EXPECT_NEAR(mean, 1.0, 0.05);
-  EXPECT_GE(within15, seeds - 4);
+  EXPECT_GE(within15, seeds - 2);
   EXPECT_LE(others, 2.0 * expectedFalse + 1.0);
 }
 
