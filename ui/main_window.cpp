@@ -34,6 +34,7 @@
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
 #include "processing_panel.hpp"
+#include "recovery_dialog.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
 #include "stack_scrubber.hpp"
@@ -213,6 +214,11 @@ void MainWindow::buildDocks() {
   connect(m_search, &SearchPanel::cancelRequested, m_jobs, &JobRunner::cancel);
 }
 
+RecoveryDialog* MainWindow::recoveryDialog() {
+  if (!m_recoveryDialog) m_recoveryDialog = new RecoveryDialog(m_obs, this);
+  return m_recoveryDialog;
+}
+
 void MainWindow::buildMenus() {
   QMenu* file = menuBar()->addMenu("&File");
   file->addAction(QIcon::fromTheme("document-open"), "&Open FITS…", QKeySequence::Open, this, [this] {
@@ -251,6 +257,12 @@ void MainWindow::buildMenus() {
   autoPre->setCheckable(true);
   autoPre->setChecked(m_autoPreprocess);
   connect(autoPre, &QAction::toggled, this, [this](bool on) { m_autoPreprocess = on; });
+  run->addSeparator();
+  run->addAction("&Injection recovery…", this, [this] {
+    RecoveryDialog* d = recoveryDialog();
+    d->show();
+    d->raise();
+  });
 
   QMenu* view = menuBar()->addMenu("&View");
   for (QDockWidget* d : findChildren<QDockWidget*>())

@@ -38,6 +38,7 @@ class FigureDialog;
 class CandidateInspector;
 class FitPanel;
 class ReportDialog;
+class RecoveryDialog;
 
 /// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE]
 /// [--quit]` asks for.
@@ -113,6 +114,8 @@ class MainWindow : public QMainWindow {
   FigureDialog* figureDialog();
   /// The "Reports…" dialog (made on first use; main_window_export.cpp).
   ReportDialog* reportDialog();
+  /// The "Injection recovery…" dialog (Run menu; made on first use).
+  RecoveryDialog* recoveryDialog();
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -194,6 +197,7 @@ class MainWindow : public QMainWindow {
   std::optional<ScriptOptions> m_script;
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;
+  RecoveryDialog* m_recoveryDialog = nullptr;
   QWidget* m_screenshotOverlay = nullptr;  ///< a dialog drawn over the window on screenshots
   std::shared_ptr<search::SearchBackend> m_stackBackend;
   double m_lastLatencyMs = 0.0;
