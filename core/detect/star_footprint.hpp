@@ -54,7 +54,7 @@ int maskSpikes(MovingMask& mask, const Image& resid, const Image& count, double 
 int maskBleed(MovingMask& mask, const Image& resid, const Image& count, double sigma, int x0, int y0,
               const Star& star, int halfWidthPx);
 
-/// Sets a disc of radius r around (x, y) (reference positions) in `mask`.
+/// Sets a disc of radius r around (x, y) (reference positions) in `mask`; nothing when r <= 0.
 void setDisc(MovingMask& mask, double x, double y, double r);
 
 }  // namespace st::detect::detail

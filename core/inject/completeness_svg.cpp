@@ -52,7 +52,8 @@ std::string completenessSvg(const std::vector<CompletenessBin>& bins, const std:
   xMax = std::ceil(xMax * 1.02 / step) * step;
   const double pw = kWidth - kLeft - kRight, ph = kHeight - kTop - kBottom;
   auto sx = [&](double x) { return kLeft + pw * std::clamp(x, 0.0, xMax) / xMax; };
-  auto sy = [&](double y) { return kTop + ph * (1.0 - std::clamp(y, 0.0, 1.0)); };
+  // 0 and 1 sit 5% inside the frame, so that a bin's bar at 0% or 100% is not drawn over the frame's edge.
+  auto sy = [&](double y) { return kTop + ph * (1.05 - std::clamp(y, 0.0, 1.0)) / 1.1; };
   std::string s;
   s += "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
   s += "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + num(kWidth) + "\" height=\"" + num(kHeight) +
