@@ -77,7 +77,8 @@ std::map<std::string, std::string> batchOptions(const CliArgs& cli) {
     if (auto v = cli.value(n)) o[n] = *v;
   for (const auto& n : loadOptionNames())
     if (auto v = cli.value(n)) o[n] = *v;
-  if (cli.flag("grid-step-fwhm")) o["grid-step-fwhm"] = "";
+  for (const auto& n : searchFlagNames())
+    if (cli.flag(n)) o[n] = "";
   return o;
 }
 
@@ -128,7 +129,9 @@ int cmdBatch(const Args& args) {
     valued.insert(n);
   for (const char* n : {"out", "manifest", "split", "overlap", "worker-timeout", "track-max-mpix"})
     valued.insert(n);
-  const CliArgs cli(args, valued, {"grid-step-fwhm", "help"});
+  std::set<std::string> flags = searchFlagNames();
+  flags.insert("help");
+  const CliArgs cli(args, valued, flags);
   if (cli.flag("help")) {
     std::printf("%s%s%s", kHelp, searchOptionsHelp(), loadOptionsHelp());
     return 0;

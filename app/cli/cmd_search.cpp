@@ -95,7 +95,8 @@ int cmdSearch(const Args& args) {
   for (const auto& n : loadOptionNames())
     valued.insert(n);
   auto flags = calibFlagNames();
-  flags.insert({"preprocessed", "grid-step-fwhm", "no-register", "json", "fit", "mpi", "help"});
+  flags.merge(searchFlagNames());
+  flags.insert({"preprocessed", "json", "fit", "mpi", "help"});
   const CliArgs cli(args, valued, flags);
   if (cli.flag("help")) {
     std::printf("%s%s%s%s", kHelp, searchOptionsHelp(), calibOptionsHelp(), loadOptionsHelp());

@@ -39,14 +39,15 @@ void writeLog(const BatchSettings& s, const std::string& name, const nlohmann::j
 
 CliArgs argsForOptions(const std::map<std::string, std::string>& options) {
   std::vector<std::string> args;
+  const std::set<std::string> flags = searchFlagNames();
   for (const auto& [k, v] : options) {
     args.push_back("--" + k);
-    if (k != "grid-step-fwhm") args.push_back(v);
+    if (!flags.count(k)) args.push_back(v);
   }
   std::set<std::string> valued = searchOptionNames();
   for (const auto& n : loadOptionNames())
     valued.insert(n);
-  return CliArgs(args, valued, {"grid-step-fwhm"});
+  return CliArgs(args, valued, flags);
 }
 
 std::map<std::string, std::string> effectiveOptions(const BatchSettings& settings,

@@ -17,7 +17,7 @@
 namespace st::app {
 
 /// The batch-wide settings: the output layout and the search and load options as `search` takes them
-/// (option name without "--" -> value, "" for a flag such as grid-step-fwhm).
+/// (option name without "--" -> value, "" for a flag such as grid-step-fwhm or no-register).
 struct BatchSettings {
   batch::BatchLayout layout;
   std::map<std::string, std::string> options;

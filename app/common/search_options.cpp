@@ -19,6 +19,8 @@ Velocity parsePair(const std::string& text, const std::string& name) {
 
 }  // namespace
 
+std::set<std::string> searchFlagNames() { return {"grid-step-fwhm", "no-register"}; }
+
 std::set<std::string> searchOptionNames() {
   return {"vmax-px-s",
           "vmax-arcsec-min",

@@ -24,6 +24,9 @@ struct SearchOptions {
 /// Names of the valued options parseSearchOptions reads (without "--").
 std::set<std::string> searchOptionNames();
 
+/// Names of the valueless options (flags) parseSearchOptions reads: grid-step-fwhm, no-register.
+std::set<std::string> searchFlagNames();
+
 /// Help text for those options (one per line, indented).
 const char* searchOptionsHelp();
 

@@ -9,6 +9,8 @@
 
 #include "backend_factory.hpp"
 #include "fit_service.hpp"
+#include "observation_pipeline.hpp"
+#include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
@@ -70,7 +72,16 @@ std::vector<ui::StageSpec> stageSpecs() {
   return {
       // Off: the headers' image sections (BIASSEC, TRIMSEC, DATASEC) are ignored, for headers that describe
       // another readout; on, a section that does not fit the frames is clipped with a warning.
-      {kCalibrationStage, true, true, {}},
+      // Bias, flat and dark frames as `synthtrack-cli preprocess --bias/--flat/--dark` takes them (files or
+      // folders; the GUI offers bias/, flat/, dark/ folders found beside the science folder).
+      {kCalibrationStage,
+       true,
+       true,
+       {},
+       {ui::StageFiles{"bias", "Bias frames", {}, "bias (zero) frames, combined per pixel by the median"},
+        ui::StageFiles{"flat", "Flat frames", {}, "flat-field frames (twilight or dome), bias-subtracted, "
+                                                  "median-combined and normalised to 1"},
+        ui::StageFiles{"dark", "Dark frames", {}, "dark frames, bias-subtracted and scaled by exposure"}}},
       {kRegistrationStage,
        d.registerFrames,
        true,
@@ -156,16 +167,59 @@ ui::PreparedView openPrepared(const FrameCube& raw, const pipeline::PreparedHead
   return view;
 }
 
+/// The masters from the calibration stage's bias, flat and dark lists (loaded as the CLI's preprocess does,
+/// app/common/observation_pipeline.hpp), or none when all three are empty. Throws st::InputError naming the
+/// file (unreadable, or of another size or binning than the science frames).
+std::optional<calib::MasterCalibration> buildMasters(const FrameCube& raw,
+                                                     const std::vector<ui::StageSpec>& stages,
+                                                     const calib::CalibParams& params, ProgressSink& progress,
+                                                     CancelToken& cancel, std::vector<std::string>& warnings) {
+  const auto biasFiles = ui::stageFiles(stages, "bias");
+  const auto flatFiles = ui::stageFiles(stages, "flat");
+  const auto darkFiles = ui::stageFiles(stages, "dark");
+  if (biasFiles.empty() && flatFiles.empty() && darkFiles.empty()) return std::nullopt;
+  progress.report(0.0, "loading calibration frames");
+  const FrameCube bias = loadCalibrationFrames(biasFiles, std::nullopt, progress, cancel);
+  const FrameCube dark = loadCalibrationFrames(darkFiles, std::nullopt, progress, cancel);
+  const FrameCube flat = loadCalibrationFrames(flatFiles, std::nullopt, progress, cancel);
+  for (const FrameCube* c : {&bias, &dark, &flat})
+    warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
+  progress.report(0.0, "building master calibration frames");
+  calib::MasterCalibration m = calib::buildMasters(bias, dark, flat, raw, params, progress, cancel);
+  warnings.insert(warnings.end(), m.warnings.begin(), m.warnings.end());
+  return m;
+}
+
+/// "bias (2 folders), flat (3 files)" for the summary.
+std::string mastersSummary(const std::vector<ui::StageSpec>& stages) {
+  std::string out;
+  for (const char* key : {"bias", "flat", "dark"}) {
+    const auto paths = ui::stageFiles(stages, key);
+    if (paths.empty()) continue;
+    if (!out.empty()) out += ", ";
+    out += std::string(key) + " (";
+    for (std::size_t i = 0; i < paths.size(); ++i)
+      out += (i ? ", " : "") + std::filesystem::path(paths[i]).filename().string();
+    out += ")";
+  }
+  return out;
+}
+
 ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::vector<ui::StageSpec>& stages,
                                ProgressSink& progress, CancelToken& cancel) {
   if (const auto h = pipeline::recognisePreparedHeader(raw->header, pipeline::cubeSource(*raw)))
     return openPrepared(*raw, *h, progress, cancel);
   pipeline::PreprocessParams p;
-  // The calibration stage off: the headers' image sections (overscan, trim) are ignored.
+  // The calibration stage off: the headers' image sections (overscan, trim) are ignored, no bias/flat/dark.
+  std::vector<std::string> calibWarnings;
   if (!enabled(stages, kCalibrationStage)) {
     p.calib.subtractOverscan = false;
     p.calib.useHeaderSections = false;
+  } else {
+    SubProgress calibProgress(progress, 0.0, 0.1);
+    p.masters = buildMasters(*raw, stages, p.calib, calibProgress, cancel, calibWarnings);
   }
+  SubProgress prepProgress(progress, p.masters ? 0.1 : 0.0, 1.0);
   p.registerFrames = enabled(stages, kRegistrationStage);
   p.registration.linearRmsPx = param(stages, "reg.linearRms", p.registration.linearRmsPx);
   p.removeCosmicRays = enabled(stages, "Cosmic rays");
@@ -185,7 +239,7 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
   p.psfBeta = param(stages, "psf.beta", p.psfBeta);
   // preprocess takes the cube by value and works in place; the GUI keeps the raw frames for viewing, so
   // this is the one documented extra copy of the cube.
-  pipeline::Prepared prep = pipeline::preprocess(*raw, p, progress, cancel);
+  pipeline::Prepared prep = pipeline::preprocess(*raw, p, prepProgress, cancel);
 
   ui::PreparedView view;
   const double fwhm = prep.psf.fwhm();
@@ -211,6 +265,9 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
       prep.skyRate.vy, prep.skyRateMeasured ? " measured" : "", prep.stars.size(), prep.cosmicRays,
       prep.elapsedS);
   view.summary = line;
+  if (p.masters) view.summary += "\n• calibrated with " + mastersSummary(stages);
+  for (const auto& w : calibWarnings)
+    view.summary += "\n• warning: " + w;
   for (const auto& w : prep.calibration.warnings)
     view.summary += "\n• warning: " + w;
   for (const auto& note : prep.notes)

@@ -1,10 +1,13 @@
 // synthtrack: the desktop application.
 //   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
 //   [--quit] [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
-//   [--accept-fit] [--label N=LABEL]...
+//   [--accept-fit] [--label N=LABEL]... [--bias PATH]... [--flat PATH]... [--dark PATH]...
+//   [--no-calibration-offer]
 // opens the inputs (FITS cubes, frames or folders) or the simulated demo observation, pre-processes it,
 // optionally runs the search and selects candidate N, saves a screenshot of the main window and quits.
 // --session reopens a session file instead: its inputs, parameters, result and vetting, without searching.
+// Calibration frames: bias/, flat/ (flats/), dark/ folders beside a science folder are offered (printed as
+// "calibration: ..."); --bias/--flat/--dark set them, --no-calibration-offer drops the offered ones.
 #include <QApplication>
 #include <QCommandLineParser>
 #include <cstdio>
@@ -73,8 +76,14 @@ int main(int argc, char** argv) {
   const QCommandLineOption acceptFit("accept-fit", "Accept the --fit result into the selected candidate.");
   const QCommandLineOption label("label", "Label candidate N: real, unsure, unvetted or artifact[:REASON].",
                                  "N=LABEL");
+  const QCommandLineOption bias("bias", "Bias frames (file or folder; repeat for several) for the Calibration "
+                                "stage, as synthtrack-cli preprocess --bias.", "PATH");
+  const QCommandLineOption flat("flat", "Flat frames (file or folder; repeatable).", "PATH");
+  const QCommandLineOption dark("dark", "Dark frames (file or folder; repeatable).", "PATH");
+  const QCommandLineOption noOffer("no-calibration-offer",
+                                   "Do not use the bias/, flat/, dark/ folders found beside the science folder.");
   parser.addOptions({demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports,
-                     dialog, acceptFit, label, colours});
+                     dialog, acceptFit, label, colours, bias, flat, dark, noOffer});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -109,6 +118,10 @@ int main(int argc, char** argv) {
   script.screenshotColours = parser.value(colours).toInt();
   script.acceptFit = parser.isSet(acceptFit);
   script.labels = parser.values(label);
+  script.bias = parser.values(bias);
+  script.flat = parser.values(flat);
+  script.dark = parser.values(dark);
+  script.noCalibrationOffer = parser.isSet(noOffer);
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();

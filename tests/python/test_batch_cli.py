@@ -57,6 +57,15 @@ def main(cli):
         check(summary["skipped"] == 3, "the deleted one is redone: %s" % summary)
         check(not same(load(os.path.join(out, "catalogue.json")), cat), "after the redo: the same catalogue")
         check(r2.returncode == 1, "rerun exit code %d" % r2.returncode)
+        # A flag option (--no-register: no per-frame registration) is an option like any other: it is
+        # accepted, changes the digest (everything redone), and a rerun with it skips again.
+        r3 = run_cli(cli, ["batch"] + obs + [bad, "--out", out, "--no-register"] + SEARCH)
+        check(r3.returncode == 1, "batch --no-register exit code %d: %s" % (r3.returncode, r3.stderr[-400:]))
+        summary = load(os.path.join(out, "batch.json"))
+        check(summary["skipped"] == 0, "--no-register redoes every observation: %s" % summary)
+        run_cli(cli, ["batch"] + obs + [bad, "--out", out, "--no-register"] + SEARCH)
+        summary = load(os.path.join(out, "batch.json"))
+        check(summary["skipped"] == 4, "a rerun with --no-register skips the 4 complete ones: %s" % summary)
 
         # A manifest: one observation with its own velocity range (a smaller grid).
         man = os.path.join(tmp, "m.csv")
