@@ -34,13 +34,25 @@ struct StageParam {
   std::string help;  ///< tooltip: what it does and where the default comes from
 };
 
-/// A pre-processing stage as the panel shows it: name, on/off, parameters.
+/// Files or folders a stage reads, e.g. the calibration's bias, flat and dark frames (several allowed).
+struct StageFiles {
+  std::string key;                 ///< identifier the adapter maps onto the core call ("bias", "flat", "dark")
+  std::string label;               ///< shown to the user
+  std::vector<std::string> paths;  ///< files and/or folders (absolute); empty = none
+  std::string help;                ///< tooltip
+};
+
+/// A pre-processing stage as the panel shows it: name, on/off, parameters, file lists.
 struct StageSpec {
   std::string name;
   bool enabled = true;
   bool optional = true;  ///< false: the stage cannot be switched off
   std::vector<StageParam> params;
+  std::vector<StageFiles> files;  ///< stored in sessions beside the parameters
 };
+
+/// The paths of `stages`' file list `key` (first match), empty when there is none.
+std::vector<std::string> stageFiles(const std::vector<StageSpec>& stages, const std::string& key);
 
 /// What pre-processing produced, as the GUI shows it.
 struct PreparedView {

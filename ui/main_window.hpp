@@ -61,6 +61,10 @@ struct ScriptOptions {
   QString dialog;          ///< "figure" or "reports": that dialog is opened, and shown on the screenshot
   bool acceptFit = false;  ///< accept the --fit result into the candidate (before the labels and exports)
   QStringList labels;  ///< "N=LABEL" (real, unsure, unvetted, artifact[:REASON]), applied before the exports
+  /// Calibration frames (files or folders) for the Calibration stage, as `synthtrack-cli preprocess --bias
+  /// /--flat/--dark`; a role given here replaces what was offered from beside the science folder.
+  QStringList bias, flat, dark;
+  bool noCalibrationOffer = false;  ///< clear the offered bias/, flat/, dark/ folders (given ones stay)
 };
 
 class MainWindow : public QMainWindow {
@@ -73,7 +77,11 @@ class MainWindow : public QMainWindow {
   explicit MainWindow(CoreServices services, QWidget* parent = nullptr);
   ~MainWindow() override;
 
+  /// Opens FITS cubes, frames or folders. The Calibration stage's bias/flat/dark lists are emptied, and
+  /// folders named bias/, flat/ (flats/), dark/ beside the science folder are offered there with a note.
   void openInputs(const QStringList& paths);
+  /// The pre-processing panel (its calibration frame lists: ProcessingPanel::files/setFiles).
+  [[nodiscard]] ProcessingPanel* processingPanel() const noexcept { return m_processing; }
   void openDemo();
   /// Reopens a session file (main_window_session.cpp): reloads its inputs, pre-processes them with the saved
   /// parameters in a worker, then restores the result, the candidates' labels, notes, fits and flags and the
@@ -149,6 +157,10 @@ class MainWindow : public QMainWindow {
   void onHover(int x, int y, double value, bool inside);
   void addRecent(const QStringList& paths);
   void rebuildRecentMenu();
+  /// The script's inputs, with its --bias/--flat/--dark and --no-calibration-offer applied.
+  void openScriptInputs(const ScriptOptions& options);
+  /// Prints the Calibration stage's offer note and bias/flat/dark lists on stdout ("calibration ...").
+  void printScriptCalibration();
   void advanceScript(const QString& finishedJob, bool ok);
   void finishScript(bool ok, const QString& message);
   /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.

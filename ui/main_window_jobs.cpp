@@ -12,6 +12,7 @@
 #include <QTimer>
 #include <cstdio>
 
+#include "calibration_files.hpp"
 #include "candidate_table.hpp"
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
@@ -39,6 +40,9 @@ void MainWindow::openInputs(const QStringList& paths) {
       paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
   addRecent(paths);
   m_demoGrid = false;
+  m_processing->clearFiles();
+  const CalibrationOffer offer = offerCalibrationFolders(paths);
+  if (!offer.folders.empty()) m_processing->offerFiles(offer.folders, offer.note);
   m_session->prepareNew(inputs, false);
   startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
     if (!load) throwMissingService("FITS reader");
@@ -49,6 +53,7 @@ void MainWindow::openInputs(const QStringList& paths) {
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
   m_demoGrid = true;
+  m_processing->clearFiles();
   m_search->setParams(pipeline::demoSearchParams());  // as synthtrack-cli demo
   m_session->prepareNew({}, true);
   startLoad("demo observation (simulated paper-neo)",
@@ -168,6 +173,7 @@ void MainWindow::onRawChanged() {
     m_frameSpin->setRange(0, static_cast<int>(raw->frameCount()) - 1);
     m_frameSpin->setSuffix(QString(" / %1").arg(raw->frameCount()));
     m_search->setDefaultsFor(*raw, {});
+    if (rawIsPrepared()) m_processing->clearOffer();  // calibrated already: nothing to offer
     QString summary = QString("%1 frames of %2 × %3 px, %4 s")
                           .arg(raw->frameCount())
                           .arg(raw->width())
@@ -188,8 +194,12 @@ void MainWindow::onPreparedChanged() {
   m_search->setReady(prepared && prepared->filtered);
   if (prepared) {
     m_processing->setSummary(QString::fromStdString(prepared->summary));
+    if (rawIsPrepared())
+      statusBar()->showMessage("Opened as a prepared cube (written by synthtrack-cli preprocess): not "
+                               "pre-processed again; PSF, sky rate and noise from its header",
+                               20000);
     if (prepared->filtered && m_obs->raw()) {
-      m_search->setDefaultsFor(*m_obs->raw(), prepared->filtered->skyRate);
+      m_search->setDefaultsFor(prepared->filtered->frames, prepared->filtered->skyRate);
       const auto& raw = *m_obs->raw();
       if (m_demoGrid && raw.plateScaleArcsecPerPx) {
         // The demo's grid, made as `synthtrack-cli demo` makes it (st/pipeline/demo_search.hpp).
@@ -233,9 +243,33 @@ void MainWindow::runScript(const ScriptOptions& options) {
   else if (options.demo)
     openDemo();
   else if (!options.inputs.isEmpty())
-    openInputs(options.inputs);
+    openScriptInputs(options);
   else
     QTimer::singleShot(300, this, [this] { finishScript(true, {}); });
+}
+
+void MainWindow::openScriptInputs(const ScriptOptions& options) {
+  openInputs(options.inputs);
+  if (options.noCalibrationOffer) m_processing->clearOffer();
+  const std::pair<const char*, const QStringList*> given[] = {
+      {kBiasFiles, &options.bias}, {kFlatFiles, &options.flat}, {kDarkFiles, &options.dark}};
+  for (const auto& [key, paths] : given) {
+    if (paths->isEmpty()) continue;
+    QStringList absolute;
+    for (const QString& p : *paths)
+      absolute << QFileInfo(p).absoluteFilePath();
+    m_processing->setFiles(key, absolute);
+  }
+}
+
+void MainWindow::printScriptCalibration() {
+  if (!m_processing->offerNote().isEmpty())
+    std::printf("calibration: %s\n", m_processing->offerNote().toLocal8Bit().constData());
+  for (const char* key : {kBiasFiles, kFlatFiles, kDarkFiles}) {
+    const QStringList files = m_processing->files(key);
+    if (!files.isEmpty()) std::printf("calibration %s: %s\n", key, files.join("; ").toLocal8Bit().constData());
+  }
+  std::fflush(stdout);
 }
 
 void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
@@ -245,8 +279,17 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
     finishScript(true, {});
     return;
   }
+  if (finishedJob == "Loading") printScriptCalibration();  // as loaded (a prepared cube drops the offer)
   if (finishedJob == "Loading" && !m_autoPreprocess && !rawIsPrepared()) runPreprocess();
   if (finishedJob == "Pre-processing") {
+    // Scripted runs say what pre-processing did (calibration, PSF, sky rate) and the grid the search takes.
+    if (const auto& prepared = m_obs->prepared())
+      std::printf("pre-processing: %s\n", prepared->summary.c_str());
+    if (statusBar()->currentMessage().startsWith("Opened as a prepared cube"))
+      std::printf("status: %s\n", statusBar()->currentMessage().toLocal8Bit().constData());
+    std::printf("grid: %s\nestimate: %s\n", m_search->gridOrigin().toLocal8Bit().constData(),
+                m_search->estimateText().toLocal8Bit().constData());
+    std::fflush(stdout);
     if (m_script->search)
       runSearch();
     else

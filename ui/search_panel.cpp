@@ -19,6 +19,7 @@
 #include "session_snapshot.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/search/default_grid.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "st/stats/false_alarm.hpp"
 
@@ -53,9 +54,13 @@ const char* const kMethodHelp =
     "The backend must support the method (the CPU and CUDA backends have both).";
 
 const char* const kGridHelp =
-    "Defaults for an opened observation: the paper's grid (§4.4), ±12 deg/day around the sky rate in steps "
-    "of 1 px of motion over the time span, as synthtrack-cli search uses. The demo observation opens with a "
-    "coarser demo setting so that it runs quickly: ±8 deg/day in 1.5 px steps, as synthtrack-cli demo.";
+    "Defaults for an opened observation, from its data: steps of 1 px of motion over the time span (the "
+    "paper's rule, §4.4) around the sky rate, over the smallest of the paper's ±12 deg/day (±12 steps "
+    "without a plate scale), what can stay in the frame (an object faster than the frame size over half the "
+    "span is in fewer than half the frames) and what the backend searches in about a minute (exact method; "
+    "the estimate below is shown before the search runs). synthtrack-cli search keeps the paper's ±12 "
+    "deg/day. The demo observation opens with a coarser demo setting so that it runs quickly: ±8 deg/day in "
+    "1.5 px steps, as synthtrack-cli demo.";
 
 QString gpuLabel(const std::vector<std::string>& names) {
   if (names.empty()) return "GPU (none found)";
@@ -222,23 +227,28 @@ void SearchPanel::onGridEdited() {
 }
 
 void SearchPanel::setDefaultsFor(const FrameCube& cube, Velocity skyRate) {
-  // The grid synthtrack-cli search makes (search::makeVelocityGrid, same rounding of the point count).
-  const double span = std::max(cube.timeSpanS(), 1e-3);
-  search::GridSpec spec;
-  spec.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
-  spec.unit = cube.plateScaleArcsecPerPx ? search::VelocityUnit::DegPerDay : search::VelocityUnit::PxPerS;
-  spec.halfRange = cube.plateScaleArcsecPerPx ? 12.0 : 12.0 / span;  // +-12 steps without a plate scale
-  spec.stepPx = 1.0;
-  const QString origin =
-      cube.plateScaleArcsecPerPx
-          ? QString("the paper's grid: ±12 deg/day in 1 px steps (as synthtrack-cli search)")
-          : QString("±12 steps of 1 px over the span (no plate scale for deg/day)");
+  // The data-derived grid (st/search/default_grid.hpp): 1 px steps over the span, half-range the smallest of
+  // the paper's ±12 deg/day, what can stay in the frame and what the chosen backend's exact search does in
+  // about a minute. The GPU's model where the search will run on one, else the CPU's with this machine's
+  // workers; pure arithmetic (microseconds), so it runs here.
+  search::DefaultGridInput in;
+  in.width = cube.width();
+  in.height = cube.height();
+  in.frames = cube.frameCount();
+  in.timeSpanS = std::max(cube.timeSpanS(), 1e-3);
+  in.plateScaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+  in.centre = skyRate;
+  in.minFrameFraction = m_hiddenParams.minFrameFraction > 0.0 ? m_hiddenParams.minFrameFraction : 0.5;
+  const bool gpu = m_hasGpu && backendKind() != BackendKind::Cpu;
+  in.model = gpu ? search::cudaCostModel() : search::cpuCostModel(workerCount());
+  if (in.width <= 0 || in.height <= 0 || in.frames == 0) return;
   try {
-    setGrid(search::makeVelocityGrid(spec, span, 1.0, skyRate), origin);
-  } catch (const InputError&) {  // over the velocity limit: shown as such, the person picks a coarser step
-    const double half = search::toPxPerS(spec.halfRange, spec.unit, spec.plateScaleArcsecPerPx);
-    setGridPxS(skyRate, half, 1.0 / span);
-    m_origin = origin;
+    const search::DefaultGrid d = search::defaultVelocityGrid(in);
+    setGrid(d.grid, QString("data default: %1 on the %2")
+                        .arg(QString::fromStdString(search::describeDefaultGrid(d, in.plateScaleArcsecPerPx)))
+                        .arg(gpu ? "GPU" : QString("CPU (%1 threads)").arg(workerCount())));
+  } catch (const InputError& e) {  // an empty cube: the previous grid stays
+    m_origin = QString("no default grid: ") + e.what();
     refresh();
   }
 }

@@ -67,8 +67,10 @@ class SearchPanel : public QWidget {
   void setBackendMessage(const QString& text);
   /// Seconds one velocity's stack took, measured by the scrubber (feeds the time estimate).
   void setMeasuredStackSeconds(double seconds);
-  /// Grid defaults for the observation, as `synthtrack-cli search`: step 1 px over the time span (paper
-  /// §4.4), range +-12 deg/day (or +-12 steps without a plate scale), centred on the sky rate.
+  /// Grid defaults for the observation (`cube`: the frames the search runs on), derived from the data
+  /// (st/search/default_grid.hpp): step 1 px over the time span (paper §4.4), centred on the sky rate,
+  /// half-range the smallest of +-12 deg/day (+-12 steps without a plate scale), what can stay in the frame
+  /// and what the selected backend's exact search does in about a minute. gridOrigin() says which.
   void setDefaultsFor(const FrameCube& cube, Velocity skyRate);
   /// Uses exactly `grid` (px/s); `origin` says where it came from (shown under the grid, "" for none).
   void setGrid(const search::VelocityGrid& grid, const QString& origin);

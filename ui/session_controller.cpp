@@ -36,7 +36,11 @@ QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo, co
   const QFileInfo first(QString::fromStdString(inputs.front()));
   const QString name = baseName(first) + kSuffix;
   const QFileInfo dir(first.absolutePath());
-  if (dir.isDir() && dir.isWritable()) return QDir(first.absolutePath()).filePath(name);
+  // A folder without any write permission bit is read-only data (shared or archived frames): the session
+  // goes to the fallback even where the user could write there anyway (root ignores the bits).
+  constexpr auto kWriteBits = QFileDevice::WriteOwner | QFileDevice::WriteGroup | QFileDevice::WriteOther;
+  if (dir.isDir() && dir.isWritable() && (dir.permissions() & kWriteBits))
+    return QDir(first.absolutePath()).filePath(name);
   QDir().mkpath(fallback);
   return QDir(fallback).filePath(name);
 }

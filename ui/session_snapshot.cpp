@@ -27,6 +27,12 @@ json stagesToJson(const std::vector<StageSpec>& stages) {
     for (const auto& p : stage.params)
       params[p.key] = p.value;
     out[stage.name] = {{"enabled", stage.enabled}, {"parameters", params}};
+    if (!stage.files.empty()) {  // absent in sessions written before the calibration pickers: none
+      json files = json::object();
+      for (const auto& f : stage.files)
+        files[f.key] = f.paths;
+      out[stage.name]["files"] = files;
+    }
   }
   return out;
 }
@@ -62,6 +68,9 @@ std::vector<StageSpec> restoreStages(const json& saved, std::vector<StageSpec> s
     const json params = s.is_object() && s.contains("parameters") ? s["parameters"] : json::object();
     for (auto& p : stage.params)
       p.value = valueOr<double>(params, p.key.c_str(), p.value, where);
+    const json files = s.is_object() && s.contains("files") ? s["files"] : json::object();
+    for (auto& f : stage.files)
+      f.paths = valueOr<std::vector<std::string>>(files, f.key.c_str(), f.paths, where);
   }
   return stages;
 }
