@@ -115,9 +115,7 @@ double wingRadiusPx(double flux, double fwhmPx, double beta, double frames, doub
 }
 
 void setDisc(MovingMask& mask, double x, double y, double r) {
-  // No disc at all for r <= 0 (a star that single frames cannot see has no wing radius): setting the centre
-  // pixel there masked a 5-pixel cross, after the dilation, at every faint star in every frame (paper-neo
-  // seed 24's asteroid passed 1 px from a V = 22.5 star: 5.6% of its PSF^2-weighted track).
+  // No disc at all for r <= 0: the caller decides what a star without a radius gets (findStaticSources).
   if (!(r > 0.0)) return;
   const int ri = static_cast<int>(std::ceil(r));
   const int cx = static_cast<int>(std::lround(x)), cy = static_cast<int>(std::lround(y));

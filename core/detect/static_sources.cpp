@@ -307,9 +307,17 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     // only the wing's seeing and guiding residual, a fraction of it, is left; the radius grows with the
     // flux).
     if (params.maskWings) {
-      detail::setDisc(out.mask, st.x, st.y,
-                      detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames,
-                                           narrow ? 2.0 * noise.sigma : noise.sigma));
+      // A star that single frames cannot see has no wing radius. In a static field its centre is masked
+      // all the same (one pixel, dilated below): the per-pixel background leaves its seeing residuals there,
+      // and on the Lowell frames leaving them found a slow SNR 9 candidate at one. Where the stars are
+      // subtracted, the template removes such a star and nothing is masked: a 5-pixel cross at every faint
+      // star had cost paper-neo seed 24's asteroid, which passes 1 px from a V = 22.5 star, 5.6% of its track.
+      const double wing = detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames,
+                                               narrow ? 2.0 * noise.sigma : noise.sigma);
+      if (wing > 0.0)
+        detail::setDisc(out.mask, st.x, st.y, wing);
+      else if (!subtracted)
+        out.mask.set(static_cast<int>(std::lround(st.x)), static_cast<int>(std::lround(st.y)));
       if (subtracted)
         detail::setDisc(out.subtractRegion, st.x, st.y,
                         detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
