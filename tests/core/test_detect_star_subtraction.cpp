@@ -65,6 +65,26 @@ MovingMask starRegion(const FrameCube& cube, const test::SynthScene& s) {
   return m;
 }
 
+// Residual rms within 6 px of a star, over the frames that see it whole (`samples`: how many pixels).
+double residualRmsNear(const FrameCube& cube, const test::SynthScene& scene, double sx, double sy,
+                       std::size_t* samples = nullptr) {
+  const auto dt = cube.timeOffsetsS();
+  double ss = 0.0;
+  std::size_t n = 0;
+  for (std::size_t k = 0; k < cube.frameCount(); ++k) {
+    const double cx = sx + scene.skyRate.vx * dt[k], cy = sy + scene.skyRate.vy * dt[k];
+    if (cx < 10 || cy < 10 || cx > 150 || cy > 86) continue;
+    for (int y = static_cast<int>(cy) - 6; y <= static_cast<int>(cy) + 6; ++y)
+      for (int x = static_cast<int>(cx) - 6; x <= static_cast<int>(cx) + 6; ++x) {
+        const double v = cube.frame(k)[static_cast<std::size_t>(y) * cube.width() + x];
+        ss += v * v;
+        ++n;
+      }
+  }
+  if (samples) *samples = n;
+  return n ? std::sqrt(ss / n) : 0.0;
+}
+
 TEST(StarSubtraction, RemovesDriftingStarsToTheNoise) {
   Field field(false, 3);
   FrameCube cube = field.scene.make();
@@ -74,22 +94,10 @@ TEST(StarSubtraction, RemovesDriftingStarsToTheNoise) {
   ASSERT_TRUE(r.applied);
   EXPECT_GT(r.pixelsSubtracted, 0u);
   // Within 6 px of each star, in the frames that see it whole: rms of what is left against the noise.
-  const auto dt = cube.timeOffsetsS();
   for (const auto& st : field.scene.stars) {
-    double ss = 0.0;
     std::size_t n = 0;
-    for (std::size_t k = 0; k < cube.frameCount(); ++k) {
-      const double cx = st.x + 1.37 * dt[k], cy = st.y + 0.23 * dt[k];
-      if (cx < 10 || cy < 10 || cx > 150 || cy > 86) continue;
-      for (int y = static_cast<int>(cy) - 6; y <= static_cast<int>(cy) + 6; ++y)
-        for (int x = static_cast<int>(cx) - 6; x <= static_cast<int>(cx) + 6; ++x) {
-          const double v = cube.frame(k)[static_cast<std::size_t>(y) * cube.width() + x];
-          ss += v * v;
-          ++n;
-        }
-    }
+    const double rms = residualRmsNear(cube, field.scene, st.x, st.y, &n);
     ASSERT_GT(n, 1000u);
-    const double rms = std::sqrt(ss / n);
     std::printf("star peak %.0f: residual rms %.2f counts (noise 5)\n", st.peak, rms);
     // The template's own noise adds ~1/sqrt(60) of the variance; interpolation error < 0.3% of the peak
     // (measured 2026-11-25: rms 6.37, 5.06, 5.04 for peaks 2000, 300, 60).
@@ -121,24 +129,6 @@ TEST(StarSubtraction, KeepsASlowMoverCrossingAStar) {
   std::printf("slow mover across a star: %.1f%% of its flux kept\n", 100.0 * kept / injected);
   EXPECT_GT(kept / injected, 0.95);
   EXPECT_LT(kept / injected, 1.02);
-}
-
-// Residual rms within 6 px of a star, over the frames that see it whole.
-double residualRmsNear(const FrameCube& cube, const test::SynthScene& scene, double sx, double sy) {
-  const auto dt = cube.timeOffsetsS();
-  double ss = 0.0;
-  std::size_t n = 0;
-  for (std::size_t k = 0; k < cube.frameCount(); ++k) {
-    const double cx = sx + scene.skyRate.vx * dt[k], cy = sy + scene.skyRate.vy * dt[k];
-    if (cx < 10 || cy < 10 || cx > 150 || cy > 86) continue;
-    for (int y = static_cast<int>(cy) - 6; y <= static_cast<int>(cy) + 6; ++y)
-      for (int x = static_cast<int>(cx) - 6; x <= static_cast<int>(cx) + 6; ++x) {
-        const double v = cube.frame(k)[static_cast<std::size_t>(y) * cube.width() + x];
-        ss += v * v;
-        ++n;
-      }
-  }
-  return n ? std::sqrt(ss / n) : 0.0;
 }
 
 // Masked sky positions within 6 px of the bright star (80, 48) and elsewhere.
