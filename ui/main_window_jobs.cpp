@@ -303,6 +303,7 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
       std::printf("candidate %zu: x %d y %d vx %.4f vy %.4f px/s snr %.2f fap %.3g n_in %d\n", i + 1, c.x,
                   c.y, c.v.vx, c.v.vy, c.snr, c.fap, c.nIn);
     }
+    std::printf("search: %s\n", m_search->statusText().toLocal8Bit().constData());
     std::fflush(stdout);
     if (m_script->select) selectCandidate(*m_script->select - 1);
     if (m_script->fit && m_obs->selectedCandidate()) return runScriptFit();

@@ -1,6 +1,8 @@
 #include "processing_panel.hpp"
 
 #include <QDoubleSpinBox>
+#include <QEvent>
+#include <algorithm>
 #include <QFileDialog>
 #include <QFormLayout>
 #include <QGroupBox>
@@ -101,6 +103,8 @@ ProcessingPanel::ProcessingPanel(std::vector<StageSpec> stages, QWidget* parent)
     innerLayout->addWidget(new QLabel("Pre-processing is not available in this build.", inner));
   innerLayout->addStretch(1);
   auto* scroll = new QScrollArea(this);
+  m_viewport = scroll->viewport();
+  m_viewport->installEventFilter(this);
   scroll->setWidget(inner);
   scroll->setWidgetResizable(true);
   scroll->setFrameShape(QFrame::NoFrame);
@@ -123,6 +127,18 @@ ProcessingPanel::ProcessingPanel(std::vector<StageSpec> stages, QWidget* parent)
   connect(reset, &QPushButton::clicked, this, &ProcessingPanel::resetDefaults);
 }
 
+bool ProcessingPanel::eventFilter(QObject* watched, QEvent* event) {
+  // The offer note wraps within what is visible: other rows (long stage titles) may make the panel wider
+  // than the dock, and a note cut off at the right edge would hide its end.
+  if (watched == m_viewport && event->type() == QEvent::Resize && m_offerBox) {
+    const int width = std::max(120, m_viewport->width() - 24);
+    m_offerBox->setMaximumWidth(width);
+    // The form sized the note for the full row; without text heightForWidth is -1.
+    m_offerNote->setMinimumHeight(std::max(0, m_offerNote->heightForWidth(width)));
+  }
+  return QWidget::eventFilter(watched, event);
+}
+
 QWidget* ProcessingPanel::fileRow(QWidget* parent, const StageFiles& files) {
   auto* row = new QWidget(parent);
   auto* layout = new QHBoxLayout(row);
@@ -132,7 +148,13 @@ QWidget* ProcessingPanel::fileRow(QWidget* parent, const StageFiles& files) {
   edit->setObjectName(QString::fromStdString(files.key));
   m_fileEditByKey[files.key] = edit;
   edit->setPlaceholderText("none (files or folders, ; between)");
-  edit->setToolTip(QString::fromStdString(files.help));
+  const QString help = QString::fromStdString(files.help);
+  edit->setToolTip(help);
+  connect(edit, &QLineEdit::textChanged, edit, [edit, help](const QString& text) {
+    // The whole list on hover: the field is narrower than a path.
+    const QStringList paths = splitPaths(text);
+    edit->setToolTip(paths.isEmpty() ? help : help + "\n\n" + paths.join("\n"));
+  });
   edit->setClearButtonEnabled(true);
   edit->setMinimumWidth(80);
   auto* add = new QToolButton(row);
@@ -194,6 +216,8 @@ void ProcessingPanel::offerFiles(const std::map<std::string, QStringList>& offer
   }
   if (m_offerBox && !m_offered.empty()) {
     m_offerNote->setText(note);
+    if (m_offerBox->maximumWidth() < QWIDGETSIZE_MAX)
+      m_offerNote->setMinimumHeight(std::max(0, m_offerNote->heightForWidth(m_offerBox->maximumWidth())));
     m_offerBox->show();
   }
 }

@@ -53,6 +53,7 @@ class ProcessingPanel : public QWidget {
   std::vector<StageSpec> m_defaults;
   std::vector<QGroupBox*> m_boxes;
   std::vector<std::vector<QDoubleSpinBox*>> m_spins;
+  bool eventFilter(QObject* watched, QEvent* event) override;
   QWidget* fileRow(QWidget* parent, const StageFiles& files);
   QLineEdit* fileEdit(const std::string& key) const;
   void onFilesEdited(const std::string& key);
@@ -60,6 +61,7 @@ class ProcessingPanel : public QWidget {
   std::vector<std::vector<QLineEdit*>> m_fileEdits;  ///< per stage, one per StageFiles (objectName = key)
   std::map<std::string, QLineEdit*> m_fileEditByKey;
   std::map<std::string, QStringList> m_offered;      ///< what offerFiles() put in and is still there
+  QWidget* m_viewport = nullptr;  ///< the scroll area's, whose width the offer note wraps to
   QWidget* m_offerBox = nullptr;
   QLabel* m_offerNote = nullptr;
   QPushButton* m_run;

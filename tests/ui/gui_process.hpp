@@ -4,6 +4,7 @@
 #include <QCoreApplication>
 #include <QDir>
 #include <QElapsedTimer>
+#include <QFile>
 #include <QFileInfo>
 #include <QProcess>
 #include <QProcessEnvironment>
@@ -41,6 +42,7 @@ inline GuiRun runGui(const QString& gui, const QStringList& args, const QString&
   env.insert("XDG_DATA_HOME", home + "/data");
   env.insert("XDG_RUNTIME_DIR", home + "/run");
   QDir().mkpath(home + "/run");
+  QFile::setPermissions(home + "/run", QFileDevice::ReadOwner | QFileDevice::WriteOwner | QFileDevice::ExeOwner);
   p.setProcessEnvironment(env);
   GuiRun r;
   QElapsedTimer clock;
