@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <vector>
 
 #include "st/common/error.hpp"
 #include "st/search/sidelobes.hpp"
@@ -51,6 +53,33 @@ int minFramesFor(const SearchParams& params, std::size_t frames) {
   return std::max(1, static_cast<int>(need));
 }
 
+int maxFramesInside(const std::vector<double>& timesS, int width, int height, Velocity v) {
+  const int n = static_cast<int>(timesS.size());
+  if (n == 0) return 0;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double tx = std::fabs(v.vx) > 0.0 ? width / std::fabs(v.vx) : kInf;
+  const double ty = std::fabs(v.vy) > 0.0 ? height / std::fabs(v.vy) : kInf;
+  const double window = std::min(tx, ty);
+  std::vector<double> t = timesS;
+  std::sort(t.begin(), t.end());
+  if (!(window < t.back() - t.front())) return n;
+  int best = 1;
+  for (int a = 0, b = 0; a < n; ++a) {
+    while (b < n && t[b] - t[a] <= window) ++b;
+    best = std::max(best, b - a);
+  }
+  return best;
+}
+
+int minFramesFor(const SearchParams& params, const std::vector<double>& timesS, int width, int height,
+                 const VelocityGrid& grid) {
+  int fewest = static_cast<int>(timesS.size());
+  for (const int ix : {0, grid.nvx - 1})
+    for (const int iy : {0, grid.nvy - 1})
+      fewest = std::min(fewest, maxFramesInside(timesS, width, height, grid.at(ix, iy)));
+  return minFramesFor(params, static_cast<std::size_t>(std::max(fewest, 1)));
+}
+
 SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                                std::string backend, std::string method) {
   validateSearchInput(cube, grid, params);
@@ -58,7 +87,8 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
   result.grid = grid;
   result.trials = trialCounts(cube.frames.width(), cube.frames.height(), grid);
   result.snrThreshold = effectiveThreshold(params, result.trials);
-  result.minFrames = minFramesFor(params, cube.frames.frameCount());
+  result.minFrames =
+      minFramesFor(params, cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(), grid);
   result.tRefMjd = cube.frames.tRefMjd();
   result.backend = std::move(backend);
   result.method = std::move(method);

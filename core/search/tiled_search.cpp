@@ -107,7 +107,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
         result.grid = grid;
         result.trials = trialCounts(width, height, grid);
         result.snrThreshold = effectiveThreshold(params, result.trials);
-        result.minFrames = minFramesFor(params, cube.frames.frameCount());
+        result.minFrames = minFramesFor(params, cube.frames.timeOffsetsS(), width, height, grid);
         result.tRefMjd = cube.frames.tRefMjd();
         result.backend = "cpu";
         result.method = params.method;

@@ -43,7 +43,7 @@ void expectMatchesBruteForce(const FilteredCube& fc, const VelocityGrid& grid, d
   // Clustering would merge cells, so compare the raw cells through the map and a per-cell run.
   const SearchResult r = backend->search(fc, grid, params, progress, cancel);
   const std::vector<double> dt = fc.frames.timeOffsetsS();
-  const int minFrames = minFramesFor(params, fc.frames.frameCount());
+  const int minFrames = minFramesFor(params, fc.frames.timeOffsetsS(), fc.frames.width(), fc.frames.height(), grid);
   EXPECT_EQ(r.minFrames, minFrames);
   std::int64_t expectedCells = 0;
   for (int iy = 0; iy < grid.nvy; ++iy) {
@@ -190,6 +190,47 @@ struct InjectedCube {
     return fc;
   }
 };
+
+// The minimum N_in follows what a track can have: one crossing the frame in a third of the span is inside for
+// a third of the frames, and half of all frames (the old rule) made it unfindable. Oracles: counting by hand,
+// and an injected fast mover found at its place and velocity.
+TEST(SearchCpu, MinimumFramesFollowWhatATrackCanStayInside) {
+  std::vector<double> t(90);
+  for (std::size_t k = 0; k < t.size(); ++k)
+    t[k] = static_cast<double>(k);  // 1 s apart, span 89 s
+  EXPECT_EQ(maxFramesInside(t, 64, 64, {0.5, 0.2}), 90) << "stays in for the span";
+  EXPECT_EQ(maxFramesInside(t, 64, 64, {2.0, 0.0}), 33) << "64 px at 2 px/s: 32 s, frames 0..32";
+  EXPECT_EQ(maxFramesInside(t, 64, 32, {1.0, -2.0}), 17) << "the height limits: 16 s";
+  SearchParams params;  // minFrameFraction 0.5
+  const VelocityGrid slow{{0.0, 0.0}, 0.01, 5, 5};
+  EXPECT_EQ(minFramesFor(params, t, 64, 64, slow), minFramesFor(params, t.size())) << "unchanged: 45";
+  const VelocityGrid fast{{2.0, 0.0}, 1.0 / 89.0, 5, 5};
+  // Fastest corner vx = 2 + 2/89: 64 / 2.0225 = 31.6 s, 32 frames; half of them.
+  EXPECT_EQ(minFramesFor(params, t, 64, 64, fast), 16);
+
+  FilteredCube fc;
+  fc.frames = test::noiseCube(64, 64, t, 1.0, 7);
+  const psf::Moffat psf{psf::Moffat::radiusForFwhm(3.0, 4.0), 4.0};
+  const int r = 6;
+  // SNR ~20 over the ~32 frames it is inside.
+  const double alpha = 20.0 / (std::sqrt(32.0) * std::sqrt(test::sumP2(psf, r)));
+  test::injectMoffat(fc.frames, psf, alpha, 30.0, 30.0, {2.0, 0.0});
+  test::matchedFilter(fc.frames, psf, r);
+  fc.sigmaF = std::sqrt(test::sumP2(psf, r));
+  fc.psfFwhmPx = psf.fwhm();
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult res = makeCpuBackend()->search(fc, fast, params, progress, cancel);
+  EXPECT_EQ(res.minFrames, 16);
+  ASSERT_FALSE(res.candidates.empty()) << "a mover inside for a third of the frames is found";
+  const Candidate& c = res.candidates.front();
+  EXPECT_NEAR(c.x, 30.0, 1.0);
+  EXPECT_NEAR(c.y, 30.0, 1.0);
+  // The velocity to 1 px over the 32 s it is inside (the grid's step is 1 px over the whole span).
+  EXPECT_NEAR(c.v.vx, 2.0, 1.0 / 32.0);
+  EXPECT_GT(c.snr, 15.0);
+  EXPECT_LE(c.nIn, 33);
+}
 
 // A source moving with the stars (less than one FWHM over the span from the sky rate) cannot be told from a
 // star: it is set aside as a static source, not reported as a mover; a mover in the same cube is reported.

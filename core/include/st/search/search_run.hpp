@@ -32,6 +32,20 @@ double effectiveThreshold(const SearchParams& params, const TrialCounts& trials)
 /// N_in below this is ignored: ceil(minFrameFraction x frames), at least 1.
 int minFramesFor(const SearchParams& params, std::size_t frames);
 
+/// The most frames (of those at `timesS`, any order) that a linear track at velocity v (px/s on the detector)
+/// can spend inside a width x height px frame: those within the longest window of length
+/// min(width / |vx|, height / |vy|). All of them for a track slow enough to stay in for the span.
+int maxFramesInside(const std::vector<double>& timesS, int width, int height, Velocity v);
+
+/// N_in below this is ignored, for a search of `grid` over frames at `timesS` of width x height px:
+/// ceil(minFrameFraction x the fewest frames that a track of any grid velocity can spend inside the frame
+/// (maxFramesInside at the grid's corners)), at least 1. A track that crosses the frame in less than the
+/// span can never be seen in every frame: with a fraction of all frames, the paper's 1500-frame observation
+/// (stars drifting 16.4 px/s across 512 px: a mover is inside for ~520 of the 1500 frames against a minimum
+/// of 750) could find nothing. Equal to minFramesFor(params, frames) where every track can stay inside.
+int minFramesFor(const SearchParams& params, const std::vector<double>& timesS, int width, int height,
+                 const VelocityGrid& grid);
+
 /// Validates the input (validateSearchInput) and returns a result with everything known before the search:
 /// grid, trial counts, threshold, minimum frames, t_ref, backend and method names.
 SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
