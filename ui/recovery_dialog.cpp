@@ -1,7 +1,6 @@
 #include "recovery_dialog.hpp"
 
 #include <filesystem>
-#include <fstream>
 
 #include <QButtonGroup>
 #include <QDialogButtonBox>
@@ -88,10 +87,6 @@ class CompletenessPlot : public QWidget {
 namespace {
 
 /// The plot's title, as `synthtrack-cli recovery` writes it.
-std::string plotTitle(const inject::RecoveryResult& r) {
-  return "Injection-recovery: " + std::to_string(r.recovered) + " of " + std::to_string(r.total) +
-         " movers recovered";
-}
 
 QDoubleSpinBox* toleranceSpin(QWidget* parent, double value, const QString& suffix, const QString& tip) {
   auto* s = new QDoubleSpinBox(parent);
@@ -337,7 +332,7 @@ bool RecoveryDialog::recompute() {
   }
   try {
     Scored s = score();
-    m_svg = QString::fromStdString(inject::completenessSvg(s.result.snrBins, plotTitle(s.result)));
+    m_svg = QString::fromStdString(inject::completenessSvg(s.result.snrBins, inject::recoveryPlotTitle(s.result)));
     m_text->setPlainText(QString::fromStdString(inject::recoveryText(s.result)));
     m_plot->setSvg(m_svg);
     m_result = std::move(s.result);
@@ -389,16 +384,7 @@ bool RecoveryDialog::saveTo(const QString& folder) {
     if (folder.isEmpty()) throw InputError("no folder given");
     const std::filesystem::path dir(folder.toStdString());
     // What `synthtrack-cli recovery --out DIR` writes, with the one pair as its "sets".
-    nlohmann::json j = inject::recoveryToJson(*m_result);
-    j["sets"] = nlohmann::json::array({m_set});
-    inject::writeRecoveryCsv(*m_result, dir.string());  // creates the folder
-    report::writeJsonFile((dir / "recovery.json").string(), j);
-    const std::string svgPath = (dir / "completeness.svg").string();
-    {
-      std::ofstream svg(svgPath);
-      svg << m_svg.toStdString();
-      if (!svg) throw InputError("cannot write '" + svgPath + "'");
-    }
+    inject::writeRecoveryOutputs(*m_result, nlohmann::json::array({m_set}), dir.string());
     const QString pngPath = QDir(folder).filePath("completeness.png");
     const QImage png = renderPlot(1280);
     if (png.isNull() || !png.save(pngPath, "PNG"))

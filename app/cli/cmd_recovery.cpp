@@ -9,9 +9,7 @@
 #include "cli_args.hpp"
 #include "commands.hpp"
 #include "st/common/error.hpp"
-#include "st/inject/completeness_svg.hpp"
 #include "st/inject/recovery.hpp"
-#include "st/report/search_report.hpp"
 
 namespace st::app {
 namespace {
@@ -112,18 +110,10 @@ int cmdRecovery(const Args& args) {
   const std::filesystem::path outDir =
       cli.value("out") ? std::filesystem::path(*cli.value("out"))
                        : std::filesystem::absolute(pos[1]).parent_path() / "recovery";
-  nlohmann::json j = inject::recoveryToJson(r);
-  j["sets"] = sets;
-  inject::writeRecoveryCsv(r, outDir.string());
-  report::writeJsonFile((outDir / "recovery.json").string(), j);
-  const std::string svgPath = (outDir / "completeness.svg").string();
-  {
-    std::ofstream svg(svgPath);
-    svg << inject::completenessSvg(r.snrBins, "Injection-recovery: " + std::to_string(r.recovered) + " of " +
-                                                  std::to_string(r.total) + " movers recovered");
-    if (!svg) throw InputError("cannot write '" + svgPath + "'");
-  }
+  inject::writeRecoveryOutputs(r, sets, outDir.string());
   if (cli.flag("json")) {
+    nlohmann::json j = inject::recoveryToJson(r);
+    j["sets"] = sets;
     std::printf("%s\n", j.dump(2).c_str());
     return 0;
   }

@@ -9,6 +9,8 @@
 
 #include "st/common/error.hpp"
 #include "st/common/units.hpp"
+#include "st/inject/completeness_svg.hpp"
+#include "st/report/search_report.hpp"
 
 namespace st::inject {
 namespace {
@@ -341,7 +343,9 @@ nlohmann::json recoveryToJson(const RecoveryResult& r) {
 
 void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
   const std::filesystem::path d(dir);
-  std::filesystem::create_directories(d);
+  std::error_code ec;
+  std::filesystem::create_directories(d, ec);
+  if (ec) throw InputError("cannot create the folder '" + d.string() + "': " + ec.message());
   {
     std::ofstream out;
     openCsv(out, d / "completeness.csv");
@@ -393,6 +397,23 @@ void writeRecoveryCsv(const RecoveryResult& r, const std::string& dir) {
     }
     if (!out) throw InputError("error writing '" + (d / "unmatched.csv").string() + "'");
   }
+}
+
+std::string recoveryPlotTitle(const RecoveryResult& r) {
+  return "Injection-recovery: " + std::to_string(r.recovered) + " of " + std::to_string(r.total) +
+         " movers recovered";
+}
+
+void writeRecoveryOutputs(const RecoveryResult& r, const nlohmann::json& sets, const std::string& dir) {
+  const std::filesystem::path d(dir);
+  writeRecoveryCsv(r, dir);  // creates the folder
+  nlohmann::json j = recoveryToJson(r);
+  j["sets"] = sets;
+  report::writeJsonFile((d / "recovery.json").string(), j);
+  const std::string svgPath = (d / "completeness.svg").string();
+  std::ofstream svg(svgPath);
+  svg << completenessSvg(r.snrBins, recoveryPlotTitle(r));
+  if (!svg) throw InputError("cannot write '" + svgPath + "'");
 }
 
 std::string recoveryText(const RecoveryResult& r) {

@@ -11,6 +11,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <numeric>
 #include <random>
@@ -453,6 +454,35 @@ TEST(Recovery, MoversSetAsideAsStaticAreCountedApart) {
   EXPECT_EQ(combineRecovery({r, r}, {}).setAsideStatic, 2);
   EXPECT_THROW(candidatesFromJson(nlohmann::json{{"candidates", nlohmann::json::array()}, {"static_sources", 3}}),
                InputError);
+}
+
+// The files of `recovery --out DIR` (the CLI and the GUI write them through this one function).
+TEST(Recovery, WritesItsFilesOrNamesThePathItCannotMake) {
+  Truth truth;
+  truth.objects.push_back({1, 10.0, 10.0, 0.0, 0.0, 100.0, 12.0, {}});
+  CandidateSet c;
+  c.gridStepPxS = 0.01;
+  c.candidates.push_back({0, 10.2, 10.0, 0.0, 0.0, 11.0, {}});
+  const RecoveryResult r = matchRecovery(truth, c, {});
+  const auto dir = std::filesystem::temp_directory_path() / "st_recovery_outputs_test" / "out";
+  std::filesystem::remove_all(dir.parent_path());
+  writeRecoveryOutputs(r, nlohmann::json::array({{{"set", 0}}}), dir.string());
+  for (const char* f : {"recovery.json", "completeness.csv", "objects.csv", "unmatched.csv", "completeness.svg"})
+    EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
+  std::ifstream in(dir / "recovery.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["summary"]["recovered"], 1);
+  EXPECT_EQ(j["sets"].size(), 1u);
+  EXPECT_EQ(recoveryPlotTitle(r), "Injection-recovery: 1 of 1 movers recovered");
+  // A folder below a plain file cannot be made: an InputError naming it (not a filesystem_error).
+  const auto blocker = dir / "recovery.json" / "sub";
+  try {
+    writeRecoveryOutputs(r, nlohmann::json::array(), blocker.string());
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(blocker.string()), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir.parent_path());
 }
 
 /// True when the '&' at `at` of `s` starts one of XML's five entities.

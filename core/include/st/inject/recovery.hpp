@@ -135,6 +135,15 @@ nlohmann::json recoveryToJson(const RecoveryResult& result);
 /// naming the file when it cannot be written.
 void writeRecoveryCsv(const RecoveryResult& result, const std::string& dir);
 
+/// The completeness plot's title that every front end uses: "Injection-recovery: K of N movers recovered".
+std::string recoveryPlotTitle(const RecoveryResult& result);
+
+/// Writes what `synthtrack-cli recovery --out DIR` writes into `dir` (created): recovery.json (recoveryToJson
+/// plus "sets" = `sets`), completeness.csv, objects.csv, unmatched.csv (writeRecoveryCsv) and
+/// completeness.svg (completenessSvg with recoveryPlotTitle). Throws st::InputError naming the path that
+/// cannot be made or written.
+void writeRecoveryOutputs(const RecoveryResult& result, const nlohmann::json& sets, const std::string& dir);
+
 /// A short text summary for the terminal: totals, the SNR (and magnitude) table, the SNR ratio, and the
 /// unmatched candidates.
 std::string recoveryText(const RecoveryResult& result);
