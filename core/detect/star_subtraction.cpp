@@ -4,6 +4,7 @@
 #include <cmath>
 #include <mutex>
 #include <numeric>
+#include <utility>
 #include <vector>
 
 #include "st/common/parallel.hpp"
@@ -246,7 +247,8 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
   // seeing changes, the interpolation's error): whitened, or masked like the cores when the excess is large.
   out.excess = MovingMask(cube, region.rate());
   if (withSigma) {
-    std::vector<float> scale(targets.size(), 1.0f);
+    // The whitened positions and their factors, listed once: the per-frame pass visits only those.
+    std::vector<std::pair<int, float>> whiten;
     for (std::size_t k = 0; k < targets.size(); ++k) {
       if (samples[k] < params.minExcessSamples || !(s2[k] > 0.0)) continue;
       // The ratio of S samples scatters by sqrt(2 / S) about 1 (chi-square: a heavy upper tail).
@@ -255,21 +257,20 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
       if (ratio > params.maxVarianceRatio) {
         out.excess.set(region.x0() + targets[k] % cw, region.y0() + targets[k] / cw);
       } else {
-        scale[k] = static_cast<float>(1.0 / std::sqrt(ratio));
-        ++out.whitenedPositions;
+        whiten.emplace_back(targets[k], static_cast<float>(1.0 / std::sqrt(ratio)));
       }
     }
+    out.whitenedPositions = whiten.size();
     out.excessPositions = out.excess.count();
     out.excess.dilate(1);
-    if (out.whitenedPositions > 0)
+    if (!whiten.empty())
       parallelFor(nf, 8, [&](std::size_t n0, std::size_t n1) {
         for (std::size_t n = n0; n < n1; ++n) {
           float* f = cube.frame(n);
           const int sx = region.shiftX(n), sy = region.shiftY(n);
-          for (std::size_t k = 0; k < targets.size(); ++k) {
-            if (scale[k] == 1.0f) continue;
-            const int x = region.x0() + targets[k] % cw + sx, y = region.y0() + targets[k] / cw + sy;
-            if (x >= 0 && y >= 0 && x < w && y < h) f[static_cast<std::size_t>(y) * w + x] *= scale[k];
+          for (const auto& [pos, factor] : whiten) {
+            const int x = region.x0() + pos % cw + sx, y = region.y0() + pos / cw + sy;
+            if (x >= 0 && y >= 0 && x < w && y < h) f[static_cast<std::size_t>(y) * w + x] *= factor;
           }
         }
       });

@@ -132,6 +132,12 @@ TEST_F(RecoveryDialogTest, TolerancesAreApplied) {
   EXPECT_NEAR(d.result()->matchVPxS, 0.01, 1e-12) << "0.1 grid steps of 0.1 px/s";
 }
 
+// recompute() refuses the input, and the error shown names `file`.
+void expectRefusedNaming(RecoveryDialog& d, const fs::path& file) {
+  EXPECT_FALSE(d.recompute());
+  EXPECT_TRUE(d.errorText().contains(QString::fromStdString(file.string()))) << d.errorText().toStdString();
+}
+
 TEST_F(RecoveryDialogTest, BadInputNamesTheFile) {
   RecoveryDialog d(&obs);
   d.setTruthPath(q(truthPath));
@@ -141,8 +147,7 @@ TEST_F(RecoveryDialogTest, BadInputNamesTheFile) {
   const fs::path broken = dir / "broken_candidates.json";
   writeText(broken, "{\"candidates\": [ {\"x\": 1,");
   d.setCandidatesPath(q(broken));
-  EXPECT_FALSE(d.recompute());
-  EXPECT_TRUE(d.errorText().contains(q(broken))) << d.errorText().toStdString();
+  expectRefusedNaming(d, broken);
   EXPECT_FALSE(d.result().has_value()) << "an old result is not shown beside an error";
   EXPECT_TRUE(d.svg().isEmpty());
   EXPECT_FALSE(d.saveTo(q(dir / "out")));
@@ -160,14 +165,12 @@ TEST_F(RecoveryDialogTest, BadInputNamesTheFile) {
   writeText(noKey, t.dump());
   d.setTruthPath(q(noKey));
   d.setCandidatesPath(q(candPath));
-  EXPECT_FALSE(d.recompute());
-  EXPECT_TRUE(d.errorText().contains(q(noKey))) << d.errorText().toStdString();
+  expectRefusedNaming(d, noKey);
   EXPECT_TRUE(d.errorText().contains("x_px")) << d.errorText().toStdString();
 
   const fs::path missing = dir / "no_such_truth.json";
   d.setTruthPath(q(missing));
-  EXPECT_FALSE(d.recompute());
-  EXPECT_TRUE(d.errorText().contains(q(missing))) << d.errorText().toStdString();
+  expectRefusedNaming(d, missing);
 
   // Candidates without a grid step: the velocity tolerance in grid steps cannot be set.
   nlohmann::json c = candidatesJson();
@@ -176,8 +179,7 @@ TEST_F(RecoveryDialogTest, BadInputNamesTheFile) {
   writeText(noGrid, c.dump());
   d.setTruthPath(q(truthPath));
   d.setCandidatesPath(q(noGrid));
-  EXPECT_FALSE(d.recompute());
-  EXPECT_TRUE(d.errorText().contains(q(noGrid))) << d.errorText().toStdString();
+  expectRefusedNaming(d, noGrid);
 }
 
 TEST_F(RecoveryDialogTest, SaveWritesWhatTheCliWritesAndAPng) {
