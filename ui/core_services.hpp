@@ -19,6 +19,7 @@
 #include "st/fit/comoving_fit.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/types.hpp"
+#include "st/session/preprocess_settings.hpp"
 
 namespace st::ui {
 
@@ -44,15 +45,28 @@ struct StageFiles {
 
 /// A pre-processing stage as the panel shows it: name, on/off, parameters, file lists.
 struct StageSpec {
-  std::string name;
+  std::string name;  ///< shown to the user
   bool enabled = true;
   bool optional = true;  ///< false: the stage cannot be switched off
   std::vector<StageParam> params;
   std::vector<StageFiles> files;  ///< stored in sessions beside the parameters
+  /// Stable key (session::preprocessStageSpecs: "cosmic_rays"): what session files store; "" = the name.
+  std::string key;
+  /// Keys older session files used for this stage (format 2 stored the display name).
+  std::vector<std::string> formerKeys;
 };
 
 /// The paths of `stages`' file list `key` (first match), empty when there is none.
 std::vector<std::string> stageFiles(const std::vector<StageSpec>& stages, const std::string& key);
+
+/// The core's pre-processing stages (session::preprocessStageSpecs) at their defaults, as the panel shows
+/// them.
+std::vector<StageSpec> describedStages();
+/// The stages' on/off and values by stable key, for session::preprocessParams (stages without a key are left
+/// out: test fakes).
+session::PreprocessSettings preprocessSettings(const std::vector<StageSpec>& stages);
+/// Whether the stage with stable key `key` is on (true when there is none).
+bool stageEnabled(const std::vector<StageSpec>& stages, const std::string& key);
 
 /// What pre-processing produced, as the GUI shows it.
 struct PreparedView {

@@ -98,7 +98,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   connect(m_cancel, &QPushButton::clicked, this, &FitPanel::cancel);
   connect(m_accept, &QPushButton::clicked, this, &FitPanel::accept);
   connect(m_jobs, &JobRunner::finished, this,
-          [this](const QString&, bool ok, bool cancelled, const QString& message, double elapsedS) {
+          [this](JobKind, bool ok, bool cancelled, const QString& message, double elapsedS) {
             m_fit->setEnabled(true);
             m_cancel->setEnabled(false);
             m_runningIndex = -1;
@@ -243,7 +243,7 @@ void FitPanel::fitSelected() {
     QMetaObject::invokeMethod(
         this, [this] { drainLive(); }, Qt::QueuedConnection);
   };
-  m_jobs->start("Fitting",
+  m_jobs->start(JobKind::Fit,
                 [this, fn, prepared, candidate, index, onStep](ProgressSink&, CancelToken& cancel) {
                   auto outcome = std::make_shared<const FitOutcome>(fn(*prepared, candidate, cancel, onStep));
                   return std::function<void()>([this, outcome, index] {

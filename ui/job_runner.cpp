@@ -34,6 +34,22 @@ void PolledProgress::reset() {
   m_stage.clear();
 }
 
+QString jobName(JobKind kind) {
+  switch (kind) {
+    case JobKind::Load:
+      return "Loading";
+    case JobKind::Preprocess:
+      return "Pre-processing";
+    case JobKind::Search:
+      return "Searching";
+    case JobKind::OpenSession:
+      return "Opening session";
+    case JobKind::Fit:
+      return "Fitting";
+  }
+  return "Working";
+}
+
 JobRunner::JobRunner(QObject* parent) : QObject(parent) {
   m_worker = new QObject;
   m_worker->moveToThread(&m_thread);
@@ -60,15 +76,15 @@ JobRunner::~JobRunner() {
   m_thread.wait();
 }
 
-bool JobRunner::start(const QString& name, Work work) {
+bool JobRunner::start(JobKind kind, Work work) {
   if (m_busy) return false;
   m_busy = true;
-  m_name = name;
+  m_kind = kind;
   m_cancel = std::make_shared<CancelToken>();
   m_progress.reset();
   m_clock.start();
   m_poll.start();
-  emit started(name);
+  emit started(kind);
   auto cancel = m_cancel;
   QMetaObject::invokeMethod(
       m_worker,
@@ -112,8 +128,7 @@ void JobRunner::onWorkDone(std::function<void()> apply, bool cancelled, const QS
     }
   }
   m_busy = false;
-  const QString name = m_name;
-  emit finished(name, ok, cancelled, message, elapsed);
+  emit finished(m_kind, ok, cancelled, message, elapsed);
 }
 
 }  // namespace st::ui

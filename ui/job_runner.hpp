@@ -35,6 +35,13 @@ class PolledProgress final : public ProgressSink {
   std::string m_stage;
 };
 
+/// What a job is. The GUI tells jobs apart by this, never by the text it shows (jobName).
+enum class JobKind { Load, Preprocess, Search, OpenSession, Fit };
+
+/// The text shown for a job in the status bar and in messages: "Loading", "Pre-processing", "Searching",
+/// "Opening session", "Fitting".
+QString jobName(JobKind kind);
+
 class JobRunner : public QObject {
   Q_OBJECT
  public:
@@ -44,20 +51,21 @@ class JobRunner : public QObject {
   explicit JobRunner(QObject* parent = nullptr);
   ~JobRunner() override;
 
-  /// Starts `work` named `name` ("Loading", "Pre-processing", "Searching"). Returns false (and does
-  /// nothing) while another job runs.
-  bool start(const QString& name, Work work);
+  /// Starts `work` as a job of `kind`. Returns false (and does nothing) while another job runs.
+  bool start(JobKind kind, Work work);
   /// Asks the running job to stop; it answers at its next CancelToken poll.
   void cancel();
   [[nodiscard]] bool busy() const noexcept { return m_busy; }
-  [[nodiscard]] QString currentName() const { return m_name; }
+  /// The running (or last) job's kind, and its name as shown (jobName).
+  [[nodiscard]] JobKind currentKind() const noexcept { return m_kind; }
+  [[nodiscard]] QString currentName() const { return jobName(m_kind); }
 
  signals:
-  void started(const QString& name);
+  void started(st::ui::JobKind kind);
   /// Polled progress: fraction in [0, 1], the core's stage text, seconds since start.
   void progress(double fraction, const QString& stage, double elapsedS);
   /// The job ended: ok, cancelled, or failed with the core's message. Emitted after the apply closure ran.
-  void finished(const QString& name, bool ok, bool cancelled, const QString& message, double elapsedS);
+  void finished(st::ui::JobKind kind, bool ok, bool cancelled, const QString& message, double elapsedS);
 
  private:
   void onWorkDone(std::function<void()> apply, bool cancelled, const QString& error);
@@ -68,7 +76,7 @@ class JobRunner : public QObject {
   QElapsedTimer m_clock;
   PolledProgress m_progress;
   std::shared_ptr<CancelToken> m_cancel;
-  QString m_name;
+  JobKind m_kind = JobKind::Load;
   bool m_busy = false;
 };
 

@@ -308,9 +308,9 @@ void MainWindow::buildStatusBar() {
   statusBar()->addPermanentWidget(m_progress);
   statusBar()->addPermanentWidget(m_cancel);
   connect(m_cancel, &QPushButton::clicked, m_jobs, &JobRunner::cancel);
-  connect(m_jobs, &JobRunner::started, this, [this](const QString& name) {
+  connect(m_jobs, &JobRunner::started, this, [this](JobKind kind) {
     m_jobElapsedS = 0.0;
-    m_jobLabel->setText(name + "…");
+    m_jobLabel->setText(jobName(kind) + "…");
     m_progress->setValue(0);
     m_progress->show();
     m_cancel->show();
@@ -321,7 +321,7 @@ void MainWindow::buildStatusBar() {
     m_jobElapsedS = elapsed;
     m_progress->setValue(static_cast<int>(f * 1000));
     m_jobLabel->setText(QString("%1: %2 · %3 s").arg(m_jobs->currentName(), stage).arg(elapsed, 0, 'f', 1));
-    if (m_jobs->currentName() == "Searching") m_search->setProgress(f, stage, elapsed);
+    if (m_jobs->currentKind() == JobKind::Search) m_search->setProgress(f, stage, elapsed);
   });
 }
 
@@ -332,7 +332,7 @@ void MainWindow::cancelFromKey() {
     return;
   }
   if (!m_jobs->busy() || m_cancelQuestion) return;
-  if (m_jobs->currentName() != "Searching" || m_jobElapsedS < kAskBeforeCancelS) {
+  if (m_jobs->currentKind() != JobKind::Search || m_jobElapsedS < kAskBeforeCancelS) {
     m_jobs->cancel();
     return;
   }
@@ -343,7 +343,8 @@ void MainWindow::cancelFromKey() {
   box->setDefaultButton(QMessageBox::No);
   box->setAttribute(Qt::WA_DeleteOnClose);
   connect(box, &QMessageBox::finished, this, [this](int answer) {
-    if (answer == QMessageBox::Yes && m_jobs->busy() && m_jobs->currentName() == "Searching") m_jobs->cancel();
+    if (answer == QMessageBox::Yes && m_jobs->busy() && m_jobs->currentKind() == JobKind::Search)
+      m_jobs->cancel();
   });
   m_cancelQuestion = box;
   box->open();

@@ -26,6 +26,7 @@ namespace st::ui {
 
 class ImageView;
 class JobRunner;
+enum class JobKind;
 class StackScrubber;
 class ProcessingPanel;
 class SearchPanel;
@@ -146,7 +147,7 @@ class MainWindow : public QMainWindow {
   QWidget* buildCentral();
   void buildStatusBar();
   void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
-  void onJobFinished(const QString& name, bool ok, bool cancelled, const QString& message, double elapsedS);
+  void onJobFinished(JobKind kind, bool ok, bool cancelled, const QString& message, double elapsedS);
   void onRawChanged();
   void onPreparedChanged();
   void onSelection();
@@ -161,7 +162,7 @@ class MainWindow : public QMainWindow {
   void openScriptInputs(const ScriptOptions& options);
   /// Prints the Calibration stage's offer note and bias/flat/dark lists on stdout ("calibration ...").
   void printScriptCalibration();
-  void advanceScript(const QString& finishedJob, bool ok);
+  void advanceScript(JobKind finishedJob, bool ok);
   void finishScript(bool ok, const QString& message);
   /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.
   void runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done);

@@ -65,7 +65,7 @@ void MainWindow::openDemo() {
 
 void MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
   const bool started =
-      m_jobs->start("Loading", [this, load, label](ProgressSink& progress, CancelToken& cancel) {
+      m_jobs->start(JobKind::Load, [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
         return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
       });
@@ -89,8 +89,8 @@ void MainWindow::runPreprocess() {
   auto makeBackend = m_services.makeBackend;
   const auto stages = m_processing->stages();
   const BackendKind kind = m_search->backendKind();
-  m_jobs->start("Pre-processing", [this, raw, preprocess, makeBackend, stages, kind](ProgressSink& progress,
-                                                                                     CancelToken& cancel) {
+  m_jobs->start(JobKind::Preprocess, [this, raw, preprocess, makeBackend, stages, kind](
+                                         ProgressSink& progress, CancelToken& cancel) {
     if (!preprocess) throwMissingService("pre-processing pipeline");
     auto prepared = std::make_shared<const PreparedView>(preprocess(raw, stages, progress, cancel));
     std::string message;
@@ -115,8 +115,8 @@ void MainWindow::runSearch() {
   const search::SearchParams params = m_search->params();
   const BackendKind kind = m_search->backendKind();
   auto backends = m_searchBackends;
-  m_jobs->start("Searching", [this, cube, makeBackend, backends, grid, params, kind](ProgressSink& progress,
-                                                                                     CancelToken& cancel) {
+  m_jobs->start(JobKind::Search, [this, cube, makeBackend, backends, grid, params, kind](
+                                     ProgressSink& progress, CancelToken& cancel) {
     if (!makeBackend) throwMissingService("search backend");
     std::string message;
     auto result =
@@ -138,8 +138,9 @@ void MainWindow::runSearch() {
   });
 }
 
-void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, const QString& message,
+void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QString& message,
                                double elapsedS) {
+  const QString name = jobName(kind);
   m_progress->hide();
   m_cancel->hide();
   m_processing->setRunEnabled(m_obs->raw() != nullptr);
@@ -147,7 +148,7 @@ void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, con
   if (m_cancelQuestion) m_cancelQuestion->close();
   if (cancelled) {
     m_jobLabel->setText(name + " cancelled");
-    if (name == "Searching")
+    if (kind == JobKind::Search)
       m_search->setStatusText(QString("Search cancelled after %1 s%2")
                                   .arg(elapsedS, 0, 'f', 1)
                                   .arg(m_obs->result() ? "; the previous result is shown" : ""));
@@ -159,8 +160,8 @@ void MainWindow::onJobFinished(const QString& name, bool ok, bool cancelled, con
   }
   // A cube written by `synthtrack-cli preprocess` opens as prepared whatever the setting: the service takes
   // its header's PSF, noise and sky rate and does not run the pipeline on it again.
-  if (ok && name == "Loading" && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
-  if (m_script) advanceScript(name, ok && !cancelled);
+  if (ok && kind == JobKind::Load && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
+  if (m_script) advanceScript(kind, ok && !cancelled);
   if (!ok && m_script && !cancelled) finishScript(false, message);
 }
 
@@ -272,16 +273,16 @@ void MainWindow::printScriptCalibration() {
   std::fflush(stdout);
 }
 
-void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
+void MainWindow::advanceScript(JobKind finishedJob, bool ok) {
   if (!ok) return;
-  if (finishedJob == "Opening session") {  // restored without searching again
+  if (finishedJob == JobKind::OpenSession) {  // restored without searching again
     if (m_script->select) selectCandidate(*m_script->select - 1);
     finishScript(true, {});
     return;
   }
-  if (finishedJob == "Loading") printScriptCalibration();  // as loaded (a prepared cube drops the offer)
-  if (finishedJob == "Loading" && !m_autoPreprocess && !rawIsPrepared()) runPreprocess();
-  if (finishedJob == "Pre-processing") {
+  if (finishedJob == JobKind::Load) printScriptCalibration();  // as loaded (a prepared cube drops the offer)
+  if (finishedJob == JobKind::Load && !m_autoPreprocess && !rawIsPrepared()) runPreprocess();
+  if (finishedJob == JobKind::Preprocess) {
     // Scripted runs say what pre-processing did (calibration, PSF, sky rate) and the grid the search takes.
     if (const auto& prepared = m_obs->prepared())
       std::printf("pre-processing: %s\n", prepared->summary.c_str());
@@ -295,7 +296,7 @@ void MainWindow::advanceScript(const QString& finishedJob, bool ok) {
     else
       finishScript(true, {});
   }
-  if (finishedJob == "Searching") {
+  if (finishedJob == JobKind::Search) {
     // Scripted runs list the candidates on stdout, so a figure's --select N can be chosen reproducibly.
     const auto& result = m_obs->result();
     for (std::size_t i = 0; result && i < result->candidates.size(); ++i) {

@@ -148,7 +148,7 @@ void MainWindow::openSession(const QString& path) {
   const BackendKind kind = m_search->backendKind();
   const std::string file = QFileInfo(path).absoluteFilePath().toStdString();
   const bool started =
-      m_jobs->start("Opening session", [=, this](ProgressSink& progress, CancelToken& cancel) {
+      m_jobs->start(JobKind::OpenSession, [=, this](ProgressSink& progress, CancelToken& cancel) {
         auto opened = std::make_shared<OpenedSession>();
         opened->path = QString::fromStdString(file);
         // A corrupted or newer file throws here, after SessionStore copied it aside; the message names the

@@ -153,9 +153,10 @@ QGroupBox* SearchPanel::makeRunBox(const std::vector<std::string>& gpuNames) {
   auto* runBox = new QGroupBox("Run", this);
   auto* run = new QFormLayout(runBox);
   m_method = new QComboBox(runBox);
-  m_method->addItem("Auto", "auto");
-  m_method->addItem("Exact", "exact");
-  m_method->addItem("Tree", "tree");
+  for (const auto& [text, method] : {std::pair{"Auto", search::SearchMethod::Auto},
+                                     std::pair{"Exact", search::SearchMethod::Exact},
+                                     std::pair{"Tree", search::SearchMethod::Tree}})
+    m_method->addItem(text, static_cast<int>(method));
   m_method->setToolTip(kMethodHelp);
   m_backend = new QComboBox(runBox);
   m_backend->addItem("Auto", static_cast<int>(BackendKind::Auto));
@@ -325,12 +326,12 @@ QString SearchPanel::gridText() const {
   return m_gridSize->text();
 }
 
-std::string SearchPanel::method() const {
-  return m_method->currentData().toString().toStdString();
+search::SearchMethod SearchPanel::method() const {
+  return static_cast<search::SearchMethod::Value>(m_method->currentData().toInt());
 }
 
-void SearchPanel::setMethod(const std::string& method) {
-  const int index = m_method->findData(QString::fromStdString(method));
+void SearchPanel::setMethod(search::SearchMethod method) {
+  const int index = m_method->findData(static_cast<int>(method));
   if (index >= 0) m_method->setCurrentIndex(index);
 }
 
@@ -354,7 +355,7 @@ void SearchPanel::refresh() {
   m_gridOriginLabel->setText(m_origin);
   m_gridOriginLabel->setVisible(!m_origin.isEmpty());
   const search::SearchParams p = params();
-  QString settings = QString::fromStdString(p.method);
+  QString settings = QString::fromUtf8(p.method.name());
   for (double v : {g.centre.vx, g.centre.vy, g.stepPxS, 1.0 * g.nvx, 1.0 * g.nvy, p.snrThreshold,
                    p.targetFap.value_or(-1.0), 1.0 * static_cast<int>(backendKind())})
     settings += ' ' + QString::number(v, 'g', 17);
@@ -415,11 +416,12 @@ QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::Velo
   search::priceMethods(e, standard);
   const search::MethodChoice c = search::chooseMethod(method(), e, true, "cpu");
   search::priceMethods(e, search::cpuCostModel(workerCount(), rate));
-  const bool tree = c.method == "tree";
+  const bool tree = c.method == search::SearchMethod::Tree;
   if (tree && !(e.treeAdditions > 0.0))
     return "tree: no tree plan for these frames (they need 2 distinct times)";
   QString text =
-      method() == "auto" ? "Auto → " + QString::fromStdString(c.method) : QString::fromStdString(c.method);
+      method() == search::SearchMethod::Auto ? "Auto → " + QString::fromUtf8(c.method.name())
+                                             : QString::fromUtf8(c.method.name());
   text += QString(": %1 additions · %2 (+%3 cube) · ~%4")
               .arg(tree ? e.treeAdditions : e.exactAdditions, 0, 'e', 2)
               .arg(humanBytes(static_cast<double>(tree ? e.treeWorkingBytes : e.exactWorkingBytes)))
@@ -461,7 +463,7 @@ void SearchPanel::onResultChanged() {
   const QString why =
       r->methodReason == "requested" ? QString("as selected") : QString::fromStdString(r->methodReason);
   QString text = QString("%1 search on %2: %3 in %4 (%5)")
-                     .arg(QString::fromStdString(r->method.empty() ? "?" : r->method))
+                     .arg(QString::fromUtf8(r->method.name()))
                      .arg(QString::fromStdString(r->backend))
                      .arg(candidateSummary(*r))
                      .arg(humanSeconds(r->elapsedS))

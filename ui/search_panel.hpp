@@ -49,10 +49,10 @@ class SearchPanel : public QWidget {
   /// The grid in words with units (gridDescription()), and where the setting came from ("" when not known).
   [[nodiscard]] QString gridText() const;
   [[nodiscard]] QString gridOrigin() const { return m_origin; }
-  /// The method selected: "auto" (default), "exact" or "tree" (also in params().method).
-  [[nodiscard]] std::string method() const;
-  /// Selects "auto", "exact" or "tree" (anything else is ignored).
-  void setMethod(const std::string& method);
+  /// The method selected: Auto (default), Exact or Tree (also in params().method).
+  [[nodiscard]] search::SearchMethod method() const;
+  /// Selects the method (SearchMethod::Unknown is ignored).
+  void setMethod(search::SearchMethod method);
   /// The estimate text shown (for tests and the status bar).
   [[nodiscard]] QString estimateText() const;
   /// True while the method estimate (its tree plan) is being computed in a worker.

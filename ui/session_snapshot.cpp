@@ -20,18 +20,22 @@ json gridToJson(const search::VelocityGrid& g) {
           {"nvy", g.nvy}};
 }
 
+/// The key a stage is stored under: its stable key (format 3), the name for a stage without one (test fakes).
+const std::string& storedKey(const StageSpec& stage) { return stage.key.empty() ? stage.name : stage.key; }
+
 json stagesToJson(const std::vector<StageSpec>& stages) {
   json out = json::object();
   for (const auto& stage : stages) {
     json params = json::object();
     for (const auto& p : stage.params)
       params[p.key] = p.value;
-    out[stage.name] = {{"enabled", stage.enabled}, {"parameters", params}};
+    json& saved = out[storedKey(stage)];
+    saved = {{"enabled", stage.enabled}, {"parameters", params}};
     if (!stage.files.empty()) {  // absent in sessions written before the calibration pickers: none
       json files = json::object();
       for (const auto& f : stage.files)
         files[f.key] = f.paths;
-      out[stage.name]["files"] = files;
+      saved["files"] = files;
     }
   }
   return out;
@@ -43,7 +47,7 @@ json searchParametersToJson(const SessionParameters& p) {
           {"target_fap", p.search.targetFap ? json(*p.search.targetFap) : json(nullptr)},
           {"max_candidates", p.search.maxCandidates},
           {"min_frame_fraction", p.search.minFrameFraction},
-          {"method", p.search.method},
+          {"method", std::string(p.search.method.name())},
           {"backend", toString(p.backend)}};
 }
 
@@ -62,8 +66,14 @@ std::vector<StageSpec> restoreStages(const json& saved, std::vector<StageSpec> s
                                      const std::string& where) {
   if (!saved.is_object()) return stages;
   for (auto& stage : stages) {
-    if (!saved.contains(stage.name)) continue;
-    const json& s = saved[stage.name];
+    // Format 3 stores the stable key; format 2 stored the display name (kept in formerKeys).
+    std::vector<std::string> keys{storedKey(stage), stage.name};
+    keys.insert(keys.end(), stage.formerKeys.begin(), stage.formerKeys.end());
+    const json* found = nullptr;
+    for (const std::string& key : keys)
+      if (!found && saved.contains(key)) found = &saved.at(key);
+    if (!found) continue;
+    const json& s = *found;
     stage.enabled = !stage.optional || valueOr<bool>(s, "enabled", stage.enabled, where);
     const json params = s.is_object() && s.contains("parameters") ? s["parameters"] : json::object();
     for (auto& p : stage.params)
@@ -93,7 +103,11 @@ void restoreSearchParameters(const json& s, SessionParameters& p, const std::str
     p.search.targetFap = valueOr<double>(s, "target_fap", 0.0, where);
   p.search.maxCandidates = valueOr<std::size_t>(s, "max_candidates", p.search.maxCandidates, where);
   p.search.minFrameFraction = valueOr<double>(s, "min_frame_fraction", p.search.minFrameFraction, where);
-  p.search.method = valueOr<std::string>(s, "method", p.search.method, where);
+  const std::string method = valueOr<std::string>(s, "method", std::string(p.search.method.name()), where);
+  const auto parsed = search::parseSearchMethod(method);
+  if (!parsed)
+    throw InputError(where + ": parameter 'method' is '" + method + "' (expected auto, exact or tree)");
+  p.search.method = *parsed;
   p.backend = backendKindFromString(valueOr<std::string>(s, "backend", "auto", where));
 }
 
@@ -101,7 +115,7 @@ void restoreSearchParameters(const json& s, SessionParameters& p, const std::str
 
 search::SearchParams defaultPanelSearchParams() {
   search::SearchParams p;
-  p.method = "auto";
+  p.method = search::SearchMethod::Auto;
   return p;
 }
 

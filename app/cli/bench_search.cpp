@@ -62,11 +62,11 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
   const int tileRows = search::treeTileRows(plan, w);
   const double treeOps = search::treeAdditions(plan, w, h, tileRows);
   const double exactOps = static_cast<double>(w) * h * frames * grid.count();
-  params.method = "tree";
+  params.method = search::SearchMethod::Tree;
   const Run tree = timedSearch(*backend, cube, grid, params);
   Run exact;
   if (runExact) {
-    params.method = "exact";
+    params.method = search::SearchMethod::Exact;
     exact = timedSearch(*backend, cube, grid, params);
   }
   const search::TreePlan paper = paperPlan();
@@ -83,7 +83,9 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
   // What `--method auto` would choose here (method_choice.hpp), to compare with the measured winner.
   const search::MethodEstimate est = search::estimateMethods(w, h, cube.frames.timeOffsetsS(), grid,
                                                              search::costModelFor(*backend), workerCount());
-  const search::MethodChoice autoChoice = search::chooseMethod("auto", est, true, backend->name());
+  const search::MethodChoice autoChoice =
+      search::chooseMethod(search::SearchMethod::Auto, est, true, backend->name());
+  const std::string autoMethod(autoChoice.method.name());
   if (json) {
     std::printf(
         "{\"bench\": \"search-tree\", \"threads\": %u, \"frames\": %.0f, \"width\": %d, \"height\": %d, "
@@ -98,7 +100,7 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
         workerCount(), frames, w, h, grid.nvx, grid.nvy, treeOps, tree.seconds, tree.cpuSeconds,
         tree.result.candidates.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, exactOps,
         runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0},
-        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb, autoChoice.method.c_str(),
+        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb, autoMethod.c_str(),
         est.exactSeconds, est.treeSeconds);
     return 0;
   }
@@ -114,7 +116,7 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
     std::printf("  speed-up %.1fx in time, %.1fx in operations\n", exact.seconds / tree.seconds,
                 exactOps / treeOps);
   }
-  std::printf("  --method auto: %s (%s)%s\n", autoChoice.method.c_str(), autoChoice.reason.c_str(),
+  std::printf("  --method auto: %s (%s)%s\n", autoMethod.c_str(), autoChoice.reason.c_str(),
               runExact
                   ? (exact.seconds < tree.seconds ? "; measured: exact faster" : "; measured: tree faster")
                   : "");

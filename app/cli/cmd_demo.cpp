@@ -49,7 +49,7 @@ struct DemoOptions {
   double snr = pipeline::demoSearchParams().snrThreshold;
   int fits = 40;
   BackendChoice backend = BackendChoice::Auto;
-  std::string method = pipeline::demoSearchParams().method;
+  search::SearchMethod method = pipeline::demoSearchParams().method;
 };
 
 DemoOptions parseDemo(const Args& args) {
@@ -68,9 +68,11 @@ DemoOptions parseDemo(const Args& args) {
   o.snr = cli.number("snr", o.snr);
   if (auto v = cli.integer("fits")) o.fits = static_cast<int>(*v);
   if (auto v = cli.value("backend")) o.backend = parseBackendChoice(*v);
-  if (auto v = cli.value("method")) o.method = *v;
-  if (o.method != "auto" && o.method != "exact" && o.method != "tree")
-    throw UsageError("--method must be auto, exact or tree, got '" + o.method + "'");
+  if (auto v = cli.value("method")) {
+    const auto method = search::parseSearchMethod(*v);
+    if (!method) throw UsageError("--method must be auto, exact or tree, got '" + *v + "'");
+    o.method = *method;
+  }
   if (!(o.vmaxDegDay > 0.0)) throw UsageError("--vmax-deg-day must be > 0");
   if (!(o.stepPx > 0.0)) throw UsageError("--grid-step-px must be > 0");
   if (o.fits < 0) throw UsageError("--fits must be >= 0");
@@ -190,7 +192,8 @@ int cmdDemo(const Args& args) {
   std::printf(
       "  search: %s, method %s (%s), %d x %d velocities, step %.4f px/s, threshold SNR %.2f, %zu candidates, "
       "%.1f s\n",
-      backend.message.c_str(), result.method.c_str(), result.methodReason.c_str(), result.grid.nvx,
+      backend.message.c_str(), std::string(result.method.name()).c_str(), result.methodReason.c_str(),
+      result.grid.nvx,
       result.grid.nvy, result.grid.stepPxS, result.snrThreshold, result.candidates.size(), result.elapsedS);
   int found = 0;
   for (const auto& t : sim.truth.objects) {

@@ -47,7 +47,7 @@ void printEstimate(const PlannedSearch& p) {
   std::fprintf(stderr, "search: %d x %d px, %zu frames, %d x %d velocities (step %.4g px/s); cube %.0f MB\n",
                p.width, p.height, fc.frames.frameCount(), grid.nvx, grid.nvy,
                grid.stepPxS, e.cubeBytes / mb);
-  const bool tree = choice.method == "tree";
+  const bool tree = choice.method == search::SearchMethod::Tree;
   std::fprintf(stderr, "  %s exact: %.3g additions, %.0f MB working, estimate %.3g s\n", tree ? " " : ">",
                e.exactAdditions, e.exactWorkingBytes / mb, e.exactSeconds);
   if (e.treeAdditions > 0.0) {
@@ -58,7 +58,7 @@ void printEstimate(const PlannedSearch& p) {
         tree ? ">" : " ", e.treeAdditions, e.exactAdditions / e.treeAdditions, e.treeWorkingBytes / mb,
         e.treeTileRows, e.treeSeconds);
   }
-  std::fprintf(stderr, "method: %s (%s)\n", choice.method.c_str(), choice.reason.c_str());
+  std::fprintf(stderr, "method: %s (%s)\n", std::string(choice.method.name()).c_str(), choice.reason.c_str());
 }
 
 /// Memory plan lines from `from` on.

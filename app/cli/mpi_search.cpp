@@ -15,11 +15,11 @@ namespace st::app {
 
 int searchMpi(const ObservationInput& input, const SearchOptions& options, bool fit,
               const std::optional<std::string>& csv, bool json) {
-  if (options.request.params.method == "tree")
+  if (options.request.params.method == search::SearchMethod::Tree)
     throw UsageError("--mpi splits the exact search: give --method exact or auto");
   if (options.backend == "cuda") throw UsageError("--mpi searches on the CPU cores of every rank");
   SearchOptions o = options;
-  o.request.params.method = "exact";
+  o.request.params.method = search::SearchMethod::Exact;
   Cluster cluster;
   const bool root = cluster.rank() == 0;
   if (cluster.active()) chooseRankResources(cluster.localRank(), cluster.localSize());

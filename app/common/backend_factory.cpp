@@ -72,9 +72,9 @@ BackendSelection makeBackend(BackendChoice choice) {
   return out;
 }
 
-BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method) {
+BackendSelection makeBackendForMethod(BackendChoice choice, search::SearchMethod method) {
   BackendSelection sel = makeBackend(choice);
-  if (method != "tree" || sel.backend->supportsMethod("tree")) return sel;
+  if (method != search::SearchMethod::Tree || sel.backend->supports(search::SearchMethod::Tree)) return sel;
   if (choice == BackendChoice::Cuda) {
     throw InputError("the tree search is not available on " + sel.backend->name() +
                      ": use the CPU backend, or method auto or exact");

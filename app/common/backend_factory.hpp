@@ -23,11 +23,11 @@ struct BackendSelection {
 /// backend, or st::GpuError when it cannot be had. Cpu: the CPU backend.
 BackendSelection makeBackend(BackendChoice choice);
 
-/// makeBackend(choice) for a search with SearchParams::method `method` ("auto", "exact", "tree"): a tree
+/// makeBackend(choice) for a search with SearchParams::method `method` (Auto, Exact, Tree): a tree
 /// request on a backend without the tree (SearchBackend::supportsMethod) gets the CPU backend when the
 /// backend was chosen automatically (the message says why), and st::InputError naming the backend when it was
 /// named.
-BackendSelection makeBackendForMethod(BackendChoice choice, const std::string& method);
+BackendSelection makeBackendForMethod(BackendChoice choice, search::SearchMethod method);
 
 /// For one of `localWorkers` worker processes on a node (batch under MPI), index `localIndex`: each gets
 /// its own GPU when the node has several (CUDA_VISIBLE_DEVICES set to one of the visible ones, round robin;

@@ -75,9 +75,9 @@ void validateOptions(const std::map<std::string, std::string>& options) {
   (void)loadOptionsFromArgs(cli);
 }
 
-search::SearchBackend& BackendCache::get(const std::string& backend, const std::string& method,
+search::SearchBackend& BackendCache::get(const std::string& backend, search::SearchMethod method,
                                          std::string& message) {
-  const std::string key = backend + "/" + method;
+  const std::string key = backend + "/" + std::string(method.name());
   auto it = m_backends.find(key);
   if (it == m_backends.end())
     it = m_backends.emplace(key, makeBackendForMethod(parseBackendChoice(backend), method)).first;

@@ -51,7 +51,7 @@ struct RunOutcome {
 /// make).
 class BackendCache {
  public:
-  search::SearchBackend& get(const std::string& backend, const std::string& method, std::string& message);
+  search::SearchBackend& get(const std::string& backend, search::SearchMethod method, std::string& message);
 
  private:
   std::map<std::string, BackendSelection> m_backends;

@@ -79,6 +79,10 @@ pipeline::PreparedSearchInput loadPrepared(const ObservationInput& in, const Sea
 
 namespace {
 
+constexpr search::SearchMethod kExact = search::SearchMethod::Exact;
+constexpr search::SearchMethod kTree = search::SearchMethod::Tree;
+constexpr search::SearchMethod kAuto = search::SearchMethod::Auto;
+
 /// The image's offset in the files (the user's --crop).
 std::pair<int, int> cropOrigin(const ObservationInput& in) {
   return in.load.crop ? std::pair{in.load.crop->x0, in.load.crop->y0} : std::pair{0, 0};
@@ -194,8 +198,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
         search::estimateMethods(shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0,
                                 search::costModelFor(backend), threads, o.request.params.bufferBytes);
     const search::MethodChoice c0 =
-        search::chooseMethod(o.request.params.method, e0, backend.supportsMethod("tree"), backend.name());
-    memory.inMemory = pipeline::estimateSearchPeak(shape, e0, c0.method);
+        search::chooseMethod(o.request.params.method, e0, backend.supports(kTree), backend.name());
+    memory.inMemory = pipeline::estimateSearchPeak(shape, e0, std::string(c0.method.name()));
     const bool fits = memory.inMemory.total() <= budget;
     memory.lines.push_back("search in memory: estimated peak " + memory.inMemory.describe() +
                            (fits ? "" : ": over the budget, out of core"));
@@ -221,7 +225,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                               threads, o.request.params.bufferBytes);
   search::setPsf(e, fc.psfFwhmPx);  // auto's SNR rule for the tree (issue 16)
   search::MethodChoice method =
-      search::chooseMethod(o.request.params.method, e, backend.supportsMethod("tree"), backend.name());
+      search::chooseMethod(o.request.params.method, e, backend.supports(kTree), backend.name());
   std::vector<search::SearchTile> tiles;
   if (ooc) {
     memory.outOfCore = true;
@@ -235,12 +239,14 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       overlap += stack::makeFilterKernel(psf).halfSize;
     }
     pipeline::TiledSearchPlan plan =
-        pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, method.method, threads);
-    if (plan.tiles.empty() && method.method == "tree" && o.request.params.method == "auto") {
+        pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, std::string(method.method.name()),
+                                  threads);
+    if (plan.tiles.empty() && method.method == kTree && o.request.params.method == kAuto) {
       // The tree's partial stacks do not fit beside a tile: the exact kernel's scratch is small.
       plan = pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, "exact", threads);
       if (!plan.tiles.empty())
-        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget beside a tile)"};
+        method = {kExact,
+                  "auto: exact (the tree search's buffers do not fit the memory budget beside a tile)"};
     }
     if (plan.tiles.empty()) {
       throw InputError(pipeline::overBudgetMessage(
@@ -269,10 +275,10 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
         if (fit) p.add("zero-biased cube (for --fit)", 4.0 * held.samples());
         return p;
       };
-      MemoryEstimate searchPeak = peakOf(method.method);
-      if (searchPeak.total() > budget && method.method == "tree" && o.request.params.method == "auto" &&
+      MemoryEstimate searchPeak = peakOf(std::string(method.method.name()));
+      if (searchPeak.total() > budget && method.method == kTree && o.request.params.method == kAuto &&
           peakOf("exact").total() <= budget) {
-        method = {"exact", "auto: exact (the tree search's buffers do not fit the memory budget)"};
+        method = {kExact, "auto: exact (the tree search's buffers do not fit the memory budget)"};
         searchPeak = peakOf("exact");
       }
       memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe() +

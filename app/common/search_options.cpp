@@ -106,11 +106,11 @@ SearchOptions parseSearchOptions(const CliArgs& cli) {
   o.sigmaF = cli.number("sigma-f");
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;
-  p.method = "auto";
+  p.method = search::SearchMethod::Auto;
   if (auto m = cli.value("method")) {
-    if (*m != "auto" && *m != "exact" && *m != "tree")
-      throw UsageError("--method must be 'auto', 'exact' or 'tree', got '" + *m + "'");
-    p.method = *m;
+    const auto method = search::parseSearchMethod(*m);
+    if (!method) throw UsageError("--method must be 'auto', 'exact' or 'tree', got '" + *m + "'");
+    p.method = *method;
   }
   if (auto m = cli.value("memory-limit")) {
     parseMemorySize(*m);  // refuse a bad size before any work

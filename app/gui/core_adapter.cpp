@@ -16,6 +16,7 @@
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
 #include "st/psf/moffat_fit.hpp"
+#include "st/session/preprocess_settings.hpp"
 #include "st/sim/simulator.hpp"
 #if __has_include("st/pipeline/preprocess.hpp")
 #include "st/pipeline/prepared_cube.hpp"
@@ -51,82 +52,6 @@ ui::ProfileFit profileAt(const Image& image, double x, double y) {
 }
 
 #ifdef ST_GUI_HAVE_PIPELINE
-double param(const std::vector<ui::StageSpec>& stages, const std::string& key, double fallback) {
-  for (const auto& s : stages)
-    for (const auto& p : s.params)
-      if (p.key == key) return p.value;
-  return fallback;
-}
-bool enabled(const std::vector<ui::StageSpec>& stages, const std::string& name) {
-  for (const auto& s : stages)
-    if (s.name == name) return s.enabled;
-  return true;
-}
-
-const char* const kCalibrationStage = "Calibration (overscan, trim, bad pixels)";
-const char* const kRegistrationStage = "Registration (per-frame offsets from the stars)";
-
-std::vector<ui::StageSpec> stageSpecs() {
-  const pipeline::PreprocessParams d;
-  using P = ui::StageParam;
-  return {
-      // Off: the headers' image sections (BIASSEC, TRIMSEC, DATASEC) are ignored, for headers that describe
-      // another readout; on, a section that does not fit the frames is clipped with a warning.
-      // Bias, flat and dark frames as `synthtrack-cli preprocess --bias/--flat/--dark` takes them (files or
-      // folders; the GUI offers bias/, flat/, dark/ folders found beside the science folder).
-      {kCalibrationStage,
-       true,
-       true,
-       {},
-       {ui::StageFiles{"bias", "Bias frames", {}, "bias (zero) frames, combined per pixel by the median"},
-        ui::StageFiles{"flat", "Flat frames", {}, "flat-field frames (twilight or dome), bias-subtracted, "
-                                                  "median-combined and normalised to 1"},
-        ui::StageFiles{"dark", "Dark frames", {}, "dark frames, bias-subtracted and scaled by exposure"}}},
-      {kRegistrationStage,
-       d.registerFrames,
-       true,
-       {P{"reg.linearRms", "Linear sky rate up to rms", "px", d.registration.linearRmsPx, 0.0, 1000.0, 2,
-          "each frame's star field is followed from frame to frame; while it stays within this rms of one "
-          "linear sky rate that is the model, beyond it (dithers, guiding, re-pointing) per-frame offsets "
-          "are used by every stage and the search"}}},
-      {"Cosmic rays",
-       d.removeCosmicRays,
-       true,
-       {P{"cr.threshold", "Hit threshold", "σ", d.cosmicRays.thresholdSigma, 3, 50, 1,
-          "F_n - max(two nearest frames) above this many single-frame sigma"},
-        P{"cr.grow", "Grow threshold", "σ", d.cosmicRays.growSigma, 1, 50, 1,
-          "neighbours above this join a hit"}}},
-      {"Background",
-       true,
-       false,
-       {P{"bg.globalFrames", "Global frames", "", static_cast<double>(d.background.global.frames), 1, 1e6, 0,
-          "frames of the first, pixel-independent estimate (paper §4.2: 50)"},
-        P{"bg.globalXi", "Global clip ξ", "σ", d.background.global.xi, 1, 20, 1, "paper §3.1: 5"},
-        P{"bg.xi", "Per-pixel clip ξ", "σ", d.background.xi, 1, 20, 1, "paper §3.1: 4"},
-        P{"bg.maxFrames", "Frames per pixel", "", static_cast<double>(d.background.maxFrames), 10, 1e6, 0,
-          "paper: ~2000"}}},
-      {"Sky rate (measured from the stars)",
-       true,
-       true,
-       {P{"sky.vx", "vx if not measured", "px/s", 0.0, -1e4, 1e4, 4, "used when the stage is off"},
-        P{"sky.vy", "vy if not measured", "px/s", 0.0, -1e4, 1e4, 4, "used when the stage is off"}}},
-      {"Static sources",
-       true,
-       false,
-       {P{"stars.snr", "Detection SNR", "", d.stars.snrThreshold, 2, 100, 1,
-          "in the sky-rate stack (paper §4.3: 7)"},
-        P{"stars.grow", "Footprint down to SNR", "", d.stars.growSnr, 0.5, 50, 1, ""},
-        P{"stars.dilate", "Dilation", "FWHM", d.stars.dilateFwhm, 0, 10, 1, ""},
-        P{"single.snr", "Single-frame SNR", "", d.singleFrameSnr, 2, 100, 1, "paper §4.3: 7"}}},
-      {"PSF and matched filter",
-       true,
-       false,
-       {P{"psf.fwhm", "Fallback FWHM", "px", d.psfFwhmPx, 0.5, 50, 2,
-          "used when no star can be fitted (paper: ~3 px)"},
-        P{"psf.beta", "Fallback β", "", d.psfBeta, 1.1, 20, 2, "paper §3.3: 4"}}},
-  };
-}
-
 /// A cube written by `synthtrack-cli preprocess` (header STPREP): opened as prepared, not pre-processed again
 /// (that would find no stars or background, and measure the sky rate from whatever moves): the header's PSF,
 /// sigma_n and sky rate are taken, a zero-biased cube is matched-filtered with the header's PSF
@@ -209,34 +134,15 @@ ui::PreparedView runPreprocess(std::shared_ptr<const FrameCube> raw, const std::
                                ProgressSink& progress, CancelToken& cancel) {
   if (const auto h = pipeline::recognisePreparedHeader(raw->header, pipeline::cubeSource(*raw)))
     return openPrepared(*raw, *h, progress, cancel);
-  pipeline::PreprocessParams p;
-  // The calibration stage off: the headers' image sections (overscan, trim) are ignored, no bias/flat/dark.
+  // The stages' settings by stable key onto the typed parameters (session/preprocess_settings.hpp); the
+  // calibration stage off ignores the headers' image sections (overscan, trim) and takes no bias/flat/dark.
+  pipeline::PreprocessParams p = session::preprocessParams(ui::preprocessSettings(stages));
   std::vector<std::string> calibWarnings;
-  if (!enabled(stages, kCalibrationStage)) {
-    p.calib.subtractOverscan = false;
-    p.calib.useHeaderSections = false;
-  } else {
+  if (ui::stageEnabled(stages, session::kCalibrationStageKey)) {
     SubProgress calibProgress(progress, 0.0, 0.1);
     p.masters = buildMasters(*raw, stages, p.calib, calibProgress, cancel, calibWarnings);
   }
   SubProgress prepProgress(progress, p.masters ? 0.1 : 0.0, 1.0);
-  p.registerFrames = enabled(stages, kRegistrationStage);
-  p.registration.linearRmsPx = param(stages, "reg.linearRms", p.registration.linearRmsPx);
-  p.removeCosmicRays = enabled(stages, "Cosmic rays");
-  p.cosmicRays.thresholdSigma = param(stages, "cr.threshold", p.cosmicRays.thresholdSigma);
-  p.cosmicRays.growSigma = param(stages, "cr.grow", p.cosmicRays.growSigma);
-  p.background.global.frames = static_cast<std::size_t>(param(stages, "bg.globalFrames", 50));
-  p.background.global.xi = param(stages, "bg.globalXi", p.background.global.xi);
-  p.background.xi = param(stages, "bg.xi", p.background.xi);
-  p.background.maxFrames = static_cast<std::size_t>(param(stages, "bg.maxFrames", 2000));
-  if (!enabled(stages, "Sky rate (measured from the stars)"))
-    p.skyRate = Velocity{param(stages, "sky.vx", 0), param(stages, "sky.vy", 0)};
-  p.stars.snrThreshold = param(stages, "stars.snr", p.stars.snrThreshold);
-  p.stars.growSnr = param(stages, "stars.grow", p.stars.growSnr);
-  p.stars.dilateFwhm = param(stages, "stars.dilate", p.stars.dilateFwhm);
-  p.singleFrameSnr = param(stages, "single.snr", p.singleFrameSnr);
-  p.psfFwhmPx = param(stages, "psf.fwhm", p.psfFwhmPx);
-  p.psfBeta = param(stages, "psf.beta", p.psfBeta);
   // preprocess takes the cube by value and works in place; the GUI keeps the raw frames for viewing, so
   // this is the one documented extra copy of the cube.
   pipeline::Prepared prep = pipeline::preprocess(*raw, p, prepProgress, cancel);
@@ -321,7 +227,7 @@ ui::CoreServices makeCoreServices() {
   };
   s.simulateDemo = simulateDemo;
 #ifdef ST_GUI_HAVE_PIPELINE
-  s.preprocessStages = stageSpecs();
+  s.preprocessStages = ui::describedStages();
   s.preprocess = runPreprocess;
   s.fitCandidate = fitCandidate;
 #endif

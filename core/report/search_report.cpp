@@ -37,7 +37,7 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   nlohmann::json j;
   j["inputs"] = inputs;
   j["backend"] = r.backend;
-  j["method"] = r.method;
+  j["method"] = std::string(r.method.name());
   j["method_reason"] = r.methodReason;
   if (!r.backendNote.empty()) j["backend_note"] = r.backendNote;
   if (!r.warnings.empty()) j["warnings"] = r.warnings;
@@ -156,7 +156,10 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
   r.snrThreshold = required<double>(j, "snr_threshold", kWhat);
   r.tRefMjd = required<double>(j, "t_ref_mjd", kWhat);
   r.backend = required<std::string>(j, "backend", kWhat);
-  r.method = required<std::string>(j, "method", kWhat);
+  const std::string method = required<std::string>(j, "method", kWhat);
+  const auto parsed = search::parseSearchMethod(method);
+  if (!parsed) throw InputError(std::string(kWhat) + ": unknown \"method\" '" + method + "'");
+  r.method = *parsed;
   r.methodReason = optionalKey<std::string>(j, "method_reason", std::string(), kWhat);
   r.backendNote = optionalKey<std::string>(j, "backend_note", std::string(), kWhat);
   r.warnings = optionalKey<std::vector<std::string>>(j, "warnings", {}, kWhat);

@@ -26,12 +26,12 @@ class CpuBackend final : public SearchBackend {
 
   SearchResult search(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                       ProgressSink& progress, CancelToken& cancel) override {
-    if (params.method == "tree") return treeSearch(cube, grid, params, progress, cancel);
-    if (params.method != "exact") {
-      throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+    if (params.method == SearchMethod::Tree) return treeSearch(cube, grid, params, progress, cancel);
+    if (params.method != SearchMethod::Exact) {
+      throw InputError("search method '" + std::string(params.method.name()) + "' (expected exact or tree)");
     }
     const auto start = std::chrono::steady_clock::now();
-    SearchResult result = startSearchResult(cube, grid, params, "cpu", "exact");
+    SearchResult result = startSearchResult(cube, grid, params, "cpu", SearchMethod::Exact);
 
     detail::KernelParams kp;
     kp.sigmaF = cube.sigmaF;

@@ -142,47 +142,49 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   return e;
 }
 
-MethodChoice chooseMethod(const std::string& requested, const MethodEstimate& estimate, bool treeSupported,
+MethodChoice chooseMethod(SearchMethod requested, const MethodEstimate& estimate, bool treeSupported,
                           const std::string& backendName) {
-  if (requested == "exact") return {"exact", "requested"};
-  if (requested == "tree") {
+  constexpr SearchMethod kExact = SearchMethod::Exact;
+  constexpr SearchMethod kTree = SearchMethod::Tree;
+  if (requested == kExact) return {kExact, "requested"};
+  if (requested == kTree) {
     if (!treeSupported) {
       throw InputError("the tree search is not available on the backend '" + backendName +
                        "': use the CPU backend, or method exact or auto");
     }
-    return {"tree", "requested"};
+    return {kTree, "requested"};
   }
-  if (requested != "auto") {
-    throw InputError("unknown search method '" + requested + "' (expected auto, exact or tree)");
+  if (requested != SearchMethod::Auto) {
+    throw InputError("unknown search method (expected auto, exact or tree)");
   }
-  if (!treeSupported) return {"exact", "auto: exact, the backend '" + backendName + "' has no tree search"};
+  if (!treeSupported) return {kExact, "auto: exact, the backend '" + backendName + "' has no tree search"};
   const MethodEstimate& e = estimate;
-  if (!std::isfinite(e.treeSeconds)) return {"exact", "auto: exact, no tree plan for these frames"};
+  if (!std::isfinite(e.treeSeconds)) return {kExact, "auto: exact, no tree plan for these frames"};
   if (e.exactSeconds < kAutoTreeMinSpeedup * e.treeSeconds)
-    return {"exact", autoReason("exact, the tree would not be clearly faster", e)};
+    return {kExact, autoReason("exact, the tree would not be clearly faster", e)};
   if (e.exactSeconds - e.treeSeconds < kAutoTreeMinSavingS)
-    return {"exact", autoReason("exact, too small for the tree's SNR loss to pay", e)};
+    return {kExact, autoReason("exact, too small for the tree's SNR loss to pay", e)};
   if (e.psfFwhmPx > 0.0 && e.treeSnrLoss > kAutoTreeMaxSnrLoss) {
     char text[160];
     std::snprintf(text, sizeof text, "exact, the tree would lose ~%.1f%% of the SNR at PSF FWHM %.2f px (> %.0f%%)",
                   100.0 * e.treeSnrLoss, e.psfFwhmPx, 100.0 * kAutoTreeMaxSnrLoss);
-    return {"exact", autoReason(text, e)};
+    return {kExact, autoReason(text, e)};
   }
   if (e.psfFwhmPx > 0.0) {
     char text[128];
     std::snprintf(text, sizeof text, "tree, clearly faster, SNR cost ~%.1f%% at PSF FWHM %.2f px",
                   100.0 * e.treeSnrLoss, e.psfFwhmPx);
-    return {"tree", autoReason(text, e)};
+    return {kTree, autoReason(text, e)};
   }
-  return {"tree", autoReason("tree, clearly faster", e)};
+  return {kTree, autoReason("tree, clearly faster", e)};
 }
 
 MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
-                           const std::string& requested, MethodEstimate* estimate) {
+                           SearchMethod requested, MethodEstimate* estimate) {
   MethodEstimate e;
-  const bool treeSupported = backend.supportsMethod("tree");
-  // Only "auto" needs the estimate (a tree plan: milliseconds even for the paper problem).
-  if (requested == "auto" && treeSupported) {
+  const bool treeSupported = backend.supports(SearchMethod::Tree);
+  // Only Auto needs the estimate (a tree plan: milliseconds even for the paper problem).
+  if (requested == SearchMethod::Auto && treeSupported) {
     e = estimateMethods(cube.frames.width(), cube.frames.height(), cube.frames.timeOffsetsS(), grid,
                         costModelFor(backend), workerCount());
   }
@@ -199,7 +201,7 @@ SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, 
   SearchResult result = backend.search(cube, grid, resolved, progress, cancel);
   result.method = choice.method;
   result.methodReason = choice.reason;
-  if (choice.method == "tree" && cube.psfFwhmPx > 0.0) {
+  if (choice.method == SearchMethod::Tree && cube.psfFwhmPx > 0.0) {
     // What the tree costs for this cube (issue 16), in the note every front end shows.
     char text[200];
     std::snprintf(text, sizeof text,

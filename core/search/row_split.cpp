@@ -21,7 +21,7 @@ RowRange rowShare(int nvy, int part, int parts) {
 
 RowSearch searchRows(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                      RowRange rows, ProgressSink& progress, CancelToken& cancel) {
-  const SearchResult start = startSearchResult(cube, grid, params, "cpu", "exact");
+  const SearchResult start = startSearchResult(cube, grid, params, "cpu", SearchMethod::Exact);
   RowSearch out;
   out.rows = rows;
   if (rows.end <= rows.begin) return out;
@@ -47,7 +47,7 @@ RowSearch searchRows(const FilteredCube& cube, const VelocityGrid& grid, const S
 SearchResult mergeRowSearches(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                               std::vector<RowSearch> parts, std::string backend) {
   const auto start = std::chrono::steady_clock::now();
-  SearchResult result = startSearchResult(cube, grid, params, std::move(backend), "exact");
+  SearchResult result = startSearchResult(cube, grid, params, std::move(backend), SearchMethod::Exact);
   result.map.nvx = grid.nvx;
   result.map.nvy = grid.nvy;
   result.map.maxSnr.assign(grid.count(), 0.0f);

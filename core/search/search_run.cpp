@@ -81,7 +81,7 @@ int minFramesFor(const SearchParams& params, const std::vector<double>& timesS, 
 }
 
 SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
-                               std::string backend, std::string method) {
+                               std::string backend, SearchMethod method) {
   validateSearchInput(cube, grid, params);
   SearchResult result;
   result.grid = grid;
@@ -91,7 +91,7 @@ SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& gri
       minFramesFor(params, cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(), grid);
   result.tRefMjd = cube.frames.tRefMjd();
   result.backend = std::move(backend);
-  result.method = std::move(method);
+  result.method = method;
   return result;
 }
 

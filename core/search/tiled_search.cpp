@@ -73,8 +73,8 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
                          const VelocityGrid& grid, const SearchParams& params, ProgressSink& progress,
                          CancelToken& cancel) {
   if (tiles.empty()) throw InputError("the out-of-core search got no tiles");
-  if (params.method != "exact" && params.method != "tree") {
-    throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+  if (params.method != SearchMethod::Exact && params.method != SearchMethod::Tree) {
+    throw InputError("search method '" + std::string(params.method.name()) + "' (expected exact or tree)");
   }
   const auto start = std::chrono::steady_clock::now();
   SearchResult result;
@@ -122,7 +122,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
       const detail::Roi roi{tile.owned.x0 - tile.read.x0, tile.owned.y0 - tile.read.y0, tile.owned.width,
                             tile.owned.height};
       SubProgress sub(progress, p0, p1);
-      if (params.method == "exact") {
+      if (params.method == SearchMethod::Exact) {
         detail::KernelParams kp;
         kp.sigmaF = cube.sigmaF;
         kp.snrThreshold = result.snrThreshold;
@@ -163,7 +163,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   setCandidates(result, std::move(hits), psfFwhm, dtS, width, height, params, offsets, skyRate);
   result.backendNote = "out of core: " + std::to_string(tiles.size()) + " tile(s)";
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  progress.report(1.0, params.method == "tree" ? "velocity search (tree)" : "velocity search");
+  progress.report(1.0, params.method == SearchMethod::Tree ? "velocity search (tree)" : "velocity search");
   return result;
 }
 

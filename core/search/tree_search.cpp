@@ -462,7 +462,7 @@ KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid,
 SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                         ProgressSink& progress, CancelToken& cancel) {
   const auto start = std::chrono::steady_clock::now();
-  SearchResult result = startSearchResult(cube, grid, params, "cpu", "tree");
+  SearchResult result = startSearchResult(cube, grid, params, "cpu", SearchMethod::Tree);
   detail::TreeRegionParams p;
   p.sigmaF = cube.sigmaF;
   p.snrThreshold = result.snrThreshold;

@@ -95,8 +95,8 @@ nlohmann::json toJson(const Session& s) {
 
 namespace {
 
-/// One candidate of a session file of format `version` (1: "candidate" and a flat fit; 2: "search" and a
-/// nested fit).
+/// One candidate of a session file of format `version` (1: "candidate" and a flat fit; 2 and 3: "search" and
+/// a nested fit).
 CandidateState candidateFromJson(const nlohmann::json& c, int version, const std::string& where) {
   CandidateState cs;
   const nlohmann::json& fit = c.at("fit");

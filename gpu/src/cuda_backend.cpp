@@ -62,11 +62,13 @@ class CudaBackend final : public CudaSearchBackend {
     // leaves the slots alone.
     if (m_options.keepCubeResident)
       releaseOtherCubes(m_ordinals.data(), static_cast<int>(m_ordinals.size()), m_cubeKey);
-    if (params.method == "tree") return searchTree(cube, grid, params, progress, cancel, start);
-    if (params.method != "exact") {
-      throw InputError("unknown search method '" + params.method + "' (expected exact or tree)");
+    if (params.method == search::SearchMethod::Tree)
+      return searchTree(cube, grid, params, progress, cancel, start);
+    if (params.method != search::SearchMethod::Exact) {
+      throw InputError("search method '" + std::string(params.method.name()) + "' (expected exact or tree)");
     }
-    search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "exact");
+    search::SearchResult result =
+        search::startSearchResult(cube, grid, params, name(), search::SearchMethod::Exact);
     WallPhases wall;
     HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
     if (m_options.kernelVariant >= 0) {
@@ -118,7 +120,8 @@ class CudaBackend final : public CudaSearchBackend {
   search::SearchResult searchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                                   const search::SearchParams& params, ProgressSink& progress,
                                   CancelToken& cancel, std::chrono::steady_clock::time_point start) {
-    search::SearchResult result = search::startSearchResult(cube, grid, params, name(), "tree");
+    search::SearchResult result =
+        search::startSearchResult(cube, grid, params, name(), search::SearchMethod::Tree);
     const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
     const search::TreePlan tree =
         search::buildTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());

@@ -81,7 +81,7 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
           "%s\n",
           hit->snr, truth.expectedSnr, 100 * (ratio - 1), hit->v.vx, hit->v.vy, truth.vxPxPerS,
           truth.vyPxPerS, (hit->v.vx - truth.vxPxPerS) / grid.stepPxS,
-          (hit->v.vy - truth.vyPxPerS) / grid.stepPxS, r.method.c_str());
+          (hit->v.vy - truth.vyPxPerS) / grid.stepPxS, std::string(r.method.name()).c_str());
       EXPECT_NEAR(ratio, 1.0, 0.45) << "seed " << seed;
       within15 += std::fabs(ratio - 1.0) <= 0.15;
     } else {

@@ -86,12 +86,27 @@ TEST(SearchMethod, ExplicitRequestsAreKeptOrRefusedNamingTheBackend) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cuda: Fake GPU"), std::string::npos) << e.what();
   }
-  try {
-    (void)chooseMethod("fastest", none, true, "cpu");
-    ADD_FAILURE() << "an unknown method must throw";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("'fastest'"), std::string::npos) << e.what();
+  // Unknown text is named where it enters (the CLI's --method, the session's "method"): parseSearchMethod
+  // refuses it; a SearchMethod made from it is Unknown, which chooseMethod refuses too.
+  EXPECT_FALSE(parseSearchMethod("fastest").has_value());
+  EXPECT_THROW((void)chooseMethod("fastest", none, true, "cpu"), InputError);
+  EXPECT_THROW((void)chooseMethod(SearchMethod::Unknown, none, true, "cpu"), InputError);
+}
+
+TEST(SearchMethodNames, TheNamesInFilesMapBothWays) {
+  for (SearchMethod m : {SearchMethod::Exact, SearchMethod::Tree, SearchMethod::Auto}) {
+    ASSERT_TRUE(parseSearchMethod(searchMethodName(m)).has_value()) << m;
+    EXPECT_EQ(*parseSearchMethod(searchMethodName(m)), m);
   }
+  EXPECT_EQ(searchMethodName(SearchMethod::Exact), "exact");
+  EXPECT_EQ(searchMethodName(SearchMethod::Tree), "tree");
+  EXPECT_EQ(searchMethodName(SearchMethod::Auto), "auto");
+  EXPECT_FALSE(parseSearchMethod("Tree").has_value());  // names are exact, as on the command line
+  EXPECT_FALSE(parseSearchMethod("").has_value());
+  EXPECT_EQ(SearchMethod("tree"), SearchMethod::Tree);
+  EXPECT_EQ(SearchMethod("exact "), SearchMethod::Unknown);
+  SearchParams params;
+  EXPECT_EQ(params.method, SearchMethod::Exact);  // the default, as before ("exact")
 }
 
 TEST(SearchMethod, SmallProblemResolvesToExact) {

@@ -122,7 +122,7 @@ TEST(MainWindow, CancelStopsASearchPromptly) {
   w->searchPanel()->setGridPxS({0, 0}, 10.0, 0.5);  // 41 x 41 velocities x 50 ms: far longer than the test
   bool cancelled = false;
   QObject::connect(w->jobs(), &JobRunner::finished,
-                   [&](const QString&, bool, bool c, const QString&, double) { cancelled = c; });
+                   [&](JobKind, bool, bool c, const QString&, double) { cancelled = c; });
   w->runSearch();
   ASSERT_TRUE(w->jobs()->busy());
   QTest::qWait(300);

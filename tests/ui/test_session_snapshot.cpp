@@ -3,6 +3,8 @@
 // ignored, missing ones keep their defaults.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "session_snapshot.hpp"
 #include "st/common/error.hpp"
 #include "ui_test_support.hpp"
@@ -142,3 +144,67 @@ TEST(SessionSnapshot, BrokenCandidateNamesTheFileAndKey) {
 }
 
 ST_UI_TEST_MAIN()
+
+// Issue 18 item 3: the Processing panel's stages come from the core's description and sessions store them
+// by stable key; a session written by main on 2026-11-27 (format 2, stages keyed by display label;
+// tests/data/README.md) still opens with every setting.
+TEST(SessionSnapshot, PreprocessSettingsByStableKeyAndFormat2Labels) {
+  const std::vector<StageSpec> stages = describedStages();
+  const auto find = [](const std::vector<StageSpec>& list, const std::string& key) -> const StageSpec& {
+    for (const auto& s : list)
+      if (s.key == key) return s;
+    throw std::runtime_error("no stage " + key);
+  };
+  const auto value = [](const StageSpec& s, const std::string& key) {
+    for (const auto& p : s.params)
+      if (p.key == key) return p.value;
+    return -1.0;
+  };
+  std::ifstream in(std::string(ST_SOURCE_DIR) + "/tests/data/session_v2_main_20261127.json");
+  ASSERT_TRUE(in) << "tests/data/session_v2_main_20261127.json";
+  const nlohmann::json file = nlohmann::json::parse(in);
+  ASSERT_EQ(file["version"], 2);
+  const session::Session old = session::fromJson(file, "v2.json");
+  const SessionSnapshot snap = restoreSnapshot(old, stages, "v2.json");
+  const auto& got = snap.parameters.stages;
+  EXPECT_FALSE(find(got, "cosmic_rays").enabled);
+  EXPECT_EQ(value(find(got, "cosmic_rays"), "cr.threshold"), 9.5);
+  EXPECT_EQ(value(find(got, "background"), "bg.xi"), 3.5);
+  EXPECT_EQ(value(find(got, "background"), "bg.globalXi"), 5.0);
+  EXPECT_FALSE(find(got, "sky_rate").enabled);
+  EXPECT_EQ(value(find(got, "sky_rate"), "sky.vx"), 0.25);
+  EXPECT_TRUE(find(got, "registration").enabled);
+  EXPECT_EQ(stageFiles(got, "bias"), std::vector<std::string>{"/data/night1/bias"});
+  EXPECT_EQ(snap.parameters.search.method, search::SearchMethod::Auto);
+  ASSERT_TRUE(snap.result);
+  EXPECT_EQ(snap.result->candidates.size(), 2u);
+
+  // Saved again: format 3, stages under their stable keys only (no display label in the file), the same
+  // settings when read back.
+  Observation obs;
+  SessionParameters params = snap.parameters;
+  const session::Session s = makeSession(obs, old.inputs, params);
+  const nlohmann::json saved = session::toJson(s);
+  EXPECT_EQ(saved["version"], 3);
+  std::vector<std::string> keys;
+  for (const auto& [key, stage] : saved["parameters"]["preprocess"].items()) keys.push_back(key);
+  EXPECT_EQ(keys, (std::vector<std::string>{"background", "calibration", "cosmic_rays", "psf", "registration",
+                                            "sky_rate", "static_sources"}));
+  const SessionSnapshot again = restoreSnapshot(session::fromJson(saved, "v3.json"), stages, "v3.json");
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(again.parameters.stages[i].enabled, got[i].enabled) << got[i].key;
+    for (std::size_t k = 0; k < got[i].params.size(); ++k)
+      EXPECT_EQ(again.parameters.stages[i].params[k].value, got[i].params[k].value) << got[i].params[k].key;
+    for (std::size_t k = 0; k < got[i].files.size(); ++k)
+      EXPECT_EQ(again.parameters.stages[i].files[k].paths, got[i].files[k].paths) << got[i].files[k].key;
+  }
+
+  // The panel's settings become the pipeline's typed parameters in core.
+  const pipeline::PreprocessParams p = session::preprocessParams(preprocessSettings(got));
+  EXPECT_FALSE(p.removeCosmicRays);
+  EXPECT_EQ(p.cosmicRays.thresholdSigma, 9.5);
+  EXPECT_EQ(p.background.xi, 3.5);
+  ASSERT_TRUE(p.skyRate.has_value());
+  EXPECT_EQ(p.skyRate->vx, 0.25);
+  EXPECT_TRUE(p.registerFrames);
+}

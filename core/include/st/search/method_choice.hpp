@@ -101,21 +101,21 @@ void priceMethods(MethodEstimate& estimate, const MethodCostModel& model);
 
 /// The resolved method and why.
 struct MethodChoice {
-  std::string method;  ///< "exact" or "tree"
+  SearchMethod method = SearchMethod::Exact;  ///< Exact or Tree
   std::string reason;  ///< one line for people: "requested", or "auto: ..." with the estimates behind it
 };
 
-/// Resolves `requested` ("auto", "exact" or "tree") for a backend that does (or does not) support the tree,
-/// from `estimate` (see the decision rule above). "exact" and "tree" are returned as requested (reason
-/// "requested"); a requested tree on a backend without it throws st::InputError naming the backend. Any
-/// other text throws st::InputError naming it.
-MethodChoice chooseMethod(const std::string& requested, const MethodEstimate& estimate, bool treeSupported,
+/// Resolves `requested` (Auto, Exact or Tree) for a backend that does (or does not) support the tree, from
+/// `estimate` (see the decision rule above). Exact and Tree are returned as requested (reason "requested"); a
+/// requested tree on a backend without it throws st::InputError naming the backend; SearchMethod::Unknown
+/// throws st::InputError.
+MethodChoice chooseMethod(SearchMethod requested, const MethodEstimate& estimate, bool treeSupported,
                           const std::string& backendName);
 
 /// chooseMethod() for `backend` on `cube` and `grid`, pricing with costModelFor(backend). `estimate`, when
 /// given, receives the estimate used.
 MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
-                           const std::string& requested, MethodEstimate* estimate = nullptr);
+                           SearchMethod requested, MethodEstimate* estimate = nullptr);
 
 /// Runs backend.search() with choice.method and records the method and choice.reason in the result
 /// (SearchResult::method, methodReason). Throws what the backend throws.

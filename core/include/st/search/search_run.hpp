@@ -49,7 +49,7 @@ int minFramesFor(const SearchParams& params, const std::vector<double>& timesS, 
 /// Validates the input (validateSearchInput) and returns a result with everything known before the search:
 /// grid, trial counts, threshold, minimum frames, t_ref, backend and method names.
 SearchResult startSearchResult(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
-                               std::string backend, std::string method);
+                               std::string backend, SearchMethod method);
 
 /// Sorts `hits` by decreasing SNR (ties: increasing y, x, ivy, ivx, so every backend keeps the same cells
 /// and picks the same representative cell), keeps at most params.maxCandidates and clusters them into

@@ -12,6 +12,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
+#include "st/search/search_method.hpp"
 
 namespace st::search {
 
@@ -58,9 +59,10 @@ struct SearchParams {
   /// silently drops every fainter object (SearchResult::cellsAboveThreshold shows when it was reached).
   std::size_t maxCandidates = 2'000'000;
   double minFrameFraction = 0.5;  ///< cells whose N_in is below this fraction of N_f are ignored
-  /// "exact" (IPSA at every frame) or "tree" (hierarchical, tree_search.hpp); "auto" is resolved to one of
-  /// them by searchWithMethod (method_choice.hpp) before a backend sees it.
-  std::string method = "exact";
+  /// Exact (IPSA at every frame) or Tree (hierarchical, tree_search.hpp); Auto is resolved to one of them
+  /// by searchWithMethod (method_choice.hpp) before a backend sees it. Named "exact", "tree", "auto" in
+  /// files.
+  SearchMethod method = SearchMethod::Exact;
   /// Search buffers of all threads together (the tree's partial stacks), bytes; 0 = the default
   /// (kTreeBuffersBytes, tree_search.hpp). Sized from the memory budget (issue 20); no effect on results.
   std::size_t bufferBytes = 0;
@@ -111,7 +113,7 @@ struct SearchResult {
   double snrThreshold = 0.0;  ///< the threshold actually used
   double tRefMjd = 0.0;
   std::string backend;       ///< e.g. "cpu", "cuda: NVIDIA H100 80GB HBM3"
-  std::string method;        ///< "exact" or "tree"
+  SearchMethod method;       ///< Exact or Tree (named "exact", "tree" in files)
   std::string methodReason;  ///< why that method: "requested", or "auto: ..." (method_choice.hpp)
   double elapsedS = 0.0;
   std::int64_t cellsAboveThreshold = 0;  ///< every (x, y, v) cell above threshold, before capping/clustering
@@ -139,9 +141,13 @@ class SearchBackend {
   /// The stack of the cube at one velocity (sum over frames, out-of-frame samples excluded), for live
   /// scrubbing in the GUI.
   virtual Image stackAt(const FilteredCube& cube, Velocity v, StackMode mode) = 0;
-  /// Whether search() implements SearchParams::method `method` ("exact", "tree"). A backend that does not
-  /// say supports the exact search only.
+  /// Whether search() implements the SearchParams::method named `method` ("exact", "tree"). A backend that
+  /// does not say supports the exact search only. (Keyed by name: the CUDA backend overrides it.)
   [[nodiscard]] virtual bool supportsMethod(const std::string& method) const { return method == "exact"; }
+  /// supportsMethod() for a typed method.
+  [[nodiscard]] bool supports(SearchMethod method) const {
+    return supportsMethod(std::string(method.name()));
+  }
 };
 
 }  // namespace st::search

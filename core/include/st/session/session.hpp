@@ -21,8 +21,10 @@ namespace st::session {
 
 /// Format version written by this build. Files with a larger number are refused (with a backup copy); older
 /// ones are migrated on reading (format 1, up to 2026-11-25: each candidate's "candidate" object and a flat
-/// "fit"; format 2: "search" and a fit with nested "sigma", "segments" and "sky", candidate_json.hpp).
-inline constexpr int kSessionFormatVersion = 2;
+/// "fit"; format 2: "search" and a fit with nested "sigma", "segments" and "sky", candidate_json.hpp;
+/// format 3, from 2026-11-27: the same candidates, and parameters.preprocess keyed by the stages' stable
+/// keys (preprocess_settings.hpp) where format 2 keyed them by display label; the GUI reads both).
+inline constexpr int kSessionFormatVersion = 3;
 inline constexpr const char* kSessionFormatName = "synthtrack-session";
 
 using candidate::ArtifactReason;
@@ -52,7 +54,7 @@ struct Session {
 [[nodiscard]] Session fromSearchJson(const nlohmann::json& result);
 
 [[nodiscard]] nlohmann::json toJson(const Session& session);
-/// Reads format 1 (migrating it) and 2. Throws st::InputError naming the key at fault (`where` names the
+/// Reads format 1 (migrating it), 2 and 3. Throws st::InputError naming the key at fault (`where` names the
 /// file).
 [[nodiscard]] Session fromJson(const nlohmann::json& json, const std::string& where);
 
