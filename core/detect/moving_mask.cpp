@@ -44,6 +44,17 @@ bool MovingMask::isSetAtRef(int x, int y) const {
   return m_canvas[static_cast<std::size_t>(j) * m_cw + i] != 0;
 }
 
+void MovingMask::coveredRow(std::size_t n, int y, std::uint8_t* out) const {
+  std::fill(out, out + m_w, std::uint8_t{0});
+  const int j = y - m_sy[n] - m_y0;
+  if (m_canvas.empty() || j < 0 || j >= m_ch) return;
+  const std::uint8_t* row = m_canvas.data() + static_cast<std::size_t>(j) * m_cw;
+  const int shift = m_sx[n] + m_x0;  // frame column x is canvas column x - shift
+  const int xb = std::max(0, shift), xe = std::min(m_w, m_cw + shift);
+  for (int x = xb; x < xe; ++x)
+    out[x] = row[x - shift] != 0;
+}
+
 void MovingMask::dilate(int radius) {
   if (radius <= 0 || m_canvas.empty()) return;
   std::vector<std::uint8_t> out(m_canvas);

@@ -57,6 +57,19 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
   return s;
 }
 
+const SkyStack& SkyStackCache::stack(const FrameCube& cube, Velocity rate, double subtract,
+                                     ProgressSink& progress, CancelToken& cancel, std::size_t first,
+                                     std::size_t last) {
+  if (last == 0 || last > cube.frameCount()) last = cube.frameCount();
+  const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last};
+  auto it = m_stacks.find(key);
+  if (it == m_stacks.end())
+    it = m_stacks.emplace(key, stackAtSkyRate(cube, rate, subtract, progress, cancel, first, last)).first;
+  else
+    progress.report(1.0, "stack at sky rate");
+  return it->second;
+}
+
 Image meshBackground(const Image& image, const Image& weight, int mesh) {
   const int w = image.width, h = image.height;
   mesh = std::max(4, mesh);

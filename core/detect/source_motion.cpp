@@ -18,7 +18,7 @@ double median(std::vector<double> v) {
 }  // namespace
 
 ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double background, int meshPx,
-                        CancelToken& cancel) {
+                        SkyStackCache& stacks, CancelToken& cancel) {
   ThirdStacks out;
   const std::size_t n = cube.frameCount(), third = n / 3;
   if (third < 2) return out;
@@ -26,7 +26,7 @@ ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double backgrou
   const std::vector<double> dt = cube.timeOffsetsS();
   NullProgress none;
   for (int k = 0; k < 3; ++k) {
-    const SkyStack s = stackAtSkyRate(cube, skyRate, background, none, cancel, bounds[k], bounds[k + 1]);
+    const SkyStack& s = stacks.stack(cube, skyRate, background, none, cancel, bounds[k], bounds[k + 1]);
     const Image local = meshBackground(s.mean, s.count, meshPx);
     Image resid(s.mean.width, s.mean.height);
     for (std::size_t i = 0; i < resid.size(); ++i)

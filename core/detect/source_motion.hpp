@@ -10,6 +10,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/detect/static_sources.hpp"
 
 namespace st::detect::detail {
@@ -30,7 +31,7 @@ struct ThirdStacks {
   [[nodiscard]] bool valid() const noexcept { return !resid[0].pixels.empty(); }
 };
 ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double background, int meshPx,
-                        CancelToken& cancel);
+                        SkyStackCache& stacks, CancelToken& cancel);
 
 /// A source's centroids (canvas px, less the integer-shift residuals) in the three thirds, with their
 /// variances from the stack noise (single-frame sigma / sqrt(count) per pixel; the source's own photon

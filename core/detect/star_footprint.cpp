@@ -49,13 +49,13 @@ std::vector<float> filteredSnr(const Image& resid, const Image& count, double si
 }
 
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
-                      double sigma, double fwhmPx, CancelToken& cancel) {
+                      double sigma, double fwhmPx, SkyStackCache& stacks, CancelToken& cancel) {
   HalfStacks out;
   const std::size_t half = cube.frameCount() / 2;
   NullProgress none;
   for (int k = 0; k < 2; ++k) {
-    const SkyStack h = k == 0 ? stackAtSkyRate(cube, skyRate, background, none, cancel, 0, half)
-                              : stackAtSkyRate(cube, skyRate, background, none, cancel, half, 0);
+    const SkyStack& h = k == 0 ? stacks.stack(cube, skyRate, background, none, cancel, 0, half)
+                               : stacks.stack(cube, skyRate, background, none, cancel, half, 0);
     Image resid(h.mean.width, h.mean.height);
     for (std::size_t i = 0; i < resid.size(); ++i)
       resid.pixels[i] = h.count.pixels[i] > 0 ? h.mean.pixels[i] - local.pixels[i] : 0.0f;

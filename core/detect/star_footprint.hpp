@@ -9,6 +9,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/detect/static_sources.hpp"
 
 namespace st::detect::detail {
@@ -33,7 +34,7 @@ struct HalfStacks {
   [[nodiscard]] bool isStatic(int peak, int cw, double fwhmPx, double maxShiftPx) const;
 };
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
-                      double sigma, double fwhmPx, CancelToken& cancel);
+                      double sigma, double fwhmPx, SkyStackCache& stacks, CancelToken& cancel);
 
 /// `count` with 0 wherever snr or snrF is at least `level`, dilated by a square of +-growPx: the weight of
 /// a background that leaves the sources out.

@@ -176,11 +176,11 @@ struct Motion {
 Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background,
                       const std::vector<std::vector<int>>& comps, std::size_t nPerPixel,
                       const std::vector<Star>& stars, int cw, double sigma, const StaticSourceParams& params,
-                      CancelToken& cancel) {
+                      SkyStackCache& stacks, CancelToken& cancel) {
   Motion m;
   m.shifts.resize(nPerPixel);
   if (!params.keepMovers) return m;
-  m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, cancel);
+  m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel);
   if (!m.thirds.valid()) return m;
   for (std::size_t k = 0; k < nPerPixel; ++k)
     if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
@@ -209,12 +209,14 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
                                 const StaticSourceParams& params, ProgressSink& progress,
-                                CancelToken& cancel) {
+                                CancelToken& cancel, SkyStackCache* stacks) {
+  SkyStackCache own;
+  SkyStackCache& cache = stacks ? *stacks : own;
   StaticSources out;
   out.mask = MovingMask(cube, skyRate);
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
-  const SkyStack s = stackAtSkyRate(cube, skyRate, background, sub, cancel);
+  const SkyStack& s = cache.stack(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
   const StackSnr an = analyseStack(s, params, cancel);
   const Image& resid = an.resid;
@@ -275,7 +277,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   for (std::size_t k = 0; k < comps.size(); ++k)
     described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
   const Motion motion =
-      measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cancel);
+      measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cache, cancel);
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
@@ -284,7 +286,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     // second halves of the frames (a slow moving object is a streak there, and its halves shift).
     if (k >= nPerPixel) {
       if (halves.empty())
-        halves = detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cancel);
+        halves =
+            detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cache, cancel);
       int peak = comp.front();
       for (int p : comp)
         if (snrF[p] > snrF[peak]) peak = p;

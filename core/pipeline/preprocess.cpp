@@ -146,18 +146,20 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       sp.saturationLevel = 0.95 * (*fullScale - biasLevel);
     }
   }
+  // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
+  // change until the per-pixel background).
+  detect::SkyStackCache skyStacks;
   {
     SubProgress sub(progress, 0.3, 0.38);
-    stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
+    stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
   }
   lap("static sources");
   {
     // The PSF from the sky-rate stack before the per-pixel background, on the catalogue just found; the
     // stars' footprints (wing radius, dilation) are then drawn again at the fitted FWHM when the assumed
     // one was off by more than 15% (Lowell's 1.9 px stars masked as 3 px ones lose 10.6% of the pixels).
-    detect::SkyStack psfStack;
     SubProgress sub(progress, 0.38, 0.4);
-    psfStack = detect::stackAtSkyRate(cube, out.skyRate, out.global.mean, sub, cancel);
+    const detect::SkyStack& psfStack = skyStacks.stack(cube, out.skyRate, out.global.mean, sub, cancel);
     out.stars = stars.stars;
     measurePsfInto(out, psfStack, params);
   }
@@ -165,9 +167,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (out.psfFitted && std::abs(out.psf.fwhm() / sp.psfFwhmPx - 1.0) > 0.15) {
     sp.psfFwhmPx = out.psf.fwhm();
     SubProgress sub(progress, 0.38, 0.4);
-    stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel);
+    stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
     lap("static sources at the fitted FWHM");
   }
+  skyStacks = detect::SkyStackCache();  // its memory (several canvases) is not needed any more
   out.stars = stars.stars;
   out.movers = stars.movers;
   if (!stars.movers.empty()) {

@@ -51,18 +51,23 @@ RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi)
   }
   std::vector<double> s(w), ss(w);
   std::vector<std::size_t> c(w);
+  // The samples' bound for this pass: hi, or -inf for a finished column (and NaN fails any comparison), so
+  // the pass has no branch and vectorises; the same sums in the same order as testing `done` per sample.
+  std::vector<double> bound(w);
   int remaining = static_cast<int>(std::count(done.begin(), done.end(), 0));
   for (int it = 0; it < 100 && remaining > 0; ++it) {
     std::fill(s.begin(), s.end(), 0.0);
     std::fill(ss.begin(), ss.end(), 0.0);
     std::fill(c.begin(), c.end(), 0);
+    for (int x = 0; x < w; ++x)
+      bound[x] = done[x] ? -std::numeric_limits<double>::infinity() : hi[x];
     for (std::size_t n = 0; n < nf; ++n) {
       const float* row = buf.data() + n * w;
       for (int x = 0; x < w; ++x) {
         const double y = row[x];
-        if (!(y <= hi[x]) || done[x]) continue;
-        const double d = y - shift[x];
-        ++c[x];
+        const bool in = y <= bound[x];
+        const double d = in ? y - shift[x] : 0.0;
+        c[x] += in;
         s[x] += d;
         ss[x] += d * d;
       }
@@ -135,17 +140,19 @@ Background clipRows(const FrameCube& cube, const BackgroundParams& params, const
   std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
   parallelFor(static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
     std::vector<float> buf(frames.size() * static_cast<std::size_t>(w));
+    std::vector<std::uint8_t> excluded(static_cast<std::size_t>(w), 0);
     for (std::size_t y = y0; y < y1; ++y) {
       cancel.throwIfCancelled();
       for (std::size_t k = 0; k < frames.size(); ++k) {
         const std::size_t n = frames[k];
         const std::size_t off = n * cube.framePixels() + y * w;
         const float* src = cube.pixels().data() + off;
+        const std::uint8_t* m = mask.empty() ? nullptr : mask.data() + off;
+        if (exclude) exclude->coveredRow(n, static_cast<int>(y), excluded.data());
         float* dst = buf.data() + k * w;
         for (int x = 0; x < w; ++x) {
           const float v = src[x];
-          const bool out1 = !std::isfinite(v) || v > strong || (!mask.empty() && mask[off + x]) ||
-                            (exclude && exclude->covers(n, x, static_cast<int>(y)));
+          const bool out1 = !std::isfinite(v) || v > strong || (m && m[x]) || excluded[x];
           dst[x] = out1 ? kNaN : v;
         }
       }
@@ -223,32 +230,27 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
     // Running sums of the clipped samples inside the current window, per column.
     std::vector<double> winS(w, 0.0), total(w, 0.0);
     std::vector<std::size_t> winC(w, 0), totalC(w, 0);
-    auto inSet = [&](std::size_t k, int x) {
-      const float v = buf[k * w + x];
-      return !std::isnan(v) && v <= r.hi[x];
+    // Adds sample k's clipped values (NaN and those above the clip bound count 0) to sum and count, times
+    // sign; branch-free, so it vectorises.
+    auto accumulate = [&](std::size_t k, std::vector<double>& sum, std::vector<std::size_t>& count, int sign) {
+      const float* row = buf.data() + k * w;
+      for (int x = 0; x < w; ++x) {
+        const double v = row[x];
+        const bool in = v <= r.hi[x];
+        sum[x] += in ? sign * v : 0.0;
+        count[x] += in ? static_cast<std::size_t>(sign) : 0;
+      }
     };
     for (std::size_t k = 0; k < nk; ++k)
-      for (int x = 0; x < w; ++x)
-        if (inSet(k, x)) {
-          total[x] += buf[k * w + x];
-          ++totalC[x];
-        }
+      accumulate(k, total, totalC, 1);
     std::size_t curLo = 0, curHi = 0;
     std::vector<float> level(w);
     for (std::size_t n = 0; n < nf; ++n) {
       if (window > 0.0) {
         for (; curHi < hi[n]; ++curHi)
-          for (int x = 0; x < w; ++x)
-            if (inSet(curHi, x)) {
-              winS[x] += buf[curHi * w + x];
-              ++winC[x];
-            }
+          accumulate(curHi, winS, winC, 1);
         for (; curLo < lo[n]; ++curLo)
-          for (int x = 0; x < w; ++x)
-            if (inSet(curLo, x)) {
-              winS[x] -= buf[curLo * w + x];
-              --winC[x];
-            }
+          accumulate(curLo, winS, winC, -1);
       }
       for (int x = 0; x < w; ++x) {
         // Short sequences: 15 frames less the 7 of a middle frame's window leave 8; a third of the clipped

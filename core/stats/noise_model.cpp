@@ -33,24 +33,28 @@ double medianOf(std::vector<double>& v) {
 }
 
 /// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD; NaN when fewer
-/// than `minCount` values.
-double clippedMean(std::vector<float>& v, double k, std::size_t minCount) {
+/// than `minCount` values. Up to 5 clip iterations; it stops once an iteration keeps as many values as the
+/// one before (the same set, so the centre and sigma no longer change: the ones after would repeat it).
+/// `dev` is scratch space.
+double clippedMean(std::vector<float>& v, double k, std::size_t minCount, std::vector<float>& dev) {
   if (v.size() < minCount) return std::nan("");
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   double centre = *mid;
-  std::vector<float> dev(v.size());
+  dev.resize(v.size());
   for (std::size_t i = 0; i < v.size(); ++i)
     dev[i] = std::fabs(v[i] - static_cast<float>(centre));
   std::nth_element(dev.begin(), dev.begin() + static_cast<std::ptrdiff_t>(dev.size() / 2), dev.end());
   double sigma = 1.4826 * dev[dev.size() / 2];
   if (!(sigma > 0.0)) return centre;
+  std::size_t previous = 0;
   for (int it = 0; it < 5; ++it) {
     double s = 0.0, ss = 0.0;
     std::size_t c = 0;
+    const double limit = k * sigma;
     for (float x : v) {
       const double d = x - centre;
-      if (std::fabs(d) > k * sigma) continue;
+      if (std::fabs(d) > limit) continue;
       s += d;
       ss += d * d;
       ++c;
@@ -59,7 +63,8 @@ double clippedMean(std::vector<float>& v, double k, std::size_t minCount) {
     const double m = s / static_cast<double>(c);
     centre += m;
     sigma = std::sqrt(std::max(0.0, ss / static_cast<double>(c) - m * m));
-    if (!(sigma > 0.0)) break;
+    if (!(sigma > 0.0) || c == previous) break;
+    previous = c;
   }
   return centre;
 }
@@ -150,7 +155,7 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
   }
   std::atomic<std::size_t> done{0};
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
-    std::vector<float> values;
+    std::vector<float> values, scratch;
     std::vector<double> means(static_cast<std::size_t>(nx) * ny);
     for (std::size_t n = b; n < e; ++n) {
       cancel.throwIfCancelled();
@@ -165,7 +170,7 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
               if (v != 0.0f && std::isfinite(v)) values.push_back(v);
             }
           const double m = clippedMean(values, clipSigma,
-                                       std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16));
+                                       std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16), scratch);
           means[static_cast<std::size_t>(j) * nx + i] = m;
           if (std::isfinite(m)) good.push_back(m);
         }

@@ -50,6 +50,25 @@ TEST(MovingMask, FollowsTheSkyRate) {
   EXPECT_EQ(m.count(), 25u);
 }
 
+// coveredRow is covers() for a whole row: every frame, every row (in and off the canvas), registration
+// offsets included.
+TEST(MovingMask, CoveredRowEqualsCoversPixelByPixel) {
+  const std::vector<double> dt = {-20.0, -5.0, 0.0, 7.0, 20.0};
+  const std::vector<PixelOffset> offsets = {{3.0, -2.0}, {0.0, 0.0}, {-1.4, 6.2}, {12.0, 1.0}, {-9.0, -7.0}};
+  MovingMask m(37, 23, dt, {1.3, -0.6}, offsets);
+  for (int y = -40; y < 60; y += 3)
+    for (int x = -50; x < 80; x += 5)
+      if ((x * 7 + y * 3) % 4 == 0) m.set(x, y);
+  m.dilate(1);
+  std::vector<std::uint8_t> row(37);
+  for (std::size_t n = 0; n < dt.size(); ++n)
+    for (int y = 0; y < 23; ++y) {
+      m.coveredRow(n, y, row.data());
+      for (int x = 0; x < 37; ++x)
+        ASSERT_EQ(row[x] != 0, m.covers(n, x, y)) << "frame " << n << " (" << x << ", " << y << ")";
+    }
+}
+
 class StaticSourcesTest : public ::testing::TestWithParam<bool> {};
 
 TEST_P(StaticSourcesTest, FindsStarsZeroesThemAndKeepsTheMovingObject) {

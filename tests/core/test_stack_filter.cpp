@@ -81,14 +81,55 @@ TEST(MatchedFilter, PeakResponseToPsfShapedSource) {
   for (int y = 0; y < 64; ++y)
     for (int x = 0; x < 64; ++x)
       cube.frame(0)[y * 64 + x] = float(alpha * m.pixelMean(x - 30, y - 33));
-  std::vector<float> scratch(64 * 64);
-  filterFrame(cube.frame(0), 64, 64, k, scratch.data());
+  filterFrame(cube.frame(0), 64, 64, k);
   const float* f = cube.frame(0);
   // Only the kernel's support enters, where the source equals alpha K exactly.
   EXPECT_NEAR(f[33 * 64 + 30], alpha * k.sumSquares, 1e-5 * alpha * k.sumSquares);
   for (int y = 0; y < 64; ++y)
     for (int x = 0; x < 64; ++x)
       EXPECT_LE(f[y * 64 + x], f[33 * 64 + 30]);
+}
+
+// Oracle for the FFT convolution: the direct correlation sum, with 0 outside the frame, on an odd-sized
+// frame with sources at the edges and a kernel made asymmetric (so a mirrored or shifted kernel would
+// show). Tolerance 2e-6 of the largest |value|: float rounding of the FFT's sums.
+TEST(MatchedFilter, FftFilterEqualsTheDirectSumWithZerosOutside) {
+  const int w = 71, h = 53;
+  FilterKernel k = makeFilterKernel(psf::Moffat::fromFwhm(3.0));
+  k.kernel.at(k.halfSize + 2, k.halfSize - 1) += 0.3f;
+  k.kernel.at(0, k.halfSize) += 0.2f;
+  FrameCube cube = noiseCube(w, h, 1, 5.0f, 9);
+  float* f = cube.frame(0);
+  f[0] += 500.0f;
+  f[(h - 1) * w + (w - 2)] += 300.0f;
+  f[20 * w + 35] = 0.0f;
+  const std::vector<float> in(f, f + std::size_t(w) * h);
+  filterFrame(f, w, h, k);
+  const int half = k.halfSize;
+  double maxAbs = 0.0, maxDiff = 0.0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      double direct = 0.0;
+      for (int ky = 0; ky < k.kernel.height; ++ky)
+        for (int kx = 0; kx < k.kernel.width; ++kx) {
+          const int sx = x + kx - half, sy = y + ky - half;
+          if (sx >= 0 && sy >= 0 && sx < w && sy < h) direct += double(k.kernel.at(kx, ky)) * in[sy * w + sx];
+        }
+      maxAbs = std::max(maxAbs, std::fabs(direct));
+      maxDiff = std::max(maxDiff, std::fabs(direct - f[y * w + x]));
+    }
+  EXPECT_LT(maxDiff, 2e-6 * maxAbs) << "max |FFT - direct| " << maxDiff << " of max |value| " << maxAbs;
+  // filterCube gives every frame what filterFrame gives it.
+  FrameCube two = noiseCube(131, 97, 2, 5.0f, 10);  // large enough for filterCube's sigma_F
+  FrameCube byFrame = two;
+  NullProgress progress;
+  CancelToken cancel;
+  filterCube(two, k, progress, cancel);
+  for (std::size_t n = 0; n < 2; ++n) {
+    filterFrame(byFrame.frame(n), 131, 97, k);
+    for (std::size_t i = 0; i < byFrame.framePixels(); ++i)
+      ASSERT_NEAR(two.frame(n)[i], byFrame.frame(n)[i], 1e-5f) << "frame " << n << " pixel " << i;
+  }
 }
 
 TEST(MatchedFilter, MakesTheSearchInput) {

@@ -71,9 +71,8 @@ LossResult measureLoss(double fwhm, int n, int nv, unsigned seed) {
   }
   // No noise: the loss is the tracks' alone, not a draw of the noise.
   const stack::FilterKernel kernel = stack::makeFilterKernel(psf);
-  std::vector<float> scratch(cube.frames.framePixels());
   for (std::size_t k = 0; k < cube.frames.frameCount(); ++k)
-    stack::filterFrame(cube.frames.frame(k), w, h, kernel, scratch.data());
+    stack::filterFrame(cube.frames.frame(k), w, h, kernel);
   cube.sigmaF = 1.0;
   cube.psfFwhmPx = fwhm;
   NullProgress progress;

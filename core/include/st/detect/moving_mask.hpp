@@ -43,6 +43,9 @@ class MovingMask {
   [[nodiscard]] bool covers(std::size_t n, int x, int y) const {
     return isSetAtRef(x - m_sx[n], y - m_sy[n]);
   }
+  /// covers(n, x, y) for the whole row y of frame n, x = 0 .. width - 1, into out[x] (1 = covered): one
+  /// canvas row read, for loops over every pixel of a frame.
+  void coveredRow(std::size_t n, int y, std::uint8_t* out) const;
   /// Grows every set region by a disc of `radius` pixels.
   void dilate(int radius);
   /// Number of set reference positions.

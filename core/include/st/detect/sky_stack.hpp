@@ -5,6 +5,8 @@
 // and are not counted; masked samples neither.
 #include <cstddef>
 #include <cstdint>
+#include <map>
+#include <tuple>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
@@ -25,6 +27,21 @@ struct SkyStack {
 /// `subtract` (e.g. the global background) removed from every sample. last = 0 means all frames.
 SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
                         CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
+
+/// Stacks of one cube at one rate, made once and handed out again: pre-processing asks for the same stacks
+/// several times (the static-source search, again at the fitted FWHM, and the PSF; each search stacks the
+/// whole cube, its thirds and its halves), one full pass over the cube each. The cube must not change while
+/// the cache is in use; requests differing in rate, subtracted level or frame range are separate stacks.
+class SkyStackCache {
+ public:
+  /// stackAtSkyRate(cube, rate, subtract, progress, cancel, first, last), made on the first request.
+  const SkyStack& stack(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
+                        CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
+
+ private:
+  using Key = std::tuple<const void*, double, double, double, std::size_t, std::size_t>;
+  std::map<Key, SkyStack> m_stacks;
+};
 
 /// A smooth local background of an image: one-sided clip (xi = 3) of each `mesh` x `mesh` cell over pixels
 /// with weight > 0, bilinearly interpolated between cell centres (the SExtractor scheme).

@@ -17,6 +17,7 @@
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/sky_stack.hpp"
 
 namespace st::detect {
 
@@ -107,10 +108,11 @@ struct StaticSources {
 /// and for saturated/very bright stars the measured spike arms along the detector axes and the bleed
 /// columns followed up and down while significant (bleed columns are at t_ref; they move with the star, so
 /// in frame n they are the detector columns X + sx_n, i.e. only frames that see the star). The mask is then
-/// dilated by ceil(dilateFwhm * FWHM) + 1 px. Throws st::Cancelled.
+/// dilated by ceil(dilateFwhm * FWHM) + 1 px. The stacks come from `stacks` when given (shared with a
+/// second search of the same cube at another FWHM, and with the PSF stage). Throws st::Cancelled.
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
                                 const StaticSourceParams& params, ProgressSink& progress,
-                                CancelToken& cancel);
+                                CancelToken& cancel, SkyStackCache* stacks = nullptr);
 
 /// Sets every pixel covered by `mask` to 0 in every frame (frames must be zero-biased). Returns the number of
 /// pixels zeroed over all frames.

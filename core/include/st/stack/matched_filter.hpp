@@ -2,7 +2,8 @@
 // The matched filter (paper §4.3, last sentence): every zero-biased frame is convolved with the PSF before
 // the velocity search. The kernel is the Moffat PSF averaged over each pixel (what the detector records
 // for a star of unit peak), truncated where P < kDefaultTruncation of its peak; a Moffat is not separable,
-// so the convolution is a direct 2-D one (OpenCV filter2D, which switches to a DFT for large kernels).
+// so the convolution is a 2-D one, by FFT (FFTW, zero-padded: the linear convolution with zeros outside the
+// frame; test_stack_filter checks it against the direct sum).
 // A source alpha * K then filters to a peak alpha * sum K^2, and white noise sigma_n to
 // sigma_n * sqrt(sum K^2); real frames have correlated, masked noise, so sigma_F is always measured from
 // the filtered data (ARCHITECTURE.md, SNR convention).
@@ -37,8 +38,9 @@ struct FilterKernel {
 FilterKernel makeFilterKernel(const psf::Moffat& psf, double truncation = kDefaultTruncation);
 
 /// Convolves one frame (width x height, row-major, in place) with the kernel; samples outside the frame
-/// count as 0 (the frames are zero-biased). `scratch` must hold width x height floats.
-void filterFrame(float* frame, int width, int height, const FilterKernel& kernel, float* scratch);
+/// count as 0 (the frames are zero-biased). Plans its FFT for this one frame: filterCube, which plans once
+/// for the cube, is the way to filter many.
+void filterFrame(float* frame, int width, int height, const FilterKernel& kernel);
 
 /// What filterCube measured.
 struct MatchedFilterResult {
@@ -48,7 +50,7 @@ struct MatchedFilterResult {
   double kernelSumSquares = 0.0;
 };
 
-/// Filters every frame of `cube` in place (parallel over frames; one scratch frame per thread, no second
+/// Filters every frame of `cube` in place (parallel over frames; one padded FFT buffer per thread, no second
 /// cube). With a noise model (variance s_n^2 v(q) of frame n at pixel q, stats/noise_model.hpp) the filter is
 /// the inverse-variance-weighted one: psi_n = K conv (F_n / (s_n^2 v)), and the output is
 /// psi_n sigma_ref sqrt(sum K^2) / sqrt(Phi) with Phi = K^2 conv omega, omega(q) = (1/v(q)) x the mean over
