@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 #include "st/common/parallel.hpp"
 
@@ -16,17 +18,23 @@ std::vector<std::size_t> findHotPixels(const FrameCube& cube, double background,
   const auto& mask = cube.mask();
   for (int b = 0; b < blocks; ++b) {
     const std::size_t n0 = nf * b / blocks, n1 = nf * (b + 1) / blocks;
-    parallelFor(np, 65536, [&](std::size_t i0, std::size_t i1) {
+    // Frame by frame over a chunk of pixels (contiguous reads; pixel by pixel across the frames touched a
+    // page per sample): the same sums in the same order.
+    parallelFor(np, 16384, [&](std::size_t i0, std::size_t i1) {
       cancel.throwIfCancelled();
-      for (std::size_t i = i0; i < i1; ++i) {
-        double s = 0.0;
-        std::size_t c = 0;
-        for (std::size_t n = n0; n < n1; ++n) {
-          if (!mask.empty() && mask[n * np + i]) continue;
-          s += cube.frame(n)[i];
-          ++c;
+      std::vector<double> s(i1 - i0, 0.0);
+      std::vector<std::uint32_t> c(i1 - i0, 0);
+      for (std::size_t n = n0; n < n1; ++n) {
+        const float* f = cube.frame(n);
+        const std::uint8_t* m = mask.empty() ? nullptr : mask.data() + n * np;
+        for (std::size_t i = i0; i < i1; ++i) {
+          const bool in = !m || !m[i];
+          s[i - i0] += in ? static_cast<double>(f[i]) : 0.0;
+          c[i - i0] += in;
         }
-        const float e = c ? static_cast<float>(s / c - background) : 0.0f;
+      }
+      for (std::size_t i = i0; i < i1; ++i) {
+        const float e = c[i - i0] ? static_cast<float>(s[i - i0] / c[i - i0] - background) : 0.0f;
         minExcess[i] = std::min(minExcess[i], e);
       }
     });

@@ -32,32 +32,36 @@ double medianOf(std::vector<double>& v) {
   return *mid;
 }
 
-/// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD; NaN when fewer
-/// than `minCount` values. Up to 5 clip iterations; it stops once an iteration keeps as many values as the
-/// one before (the same set, so the centre and sigma no longer change: the ones after would repeat it).
-/// `dev` is scratch space.
-double clippedMean(std::vector<float>& v, double k, std::size_t minCount, std::vector<float>& dev) {
+/// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD of every s-th
+/// value (s = size / 1024, at least 1: the start only sets the first clip's bounds, which the iterations
+/// then refine on every value); NaN when fewer than `minCount` values. Up to 5 clip iterations; it stops
+/// once an iteration keeps as many values as the one before (the same set, so the centre and sigma no
+/// longer change: the ones after would repeat it). `start` is scratch space.
+double clippedMean(const std::vector<float>& v, double k, std::size_t minCount, std::vector<float>& start) {
   if (v.size() < minCount) return std::nan("");
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
+  const std::size_t stride = std::max<std::size_t>(1, v.size() / 1024);
+  start.clear();
+  for (std::size_t i = 0; i < v.size(); i += stride)
+    start.push_back(v[i]);
+  const auto mid = start.begin() + static_cast<std::ptrdiff_t>(start.size() / 2);
+  std::nth_element(start.begin(), mid, start.end());
   double centre = *mid;
-  dev.resize(v.size());
-  for (std::size_t i = 0; i < v.size(); ++i)
-    dev[i] = std::fabs(v[i] - static_cast<float>(centre));
-  std::nth_element(dev.begin(), dev.begin() + static_cast<std::ptrdiff_t>(dev.size() / 2), dev.end());
-  double sigma = 1.4826 * dev[dev.size() / 2];
+  for (float& x : start)
+    x = std::fabs(x - static_cast<float>(centre));
+  std::nth_element(start.begin(), start.begin() + static_cast<std::ptrdiff_t>(start.size() / 2), start.end());
+  double sigma = 1.4826 * start[start.size() / 2];
   if (!(sigma > 0.0)) return centre;
   std::size_t previous = 0;
   for (int it = 0; it < 5; ++it) {
     double s = 0.0, ss = 0.0;
     std::size_t c = 0;
     const double limit = k * sigma;
-    for (float x : v) {
+    for (float x : v) {  // branch-free (the values are finite): nothing to mispredict
       const double d = x - centre;
-      if (std::fabs(d) > limit) continue;
-      s += d;
-      ss += d * d;
-      ++c;
+      const bool in = std::fabs(d) <= limit;
+      s += in ? d : 0.0;
+      ss += in ? d * d : 0.0;
+      c += in;
     }
     if (c < minCount) break;
     const double m = s / static_cast<double>(c);
