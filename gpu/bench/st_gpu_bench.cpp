@@ -5,7 +5,9 @@
 //     same cube (a band of velocity rows, so the naive run stays short), both timed with device events;
 //   - stackAt for 500 x 512^2 (device time of the kernels, and the whole call).
 //   - the tree search (method "tree") on the same cube: end-to-end, upload, kernels, operation count;
-// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames] [all|tree|exact]
+//   - exact: the stair kernel's variants, and Float16 frames against Float32 (SNR error on the map of every
+//     velocity and on the candidates, the cube with its source and a cube of noise alone).
+// Usage: st_gpu_bench [frames] [size] [nv] [naiveRows] [stackFrames] [all|tree|exact|half]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -18,6 +20,7 @@
 
 #include "st/common/error.hpp"
 #include "st/gpu/cuda_backend.hpp"
+#include "cuda_bench_options.hpp"
 #include "st/psf/moffat.hpp"
 #include "stack_engine.hpp"
 
@@ -27,7 +30,7 @@ using st::search::FilteredCube;
 using st::search::VelocityGrid;
 
 /// Noise of sigma ~1 (sum of 4 uniforms, scaled), generated on every core; a source at (200, 300).
-FilteredCube makeCube(int n, int size, st::Velocity src) {
+FilteredCube makeCube(int n, int size, st::Velocity src, float peak = 0.4f) {
   FilteredCube c;
   c.frames = st::FrameCube(size, size, static_cast<std::size_t>(n));
   c.sigmaF = 1.0;
@@ -69,7 +72,7 @@ FilteredCube makeCube(int n, int size, st::Velocity src) {
       for (int x = x0 - 5; x <= x0 + 5; ++x)
         if (x >= 0 && y >= 0 && x < size && y < size)
           c.frames.frame(k)[static_cast<std::size_t>(y) * size + x] +=
-              0.4f * static_cast<float>(filtered.pixelMean(x - xc, y - yc, 4));
+              peak * static_cast<float>(filtered.pixelMean(x - xc, y - yc, 4));
   }
   return c;
 }
@@ -77,6 +80,39 @@ FilteredCube makeCube(int n, int size, st::Velocity src) {
 struct Quiet final : st::ProgressSink {
   void report(double, std::string_view) override {}
 };
+
+/// Float16 against Float32 on the same cube: relative SNR error over the map of every velocity (its best
+/// cell) and over the candidates found by both (same cell and velocity).
+void compareHalf(const char* what, const st::search::SearchResult& f, const st::search::SearchResult& h) {
+  double mapMax = 0.0, mapSum = 0.0;
+  int moved = 0, n = 0;
+  for (std::size_t i = 0; i < f.map.maxSnr.size(); ++i) {
+    if (f.map.argX[i] < 0 || h.map.argX[i] < 0) continue;
+    const double e = std::abs(double(h.map.maxSnr[i]) - f.map.maxSnr[i]) / std::max(1e-6, std::abs(double(f.map.maxSnr[i])));
+    mapMax = std::max(mapMax, e);
+    mapSum += e;
+    ++n;
+    if (f.map.argX[i] != h.map.argX[i] || f.map.argY[i] != h.map.argY[i]) ++moved;
+  }
+  double candMax = 0.0;
+  int matched = 0;
+  for (const auto& c : f.candidates) {
+    for (const auto& d : h.candidates) {
+      if (c.x == d.x && c.y == d.y && c.ivx == d.ivx && c.ivy == d.ivy) {
+        candMax = std::max(candMax, std::abs(double(d.snr) - c.snr) / std::abs(double(c.snr)));
+        ++matched;
+        break;
+      }
+    }
+  }
+  std::printf(
+      "  Float16 vs Float32, %s: map of %d velocities: max relative SNR error %.2e, mean %.2e, best cell "
+      "moved in %d; candidates %zu vs %zu, %d the same cell, max relative error %.2e; best SNR %.4f vs "
+      "%.4f\n",
+      what, n, mapMax, n > 0 ? mapSum / n : 0.0, moved, f.candidates.size(), h.candidates.size(), matched,
+      candMax, f.candidates.empty() ? 0.0 : f.candidates.front().snr,
+      h.candidates.empty() ? 0.0 : h.candidates.front().snr);
+}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
@@ -91,6 +127,9 @@ int run(int argc, char** argv) {
   const int stackFrames = argc > 5 ? std::atoi(argv[5]) : 500;
   const bool treeOnly = argc > 6 && std::string(argv[6]) == "tree";    // exact end-to-end + tree only
   const bool exactOnly = argc > 6 && std::string(argv[6]) == "exact";  // exact search variants only
+  const bool halfOnly = argc > 6 && std::string(argv[6]) == "half";    // Float32 vs Float16 only
+  // The default tree search alone, no exact search first (profiling its kernels).
+  const bool treeAlone = argc > 6 && std::string(argv[6]) == "treeonly";
   const std::time_t now = std::time(nullptr);
   char date[64];
   std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
@@ -116,7 +155,7 @@ int run(int argc, char** argv) {
   st::search::SearchParams params;
   Quiet quiet;
   st::CancelToken cancel;
-  for (int rep = 0; rep < 2; ++rep) {
+  for (int rep = 0; rep < (treeAlone ? 0 : 2); ++rep) {
     const auto r = backend->search(cube, grid, params, quiet, cancel);
     std::printf(
         "search %d: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; %zu candidates, best SNR %.1f "
@@ -128,30 +167,70 @@ int run(int argc, char** argv) {
         r.candidates.empty() ? -1 : r.candidates.front().ivx,
         r.candidates.empty() ? -1 : r.candidates.front().ivy, backend->lastNote().c_str());
   }
-  if (exactOnly) {  // the stair kernel's variants on the whole problem, twice each
-    for (const int variant : {-7, -6, -4, -1}) {
-      st::gpu::CudaOptions ov;
-      ov.kernelVariant = variant;
-      auto bv = st::gpu::makeCudaSearchBackend(whyNot, ov);
+  if (exactOnly || halfOnly) {  // the stair kernel's variants on the whole problem, twice each
+    struct Variant {
+      const char* name;
+      st::gpu::CudaOptions o;
+      st::gpu::CudaBenchOptions b;
+    };
+    std::vector<Variant> variants;
+    auto add = [&](const char* name, st::gpu::ExactKernel k, st::gpu::FramePrecision pr, int maxStage,
+                   bool pipe) {
+      Variant v{name, {}, {}};
+      v.o.exactKernel = k;
+      v.o.precision = pr;
+      v.b.stairMaxFramesPerStage = maxStage;
+      v.b.stairPipelined = pipe;
+      variants.push_back(v);
+    };
+    using st::gpu::ExactKernel;
+    using st::gpu::FramePrecision;
+    add("auto (Float32)", ExactKernel::Auto, FramePrecision::Float32, 0, false);
+    add("Float16, 16 frames per stage", ExactKernel::Auto, FramePrecision::Float16, 0, false);
+    add("Float16, 8 frames per stage", ExactKernel::Auto, FramePrecision::Float16, 8, false);
+    add("Float16, 24 frames per stage", ExactKernel::Auto, FramePrecision::Float16, 24, false);
+    add("Float16, 28 frames per stage", ExactKernel::Auto, FramePrecision::Float16, 28, false);
+    if (exactOnly) {
+      add("stair, at most 8 frames per stage", ExactKernel::Auto, FramePrecision::Float32, 8, false);
+      add("stair, software-pipelined", ExactKernel::Auto, FramePrecision::Float32, 0, true);
+      add("stair, 4-row tiles", ExactKernel::StairFourRows, FramePrecision::Float32, 0, false);
+    }
+    FilteredCube noise = makeCube(frames, size, grid.at(nv / 3, nv / 2), 0.0f);
+    std::vector<st::search::SearchResult> ref(2);
+    for (std::size_t vi = 0; vi < variants.size(); ++vi) {
+      const Variant& v = variants[vi];
+      auto bv = st::gpu::makeCudaBenchBackend(whyNot, v.o, v.b);
       for (int rep = 0; rep < 2; ++rep) {
         const auto r = bv->search(cube, grid, params, quiet, cancel);
         std::printf(
-            "search %d, variant %d: end-to-end %.3f s, kernels %.3f s = %.3g additions/s; %zu "
-            "candidates, best SNR %.2f\n  %s",
-            rep, variant, r.elapsedS, bv->lastKernelSeconds(), additions / bv->lastKernelSeconds(),
+            "search %d, %s: end-to-end %.3f s, kernels %.4f s = %.3g additions/s; %zu candidates, best SNR "
+            "%.4f\n  %s",
+            rep, v.name, r.elapsedS, bv->lastKernelSeconds(), additions / bv->lastKernelSeconds(),
             r.candidates.size(), r.candidates.empty() ? 0.0 : r.candidates.front().snr,
             bv->lastNote().c_str());
+        if (rep == 1 && vi == 0) ref[0] = r;
+        if (rep == 1 && v.o.precision == FramePrecision::Float16) compareHalf("PSF source in noise", ref[0], r);
+      }
+      if (vi == 0 || v.o.precision == FramePrecision::Float16) {
+        const auto r = bv->search(noise, grid, params, quiet, cancel);
+        if (vi == 0) ref[1] = r;
+        else compareHalf("noise alone", ref[1], r);
       }
     }
     return 0;
   }
   // The tree search (method "tree") on the same cube, side by side with the exact search above.
-  for (const auto& [cut, shape] : {std::pair{0, 0}, std::pair{3, 0}, std::pair{0, 6}}) {
+  // shape -1: the default with direct nodes frame by frame from the tables (the level kernel before
+  // 2026-11-27).
+  for (const auto& [cut, shape] : {std::pair{0, 0}, std::pair{0, -1}, std::pair{3, 0}, std::pair{0, 6}}) {
+    if (treeAlone && (cut != 0 || shape != 0)) continue;
     st::gpu::CudaOptions to;
     to.treeCut = cut;
-    to.treeRootShape = shape;
-    to.profileTree = true;
-    auto tree = st::gpu::makeCudaSearchBackend(whyNot, to);
+    st::gpu::CudaBenchOptions tb;
+    tb.treeRootShape = std::max(shape, 0);
+    tb.treeDirectPlain = shape < 0;
+    tb.profileTree = true;
+    auto tree = st::gpu::makeCudaBenchBackend(whyNot, to, tb);
     st::search::SearchParams tp = params;
     tp.method = "tree";
     for (int rep = 0; rep < 2; ++rep) {
@@ -173,10 +252,10 @@ int run(int argc, char** argv) {
           r.candidates.empty() ? -1 : r.candidates.front().ivy, tree->lastNote().c_str());
     }
   }
-  if (treeOnly) return 0;
+  if (treeOnly || treeAlone) return 0;
   {
     st::gpu::CudaOptions o16;
-    o16.kernelVariant = -4;
+    o16.exactKernel = st::gpu::ExactKernel::StairFourRows;
     auto b16 = st::gpu::makeCudaSearchBackend(whyNot, o16);
     for (int rep = 0; rep < 2; ++rep) {
       const auto r = b16->search(cube, grid, params, quiet, cancel);
@@ -193,7 +272,7 @@ int run(int argc, char** argv) {
   band.nvy = std::min(naiveRows, nv);
   const double bandAdds = double(frames) * size * size * double(band.count());
   st::gpu::CudaOptions naiveOptions;
-  naiveOptions.naiveKernel = true;
+  naiveOptions.exactKernel = st::gpu::ExactKernel::Naive;
   auto naive = st::gpu::makeCudaSearchBackend(whyNot, naiveOptions);
   double naiveS = 1e30;
   for (int rep = 0; rep < 2; ++rep) {
@@ -202,15 +281,17 @@ int run(int argc, char** argv) {
   }
   std::printf("band of %d x %d velocities: naive kernel %.4f s = %.3g additions/s\n", band.nvx, band.nvy,
               naiveS, bandAdds / naiveS);
-  for (const int variant : {-1, -5, -4, -3, -2, 0}) {
-    const char* name = variant == -1   ? "auto (stair kernel)"
-                       : variant == -5 ? "stair kernel, cp.async windows"
-                       : variant == -4 ? "stair kernel, 4-row tiles"
-                       : variant == -3 ? "auto without the stair kernel"
-                       : variant == -2 ? "row kernel"
-                                       : "tiled, reuse by branches";
+  using st::gpu::ExactKernel;
+  for (const ExactKernel variant : {ExactKernel::Auto, ExactKernel::StairCpAsync, ExactKernel::StairFourRows,
+                                    ExactKernel::AutoNoStair, ExactKernel::Row, ExactKernel::Tiled}) {
+    const char* name = variant == ExactKernel::Auto            ? "auto (stair kernel)"
+                       : variant == ExactKernel::StairCpAsync  ? "stair kernel, cp.async windows"
+                       : variant == ExactKernel::StairFourRows ? "stair kernel, 4-row tiles"
+                       : variant == ExactKernel::AutoNoStair   ? "auto without the stair kernel"
+                       : variant == ExactKernel::Row           ? "row kernel"
+                                                               : "tiled, reuse by branches";
     st::gpu::CudaOptions o;
-    o.kernelVariant = variant;
+    o.exactKernel = variant;
     auto b = st::gpu::makeCudaSearchBackend(whyNot, o);
     double best = 1e30;
     for (int rep = 0; rep < 2; ++rep) {

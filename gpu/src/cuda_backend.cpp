@@ -9,6 +9,7 @@
 #include <mutex>
 #include <thread>
 
+#include "cuda_bench_options.hpp"
 #include "device_info.hpp"
 #include "device_search.hpp"
 #include "resident_cube.hpp"
@@ -31,8 +32,11 @@ namespace {
 
 class CudaBackend final : public CudaSearchBackend {
  public:
-  CudaBackend(std::vector<DeviceInfo> devices, CudaOptions options)
-      : m_devices(std::move(devices)), m_options(options), m_stack(m_devices.front().ordinal) {
+  CudaBackend(std::vector<DeviceInfo> devices, CudaOptions options, CudaBenchOptions bench)
+      : m_devices(std::move(devices)),
+        m_options(options),
+        m_bench(bench),
+        m_stack(m_devices.front().ordinal) {
     if (m_options.maxDevices > 0 && static_cast<int>(m_devices.size()) > m_options.maxDevices) {
       m_devices.resize(static_cast<std::size_t>(m_options.maxDevices));
     }
@@ -71,22 +75,7 @@ class CudaBackend final : public CudaSearchBackend {
         search::startSearchResult(cube, grid, params, name(), search::SearchMethod::Exact);
     WallPhases wall;
     HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
-    if (m_options.kernelVariant >= 0) {
-      plan.tiledMode = m_options.kernelVariant;
-      chooseTiling(plan, false, false);
-    } else if (m_options.kernelVariant == -2) {
-      chooseTiling(plan, true, true);
-    } else if (m_options.kernelVariant == -5) {
-      plan.stairTma = false;
-    } else if (m_options.kernelVariant == -6) {
-      plan.stairPipe = true;
-    } else if (m_options.kernelVariant == -7 && plan.kernel == HostPlan::Kernel::Stair) {
-      plan.framesPerStage = std::min(plan.framesPerStage, 8);  // the sizing before 2026-11-22 06:30
-    } else if (m_options.kernelVariant == -4) {
-      if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
-    } else if (m_options.kernelVariant == -3) {
-      chooseTiling(plan, true, false);  // automatic choice without the stair kernel
-    }
+    applyKernelChoice(plan);
     std::size_t capacity = initialCapacity(params);
     progress.report(0.0, "velocity search (" + name() + ")");
     wall.mark("plan");
@@ -136,8 +125,9 @@ class CudaBackend final : public CudaSearchBackend {
                             job.device = m_devices[d].ordinal;
                             job.resources = &m_resources[static_cast<std::size_t>(d)];
                             job.cellCapacity = cap;
-                            job.profile = m_options.profileTree;
-                            job.treeRootShape = m_options.treeRootShape;
+                            job.profile = m_bench.profileTree;
+                            job.treeRootShape = m_bench.treeRootShape;
+                            job.treeDirectPlain = m_bench.treeDirectPlain;
                             job.cubeKey = m_cubeKey;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
@@ -301,6 +291,36 @@ class CudaBackend final : public CudaSearchBackend {
   }
 
  private:
+  /// CudaOptions::exactKernel, FramePrecision and the benchmark knobs applied to the automatic plan.
+  void applyKernelChoice(HostPlan& plan) const {
+    switch (m_options.exactKernel) {
+      case ExactKernel::Auto:
+      case ExactKernel::Naive:  // DeviceJob::naiveKernel
+        break;
+      case ExactKernel::Tiled:
+        plan.tiledMode = m_bench.tiledMode;
+        chooseTiling(plan, false, false);
+        break;
+      case ExactKernel::Row:
+        chooseTiling(plan, true, true);
+        break;
+      case ExactKernel::StairCpAsync:
+        plan.stairTma = false;
+        break;
+      case ExactKernel::StairFourRows:
+        if (!chooseStair(plan, 4)) chooseTiling(plan, true, false);
+        break;
+      case ExactKernel::AutoNoStair:
+        chooseTiling(plan, true, false);  // automatic choice without the stair kernel
+        break;
+    }
+    if (plan.kernel != HostPlan::Kernel::Stair) return;
+    if (m_bench.stairPipelined) plan.stairPipe = true;
+    if (m_bench.stairMaxFramesPerStage > 0)
+      plan.framesPerStage = std::min(plan.framesPerStage, m_bench.stairMaxFramesPerStage);
+    if (m_options.precision == FramePrecision::Float16) chooseStairHalf(plan, m_bench.stairMaxFramesPerStage);
+  }
+
   std::vector<DeviceOutcome> runAll(const HostPlan& plan, const search::FilteredCube& cube,
                                     std::size_t capacity, ProgressSink& progress, CancelToken& cancel) {
     const int used = std::min<int>(static_cast<int>(m_devices.size()), plan.nvy);
@@ -312,7 +332,7 @@ class CudaBackend final : public CudaSearchBackend {
       job.iyEnd = static_cast<int>(static_cast<long>(plan.nvy) * (d + 1) / n);
       job.memoryLimitBytes = m_options.deviceMemoryLimitBytes;
       job.cellCapacity = capacity;
-      job.naiveKernel = m_options.naiveKernel;
+      job.naiveKernel = m_options.exactKernel == ExactKernel::Naive;
       job.uploadChunkBytes = m_options.uploadChunkBytes;
       job.cubeKey = m_cubeKey;
       return runOnDevice(plan, cube.frames.pixels().data(), job, report, cancel, m_abort);
@@ -354,6 +374,7 @@ class CudaBackend final : public CudaSearchBackend {
   std::vector<DeviceInfo> m_devices;
   std::vector<std::unique_ptr<DeviceResources>> m_resources;  ///< per device, kept between searches
   CudaOptions m_options;
+  CudaBenchOptions m_bench;
   StackEngine m_stack;
   std::string m_note;
   double m_kernelSeconds = 0.0;
@@ -366,15 +387,20 @@ class CudaBackend final : public CudaSearchBackend {
 
 }  // namespace
 
-std::unique_ptr<CudaSearchBackend> makeCudaSearchBackend(std::string& whyNot, const CudaOptions& options) {
+std::unique_ptr<CudaSearchBackend> makeCudaBenchBackend(std::string& whyNot, const CudaOptions& options,
+                                                        const CudaBenchOptions& bench) {
   try {
     std::vector<DeviceInfo> devices = usableDevices(whyNot);
     if (devices.empty()) return nullptr;
-    return std::make_unique<CudaBackend>(std::move(devices), options);
+    return std::make_unique<CudaBackend>(std::move(devices), options, bench);
   } catch (const std::exception& e) {
     whyNot = e.what();
     return nullptr;
   }
+}
+
+std::unique_ptr<CudaSearchBackend> makeCudaSearchBackend(std::string& whyNot, const CudaOptions& options) {
+  return makeCudaBenchBackend(whyNot, options, CudaBenchOptions{});
 }
 
 std::unique_ptr<search::SearchBackend> makeCudaBackend(std::string& whyNot) {

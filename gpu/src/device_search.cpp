@@ -76,15 +76,26 @@ SearchLaunch baseLaunch(const HostPlan& plan, const DeviceTables& t, const Devic
   p.stairRows = plan.stairRows;
   p.stairTma = plan.stairTma;
   p.stairPipe = plan.stairPipe;
+  p.framesHalf = nullptr;  // JobRun::runResident sets it when the half copy fits
+  p.halfInvScale = 1.0f / plan.halfScale;
   return p;
 }
 
-std::string kernelName(const HostPlan& plan, bool naive) {
+std::string kernelName(const HostPlan& plan, bool naive, bool half) {
   if (naive) return ", naive kernel";
+  if (plan.kernel == HostPlan::Kernel::Stair && half) {
+    return ", stair kernel (" + std::to_string(kStairVx) + " x " + std::to_string(kStairVy) +
+           " velocities per block, Float16 frames: window " + std::to_string(plan.winRows) + " x " +
+           std::to_string(kStairHalfPitch) + " pairs, " + std::to_string(plan.halfFramesPerStage) +
+           " frames per stage summed in half)";
+  }
   if (plan.kernel == HostPlan::Kernel::Stair) {
     return ", stair kernel (" + std::to_string(kStairVx) + " x " + std::to_string(kStairVy) +
            " velocities per block, window " + std::to_string(plan.winRows) + " x " +
-           std::to_string(plan.pitch) + ", " + std::to_string(plan.framesPerStage) + " frames per stage)";
+           std::to_string(plan.pitch) + ", " + std::to_string(plan.framesPerStage) + " frames per stage" +
+           (plan.halfFrames ? "; Float16 asked, float frames: the half copy does not fit or the cube is "
+                              "streamed)"
+                            : ")");
   }
   if (plan.kernel == HostPlan::Kernel::Row) {
     return ", row kernel (" + std::to_string(plan.rowGroups * kRowVelocities) +
@@ -115,7 +126,9 @@ class Launcher {
           static_cast<std::size_t>(tilesFor(plan, maxRows)) * plan.frameCount * offsetInts(plan);
       m_offsets = DeviceBuffer<int>(n);
       if (plan.kernel == HostPlan::Kernel::Stair) {
-        configureStairKernel(stairSharedBytes(plan.framesPerStage, plan.stairRows), plan.stairRows);
+        configureStairKernel(std::max(stairSharedBytes(plan.framesPerStage, plan.stairRows),
+                                      plan.halfFrames ? stairHalfSharedBytes(plan.halfFramesPerStage) : 0),
+                             plan.stairRows);
       } else if (plan.kernel == HostPlan::Kernel::Row) {
         configureRowKernel(rowSharedBytes(plan.pitch, plan.winRows, plan.framesPerStage));
       } else {
@@ -151,6 +164,15 @@ class Launcher {
     }
     m_timers.back().second->record(m_stream);
   }
+  /// Launches `work` on the compute stream timed like a search launch (Float16 conversions: counted in the
+  /// kernel time).
+  template <class Work>
+  void timed(Work work) {
+    m_timers.emplace_back(std::make_unique<Event>(true), std::make_unique<Event>(true));
+    m_timers.back().first->record(m_stream);
+    work();
+    m_timers.back().second->record(m_stream);
+  }
   /// Device seconds of all launches so far (synchronises).
   double seconds() const {
     double s = 0.0;
@@ -176,6 +198,8 @@ class Launcher {
 struct MemoryLayout {
   bool naive = false;
   bool resident = true;
+  bool half = false;   ///< resident, Float16 asked: the half copy of the cube fits beside it
+  std::size_t halfBytes = 0;  ///< the half copy's bytes
   int chunkRows = 1;   ///< velocity rows per launch
   int firstRows = 0;   ///< resident: velocity rows summed chunk by chunk while the cube uploads (0: none)
   int frameChunk = 0;  ///< frames per upload when streamed (the whole cube when resident)
@@ -201,7 +225,9 @@ int overlapRows(const HostPlan& plan, const MemoryLayout& m, int rows, int step)
   int r = static_cast<int>(std::ceil(uploadSeconds / rowSeconds));
   r = std::min(rows, std::max(m.chunkRows, (r + step - 1) / step * step));
   auto fits = [&](int k) {
-    return m.fixedBytes + m.offsetBytes(std::max(k, m.chunkRows)) + cubeBytes + m.partialBytes(k) <= m.budget;
+    return m.fixedBytes + m.offsetBytes(std::max(k, m.chunkRows)) + cubeBytes + (m.half ? m.halfBytes : 0) +
+               m.partialBytes(k) <=
+           m.budget;
   };
   while (r > 0 && !fits(r))
     r = r > step ? r - step : 0;
@@ -238,6 +264,9 @@ MemoryLayout planMemory(const HostPlan& plan, const DeviceJob& job, std::size_t 
   m.fixedBytes = tableBytes(plan, job.cellCapacity);
   m.resident = m.fixedBytes + m.offsetBytes(m.chunkRows) + cubeBytes <= m.budget;
   m.frameChunk = n;
+  m.halfBytes = static_cast<std::size_t>(n) * (plan.width + kStairHalfPad) * plan.height * 4;
+  m.half = m.resident && plan.halfFrames && !m.naive &&
+           m.fixedBytes + m.offsetBytes(m.chunkRows) + cubeBytes + m.halfBytes <= m.budget;
   if (m.resident) {
     m.firstRows = residentBytes > 0 ? 0 : overlapRows(plan, m, rows, step);
     return m;
@@ -313,7 +342,7 @@ class JobRun {
     out.kernelSeconds = m_launcher.seconds();
     readBack(out);
     wall.mark("read-back");
-    out.note += kernelName(m_plan, m_m.naive) + "; wall: " + wall.str();
+    out.note += kernelName(m_plan, m_m.naive, m_m.half) + "; wall: " + wall.str();
     return out;
   }
 
@@ -340,6 +369,15 @@ class JobRun {
     m_launcher.launch(m_p);
   }
 
+  std::size_t halfWords() const {
+    return static_cast<std::size_t>(m_plan.frameCount) * (m_plan.width + kStairHalfPad) * m_plan.height;
+  }
+  void toHalf(const float* cube, unsigned* half, int n0, int n1) {
+    m_launcher.timed([&] {
+      launchHalfPairs(cube, half, m_plan.width, m_plan.height, n0, n1, m_plan.halfScale, compute());
+    });
+  }
+
   /// The cube uploaded once; the first velocity chunk follows the upload frame chunk by frame chunk
   /// (partial sums on the device) when memory allows; the other chunks run over all frames in one launch.
   std::string runResident(WallPhases& wall) {
@@ -354,6 +392,13 @@ class JobRun {
     }
     float* cube = const_cast<float*>(m_p.frames);
     m_p.frameBase = 0;
+    // Float16: the half pairs of each frame chunk made on the compute stream once it has arrived.
+    DeviceBuffer<unsigned> half(m_m.half ? halfWords() : 0);
+    if (m_m.half) {
+      m_p.framesHalf = half.get();
+      m_p.framesPerStage = m_plan.halfFramesPerStage;
+      if (m_have) toHalf(cube, half.get(), 0, n);
+    }
     const int firstEnd = m_job.iyBegin + m_m.firstRows;
     const int uploadFrames = std::max<int>(1, static_cast<int>(m_m.uploadChunkBytes / m_m.frameBytes));
     const bool overlap = m_m.firstRows > 0;
@@ -364,6 +409,7 @@ class JobRun {
     for (int n0 = 0; n0 < n && !m_have; n0 += uploadFrames) {
       const int n1 = std::min(n, n0 + uploadFrames);
       upload(cube + static_cast<std::size_t>(n0) * plane(), n0, n1);
+      if (m_m.half) toHalf(cube, half.get(), n0, n1);
       if (overlap) launchFrames(n0, n1);
       m_poll();
     }

@@ -30,6 +30,7 @@ struct DeviceJob {
   std::size_t uploadChunkBytes = 0;  ///< resident cube: frames per upload step (0: kUploadChunkBytes)
   bool naiveKernel = false;          ///< the one-thread-per-(pixel, velocity) reference kernel instead
   int treeRootShape = 0;             ///< tree search: TreeRootLaunch::shape
+  bool treeDirectPlain = false;      ///< tree search: TreeLevelLaunch::directPlain (benchmarks)
   bool profile = false;              ///< tree search: time each level of the first tile (for the note)
   /// Identity of the host cube (resident_cube.hpp cubeKey): the device's resident cube is used without an
   /// upload when it holds this one, else the cube is uploaded into it and kept. 0 = upload, keep nothing.

@@ -67,6 +67,10 @@ struct SearchLaunch {
   bool stairTma;   ///< stair kernel, 8 rows: windows copied by the tensor memory accelerator
   bool stairPipe;  ///< stair kernel, 8 rows, TMA: next frame's rows loaded during this frame's additions
   const int* tileOffsets;  ///< [velocity tiles][frameCount][kVelPerBlock + 2] window origin + offsets
+  /// Stair kernel, FramePrecision::Float16: the frames as half pairs (x, x + 32) of frame * halfScale,
+  /// same frame indices as `frames`, rows of width + kStairHalfPad words (launchHalfPairs); null: float.
+  const unsigned* framesHalf;
+  float halfInvScale;  ///< 1 / halfScale (a power of two): sums are scaled back before scoring
 };
 
 /// The row kernel (row_search_kernel.cu): kRowVelocities consecutive vx of one vy per block; usable when
@@ -138,6 +142,23 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream);
 /// Shared memory of the stair kernel for `framesPerStage` frames per stage and `rows` (8 or 4) pixel rows.
 std::size_t stairSharedBytes(int framesPerStage, int rows);
 void configureStairKernel(std::size_t sharedBytes, int rows);
+/// Float16 stair kernel (8 rows): window row stride in 4-byte pairs (x, x + 32), 32 fewer than kStairPitch;
+/// frames per stage by default (half sums over at most this many frames before a float flush).
+inline constexpr int kStairHalfPitch = kStairPitch - 32;
+inline constexpr int kStairHalfDefaultStage = 16;
+inline constexpr int kStairHalfMaxStage = 28;
+inline constexpr float kStairHalfClamp = 2048.0f;
+/// Float16 frames: rows of width + kStairHalfPad words; word x + kStairHalfPad holds columns (x, x + 32) for
+/// x in [-32, width), zero outside the frame (a window left of the frame still needs its columns x + 32).
+inline constexpr int kStairHalfPad = 32;
+/// Shared memory of the Float16 stair kernel (8 rows) for `framesPerStage` frames per stage.
+std::size_t stairHalfSharedBytes(int framesPerStage);
+/// Converts frames [f0, f1) of the float cube `frames` (width x height each) into half pairs
+/// out[n][y][x + kStairHalfPad] = (half(frames[n][y][x] * scale), half(frames[n][y][x + 32] * scale)) for x in
+/// [-kStairHalfPad, width), zero outside the frame,
+/// the scaled values clamped to +-kStairHalfClamp (no half overflow in a stage of <= 28 frames).
+void launchHalfPairs(const float* frames, unsigned* out, int width, int height, int f0, int f1, float scale,
+                     cudaStream_t stream);
 /// Velocity tiles of the stair kernel for `rows` grid rows.
 int stairTileCount(int nvx, int rows);
 /// Ints per (tile, frame) in the stair kernel's offset table.

@@ -7,10 +7,15 @@
 
 namespace st::gpu {
 
+/// The bits of `snr` as an unsigned number in the float's order (the high word of packKey).
+__device__ __forceinline__ unsigned orderedBits(float snr) {
+  const unsigned int bits = __float_as_uint(snr);
+  return (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+}
+
 __device__ __forceinline__ unsigned long long packKey(float snr, int pixel) {
-  unsigned int bits = __float_as_uint(snr);
-  bits = (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
-  return (static_cast<unsigned long long>(bits) << 32) | (0xFFFFFFFFull - static_cast<unsigned int>(pixel));
+  return (static_cast<unsigned long long>(orderedBits(snr)) << 32) |
+         (0xFFFFFFFFull - static_cast<unsigned int>(pixel));
 }
 
 __device__ __forceinline__ unsigned long long warpMax(unsigned long long v) {

@@ -117,6 +117,20 @@ bool chooseStair(HostPlan& plan, int rows) {
   return true;
 }
 
+bool chooseStairHalf(HostPlan& plan, int maxFramesPerStage) {
+  if (plan.kernel != HostPlan::Kernel::Stair || plan.stairRows != 8 || plan.stairPipe) return false;
+  if (plan.pitch - 32 > kStairHalfPitch) return false;  // pairs (x, x + 32): 32 words fewer than floats
+  constexpr std::size_t kLimit = 228 * 1024 / 2 - (1024 + 128);
+  const int cap = maxFramesPerStage > 0 ? maxFramesPerStage : kStairHalfDefaultStage;
+  int fs = std::min(cap, kStairHalfMaxStage);
+  while (fs > 1 && stairHalfSharedBytes(fs) > kLimit)
+    --fs;
+  plan.halfFrames = true;
+  plan.halfFramesPerStage = fs;
+  plan.halfScale = static_cast<float>(std::ldexp(1.0, -static_cast<int>(std::lround(std::log2(plan.sigmaF)))));
+  return true;
+}
+
 void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair) {
   if (allowStair && chooseStair(plan)) return;
   plan.kernel = HostPlan::Kernel::Tiled;
@@ -212,6 +226,7 @@ HostPlan makeHostPlan(const search::FilteredCube& cube, const search::VelocityGr
     plan.maskX = frameMasks(plan.shiftX, plan.nvx, plan.frameCount, plan.width, plan.maskWords);
     plan.maskY = frameMasks(plan.shiftY, plan.nvy, plan.frameCount, plan.height, plan.maskWords);
   }
+  plan.sigmaF = cube.sigmaF;
   plan.invNorm.assign(static_cast<std::size_t>(plan.frameCount) + 1, 0.0f);
   for (int k = 1; k <= plan.frameCount; ++k) {
     plan.invNorm[k] = static_cast<float>(1.0 / (cube.sigmaF * std::sqrt(static_cast<double>(k))));

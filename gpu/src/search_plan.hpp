@@ -42,6 +42,13 @@ struct HostPlan {
   bool stairTma = true;    ///< stair kernel, 8 rows: windows copied by the TMA (when the driver allows)
   bool stairPipe = false;  ///< stair kernel, 8 rows, TMA: software-pipelined frame loop (slower, kept)
   int tiledMode = 0;       ///< inner loop of the tiled kernel (SearchLaunch::variant)
+  /// Stair kernel, 8 rows, FramePrecision::Float16 (chooseStairHalf): frames read from a half-precision
+  /// copy of the resident cube, pairs of columns (x, x + 32) in one 4-byte word, summed in half over the
+  /// frames of one stage (framesPerStage) and in float across stages.
+  bool halfFrames = false;
+  int halfFramesPerStage = 0;  ///< Float16: frames per stage (framesPerStage stays the float kernel's)
+  float halfScale = 1.0f;  ///< Float16: frames multiplied by this power of two (~1 / sigma_F) first
+  double sigmaF = 1.0;
 };
 
 /// Builds the tables for `cube` and `grid`. `threshold` is the SNR threshold actually used and
@@ -57,6 +64,10 @@ void chooseTiling(HostPlan& plan, bool allowRow, bool preferRow, bool allowStair
 /// True when the stair kernel applies to `plan`: width a multiple of 4 and neighbouring vy at most 1 px
 /// apart at every frame; sets its pitch and frames per stage for `rows` (8 or 4) pixel rows per block.
 bool chooseStair(HostPlan& plan, int rows = 8);
+
+/// Switches a stair plan of 8 rows (not pipelined) to half-precision frames, at most `maxFramesPerStage`
+/// frames per stage (0: kStairHalfDefaultStage); false, plan unchanged, when it does not apply.
+bool chooseStairHalf(HostPlan& plan, int maxFramesPerStage);
 
 /// Checks what the CUDA backend needs beyond st::search::validateSearchInput (pixel buffer size, frame
 /// count); throws st::InputError naming the value.

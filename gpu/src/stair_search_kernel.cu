@@ -79,34 +79,42 @@ __device__ void copyStairOffsets(const SearchLaunch& p, int* offs, int n0, int c
 
 /// The 16-byte chunks of a window a thread copies: up to kSWin x kStairPitch / 4 <= 2 kSThreads chunks, so
 /// two slots, each packed as (row << 16) | column, or -1 when unused. Computed once per block.
+template <bool kHalf>
 __device__ __forceinline__ int stairSlot(const SearchLaunch& p, int e, int winRows) {
-  const int chunksPerRow = p.pitch / 4;  // columns copied; the shared row stride is kStairPitch
+  const int chunksPerRow = (kHalf ? p.pitch - 32 : p.pitch) / 4;  // copied; shared stride kStairPitch
   if (e >= winRows * chunksPerRow) return -1;
   const int r = e / chunksPerRow;
   return (r << 16) | ((e - r * chunksPerRow) * 4);
 }
 
+template <bool kHalf>
 __device__ __forceinline__ void copyStairChunk(const SearchLaunch& p, float* w, const float* frame, int slot,
                                                int gx0, int gy0) {
+  constexpr int kPitch = kHalf ? kStairHalfPitch : kStairPitch;
+  const int rowWords = kHalf ? p.width + kStairHalfPad : p.width;  // half pairs: kStairHalfPad on the left
   const int r = slot >> 16;
   const int c = slot & 0xFFFF;
   const int gy = gy0 + r;
-  const int gx = gx0 + c;
-  const bool in = gy >= 0 && gy < p.height && gx >= 0 && gx < p.width;  // width % 4 == 0: all 4 or none
-  cpAsync16(w + r * kStairPitch + c, in ? frame + static_cast<long long>(gy) * p.width + gx : frame, in);
+  const int gx = gx0 + c + (kHalf ? kStairHalfPad : 0);
+  const bool in = gy >= 0 && gy < p.height && gx >= 0 && gx < rowWords;  // both % 4 == 0: all 4 or none
+  cpAsync16(w + r * kPitch + c, in ? frame + static_cast<long long>(gy) * rowWords + gx : frame, in);
 }
 
 /// Issues the asynchronous copies of the windows of frames [n0, n0 + count) into `win`, their origins read
 /// from `offs` (already in shared memory: no wait on global memory here).
+template <bool kHalf>
 __device__ void copyStairWindows(const SearchLaunch& p, float* win, const int* offs, int n0, int count,
                                  int x0, int y0, int slot0, int slot1, int winSize) {
+  // Float16: the half pairs, copied as 4-byte words like floats.
+  const float* frames = kHalf ? reinterpret_cast<const float*>(p.framesHalf) : p.frames;
   for (int i = 0; i < count; ++i) {
     const int gx0 = x0 + offs[i * kSOffs];
     const int gy0 = y0 + offs[i * kSOffs + 1];
-    const float* frame = p.frames + static_cast<long long>(n0 + i - p.frameBase) * p.width * p.height;
+    const float* frame =
+        frames + static_cast<long long>(n0 + i - p.frameBase) * (p.width + (kHalf ? kStairHalfPad : 0)) * p.height;
     float* w = win + i * winSize;
-    if (slot0 >= 0) copyStairChunk(p, w, frame, slot0, gx0, gy0);
-    if (slot1 >= 0) copyStairChunk(p, w, frame, slot1, gx0, gy0);
+    if (slot0 >= 0) copyStairChunk<kHalf>(p, w, frame, slot0, gx0, gy0);
+    if (slot1 >= 0) copyStairChunk<kHalf>(p, w, frame, slot1, gx0, gy0);
   }
 }
 
@@ -129,7 +137,7 @@ __device__ void tmaStairWindows(const CUtensorMap* map, const SearchLaunch& p, f
   asm volatile("mbarrier.arrive.expect_tx.shared::cta.b64 _, [%0], %1;\n" ::"r"(b), "r"(bytes) : "memory");
   const unsigned long long m = reinterpret_cast<unsigned long long>(map);
   for (int i = 0; i < count; ++i) {
-    const int gx = x0 + offs[i * kSOffs];
+    const int gx = x0 + offs[i * kSOffs] + (p.framesHalf ? kStairHalfPad : 0);
     const int gy = y0 + offs[i * kSOffs + 1];
     const int gz = n0 + i - p.frameBase;
     asm volatile(
@@ -161,7 +169,7 @@ __device__ __forceinline__ void mbarrierWait(unsigned long long* bar, int parity
 
 /// The end of a launch for one thread's 4 vy x kSR x kSC cells: partial sums stored, or cells scored and
 /// each velocity's best key reduced over the warp into the map.
-template <int kSR, class PartialAt, class CellOk>
+template <int kSR, bool kHalf, class PartialAt, class CellOk>
 __device__ __forceinline__ void finishStairTile(const SearchLaunch& p, const float (&acc)[kSVy][kSR][kSC],
                                                 PartialAt partialAt, CellOk cellOk, int ix, int iyBase,
                                                 int x0, int y0, int lane) {
@@ -182,7 +190,8 @@ __device__ __forceinline__ void finishStairTile(const SearchLaunch& p, const flo
         const int x = x0 + lane + 32 * j;
         const int y = y0 + r;
         const int nIn = cellFrames(p, ix, x, iy, y);
-        const unsigned long long key = scoreCell(p, acc[k][r][j], nIn, x, y, ix, iy);
+        const float sum = kHalf ? acc[k][r][j] * p.halfInvScale : acc[k][r][j];  // exact: a power of 2
+        const unsigned long long key = scoreCell(p, sum, nIn, x, y, ix, iy);
         best = key > best ? key : best;
       }
     }
@@ -197,9 +206,11 @@ __device__ __forceinline__ void finishStairTile(const SearchLaunch& p, const flo
 /// hide latencies, fewer additions per shared-memory load).
 /// kTma: windows copied by the tensor memory accelerator (`map`, one instruction per frame) instead of
 /// per-thread 16-byte cp.async.
-template <int kSR, bool kTma, bool kPipe>
+/// kHalf: Float16 frames (p.framesHalf, 8 rows only): windows of half pairs, stairStageHalf.
+template <int kSR, bool kTma, bool kPipe, bool kHalf = false>
 __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     stairSearchKernel(SearchLaunch p, const __grid_constant__ CUtensorMap map) {
+  static_assert(!kHalf || (kSR == 8 && !kPipe), "Float16: 8 rows, plain frame loop");
   constexpr int kSWin = kSR + kSVy - 1;
   extern __shared__ __align__(128) float smem[];
   __shared__ __align__(8) unsigned long long bars[2];  // TMA: windows of buffer 0 / 1 landed
@@ -213,7 +224,7 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
   const int ix = (tile % tilesX) * kSVx + warp;
   const int iyBase = p.iy0 + (tile / tilesX) * kSVy;
   const int fs = p.framesPerStage;
-  constexpr int winSize = stairWinSize(kSR);
+  constexpr int winSize = kHalf ? stairHalfWinSize() : stairWinSize(kSR);
   float* wins = smem;
   int* offs = reinterpret_cast<int*>(smem + 2 * fs * winSize);
   const long long plane = static_cast<long long>(p.width) * p.height;
@@ -243,16 +254,16 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
   // Pipeline: the copies issued at the start of stage s - 1 are the windows of stage s and the offsets of
   // stage s + 1, so the window copies of stage s + 1 start from offsets already in shared memory (3 offset
   // buffers, 2 window buffers). TMA windows complete on bars[buffer], the rest on cp.async groups.
-  const int slot0 = kTma ? -1 : stairSlot(p, threadIdx.x, kSWin);
-  const int slot1 = kTma ? -1 : stairSlot(p, threadIdx.x + kSThreads, kSWin);
+  const int slot0 = kTma ? -1 : stairSlot<kHalf>(p, threadIdx.x, kSWin);
+  const int slot1 = kTma ? -1 : stairSlot<kHalf>(p, threadIdx.x + kSThreads, kSWin);
   auto issueStage = [&](int st) {  // windows of stage st, offsets of stage st + 1
     float* w = wins + (st & 1) * fs * winSize;
     if (kTma) {
       if (threadIdx.x == 0)
         tmaStairWindows(&map, p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, &bars[st & 1],
-                        winSize, kStairPitch * kSWin);
+                        winSize, (kHalf ? kStairHalfPitch : kStairPitch) * kSWin);
     } else {
-      copyStairWindows(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1, winSize);
+      copyStairWindows<kHalf>(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1, winSize);
     }
     if (st + 1 < stages)
       copyStairOffsets(p, stageOffs(st + 1), p.f0 + (st + 1) * fs, stageCount(st + 1), tile);
@@ -270,22 +281,61 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     __syncthreads();  // stage s landed everywhere (but TMA windows), and stage s - 1 is no longer read
     if (s + 1 < stages) issueStage(s + 1);
     if (kTma) mbarrierWait(&bars[s & 1], (s >> 1) & 1);  // the k-th use of a buffer completes phase k
-    stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s), warp);
+    if constexpr (kHalf) {
+      stairStageHalf(acc, reinterpret_cast<const __half2*>(wins + (s & 1) * fs * winSize) + lane, stageOffs(s),
+                     stageCount(s), warp);
+    } else {
+      stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s),
+                                warp);
+    }
   }
 
-  finishStairTile<kSR>(p, acc, partialAt, cellOk, ix, iyBase, x0, y0, lane);
+  finishStairTile<kSR, kHalf>(p, acc, partialAt, cellOk, ix, iyBase, x0, y0, lane);
+}
+
+/// launchHalfPairs: one thread per output word (rows of width + kStairHalfPad words).
+__global__ void halfPairsKernel(const float* frames, unsigned* out, int width, long long total, float scale) {
+  const long long i = blockIdx.x * static_cast<long long>(blockDim.x) + threadIdx.x;
+  if (i >= total) return;
+  const int rowWords = width + kStairHalfPad;
+  const long long row = i / rowWords;  // frame * height + y
+  const int x = static_cast<int>(i - row * rowWords) - kStairHalfPad;
+  const float* f = frames + row * width;
+  auto conv = [&](float v) {
+    return __float2half_rn(fminf(fmaxf(v * scale, -kStairHalfClamp), kStairHalfClamp));
+  };
+  const __half lo = x >= 0 ? conv(f[x]) : __float2half_rn(0.0f);
+  const __half hi = x + 32 < width ? conv(f[x + 32]) : __float2half_rn(0.0f);
+  const __half2 pair = __halves2half2(lo, hi);
+  out[i] = *reinterpret_cast<const unsigned*>(&pair);
 }
 
 }  // namespace
+
+void launchHalfPairs(const float* frames, unsigned* out, int width, int height, int f0, int f1, float scale,
+                     cudaStream_t stream) {
+  const long long plane = static_cast<long long>(width) * height;
+  const long long halfPlane = static_cast<long long>(width + kStairHalfPad) * height;
+  const long long total = halfPlane * (f1 - f0);
+  if (total <= 0) return;
+  halfPairsKernel<<<static_cast<unsigned>((total + 255) / 256), 256, 0, stream>>>(
+      frames + plane * f0, out + halfPlane * f0, width, total, scale);
+  checkLaunch("halfPairsKernel");
+}
 
 std::size_t stairSharedBytes(int framesPerStage, int rows) {
   return static_cast<std::size_t>(framesPerStage) *
          (2 * static_cast<std::size_t>(stairWinSize(rows)) * sizeof(float) + 3 * kSOffs * sizeof(int));
 }
 
-template <int kSR, bool kTma, bool kPipe>
+std::size_t stairHalfSharedBytes(int framesPerStage) {
+  return static_cast<std::size_t>(framesPerStage) *
+         (2 * static_cast<std::size_t>(stairHalfWinSize()) * sizeof(float) + 3 * kSOffs * sizeof(int));
+}
+
+template <int kSR, bool kTma, bool kPipe, bool kHalf = false>
 void setStairShared(int bytes) {
-  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<kSR, kTma, kPipe>,
+  ST_CUDA_CHECK(cudaFuncSetAttribute(stairSearchKernel<kSR, kTma, kPipe, kHalf>,
                                      cudaFuncAttributeMaxDynamicSharedMemorySize, bytes));
 }
 
@@ -298,6 +348,8 @@ void configureStairKernel(std::size_t sharedBytes, int rows) {
     setStairShared<8, false, false>(bytes);
     setStairShared<8, true, false>(bytes);
     setStairShared<8, true, true>(bytes);
+    setStairShared<8, true, false, true>(bytes);
+    setStairShared<8, false, false, true>(bytes);
   }
 }
 
@@ -322,15 +374,19 @@ PFN_cuTensorMapEncodeTiled_v12000 tensorMapEncoder() {
 /// The tensor map of the resident frames [frameBase, f1) with a box of one window; false when the driver
 /// cannot make one (the kernel then copies with cp.async).
 bool makeWindowMap(const SearchLaunch& p, int winRows, CUtensorMap& map) {
+  const bool half = p.framesHalf != nullptr;  // 4-byte pairs, a narrower box
   const auto encode = tensorMapEncoder();
   if (encode == nullptr) return false;
-  const cuuint64_t dims[3] = {static_cast<cuuint64_t>(p.width), static_cast<cuuint64_t>(p.height),
+  const cuuint64_t rowWords = static_cast<cuuint64_t>(p.width) + (half ? kStairHalfPad : 0);
+  const cuuint64_t dims[3] = {rowWords, static_cast<cuuint64_t>(p.height),
                               static_cast<cuuint64_t>(p.f1 - p.frameBase)};
-  const cuuint64_t strides[2] = {static_cast<cuuint64_t>(p.width) * sizeof(float),
-                                 static_cast<cuuint64_t>(p.width) * p.height * sizeof(float)};
-  const cuuint32_t box[3] = {static_cast<cuuint32_t>(kStairPitch), static_cast<cuuint32_t>(winRows), 1};
+  const cuuint64_t strides[2] = {rowWords * sizeof(float), rowWords * p.height * sizeof(float)};
+  const cuuint32_t box[3] = {static_cast<cuuint32_t>(half ? kStairHalfPitch : kStairPitch),
+                             static_cast<cuuint32_t>(winRows), 1};
   const cuuint32_t elementStrides[3] = {1, 1, 1};
-  return encode(&map, CU_TENSOR_MAP_DATA_TYPE_FLOAT32, 3, const_cast<float*>(p.frames), dims, strides, box,
+  void* base = half ? static_cast<void*>(const_cast<unsigned*>(p.framesHalf))
+                    : static_cast<void*>(const_cast<float*>(p.frames));
+  return encode(&map, CU_TENSOR_MAP_DATA_TYPE_FLOAT32, 3, base, dims, strides, box,
                 elementStrides, CU_TENSOR_MAP_INTERLEAVE_NONE, CU_TENSOR_MAP_SWIZZLE_NONE,
                 CU_TENSOR_MAP_L2_PROMOTION_L2_128B, CU_TENSOR_MAP_FLOAT_OOB_FILL_NONE) == CUDA_SUCCESS;
 }
@@ -355,10 +411,17 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
   const int rows = p.stairRows;
   const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
                   (p.height + rows - 1) / rows);
-  const std::size_t shared = stairSharedBytes(p.framesPerStage, rows);
+  const bool half = p.framesHalf != nullptr && rows == 8;
+  const std::size_t shared = half ? stairHalfSharedBytes(p.framesPerStage) : stairSharedBytes(p.framesPerStage, rows);
   CUtensorMap map{};
   const bool tma = p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map);
-  if (rows == 4) {
+  if (half) {
+    if (tma) {
+      stairSearchKernel<8, true, false, true><<<grid, kSThreads, shared, stream>>>(p, map);
+    } else {
+      stairSearchKernel<8, false, false, true><<<grid, kSThreads, shared, stream>>>(p, map);
+    }
+  } else if (rows == 4) {
     if (tma) {
       stairSearchKernel<4, true, false><<<grid, kSThreads, shared, stream>>>(p, map);
     } else {

@@ -55,6 +55,7 @@ struct TreeLevelLaunch {
   const int* shiftY;
   const float* in;  ///< arena of the level below
   float* out;       ///< arena of this level
+  bool directPlain;  ///< benchmarks: direct nodes frame by frame from the tables (the path before 2026-11-27)
 };
 
 /// The root over one tile: each root velocity's stack is the sum of 2^cut mosaics of the nodes at depth
@@ -95,6 +96,9 @@ struct TreeRootLaunch {
 /// Floats one arena may hold: the root kernel indexes the cut level's arena with 32-bit offsets (tiles of
 /// fewer rows are taken when a level would need more).
 inline constexpr std::size_t kTreeMaxArenaFloats = (std::size_t{1} << 31) - 4096;
+/// Floats allocated past each arena's end: the root kernel's lanes past the image's right edge read (and
+/// skip) up to 63 columns past a mosaic row, the last one included.
+inline constexpr std::size_t kTreeArenaSlack = 64;
 /// Deepest level summed in registers by the root kernel.
 inline constexpr int kTreeMaxCut = 4;
 /// Rows of the tile one root block scans.

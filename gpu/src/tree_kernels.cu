@@ -11,6 +11,8 @@ namespace {
 
 constexpr int kLevelThreads = 256;
 constexpr int kLevelWarps = kLevelThreads / 32;
+/// Direct nodes of at most this many frames take the register path of treeLevelKernel.
+constexpr int kDirectRegs = 4;
 
 __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch p) {
   const int item = blockIdx.x * kLevelWarps + static_cast<int>(threadIdx.x / 32);
@@ -29,7 +31,7 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
       const int4 g = seg[s];
 #pragma unroll 4
       for (int c = lane; c < g.y; c += 32)
-        out[g.x + c] = __ldg(a + g.z + c) + __ldg(b + g.w + c);
+        __stcs(out + g.x + c, __ldg(a + g.z + c) + __ldg(b + g.w + c));  // evict-first: keep the inputs
     }
     return;
   }
@@ -37,6 +39,37 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
   const int m = j.last - j.first;
   const int* sy = p.shiftY + j.shiftY + rr.x * m;
   const long long plane = static_cast<long long>(p.width) * p.height;
+  if (m <= kDirectRegs && !p.directPlain) {
+    // Few frames (the deepest level: ~3 of the paper's 1500 over 512 nodes): each frame's row pointer and
+    // row test once per warp, its x shift once per segment, in registers; the same sums in the same order.
+    const float* rowPtr[kDirectRegs];
+    bool rowIn[kDirectRegs];
+#pragma unroll
+    for (int k = 0; k < kDirectRegs; ++k) {
+      const int yi = k < m ? p.y0 + rr.y + sy[k] : -1;
+      rowIn[k] = yi >= 0 && yi < p.height;
+      rowPtr[k] = p.frames + (rowIn[k] ? p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width
+                                       : 0);
+    }
+    for (int s = 0; s < j.segments; ++s) {
+      const int4 g = seg[s];
+      const int* sx = p.shiftX + j.shiftX + g.z * m;
+      int x0[kDirectRegs];
+#pragma unroll
+      for (int k = 0; k < kDirectRegs; ++k)
+        x0[k] = k < m ? g.w + sx[k] : 0;
+      for (int c = lane; c < g.y; c += 32) {
+        float sum = 0.0f;
+#pragma unroll
+        for (int k = 0; k < kDirectRegs; ++k) {
+          const int xi = x0[k] + c;
+          if (rowIn[k] && xi >= 0 && xi < p.width) sum += __ldg(rowPtr[k] + xi);
+        }
+        __stcs(out + g.x + c, sum);
+      }
+    }
+    return;
+  }
   for (int s = 0; s < j.segments; ++s) {
     const int4 g = seg[s];
     const int* sx = p.shiftX + j.shiftX + g.z * m;
@@ -101,10 +134,21 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
                               : int2{0, -1};  // no frame: the cell is skipped
     }
   }
-  unsigned long long best[kGx];
+  // Each velocity's best cell so far: its SNR as ordered bits (packKey's order) and its pixel. A thread
+  // visits its cells in increasing pixel order (rows, then columns), so a strictly greater SNR alone keeps
+  // the lowest pixel of a tie, as the packed 64-bit maximum did (one 32-bit compare per cell instead).
+  unsigned bestBits[kGx];
+  int bestPixel[kGx];
 #pragma unroll
-  for (int gx = 0; gx < kGx; ++gx)
-    best[gx] = 0ull;
+  for (int gx = 0; gx < kGx; ++gx) {
+    bestBits[gx] = 0u;
+    bestPixel[gx] = -1;
+  }
+  const int minFrames = max(1, p.minFrames);
+  // The lane's column; a thread's columns k at + 32 k (immediate offsets). Lanes past the image read
+  // columns past the row's end (the next segment, or the arena's slack at its end, kTreeArenaSlack): their
+  // cells are skipped below.
+  const float* in = p.in + lane;
   const int2* spanY = p.spanY + static_cast<long long>(iy) * p.height;
   const int rEnd = min(kTreeRootRows, min(p.tileRows - r0, p.height - p.y0 - r0));
   for (int r = 0; r < rEnd; ++r) {
@@ -116,12 +160,11 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
       if (ix >= p.nvx) continue;
       float v[kCols][kN];
 #pragma unroll
-      for (int k = 0; k < kCols; ++k) {
-        // Lanes past the image read a valid column of the row (their cells are skipped below).
-        const int col = min(lane + 32 * k, p.width - 1 - x0);
+      for (int c = 0; c < kN; ++c) {
+        const float* a = in + (rowOff[c] + colOff[gx][c]);
 #pragma unroll
-        for (int c = 0; c < kN; ++c)
-          v[k][c] = __ldg(p.in + rowOff[c] + colOff[gx][c] + col);
+        for (int k = 0; k < kCols; ++k)
+          v[k][c] = __ldg(a + 32 * k);
       }
 #pragma unroll
       for (int k = 0; k < kCols; ++k) {
@@ -137,14 +180,17 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
                         : x < p.width ? framesInMasks(p.maskX, p.maskY, p.maskWords, ix, x, p.width, iy, y,
                                                       p.height)
                                       : 0;
-        if (nIn <= 0 || nIn < p.minFrames) continue;
-        const float snr = sum * p.invNorm[nIn];
+        if (nIn < minFrames) continue;
+        const float snr = sum * __ldg(p.invNorm + nIn);
         if (snr > p.snrThreshold) {
           const unsigned long long slot = atomicAdd(p.cellCount, 1ull);
           if (slot < p.cellCapacity) p.cells[slot] = DeviceCell{x, y, ix, iy, sum, snr, nIn, 0};
         }
-        const unsigned long long key = packKey(snr, y * p.width + x);
-        best[gx] = key > best[gx] ? key : best[gx];
+        const unsigned bits = orderedBits(snr);
+        if (bestPixel[gx] < 0 || bits > bestBits[gx]) {
+          bestBits[gx] = bits;
+          bestPixel[gx] = y * p.width + x;
+        }
       }
     }
 #pragma unroll
@@ -153,7 +199,11 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
   }
 #pragma unroll
   for (int gx = 0; gx < kGx; ++gx) {
-    const unsigned long long b = warpMax(best[gx]);
+    const unsigned long long key =
+        bestPixel[gx] < 0 ? 0ull
+                          : ((static_cast<unsigned long long>(bestBits[gx]) << 32) |
+                             (0xFFFFFFFFull - static_cast<unsigned>(bestPixel[gx])));  // packKey
+    const unsigned long long b = warpMax(key);
     if (lane == 0 && b != 0ull) atomicMax(p.mapKeys + iy * p.nvx + ix0 + gx, b);
   }
 }

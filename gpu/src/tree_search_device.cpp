@@ -53,8 +53,8 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     (slot ? slot->cube : ownCube) = DeviceBuffer<float>(cubeFloats);
   }
   DeviceBuffer<float>& cube = slot ? slot->cube : ownCube;
-  DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[0], 1)),
-                                  DeviceBuffer<float>(std::max<std::size_t>(tree.arenaFloats[1], 1))};
+  DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(tree.arenaFloats[0] + kTreeArenaSlack),
+                                  DeviceBuffer<float>(tree.arenaFloats[1] + kTreeArenaSlack)};
   DeviceBuffer<TreeJob> jobs = toDevice(tree.jobs);
   DeviceBuffer<int4> segTab = toDevice(tree.segTab);
   DeviceBuffer<int2> rowJobs = toDevice(tree.rowJobs), rowTab = toDevice(tree.rowTab);
@@ -99,6 +99,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   lv.rowTab = rowTab.get();
   lv.shiftX = shiftX.get();
   lv.shiftY = shiftY.get();
+  lv.directPlain = job.treeDirectPlain;
   TreeRootLaunch rt{};
   rt.in = arena[tree.cut & 1].get();
   rt.cutBase = cutBase.get();

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "cuda_bench_options.hpp"
 #include "st/gpu/cuda_backend.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/search/types.hpp"
@@ -59,10 +60,12 @@ inline search::FilteredCube movingPointsCube(int w, int h, int n, unsigned seed,
   return c;
 }
 
-/// The CUDA backend with `options`, or null when no device is usable.
-inline std::unique_ptr<gpu::CudaSearchBackend> cudaOrNull(const gpu::CudaOptions& options = {}) {
+/// The CUDA backend with `options` (and benchmark knobs, gpu/src/cuda_bench_options.hpp), or null when no
+/// device is usable.
+inline std::unique_ptr<gpu::CudaSearchBackend> cudaOrNull(const gpu::CudaOptions& options = {},
+                                                          const gpu::CudaBenchOptions& bench = {}) {
   std::string whyNot;
-  return gpu::makeCudaSearchBackend(whyNot, options);
+  return gpu::makeCudaBenchBackend(whyNot, options, bench);
 }
 
 }  // namespace st::test

@@ -51,8 +51,12 @@ int minFramesOf(const SearchParams& p, std::size_t n) {
 
 void expectMatchesReference(const SearchResult& g, const FilteredCube& cube, const VelocityGrid& grid,
                             const SearchParams& params) {
-  const test::RefSearch ref =
-      test::refSearch(cube, grid, params.snrThreshold, minFramesOf(params, cube.frames.frameCount()));
+  // The N_in floor the backend used: core's rule (search_run, since 1fbdad1: half of the most frames a track
+  // of the grid's fastest velocity can spend inside, at most minFrameFraction of all frames) can be below
+  // minFrameFraction x N_f for fast grids (the long cube's tiled grid). The CPU backend uses the same
+  // (TiledKernelGivesTheCpuBackendsResult compares the two).
+  EXPECT_LE(g.minFrames, minFramesOf(params, cube.frames.frameCount()));
+  const test::RefSearch ref = test::refSearch(cube, grid, params.snrThreshold, g.minFrames);
   const int w = cube.frames.width();
   const int h = cube.frames.height();
   ASSERT_EQ(g.map.maxSnr.size(), grid.count());
@@ -123,13 +127,19 @@ Problem standardProblem(Kern kind = Kern::Tiled) {
 
 gpu::CudaOptions kernelOptions(Kern kind) {
   gpu::CudaOptions o;
-  o.kernelVariant = kind == Kern::Row            ? -2
-                    : kind == Kern::Tiled        ? 0
-                    : kind == Kern::Stair4       ? -4
-                    : kind == Kern::StairCpAsync ? -5
-                    : kind == Kern::StairPipe    ? -6
-                                                 : -1;
+  o.exactKernel = kind == Kern::Row            ? gpu::ExactKernel::Row
+                  : kind == Kern::Tiled        ? gpu::ExactKernel::Tiled
+                  : kind == Kern::Stair4       ? gpu::ExactKernel::StairFourRows
+                  : kind == Kern::StairCpAsync ? gpu::ExactKernel::StairCpAsync
+                                               : gpu::ExactKernel::Auto;
   return o;
+}
+
+/// The benchmark-only knobs of `kind` (gpu/src/cuda_bench_options.hpp): the pipelined stair kernel.
+gpu::CudaBenchOptions benchOptions(Kern kind) {
+  gpu::CudaBenchOptions b;
+  b.stairPipelined = kind == Kern::StairPipe;
+  return b;
 }
 
 const char* kernelName(Kern kind) {
@@ -137,7 +147,7 @@ const char* kernelName(Kern kind) {
 }
 
 void checkAgainstReference(Kern rowKernel) {
-  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
+  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel), benchOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
   CancelToken cancel;
@@ -156,7 +166,7 @@ void checkAgainstReference(Kern rowKernel) {
 
 TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
   gpu::CudaOptions o;
-  o.naiveKernel = true;
+  o.exactKernel = gpu::ExactKernel::Naive;
   ST_REQUIRE_GPU(gpu, o);
   Problem p = standardProblem();
   NullProgress progress;
@@ -165,7 +175,7 @@ TEST(CudaBackend, NaiveKernelGivesTheSameAnswer) {
 }
 
 void checkChunkedEqualsResident(Kern rowKernel) {
-  ST_REQUIRE_GPU(resident, kernelOptions(rowKernel));
+  ST_REQUIRE_GPU(resident, kernelOptions(rowKernel), benchOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
   CancelToken cancel;
@@ -178,7 +188,7 @@ void checkChunkedEqualsResident(Kern rowKernel) {
     gpu::CudaOptions o = kernelOptions(rowKernel);
     o.deviceMemoryLimitBytes = limit;
     o.cellCapacity = 4096;
-    auto tiny = test::cudaOrNull(o);
+    auto tiny = test::cudaOrNull(o, benchOptions(rowKernel));
     try {
       b = tiny->search(p.cube, p.grid, p.params, progress, cancel);
     } catch (const GpuError&) {
@@ -286,7 +296,7 @@ TEST(CudaBackend, StackAtEqualsReference) {
 }
 
 void checkAgainstCpuBackend(Kern rowKernel) {
-  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel));
+  ST_REQUIRE_GPU(gpu, kernelOptions(rowKernel), benchOptions(rowKernel));
   Problem p = standardProblem(rowKernel);
   NullProgress progress;
   CancelToken cancel;
@@ -391,6 +401,59 @@ TEST(CudaBackend, BadInputIsAnInputError) {
   CancelToken cancel;
   p.cube.sigmaF = 0.0;
   EXPECT_THROW(gpu->search(p.cube, p.grid, p.params, progress, cancel), InputError);
+}
+
+// FramePrecision::Float16 (issue 16): the stair kernel over a half-precision copy of the resident cube. Not
+// bit-exact: every velocity's best SNR within 2e-3 relative of the CPU's (the benchmark measures the error on
+// the paper's problem), the source found at its cell; a cube that must be streamed runs Float32 and says so.
+TEST(CudaBackend, Float16FramesStayWithinHalfPrecisionOfTheCpu) {
+  gpu::CudaOptions o;
+  o.precision = gpu::FramePrecision::Float16;
+  ST_REQUIRE_GPU(gpu, o);
+  Problem p = standardProblem(Kern::Stair);
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_NE(gpu->lastNote().find("Float16 frames"), std::string::npos) << gpu->lastNote();
+  const SearchResult c = search::makeCpuBackend()->search(p.cube, p.grid, p.params, progress, cancel);
+  ASSERT_EQ(g.map.maxSnr.size(), c.map.maxSnr.size());
+  for (std::size_t iv = 0; iv < c.map.maxSnr.size(); ++iv) {
+    EXPECT_NEAR(g.map.maxSnr[iv], c.map.maxSnr[iv], 2e-3 * std::max(1.0f, std::abs(c.map.maxSnr[iv]))) << iv;
+    EXPECT_EQ(g.map.argX[iv] < 0, c.map.argX[iv] < 0) << iv;
+  }
+  ASSERT_FALSE(g.candidates.empty());
+  EXPECT_EQ(g.candidates.front().x, 30);
+  EXPECT_EQ(g.candidates.front().y, 20);
+  EXPECT_EQ(g.candidates.front().ivx, 6);
+  EXPECT_EQ(g.candidates.front().ivy, 2);
+  EXPECT_NEAR(g.candidates.front().snr, c.candidates.front().snr, 2e-3 * c.candidates.front().snr);
+  // Uploaded in several steps (the first velocity rows summed step by step while the rest arrives): the
+  // half copy is made step by step too.
+  gpu::CudaOptions stepped = o;
+  stepped.uploadChunkBytes = 64 * 1024;
+  stepped.keepCubeResident = false;
+  auto s = test::cudaOrNull(stepped);
+  const SearchResult gs = s->search(p.cube, p.grid, p.params, progress, cancel);
+  EXPECT_NE(s->lastNote().find("Float16 frames"), std::string::npos) << s->lastNote();
+  for (std::size_t iv = 0; iv < c.map.maxSnr.size(); ++iv)
+    EXPECT_NEAR(gs.map.maxSnr[iv], c.map.maxSnr[iv], 2e-3 * std::max(1.0f, std::abs(c.map.maxSnr[iv]))) << iv;
+  // Streamed (the cube does not fit): Float32, as noted.
+  for (std::size_t limit = 600 * 1024; limit >= 250 * 1024; limit -= 10 * 1024) {
+    gpu::CudaOptions tiny = o;
+    tiny.deviceMemoryLimitBytes = limit;
+    tiny.cellCapacity = 4096;
+    auto t = test::cudaOrNull(tiny);
+    SearchResult r;
+    try {
+      r = t->search(p.cube, p.grid, p.params, progress, cancel);
+    } catch (const GpuError&) {
+      break;
+    }
+    if (t->lastNote().find("streamed") == std::string::npos) continue;
+    EXPECT_NE(t->lastNote().find("float frames"), std::string::npos) << t->lastNote();
+    expectMatchesReference(r, p.cube, p.grid, p.params);
+    break;
+  }
 }
 
 TEST(CudaBackend, DeviceSummaryNamesTheDevice) {

@@ -75,10 +75,9 @@ void expectSame(const SearchResult& g, const SearchResult& c) {
   }
 }
 
-void checkExact(int kernelVariant, bool naive, bool fineGrid) {
+void checkExact(gpu::ExactKernel kernel, bool fineGrid) {
   gpu::CudaOptions o;
-  o.kernelVariant = kernelVariant;
-  o.naiveKernel = naive;
+  o.exactKernel = kernel;
   ST_REQUIRE_GPU(gpu, o);
   const Problem p = registeredProblem(fineGrid, false);
   ASSERT_TRUE(p.cube.frames.hasFrameOffsets());
@@ -95,23 +94,23 @@ void checkExact(int kernelVariant, bool naive, bool fineGrid) {
 }
 
 TEST(CudaRegistration, TiledKernelGivesTheCpuResult) {
-  checkExact(0, false, false);
+  checkExact(gpu::ExactKernel::Tiled, false);
 }
 
 TEST(CudaRegistration, RowKernelGivesTheCpuResult) {
-  checkExact(-2, false, true);
+  checkExact(gpu::ExactKernel::Row, true);
 }
 
 TEST(CudaRegistration, StairKernelGivesTheCpuResult) {
-  checkExact(-1, false, true);
+  checkExact(gpu::ExactKernel::Auto, true);
 }
 
 TEST(CudaRegistration, StairKernel4RowsGivesTheCpuResult) {
-  checkExact(-4, false, true);
+  checkExact(gpu::ExactKernel::StairFourRows, true);
 }
 
 TEST(CudaRegistration, NaiveKernelGivesTheCpuResult) {
-  checkExact(0, true, false);
+  checkExact(gpu::ExactKernel::Naive, false);
 }
 
 TEST(CudaRegistration, TreeGivesTheCpuTreesResult) {

@@ -119,9 +119,10 @@ TEST(CudaTree, EveryRootKernelShapeGivesTheCpuTreesResult) {
   const Problem p = standardProblem();
   for (const int shape : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13}) {
     gpu::CudaOptions o;
-    o.treeRootShape = shape;
     o.treeTileRows = 19;
-    ST_REQUIRE_GPU(gpu, o);
+    gpu::CudaBenchOptions b;
+    b.treeRootShape = shape;
+    ST_REQUIRE_GPU(gpu, o, b);
     NullProgress progress;
     CancelToken cancel;
     SCOPED_TRACE("root shape " + std::to_string(shape));

@@ -15,7 +15,30 @@
 
 namespace st::gpu {
 
-/// Knobs for tests and benchmarks; the defaults are what the app wants.
+/// The exact search's kernel. The app leaves Auto; tests pick one to check it against the CPU. (Was the
+/// int CudaOptions::kernelVariant: -1 Auto, -3 AutoNoStair, -2 Row, 0 Tiled, -4 StairFourRows, -5
+/// StairCpAsync, naiveKernel = true Naive; the benchmark-only values are CudaBenchOptions, gpu/src.)
+enum class ExactKernel {
+  Auto,           ///< the stair kernel when it applies, else the kernel estimated fastest
+  AutoNoStair,    ///< the automatic choice without the stair kernel
+  Row,            ///< the row kernel whenever it applies
+  Tiled,          ///< the tiled kernel (register reuse by uniform branches)
+  StairFourRows,  ///< the stair kernel with 4-row pixel tiles when it applies
+  StairCpAsync,   ///< the stair kernel with its windows copied by cp.async (what runs when the driver cannot
+                  ///< make a tensor map for the TMA)
+  Naive,          ///< the one-thread-per-(pixel, velocity) reference kernel; needs the cube resident
+};
+
+/// How the exact search's stair kernel stores the frames it reads (issue 16). Float32: the cube as it is
+/// (the default; results match the CPU backend to float rounding). Float16: a half-precision copy of the
+/// resident cube (values scaled by a power of two near 1/sigma_F, clamped to +-2048 sigma_F), summed in
+/// half-precision pairs over the frames of one pipeline stage and in float across stages; its SNR error
+/// against Float32 is measured by st_gpu_bench (gpu/README.md). Only the stair kernel with the cube
+/// resident and the TMA uses it; any other case runs Float32 and says so in lastNote().
+enum class FramePrecision { Float32, Float16 };
+
+/// Knobs for tests and benchmarks; the defaults are what the app wants. Benchmark-only knobs (kernel
+/// internals, root kernel shapes, level profiles) are CudaBenchOptions in gpu/src/cuda_bench_options.hpp.
 struct CudaOptions {
   /// Device memory a search may use on each device, bytes; 0 = what the device has free less 256 MiB.
   /// Tests set it small to force frame and velocity tiling.
@@ -23,17 +46,10 @@ struct CudaOptions {
   /// Cells above threshold kept on the device per search; 0 = max(4 x maxCandidates, 65536). When more
   /// cells pass the threshold the search is re-run once with room for all of them.
   std::size_t cellCapacity = 0;
-  /// Use the naive one-thread-per-(pixel, velocity) reference kernel (benchmarks, tests). Needs the cube
-  /// resident on the device.
-  bool naiveKernel = false;
-  /// Tests and benchmarks: -1 = automatic (the stair kernel when it applies, else the kernel estimated
-  /// fastest); -5 = the same, the stair kernel's windows copied by cp.async instead of the TMA; -6 = the
-  /// stair kernel with a software-pipelined frame loop (measured slower; benchmarks); -7 = the stair
-  /// kernel with at most 8 frames per stage (the earlier sizing; benchmarks); -4 = the
-  /// stair kernel with 4-row tiles when it applies; -3 = automatic without the stair kernel; -2 = the row
-  /// kernel whenever it applies; 0, 1, 2 = the tiled kernel with inner loop 0 (register reuse by uniform
-  /// branches), 1 (no reuse), 2 (reuse by predicated loads); 10, 11, 12 = the same with 64-wide tiles.
-  int kernelVariant = -1;
+  /// The exact search's kernel (tests).
+  ExactKernel exactKernel = ExactKernel::Auto;
+  /// Frame storage of the exact search's stair kernel.
+  FramePrecision precision = FramePrecision::Float32;
   /// Exact search, cube resident: bytes of frames per upload step, each followed by a launch over the first
   /// velocity rows (0 = 256 MiB). Tests set it small to upload a small cube in several steps.
   std::size_t uploadChunkBytes = 0;
@@ -43,11 +59,6 @@ struct CudaOptions {
   int treeCut = 0;
   /// Tree search: rows per tile (0 = as many as fit in the device memory allowed).
   int treeTileRows = 0;
-  /// Tree search: time each level of the first tile and list the times in lastNote() (benchmarks).
-  bool profileTree = false;
-  /// Tree search, benchmarks: root kernel shape (TreeRootLaunch::shape in gpu/src/tree_kernel_params.hpp),
-  /// 0 = the default.
-  int treeRootShape = 0;
   /// Keep the cube on each device between searches (and use the one the GPU matched filter left there):
   /// re-searches, the tree search and stackAt of the same cube then upload nothing. Off: every search
   /// uploads (benchmarks of the upload).
