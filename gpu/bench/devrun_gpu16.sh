@@ -27,7 +27,7 @@ for step in "$@"; do
              echo "ncu levels rc=$?" ;;
     ncustair) timeout 300 ncu -k regex:stairSearchKernel -s 6 -c 1 --set full "$B" 1500 512 100 12 500 exact \
                 >"$O/ncu_stair.txt" 2>&1; echo "ncu stair rc=$?" ;;
-    ncuhalf) timeout 300 ncu -k regex:stairSearchKernel -s 16 -c 1 --set full "$B" 1500 512 100 12 500 half \
+    ncuhalf) timeout 300 ncu --kernel-name-base mangled -k regex:stairSearchKernelILi8ELb1ELb0ELb1E -s 6 -c 1 --set full "$B" 1500 512 100 12 500 half \
                >"$O/ncu_half.txt" 2>&1; echo "ncu half rc=$?" ;;
     tests) for t in "$D"/st_gpu_test_*; do
              timeout 200 "$t" >"$O/t.log" 2>&1; echo "$(basename "$t") rc=$?"

@@ -189,14 +189,23 @@ TEST_P(GpuFilter, MatchesCpu) {
   const auto b = accel->filterCube(dev, kernel, progress, cancel, fc.weighted ? &model : nullptr, 0);
   std::printf("%s\n", accel->lastNote().c_str());
   ASSERT_GT(a.sigmaF, 0.0);
+  // The CPU filter is an FFT since a22aff2, whose float rounding scales with the largest |value| of the frame
+  // (tests/core/test_stack_filter.cpp allows 2e-6 of it), the GPU's a direct sum (2e-5 sigma_F before).
+  // Measured on an H100, 2026-11-27: worst 2.6e-5 and 9.5e-5 sigma_F (case 4: 7.5e-6 of its largest |value|,
+  // 12.7 sigma_F) against the old 2e-5 sigma_F bound.
+  double maxAbs = 0.0;
+  for (const float v : cpu.pixels())
+    maxAbs = std::max(maxAbs, std::fabs(double(v)));
+  const double tolerance = 2e-5 * a.sigmaF + 1e-5 * maxAbs;
   std::size_t bad = 0;
   double worst = 0.0;
   for (std::size_t i = 0; i < cpu.pixels().size(); ++i) {
     const double d = std::fabs(double(dev.pixels()[i]) - double(cpu.pixels()[i]));
-    worst = std::max(worst, d / a.sigmaF);
-    bad += !(d <= 2e-5 * a.sigmaF);
+    worst = std::max(worst, d);
+    bad += !(d <= tolerance);
   }
-  EXPECT_EQ(bad, 0u) << "worst difference " << worst << " sigma_F";
+  EXPECT_EQ(bad, 0u) << "worst difference " << worst / a.sigmaF << " sigma_F = " << worst / maxAbs
+                     << " of the largest |value| (" << maxAbs / a.sigmaF << " sigma_F)";
   EXPECT_NEAR(b.sigmaF, a.sigmaF, 1e-4 * a.sigmaF);
   EXPECT_EQ(b.noiseSamples, a.noiseSamples);
   EXPECT_EQ(b.kernelHalfSize, a.kernelHalfSize);
