@@ -153,11 +153,13 @@ FilterKernel makeFilterKernel(const psf::Moffat& psf, double truncation) {
 
 namespace {
 
-/// The smallest n >= minimum whose prime factors are 2, 3, 5 and 7 (sizes FFTW transforms fastest).
+/// The padded FFT size for at least `minimum` samples: the smallest multiple of 16 whose other factors are
+/// 2, 3, 5, 7 and 11 (FFTW's real transforms are fastest there: 528 took 3.4 ms where 520 took 3.9 and 525
+/// 8.6 on the dev VM).
 int goodFftSize(int minimum) {
-  for (int n = std::max(1, minimum);; ++n) {
-    int m = n;
-    for (int p : {2, 3, 5, 7})
+  for (int n = std::max(16, (minimum + 15) / 16 * 16);; n += 16) {
+    int m = n / 16;
+    for (int p : {2, 3, 5, 7, 11})
       while (m % p == 0) m /= p;
     if (m == 1) return n;
   }
@@ -166,16 +168,18 @@ int goodFftSize(int minimum) {
 /// Convolution of width x height frames with one kernel by FFT (zero-padded to nx x ny >= frame + halfSize,
 /// so the circular convolution equals the linear one with zeros outside the frame, which is what
 /// cv::filter2D with BORDER_CONSTANT gave: the same sums in another order, equal to ~1e-6 of the values).
-/// 4x faster than filter2D on 512^2 frames with a 17^2 kernel (5.8 vs 24 ms on the dev VM). The kernel's
+/// 7x faster than filter2D on 512^2 frames with a 17^2 kernel (3.4 vs 24 ms on the dev VM). The plans are
+/// FFTW_ESTIMATE ones: FFTW_MEASURE was 30% faster but picks its algorithm by timing, so two runs of the same
+/// cube could differ in the last bits (a batch's catalogue then differs from separate runs'). The kernel's
 /// spectrum is made once and shared; each thread has its own Buffers.
 class FftConvolver {
  public:
-  FftConvolver(int width, int height, const FilterKernel& kernel, bool measurePlans)
+  FftConvolver(int width, int height, const FilterKernel& kernel)
       : m_w(width),
         m_h(height),
         m_nx(goodFftSize(width + kernel.halfSize)),
         m_ny(goodFftSize(height + kernel.halfSize)),
-        m_plans(fftw::plans2d(m_nx, m_ny, measurePlans)),
+        m_plans(fftw::plans2d(m_nx, m_ny, false)),
         m_kernel(fftw::allocCplx(spectrumSize(), "matched filter")) {
     fftw::RealBuf r = fftw::allocReal(realSize(), "matched filter");
     std::fill(r.get(), r.get() + realSize(), 0.0f);
@@ -235,7 +239,7 @@ class FftConvolver {
 }  // namespace
 
 void filterFrame(float* frame, int width, int height, const FilterKernel& kernel) {
-  const FftConvolver conv(width, height, kernel, false);
+  const FftConvolver conv(width, height, kernel);
   FftConvolver::Buffers b = conv.buffers();
   conv.apply(frame, b);
 }
@@ -251,8 +255,7 @@ MatchedFilterResult filterCube(FrameCube& cube, const FilterKernel& kernel, Prog
   std::vector<std::vector<float>> samples(sampleFrames.size());
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "matched filter");
-  // FFTW_MEASURE plans (made once per size for the process) pay off over a cube, not for a few frames.
-  const FftConvolver conv(w, h, kernel, nFrames >= 64);
+  const FftConvolver conv(w, h, kernel);
   parallelFor(nFrames, 1, [&](std::size_t b, std::size_t e) {
     FftConvolver::Buffers buffers = conv.buffers();
     for (std::size_t n = b; n < e; ++n) {
