@@ -16,6 +16,8 @@ for step in "$@"; do
   case $step in
     tools) which nsys ncu compute-sanitizer cuobjdump nvdisasm; ncu --version | tail -1 ;;
     sass) cuobjdump -sass "$B" >"$O/bench.sass" 2>&1; ls -la "$O/bench.sass"; xz -T0 "$O/bench.sass" ;;
+    sassstair) cuobjdump -sass -fun regex:stairSearchKernelILi8ELb1ELb0ELb[01]E "$B" >"$O/stair.sass" 2>&1
+               grep -cE "BRX" "$O/stair.sass"; xz -T0 "$O/stair.sass" ;;
     tree) "$B" 1500 512 100 12 500 tree 2>&1 | tee "$O/treebench.log" | grep -vE "^  (device 0: cube|host)" |
             sed -E 's/^  device 0: tree: .*top 4 levels in registers; /  /' ;;
     half) "$B" 1500 512 100 12 500 half 2>&1 | tee "$O/halfbench.log" | grep -E "search|Float16" ;;
