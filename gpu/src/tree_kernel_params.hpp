@@ -104,6 +104,9 @@ inline constexpr int kTreeMaxCut = 4;
 /// Rows of the tile one root block scans.
 inline constexpr int kTreeRootRows = 32;
 
+/// Loads the tree kernels' module on the current device (lazy loading would load it at the first level's
+/// launch, inside the timed kernels: 5-10 ms on the first tree search of a process, H100 2026-11-27).
+void loadTreeKernels();
 void launchTreeLevel(const TreeLevelLaunch& p, cudaStream_t stream);
 void launchTreeRoot(const TreeRootLaunch& p, cudaStream_t stream);
 

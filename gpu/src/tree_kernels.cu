@@ -233,6 +233,11 @@ void launchRootShape(const TreeRootLaunch& p, cudaStream_t stream) {
 
 }  // namespace
 
+void loadTreeKernels() {
+  cudaFuncAttributes a{};
+  ST_CUDA_CHECK(cudaFuncGetAttributes(&a, treeLevelKernel));
+}
+
 void launchTreeLevel(const TreeLevelLaunch& p, cudaStream_t stream) {
   if (p.rows <= 0) return;
   treeLevelKernel<<<(p.rows + kLevelWarps - 1) / kLevelWarps, kLevelThreads, 0, stream>>>(p);
