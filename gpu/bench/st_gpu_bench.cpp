@@ -88,7 +88,8 @@ void compareHalf(const char* what, const st::search::SearchResult& f, const st::
   int moved = 0, n = 0;
   for (std::size_t i = 0; i < f.map.maxSnr.size(); ++i) {
     if (f.map.argX[i] < 0 || h.map.argX[i] < 0) continue;
-    const double e = std::abs(double(h.map.maxSnr[i]) - f.map.maxSnr[i]) / std::max(1e-6, std::abs(double(f.map.maxSnr[i])));
+    const double e = std::abs(double(h.map.maxSnr[i]) - f.map.maxSnr[i]) /
+                     std::max(1e-6, std::abs(double(f.map.maxSnr[i])));
     mapMax = std::max(mapMax, e);
     mapSum += e;
     ++n;
@@ -209,12 +210,15 @@ int run(int argc, char** argv) {
             r.candidates.size(), r.candidates.empty() ? 0.0 : r.candidates.front().snr,
             bv->lastNote().c_str());
         if (rep == 1 && vi == 0) ref[0] = r;
-        if (rep == 1 && v.o.precision == FramePrecision::Float16) compareHalf("PSF source in noise", ref[0], r);
+        if (rep == 1 && v.o.precision == FramePrecision::Float16)
+          compareHalf("PSF source in noise", ref[0], r);
       }
       if (vi == 0 || v.o.precision == FramePrecision::Float16) {
         const auto r = bv->search(noise, grid, params, quiet, cancel);
-        if (vi == 0) ref[1] = r;
-        else compareHalf("noise alone", ref[1], r);
+        if (vi == 0)
+          ref[1] = r;
+        else
+          compareHalf("noise alone", ref[1], r);
       }
     }
     return 0;

@@ -180,8 +180,7 @@ class CudaBackend final : public CudaSearchBackend {
       // The cube already resident is counted below as the cube's bytes.
       ResidentSlot& slot = residentSlot(m_devices.front().ordinal);
       std::lock_guard lock(slot.mutex);
-      if (slot.holds(m_cubeKey, cube.frames.pixels().size()))
-        freeBytes += slot.cube.bytes();
+      if (slot.holds(m_cubeKey, cube.frames.pixels().size())) freeBytes += slot.cube.bytes();
     }
     std::size_t budget = freeBytes > kReserve ? freeBytes - kReserve : 0;
     if (m_options.deviceMemoryLimitBytes > 0) budget = std::min(budget, m_options.deviceMemoryLimitBytes);

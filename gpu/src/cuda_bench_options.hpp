@@ -1,7 +1,7 @@
 #pragma once
-// Benchmark-only knobs of the CUDA backend (issue 18: kept out of the public st/gpu/cuda_backend.hpp). Used by
-// gpu/bench/st_gpu_bench.cpp and by white-box tests in tests/gpu (both have gpu/src on their include path).
-// The defaults change nothing: makeCudaBenchBackend(whyNot, options, {}) is makeCudaSearchBackend.
+// Benchmark-only knobs of the CUDA backend (issue 18: kept out of the public st/gpu/cuda_backend.hpp). Used
+// by gpu/bench/st_gpu_bench.cpp and by white-box tests in tests/gpu (both have gpu/src on their include
+// path). The defaults change nothing: makeCudaBenchBackend(whyNot, options, {}) is makeCudaSearchBackend.
 #include <memory>
 #include <string>
 

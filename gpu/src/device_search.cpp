@@ -198,9 +198,9 @@ class Launcher {
 struct MemoryLayout {
   bool naive = false;
   bool resident = true;
-  bool half = false;   ///< resident, Float16 asked: the half copy of the cube fits beside it
+  bool half = false;          ///< resident, Float16 asked: the half copy of the cube fits beside it
   std::size_t halfBytes = 0;  ///< the half copy's bytes
-  int chunkRows = 1;   ///< velocity rows per launch
+  int chunkRows = 1;          ///< velocity rows per launch
   int firstRows = 0;   ///< resident: velocity rows summed chunk by chunk while the cube uploads (0: none)
   int frameChunk = 0;  ///< frames per upload when streamed (the whole cube when resident)
   std::size_t budget = 0;

@@ -154,7 +154,8 @@ inline constexpr int kStairHalfPad = 32;
 /// Shared memory of the Float16 stair kernel (8 rows) for `framesPerStage` frames per stage.
 std::size_t stairHalfSharedBytes(int framesPerStage);
 /// Converts frames [f0, f1) of the float cube `frames` (width x height each) into half pairs
-/// out[n][y][x + kStairHalfPad] = (half(frames[n][y][x] * scale), half(frames[n][y][x + 32] * scale)) for x in
+/// out[n][y][x + kStairHalfPad] = (half(frames[n][y][x] * scale), half(frames[n][y][x + 32] * scale)) for x
+/// in
 /// [-kStairHalfPad, width), zero outside the frame,
 /// the scaled values clamped to +-kStairHalfClamp (no half overflow in a stage of <= 28 frames).
 void launchHalfPairs(const float* frames, unsigned* out, int width, int height, int f0, int f1, float scale,

@@ -127,7 +127,8 @@ bool chooseStairHalf(HostPlan& plan, int maxFramesPerStage) {
     --fs;
   plan.halfFrames = true;
   plan.halfFramesPerStage = fs;
-  plan.halfScale = static_cast<float>(std::ldexp(1.0, -static_cast<int>(std::lround(std::log2(plan.sigmaF)))));
+  plan.halfScale =
+      static_cast<float>(std::ldexp(1.0, -static_cast<int>(std::lround(std::log2(plan.sigmaF)))));
   return true;
 }
 

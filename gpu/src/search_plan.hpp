@@ -47,7 +47,7 @@ struct HostPlan {
   /// frames of one stage (framesPerStage) and in float across stages.
   bool halfFrames = false;
   int halfFramesPerStage = 0;  ///< Float16: frames per stage (framesPerStage stays the float kernel's)
-  float halfScale = 1.0f;  ///< Float16: frames multiplied by this power of two (~1 / sigma_F) first
+  float halfScale = 1.0f;      ///< Float16: frames multiplied by this power of two (~1 / sigma_F) first
   double sigmaF = 1.0;
 };
 

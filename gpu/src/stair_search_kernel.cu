@@ -110,8 +110,8 @@ __device__ void copyStairWindows(const SearchLaunch& p, float* win, const int* o
   for (int i = 0; i < count; ++i) {
     const int gx0 = x0 + offs[i * kSOffs];
     const int gy0 = y0 + offs[i * kSOffs + 1];
-    const float* frame =
-        frames + static_cast<long long>(n0 + i - p.frameBase) * (p.width + (kHalf ? kStairHalfPad : 0)) * p.height;
+    const float* frame = frames + static_cast<long long>(n0 + i - p.frameBase) *
+                                      (p.width + (kHalf ? kStairHalfPad : 0)) * p.height;
     float* w = win + i * winSize;
     if (slot0 >= 0) copyStairChunk<kHalf>(p, w, frame, slot0, gx0, gy0);
     if (slot1 >= 0) copyStairChunk<kHalf>(p, w, frame, slot1, gx0, gy0);
@@ -263,7 +263,8 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
         tmaStairWindows(&map, p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, &bars[st & 1],
                         winSize, (kHalf ? kStairHalfPitch : kStairPitch) * kSWin);
     } else {
-      copyStairWindows<kHalf>(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1, winSize);
+      copyStairWindows<kHalf>(p, w, stageOffs(st), p.f0 + st * fs, stageCount(st), x0, y0, slot0, slot1,
+                              winSize);
     }
     if (st + 1 < stages)
       copyStairOffsets(p, stageOffs(st + 1), p.f0 + (st + 1) * fs, stageCount(st + 1), tile);
@@ -282,11 +283,10 @@ __global__ void __launch_bounds__(kSThreads, kSR == 4 ? 4 : 2)
     if (s + 1 < stages) issueStage(s + 1);
     if (kTma) mbarrierWait(&bars[s & 1], (s >> 1) & 1);  // the k-th use of a buffer completes phase k
     if constexpr (kHalf) {
-      stairStageHalf(acc, reinterpret_cast<const __half2*>(wins + (s & 1) * fs * winSize) + lane, stageOffs(s),
-                     stageCount(s), warp);
+      stairStageHalf(acc, reinterpret_cast<const __half2*>(wins + (s & 1) * fs * winSize) + lane,
+                     stageOffs(s), stageCount(s), warp);
     } else {
-      stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s),
-                                warp);
+      stairStageAny<kSR, kPipe>(acc, wins + (s & 1) * fs * winSize + lane, stageOffs(s), stageCount(s), warp);
     }
   }
 
@@ -386,9 +386,9 @@ bool makeWindowMap(const SearchLaunch& p, int winRows, CUtensorMap& map) {
   const cuuint32_t elementStrides[3] = {1, 1, 1};
   void* base = half ? static_cast<void*>(const_cast<unsigned*>(p.framesHalf))
                     : static_cast<void*>(const_cast<float*>(p.frames));
-  return encode(&map, CU_TENSOR_MAP_DATA_TYPE_FLOAT32, 3, base, dims, strides, box,
-                elementStrides, CU_TENSOR_MAP_INTERLEAVE_NONE, CU_TENSOR_MAP_SWIZZLE_NONE,
-                CU_TENSOR_MAP_L2_PROMOTION_L2_128B, CU_TENSOR_MAP_FLOAT_OOB_FILL_NONE) == CUDA_SUCCESS;
+  return encode(&map, CU_TENSOR_MAP_DATA_TYPE_FLOAT32, 3, base, dims, strides, box, elementStrides,
+                CU_TENSOR_MAP_INTERLEAVE_NONE, CU_TENSOR_MAP_SWIZZLE_NONE, CU_TENSOR_MAP_L2_PROMOTION_L2_128B,
+                CU_TENSOR_MAP_FLOAT_OOB_FILL_NONE) == CUDA_SUCCESS;
 }
 
 }  // namespace
@@ -412,7 +412,8 @@ void launchStairSearch(const SearchLaunch& p, cudaStream_t stream) {
   const dim3 grid(stairTileCount(p.nvx, p.iy1 - p.iy0), (p.width + 32 * kSC - 1) / (32 * kSC),
                   (p.height + rows - 1) / rows);
   const bool half = p.framesHalf != nullptr && rows == 8;
-  const std::size_t shared = half ? stairHalfSharedBytes(p.framesPerStage) : stairSharedBytes(p.framesPerStage, rows);
+  const std::size_t shared =
+      half ? stairHalfSharedBytes(p.framesPerStage) : stairSharedBytes(p.framesPerStage, rows);
   CUtensorMap map{};
   const bool tma = p.stairTma && p.width % 4 == 0 && makeWindowMap(p, rows + kSVy - 1, map);
   if (half) {

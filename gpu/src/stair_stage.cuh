@@ -211,16 +211,16 @@ __device__ __forceinline__ void addStairHalf(__half2 (&h)[kSVy][8], __half2 (&v)
   addStairHalfRow<kId, 3>(h, v);
 }
 
-#define ST_STAIR_HALF_CASE(c)   \
-  case c:                       \
-    addStairHalf<c>(h, v, w);   \
+#define ST_STAIR_HALF_CASE(c) \
+  case c:                     \
+    addStairHalf<c>(h, v, w); \
     break;
 
 /// stairStage for Float16 frames (8 rows): the stage's frames summed in half pairs (at most
 /// kStairHalfMaxStage frames: no overflow of values clamped to kStairHalfClamp), then added to the float
 /// accumulators once.
-__device__ __forceinline__ void stairStageHalf(float (&acc)[kSVy][8][kSC], const __half2* wins, const int* offs,
-                                               int count, int warp) {
+__device__ __forceinline__ void stairStageHalf(float (&acc)[kSVy][8][kSC], const __half2* wins,
+                                               const int* offs, int count, int warp) {
   static_assert(kSC == 2, "a half pair holds the thread's two columns");
   constexpr int winSize = stairHalfWinSize();
   __half2 h[kSVy][8];

@@ -53,8 +53,8 @@ struct TreeLevelLaunch {
   const int2* rowTab;
   const int* shiftX;
   const int* shiftY;
-  const float* in;  ///< arena of the level below
-  float* out;       ///< arena of this level
+  const float* in;   ///< arena of the level below
+  float* out;        ///< arena of this level
   bool directPlain;  ///< benchmarks: direct nodes frame by frame from the tables (the path before 2026-11-27)
 };
 

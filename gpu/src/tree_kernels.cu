@@ -48,8 +48,8 @@ __global__ void __launch_bounds__(kLevelThreads) treeLevelKernel(TreeLevelLaunch
     for (int k = 0; k < kDirectRegs; ++k) {
       const int yi = k < m ? p.y0 + rr.y + sy[k] : -1;
       rowIn[k] = yi >= 0 && yi < p.height;
-      rowPtr[k] = p.frames + (rowIn[k] ? p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width
-                                       : 0);
+      rowPtr[k] = p.frames +
+                  (rowIn[k] ? p.frameIndex[j.first + k] * plane + static_cast<long long>(yi) * p.width : 0);
     }
     for (int s = 0; s < j.segments; ++s) {
       const int4 g = seg[s];
@@ -176,10 +176,10 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
         }
         const float sum = v[k][0];
         const int x = x0 + lane + 32 * k;
-        const int nIn = !p.maskX      ? framesInBoth(sx[gx][k], sy)
-                        : x < p.width ? framesInMasks(p.maskX, p.maskY, p.maskWords, ix, x, p.width, iy, y,
-                                                      p.height)
-                                      : 0;
+        const int nIn = !p.maskX ? framesInBoth(sx[gx][k], sy)
+                        : x < p.width
+                            ? framesInMasks(p.maskX, p.maskY, p.maskWords, ix, x, p.width, iy, y, p.height)
+                            : 0;
         if (nIn < minFrames) continue;
         const float snr = sum * __ldg(p.invNorm + nIn);
         if (snr > p.snrThreshold) {
@@ -199,10 +199,10 @@ __global__ void __launch_bounds__(32 * kGy, kMinBlocks) treeRootKernel(TreeRootL
   }
 #pragma unroll
   for (int gx = 0; gx < kGx; ++gx) {
-    const unsigned long long key =
-        bestPixel[gx] < 0 ? 0ull
-                          : ((static_cast<unsigned long long>(bestBits[gx]) << 32) |
-                             (0xFFFFFFFFull - static_cast<unsigned>(bestPixel[gx])));  // packKey
+    const unsigned long long key = bestPixel[gx] < 0
+                                       ? 0ull
+                                       : ((static_cast<unsigned long long>(bestBits[gx]) << 32) |
+                                          (0xFFFFFFFFull - static_cast<unsigned>(bestPixel[gx])));  // packKey
     const unsigned long long b = warpMax(key);
     if (lane == 0 && b != 0ull) atomicMax(p.mapKeys + iy * p.nvx + ix0 + gx, b);
   }

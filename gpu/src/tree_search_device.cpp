@@ -183,14 +183,14 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
       levels += buf;
     }
   }
-  out.note =
-      "tree: cube resident (" + std::to_string(cubeFloats * 4 >> 20) + " MiB, " +
-      (have ? std::string("already on the device: no upload")
-            : "upload " + std::to_string(static_cast<int>(out.uploadSeconds * 1e3)) + " ms") +
-      "), tiles " + std::to_string(tileBegin) +
-      ".." + std::to_string(tileEnd - 1) + " of " + std::to_string(tree.tileRows) + " rows, partial stacks " +
-      std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " + std::to_string(tree.tableBytes() >> 20) +
-      " MiB, top " + std::to_string(tree.cut) + " levels in registers" + levels;
+  out.note = "tree: cube resident (" + std::to_string(cubeFloats * 4 >> 20) + " MiB, " +
+             (have ? std::string("already on the device: no upload")
+                   : "upload " + std::to_string(static_cast<int>(out.uploadSeconds * 1e3)) + " ms") +
+             "), tiles " + std::to_string(tileBegin) + ".." + std::to_string(tileEnd - 1) + " of " +
+             std::to_string(tree.tileRows) + " rows, partial stacks " +
+             std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " +
+             std::to_string(tree.tableBytes() >> 20) + " MiB, top " + std::to_string(tree.cut) +
+             " levels in registers" + levels;
   return out;
 }
 

@@ -48,8 +48,8 @@ Problem registeredProblem(bool fineGrid, bool tree) {
   timing.swapped = {1, 4};
   Problem p;
   p.grid = fineGrid ? VelocityGrid{{3.0, -2.0}, 0.4, 19, 7} : VelocityGrid{{3.0, -2.0}, 1.5, 9, 7};
-  p.cube = test::movingPointsCube(fineGrid ? 64 : 61, 47, 37, 7u, timing, {{30, 20, p.grid.at(6, 2), 1.6f}},
-                                  2.5);
+  p.cube =
+      test::movingPointsCube(fineGrid ? 64 : 61, 47, 37, 7u, timing, {{30, 20, p.grid.at(6, 2), 1.6f}}, 2.5);
   addOffsets(p.cube.frames, 99);
   p.params.snrThreshold = 3.5;
   p.params.maxCandidates = 100000;
