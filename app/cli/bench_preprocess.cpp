@@ -29,6 +29,10 @@ namespace {
 struct Score {
   double sigmaTruth = 0.0, skyTruth = 0.0, bias = 0.0;
   std::size_t hits = 0, hitsRemoved = 0, objectPixelsRemoved = 0, objectPixels = 0;
+  std::size_t truthPixels = 0;  ///< pixels of the truth's hits
+  /// Flagged pixels on no truth hit (nor next to one), by the distance to the nearest star in that frame:
+  /// < 5 px, 5-15 px, farther; and those near (< 15 px) a saturated star.
+  std::size_t falseNear = 0, falseMid = 0, falseFar = 0, falseNearSaturated = 0;
 };
 
 // Scores against the truth: a hit is removed when its brightest pixel was flagged; an object pixel is one
@@ -57,7 +61,27 @@ Score score(const sim::SimResult& sim, const pipeline::Prepared& p) {
       removed |= flagged.count(cr.frame * np + static_cast<std::size_t>(py) * w + px) != 0;
     s.hitsRemoved += removed;
   }
+  s.truthPixels = hitPixels.size();
   const auto dt = p.frames.timeOffsetsS();
+  for (std::uint64_t q : p.cosmicRayPixels) {
+    const std::size_t n = q / np;
+    const int x = static_cast<int>(q % np) % w, y = static_cast<int>(q % np) / w;
+    bool onHit = false;
+    for (int dy = -1; dy <= 1 && !onHit; ++dy)
+      for (int dx = -1; dx <= 1 && !onHit; ++dx)
+        onHit = x + dx >= 0 && y + dy >= 0 && x + dx < w && y + dy < h &&
+                hitPixels.count(n * np + static_cast<std::size_t>(y + dy) * w + (x + dx)) != 0;
+    if (onHit) continue;
+    double nearest = 1e30;
+    bool saturated = false;
+    for (const auto& st : t.stars) {
+      const double d = std::hypot(st.xRefPx + t.skyVxPxPerS * dt[n] - x, st.yRefPx + t.skyVyPxPerS * dt[n] - y);
+      if (d < nearest) nearest = d;
+      if (d < 15.0 && st.saturated) saturated = true;
+    }
+    (nearest < 5.0 ? s.falseNear : nearest < 15.0 ? s.falseMid : s.falseFar) += 1;
+    s.falseNearSaturated += saturated;
+  }
   for (const auto& o : t.objects) {
     for (std::size_t n = 0; n < p.frames.frameCount(); ++n) {
       const double cx = o.xRefPx + o.vxPxPerS * dt[n], cy = o.yRefPx + o.vyPxPerS * dt[n];
@@ -140,6 +164,12 @@ int benchPreprocess(const Args& args) {
       "%zu\n",
       sc.hitsRemoved, sc.hits, sc.hits ? 100.0 * sc.hitsRemoved / sc.hits : 100.0, out.cosmicRays,
       sc.objectPixelsRemoved, sc.objectPixels);
+  std::printf(
+      "cosmic-ray pixels flagged %zu, truth's hit pixels %zu (%.2fx); flagged on no hit: %zu within 5 px of a "
+      "star, %zu at 5-15 px, %zu farther; %zu of them within 15 px of a saturated star\n",
+      out.cosmicRayPixels.size(), sc.truthPixels,
+      sc.truthPixels ? double(out.cosmicRayPixels.size()) / double(sc.truthPixels) : 0.0, sc.falseNear,
+      sc.falseMid, sc.falseFar, sc.falseNearSaturated);
   std::printf("stars %zu (truth %zu); PSF FWHM %.3f px (%s) vs truth %.3f; sigma_F %.4g\n", out.stars.size(),
               sim.truth.stars.size(), out.psf.fwhm(), out.psfFitted ? "fitted" : "fallback",
               sim.truth.psfFwhmPx, out.filtered.sigmaF);

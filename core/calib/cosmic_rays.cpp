@@ -209,6 +209,13 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     if (!ref.at(n, x, y, &mx, &mean)) return false;
     const float ex = px[n * np + i] - mx;
     if (ex <= thr) return false;
+    if (params.saturationLevel) {  // the tip of a bleed column
+      const float sat = static_cast<float>(params.bleedFraction * *params.saturationLevel);
+      for (int dy = -params.bleedReachPx; dy <= params.bleedReachPx; ++dy) {
+        const int qy = y + dy;
+        if (dy != 0 && qy >= 0 && qy < h && px[n * np + static_cast<std::size_t>(qy) * w + x] >= sat) return false;
+      }
+    }
     return !prot.mask.covers(n, x, y) || ex > params.protectedExcess * prot.signalAt(n, x, y);
   };
   const float thr = static_cast<float>(out.seedThreshold);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 #include "st/common/error.hpp"
@@ -51,6 +52,34 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
          << params.psfBeta;
     out.notes.push_back(note.str());
   }
+}
+
+// The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
+// BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master
+// bias), in calibrated counts, with a 5% margin for the flat and the bias pattern; none when the header says
+// neither. Without it, stars clipped in a few frames show no flat top in the stack and are taken for the PSF
+// (Lowell: FWHM +11%), and the tips of bleed columns are taken for cosmic rays.
+std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessParams& params,
+                                       const calib::CalibrationReport& calibration) {
+  std::optional<double> fullScale = cube.header.getDouble("SATURATE");
+  if (!fullScale) {
+    const auto bitpix = cube.header.getDouble("BITPIX");
+    if (bitpix && *bitpix > 0 && *bitpix <= 32)
+      fullScale = std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
+  }
+  if (!fullScale) return std::nullopt;
+  double biasLevel = 0.0;
+  if (params.masters && !params.masters->bias.empty()) {
+    std::vector<float> b = params.masters->bias.pixels;
+    std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
+    biasLevel = b[b.size() / 2];
+  }
+  if (!calibration.overscanLevel.empty()) {
+    std::vector<float> o = calibration.overscanLevel;
+    std::nth_element(o.begin(), o.begin() + o.size() / 2, o.end());
+    biasLevel += o[o.size() / 2];
+  }
+  return 0.95 * (*fullScale - biasLevel);
 }
 
 }  // namespace
@@ -106,11 +135,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.notes.push_back(note.str());
   }
   lap("sky rate");
+  detect::StaticSourceParams sp = params.stars;
+  sp.psfFwhmPx = params.psfFwhmPx;
+  if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);
     calib::CosmicRayParams cp = params.cosmicRays;
     cp.skyRate = out.skyRate;
+    if (!cp.saturationLevel) cp.saturationLevel = sp.saturationLevel;
     cp.fill = calib::CosmicRayParams::Fill::TimeNeighbours;  // zeroed after background subtraction
     cr = calib::removeCosmicRays(cube, cp, sub, cancel);
     out.cosmicRaysPerFrame = cr.perFrame;
@@ -118,34 +151,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   }
   lap("cosmic rays");
   detect::StaticSources stars;
-  detect::StaticSourceParams sp = params.stars;
-  sp.psfFwhmPx = params.psfFwhmPx;
-  // The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
-  // BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the
-  // master bias), in calibrated counts, with a 5% margin for the flat and the bias pattern. Without it, stars
-  // clipped in a few frames show no flat top in the stack and are taken for the PSF (Lowell: FWHM +11%).
-  if (!sp.saturationLevel) {
-    std::optional<double> fullScale = cube.header.getDouble("SATURATE");
-    if (!fullScale) {
-      const auto bitpix = cube.header.getDouble("BITPIX");
-      if (bitpix && *bitpix > 0 && *bitpix <= 32)
-        fullScale = std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
-    }
-    if (fullScale) {
-      double biasLevel = 0.0;
-      if (params.masters && !params.masters->bias.empty()) {
-        std::vector<float> b = params.masters->bias.pixels;
-        std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
-        biasLevel = b[b.size() / 2];
-      }
-      if (!out.calibration.overscanLevel.empty()) {
-        std::vector<float> o = out.calibration.overscanLevel;
-        std::nth_element(o.begin(), o.begin() + o.size() / 2, o.end());
-        biasLevel += o[o.size() / 2];
-      }
-      sp.saturationLevel = 0.95 * (*fullScale - biasLevel);
-    }
-  }
   // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;

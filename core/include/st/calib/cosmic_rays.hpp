@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -64,6 +65,14 @@ struct CosmicRayParams {
   int protectDilatePx = 2;
   double protectedExcess = 1.0;  ///< on a protected pixel a hit must also exceed this times the star signal
   Velocity skyRate;              ///< px/s, so that protection follows drifting stars
+  /// Calibrated counts at which pixels saturate (pre-processing derives it from SATURATE or BITPIX). When
+  /// set, a pixel within bleedReachPx rows of a pixel of its own column at or above bleedFraction of it in
+  /// the same frame is not a hit: the tip of a saturated star's bleed column moves by a pixel or two from
+  /// frame to frame with the star's photon noise (paper-neo: most false flags sat 12 and 18 px along the
+  /// column of a saturated star, next to its bleed at the full well, 60,000 ADU where SATURATE says 65,535).
+  std::optional<double> saturationLevel;
+  int bleedReachPx = 2;
+  double bleedFraction = 0.8;
   enum class Fill { Zero, TimeNeighbours };
   /// Zero (the paper) for zero-biased frames; TimeNeighbours (mean of the two frames used as reference) when
   /// the background has not been subtracted yet, so that the per-pixel clip is not pulled down. The pipeline
