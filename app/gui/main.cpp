@@ -15,6 +15,7 @@
 
 #include "core_adapter.hpp"
 #include "main_window.hpp"
+#include "script_runner.hpp"
 
 namespace {
 
@@ -125,8 +126,9 @@ int main(int argc, char** argv) {
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();
+  auto* runner = new st::ui::ScriptRunner(&window);  // owned by the window
   if (script.demo || !script.inputs.isEmpty() || !script.session.isEmpty() || script.quit ||
       !script.screenshot.isEmpty())
-    window.runScript(script);
+    runner->run(script);
   return QApplication::exec();
 }

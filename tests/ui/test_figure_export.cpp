@@ -18,6 +18,7 @@
 #include "figure_render.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
+#include "script_runner.hpp"
 #include "search_panel.hpp"
 #include "test_support.hpp"
 #include "ui_test_support.hpp"
@@ -294,11 +295,12 @@ TEST(FigureDialog, ScriptOptionsExportTheFigureAndReports) {
   script.exportReports = qpath(dir, "reports");
   script.dialog = "reports";
   bool finished = false, good = false;
-  QObject::connect(&w, &MainWindow::scriptFinished, [&](bool ok) {
+  ScriptRunner runner(&w);
+  QObject::connect(&runner, &ScriptRunner::finished, [&](bool ok) {
     finished = true;
     good = ok;
   });
-  w.runScript(script);
+  runner.run(script);
   ASSERT_TRUE(test::waitFor([&] { return finished; }, 30000));
   EXPECT_TRUE(good);
   EXPECT_TRUE(QSvgRenderer(script.exportFigure).isValid());  // no candidate selected: the central view

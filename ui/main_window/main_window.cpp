@@ -398,11 +398,11 @@ void MainWindow::rebuildRecentMenu() {
 
 void MainWindow::showError(const QString& title, const QString& message) {
   statusBar()->showMessage(title + ": " + message, 10000);
-  if (m_script) return;  // scripted runs report on stderr, never block on a dialog
+  if (m_scripted) return;  // scripted runs report on stderr, never block on a dialog
   QMessageBox::warning(this, title, message);
 }
 
-bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
+bool MainWindow::saveScreenshot(const QString& path, int maxWidth, int colours) {
   QImage image = grab().toImage();
   if (m_screenshotOverlay && m_screenshotOverlay->isVisible()) {  // a dialog of the script, centred on top
     const QImage top = m_screenshotOverlay->grab().toImage();
@@ -414,8 +414,7 @@ bool MainWindow::saveScreenshot(const QString& path, int maxWidth) {
   }
   if (maxWidth > 0 && image.width() > maxWidth)
     image = image.scaledToWidth(maxWidth, Qt::SmoothTransformation);
-  if (m_script && m_script->screenshotColours > 0)
-    image = reduceToPalette(image, m_script->screenshotColours);
+  if (colours > 0) image = reduceToPalette(image, colours);
   const bool ok = image.save(path, nullptr, 0);
   if (!ok) showError("Screenshot", "could not write " + path);
   return ok;

@@ -41,33 +41,6 @@ class FitPanel;
 class ReportDialog;
 class RecoveryDialog;
 
-/// What `synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE]
-/// [--quit]` asks for.
-struct ScriptOptions {
-  QStringList inputs;
-  QString session;  ///< a session file to reopen (its result is restored, never searched again)
-  bool demo = false;
-  bool search = false;
-  std::optional<int> select;  ///< 1-based candidate number
-  bool fit = false;           ///< run the co-moving fit of the selected candidate before the screenshot
-  QString screenshot;
-  int screenshotWidth = 0;    ///< scale the screenshot down to this width (0: as on screen)
-  int screenshotColours = 0;  ///< reduce the screenshot to this many colours (0: keep all; docs use 256)
-  bool quit = false;
-  /// Figure written when done: the paper's sky/object preset for the selected candidate, else the central
-  /// view (format from the suffix; 7 in wide at figureDpi).
-  QString exportFigure;
-  int figureDpi = 150;
-  QString exportReports;   ///< folder for the candidates JSON/CSV and DS9 regions, written when done
-  QString dialog;          ///< "figure" or "reports": that dialog is opened, and shown on the screenshot
-  bool acceptFit = false;  ///< accept the --fit result into the candidate (before the labels and exports)
-  QStringList labels;  ///< "N=LABEL" (real, unsure, unvetted, artifact[:REASON]), applied before the exports
-  /// Calibration frames (files or folders) for the Calibration stage, as `synthtrack-cli preprocess --bias
-  /// /--flat/--dark`; a role given here replaces what was offered from beside the science folder.
-  QStringList bias, flat, dark;
-  bool noCalibrationOffer = false;  ///< clear the offered bias/, flat/, dark/ folders (given ones stay)
-};
-
 class MainWindow : public QMainWindow {
   Q_OBJECT
  public:
@@ -102,10 +75,17 @@ class MainWindow : public QMainWindow {
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
   void selectCandidate(int index);
   void showSource(Source source, int layer = 0);
-  /// Saves the window as PNG (maximum compression), scaled down to `maxWidth` when it is > 0.
-  bool saveScreenshot(const QString& path, int maxWidth = 0);
-  /// Runs the command-line script; with quit, the application exits when done (code 1 on failure).
-  void runScript(const ScriptOptions& options);
+  /// Saves the window as PNG (maximum compression), scaled down to `maxWidth` when it is > 0 and reduced to
+  /// `colours` colours when that is > 0, with the screenshot overlay (if shown) drawn centred on top.
+  bool saveScreenshot(const QString& path, int maxWidth = 0, int colours = 0);
+  /// A dialog drawn centred over the window on screenshots (the script's --dialog); null for none.
+  void setScreenshotOverlay(QWidget* overlay) { m_screenshotOverlay = overlay; }
+  /// A scripted run (ui/script/script_runner.hpp): errors go to the status bar and the script, never to a
+  /// modal message box.
+  void setScripted(bool scripted) { m_scripted = scripted; }
+  [[nodiscard]] bool scripted() const noexcept { return m_scripted; }
+  /// Run > "Pre-process after loading": a finished load starts the pre-processing by itself.
+  [[nodiscard]] bool autoPreprocess() const noexcept { return m_autoPreprocess; }
 
   [[nodiscard]] Observation* observation() const noexcept { return m_obs; }
   [[nodiscard]] JobRunner* jobs() const noexcept { return m_jobs; }
@@ -131,7 +111,6 @@ class MainWindow : public QMainWindow {
  signals:
   /// A central-view stack reached the screen.
   void centralStackShown(double latencyMs);
-  void scriptFinished(bool ok);
 
  protected:
   void closeEvent(QCloseEvent* event) override;
@@ -143,7 +122,6 @@ class MainWindow : public QMainWindow {
   void buildExportMenu(QMenu* menu);
   void buildDocks();
   void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
-  void runScriptFit();
   QWidget* buildCentral();
   void buildStatusBar();
   void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
@@ -158,17 +136,6 @@ class MainWindow : public QMainWindow {
   void onHover(int x, int y, double value, bool inside);
   void addRecent(const QStringList& paths);
   void rebuildRecentMenu();
-  /// The script's inputs, with its --bias/--flat/--dark and --no-calibration-offer applied.
-  void openScriptInputs(const ScriptOptions& options);
-  /// Prints the Calibration stage's offer note and bias/flat/dark lists on stdout ("calibration ...").
-  void printScriptCalibration();
-  void advanceScript(JobKind finishedJob, bool ok);
-  void finishScript(bool ok, const QString& message);
-  /// The script's exports and dialog (main_window_export.cpp); calls `done` with false when one failed.
-  void runScriptExports(const ScriptOptions& script, std::function<void(bool ok)> done);
-  /// The script's --accept-fit and --label (main_window_export.cpp); false with a message on stderr for a bad
-  /// one.
-  bool applyScriptVetting(const ScriptOptions& script);
   void showError(const QString& title, const QString& message);
   void buildSessionMenu(QMenu* file);
   void buildSession();
@@ -207,7 +174,7 @@ class MainWindow : public QMainWindow {
   SessionController* m_session = nullptr;
   QLabel* m_sessionLabel = nullptr;
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
-  std::optional<ScriptOptions> m_script;
+  bool m_scripted = false;
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;
   RecoveryDialog* m_recoveryDialog = nullptr;

@@ -1,5 +1,6 @@
-// MainWindow: loading, pre-processing, searching and the command-line script. Every job's work runs on the
-// JobRunner thread; only the returned closures touch the window (job_runner.hpp).
+// MainWindow: loading, pre-processing and searching (the command-line script: ui/script/script_runner.hpp).
+// Every job's work runs on the JobRunner thread; only the returned closures touch the window
+// (job_runner.hpp).
 #include <QApplication>
 #include <QComboBox>
 #include <QDir>
@@ -131,7 +132,8 @@ void MainWindow::runSearch() {
       statusBar()->showMessage(QString("Search: %1 in %2 s (%3)")
                                    .arg(candidateSummary(*result))
                                    .arg(result->elapsedS, 0, 'f', 1)
-                                   .arg(QString::fromStdString(result->method + " on " + result->backend)),
+                                   .arg(QString::fromStdString(std::string(result->method.name()) + " on " +
+                                                               result->backend)),
                                15000);
       if (!result->candidates.empty()) selectCandidate(0);
     });
@@ -161,8 +163,6 @@ void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QStr
   // A cube written by `synthtrack-cli preprocess` opens as prepared whatever the setting: the service takes
   // its header's PSF, noise and sky rate and does not run the pipeline on it again.
   if (ok && kind == JobKind::Load && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
-  if (m_script) advanceScript(kind, ok && !cancelled);
-  if (!ok && m_script && !cancelled) finishScript(false, message);
 }
 
 void MainWindow::onRawChanged() {
@@ -235,100 +235,6 @@ void MainWindow::onSelection() {
   m_obs->setVelocity(c->v);
   showSource(Source::Stack);
   m_view->centreOn(c->x, c->y);
-}
-
-void MainWindow::runScript(const ScriptOptions& options) {
-  m_script = options;
-  if (!options.session.isEmpty())
-    openSession(options.session);
-  else if (options.demo)
-    openDemo();
-  else if (!options.inputs.isEmpty())
-    openScriptInputs(options);
-  else
-    QTimer::singleShot(300, this, [this] { finishScript(true, {}); });
-}
-
-void MainWindow::openScriptInputs(const ScriptOptions& options) {
-  openInputs(options.inputs);
-  if (options.noCalibrationOffer) m_processing->clearOffer();
-  const std::pair<const char*, const QStringList*> given[] = {
-      {kBiasFiles, &options.bias}, {kFlatFiles, &options.flat}, {kDarkFiles, &options.dark}};
-  for (const auto& [key, paths] : given) {
-    if (paths->isEmpty()) continue;
-    QStringList absolute;
-    for (const QString& p : *paths)
-      absolute << QFileInfo(p).absoluteFilePath();
-    m_processing->setFiles(key, absolute);
-  }
-}
-
-void MainWindow::printScriptCalibration() {
-  if (!m_processing->offerNote().isEmpty())
-    std::printf("calibration: %s\n", m_processing->offerNote().toLocal8Bit().constData());
-  for (const char* key : {kBiasFiles, kFlatFiles, kDarkFiles}) {
-    const QStringList files = m_processing->files(key);
-    if (!files.isEmpty()) std::printf("calibration %s: %s\n", key, files.join("; ").toLocal8Bit().constData());
-  }
-  std::fflush(stdout);
-}
-
-void MainWindow::advanceScript(JobKind finishedJob, bool ok) {
-  if (!ok) return;
-  if (finishedJob == JobKind::OpenSession) {  // restored without searching again
-    if (m_script->select) selectCandidate(*m_script->select - 1);
-    finishScript(true, {});
-    return;
-  }
-  if (finishedJob == JobKind::Load) printScriptCalibration();  // as loaded (a prepared cube drops the offer)
-  if (finishedJob == JobKind::Load && !m_autoPreprocess && !rawIsPrepared()) runPreprocess();
-  if (finishedJob == JobKind::Preprocess) {
-    // Scripted runs say what pre-processing did (calibration, PSF, sky rate) and the grid the search takes.
-    if (const auto& prepared = m_obs->prepared())
-      std::printf("pre-processing: %s\n", prepared->summary.c_str());
-    if (statusBar()->currentMessage().startsWith("Opened as a prepared cube"))
-      std::printf("status: %s\n", statusBar()->currentMessage().toLocal8Bit().constData());
-    std::printf("grid: %s\nestimate: %s\n", m_search->gridOrigin().toLocal8Bit().constData(),
-                m_search->estimateText().toLocal8Bit().constData());
-    std::fflush(stdout);
-    if (m_script->search)
-      runSearch();
-    else
-      finishScript(true, {});
-  }
-  if (finishedJob == JobKind::Search) {
-    // Scripted runs list the candidates on stdout, so a figure's --select N can be chosen reproducibly.
-    const auto& result = m_obs->result();
-    for (std::size_t i = 0; result && i < result->candidates.size(); ++i) {
-      const auto& c = result->candidates[i];
-      std::printf("candidate %zu: x %d y %d vx %.4f vy %.4f px/s snr %.2f fap %.3g n_in %d\n", i + 1, c.x,
-                  c.y, c.v.vx, c.v.vy, c.snr, c.fap, c.nIn);
-    }
-    std::printf("search: %s\n", m_search->statusText().toLocal8Bit().constData());
-    std::fflush(stdout);
-    if (m_script->select) selectCandidate(*m_script->select - 1);
-    if (m_script->fit && m_obs->selectedCandidate()) return runScriptFit();
-    finishScript(true, {});
-  }
-}
-
-void MainWindow::finishScript(bool ok, const QString& message) {
-  if (!m_script) return;
-  const ScriptOptions script = *m_script;
-  if (!ok) std::fprintf(stderr, "synthtrack: %s\n", message.toLocal8Bit().constData());
-  // Let the live stack arrive and the widgets lay out before the picture is taken.
-  QTimer::singleShot(1200, this, [this, script, ok] {
-    runScriptExports(script, [this, script, ok](bool exportsOk) {
-      bool good = ok && exportsOk;
-      if (!script.screenshot.isEmpty())
-        good = saveScreenshot(script.screenshot, script.screenshotWidth) && good;
-      if (m_lastLatencyMs > 0) std::printf("live stack: %.0f ms from request to image\n", m_lastLatencyMs);
-      std::fflush(stdout);
-      m_script.reset();
-      emit scriptFinished(good);
-      if (script.quit || !script.screenshot.isEmpty()) QApplication::exit(good ? 0 : 1);
-    });
-  });
 }
 
 }  // namespace st::ui

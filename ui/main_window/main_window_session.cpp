@@ -77,7 +77,7 @@ void MainWindow::buildSession() {
   });
   connect(m_session, &SessionController::saveFailed, this, [this](const QString& message) {
     statusBar()->showMessage(message, 15000);
-    if (m_script) return;
+    if (m_scripted) return;
     auto* box = new QMessageBox(QMessageBox::Warning, "Session not saved", message, QMessageBox::Ok, this);
     box->setAttribute(Qt::WA_DeleteOnClose);
     box->setModal(false);  // the GUI goes on; the next change tries again

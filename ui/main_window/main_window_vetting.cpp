@@ -1,5 +1,5 @@
-// MainWindow: the candidate inspector and co-moving fit docks, the fit's action (F; Run menu and the
-// candidates table's context menu), and the scripted fit (--fit).
+// MainWindow: the candidate inspector and co-moving fit docks, and the fit's action (F; Run menu and the
+// candidates table's context menu).
 #include <QAction>
 #include <QDockWidget>
 #include <QScrollArea>
@@ -50,23 +50,6 @@ void MainWindow::buildVettingDocks(QDockWidget* besideInspector, QDockWidget* ca
   });
   QTableView* table = m_candidates->table();
   table->addAction(fitAction);  // the candidates panel's context menu lists the table's actions
-}
-
-void MainWindow::runScriptFit() {
-  auto* conn = new QMetaObject::Connection;
-  *conn = connect(m_fitPanel, &FitPanel::fitFinished, this,
-                  [this, conn](bool ok, bool cancelled, const QString& message) {
-                    disconnect(*conn);
-                    delete conn;
-                    finishScript(ok && !cancelled, message);
-                  });
-  for (QDockWidget* d : findChildren<QDockWidget*>())
-    if (d->widget() == m_fitPanel) d->raise();
-  m_fitPanel->fitSelected();
-  if (m_fitPanel->running()) return;
-  disconnect(*conn);
-  delete conn;
-  finishScript(false, "the co-moving fit could not start: " + m_fitPanel->statusText());
 }
 
 }  // namespace st::ui
