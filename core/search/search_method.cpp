@@ -5,7 +5,7 @@
 namespace st::search {
 
 SearchMethod::SearchMethod(std::string_view name) noexcept
-    : m_value(parseSearchMethod(name).value_or(SearchMethod(Unknown)).operator Value()) {}
+    : m_value(parseSearchMethod(name).value_or(SearchMethod(Value::Unknown)).operator Value()) {}
 
 std::string_view SearchMethod::name() const noexcept {
   return searchMethodName(*this);

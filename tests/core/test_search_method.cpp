@@ -49,7 +49,7 @@ class ExactOnlyBackend final : public SearchBackend {
   [[nodiscard]] std::string name() const override { return "cuda: Fake GPU"; }
   SearchResult search(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
                       ProgressSink&, CancelToken&) override {
-    asked = params.method;
+    asked = params.method.name();
     SearchResult r;
     r.grid = grid;
     r.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};

@@ -153,10 +153,11 @@ QGroupBox* SearchPanel::makeRunBox(const std::vector<std::string>& gpuNames) {
   auto* runBox = new QGroupBox("Run", this);
   auto* run = new QFormLayout(runBox);
   m_method = new QComboBox(runBox);
+  // Item data: the method's stable name, as sessions and the command line carry it.
   for (const auto& [text, method] : {std::pair{"Auto", search::SearchMethod::Auto},
                                      std::pair{"Exact", search::SearchMethod::Exact},
                                      std::pair{"Tree", search::SearchMethod::Tree}})
-    m_method->addItem(text, static_cast<int>(method));
+    m_method->addItem(text, QString::fromUtf8(search::searchMethodName(method)));
   m_method->setToolTip(kMethodHelp);
   m_backend = new QComboBox(runBox);
   m_backend->addItem("Auto", static_cast<int>(BackendKind::Auto));
@@ -327,12 +328,14 @@ QString SearchPanel::gridText() const {
 }
 
 search::SearchMethod SearchPanel::method() const {
-  return static_cast<search::SearchMethod::Value>(m_method->currentData().toInt());
+  const QByteArray name = m_method->currentData().toString().toUtf8();
+  return search::parseSearchMethod(std::string_view(name.constData(), static_cast<std::size_t>(name.size())))
+      .value_or(search::SearchMethod::Auto);
 }
 
 void SearchPanel::setMethod(search::SearchMethod method) {
-  const int index = m_method->findData(static_cast<int>(method));
-  if (index >= 0) m_method->setCurrentIndex(index);
+  const int index = m_method->findData(QString::fromUtf8(search::searchMethodName(method)));
+  if (index >= 0 && method != search::SearchMethod::Unknown) m_method->setCurrentIndex(index);
 }
 
 QString SearchPanel::estimateText() const {

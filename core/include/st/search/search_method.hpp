@@ -19,12 +19,18 @@ namespace st::search {
 
 class SearchMethod {
  public:
-  enum Value : std::uint8_t {
+  /// Scoped, so that a method never turns into a number or a character silently (`std::string s = method`
+  /// does not compile; use name()).
+  enum class Value : std::uint8_t {
     Exact,   ///< IPSA at every frame: the reference (ipsa.hpp)
     Tree,    ///< hierarchical shift-and-add (tree_search.hpp)
     Auto,    ///< resolved to Exact or Tree by chooseMethod (method_choice.hpp) before a backend sees it
     Unknown  ///< text that names no method (the name constructor only); refused where the method is used
   };
+  static constexpr Value Exact = Value::Exact;
+  static constexpr Value Tree = Value::Tree;
+  static constexpr Value Auto = Value::Auto;
+  static constexpr Value Unknown = Value::Unknown;
 
   constexpr SearchMethod() noexcept = default;
   constexpr SearchMethod(Value value) noexcept : m_value(value) {}  // NOLINT: implicit, as an enum's values
@@ -45,7 +51,7 @@ class SearchMethod {
   friend bool operator==(SearchMethod a, Value b) noexcept { return a.m_value == b; }
 
  private:
-  Value m_value = Exact;
+  Value m_value = Value::Exact;
 };
 
 /// The name of `method` in files, on the command line and in sessions: "exact", "tree", "auto" ("unknown").
