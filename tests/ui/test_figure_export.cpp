@@ -3,6 +3,7 @@
 // main window (worker thread, errors naming the path).
 #include <gtest/gtest.h>
 
+#include <QCheckBox>
 #include <QDir>
 #include <QFile>
 #include <QImage>
@@ -236,6 +237,14 @@ TEST(FigureDialog, ExportsTheCentralViewPlotAndPresetFromTheWindow) {
   d->refreshSources();
   const QStringList names = d->sourceNames();
   ASSERT_GE(names.size(), 3);
+  // The fake observation has no WCS: the dialog says a compass cannot be drawn (issue 18 §6).
+  QCheckBox* compass = nullptr;
+  for (auto* box : d->findChildren<QCheckBox*>())
+    if (box->text().startsWith("N/E compass")) compass = box;
+  ASSERT_TRUE(compass && compass->text().startsWith("N/E compass"));
+  EXPECT_FALSE(compass->isEnabled());
+  EXPECT_TRUE(compass->text().contains("no WCS")) << compass->text().toStdString();
+  EXPECT_TRUE(compass->toolTip().contains("no compass")) << compass->toolTip().toStdString();
   EXPECT_EQ(names.front(), "Central view");
   EXPECT_TRUE(names.filter("Velocity space: plot").size() >= 1) << names.join(", ").toStdString();
   test::TempDir dir;

@@ -5,16 +5,24 @@
 // labels the expected false-alarm count as such.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <QAbstractItemView>
+#include <QHeaderView>
 #include <QComboBox>
+#include <QDir>
+#include <QLabel>
 #include <QMessageBox>
+#include <QMouseEvent>
 #include <QTableView>
+#include <QTableWidget>
 #include <QTest>
 #include <QStatusBar>
 #include <QToolButton>
 
 #include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
+#include "fit_panel.hpp"
 #include "image_view.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -154,6 +162,94 @@ TEST(VettingWalkthrough, TheWindowFitsA1366x768Screen) {
   QCoreApplication::processEvents();
   EXPECT_LE(w->height(), 728);
   EXPECT_LE(w->statusBar()->geometry().bottom(), w->height());
+}
+
+// Issue 18 §6: the table leads with what vetting needs (SNR, rate, PA, flags, label, the accepted fit's SNR)
+// and shows the motion relative to the stars, components and rate, in the unit chosen in the Search dock.
+TEST(VettingWalkthrough, TableLeadsWithSnrRateLabelAndFitAndShowsMotionRelativeToTheSky) {
+  auto w = searchedWindow();
+  Observation* obs = w->observation();
+  QHeaderView* header = w->candidates()->table()->horizontalHeader();
+  std::vector<int> leading;
+  for (int v = 0; v < 8; ++v) leading.push_back(header->logicalIndex(v));
+  EXPECT_EQ(leading, (std::vector<int>{CandidateModel::Index, CandidateModel::Snr, CandidateModel::Rate,
+                                       CandidateModel::Pa, CandidateModel::Flags, CandidateModel::Label,
+                                       CandidateModel::Reason, CandidateModel::FitSnr}));
+  // A sky rate that is not zero: the table's components and rate are the search's velocity minus it.
+  auto view = std::make_shared<PreparedView>(*obs->prepared());
+  auto filtered = std::make_shared<search::FilteredCube>(*view->filtered);
+  filtered->skyRate = {0.5, -0.25};
+  view->filtered = filtered;
+  const auto result = obs->result();
+  obs->setPrepared(view);
+  obs->setResult(result);
+  const QAbstractItemModel* m = w->candidates()->filter()->sourceModel();
+  const search::Candidate& c = result->candidates[0];
+  ASSERT_FALSE(obs->plateScale().has_value());  // px/s: the values are comparable directly
+  EXPECT_NEAR(m->index(0, CandidateModel::Vx).data(Qt::UserRole).toDouble(), c.v.vx - 0.5, 1e-12);
+  EXPECT_NEAR(m->index(0, CandidateModel::Vy).data(Qt::UserRole).toDouble(), c.v.vy + 0.25, 1e-12);
+  EXPECT_NEAR(m->index(0, CandidateModel::Rate).data(Qt::UserRole).toDouble(),
+              std::hypot(c.v.vx - 0.5, c.v.vy + 0.25), 1e-12);
+  EXPECT_TRUE(m->headerData(CandidateModel::Vx, Qt::Horizontal).toString().contains("vs sky"));
+  EXPECT_TRUE(m->index(0, CandidateModel::Pa).data().toString().isEmpty());  // no WCS: no position angle
+  // The accepted fit's SNR beside the search's; empty without one.
+  EXPECT_TRUE(m->index(0, CandidateModel::FitSnr).data().toString().isEmpty());
+  candidate::FitSummary fit;
+  fit.status = fit::FitStatus::Converged;
+  fit.snr = 12.25;
+  obs->setCandidateFit(0, fit);
+  EXPECT_EQ(m->index(0, CandidateModel::FitSnr).data().toString(), "12.25");
+  w->resize(1366, 728);
+  QTest::qWait(200);
+  QDir().mkpath("ui_screens");  // looked at by hand (tests/ui/test_main_window.cpp writes its own there)
+  w->grab().save("ui_screens/vetting_table_columns.png");
+}
+
+// Issue 18 §6: a candidate's accepted fit (a reopened session's too) shows its table when selected, where
+// the fit panel used to stay empty until the candidate was fitted again.
+TEST(VettingWalkthrough, SelectingACandidateShowsItsAcceptedFitsTable) {
+  auto w = searchedWindow();
+  Observation* obs = w->observation();
+  candidate::FitSummary fit;
+  fit.status = fit::FitStatus::Converged;
+  fit.iterations = 7;
+  fit.x = 30.25;
+  fit.v = {6.0, -3.0};
+  fit.snr = 12.25;
+  fit.sigma.xPx = 0.125;
+  obs->setCandidateFit(1, fit);  // as restoreSnapshot hands a reopened session's fits to the Observation
+  obs->setSelected(1);
+  auto* table = w->fitPanel()->findChild<QTableWidget*>();
+  ASSERT_TRUE(table);
+  const auto valueOf = [&](const QString& name, int column) {
+    for (int r = 0; r < table->rowCount(); ++r)
+      if (table->item(r, 0)->text() == name) return table->item(r, column)->text();
+    return QString("(no row)");
+  };
+  EXPECT_EQ(valueOf("SNR (detection_snr)", 1), "12.25");
+  EXPECT_EQ(valueOf("x [px] at t_ref", 1), "30.25");
+  EXPECT_EQ(valueOf("x [px] at t_ref", 2), "0.125");
+  EXPECT_TRUE(w->fitPanel()->statusText().contains("accepted on candidate 2"))
+      << w->fitPanel()->statusText().toStdString();
+}
+
+// Issue 18 §6: the velocity map's readout (velocity and max SNR under the pointer) does not outlive the map
+// it described when another observation is loaded.
+TEST(VettingWalkthrough, TheVelocityMapReadoutDoesNotOutliveItsMap) {
+  auto w = searchedWindow();
+  auto* readout = w->velocityMap()->findChild<QLabel*>("velocityMap.readout");
+  ASSERT_TRUE(readout);
+  auto* plot = w->velocityMap()->findChild<QWidget*>();
+  for (auto* child : w->velocityMap()->findChildren<QWidget*>())
+    if (child->inherits("QCustomPlot")) plot = child;
+  const QPointF centre(plot->rect().center());
+  QMouseEvent move(QEvent::MouseMove, centre, plot->mapToGlobal(centre), Qt::NoButton, Qt::NoButton,
+                   Qt::NoModifier);
+  QCoreApplication::sendEvent(plot, &move);
+  ASSERT_TRUE(readout->text().contains("max SNR")) << readout->text().toStdString();
+  auto other = std::make_shared<const FrameCube>(test::movingDotCube(64, 48, 8, {1.0, 1.0}, 20, 20));
+  w->observation()->setRaw(other, "another");
+  EXPECT_TRUE(readout->text().isEmpty()) << readout->text().toStdString();
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

@@ -14,6 +14,7 @@
 #include <cmath>
 
 #include "candidate_vetting.hpp"
+#include "st/search/sky_motion.hpp"
 
 namespace st::ui {
 
@@ -87,6 +88,20 @@ void CandidateModel::reloadRow(int row) {
 
 QVariant CandidateModel::data(const QModelIndex& index, int role) const {
   if (!index.isValid() || !m_obs->result()) return {};
+  if (index.column() == FitSnr) {  // the accepted fit's SNR, where the eye compares it with the search's
+    const auto* state = m_obs->candidateState(index.row());
+    const bool fitted = state && state->fitted();
+    const double fitSnr = fitted ? state->fit->snr : -1.0;
+    if (role == Qt::UserRole) return fitSnr;
+    if (role == Qt::DisplayRole) return fitted ? QVariant(QString::number(fitSnr, 'f', 2)) : QVariant();
+    if (role == Qt::TextAlignmentRole) return static_cast<int>(Qt::AlignRight | Qt::AlignVCenter);
+    if (role == Qt::ToolTipRole && !fitted) return QString("no accepted co-moving fit (F fits one)");
+    if (role == Qt::ToolTipRole) {
+      const double searchSnr = m_obs->result()->candidates[static_cast<std::size_t>(index.row())].snr;
+      return QString("SNR of the accepted co-moving fit (search: %1)").arg(searchSnr, 0, 'f', 2);
+    }
+    if (role != Qt::BackgroundRole) return {};
+  }
   if (const auto* state = m_obs->candidateState(index.row());
       state && (index.column() >= Label || role == Qt::BackgroundRole || role == Qt::ToolTipRole ||
                 role == Qt::DecorationRole))
@@ -94,11 +109,17 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
   const auto& c = m_obs->result()->candidates[static_cast<std::size_t>(index.row())];
   const auto scale = m_obs->plateScale();
   const auto unit = m_obs->unit();
-  const double vx = fromPxPerS(c.v.vx, unit, scale);
-  const double vy = fromPxPerS(c.v.vy, unit, scale);
-  // The rate that matters to an astronomer is relative to the stars (the sky rate), as in the paper.
+  // The motion that matters to an astronomer is relative to the stars (the sky rate), as in the paper and
+  // the reports (rate_deg_day, pa_deg): components, rate and position angle.
   const Velocity sky = m_obs->skyRate();
-  const double rate = fromPxPerS(std::hypot(c.v.vx - sky.vx, c.v.vy - sky.vy), unit, scale);
+  const Velocity rel{c.v.vx - sky.vx, c.v.vy - sky.vy};
+  const double vx = fromPxPerS(rel.vx, unit, scale);
+  const double vy = fromPxPerS(rel.vy, unit, scale);
+  const double rate = fromPxPerS(std::hypot(rel.vx, rel.vy), unit, scale);
+  const auto pa = [&]() -> std::optional<double> {
+    const auto& raw = m_obs->raw();
+    return raw ? search::skyMotion(*raw, c.x, c.y, rel).paDeg : std::nullopt;
+  };
   if (role == Qt::UserRole) {  // sort key
     switch (index.column()) {
       case Index:
@@ -113,6 +134,8 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
         return vy;
       case Rate:
         return rate;
+      case Pa:
+        return pa().value_or(-1.0);
       case Snr:
         return c.snr;
       case Fap:
@@ -141,6 +164,10 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
         return QString::number(vy, 'g', 4);
       case Rate:
         return QString::number(rate, 'g', 4);
+      case Pa: {
+        const auto angle = pa();
+        return angle ? QVariant(QString::number(*angle, 'f', 1)) : QVariant();
+      }
       case Snr:
         return QString::number(c.snr, 'f', 2);
       case Fap:
@@ -164,6 +191,13 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
   if (orientation == Qt::Horizontal && role == Qt::ToolTipRole && section == Fap)
     return QString("Expected number of false alarms at this SNR over all trials (the paper's Prob_false); "
                    "a count, not a probability: values above 1 are common for faint candidates");
+  const bool motion = section == Vx || section == Vy || section == Rate || section == Pa;
+  if (orientation == Qt::Horizontal && role == Qt::ToolTipRole && motion)
+    return QString("Motion relative to the stars (the search's velocity minus the sky rate), in the unit "
+                   "chosen in the Search dock; PA: direction of that motion, degrees east of north (needs a "
+                   "WCS)");
+  if (orientation == Qt::Horizontal && role == Qt::ToolTipRole && section == FitSnr)
+    return QString("SNR of the accepted co-moving fit; empty without one");
   if (orientation != Qt::Horizontal || role != Qt::DisplayRole)
     return QAbstractTableModel::headerData(section, orientation, role);
   const QString u = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
@@ -175,11 +209,15 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
     case Y:
       return "y [px]";
     case Vx:
-      return "vx [" + u + "]";
+      return "vx vs sky [" + u + "]";
     case Vy:
-      return "vy [" + u + "]";
+      return "vy vs sky [" + u + "]";
     case Rate:
       return "rate vs sky [" + u + "]";
+    case Pa:
+      return "PA [deg]";
+    case FitSnr:
+      return "fit SNR";
     case Snr:
       return "SNR";
     case Fap:
@@ -289,9 +327,11 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   m_table->verticalHeader()->setVisible(false);
   m_table->verticalHeader()->setDefaultSectionSize(20);
   m_table->horizontalHeader()->setStretchLastSection(true);
-  // Vetting columns where the eye is when reviewing, even in a narrow dock: "#", label, reason, ... note.
-  m_table->horizontalHeader()->moveSection(CandidateModel::Label, 1);
-  m_table->horizontalHeader()->moveSection(CandidateModel::Reason, 2);
+  // What the eye needs when reviewing first, even in a narrow dock (issue 18 §6): "#", SNR, rate, PA, flags,
+  // label, reason, fit SNR; then positions, components and counts; the note stretches last.
+  QHeaderView* header = m_table->horizontalHeader();
+  for (int i = 0; i < static_cast<int>(std::size(kLeadingColumns)); ++i)
+    header->moveSection(header->visualIndex(kLeadingColumns[i]), i);
   m_table->setAlternatingRowColors(true);
   m_table->installEventFilter(this);  // the vetting keys (candidate_panel_vetting.cpp)
   m_table->setContextMenuPolicy(Qt::CustomContextMenu);

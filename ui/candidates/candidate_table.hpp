@@ -23,7 +23,29 @@ namespace st::ui {
 class CandidateModel : public QAbstractTableModel {
   Q_OBJECT
  public:
-  enum Column { Index, X, Y, Vx, Vy, Rate, Snr, Fap, NIn, Cells, Flags, Label, Reason, Note, ColumnCount };
+  /// Logical columns. Velocities are relative to the stars (the sky rate), in the unit chosen in the Search
+  /// dock (Observation::unit); Pa is the position angle of that motion, east of north (needs a WCS).
+  /// FitSnr is the accepted co-moving fit's SNR (empty without one). The panel shows SNR, rate, PA, flags and
+  /// the vetting columns first (CandidatePanel::kLeadingColumns).
+  enum Column {
+    Index,
+    X,
+    Y,
+    Vx,
+    Vy,
+    Rate,
+    Pa,
+    Snr,
+    Fap,
+    NIn,
+    Cells,
+    Flags,
+    FitSnr,
+    Label,
+    Reason,
+    Note,
+    ColumnCount
+  };
   explicit CandidateModel(Observation* observation, QObject* parent = nullptr);
 
   int rowCount(const QModelIndex& parent = {}) const override;
@@ -70,6 +92,10 @@ class CandidateFilter : public QSortFilterProxyModel {
 class CandidatePanel : public QWidget {
   Q_OBJECT
  public:
+  /// The columns shown first, in this order (the rest follow in CandidateModel's order).
+  static constexpr CandidateModel::Column kLeadingColumns[] = {
+      CandidateModel::Index, CandidateModel::Snr,   CandidateModel::Rate,   CandidateModel::Pa,
+      CandidateModel::Flags, CandidateModel::Label, CandidateModel::Reason, CandidateModel::FitSnr};
   CandidatePanel(Observation* observation, QWidget* parent = nullptr);
   [[nodiscard]] QTableView* table() const noexcept { return m_table; }
   [[nodiscard]] CandidateFilter* filter() const noexcept { return m_filter; }

@@ -208,6 +208,13 @@ void FigureDialog::onSourceChanged() {
   m_crop->setEnabled(s.view != nullptr);
   m_stampHalf->setEnabled(s.preset);
   const auto& raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
+  // A compass needs the observation's WCS: say so where the choice is made, not by a figure without one.
+  const bool hasWcs = raw && raw->wcs && m_ctx.pixelToSky;
+  m_compass->setEnabled(image && hasWcs);
+  m_compass->setText(hasWcs ? "N/E compass" : "N/E compass (no WCS)");
+  m_compass->setToolTip(hasWcs ? "North and East arrows from the observation's WCS"
+                               : "The observation has no WCS (CTYPE, CRVAL, CD or CDELT keywords): no "
+                                 "compass can be drawn");
   const QString bunit = raw ? QString::fromStdString(raw->header.getString("BUNIT").value_or("ADU")) : "ADU";
   m_title->setPlaceholderText(s.preset ? "default: Synthetic tracking of candidate #N (SNR …)" : QString());
   if (s.preset) {

@@ -115,6 +115,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
     updateTitle();
   });
   connect(m_obs, &Observation::selectionChanged, this, &FitPanel::updateTitle);
+  connect(m_obs, &Observation::selectionChanged, this, &FitPanel::showSelectedFit);
   connect(m_obs, &Observation::candidateStateChanged, this, &FitPanel::updateTitle);
   connect(m_obs, &Observation::preparedChanged, this, &FitPanel::updateTitle);
   updateTitle();
@@ -341,6 +342,44 @@ void FitPanel::fillTable(const FitOutcome& out) {
     row("Dec [deg] at t_ref", QString::number(sky->decDeg, 'f', 6));
     row("rate [arcsec/min]", num(sky->rateArcsecPerMin));
   }
+}
+
+void FitPanel::showSelectedFit() {
+  if (m_runningIndex >= 0 || !m_obs->selected()) return;
+  const int index = *m_obs->selected();
+  if (m_outcome && m_fittedIndex == index) return fillTable(*m_outcome);
+  const session::CandidateState* state = m_obs->candidateState(index);
+  if (state && state->fit) fillStoredTable(index, *state->fit);
+}
+
+void FitPanel::fillStoredTable(int index, const candidate::FitSummary& fit) {
+  m_table->setRowCount(0);
+  auto row = [this](const QString& name, const QString& value, const QString& nm = {},
+                    const QString& paper = {}) {
+    const int i = m_table->rowCount();
+    m_table->insertRow(i);
+    const QString cells[] = {name, value, nm, {}, paper};
+    for (int c = 0; c < 5; ++c)
+      m_table->setItem(i, c, new QTableWidgetItem(cells[c]));
+  };
+  const auto& s = fit.sigma;
+  row("vx [px/s]", num(fit.v.vx, 6), num(s.vxPxS), num(s.velPaperPxS) + " (vel_snr)");
+  row("vy [px/s]", num(fit.v.vy, 6), num(s.vyPxS), num(s.velPaperPxS) + " (vel_snr)");
+  row("x [px] at t_ref", num(fit.x, 7), num(s.xPx), num(s.posPaperPx) + " (eq:sig)");
+  row("y [px] at t_ref", num(fit.y, 7), num(s.yPx), num(s.posPaperPx) + " (eq:sig)");
+  row("photons / frame", num(fit.photonsPerFrame));
+  row("SNR (detection_snr)", num(fit.snr));
+  if (fit.segments) row("segments (K = 4)", fit.segments->flagged ? "flagged" : "consistent");
+  if (const auto& sky = fit.sky) {
+    row("RA [deg] at t_ref", QString::number(sky->raDeg, 'f', 6));
+    row("Dec [deg] at t_ref", QString::number(sky->decDeg, 'f', 6));
+    row("rate [arcsec/min]", num(sky->rateArcsecPerMin));
+  }
+  m_status->setText(QString("The fit accepted on candidate %1 (%2, %3 iterations), as kept in the session; "
+                            "Fit (F) fits it again for the plots.")
+                        .arg(index + 1)
+                        .arg(QString::fromStdString(fit::toString(fit.status)))
+                        .arg(fit.iterations));
 }
 
 void FitPanel::accept() {

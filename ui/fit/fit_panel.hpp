@@ -66,6 +66,11 @@ class FitPanel : public QWidget {
   void drainLive();
   void showOutcome(const FitOutcome& outcome);
   void fillTable(const FitOutcome& outcome);
+  /// The table of an accepted fit kept on candidate `index` (its FitSummary: no Hessian sigmas, no plots).
+  void fillStoredTable(int index, const candidate::FitSummary& fit);
+  /// On a new selection: the table of the selected candidate's accepted fit (a reopened session's too), or
+  /// of the last fit when it is the selected candidate's.
+  void showSelectedFit();
   void resetPlots();
   /// Sets the title line from the observation's state and the last fit (titleText()).
   void updateTitle();

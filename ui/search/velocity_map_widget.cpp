@@ -65,6 +65,7 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
       "<span style='color:#d4a000'>⊕</span> current velocity",
       this);
   m_readout = new QLabel(this);
+  m_readout->setObjectName("velocityMap.readout");
   m_readout->setTextInteractionFlags(Qt::TextSelectableByMouse);
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(2, 2, 2, 2);
@@ -92,6 +93,8 @@ double VelocityMapWidget::fromUnit(double value) const {
 }
 
 void VelocityMapWidget::rebuild() {
+  // The readout described the map under the pointer: another observation, search or unit makes it stale.
+  m_readout->clear();
   const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
   m_plot->xAxis->setLabel("vx [" + unit + "]");
   m_plot->yAxis->setLabel("vy [" + unit + "]");

@@ -50,7 +50,7 @@ class VelocityMapWidget : public QWidget {
   std::array<QCPGraph*, 4> m_candidates{};
   QCPGraph* m_sky = nullptr;
   QCPGraph* m_current = nullptr;
-  QLabel* m_readout = nullptr;
+  QLabel* m_readout = nullptr;  ///< objectName "velocityMap.readout"
   QLabel* m_legend = nullptr;
   QCPItemText* m_hint = nullptr;
 };
