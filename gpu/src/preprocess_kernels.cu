@@ -1,8 +1,8 @@
 // Pre-processing kernels (issue 16): the per-pixel background of stats::subtractPixelBackground and the
 // matched filter of stack::filterCube. The clip and the subtraction run one thread per pixel over the frames
 // in the CPU's order with the CPU's double arithmetic (no fused multiply-adds: __dmul_rn/__dadd_rn), so
-// their results are the CPU's bit for bit; the convolution sums in float in another order than OpenCV's
-// filter2D (float tolerance).
+// their results are the CPU's bit for bit; the convolution is a direct sum in float, where the CPU's is an
+// FFT (float tolerance: tests/gpu GpuFilter.MatchesCpu).
 #include <cmath>
 #include <cstdint>
 
