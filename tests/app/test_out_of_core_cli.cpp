@@ -8,6 +8,8 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -165,6 +167,36 @@ TEST_P(OutOfCoreMethods, CubeThreeTimesTheBudgetGivesTheInMemoryCandidatesWithin
 
 INSTANTIATE_TEST_SUITE_P(Cpu, OutOfCoreMethods, ::testing::Values("exact", "tree"));
 
+/// The candidates of two runs are the same: positions, velocities, frame counts and every other value equal,
+/// except that sums of filtered pixels (snr, sum) may differ by float rounding (1e-5 relative) and the false-
+/// alarm probability by what that does to it (1e-2 relative): the CPU matched filter is an FFT, whose
+/// rounding depends on the size of what is filtered, and this run filters tiles, not whole frames.
+void expectSameCandidates(const nlohmann::json& a, const nlohmann::json& b, const std::string& where = "") {
+  if (a.is_number_float() || b.is_number_float()) {
+    ASSERT_TRUE(a.is_number() && b.is_number()) << where;
+    const double x = a.get<double>(), y = b.get<double>();
+    const bool fap = where.size() >= 4 && where.substr(where.size() - 4) == "/fap";
+    EXPECT_LE(std::abs(x - y), (fap ? 1e-2 : 1e-5) * std::max(std::abs(x), std::abs(y)) + 1e-300)
+        << where << ": " << x << " vs " << y;
+    return;
+  }
+  if (a.is_object() && b.is_object()) {
+    ASSERT_EQ(a.size(), b.size()) << where;
+    for (auto it = a.begin(); it != a.end(); ++it) {
+      ASSERT_TRUE(b.contains(it.key())) << where << "/" << it.key();
+      expectSameCandidates(it.value(), b.at(it.key()), where + "/" + it.key());
+    }
+    return;
+  }
+  if (a.is_array() && b.is_array()) {
+    ASSERT_EQ(a.size(), b.size()) << where;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      expectSameCandidates(a[i], b[i], where + "/" + std::to_string(i));
+    return;
+  }
+  EXPECT_EQ(a, b) << where;
+}
+
 // A zero-biased cube, cropped (the tiles are read at the crop's offset): filtered tile by tile with the
 // matched filter's reach added to the overlap, the same candidates as in memory for the same sigma_F.
 TEST_F(OutOfCoreCli, ZeroBiasedCroppedCubeGivesTheInMemoryCandidates) {
@@ -180,7 +212,7 @@ TEST_F(OutOfCoreCli, ZeroBiasedCroppedCubeGivesTheInMemoryCandidates) {
   EXPECT_FALSE(mem["memory"]["out_of_core"].get<bool>());
   EXPECT_TRUE(ooc["memory"]["out_of_core"].get<bool>());
   ASSERT_GE(mem["candidates"].size(), 2u);
-  EXPECT_EQ(mem["candidates"], ooc["candidates"]);
+  expectSameCandidates(mem["candidates"], ooc["candidates"]);
   EXPECT_EQ(mem["cells_above_threshold"], ooc["cells_above_threshold"]);
   EXPECT_LT(ooc["memory"]["peak_resident_bytes"].get<std::size_t>(), std::size_t{100} << 20);
   (void)rssMem;
