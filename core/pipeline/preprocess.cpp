@@ -68,17 +68,13 @@ std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessPa
       fullScale = std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
   }
   if (!fullScale) return std::nullopt;
+  auto median = [](std::vector<float> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return static_cast<double>(v[v.size() / 2]);
+  };
   double biasLevel = 0.0;
-  if (params.masters && !params.masters->bias.empty()) {
-    std::vector<float> b = params.masters->bias.pixels;
-    std::nth_element(b.begin(), b.begin() + b.size() / 2, b.end());
-    biasLevel = b[b.size() / 2];
-  }
-  if (!calibration.overscanLevel.empty()) {
-    std::vector<float> o = calibration.overscanLevel;
-    std::nth_element(o.begin(), o.begin() + o.size() / 2, o.end());
-    biasLevel += o[o.size() / 2];
-  }
+  if (params.masters && !params.masters->bias.empty()) biasLevel += median(params.masters->bias.pixels);
+  if (!calibration.overscanLevel.empty()) biasLevel += median(calibration.overscanLevel);
   return 0.95 * (*fullScale - biasLevel);
 }
 
