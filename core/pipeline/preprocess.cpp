@@ -275,8 +275,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
     FrameCube& f = out.filtered.frames;
     if (params.keepZeroBiased) {
+      // The pixels are written by filterCubeFromOn (a device reads the zero-biased cube and writes the
+      // filtered one: no host copy of the cube).
       f = FrameCube(cube.width(), cube.height(), 0);
-      f.pixels() = cube.pixels();
       f.info() = cube.info();
       f.header = cube.header;
       f.wcs = cube.wcs;
@@ -290,9 +291,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     }
     const stack::FilterKernel kernel = stack::makeFilterKernel(out.psf);
     out.filtered.revision = search::nextCubeRevision();
+    const stats::NoiseModel* noise = params.weightedFilter ? &out.noiseModel : nullptr;
     const stack::MatchedFilterResult mf =
-        filterCubeOn(params.accelerator, out.filtered.frames, kernel, sub, cancel,
-                     params.weightedFilter ? &out.noiseModel : nullptr, out.notes, out.filtered.revision);
+        params.keepZeroBiased
+            ? filterCubeFromOn(params.accelerator, cube, f, kernel, sub, cancel, noise, out.notes,
+                               out.filtered.revision)
+            : filterCubeOn(params.accelerator, f, kernel, sub, cancel, noise, out.notes, out.filtered.revision);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

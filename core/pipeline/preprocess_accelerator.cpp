@@ -44,4 +44,24 @@ stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube&
   return stack::filterCube(cube, kernel, progress, cancel, noise);
 }
 
+stack::MatchedFilterResult filterCubeFromOn(PreprocessAccelerator* accel, const FrameCube& source,
+                                            FrameCube& filtered, const stack::FilterKernel& kernel,
+                                            ProgressSink& progress, CancelToken& cancel,
+                                            const stats::NoiseModel* noise, std::vector<std::string>& notes,
+                                            std::uint64_t revision) {
+  if (accel) {
+    try {
+      stack::MatchedFilterResult out =
+          accel->filterCubeFrom(source, filtered, kernel, progress, cancel, noise, revision);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return out;
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "matched filter", e));
+    }
+  }
+  filtered.pixels() = source.pixels();
+  filtered.mask().clear();
+  return stack::filterCube(filtered, kernel, progress, cancel, noise);
+}
+
 }  // namespace st::pipeline

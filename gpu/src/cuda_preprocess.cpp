@@ -7,10 +7,14 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <exception>
 #include <mutex>
+#include <thread>
 
 #include "cuda_check.hpp"
 #include "device_info.hpp"
+#include "global_background_host.hpp"
+#include "host_buffer.hpp"
 #include "preprocess_params.hpp"
 #include "resident_cube.hpp"
 #include "st/common/error.hpp"
@@ -100,7 +104,6 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       throw GpuError("the exclusion mask has " + std::to_string(exclude->frameCount()) +
                      " frames, the cube " + std::to_string(nf));
     stats::Background out;
-    out.global = stats::globalBackground(cube, params.global);
     const std::vector<std::size_t> frames = evenlySpaced(nf, params.maxFrames);
     out.framesUsed = frames.size();
     const std::size_t nk = frames.size();
@@ -156,6 +159,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
     r.copy.sync();
     const double upload = sw.lap();
+    // The global background (first estimate and strong-signal level) from the uploaded cube.
+    out.global = globalBackgroundOnDevice(cube, pix.get(), cube.mask().empty() ? nullptr : mask.get(),
+                                          params.global, s);
+    const double global = sw.lap();
     progress.report(0.2, "per-pixel background (GPU)");
     cancel.throwIfCancelled();
     p.pix = pix.get();
@@ -219,8 +226,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     out.sigmaN = std::sqrt(sumVar / static_cast<double>(nValid));
     if (params.noiseMap) out.noiseMap = stats::boxSmooth(out.sigma, params.noiseMapBoxPx, ok);
     const double host = sw.lap();
-    m_note = "per-pixel background on " + name() + ": global background and tables " + ms(hostTables) +
-             ", upload " + ms(upload) + ", kernels " + ms(kernels) + " (prepare " +
+    m_note = "per-pixel background on " + name() + ": tables " + ms(hostTables) + ", upload " + ms(upload) +
+             ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
+             " passes), kernels " + ms(kernels) + " (prepare " +
              ms(Event::elapsed(k0, k1)) + ", clip " + ms(Event::elapsed(k1, k2)) + ", subtract " +
              ms(Event::elapsed(k2, k3)) + "), download " + ms(down) + ", host " + ms(host);
     progress.report(1.0, "per-pixel background (GPU)");
@@ -230,10 +238,28 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
                                         ProgressSink& progress, CancelToken& cancel,
                                         const stats::NoiseModel* noise, std::uint64_t revision) override {
+    const bool hasMask = cube.mask().size() == cube.pixels().size();
+    return filter(cube, hasMask, cube, false, kernel, progress, cancel, noise, revision);
+  }
+
+  stack::MatchedFilterResult filterCubeFrom(const FrameCube& source, FrameCube& filtered,
+                                            const stack::FilterKernel& kernel, ProgressSink& progress,
+                                            CancelToken& cancel, const stats::NoiseModel* noise,
+                                            std::uint64_t revision) override {
+    filtered.mask().clear();
+    return filter(source, false, filtered, true, kernel, progress, cancel, noise, revision);
+  }
+
+ private:
+  /// The matched filter of `cube`'s pixels (with its mask when `hasMask`) written into `dest` (which may be
+  /// `cube`); `freshDest`: dest's pixels are allocated here, on another thread while the device works.
+  stack::MatchedFilterResult filter(const FrameCube& cube, bool hasMask, FrameCube& dest, bool freshDest,
+                                    const stack::FilterKernel& kernel, ProgressSink& progress,
+                                    CancelToken& cancel, const stats::NoiseModel* noise,
+                                    std::uint64_t revision) {
     Stopwatch sw;
     const int w = cube.width(), h = cube.height();
     const std::size_t nf = cube.frameCount(), np = cube.framePixels();
-    const bool hasMask = cube.mask().size() == cube.pixels().size();
     const bool weighted = noise && !noise->empty();
     const int half = kernel.halfSize;
     if (half > kMaxFilterHalf)
@@ -249,6 +275,19 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     DeviceResources& r = ensureResources(m_res);
     cudaStream_t s = r.compute.get();
     progress.report(0.0, "matched filter (GPU)");
+    // The destination's pages are faulted in on other cores while the device uploads and filters.
+    std::vector<float> destPixels;
+    std::jthread allocate;
+    std::exception_ptr allocError;
+    if (freshDest) {
+      allocate = std::jthread([&destPixels, &allocError, n = nf * np] {
+        try {
+          destPixels = prefaultedFloats(n);
+        } catch (...) {
+          allocError = std::current_exception();  // rethrown on this thread after the join
+        }
+      });
+    }
     DeviceBuffer<float> in(nf * np), out(nf * np);
     DeviceBuffer<std::uint8_t> mask;
     if (hasMask) mask = toDevice(cube.mask());
@@ -350,7 +389,16 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     stack::MatchedFilterResult result = stack::filterNoiseFromSamples(samples, kernel);
     cancel.throwIfCancelled();
     in = DeviceBuffer<float>();
-    download(r, cube.pixels().data(), out.get(), nf * np * sizeof(float), s);
+    double waitAlloc = 0.0;
+    if (freshDest) {
+      allocate.join();
+      if (allocError) std::rethrow_exception(allocError);
+      waitAlloc = sw.lap();
+      download(r, destPixels.data(), out.get(), nf * np * sizeof(float), s);
+      dest.pixels() = std::move(destPixels);
+    } else {
+      download(r, dest.pixels().data(), out.get(), nf * np * sizeof(float), s);
+    }
     const double down = sw.lap();
     std::string resident = "not kept on the device";
     if (m_keepResident && revision != 0) {
@@ -358,18 +406,18 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       std::lock_guard lock(slot.mutex);
       slot.clear();
       slot.cube = std::move(out);
-      slot.key = residentKey(cube, revision);
+      slot.key = residentKey(dest, revision);
       resident = "kept on the device for the search";
     }
     m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
              (weighted ? ", weighted" : "") + "): upload " + ms(upload) + ", kernels " + ms(kernels) +
              " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " + ms(Event::elapsed(k1, k2)) +
-             "), download " + ms(down) + "; filtered cube " + resident;
+             ")" + (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
+             ", download " + ms(down) + "; filtered cube " + resident;
     progress.report(1.0, "matched filter (GPU)");
     return result;
   }
 
- private:
   DeviceInfo m_device;
   std::unique_ptr<DeviceResources> m_res;
   std::string m_note;

@@ -95,5 +95,35 @@ TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {
   EXPECT_TRUE(notes.empty());
 }
 
+// filterCubeFromOn (the pipeline's matched filter of the zero-biased cube into the filtered one): the source
+// is left alone, a working device (here the interface's default: copy, then filterCube) and a failing one
+// (the CPU, with a warning) both give the CPU filter of a copy of the source's pixels, unmasked.
+TEST(PreprocessAccelerator, FilterFromSourceLeavesItAndMatchesTheCpuOnACopy) {
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube source = noiseCube(48, 40, 30);
+  source.mask().assign(source.pixels().size(), 0);
+  source.mask()[100] = 1;  // not used: masked samples of a zero-biased cube are 0 already
+  const FrameCube before = source;
+  const stack::FilterKernel k = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.0));
+  FrameCube ref = source;
+  ref.mask().clear();
+  const auto mr = stack::filterCube(ref, k, progress, cancel, nullptr);
+  for (const auto mode : {FakeAccelerator::Mode::Work, FakeAccelerator::Mode::Fail}) {
+    FakeAccelerator accel(mode);
+    std::vector<std::string> notes;
+    FrameCube out(source.width(), source.height(), 0);
+    out.info() = source.info();
+    const auto m = pipeline::filterCubeFromOn(&accel, source, out, k, progress, cancel, nullptr, notes, 7);
+    EXPECT_EQ(accel.calls, 1);
+    EXPECT_EQ(notes.size(), mode == FakeAccelerator::Mode::Fail ? 1u : 0u);
+    EXPECT_EQ(out.pixels(), ref.pixels());
+    EXPECT_TRUE(out.mask().empty());
+    EXPECT_EQ(m.sigmaF, mr.sigmaF);
+    EXPECT_EQ(source.pixels(), before.pixels());
+    EXPECT_EQ(source.mask(), before.mask());
+  }
+}
+
 }  // namespace
 }  // namespace st
