@@ -31,13 +31,15 @@ constexpr const char* kHelp =
     "usage: synthtrack-cli demo [--out DIR] [--preset NAME] [--seed N] [--frames N]\n"
     "                           [--vmax-deg-day D] [--grid-step-px P] [--snr S] [--fits K]\n"
     "                           [--backend auto|cpu|cuda] [--method auto|exact|tree]\n"
+    "                           [--frame-precision fp32|fp16]\n"
     "Simulates the demo observation (default paper-neo: the paper's V~23 asteroid at 5.97 deg/day, 500\n"
     "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s; also known-pair and small), pre-processes it,\n"
     "searches +-D deg/day around the sky rate (default: the preset's, 8 for paper-neo, 1.5 for known-pair,\n"
     "40 for small) in steps of P px over the span (default 1.5; both demo settings, coarser than the\n"
     "paper's +-12 deg/day and 1 px that 'synthtrack-cli search' uses), with --method (default auto: exact\n"
     "or tree, whichever is estimated to win), fits the K best candidates (default 40) and writes\n"
-    "everything to DIR (default ./demo-output).\n";
+    "everything to DIR (default ./demo-output). --frame-precision fp16: the CUDA exact search on float16\n"
+    "frames (faster; its SNR cost is printed with the backend).\n";
 
 struct DemoOptions {
   std::filesystem::path out = "demo-output";
@@ -49,13 +51,15 @@ struct DemoOptions {
   double snr = pipeline::demoSearchParams().snrThreshold;
   int fits = 40;
   BackendChoice backend = BackendChoice::Auto;
+  FramePrecisionChoice precision = FramePrecisionChoice::Fp32;
   search::SearchMethod method = pipeline::demoSearchParams().method;
 };
 
 DemoOptions parseDemo(const Args& args) {
   const CliArgs cli(
       args,
-      {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend", "method"},
+      {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend", "method",
+       "frame-precision"},
       {"help"});
   if (!cli.positionals().empty()) throw UsageError("unexpected argument '" + cli.positionals()[0] + "'");
   DemoOptions o;
@@ -68,6 +72,7 @@ DemoOptions parseDemo(const Args& args) {
   o.snr = cli.number("snr", o.snr);
   if (auto v = cli.integer("fits")) o.fits = static_cast<int>(*v);
   if (auto v = cli.value("backend")) o.backend = parseBackendChoice(*v);
+  if (auto v = cli.value("frame-precision")) o.precision = parseFramePrecision(*v);
   if (auto v = cli.value("method")) {
     const auto method = search::parseSearchMethod(*v);
     if (!method) throw UsageError("--method must be auto, exact or tree, got '" + *v + "'");
@@ -147,7 +152,7 @@ int cmdDemo(const Args& args) {
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
   // On the search's device when it is a GPU (per-pixel background and matched filter, issue 16).
-  BackendSelection backend = makeBackendForMethod(o.backend, o.method);
+  BackendSelection backend = makeBackendForMethod(o.backend, o.method, o.precision);
   std::string accelMessage;
   const auto accel = makePreprocessAccelerator(*backend.backend, accelMessage);
   pipeline::PreprocessParams prepParams;

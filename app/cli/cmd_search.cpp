@@ -111,7 +111,8 @@ int cmdSearch(const Args& args) {
   }
   const SearchOptions o = parseSearchOptions(cli);
   if (cli.flag("mpi")) return searchMpi(input, o, cli.flag("fit"), cli.value("out"), cli.flag("json"));
-  BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method);
+  BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method,
+                                              parseFramePrecision(o.framePrecision));
   TerminalProgress progress;
   ObservationHooks hooks;
   std::size_t memoryLines = 0;

@@ -76,11 +76,15 @@ void validateOptions(const std::map<std::string, std::string>& options) {
 }
 
 search::SearchBackend& BackendCache::get(const std::string& backend, search::SearchMethod method,
-                                         std::string& message) {
-  const std::string key = backend + "/" + std::string(method.name());
+                                         std::string& message, const std::string& framePrecision) {
+  const std::string key = backend + "/" + std::string(method.name()) + "/" + framePrecision;
   auto it = m_backends.find(key);
-  if (it == m_backends.end())
-    it = m_backends.emplace(key, makeBackendForMethod(parseBackendChoice(backend), method)).first;
+  if (it == m_backends.end()) {
+    it = m_backends
+             .emplace(key, makeBackendForMethod(parseBackendChoice(backend), method,
+                                                parseFramePrecision(framePrecision)))
+             .first;
+  }
   message = it->second.message;
   return *it->second.backend;
 }
@@ -136,7 +140,8 @@ RunOutcome runBatchObservation(const batch::Observation& obs, const BatchSetting
     const SearchOptions so = parseSearchOptions(cli);
     const ObservationInput input{obs.inputs, loadOptionsFromArgs(cli), false, obs.bias, obs.dark, obs.flat};
     std::string backendMessage;
-    search::SearchBackend& backend = backends.get(so.backend, so.request.params.method, backendMessage);
+    search::SearchBackend& backend =
+        backends.get(so.backend, so.request.params.method, backendMessage, so.framePrecision);
     NullProgress progress;
     // The span of its frames, so that the catalogue can tell which observations share frames.
     double tFirst = 0.0, tLast = 0.0;

@@ -47,11 +47,12 @@ struct RunOutcome {
   double seconds = 0.0;
 };
 
-/// Keeps one search backend per (backend, method) for the life of a worker (a CUDA backend is costly to
-/// make).
+/// Keeps one search backend per (backend, method, frame precision) for the life of a worker (a CUDA backend
+/// is costly to make).
 class BackendCache {
  public:
-  search::SearchBackend& get(const std::string& backend, search::SearchMethod method, std::string& message);
+  search::SearchBackend& get(const std::string& backend, search::SearchMethod method, std::string& message,
+                             const std::string& framePrecision = "fp32");
 
  private:
   std::map<std::string, BackendSelection> m_backends;

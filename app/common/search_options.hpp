@@ -16,6 +16,8 @@ struct SearchOptions {
   std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
   bool registerFrames = true;    ///< per-frame registration in pre-processing (--no-register turns it off)
   std::string backend = "auto";
+  /// --frame-precision: "fp32" (default) or "fp16" (CUDA exact search only; backend_factory.hpp)
+  std::string framePrecision = "fp32";
   long long fitMax = 50;  ///< candidates refined by the co-moving fit (--fit-max)
   /// --memory-limit ("8G", "500M"); none = the default budget (st/common/memory_budget.hpp)
   std::optional<std::string> memoryLimit;

@@ -2,7 +2,7 @@
 # Issue 16 on the GPU machine, from binaries packed by scripts/devrun-pack.sh into this script's folder:
 # GPU tests (preprocess, backend, tree), memcheck of the pre-processing tests, the paper problem's
 # pre-processing per stage on the GPU, the search benchmark (exact + tree, PSF source), the demo.
-# Usage: devrun_issue16.sh [tests] [memcheck] [prep] [bench] [demo] [prepcpu]
+# Usage: devrun_issue16.sh [tests] [memcheck] [prep] [bench] [demo] [demo16] [prepcpu]
 set -uo pipefail
 D=$(cd "$(dirname "$0")" && pwd)
 export LD_LIBRARY_PATH=$D/lib
@@ -25,6 +25,13 @@ for step in "$@"; do
     prep) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cuda 2>"$O/prep_gpu.err" | tee "$O/prep_gpu.log" ;;
     prepcpu) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cpu 2>/dev/null | tee "$O/prep_cpu16.log" ;;
     bench) "$D/st_gpu_bench" 1500 512 100 12 500 tree 2>&1 | tee "$O/treebench.log" | grep -vE "^  device 0: tree" ;;
+    apptests) for t in "$D"/st_app_test_*; do [ -x "$t" ] || continue
+                timeout 150 "$t" >"$O/$(basename "$t").log" 2>&1; echo "$(basename "$t") rc=$?"
+                grep -E "^\[ +(FAILED|PASSED|SKIPPED) |Failure|Expected" "$O/$(basename "$t").log" | head -20
+              done ;;
+    demo16) /usr/bin/time -f "demo fp16 wall %e s" "$D/synthtrack-cli" demo --backend cuda --frame-precision fp16 \
+              --out /tmp/demo16 2>"$O/demo16.err" | tee "$O/demo16.log"
+            grep -E "warning|demo fp16 wall|GPU" "$O/demo16.err" | head ;;
     demo) /usr/bin/time -f "demo wall %e s" "$D/synthtrack-cli" demo --backend cuda --out /tmp/demo 2>"$O/demo.err" | tee "$O/demo.log"
           grep -E "warning|demo wall|GPU" "$O/demo.err" | head ;;
   esac

@@ -26,6 +26,7 @@
 #include "wall_phases.hpp"
 #include "cuda_check.hpp"
 #include <functional>
+#include <memory>
 
 namespace st::gpu {
 namespace {
@@ -41,6 +42,7 @@ class CudaBackend final : public CudaSearchBackend {
       m_devices.resize(static_cast<std::size_t>(m_options.maxDevices));
     }
     m_resources.resize(m_devices.size());
+    m_tree.resize(m_devices.size());
     for (const auto& d : m_devices)
       m_ordinals.push_back(d.ordinal);
   }
@@ -68,6 +70,7 @@ class CudaBackend final : public CudaSearchBackend {
       releaseOtherCubes(m_ordinals.data(), static_cast<int>(m_ordinals.size()), m_cubeKey);
     if (params.method == search::SearchMethod::Tree)
       return searchTree(cube, grid, params, progress, cancel, start);
+    releaseTreeWorkspaces();  // their memory is the exact search's
     if (params.method != search::SearchMethod::Exact) {
       throw InputError("search method '" + std::string(params.method.name()) + "' (expected exact or tree)");
     }
@@ -111,12 +114,25 @@ class CudaBackend final : public CudaSearchBackend {
                                   CancelToken& cancel, std::chrono::steady_clock::time_point start) {
     search::SearchResult result =
         search::startSearchResult(cube, grid, params, name(), search::SearchMethod::Tree);
+    WallPhases wall;
     const HostPlan plan = makeHostPlan(cube, grid, result.snrThreshold, result.minFrames);
-    const search::TreePlan tree =
-        search::buildTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());
+    wall.mark("plan");
     std::size_t capacity = initialCapacity(params);
     const int cut = m_options.treeCut > 0 ? m_options.treeCut : kTreeDefaultCut;
-    const TreeDevicePlan dplan = chooseTreeTiles(tree, plan, cube, capacity, cut);
+    // The tree's plan and each device's workspace are kept between searches of the same resident cube and
+    // grid (a re-search after a threshold change makes neither again); anything else frees them first.
+    const std::uint64_t key = treePlanKey(cube, grid, cut);
+    if (key == 0 || key != m_treeKey || !m_treePlan) {
+      releaseTreeWorkspaces();
+      const search::TreePlan tree =
+          search::buildTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());
+      m_treePlan = std::make_shared<const TreeDevicePlan>(chooseTreeTiles(tree, plan, cube, capacity, cut));
+      m_treeKey = key;
+      wall.mark("tree plan");
+    } else {
+      wall.mark("tree plan kept");
+    }
+    const TreeDevicePlan& dplan = *m_treePlan;
     progress.report(0.0, "velocity search, tree (" + name() + ")");
     auto runTiles = [&](std::size_t cap) {
       return runOnDevices(std::min<int>(static_cast<int>(m_devices.size()), dplan.tiles), progress,
@@ -129,6 +145,8 @@ class CudaBackend final : public CudaSearchBackend {
                             job.treeRootShape = m_bench.treeRootShape;
                             job.treeDirectPlain = m_bench.treeDirectPlain;
                             job.cubeKey = m_cubeKey;
+                            job.treeWorkspace = &m_tree[static_cast<std::size_t>(d)];
+                            job.treePlanKey = key;
                             const int t0 = static_cast<int>(static_cast<long>(dplan.tiles) * d / used);
                             const int t1 = static_cast<int>(static_cast<long>(dplan.tiles) * (d + 1) / used);
                             return runTreeOnDevice(dplan, plan, cube.frames.pixels().data(), job, t0, t1,
@@ -136,6 +154,7 @@ class CudaBackend final : public CudaSearchBackend {
                           });
     };
     std::vector<DeviceOutcome> outcomes = runTiles(capacity);
+    wall.mark("devices");
     std::uint64_t above = 0;
     for (const auto& o : outcomes)
       above += o.cellsAbove;
@@ -154,7 +173,8 @@ class CudaBackend final : public CudaSearchBackend {
     mergeMap({merged}, plan, result);
     result.cellsAboveThreshold = static_cast<std::int64_t>(above);
     search::setCandidates(result, collectCells(outcomes), cube, params);
-    m_note.clear();
+    wall.mark("candidates");
+    m_note = "host: " + wall.str() + "\n";
     m_kernelSeconds = 0.0;
     m_uploadSeconds = 0.0;
     for (std::size_t i = 0; i < outcomes.size(); ++i) {
@@ -167,6 +187,48 @@ class CudaBackend final : public CudaSearchBackend {
     result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.report(1.0, "velocity search, tree (" + name() + ")");
     return result;
+  }
+
+  /// The key of a tree plan and workspace: the resident cube (0 when it is not kept: nothing is kept then),
+  /// the frame times and offsets, the grid, the cut and the tiling options (FNV-1a).
+  std::uint64_t treePlanKey(const search::FilteredCube& cube, const search::VelocityGrid& grid, int cut) const {
+    if (m_cubeKey == 0) return 0;
+    std::uint64_t h = 1469598103934665603ull;
+    auto mix = [&h](const void* data, std::size_t bytes) {
+      const auto* b = static_cast<const unsigned char*>(data);
+      for (std::size_t i = 0; i < bytes; ++i)
+        h = (h ^ b[i]) * 1099511628211ull;
+    };
+    const std::vector<double> t = cube.frames.timeOffsetsS();
+    const std::vector<PixelOffset> o = cube.frames.frameOffsets();
+    mix(t.data(), t.size() * sizeof(double));
+    for (const PixelOffset& p : o) {
+      mix(&p.x, sizeof p.x);
+      mix(&p.y, sizeof p.y);
+    }
+    const double g[3] = {grid.centre.vx, grid.centre.vy, grid.stepPxS};
+    const std::int64_t n[8] = {grid.nvx,
+                               grid.nvy,
+                               cut,
+                               cube.frames.width(),
+                               cube.frames.height(),
+                               m_options.treeTileRows,
+                               static_cast<std::int64_t>(m_options.deviceMemoryLimitBytes),
+                               static_cast<std::int64_t>(m_cubeKey)};
+    mix(g, sizeof g);
+    mix(n, sizeof n);
+    return h == 0 ? 1 : h;
+  }
+
+  /// Frees every device's tree workspace and the kept plan.
+  void releaseTreeWorkspaces() {
+    for (std::size_t d = 0; d < m_tree.size(); ++d) {
+      if (m_tree[d].bytes() == 0) continue;
+      ST_CUDA_CHECK(cudaSetDevice(m_devices[d].ordinal));
+      m_tree[d].clear();
+    }
+    m_treePlan.reset();
+    m_treeKey = 0;
   }
 
   /// Tiles of as many rows as fit in the memory allowed (whole image first), for the first device.
@@ -249,6 +311,7 @@ class CudaBackend final : public CudaSearchBackend {
       } catch (...) {
         errors[d] = std::current_exception();
         m_resources[d].reset();  // work may be left on its streams; made afresh by the next search
+        m_tree[d].clear();       // this thread's device is current
         m_abort.store(true);
       }
     };
@@ -382,6 +445,9 @@ class CudaBackend final : public CudaSearchBackend {
   std::atomic<bool> m_abort{false};
   std::vector<int> m_ordinals;
   std::uint64_t m_cubeKey = 0;
+  std::vector<TreeWorkspace> m_tree;  ///< per device: the tree search's arenas and tables, kept (see searchTree)
+  std::shared_ptr<const TreeDevicePlan> m_treePlan;  ///< the tree plan those were made for
+  std::uint64_t m_treeKey = 0;                       ///< its treePlanKey (0: none kept)
 };
 
 }  // namespace

@@ -19,6 +19,8 @@ namespace st::gpu {
 
 struct DeviceResources;
 
+struct TreeWorkspace;  // tree_search_device.hpp
+
 struct DeviceJob {
   int device = 0;
   /// Streams and staging kept by the backend between searches (made on first use); null: made for this one.
@@ -35,6 +37,10 @@ struct DeviceJob {
   /// Identity of the host cube (resident_cube.hpp cubeKey): the device's resident cube is used without an
   /// upload when it holds this one, else the cube is uploaded into it and kept. 0 = upload, keep nothing.
   std::uint64_t cubeKey = 0;
+  /// Tree search: the device's workspace kept by the backend (null: made for this search and freed), and the
+  /// plan's key (0: nothing kept; the workspace is made again when its key differs).
+  TreeWorkspace* treeWorkspace = nullptr;
+  std::uint64_t treePlanKey = 0;
 };
 
 struct DeviceOutcome {

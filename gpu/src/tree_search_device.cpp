@@ -53,21 +53,38 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     (slot ? slot->cube : ownCube) = DeviceBuffer<float>(cubeFloats);
   }
   DeviceBuffer<float>& cube = slot ? slot->cube : ownCube;
-  DeviceBuffer<float> arena[2] = {DeviceBuffer<float>(tree.arenaFloats[0] + kTreeArenaSlack),
-                                  DeviceBuffer<float>(tree.arenaFloats[1] + kTreeArenaSlack)};
-  DeviceBuffer<TreeJob> jobs = toDevice(tree.jobs);
-  DeviceBuffer<int4> segTab = toDevice(tree.segTab);
-  DeviceBuffer<int2> rowJobs = toDevice(tree.rowJobs), rowTab = toDevice(tree.rowTab);
-  DeviceBuffer<int> shiftX = toDevice(tree.shiftX), shiftY = toDevice(tree.shiftY),
-                    frameIndex = toDevice(tree.frameIndex), cutPitch = toDevice(tree.cutPitch),
-                    colBase = toDevice(tree.colBase), rowBase = toDevice(tree.rowBase),
-                    spanX = toDevice(plan.spanX), spanY = toDevice(plan.spanY);
+  // The arenas, the plan's tables and the cell buffer: kept from the last search of this plan, else made.
+  TreeWorkspace local;
+  TreeWorkspace& ws = job.treeWorkspace ? *job.treeWorkspace : local;
+  const bool kept = job.treePlanKey != 0 && ws.key == job.treePlanKey;
+  if (kept) {
+    ++ws.reused;
+  } else {
+    ws.clear();
+    for (int a = 0; a < 2; ++a)
+      ws.arena[a] = DeviceBuffer<float>(tree.arenaFloats[a] + kTreeArenaSlack);
+    ws.jobs = toDevice(tree.jobs);
+    ws.segTab = toDevice(tree.segTab);
+    ws.rowJobs = toDevice(tree.rowJobs);
+    ws.rowTab = toDevice(tree.rowTab);
+    ws.shiftX = toDevice(tree.shiftX);
+    ws.shiftY = toDevice(tree.shiftY);
+    ws.frameIndex = toDevice(tree.frameIndex);
+    ws.cutPitch = toDevice(tree.cutPitch);
+    ws.colBase = toDevice(tree.colBase);
+    ws.rowBase = toDevice(tree.rowBase);
+    ws.cutBase = toDevice(tree.cutBase);
+    ws.key = job.treePlanKey;  // only once all of it is made
+  }
+  if (ws.cells.size() < std::max<std::size_t>(job.cellCapacity, 1))
+    ws.cells = DeviceBuffer<DeviceCell>(std::max<std::size_t>(job.cellCapacity, 1));
+  DeviceBuffer<float>* arena = ws.arena;
+  DeviceBuffer<DeviceCell>& cells = ws.cells;
+  DeviceBuffer<int> spanX = toDevice(plan.spanX), spanY = toDevice(plan.spanY);
   DeviceBuffer<unsigned> maskX = toDevice(plan.maskX), maskY = toDevice(plan.maskY);
-  DeviceBuffer<long long> cutBase = toDevice(tree.cutBase);
   DeviceBuffer<float> invNorm = toDevice(plan.invNorm);
   const std::size_t nv = static_cast<std::size_t>(plan.nvx) * plan.nvy;
   DeviceBuffer<unsigned long long> mapKeys(nv), count(1);
-  DeviceBuffer<DeviceCell> cells(std::max<std::size_t>(job.cellCapacity, 1));
   ST_CUDA_CHECK(cudaMemsetAsync(mapKeys.get(), 0, nv * 8, compute.get()));
   ST_CUDA_CHECK(cudaMemsetAsync(count.get(), 0, 8, compute.get()));
 
@@ -91,21 +108,21 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
 
   TreeLevelLaunch lv{};
   lv.frames = cube.get();
-  lv.frameIndex = frameIndex.get();
+  lv.frameIndex = ws.frameIndex.get();
   lv.width = plan.width;
   lv.height = plan.height;
-  lv.jobs = jobs.get();
-  lv.segTab = segTab.get();
-  lv.rowTab = rowTab.get();
-  lv.shiftX = shiftX.get();
-  lv.shiftY = shiftY.get();
+  lv.jobs = ws.jobs.get();
+  lv.segTab = ws.segTab.get();
+  lv.rowTab = ws.rowTab.get();
+  lv.shiftX = ws.shiftX.get();
+  lv.shiftY = ws.shiftY.get();
   lv.directPlain = job.treeDirectPlain;
   TreeRootLaunch rt{};
   rt.in = arena[tree.cut & 1].get();
-  rt.cutBase = cutBase.get();
-  rt.cutPitch = cutPitch.get();
-  rt.colBase = colBase.get();
-  rt.rowBase = rowBase.get();
+  rt.cutBase = ws.cutBase.get();
+  rt.cutPitch = ws.cutPitch.get();
+  rt.colBase = ws.colBase.get();
+  rt.rowBase = ws.rowBase.get();
   rt.cut = tree.cut;
   rt.shape = job.treeRootShape;
   rt.width = plan.width;
@@ -141,7 +158,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     for (std::size_t l = 0; l < tree.levels.size(); ++l) {
       const TreeDeviceLevel& level = tree.levels[l];
       lv.y0 = y0;
-      lv.rowJobs = rowJobs.get() + level.rowBegin;
+      lv.rowJobs = ws.rowJobs.get() + level.rowBegin;
       lv.rows = level.rowEnd - level.rowBegin;
       lv.in = arena[level.arena ^ 1].get();
       lv.out = arena[level.arena].get();
@@ -189,7 +206,9 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
              "), tiles " + std::to_string(tileBegin) + ".." + std::to_string(tileEnd - 1) + " of " +
              std::to_string(tree.tileRows) + " rows, partial stacks " +
              std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " +
-             std::to_string(tree.tableBytes() >> 20) + " MiB, top " + std::to_string(tree.cut) +
+             std::to_string(tree.tableBytes() >> 20) + " MiB (" +
+             (kept ? "kept from the last search" : job.treePlanKey ? "made, kept for the next" : "made") +
+             "), top " + std::to_string(tree.cut) +
              " levels in registers" + levels;
   return out;
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "backend_factory.hpp"
+#include "st/common/error.hpp"
 
 namespace st::app {
 namespace {
@@ -24,6 +25,27 @@ TEST(BackendFactory, TreeRequestGetsABackendWithTheTree) {
   ASSERT_TRUE(sel.backend);
   EXPECT_TRUE(sel.backend->supportsMethod("tree")) << sel.message;
   EXPECT_TRUE(makeBackendForMethod(BackendChoice::Cpu, "exact").backend->supportsMethod("exact"));
+}
+
+// --frame-precision (issue 16): fp32 and fp16 parse, anything else is refused naming the value; the CPU
+// backend says it ignores fp16; with a device, the CUDA backend's message gives fp16's SNR cost.
+TEST(BackendFactory, FramePrecisionParsesAndSaysWhatItCosts) {
+  EXPECT_EQ(parseFramePrecision("fp32"), FramePrecisionChoice::Fp32);
+  EXPECT_EQ(parseFramePrecision("fp16"), FramePrecisionChoice::Fp16);
+  try {
+    parseFramePrecision("fp8");
+    ADD_FAILURE() << "fp8 accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'fp8'"), std::string::npos) << e.what();
+  }
+  const BackendSelection cpu = makeBackend(BackendChoice::Cpu, FramePrecisionChoice::Fp16);
+  EXPECT_NE(cpu.message.find("CUDA backend only"), std::string::npos) << cpu.message;
+  EXPECT_EQ(makeBackend(BackendChoice::Cpu).message.find("fp16"), std::string::npos);
+  EXPECT_NE(framePrecisionNote(FramePrecisionChoice::Fp16).find("6.4e-4"), std::string::npos);
+  const BackendSelection any = makeBackend(BackendChoice::Auto, FramePrecisionChoice::Fp16);
+  if (any.message.rfind("using cuda", 0) == 0) {
+    EXPECT_NE(any.message.find("float16"), std::string::npos) << any.message;
+  }
 }
 
 }  // namespace

@@ -168,6 +168,40 @@ TEST(CudaTree, CoarseGridsWithDirectNodesNearTheRoot) {
   }
 }
 
+// Re-searches of a resident cube keep the tree's plan, arenas and tables (issue 16): a second search and one
+// at another threshold reuse them and still give the CPU tree's result; another grid, an exact search in
+// between, or another cube make them again.
+TEST(CudaTree, ReSearchKeepsTheWorkspaceAndStillGivesTheCpuTreesResult) {
+  ST_REQUIRE_GPU(gpu);
+  Problem p = standardProblem();
+  p.cube.revision = search::nextCubeRevision();  // a resident cube
+  NullProgress progress;
+  CancelToken cancel;
+  auto run = [&](const char* expect, const char* what) {
+    const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
+    EXPECT_NE(gpu->lastNote().find(expect), std::string::npos) << what << ": " << gpu->lastNote();
+    expectSameAsCpuTree(g, p);
+  };
+  run("made, kept for the next", "first search");
+  run("kept from the last search", "re-search");
+  EXPECT_NE(gpu->lastNote().find("tree plan kept"), std::string::npos) << gpu->lastNote();
+  p.params.snrThreshold = 5.5;
+  run("kept from the last search", "another threshold");
+  p.grid = VelocityGrid{{3.0, 1.0}, 0.4, 31, 29};
+  run("made, kept for the next", "another grid");
+  SearchParams exact = p.params;
+  exact.method = "exact";
+  gpu->search(p.cube, p.grid, exact, progress, cancel);
+  run("made, kept for the next", "after an exact search");
+  p.cube = makeCube(96, 70, 64, 12);
+  p.cube.revision = search::nextCubeRevision();
+  run("made, kept for the next", "another cube");
+  run("kept from the last search", "its re-search");
+  // A cube that is not kept on the device keeps nothing.
+  p.cube.revision = 0;
+  run("(made)", "cube without a revision");
+}
+
 TEST(CudaTree, CancelledAndBadMethod) {
   ST_REQUIRE_GPU(gpu);
   Problem p = standardProblem();
