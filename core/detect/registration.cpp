@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <numeric>
 #include <optional>
@@ -22,6 +23,7 @@ using detail::StarImages;
 
 constexpr int kQuickFrames = 64;     ///< links sampled on long sequences before measuring every frame
 constexpr int kMaxBack = 3;          ///< a failed link is retried against up to this many earlier frames
+constexpr double kBridgeSigmaPx = 5.0;  ///< error of a frame placed by the median rate (no significant link)
 
 /// A frame's departure from the model is used only beyond this many sigmas of its measurement.
 constexpr double kSignificance = 5.0;
@@ -207,27 +209,32 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
       ++r.linksMeasured;
     }
     const Velocity rate = givenRate.value_or(Velocity{median(rx), median(ry)});
-    bool linear = r.linksMeasured == kQuickFrames;
     double worst = 0.0, sum2 = 0.0;
-    bool agree = true;  // each link within quickTolerancePx, or within its own measurement error
-    for (int i = 0; i < kQuickFrames && linear; ++i) {
+    // Each significant link within quickTolerancePx, or within its own measurement error. Links without a
+    // significant peak (frames with few stars: the paper-neo field that crosses the frame three times in
+    // 1500 frames leaves ~25% of its single frames too faint to link) say nothing against the model.
+    bool agree = true;
+    for (int i = 0; i < kQuickFrames; ++i) {
       const double gap = dt[order[at[i] + 1]] - dt[order[at[i]]];
+      if (!quick[i].ok || !(gap > 0.0)) continue;
       const double ex = quick[i].step.x - rate.vx * gap, ey = quick[i].step.y - rate.vy * gap;
       const double e = std::hypot(ex, ey);
       worst = std::max(worst, e);
       sum2 += ex * ex + ey * ey;
       agree = agree && e <= std::max(params.quickTolerancePx, kSignificance * quick[i].sigma);
     }
+    const std::string sampled = " (" + std::to_string(r.linksMeasured) + " of " + std::to_string(kQuickFrames) +
+                                " sampled frame pairs significant)";
     if (r.linksMeasured < kQuickFrames / 2) {  // faint frames (EMCCD at 16.7 Hz): not worth every frame
-      r.note = modelNote(r, nf) + " (" + std::to_string(kQuickFrames) + " sampled frame pairs)";
+      r.note = modelNote(r, nf) + sampled;
       return r;
     }
-    if (linear && agree) {
+    if (agree) {
       r.model = Registration::Model::Linear;
       r.rate = rate;
-      r.rmsPx = std::sqrt(sum2 / kQuickFrames);
+      r.rmsPx = std::sqrt(sum2 / r.linksMeasured);
       r.maxPx = worst;
-      r.note = modelNote(r, nf) + " (" + std::to_string(kQuickFrames) + " sampled frame pairs)";
+      r.note = modelNote(r, nf) + sampled;
       return r;
     }
     r.linksMeasured = 0;
@@ -250,21 +257,33 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
     }
   });
   std::vector<double> px(nf, 0.0), py(nf, 0.0), t(nf, 0.0);
-  bool complete = true;
+  std::vector<double> lrx, lry;  // rates of the significant links
   for (std::size_t k = 0; k < nf; ++k) {
     t[k] = dt[order[k]];
-    if (k == 0) continue;
-    if (!links[k].ok) {
-      complete = false;
-      continue;
-    }
+    if (k == 0 || !links[k].ok) continue;
     ++r.linksMeasured;
-    px[k] = px[k - back[k]] + links[k].step.x;
-    py[k] = py[k - back[k]] + links[k].step.y;
+    const double gap = dt[order[k]] - dt[order[k - back[k]]];
+    if (gap > 0.0) lrx.push_back(links[k].step.x / gap), lry.push_back(links[k].step.y / gap);
   }
-  if (!complete) {
+  if (r.linksMeasured < static_cast<int>(nf - 1) / 2 || lrx.empty()) {  // too faint to follow
     r.note = modelNote(r, nf);
     return r;
+  }
+  // A frame no link reaches is bridged from its predecessor at the links' median rate, with an error of
+  // kBridgeSigmaPx: the anchor pass below re-measures the frames after it within that error (a dither hidden
+  // in the bridge is found there), and a frame it cannot measure either keeps the linear model (o_n = 0).
+  const Velocity bridgeRate{median(lrx), median(lry)};
+  std::size_t bridged = 0;
+  for (std::size_t k = 1; k < nf; ++k) {
+    if (!links[k].ok) {
+      const double gap = t[k] - t[k - 1];
+      links[k].step = {bridgeRate.vx * gap, bridgeRate.vy * gap};
+      links[k].sigma = kBridgeSigmaPx;
+      back[k] = 1;
+      ++bridged;
+    }
+    px[k] = px[k - back[k]] + links[k].step.x;
+    py[k] = py[k - back[k]] + links[k].step.y;
   }
   // Second pass, against anchors: every frame measured directly against the last anchor frame whose field it
   // still largely shares (chained positions within 0.4 of the frame), anchors linked to each other,
@@ -380,6 +399,9 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
     r.offsets = std::move(resid);
   }
   r.note = modelNote(r, nf);
+  if (bridged > 0)
+    r.note += "; " + std::to_string(bridged) + " frame(s) without a significant link to the 3 before placed at "
+              "the links' median rate";
   return r;
 }
 
@@ -390,6 +412,52 @@ void applyRegistration(FrameCube& cube, const Registration& reg) {
     info[n].offsetXPx = use ? reg.offsets[n].x : 0.0;
     info[n].offsetYPx = use ? reg.offsets[n].y : 0.0;
   }
+}
+
+std::size_t alignWholePixels(FrameCube& cube, Registration& reg, CancelToken& cancel) {
+  const std::size_t nf = cube.frameCount();
+  if (reg.model != Registration::Model::PerFrame || reg.offsets.size() != nf) return 0;
+  const int w = cube.width(), h = cube.height();
+  const std::size_t np = cube.framePixels();
+  std::vector<std::pair<int, int>> shift(nf);
+  bool any = false;
+  for (std::size_t n = 0; n < nf; ++n) {
+    shift[n] = {static_cast<int>(std::lround(reg.offsets[n].x)), static_cast<int>(std::lround(reg.offsets[n].y))};
+    any = any || shift[n].first != 0 || shift[n].second != 0;
+  }
+  if (!any) return 0;
+  if (cube.mask().empty()) cube.mask().assign(np * nf, 0);
+  std::atomic<std::size_t> moved{0};
+  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
+    std::vector<float> pix(np);
+    std::vector<std::uint8_t> msk(np);
+    for (std::size_t n = b; n < e; ++n) {
+      const auto [sx, sy] = shift[n];
+      if (sx == 0 && sy == 0) continue;
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      std::uint8_t* m = cube.mask().data() + n * np;
+      std::fill(pix.begin(), pix.end(), 0.0f);
+      std::fill(msk.begin(), msk.end(), std::uint8_t{1});
+      // new(x, y) = old(x + sx, y + sy) where that lies in the frame.
+      const int x0 = std::max(0, -sx), x1 = std::min(w, w - sx);
+      for (int y = std::max(0, -sy); y < std::min(h, h - sy); ++y) {
+        if (x1 <= x0) break;
+        const std::size_t dst = static_cast<std::size_t>(y) * w + x0;
+        const std::size_t src = static_cast<std::size_t>(y + sy) * w + x0 + sx;
+        std::copy_n(f + src, x1 - x0, pix.data() + dst);
+        std::copy_n(m + src, x1 - x0, msk.data() + dst);
+      }
+      std::copy(pix.begin(), pix.end(), f);
+      std::copy(msk.begin(), msk.end(), m);
+      moved.fetch_add(1);
+    }
+  });
+  for (std::size_t n = 0; n < nf; ++n) {
+    reg.offsets[n].x -= shift[n].first;
+    reg.offsets[n].y -= shift[n].second;
+  }
+  return moved.load();
 }
 
 }  // namespace st::detect

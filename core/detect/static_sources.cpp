@@ -261,10 +261,20 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // background removes each star's light as far as it is constant: what is left to mask is where single
   // frames see the star (its photon noise, seeing and guiding residuals), not where a stack would. A drifting
   // field crosses the pixels, so there every star is masked down to one stack sigma.
-  // Registered frames with per-frame offsets (dithers, re-pointing): the stars move across the detector, so
-  // the field is not static there even at a zero sky rate.
-  const bool staticField = !cube.hasFrameOffsets() &&
-                           std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
+  // Registered frames with per-frame offsets (dithers, re-pointing): the stars move across the detector by
+  // the offsets' spread, so the field is not static there even at a zero sky rate, unless they are the
+  // sub-pixel remainders left by registration's whole-pixel alignment (detect::alignWholePixels).
+  double offsetSpread = 0.0;
+  if (cube.hasFrameOffsets()) {
+    double lo[2] = {0.0, 0.0}, hi[2] = {0.0, 0.0};
+    for (const FrameInfo& fi : cube.info()) {
+      lo[0] = std::min(lo[0], fi.offsetXPx), hi[0] = std::max(hi[0], fi.offsetXPx);
+      lo[1] = std::min(lo[1], fi.offsetYPx), hi[1] = std::max(hi[1], fi.offsetYPx);
+    }
+    offsetSpread = std::hypot(hi[0] - lo[0], hi[1] - lo[1]);
+  }
+  const bool staticField =
+      offsetSpread + std::hypot(skyRate.vx, skyRate.vy) * cube.timeSpanS() < params.psfFwhmPx;
   // A drifting field whose stars are subtracted afterwards (subtractStarTemplate over the wide footprints
   // kept in subtractRegion) is masked like a static one, where single frames see the stars.
   const bool subtracted = !staticField && params.subtractStars;

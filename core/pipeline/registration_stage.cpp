@@ -12,8 +12,16 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
     return false;
   }
   detect::Registration reg = detect::measureRegistration(cube, params.skyRate, params.registration, progress, cancel);
-  detect::applyRegistration(cube, reg);
   out.notes.push_back(reg.note);
+  if (params.registration.alignWholePixels) {
+    const std::size_t moved = detect::alignWholePixels(cube, reg, cancel);
+    if (moved > 0) {
+      out.notes.push_back("registration: " + std::to_string(moved) +
+                          " frame(s) moved by whole pixels onto the first frame's pixel grid (the pixels they "
+                          "uncover masked); their sub-pixel remainders are kept as offsets");
+    }
+  }
+  detect::applyRegistration(cube, reg);
   const bool perFrame = reg.model == detect::Registration::Model::PerFrame;
   if (perFrame && !params.skyRate) {
     out.skyRate = reg.rate;

@@ -10,6 +10,7 @@
 #include <random>
 
 #include "dither_frames.hpp"
+#include "refine_candidate.hpp"
 #include "residual_cube.hpp"
 #include "search_test_cubes.hpp"
 #include "st/detect/registration.hpp"
@@ -161,6 +162,42 @@ TEST(Registration, OffsetsSurviveAWrittenCube) {
   EXPECT_EQ(back.info()[0].offsetXPx, 0.0);
 }
 
+// Whole-pixel alignment (RegistrationParams::alignWholePixels): a cube dithered by whole pixels plus a
+// sub-pixel part comes back onto frame 0's grid, equal to the undithered cube wherever the dithered frame
+// covered it and masked elsewhere; the sub-pixel remainders stay offsets.
+TEST(Registration, AlignWholePixelsUndoesTheDithers) {
+  const FrameCube still = test::noiseCube(23, 17, {0.0, 1.0, 2.0, 3.0}, 1.0, 7);
+  const std::vector<std::pair<int, int>> whole{{0, 0}, {3, -2}, {-5, 4}, {22, 0}};
+  FrameCube cube = still;
+  test::ditherFrames(cube, whole);
+  detect::Registration reg;
+  reg.model = detect::Registration::Model::PerFrame;
+  reg.offsets = {{0.0, 0.0}, {3.3, -1.6}, {-5.45, 4.2}, {21.7, -0.4}};
+  CancelToken c;
+  EXPECT_EQ(detect::alignWholePixels(cube, reg, c), 3u);
+  const double remainder[4][2] = {{0.0, 0.0}, {0.3, 0.4}, {-0.45, 0.2}, {-0.3, -0.4}};
+  for (std::size_t n = 0; n < 4; ++n) {
+    EXPECT_NEAR(reg.offsets[n].x, remainder[n][0], 1e-12) << n;
+    EXPECT_NEAR(reg.offsets[n].y, remainder[n][1], 1e-12) << n;
+    for (int y = 0; y < 17; ++y)
+      for (int x = 0; x < 23; ++x) {
+        const std::size_t i = n * still.framePixels() + static_cast<std::size_t>(y) * 23 + x;
+        // Sky pixel (x, y) was at (x, y) + d in the dithered frame: covered when that lies in the frame.
+        const int sx = x + whole[n].first, sy = y + whole[n].second;
+        const bool covered = sx >= 0 && sy >= 0 && sx < 23 && sy < 17;
+        ASSERT_EQ(cube.mask()[i], covered ? 0 : 1) << n << " " << x << " " << y;
+        ASSERT_EQ(cube.pixels()[i], covered ? still.pixels()[i] : 0.0f) << n << " " << x << " " << y;
+      }
+  }
+  // Frame 22 px off in a 23 px frame keeps one column; the linear model moves nothing.
+  detect::Registration linear;
+  linear.model = detect::Registration::Model::Linear;
+  linear.offsets = reg.offsets;
+  FrameCube same = still;
+  EXPECT_EQ(detect::alignWholePixels(same, linear, c), 0u);
+  EXPECT_EQ(same.pixels(), still.pixels());
+}
+
 /// The small preset with more (and brighter) stars to register on, no fixed-pattern artefacts (the dither
 /// moves whole frames, bias and flat with them), a little larger so that dithers leave the object inside.
 sim::SimParams ditherSim() {
@@ -246,7 +283,10 @@ search::Candidate searchPrepared(FrameCube cube, const sim::SimResult& sim, std:
     // Positions at t_ref are in frame 0's star field with the fitted sky rate: the same as the truth's here.
     if (std::hypot(cand.x - o.xRefPx, cand.y - o.yRefPx) <= 3.0) {
       *rank = static_cast<int>(i);
-      return cand;
+      search::Candidate fine = test::refineCandidate(out.filtered, cand, grid.stepPxS);
+      std::printf("grid SNR %.2f at (%.4f, %.4f) px/s, refined %.2f at (%.4f, %.4f)\n", cand.snr, cand.v.vx,
+                  cand.v.vy, fine.snr, fine.v.vx, fine.v.vy);
+      return fine;
     }
   }
   *rank = -1;
