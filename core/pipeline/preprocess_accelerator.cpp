@@ -12,6 +12,18 @@ std::string fallbackNote(const PreprocessAccelerator& accel, const char* stage, 
 
 }  // namespace
 
+stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
+                                    const stats::GlobalBackgroundParams& params, std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      return accel->globalBackground(cube, params);
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "global background", e));
+    }
+  }
+  return stats::globalBackground(cube, params);
+}
+
 stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameCube& cube,
                                             const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,

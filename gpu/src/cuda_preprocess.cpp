@@ -94,6 +94,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
 
+  stats::ClipStats globalBackground(const FrameCube& cube, const stats::GlobalBackgroundParams& params) override {
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    return globalBackgroundUploaded(cube, params, r.compute.get());
+  }
+
   stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,
                                             CancelToken& cancel) override {
@@ -247,12 +253,15 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                             CancelToken& cancel, const stats::NoiseModel* noise,
                                             std::uint64_t revision) override {
     filtered.mask().clear();
-    return filter(source, false, filtered, true, kernel, progress, cancel, noise, revision);
+    // A destination of the right size (the pipeline allocates it while the stages before run) is used as it
+    // is; else it is allocated here, on another thread while the device works.
+    const bool allocate = filtered.pixels().size() != source.pixels().size();
+    return filter(source, false, filtered, allocate, kernel, progress, cancel, noise, revision);
   }
 
  private:
   /// The matched filter of `cube`'s pixels (with its mask when `hasMask`) written into `dest` (which may be
-  /// `cube`); `freshDest`: dest's pixels are allocated here, on another thread while the device works.
+  /// `cube`); `freshDest`: dest's pixels are (re)allocated here, on another thread while the device works.
   stack::MatchedFilterResult filter(const FrameCube& cube, bool hasMask, FrameCube& dest, bool freshDest,
                                     const stack::FilterKernel& kernel, ProgressSink& progress,
                                     CancelToken& cancel, const stats::NoiseModel* noise,

@@ -129,6 +129,14 @@ TEST_P(GpuBackground, MatchesCpu) {
   EXPECT_EQ(b.global.count, a.global.count);
   EXPECT_EQ(b.global.iterations, a.global.iterations);
   EXPECT_GT(a.global.iterations, 1);
+  // The pipeline's first global background (on the raw cube: only the frames it uses are uploaded).
+  const stats::ClipStats g = accel->globalBackground(raw, params.global);
+  const stats::ClipStats c = stats::globalBackground(raw, params.global);
+  EXPECT_NEAR(g.mean, c.mean, 1e-12 * std::fabs(c.mean));
+  EXPECT_NEAR(g.sigma, c.sigma, 1e-12 * c.sigma);
+  EXPECT_EQ(g.count, c.count);
+  EXPECT_EQ(g.iterations, c.iterations);
+  EXPECT_EQ(g.converged, c.converged);
   if (bc.mask) {
     EXPECT_GT(a.pixelsFilled, 0u);  // the masked column
   }
@@ -274,6 +282,18 @@ TEST(GpuFilter, FromSourceEqualsFilterOfACopy) {
   EXPECT_EQ(b.sigmaF, a.sigmaF);
   EXPECT_EQ(std::memcmp(src.pixels().data(), source.pixels().data(), source.pixels().size() * 4), 0);
   EXPECT_EQ(src.mask(), source.mask());
+  // A destination already of the right size (the pipeline's, allocated ahead) is filled as it is.
+  FrameCube sized(source.width(), source.height(), 0);
+  sized.pixels().assign(source.pixels().size(), 0.0f);
+  sized.info() = source.info();
+  const float* buffer = sized.pixels().data();
+  accel->setKeepResident(false);
+  const auto d = accel->filterCubeFrom(src, sized, kernel, progress, cancel, &model, 0);
+  accel->setKeepResident(true);
+  EXPECT_EQ(accel->lastNote().find("for the host buffer"), std::string::npos) << accel->lastNote();
+  EXPECT_EQ(sized.pixels().data(), buffer);
+  EXPECT_EQ(std::memcmp(sized.pixels().data(), copy.pixels().data(), copy.pixels().size() * 4), 0);
+  EXPECT_EQ(d.sigmaF, a.sigmaF);
   cube.sigmaF = b.sigmaF;
   cube.psfFwhmPx = 2.5;
   search::SearchParams params;

@@ -25,6 +25,11 @@ class PreprocessAccelerator {
   [[nodiscard]] virtual std::string name() const = 0;
   /// How the last stage ran on the device (times of upload, kernels, download), for the notes; may be empty.
   [[nodiscard]] virtual std::string lastNote() const { return {}; }
+  /// Same contract as stats::globalBackground, mean and sigma within the rounding of its double sums (the
+  /// same samples, count and passes). The default is the CPU's.
+  virtual stats::ClipStats globalBackground(const FrameCube& cube, const stats::GlobalBackgroundParams& params) {
+    return stats::globalBackground(cube, params);
+  }
   /// Same contract as stats::subtractPixelBackground.
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                                     const detect::MovingMask* exclude, ProgressSink& progress,
@@ -48,6 +53,11 @@ class PreprocessAccelerator {
     return filterCube(filtered, kernel, progress, cancel, noise, revision);
   }
 };
+
+/// stats::globalBackground on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
+/// the CPU.
+stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
+                                    const stats::GlobalBackgroundParams& params, std::vector<std::string>& notes);
 
 /// stats::subtractPixelBackground on `accel` when given, else (or when the device fails: st::GpuError) on
 /// the CPU; a device failure adds a warning to `notes` naming the stage and the device's message, a device
