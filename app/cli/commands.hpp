@@ -25,6 +25,7 @@ int cmdBench(const Args& args);
 int cmdInject(const Args& args);
 int cmdRecovery(const Args& args);
 int cmdBatch(const Args& args);
+int cmdSolve(const Args& args);
 
 struct ObservationInput;
 struct SearchOptions;

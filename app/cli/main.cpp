@@ -24,6 +24,7 @@ constexpr Command kCommands[] = {
     {"info", st::app::cmdInfo, "describe frames: size, BITPIX, times, cadence, WCS, warnings"},
     {"convert", st::app::cmdConvert, "load frames (cube, files or folder) and write one FITS cube"},
     {"preprocess", st::app::cmdPreprocess, "calibrate, remove background and static sources"},
+    {"solve", st::app::cmdSolve, "plate-solve frames without a WCS (astrometry.net's solve-field)"},
     {"stack", st::app::cmdStack, "IPSA or CSA stack at one velocity"},
     {"search", st::app::cmdSearch, "velocity search: candidates and the velocity map"},
     {"batch", st::app::cmdBatch, "many observations: search --fit on each (MPI optional), merged catalogue"},

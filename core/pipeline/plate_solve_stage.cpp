@@ -1,0 +1,86 @@
+#include "st/pipeline/plate_solve_stage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "st/common/error.hpp"
+#include "st/io/wcs.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/stats/sigma_clip.hpp"
+
+namespace st::pipeline {
+
+std::vector<io::XyStar> firstFrameStars(const std::vector<detect::Star>& stars, const FrameCube& cube,
+                                        Velocity skyRate) {
+  if (cube.empty()) throw InputError("plate solving: the cube has no frames");
+  const double dt0 = cube.timeOffsetsS().front();
+  const FrameInfo& first = cube.info().front();
+  const double dx = skyRate.vx * dt0 + first.offsetXPx, dy = skyRate.vy * dt0 + first.offsetYPx;
+  std::vector<io::XyStar> out;
+  for (const auto& s : stars) {
+    const double x = s.x + dx, y = s.y + dy;
+    if (x < -0.5 || y < -0.5 || x > cube.width() - 0.5 || y > cube.height() - 0.5) continue;
+    out.push_back(io::XyStar{x, y, s.flux});
+  }
+  return out;
+}
+
+std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress, CancelToken& cancel) {
+  if (cube.empty()) throw InputError("plate solving: the cube has no frames");
+  FrameCube one(cube.width(), cube.height(), 1);
+  std::copy_n(cube.frame(0), cube.framePixels(), one.frame(0));
+  if (!cube.mask().empty()) one.mask().assign(cube.mask().begin(), cube.mask().begin() + cube.framePixels());
+  one.info().front() = cube.info().front();
+  one.info().front().offsetXPx = one.info().front().offsetYPx = 0.0;
+  // Sigma-clipped level of unmasked pixels: the scalar background findStaticSources removes before its mesh.
+  std::vector<float> values;
+  values.reserve(one.framePixels());
+  for (std::size_t i = 0; i < one.framePixels(); ++i)
+    if (one.mask().empty() || one.mask()[i] == 0) values.push_back(one.frame(0)[i]);
+  const stats::ClipStats level = stats::sigmaClipSymmetric(values.data(), values.size(), 3.0);
+  detect::StaticSourceParams sp;
+  sp.keepMovers = false;  // one frame: nothing to compare thirds of
+  sp.subtractStars = false;
+  sp.maskWings = false;
+  const detect::StaticSources found =
+      detect::findStaticSources(one, Velocity{0.0, 0.0}, level.mean, sp, progress, cancel);
+  std::vector<io::XyStar> out;
+  out.reserve(found.stars.size());
+  for (const auto& s : found.stars)
+    out.push_back(io::XyStar{s.x, s.y, s.flux});
+  std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
+  return out;
+}
+
+astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XyStar>& stars,
+                                    astro::PlateSolveParams params, ProgressSink& progress, CancelToken& cancel) {
+  if (!params.scaleArcsecPerPx && cube.plateScaleArcsecPerPx) params.scaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+  astro::applyHints(params, astro::plateSolveHints(cube.header));
+  astro::PlateSolution solution = astro::plateSolve(stars, cube.width(), cube.height(), params, progress, cancel);
+  cube.wcs = solution.wcs;
+  cube.plateScaleArcsecPerPx = solution.scaleArcsecPerPx;
+  return solution;
+}
+
+astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSolveParams& params,
+                                        ProgressSink& progress, CancelToken& cancel) {
+  const std::vector<io::XyStar> stars = firstFrameStars(prepared.stars, prepared.frames, prepared.skyRate);
+  astro::PlateSolution solution = plateSolveCube(prepared.frames, stars, params, progress, cancel);
+  prepared.notes.push_back("WCS " + describeSolution(solution));
+  return solution;
+}
+
+std::string describeSolution(const astro::PlateSolution& s) {
+  char text[400];
+  std::snprintf(text, sizeof text,
+                "plate-solved by astrometry.net: centre RA %.6f Dec %+.6f deg, %.4f arcsec/px, %zu stars given, "
+                "%s, %.1f s",
+                s.centreRaDeg, s.centreDecDeg, s.scaleArcsecPerPx, s.starsGiven,
+                s.index.empty() ? "index not named" : ("index " + std::filesystem::path(s.index).filename().string()).c_str(),
+                s.elapsedS);
+  return text;
+}
+
+}  // namespace st::pipeline
