@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <QFile>
+#include <cstdio>
+#include <QDir>
+#include <QSysInfo>
+#include <QProcess>
 #include <QLabel>
 #include <QMessageBox>
 #include <QStandardPaths>
@@ -100,6 +104,23 @@ std::shared_ptr<QString> catchMessageBox() {
     if (auto* box = qobject_cast<QMessageBox*>(QApplication::activeModalWidget())) {
       *text = box->text();
       box->done(QMessageBox::Ok);
+      timer->stop();
+      timer->deleteLater();
+    }
+  });
+  timer->start();
+  return text;
+}
+
+/// Answers the next modal message box with `button` (polls); returns its text once answered.
+std::shared_ptr<QString> answerMessageBox(QMessageBox::StandardButton button) {
+  auto text = std::make_shared<QString>();
+  auto* timer = new QTimer;
+  timer->setInterval(20);
+  QObject::connect(timer, &QTimer::timeout, [timer, text, button] {
+    if (auto* box = qobject_cast<QMessageBox*>(QApplication::activeModalWidget())) {
+      *text = box->text();
+      box->done(button);
       timer->stop();
       timer->deleteLater();
     }
@@ -378,6 +399,111 @@ TEST(Session, ASecondWindowOnTheSameFileDoesNotWriteIt) {
   SessionController c3(&o2, {});
   c3.adopt(path, {"a.fits"}, false, before.changes, {});
   EXPECT_EQ(c3.path(), path);
+}
+
+// A helper of the next test, run only in the process it spawns (this executable with ST_TEST_HOLD_LOCK=PATH):
+// holds PATH's session lock as another synthtrack process would, says "locked", and keeps it until its
+// stdin closes or it is killed.
+TEST(SessionLockHolder, HoldsTheLockNamedInTheEnvironment) {
+  const QByteArray path = qgetenv("ST_TEST_HOLD_LOCK");
+  if (path.isEmpty()) GTEST_SKIP() << "runs only in the process Session.ASessionOpenInAnotherProcess... spawns";
+  SessionLock lock;
+  ASSERT_TRUE(lock.acquire(QString::fromLocal8Bit(path)));
+  std::printf("locked\n");
+  std::fflush(stdout);
+  for (char c; std::fread(&c, 1, 1, stdin) == 1;) {
+  }
+}
+
+// Issue 18 §6: a second window (here in a second process) on the same session used to lose its labels
+// silently. It opens the session read-only with a banner naming the holder (pid and host from the lock
+// file); its changes are counted there, the file is not touched, and closing asks before they are dropped.
+// A lock left by a process that was killed is stale: the next window takes it over and says so.
+TEST(Session, ASessionOpenInAnotherProcessOpensReadOnlyWithABannerAndNothingIsLostSilently) {
+  test::TempDir dir;
+  const std::string input = (dir / "obs.fits").string();
+  std::ofstream(input) << "fake";
+  auto calls = std::make_shared<Calls>();
+  QString path;
+  {
+    MainWindow w1(services(calls));
+    w1.show();
+    w1.openInputs({QString::fromStdString(input)});
+    ASSERT_TRUE(test::waitFor([&] { return w1.observation()->prepared() && idle(w1); }));
+    w1.searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+    w1.runSearch();
+    ASSERT_TRUE(test::waitFor([&] { return w1.observation()->result() && idle(w1); }));
+    w1.observation()->setCandidateLabel(1, session::Label::Real);
+    path = w1.session()->path();
+    ASSERT_TRUE(w1.session()->autosaver()->flush());
+  }
+  ASSERT_FALSE(QFile::exists(SessionLock::lockPath(path)));
+  const session::Session before = session::SessionStore(path.toStdString()).load();
+
+  QProcess holder;
+  QProcessEnvironment env = QProcessEnvironment::systemEnvironment();
+  env.insert("ST_TEST_HOLD_LOCK", path);
+  holder.setProcessEnvironment(env);
+  holder.start(QCoreApplication::applicationFilePath(), {"--gtest_filter=SessionLockHolder.*"});
+  ASSERT_TRUE(holder.waitForStarted(10000));
+  QByteArray said;
+  ASSERT_TRUE(test::waitFor(
+      [&] {
+        holder.waitForReadyRead(20);
+        said += holder.readAllStandardOutput();
+        return said.contains("locked\n");
+      },
+      20000))
+      << said.toStdString();
+  ASSERT_TRUE(SessionLock::holder(path).has_value());
+  const QString holderText = QString("synthtrack pid %1 on host %2").arg(holder.processId()).arg(QSysInfo::machineHostName());
+  ASSERT_EQ(SessionLock::holder(path)->describe(), holderText);
+
+  auto w2 = std::make_unique<MainWindow>(services(calls));
+  w2->resize(1366, 728);
+  w2->show();
+  w2->openSession(path);
+  ASSERT_TRUE(test::waitFor([&] { return w2->observation()->result() && idle(*w2); }));
+  ASSERT_TRUE(w2->session()->readOnly().has_value());
+  auto* banner = w2->findChild<QWidget*>("session.readOnlyBanner");
+  auto* bannerText = w2->findChild<QLabel*>("session.readOnlyText");
+  ASSERT_TRUE(banner && bannerText);
+  EXPECT_TRUE(banner->isVisible());
+  EXPECT_TRUE(bannerText->text().contains(holderText)) << bannerText->text().toStdString();
+  EXPECT_TRUE(sessionStatus(*w2).contains("read-only")) << sessionStatus(*w2).toStdString();
+  EXPECT_EQ(w2->observation()->candidateState(1)->label, session::Label::Real);  // shown as saved
+
+  w2->observation()->setCandidateLabel(0, session::Label::Artifact, session::ArtifactReason::Ghost);
+  EXPECT_GE(w2->session()->readOnly()->unsavedChanges, 1);
+  EXPECT_TRUE(bannerText->text().contains("unsaved change")) << bannerText->text().toStdString();
+  ASSERT_TRUE(w2->session()->autosaver()->flush());
+  EXPECT_EQ(session::SessionStore(path.toStdString()).load(), before);  // the other process's file, untouched
+  QTest::qWait(100);
+  QDir().mkpath("ui_screens");
+  w2->grab().save("ui_screens/session_read_only.png");
+
+  // Closing asks: Cancel keeps the window, Discard closes it.
+  auto question = answerMessageBox(QMessageBox::Cancel);
+  EXPECT_FALSE(w2->close());
+  EXPECT_TRUE(question->contains("change")) << question->toStdString();
+  EXPECT_TRUE(w2->isVisible());
+  answerMessageBox(QMessageBox::Discard);
+  EXPECT_TRUE(w2->close());
+  w2.reset();
+
+  // The holder is killed: its lock file stays, naming it, but the lock went with the process.
+  holder.kill();
+  ASSERT_TRUE(holder.waitForFinished(10000));
+  ASSERT_TRUE(QFile::exists(SessionLock::lockPath(path)));
+  Observation o3;
+  SessionController c3(&o3, {});
+  QString notice;
+  QObject::connect(&c3, &SessionController::notice, [&](const QString& text) { notice = text; });
+  c3.adopt(path, before.inputs, false, before.changes, {});
+  EXPECT_EQ(c3.path(), path);
+  EXPECT_FALSE(c3.readOnly().has_value());
+  EXPECT_TRUE(notice.contains("stale") && notice.contains(holderText)) << notice.toStdString();
+  EXPECT_EQ(SessionLock::holder(path)->describe(), SessionLock::self().describe());
 }
 
 TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {

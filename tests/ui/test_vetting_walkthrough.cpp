@@ -6,17 +6,20 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 
 #include <QAbstractItemView>
 #include <QHeaderView>
 #include <QComboBox>
 #include <QDir>
+#include <QFile>
 #include <QLabel>
 #include <QMessageBox>
 #include <QMouseEvent>
 #include <QTableView>
 #include <QTableWidget>
 #include <QTest>
+#include <qcustomplot.h>
 #include <QStatusBar>
 #include <QToolButton>
 
@@ -27,7 +30,12 @@
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
+#include "figure_dialog.hpp"
+#include "motion_vs_sky.hpp"
 #include "st/candidate/candidate_measurement.hpp"
+#include "st/io/wcs.hpp"
+#include "test_support.hpp"
 #include "ui_test_support.hpp"
 #include "velocity_map_widget.hpp"
 
@@ -164,6 +172,45 @@ TEST(VettingWalkthrough, TheWindowFitsA1366x768Screen) {
   EXPECT_LE(w->statusBar()->geometry().bottom(), w->height());
 }
 
+// Issue 18 §6: the first window fits a 1366 x 768 laptop screen (a 40 px taskbar), also with a long session
+// path in the status bar (a QLabel's minimum width was its whole text), and the status bar's warnings show.
+TEST(VettingWalkthrough, TheFirstWindowFitsA1366x768LaptopWithItsStatusBar) {
+  EXPECT_EQ(MainWindow::firstSize({1920, 1040}), QSize(1500, 940));
+  const QSize laptop(1366, 768 - 40);
+  const QSize first = MainWindow::firstSize(laptop);
+  EXPECT_LE(first.width() + 16, laptop.width());
+  EXPECT_LE(first.height() + 40, laptop.height());
+  auto w = searchedWindow();
+  test::TempDir dir;
+  const std::filesystem::path deep = dir / "a-rather-long-folder-name-for-the-night-of-2026-11-27" /
+                                     "and-another-one-for-the-field-and-the-filter";
+  std::filesystem::create_directories(deep);
+  const QString longPath = QString::fromStdString((deep / "paper-neo-500-frames.synthtrack-session.json").string());
+  w->session()->saveAs(longPath);
+  ASSERT_TRUE(test::waitFor([&] { return QFile::exists(longPath); }));
+  QCoreApplication::processEvents();
+  const QSize min = w->minimumSizeHint().expandedTo(w->minimumSize());
+  EXPECT_LE(min.width(), first.width()) << min.width() << " x " << min.height();
+  EXPECT_LE(min.height(), first.height()) << min.width() << " x " << min.height();
+  w->resize(first);
+  w->statusBar()->showMessage("⚠ a warning the status bar must show");
+  QTest::qWait(200);
+  EXPECT_EQ(w->size(), first);
+  const QRect bar = w->statusBar()->geometry();
+  EXPECT_LE(bar.bottom(), w->height() - 1);
+  EXPECT_GT(bar.height(), 10);
+  QLabel* sessionLabel = nullptr;
+  for (auto* label : w->statusBar()->findChildren<QLabel*>())
+    if (label->text().startsWith("Session")) sessionLabel = label;
+  ASSERT_TRUE(sessionLabel);
+  EXPECT_TRUE(sessionLabel->text().contains(longPath));  // whole in text() and the tooltip, elided on screen
+  EXPECT_TRUE(sessionLabel->toolTip().contains(longPath));
+  EXPECT_TRUE(sessionLabel->isVisible());
+  EXPECT_LE(sessionLabel->mapTo(w.get(), QPoint(sessionLabel->width(), 0)).x(), w->width());
+  QDir().mkpath("ui_screens");
+  w->grab().save("ui_screens/first_window_1350x688.png");
+}
+
 // Issue 18 §6: the table leads with what vetting needs (SNR, rate, PA, flags, label, the accepted fit's SNR)
 // and shows the motion relative to the stars, components and rate, in the unit chosen in the Search dock.
 TEST(VettingWalkthrough, TableLeadsWithSnrRateLabelAndFitAndShowsMotionRelativeToTheSky) {
@@ -250,6 +297,114 @@ TEST(VettingWalkthrough, TheVelocityMapReadoutDoesNotOutliveItsMap) {
   auto other = std::make_shared<const FrameCube>(test::movingDotCube(64, 48, 8, {1.0, 1.0}, 20, 20));
   w->observation()->setRaw(other, "another");
   EXPECT_TRUE(readout->text().isEmpty()) << readout->text().toStdString();
+}
+
+// Issue 18 §6, one velocity convention: the motion relative to the stars, in the unit chosen in the Search
+// dock, is the same number in the candidates table, on the velocity map's axes and readout, in the candidate
+// inspector's header, in the fit table and in the figure preset's caption (all through motion_vs_sky.hpp).
+TEST(VettingWalkthrough, OneVelocityConventionInTableMapInspectorFitAndCaption) {
+  FrameCube cube = test::movingDotCube(96, 64, 12, {6.0, -3.0}, 30, 40);
+  test::setTanWcs(cube.header, 150.0, 30.0, 48.5, 32.5, 1.0);
+  cube.wcs = Wcs::fromHeader(cube.header, nullptr);
+  cube.plateScaleArcsecPerPx = 1.0;
+  auto w = std::make_unique<MainWindow>(test::fakeServices(cube));
+  w->resize(1200, 760);
+  w->show();
+  w->openDemo();
+  ASSERT_TRUE(test::waitFor([&] { return w->observation()->prepared() && !w->jobs()->busy(); }));
+  Observation* obs = w->observation();
+  auto view = std::make_shared<PreparedView>(*obs->prepared());  // stars drifting: a sky rate that is not 0
+  auto filtered = std::make_shared<search::FilteredCube>(*view->filtered);
+  filtered->skyRate = {0.5, -0.25};
+  view->filtered = filtered;
+  obs->setPrepared(view);
+  w->searchPanel()->setGridPxS({6.0, -3.0}, 3.0, 0.5);
+  w->runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return obs->result() && !w->jobs()->busy(); }));
+  obs->setUnit(VelocityUnit::ArcsecPerMin);
+  ASSERT_TRUE(obs->plateScale().has_value());
+  const search::Candidate c = obs->result()->candidates[0];
+
+  // The table: (v - sky) in "/min (1"/px: 1 px/s = 60 "/min), and a position angle from the WCS.
+  const QAbstractItemModel* m = w->candidates()->filter()->sourceModel();
+  const double vx = m->index(0, CandidateModel::Vx).data(Qt::UserRole).toDouble();
+  const double vy = m->index(0, CandidateModel::Vy).data(Qt::UserRole).toDouble();
+  const double rate = m->index(0, CandidateModel::Rate).data(Qt::UserRole).toDouble();
+  EXPECT_NEAR(vx, (c.v.vx - 0.5) * 60.0, 1e-9);
+  EXPECT_NEAR(vy, (c.v.vy + 0.25) * 60.0, 1e-9);
+  const QString pa = m->index(0, CandidateModel::Pa).data().toString();
+  ASSERT_FALSE(pa.isEmpty());
+  const QString rateText = QString::number(rate, 'g', 4);
+
+  // The velocity map: axes relative to the sky in the same unit, the sky rate at the origin, the candidate
+  // where the table puts it.
+  VelocityMapWidget* map = w->velocityMap();
+  EXPECT_EQ(map->plot()->xAxis->label(), "vx vs sky [\"/min]");
+  EXPECT_EQ(map->plot()->yAxis->label(), "vy vs sky [\"/min]");
+  bool found = false;
+  for (int g = 0; g < map->plot()->graphCount(); ++g) {
+    QCPGraph* graph = map->plot()->graph(g);
+    if (graph->name() == "sky rate") {
+      ASSERT_EQ(graph->dataCount(), 1);
+      EXPECT_NEAR(graph->data()->at(0)->key, 0.0, 1e-12);
+      EXPECT_NEAR(graph->data()->at(0)->value, 0.0, 1e-12);
+    }
+    if (graph->name().startsWith("candidates"))
+      for (int i = 0; i < graph->dataCount(); ++i)
+        found |= std::abs(graph->data()->at(i)->key - vx) < 1e-9 && std::abs(graph->data()->at(i)->value - vy) < 1e-9;
+  }
+  EXPECT_TRUE(found) << "candidate 1 not at the table's (vx, vy) on the map";
+  // A click on the candidate's point selects its velocity back in px/s.
+  const Velocity back = map->velocityAtPlotPixel(map->plotPixelOf(c.v));
+  EXPECT_NEAR(back.vx, c.v.vx, 1e-9);
+  EXPECT_NEAR(back.vy, c.v.vy, 1e-9);
+
+  // The inspector's header and the fit panel's table say the same rate and PA.
+  obs->setSelected(0);
+  const QString header = w->candidateInspector()->titleText();
+  EXPECT_TRUE(header.contains("rate " + rateText + " \"/min vs sky, PA " + pa + "°")) << header.toStdString();
+  candidate::FitSummary fit;
+  fit.status = fit::FitStatus::Converged;
+  fit.x = c.x;
+  fit.y = c.y;
+  fit.v = c.v;
+  fit.snr = 12.25;
+  obs->setCandidateFit(0, fit);
+  obs->setSelected(std::nullopt);
+  obs->setSelected(0);
+  auto* table = w->fitPanel()->findChild<QTableWidget*>();
+  ASSERT_TRUE(table);
+  const auto valueOf = [&](const QString& name) {
+    for (int r = 0; r < table->rowCount(); ++r)
+      if (table->item(r, 0)->text() == name) return table->item(r, 1)->text();
+    return QString("(no row)");
+  };
+  EXPECT_EQ(valueOf("rate vs sky [\"/min]"), rateText);
+  EXPECT_EQ(valueOf("PA [deg] (east of north)"), pa);
+  EXPECT_EQ(valueOf("vx vs sky [\"/min]"), QString::number(vx, 'g', 4));
+  // The unit follows the Search dock: deg/day everywhere.
+  obs->setUnit(VelocityUnit::DegPerDay);
+  const QString rateDegDay = QString::number(m->index(0, CandidateModel::Rate).data(Qt::UserRole).toDouble(), 'g', 4);
+  EXPECT_EQ(valueOf("rate vs sky [deg/day]"), rateDegDay);
+  EXPECT_TRUE(w->candidateInspector()->titleText().contains("rate " + rateDegDay + " deg/day vs sky"));
+  EXPECT_EQ(map->plot()->xAxis->label(), "vx vs sky [deg/day]");
+
+  // The figure preset's caption.
+  FigureDialog* d = w->figureDialog();
+  d->refreshSources();
+  d->setSource(d->presetIndex());
+  d->setFigureSize({7.0, 0.0, 72});
+  test::TempDir dir;
+  const QString svg = QString::fromStdString((dir.path() / "preset.svg").string());
+  bool done = false;
+  QObject::connect(d, &FigureDialog::exportFinished, [&](const QString&, bool, const QString&) { done = true; });
+  ASSERT_TRUE(d->exportTo(svg)) << d->lastMessage().toStdString();
+  ASSERT_TRUE(test::waitFor([&] { return done; }));
+  QFile file(svg);
+  ASSERT_TRUE(file.open(QIODevice::ReadOnly));
+  const QString text = QString::fromUtf8(file.readAll());
+  EXPECT_TRUE(text.contains(rateDegDay)) << "the caption's rate";
+  EXPECT_TRUE(text.contains("deg/day vs sky"));
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

@@ -14,7 +14,7 @@
 #include <cmath>
 
 #include "candidate_vetting.hpp"
-#include "st/search/sky_motion.hpp"
+#include "motion_vs_sky.hpp"
 
 namespace st::ui {
 
@@ -107,19 +107,14 @@ QVariant CandidateModel::data(const QModelIndex& index, int role) const {
                 role == Qt::DecorationRole))
     return vettingData(*state, index.column(), role);
   const auto& c = m_obs->result()->candidates[static_cast<std::size_t>(index.row())];
-  const auto scale = m_obs->plateScale();
-  const auto unit = m_obs->unit();
   // The motion that matters to an astronomer is relative to the stars (the sky rate), as in the paper and
-  // the reports (rate_deg_day, pa_deg): components, rate and position angle.
-  const Velocity sky = m_obs->skyRate();
-  const Velocity rel{c.v.vx - sky.vx, c.v.vy - sky.vy};
-  const double vx = fromPxPerS(rel.vx, unit, scale);
-  const double vy = fromPxPerS(rel.vy, unit, scale);
-  const double rate = fromPxPerS(std::hypot(rel.vx, rel.vy), unit, scale);
-  const auto pa = [&]() -> std::optional<double> {
-    const auto& raw = m_obs->raw();
-    return raw ? search::skyMotion(*raw, c.x, c.y, rel).paDeg : std::nullopt;
-  };
+  // the reports (rate_deg_day, pa_deg): components, rate and position angle (motion_vs_sky.hpp, the GUI's one
+  // convention). The position angle needs a WCS call: only for its own column.
+  const Velocity rel = toShownVsSky(*m_obs, c.v);
+  const double vx = rel.vx;
+  const double vy = rel.vy;
+  const double rate = std::hypot(rel.vx, rel.vy);
+  const auto pa = [&]() -> std::optional<double> { return motionVsSky(*m_obs, c.x, c.y, c.v).paDeg; };
   if (role == Qt::UserRole) {  // sort key
     switch (index.column()) {
       case Index:
@@ -200,7 +195,7 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
     return QString("SNR of the accepted co-moving fit; empty without one");
   if (orientation != Qt::Horizontal || role != Qt::DisplayRole)
     return QAbstractTableModel::headerData(section, orientation, role);
-  const QString u = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
+  const QString u = unitLabel(shownUnit(*m_obs));
   switch (section) {
     case Index:
       return "#";

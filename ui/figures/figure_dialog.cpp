@@ -19,6 +19,7 @@
 #include <qcustomplot.h>
 
 #include "figure_preset.hpp"
+#include "motion_vs_sky.hpp"
 #include "st/common/error.hpp"
 #include "image_view.hpp"
 
@@ -285,6 +286,7 @@ std::function<ImageFigure()> FigureDialog::presetBuilder(QString& error) {
   o.compass = m_compass->isChecked() ? compassNear(c->x, c->y) : std::nullopt;
   o.units = m_units->text();
   o.candidateNumber = *obs->selected() + 1;
+  o.motion = describeMotion(motionVsSky(*obs, c->x, c->y, c->v));
   const Velocity sky = obs->skyRate();
   const QString title = m_title->text();
   const bool bar = m_colourBar->isChecked(), axes = m_axes->isChecked();

@@ -71,8 +71,8 @@ ImageFigure skyAndObjectFigure(const search::FilteredCube& cube, const search::C
   fig.title = QString("Synthetic tracking of candidate #%1 (SNR %2)")
                   .arg(options.candidateNumber)
                   .arg(c.snr, 0, 'f', 1);
-  QString onSky;
-  if (options.plateScaleArcsecPerPx && *options.plateScaleArcsecPerPx > 0)
+  QString onSky = options.motion.isEmpty() ? QString() : ", " + options.motion;
+  if (onSky.isEmpty() && options.plateScaleArcsecPerPx && *options.plateScaleArcsecPerPx > 0)
     onSky =
         QString(", %1 deg/day on the sky")
             .arg(pxPerSecToDegPerDay(std::hypot(rel.vx, rel.vy), *options.plateScaleArcsecPerPx), 0, 'f', 2);

@@ -20,6 +20,9 @@ struct SkyAndObjectOptions {
   std::optional<Compass> compass;
   QString units = "IPSA sum";
   int candidateNumber = 1;  ///< 1-based, for the caption
+  /// The object's motion as the GUI shows it (relative to the stars, in the Search dock's unit:
+  /// describeMotion() of motion_vs_sky.hpp), for the caption; empty: deg/day from the plate scale.
+  QString motion;
 };
 
 /// The figure for candidate `c` of `cube`: left, the IPSA stack at c.v; right, the IPSA stack at `skyRate`

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "job_runner.hpp"
+#include "motion_vs_sky.hpp"
 #include "stamp_strip.hpp"
 #include "st/fit/uncertainty.hpp"
 #include "st/stats/false_alarm.hpp"
@@ -33,6 +34,27 @@ namespace {
 QString num(double v, int precision = 4) {
   if (!std::isfinite(v)) return "—";
   return QString::number(v, 'g', precision);
+}
+
+/// The fitted motion relative to the stars in the Search dock's unit (motion_vs_sky.hpp, as the candidates
+/// table): rate, position angle and components with their noise-model sigmas (the sky rate is taken as
+/// exact). The fit's own parameters above stay in px/s, the unit it fits in.
+void appendMotionRows(QTableWidget* table, const Observation& obs, double x, double y, Velocity v,
+                      double sigmaVxPxS, double sigmaVyPxS) {
+  const MotionVsSky m = motionVsSky(obs, x, y, v);
+  const QString unit = unitLabel(m.unit);
+  const auto inUnit = [&](double pxPerS) { return fromPxPerS(pxPerS, m.unit, obs.plateScale()); };
+  const auto add = [table](const QString& name, const QString& value, const QString& sigma = {}) {
+    const int i = table->rowCount();
+    table->insertRow(i);
+    const QString cells[] = {name, value, sigma, {}, {}};
+    for (int c = 0; c < 5; ++c)
+      table->setItem(i, c, new QTableWidgetItem(cells[c]));
+  };
+  add("rate vs sky [" + unit + "]", num(m.rate));
+  add("PA [deg] (east of north)", m.paDeg ? QString::number(*m.paDeg, 'f', 1) : "— (no WCS)");
+  add("vx vs sky [" + unit + "]", num(m.vx), num(inUnit(sigmaVxPxS)));
+  add("vy vs sky [" + unit + "]", num(m.vy), num(inUnit(sigmaVyPxS)));
 }
 
 }  // namespace
@@ -118,6 +140,8 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   connect(m_obs, &Observation::selectionChanged, this, &FitPanel::showSelectedFit);
   connect(m_obs, &Observation::candidateStateChanged, this, &FitPanel::updateTitle);
   connect(m_obs, &Observation::preparedChanged, this, &FitPanel::updateTitle);
+  connect(m_obs, &Observation::unitChanged, this, &FitPanel::updateTitle);  // the motion is in that unit
+  connect(m_obs, &Observation::unitChanged, this, &FitPanel::showSelectedFit);
   updateTitle();
 }
 
@@ -141,12 +165,12 @@ void FitPanel::updateTitle() {
     const int index = *m_obs->selected();
     const auto& states = m_obs->candidateStates();
     const bool stored = index < static_cast<int>(states.size()) && states[index].fit.has_value();
-    text = QString("Candidate %1 selected: (%2, %3) px, v (%4, %5) px/s — ")
+    text = QString("Candidate %1 selected: SNR %2, %3, at (%4, %5) px — ")
                .arg(index + 1)
+               .arg(c->snr, 0, 'f', 1)
+               .arg(describeMotion(motionVsSky(*m_obs, c->x, c->y, c->v)))
                .arg(c->x)
-               .arg(c->y)
-               .arg(c->v.vx, 0, 'g', 4)
-               .arg(c->v.vy, 0, 'g', 4);
+               .arg(c->y);
     if (m_outcome && m_fittedIndex == index)
       text += stored && m_outcome->summary == *states[index].fit
                   ? "fit done and stored on the candidate."
@@ -217,12 +241,11 @@ void FitPanel::fitSelected() {
   }
   m_runningIndex = *m_obs->selected();
   updateTitle();
-  m_status->setText(QString("Fitting candidate %1 from (%2, %3) px, v (%4, %5) px/s…")
+  m_status->setText(QString("Fitting candidate %1 from (%2, %3) px, %4…")
                         .arg(m_runningIndex + 1)
                         .arg(c->x)
                         .arg(c->y)
-                        .arg(c->v.vx, 0, 'g', 4)
-                        .arg(c->v.vy, 0, 'g', 4));
+                        .arg(describeMotion(motionVsSky(*m_obs, c->x, c->y, c->v))));
   resetPlots();
   m_accept->setEnabled(false);
   m_fit->setEnabled(false);
@@ -323,6 +346,7 @@ void FitPanel::fillTable(const FitOutcome& out) {
       num(r.sigmaPosPaper) + " (eq:sig)");
   row("y [px] at t_ref", num(p.yc, 7), num(nm[fit::kYc]), num(h[fit::kYc]),
       num(r.sigmaPosPaper) + " (eq:sig)");
+  appendMotionRows(m_table, *m_obs, p.xc, p.yc, p.v, nm[fit::kVx], nm[fit::kVy]);
   row("α [counts/frame]", num(p.alpha), num(nm[fit::kAlpha]), num(h[fit::kAlpha]));
   row("I0 [counts]", num(p.i0), num(nm[fit::kI0]), num(h[fit::kI0]));
   row("σ_xy from SNR [px]", "", "", "", num(r.sigmaPosSnr) + " (cent_snr)");
@@ -367,6 +391,7 @@ void FitPanel::fillStoredTable(int index, const candidate::FitSummary& fit) {
   row("vy [px/s]", num(fit.v.vy, 6), num(s.vyPxS), num(s.velPaperPxS) + " (vel_snr)");
   row("x [px] at t_ref", num(fit.x, 7), num(s.xPx), num(s.posPaperPx) + " (eq:sig)");
   row("y [px] at t_ref", num(fit.y, 7), num(s.yPx), num(s.posPaperPx) + " (eq:sig)");
+  appendMotionRows(m_table, *m_obs, fit.x, fit.y, fit.v, s.vxPxS, s.vyPxS);
   row("photons / frame", num(fit.photonsPerFrame));
   row("SNR (detection_snr)", num(fit.snr));
   if (fit.segments) row("segments (K = 4)", fit.segments->flagged ? "flagged" : "consistent");

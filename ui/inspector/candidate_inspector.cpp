@@ -18,6 +18,7 @@
 #include <QtConcurrent>
 #include <exception>
 
+#include "motion_vs_sky.hpp"
 #include "stamp_strip.hpp"
 #include "st/common/error.hpp"
 
@@ -171,6 +172,7 @@ void CandidateInspector::connectSignals() {
   });
   connect(&m_watcher, &QFutureWatcher<Outcome>::finished, this, &CandidateInspector::onFinished);
   connect(m_obs, &Observation::selectionChanged, this, &CandidateInspector::refresh);
+  connect(m_obs, &Observation::unitChanged, this, &CandidateInspector::updateTitle);
   connect(m_obs, &Observation::resultChanged, this, [this] {
     m_shown.reset();
     m_shownIndex = -1;
@@ -190,6 +192,10 @@ CandidateInspector::~CandidateInspector() {
   if (m_cancel) m_cancel->cancel();
 }
 
+QString CandidateInspector::titleText() const {
+  return m_title->text();
+}
+
 QString CandidateInspector::statusText() const {
   return m_status->text();
 }
@@ -201,6 +207,18 @@ void CandidateInspector::refresh() {
     return;
   }
   start();
+}
+
+void CandidateInspector::updateTitle() {
+  const auto* c = m_obs->selectedCandidate();
+  if (!c) return;
+  // The motion relative to the stars, in the Search dock's unit, as the candidates table (motion_vs_sky.hpp).
+  m_title->setText(QString("Candidate %1: SNR %2, %3, at (%4, %5) px")
+                       .arg(*m_obs->selected() + 1)
+                       .arg(c->snr, 0, 'f', 1)
+                       .arg(describeMotionWithComponents(motionVsSky(*m_obs, c->x, c->y, c->v)))
+                       .arg(c->x)
+                       .arg(c->y));
 }
 
 void CandidateInspector::start() {
@@ -229,13 +247,7 @@ void CandidateInspector::start() {
     }
   }
   const int index = *m_obs->selected();
-  m_title->setText(QString("Candidate %1: (%2, %3) px, v (%4, %5) px/s, SNR %6")
-                       .arg(index + 1)
-                       .arg(c->x)
-                       .arg(c->y)
-                       .arg(c->v.vx, 0, 'g', 4)
-                       .arg(c->v.vy, 0, 'g', 4)
-                       .arg(c->snr, 0, 'f', 1));
+  updateTitle();
   m_status->setText("Inspecting…");
   m_clock.start();
   m_cancel = std::make_shared<CancelToken>();

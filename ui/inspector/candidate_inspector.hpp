@@ -62,6 +62,9 @@ class CandidateInspector : public QWidget {
   [[nodiscard]] bool busy() const { return m_pending; }
   [[nodiscard]] std::size_t knownObjectCount() const { return m_known ? m_known->size() : 0; }
   [[nodiscard]] QString statusText() const;
+  /// The header: the selected candidate's SNR, motion relative to the stars (in the Search dock's unit) and
+  /// position.
+  [[nodiscard]] QString titleText() const;
   [[nodiscard]] bool playing() const { return m_playTimer.isActive(); }
   /// Whether every inspection stores its flags on the candidate (Observation::setCandidateArtifacts, which
   /// the session saves; unchanged flags are not stored again). On by default (a setting); off, inspecting
@@ -90,6 +93,7 @@ class CandidateInspector : public QWidget {
   QGroupBox* buildFlagBox();
   void connectSignals();
   void start();
+  void updateTitle();
   void onFinished();
   void showInspection(const Inspection& in);
   bool storeFlags();

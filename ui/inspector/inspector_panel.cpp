@@ -10,6 +10,8 @@
 #include <QtConcurrent>
 #include <cmath>
 
+#include "motion_vs_sky.hpp"
+
 namespace st::ui {
 
 InspectorPanel::InspectorPanel(Observation* observation, StackScrubber* scrubber,
@@ -138,12 +140,11 @@ void InspectorPanel::requestStamps() {
   if (!cube || m_px < 0) return;
   m_scrubber->request(cube, m_obs->skyRate(), m_obs->stackMode(), kSkyTag);
   m_scrubber->request(cube, m_obs->velocity(), m_obs->stackMode(), kTrackTag);
-  const auto unit = m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS;
-  const Velocity v = m_obs->velocity();
-  m_trackLabel->setText(QString("tracking (%1, %2) %3")
-                            .arg(fromPxPerS(v.vx, unit, m_obs->plateScale()), 0, 'g', 3)
-                            .arg(fromPxPerS(v.vy, unit, m_obs->plateScale()), 0, 'g', 3)
-                            .arg(unitLabel(unit)));
+  const Velocity v = toShownVsSky(*m_obs, m_obs->velocity());  // as the table and the map (motion_vs_sky.hpp)
+  m_trackLabel->setText(QString("tracking (%1, %2) %3 vs sky")
+                            .arg(v.vx, 0, 'g', 3)
+                            .arg(v.vy, 0, 'g', 3)
+                            .arg(unitLabel(shownUnit(*m_obs))));
 }
 
 std::shared_ptr<const Image> InspectorPanel::cutout(const Image& full) const {

@@ -5,6 +5,8 @@
 #include <QCloseEvent>
 #include <QComboBox>
 #include <QDockWidget>
+#include <QGuiApplication>
+#include <QScreen>
 #include <QDragEnterEvent>
 #include <QFileDialog>
 #include <QFileInfo>
@@ -93,7 +95,8 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
           [this](const QString& message) { statusBar()->showMessage("Stack failed: " + message, 5000); });
 
   QSettings settings;
-  resize(1500, 940);
+  const QScreen* screen = QGuiApplication::primaryScreen();
+  resize(firstSize(screen ? screen->availableGeometry().size() : QSize()));
   restoreGeometry(settings.value("window/geometry").toByteArray());
   restoreState(settings.value("window/state").toByteArray());
   rebuildRecentMenu();
@@ -101,6 +104,15 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
 }
 
 MainWindow::~MainWindow() = default;
+
+QSize MainWindow::firstSize(const QSize& available) {
+  // The layout is made for 1500 x 940 (docks at 330 | central | 430, candidates 260 px high); on a smaller
+  // screen the window takes what the screen offers less a title bar and frame, the docks scroll (buildDocks).
+  constexpr QSize kPreferred(1500, 940);
+  constexpr QSize kFrame(16, 40);
+  if (!available.isValid() || available.isEmpty()) return kPreferred;
+  return kPreferred.boundedTo(available - kFrame);
+}
 
 QWidget* MainWindow::buildCentral() {
   auto* central = new QWidget(this);
@@ -351,6 +363,10 @@ void MainWindow::cancelFromKey() {
 }
 
 void MainWindow::closeEvent(QCloseEvent* event) {
+  if (!confirmCloseReadOnly()) {  // changes made in a read-only window are never dropped silently
+    event->ignore();
+    return;
+  }
   m_jobs->cancel();
   m_session->autosaver()->flush(5000);  // the last change reaches the disk before the window goes
   QSettings settings;

@@ -105,6 +105,10 @@ class MainWindow : public QMainWindow {
   ReportDialog* reportDialog();
   /// The "Injection recovery…" dialog (Run menu; made on first use).
   RecoveryDialog* recoveryDialog();
+  /// The window's size on a first start (no saved geometry) on a screen whose available area (without
+  /// taskbars) is `available`: 1500 x 940 where it fits, else that area less a title bar and frame (a
+  /// 1366 x 768 laptop with a 40 px taskbar: 1350 x 688). The minimum size stays below 1366 x 728.
+  [[nodiscard]] static QSize firstSize(const QSize& available);
   /// Latency (ms) of the last live stack shown in the central view, input to pixels.
   [[nodiscard]] double lastStackLatencyMs() const noexcept { return m_lastLatencyMs; }
 
@@ -139,6 +143,12 @@ class MainWindow : public QMainWindow {
   void showError(const QString& title, const QString& message);
   void buildSessionMenu(QMenu* file);
   void buildSession();
+  /// The banner above the image while the session is read-only (open in another window or process).
+  void buildReadOnlyBanner();
+  /// Asks for a file and saves the current state there (the way out of read-only); false when not saved.
+  bool saveSessionCopy();
+  /// Closing a read-only window with unsaved changes: asks to save a copy, discard or stay. True to close.
+  bool confirmCloseReadOnly();
   void applyOpenedSession(const OpenedSession& opened);
   void addRecentSession(const QString& path);
   void rebuildRecentSessionsMenu();
@@ -173,6 +183,7 @@ class MainWindow : public QMainWindow {
   QMenu* m_recentSessionsMenu = nullptr;
   SessionController* m_session = nullptr;
   QLabel* m_sessionLabel = nullptr;
+  QWidget* m_readOnlyBanner = nullptr;  ///< objectName "session.readOnlyBanner"
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   bool m_scripted = false;
   FigureDialog* m_figureDialog = nullptr;

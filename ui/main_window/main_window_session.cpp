@@ -2,6 +2,10 @@
 // New/Open session…, Save session as… and the recent sessions; reopening a session reloads and pre-processes
 // its inputs in a worker, then puts the saved result and vetting back without searching again.
 #include <QFileDialog>
+#include <QVBoxLayout>
+#include <QPushButton>
+#include <QHBoxLayout>
+#include <QFrame>
 #include <QFileInfo>
 #include <QLabel>
 #include <QMenu>
@@ -11,6 +15,7 @@
 #include <QTimer>
 #include <filesystem>
 
+#include "eliding_label.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "processing_panel.hpp"
@@ -63,26 +68,94 @@ void MainWindow::buildSession() {
       this);
   // The search panel's settings are part of the session: a change by hand is saved like a label.
   connect(m_search, &SearchPanel::settingsChanged, m_session, &SessionController::requestSave);
-  m_sessionLabel = new QLabel("Session: none", this);
+  // Elided in the middle where the window is narrow (a long path must not widen it past a laptop screen).
+  m_sessionLabel = new ElidingLabel("Session: none", 160, 520, this);
   connect(m_session, &SessionController::statusChanged, this,
           [this](const QString& text, const QString& tooltip, bool error) {
             m_sessionLabel->setText(text);
-            m_sessionLabel->setToolTip(tooltip);
+            m_sessionLabel->setToolTip(text + "\n" + tooltip);
             m_sessionLabel->setStyleSheet(error ? "color: #c00000; font-weight: bold" : QString());
           });
   connect(m_session, &SessionController::pathChanged, this, &MainWindow::addRecentSession);
+  buildReadOnlyBanner();
   connect(m_session, &SessionController::notice, this, [this](const QString& text) {
     // After the job's own message (a search reports its result just after setResult).
     QTimer::singleShot(0, this, [this, text] { statusBar()->showMessage(text, 20000); });
   });
   connect(m_session, &SessionController::saveFailed, this, [this](const QString& message) {
     statusBar()->showMessage(message, 15000);
-    if (m_scripted) return;
+    if (m_scripted || m_session->readOnly()) return;  // read-only: the banner says it, without a dialog
     auto* box = new QMessageBox(QMessageBox::Warning, "Session not saved", message, QMessageBox::Ok, this);
     box->setAttribute(Qt::WA_DeleteOnClose);
     box->setModal(false);  // the GUI goes on; the next change tries again
     box->show();
   });
+}
+
+void MainWindow::buildReadOnlyBanner() {
+  // Above the image, where it cannot be missed: this window shows a session another window writes.
+  m_readOnlyBanner = new QFrame(centralWidget());
+  m_readOnlyBanner->setObjectName("session.readOnlyBanner");
+  m_readOnlyBanner->setStyleSheet(
+      "#session\\.readOnlyBanner { background: #fff3c4; border-bottom: 1px solid #d4a000; } QLabel { color: #5a4200; }");
+  auto* text = new QLabel(m_readOnlyBanner);
+  text->setObjectName("session.readOnlyText");
+  text->setWordWrap(true);
+  auto* saveCopy = new QPushButton("Save a copy as…", m_readOnlyBanner);
+  saveCopy->setToolTip("Save this window's state, with the changes made here, to another session file "
+                       "(it is then saved there after every change)");
+  auto* row = new QHBoxLayout(m_readOnlyBanner);
+  row->setContentsMargins(8, 4, 8, 4);
+  row->addWidget(text, 1);
+  row->addWidget(saveCopy);
+  if (auto* layout = qobject_cast<QVBoxLayout*>(centralWidget()->layout())) layout->insertWidget(0, m_readOnlyBanner);
+  m_readOnlyBanner->hide();
+  connect(saveCopy, &QPushButton::clicked, this, &MainWindow::saveSessionCopy);
+  connect(m_session, &SessionController::readOnlyChanged, this, [this, text] {
+    const auto& ro = m_session->readOnly();
+    m_readOnlyBanner->setVisible(ro.has_value());
+    if (!ro) return;
+    QString line = QString("<b>Read-only:</b> this session is open in %1 (%2). Labels, notes and fits made "
+                           "here are not saved to it")
+                       .arg(ro->holder.toHtmlEscaped(), ro->path.toHtmlEscaped());
+    if (ro->unsavedChanges > 0)
+      line += QString(" — <b>%1 unsaved change%2</b>: save a copy to keep them")
+                  .arg(ro->unsavedChanges)
+                  .arg(ro->unsavedChanges == 1 ? "" : "s");
+    text->setText(line + ".");
+  });
+}
+
+bool MainWindow::saveSessionCopy() {
+  const QString suggested = freeSessionPath(m_session->readOnly() ? m_session->readOnly()->path : m_session->path());
+  const QString path = QFileDialog::getSaveFileName(this, "Save a copy of the session", suggested,
+                                                    "synthtrack sessions (*.json)");
+  if (path.isEmpty()) return false;
+  m_session->saveAs(path);
+  return !m_session->readOnly();
+}
+
+bool MainWindow::confirmCloseReadOnly() {
+  const auto& ro = m_session->readOnly();
+  if (m_scripted || !ro || ro->unsavedChanges == 0) return true;
+  QMessageBox box(QMessageBox::Warning, "Unsaved changes",
+                  QString("This window showed %1 read-only (it is open in %2). %3 change%4 made here "
+                          "(labels, notes, fits) are in no file.")
+                      .arg(ro->path, ro->holder)
+                      .arg(ro->unsavedChanges)
+                      .arg(ro->unsavedChanges == 1 ? " was" : "s were"),
+                  QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, this);
+  box.setObjectName("session.unsavedQuestion");
+  box.button(QMessageBox::Save)->setText("Save a copy as…");
+  box.setDefaultButton(QMessageBox::Save);
+  switch (box.exec()) {
+    case QMessageBox::Discard:
+      return true;
+    case QMessageBox::Save:
+      return saveSessionCopy();
+    default:
+      return false;
+  }
 }
 
 void MainWindow::buildSessionMenu(QMenu* file) {

@@ -6,6 +6,7 @@
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
 #include "main_window.hpp"
+#include "motion_vs_sky.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -99,13 +100,13 @@ void MainWindow::requestCentralStack() {
   if (!cube) return;
   const Velocity v = m_obs->velocity();
   m_scrubber->request(cube, v, m_obs->stackMode(), kCentralTag);
-  const auto unit = m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS;
-  m_view->setOverlayText(QString("%1 %2 stack at v = (%3, %4) %5")
+  const Velocity shown = toShownVsSky(*m_obs, v);  // relative to the stars, as the table and the map
+  m_view->setOverlayText(QString("%1 %2 stack at v = (%3, %4) %5 vs sky")
                              .arg(m_obs->stackMode() == search::StackMode::Ipsa ? "IPSA" : "CSA")
                              .arg(m_inspector->useUnfiltered() ? "unfiltered" : "filtered")
-                             .arg(fromPxPerS(v.vx, unit, m_obs->plateScale()), 0, 'g', 4)
-                             .arg(fromPxPerS(v.vy, unit, m_obs->plateScale()), 0, 'g', 4)
-                             .arg(unitLabel(unit)));
+                             .arg(shown.vx, 0, 'g', 4)
+                             .arg(shown.vy, 0, 'g', 4)
+                             .arg(unitLabel(shownUnit(*m_obs))));
 }
 
 void MainWindow::updateMarkers() {

@@ -18,6 +18,7 @@
 #include "processing_panel.hpp"
 #include "report_dialog.hpp"
 #include "search_panel.hpp"
+#include "session_controller.hpp"
 #include "st/common/error.hpp"
 #include "st/report/submission_settings.hpp"
 
@@ -165,6 +166,10 @@ void ScriptRunner::finish(bool ok, const QString& message) {
             good;
       if (m_window->lastStackLatencyMs() > 0)
         std::printf("live stack: %.0f ms from request to image\n", m_window->lastStackLatencyMs());
+      if (const auto& ro = m_window->session()->readOnly())  // a scripted run says what the banner says
+        std::printf("session read-only: %s is open in %s; %d change(s) made here are not saved\n",
+                    ro->path.toLocal8Bit().constData(), ro->holder.toLocal8Bit().constData(),
+                    ro->unsavedChanges);
       std::fflush(stdout);
       m_script.reset();
       m_window->setScripted(false);

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "image_render.hpp"
+#include "motion_vs_sky.hpp"
 
 namespace st::ui {
 
@@ -78,26 +79,29 @@ VelocityMapWidget::VelocityMapWidget(Observation* observation, QWidget* parent)
   connect(m_obs, &Observation::resultChanged, this, &VelocityMapWidget::rebuild);
   connect(m_obs, &Observation::gridChanged, this, &VelocityMapWidget::rebuild);
   connect(m_obs, &Observation::unitChanged, this, &VelocityMapWidget::rebuild);
-  connect(m_obs, &Observation::preparedChanged, this, &VelocityMapWidget::updateMarkers);
+  // The axes are relative to the sky rate, which pre-processing measures.
+  connect(m_obs, &Observation::preparedChanged, this, &VelocityMapWidget::rebuild);
   connect(m_obs, &Observation::candidatesShownChanged, this, &VelocityMapWidget::updateCandidates);
   connect(m_obs, &Observation::candidateStateChanged, this, &VelocityMapWidget::updateCandidates);
   connect(m_obs, &Observation::velocityChanged, this, &VelocityMapWidget::updateMarkers);
   rebuild();
 }
 
-double VelocityMapWidget::toUnit(double pxPerS) const {
-  return fromPxPerS(pxPerS, m_obs->unit(), m_obs->plateScale());
+QPointF VelocityMapWidget::toAxes(Velocity v) const {
+  const Velocity shown = toShownVsSky(*m_obs, v);
+  return {shown.vx, shown.vy};
 }
-double VelocityMapWidget::fromUnit(double value) const {
-  return toPxPerS(value, m_obs->unit(), m_obs->plateScale());
+Velocity VelocityMapWidget::fromAxes(QPointF p) const {
+  return fromShownVsSky(*m_obs, {p.x(), p.y()});
 }
 
 void VelocityMapWidget::rebuild() {
   // The readout described the map under the pointer: another observation, search or unit makes it stale.
   m_readout->clear();
-  const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
-  m_plot->xAxis->setLabel("vx [" + unit + "]");
-  m_plot->yAxis->setLabel("vy [" + unit + "]");
+  // Motion relative to the stars, as the candidates table (motion_vs_sky.hpp): the sky rate is the origin.
+  const QString unit = unitLabel(shownUnit(*m_obs));
+  m_plot->xAxis->setLabel("vx vs sky [" + unit + "]");
+  m_plot->yAxis->setLabel("vy vs sky [" + unit + "]");
   const auto& result = m_obs->result();
   // The last search's map stays (on its own grid) until a new search completes, also while the panel's grid
   // is being changed or a new search runs; before any search the panel's grid plane is shown for scrubbing.
@@ -108,7 +112,9 @@ void VelocityMapWidget::rebuild() {
     const Velocity lo = grid.at(0, 0);
     const Velocity hi = grid.at(grid.nvx - 1, grid.nvy - 1);
     m_map->data()->setSize(grid.nvx, grid.nvy);
-    m_map->data()->setRange(QCPRange(toUnit(lo.vx), toUnit(hi.vx)), QCPRange(toUnit(lo.vy), toUnit(hi.vy)));
+    const QPointF loAxes = toAxes(lo);
+    const QPointF hiAxes = toAxes(hi);
+    m_map->data()->setRange(QCPRange(loAxes.x(), hiAxes.x()), QCPRange(loAxes.y(), hiAxes.y()));
     const bool haveMap = haveResultMap;
     for (int iy = 0; iy < grid.nvy; ++iy)
       for (int ix = 0; ix < grid.nvx; ++ix)
@@ -117,8 +123,10 @@ void VelocityMapWidget::rebuild() {
     m_map->rescaleDataRange(true);
     m_hint->setVisible(!haveMap);
     const double half = 0.5 * grid.stepPxS;
-    m_plot->xAxis->setRange(toUnit(lo.vx - half), toUnit(hi.vx + half));
-    m_plot->yAxis->setRange(toUnit(lo.vy - half), toUnit(hi.vy + half));
+    const QPointF from = toAxes({lo.vx - half, lo.vy - half});
+    const QPointF to = toAxes({hi.vx + half, hi.vy + half});
+    m_plot->xAxis->setRange(from.x(), to.x());
+    m_plot->yAxis->setRange(from.y(), to.y());
     m_map->setVisible(true);
   } else {
     m_map->setVisible(false);
@@ -139,8 +147,9 @@ void VelocityMapWidget::updateCandidates() {
       if (!m_obs->candidateShown(index)) continue;
       const auto* state = m_obs->candidateState(index);
       const auto k = static_cast<std::size_t>(state ? state->label : session::Label::Unvetted);
-      cx[k].push_back(toUnit(result->candidates[i].v.vx));
-      cy[k].push_back(toUnit(result->candidates[i].v.vy));
+      const QPointF at = toAxes(result->candidates[i].v);
+      cx[k].push_back(at.x());
+      cy[k].push_back(at.y());
     }
   }
   for (std::size_t k = 0; k < m_candidates.size(); ++k)
@@ -149,16 +158,17 @@ void VelocityMapWidget::updateCandidates() {
 }
 
 void VelocityMapWidget::updateMarkers() {
-  const Velocity sky = m_obs->skyRate();
-  m_sky->setData({toUnit(sky.vx)}, {toUnit(sky.vy)});
-  const Velocity v = m_obs->velocity();
-  m_current->setData({toUnit(v.vx)}, {toUnit(v.vy)});
+  const QPointF sky = toAxes(m_obs->skyRate());  // the origin
+  m_sky->setData({sky.x()}, {sky.y()});
+  const QPointF v = toAxes(m_obs->velocity());
+  m_current->setData({v.x()}, {v.y()});
   m_plot->replot(QCustomPlot::rpQueuedReplot);
 }
 
 Velocity VelocityMapWidget::velocityAtPlotPixel(const QPointF& pos) const {
-  const double vx = fromUnit(m_plot->xAxis->pixelToCoord(pos.x()));
-  const double vy = fromUnit(m_plot->yAxis->pixelToCoord(pos.y()));
+  const Velocity at = fromAxes({m_plot->xAxis->pixelToCoord(pos.x()), m_plot->yAxis->pixelToCoord(pos.y())});
+  const double vx = at.vx;
+  const double vy = at.vy;
   const search::VelocityGrid& g = m_obs->grid();
   if (g.nvx <= 0 || g.nvy <= 0 || g.stepPxS <= 0) return {vx, vy};
   const auto snap = [&](double v, double c, int n) {
@@ -169,7 +179,8 @@ Velocity VelocityMapWidget::velocityAtPlotPixel(const QPointF& pos) const {
 }
 
 QPointF VelocityMapWidget::plotPixelOf(Velocity v) const {
-  return {m_plot->xAxis->coordToPixel(toUnit(v.vx)), m_plot->yAxis->coordToPixel(toUnit(v.vy))};
+  const QPointF at = toAxes(v);
+  return {m_plot->xAxis->coordToPixel(at.x()), m_plot->yAxis->coordToPixel(at.y())};
 }
 
 void VelocityMapWidget::onMouse(QMouseEvent* event, bool press) {
@@ -188,9 +199,17 @@ void VelocityMapWidget::onMouse(QMouseEvent* event, bool press) {
                 .arg(result->map.argY[k]);
     }
   }
-  const QString unit = unitLabel(m_obs->plateScale() ? m_obs->unit() : VelocityUnit::PxPerS);
-  m_readout->setText(
-      QString("v = (%1, %2) %3%4").arg(toUnit(v.vx), 0, 'g', 4).arg(toUnit(v.vy), 0, 'g', 4).arg(unit, snr));
+  // The motion under the pointer as the table shows it; the PA where the map's best pixel is (or the middle).
+  double px = m_obs->raw() ? 0.5 * (m_obs->raw()->width() - 1) : 0.0;
+  double py = m_obs->raw() ? 0.5 * (m_obs->raw()->height() - 1) : 0.0;
+  if (!snr.isEmpty()) {
+    const int ix = static_cast<int>(std::lround((v.vx - g.centre.vx) / g.stepPxS + 0.5 * (g.nvx - 1)));
+    const int iy = static_cast<int>(std::lround((v.vy - g.centre.vy) / g.stepPxS + 0.5 * (g.nvy - 1)));
+    const std::size_t k = static_cast<std::size_t>(iy) * g.nvx + ix;
+    px = result->map.argX[k];
+    py = result->map.argY[k];
+  }
+  m_readout->setText(describeMotionWithComponents(motionVsSky(*m_obs, px, py, v)) + snr);
   if (press || (event->buttons() & Qt::LeftButton)) {
     setFocus();
     m_obs->setVelocity(v);

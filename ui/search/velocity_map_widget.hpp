@@ -1,6 +1,6 @@
 #pragma once
 // Velocity space: the search's velocity map (max SNR over pixels per grid velocity) as a heatmap with a
-// colour scale, axes in the chosen unit, candidates (circles), the sky rate (cross) and the current
+// colour scale, axes relative to the sky rate in the chosen unit (the sky rate is the origin), candidates (circles), the sky rate (cross) and the current
 // velocity (crosshair). Click or drag to scrub; arrow keys step one grid cell; a readout shows velocity and
 // SNR under the cursor. Before a search it shows the empty grid plane, so scrubbing works already.
 #include <QWidget>
@@ -39,8 +39,9 @@ class VelocityMapWidget : public QWidget {
   /// The candidates' circles: the ones the table shows, coloured by label.
   void updateCandidates();
   void onMouse(QMouseEvent* event, bool press);
-  [[nodiscard]] double toUnit(double pxPerS) const;
-  [[nodiscard]] double fromUnit(double value) const;
+  /// A velocity (px/s) to the axes (relative to the sky rate, in the shown unit; motion_vs_sky.hpp) and back.
+  [[nodiscard]] QPointF toAxes(Velocity v) const;
+  [[nodiscard]] Velocity fromAxes(QPointF p) const;
 
   Observation* m_obs;
   QCustomPlot* m_plot = nullptr;

@@ -93,6 +93,11 @@ SessionController::SessionController(Observation* observation, std::function<Ses
                       &Observation::selectionChanged, &Observation::unitChanged})
     connect(m_obs, signal, this, &SessionController::requestSave);
   connect(m_obs, &Observation::candidateStateChanged, this, &SessionController::requestSave);
+  connect(m_obs, &Observation::candidateStateChanged, this, [this] {
+    if (!m_readOnly || m_suspended) return;
+    ++m_readOnly->unsavedChanges;  // a label, note or fit that this read-only window cannot save
+    emit readOnlyChanged();
+  });
 }
 
 SessionController::~SessionController() {
@@ -131,15 +136,27 @@ void SessionController::saveAs(const QString& path) {
 bool SessionController::setPath(const QString& path, std::int64_t changes) {
   m_failing = false;
   if (!m_lock.acquire(path)) {
+    // Open in another window or process: read-only here, said by the window's banner and the status bar.
     m_path.clear();
+    const auto holder = SessionLock::holder(path);
+    m_readOnly = ReadOnly{path, holder ? holder->describe() : QString("an unknown process"), 0};
     const QString text =
-        "Session " + path +
-        " is open in another synthtrack window or process: changes made here are NOT saved to it "
-        "(File > Save session as… saves them elsewhere)";
-    emit statusChanged("Session NOT saved: " + path + " is open elsewhere", text, true);
+        "Session " + path + " is open in another synthtrack window or process (" + m_readOnly->holder +
+        "): it is shown here read-only, and changes made here are NOT saved to it (File > Save session as… "
+        "saves them elsewhere)";
+    emit statusChanged("Session read-only: " + path + " is open elsewhere", text, true);
+    emit readOnlyChanged();
     emit saveFailed(text);
     return false;
   }
+  if (m_readOnly) {
+    m_readOnly.reset();
+    emit readOnlyChanged();
+  }
+  if (const auto& stale = m_lock.staleHolder(); stale && !(stale->pid == SessionLock::self().pid &&
+                                                           stale->host == SessionLock::self().host))
+    emit notice("A stale lock on " + path + " (left by " + stale->describe() +
+                ", which ended without releasing it) was taken over");
   m_path = path;
   m_saver->setChangeCount(path, changes);
   emit pathChanged(path);

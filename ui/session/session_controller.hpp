@@ -77,6 +77,15 @@ class SessionController : public QObject {
   /// The session as it would be saved now.
   [[nodiscard]] session::Session currentSession() const;
 
+  /// A session file opened while another window or process holds its lock (SessionLock): shown, not saved.
+  struct ReadOnly {
+    QString path;           ///< the file, as it was asked for
+    QString holder;         ///< who holds it: "synthtrack pid 1234 on host node7" (SessionLock::Holder)
+    int unsavedChanges = 0; ///< labels, notes, fits and flags changed here since, which no file has
+  };
+  /// Set while the window shows a session read-only (the main window's banner); empty otherwise.
+  [[nodiscard]] const std::optional<ReadOnly>& readOnly() const noexcept { return m_readOnly; }
+
  signals:
   /// Text for the status bar: the path and the state of the last save; `error` for a failed save.
   void statusChanged(const QString& text, const QString& tooltip, bool error);
@@ -86,6 +95,8 @@ class SessionController : public QObject {
   void notice(const QString& text);
   /// A save failed for the first time after a success (the message names the path).
   void saveFailed(const QString& message);
+  /// readOnly() changed: entered, left (another file, Save as…), or one more unsaved change.
+  void readOnlyChanged();
 
  private:
   /// Starts the session prepared by prepareNew() (path, inputs, change count).
@@ -103,6 +114,7 @@ class SessionController : public QObject {
   SessionAutosaver* m_saver;
   SessionLock m_lock;
   QString m_path;
+  std::optional<ReadOnly> m_readOnly;
   std::vector<std::string> m_inputs;
   bool m_demo = false;
   bool m_demoAutosave = false;  ///< the file is the demo's autosave in the application's folder
