@@ -128,6 +128,15 @@ TEST(RegistrationReal, Lowell5945DitheredAndRepointedIsFoundAsUndithered) {
   const auto& drift = still.registration.position;
   ASSERT_EQ(pos.size(), dithers.size());
   ASSERT_EQ(drift.size(), dithers.size());
+  double worst = 0.0, sum2 = 0.0;
+  for (std::size_t n = 0; n < dithers.size(); ++n) {
+    const double ex = pos[n].x - dithers[n].first - drift[n].x, ey = pos[n].y - dithers[n].second - drift[n].y;
+    worst = std::max(worst, std::hypot(ex, ey));
+    sum2 += ex * ex + ey * ey;
+    std::printf("frame %2zu: dither (%3d, %3d) measured - dither - drift (%+.3f, %+.3f) px\n", n, dithers[n].first,
+                dithers[n].second, ex, ey);
+  }
+  std::printf("registration error: rms %.3f px, max %.3f px\n", std::sqrt(sum2 / dithers.size()), worst);
   for (std::size_t n = 0; n < dithers.size(); ++n) {
     EXPECT_NEAR(pos[n].x - dithers[n].first, drift[n].x, 0.3) << "frame " << n;
     EXPECT_NEAR(pos[n].y - dithers[n].second, drift[n].y, 0.3) << "frame " << n;
