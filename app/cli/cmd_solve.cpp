@@ -68,6 +68,10 @@ nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load, co
     for (const auto& p : points)
       diffs.push_back(separationArcsec(headerWcs->pixelToSky(p[0], p[1]), s.wcs->pixelToSky(p[0], p[1])));
     j["header_wcs_diff_arcsec"] = {{"centre", diffs[0]}, {"corners", {diffs[1], diffs[2], diffs[3], diffs[4]}}};
+    // Where the solution's centre lies in the header WCS's pixels, relative to the centre (px).
+    const Wcs::Sky c = s.wcs->pixelToSky(0.5 * w, 0.5 * h);
+    const auto [hx, hy] = headerWcs->skyToPixel(c.raDeg, c.decDeg);
+    j["header_wcs_centre_offset_px"] = {hx - 0.5 * w, hy - 0.5 * h};
   }
   if (const auto dir = cli.value("wcs-dir")) {
     std::filesystem::create_directories(*dir);
@@ -114,6 +118,8 @@ int cmdSolve(const Args& args) {
       std::printf("  header WCS vs solution: %.3f arcsec at the centre; corners %.3f %.3f %.3f %.3f arcsec\n",
                   d["centre"].get<double>(), d["corners"][0].get<double>(), d["corners"][1].get<double>(),
                   d["corners"][2].get<double>(), d["corners"][3].get<double>());
+      std::printf("  the solution's centre in the header WCS's pixels: (%+.3f, %+.3f) px from the centre\n",
+                  j["header_wcs_centre_offset_px"][0].get<double>(), j["header_wcs_centre_offset_px"][1].get<double>());
     }
     if (j.contains("wcs_file")) std::printf("  wrote %s\n", j["wcs_file"].get<std::string>().c_str());
     if (j.contains("work_dir")) std::printf("  solve-field's files: %s\n", j["work_dir"].get<std::string>().c_str());

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include "st/common/error.hpp"
 #include "st/io/wcs.hpp"
@@ -26,6 +27,43 @@ std::vector<io::XyStar> firstFrameStars(const std::vector<detect::Star>& stars, 
   }
   return out;
 }
+
+namespace {
+
+/// The centre of a bright star's core: the unweighted mean position of the pixels at or above half its peak
+/// (above the median of the box's edge), connected or not, within a (2 kHalf + 1)^2 box. For saturated
+/// stars this is the middle of the clipped plateau, which the charge trailed faintly along the serial
+/// register (CTI) does not pull as it pulls a flux-weighted centroid.
+void coreCentroid(const Image& image, io::XyStar& s) {
+  constexpr int kHalf = 12;
+  const int cx = static_cast<int>(std::lround(s.x)), cy = static_cast<int>(std::lround(s.y));
+  if (cx < kHalf || cy < kHalf || cx >= image.width - kHalf || cy >= image.height - kHalf) return;
+  std::vector<float> edge;
+  float peak = -std::numeric_limits<float>::infinity();
+  for (int dy = -kHalf; dy <= kHalf; ++dy)
+    for (int dx = -kHalf; dx <= kHalf; ++dx) {
+      const float v = image.at(cx + dx, cy + dy);
+      if (std::abs(dx) == kHalf || std::abs(dy) == kHalf) edge.push_back(v);
+      if (std::abs(dx) <= 3 && std::abs(dy) <= 3) peak = std::max(peak, v);
+    }
+  std::nth_element(edge.begin(), edge.begin() + edge.size() / 2, edge.end());
+  const double bkg = edge[edge.size() / 2];
+  const double half = bkg + 0.5 * (peak - bkg);
+  double n = 0.0, sx = 0.0, sy = 0.0;
+  for (int dy = -kHalf + 1; dy < kHalf; ++dy)
+    for (int dx = -kHalf + 1; dx < kHalf; ++dx)
+      if (image.at(cx + dx, cy + dy) >= half) {
+        n += 1.0;
+        sx += cx + dx;
+        sy += cy + dy;
+      }
+  if (n >= 1.0 && std::hypot(sx / n - s.x, sy / n - s.y) < 3.0) {
+    s.x = sx / n;
+    s.y = sy / n;
+  }
+}
+
+}  // namespace
 
 std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress, CancelToken& cancel) {
   if (cube.empty()) throw InputError("plate solving: the cube has no frames");
@@ -51,6 +89,9 @@ std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress
   for (const auto& s : found.stars)
     out.push_back(io::XyStar{s.x, s.y, s.flux});
   std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
+  const Image image = one.frameImage(0);
+  for (std::size_t i = 0; i < std::min<std::size_t>(out.size(), 50); ++i)
+    if (found.stars.size() > 0) coreCentroid(image, out[i]);
   return out;
 }
 
