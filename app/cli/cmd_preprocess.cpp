@@ -10,6 +10,8 @@
 #include "cli_args.hpp"
 #include "commands.hpp"
 #include "observation_pipeline.hpp"
+#include "plate_solve_args.hpp"
+#include "st/pipeline/plate_solve_stage.hpp"
 #include "load_args.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
@@ -74,13 +76,16 @@ const char* kHelp =
     "                          within the cgroup's limit); the peak is estimated and printed first, and an\n"
     "                          input that does not fit stops with exit 1 before any pixel is read\n"
     "  (with --crop, the calibration frames are cropped alike)\n"
+    "  --plate-solve           when the frames have no WCS, plate-solve the star catalogue with\n"
+    "                          astrometry.net (see the plate-solving options below) and write the WCS\n"
+    "                          into every output, so that RA/Dec, the compass and ADES work\n"
     "  --json                  print the sidecar to stdout as well\n";
 
 }  // namespace
 
 int cmdPreprocess(const Args& args) {
   if (!args.empty() && args[0] == "--help") {
-    std::printf("%s%s%s", kHelp, calibOptionsHelp(), loadOptionsHelp());
+    std::printf("%s%s%s%s", kHelp, calibOptionsHelp(), loadOptionsHelp(), plateSolveOptionsHelp());
     return 0;
   }
   auto names = loadOptionNames();
@@ -88,8 +93,12 @@ int cmdPreprocess(const Args& args) {
        {"o", "bias", "flat", "dark", "sky-rate-px-s", "fwhm", "psf-star", "filtered", "background",
         "memory-limit"})
     names.insert(n);
+  for (const auto& n : plateSolveOptionNames())
+    names.insert(n);
   auto flags = calibFlagNames();
-  flags.insert({"no-cosmic-rays", "register", "no-register", "json"});
+  flags.insert({"no-cosmic-rays", "register", "no-register", "json", "plate-solve"});
+  for (const auto& f : plateSolveFlagNames())
+    flags.insert(f);
   const CliArgs cli(args, names, flags);
   if (cli.positionals().empty()) throw UsageError("give at least one INPUT (a FITS file or a folder)");
   const auto out = cli.value("o");
@@ -151,6 +160,14 @@ int cmdPreprocess(const Args& args) {
   {
     SubProgress sub(progress, 0.2, 0.95);
     prepared = pipeline::preprocess(std::move(cube), params, sub, cancel);
+  }
+  if (cli.flag("plate-solve")) {
+    if (prepared.frames.wcs) {
+      prepared.notes.push_back("the frames have a WCS: not plate-solved");
+    } else {
+      SubProgress sub(progress, 0.95, 0.99);
+      pipeline::plateSolvePrepared(prepared, plateSolveParamsFromArgs(cli), sub, cancel);
+    }
   }
   using pipeline::PreparedState;
   io::writeCube(*out, prepared.frames, pipeline::preparedCubeCards(prepared, PreparedState::ZeroBiased));

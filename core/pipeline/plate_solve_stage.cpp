@@ -109,6 +109,11 @@ astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSo
                                         ProgressSink& progress, CancelToken& cancel) {
   const std::vector<io::XyStar> stars = firstFrameStars(prepared.stars, prepared.frames, prepared.skyRate);
   astro::PlateSolution solution = plateSolveCube(prepared.frames, stars, params, progress, cancel);
+  // The matched-filtered cube has the same pixels: it carries the same WCS (as preprocess copies a header's).
+  if (!prepared.filtered.frames.empty()) {
+    prepared.filtered.frames.wcs = prepared.frames.wcs;
+    prepared.filtered.frames.plateScaleArcsecPerPx = prepared.frames.plateScaleArcsecPerPx;
+  }
   prepared.notes.push_back("WCS " + describeSolution(solution));
   return solution;
 }

@@ -32,7 +32,8 @@ astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XySta
                                     astro::PlateSolveParams params, ProgressSink& progress, CancelToken& cancel);
 
 /// plateSolveCube on a pre-processed cube from its static-source catalogue (prepared.stars at
-/// prepared.skyRate); a note saying what was solved is appended to prepared.notes.
+/// prepared.skyRate); prepared.filtered.frames gets the same WCS; a note saying what was solved is appended to
+/// prepared.notes.
 astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSolveParams& params,
                                         ProgressSink& progress, CancelToken& cancel);
 
