@@ -1,10 +1,13 @@
-// Sessions in the main window (issue 8 §6): label, note, fit and flags autosave beside the inputs; a new
-// window that opens the file gets the identical state (result, grid, velocity map, vetting, selection, the
-// pre-processing parameters) without searching again; later changes keep saving to it; a corrupted or newer
-// file gets a dialog naming the problem and the backup copy, and nothing is overwritten.
+// Sessions in the main window (issue 8 §6): label, note, fit and flags autosave to the per-user sessions
+// folder (issue 18 §6: not beside the frames); a new window that opens the file gets the identical state
+// (result, grid, velocity map, vetting, selection, the pre-processing parameters) without searching again;
+// later changes keep saving to it; a corrupted or newer file gets a dialog naming the problem and the backup
+// copy, and nothing is overwritten.
 #include <gtest/gtest.h>
 
 #include <QFile>
+#include <QFileInfo>
+#include <QRegularExpression>
 #include <cstdio>
 #include <QDir>
 #include <QSysInfo>
@@ -155,7 +158,9 @@ TEST(Session, AutosavedStateReopensIdenticallyWithoutSearching) {
   Observation* o1 = w1.observation();
   ASSERT_GE(o1->result()->candidates.size(), 3u);
   const QString path = w1.session()->path();
-  EXPECT_EQ(path.toStdString(), (dir / "obs.synthtrack-session.json").string());
+  // In the per-user sessions folder, not beside the frames (issue 18 §6).
+  EXPECT_EQ(path, defaultSessionPath({input}, false));
+  EXPECT_TRUE(path.startsWith(sessionFolder())) << path.toStdString();
 
   // Vetting by keyboard, a note, an accepted fit and artifact flags.
   QTableView* table = w1.candidates()->table();
@@ -279,7 +284,7 @@ TEST(Session, SaveAsMovesTheAutosaveAndAFailedSaveNamesThePath) {
   w.openInputs({QString::fromStdString(input)});
   ASSERT_TRUE(test::waitFor([&] { return w.session()->path() != earlier && idle(w); }));
   ASSERT_TRUE(w.session()->autosaver()->flush());
-  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(w.session()->path(), QString(earlier).replace(".json", "-2.json"));
   EXPECT_EQ(session::SessionStore(earlier.toStdString()).load().changes, earlierChanges);
   EXPECT_TRUE(test::waitFor([&] { return w.statusBar()->currentMessage().contains(earlier); }, 2000))
       << w.statusBar()->currentMessage().toStdString();
@@ -360,7 +365,7 @@ TEST(Session, ANewSearchNeverOverwritesVettedCandidates) {
   w.runSearch();
   ASSERT_TRUE(test::waitFor([&] { return idle(w); }));
   ASSERT_TRUE(w.session()->autosaver()->flush());
-  EXPECT_EQ(w.session()->path().toStdString(), (dir / "obs.synthtrack-session-2.json").string());
+  EXPECT_EQ(w.session()->path(), QString(first).replace(".json", "-2.json"));
   EXPECT_EQ(session::SessionStore(first.toStdString()).load().candidates[0].label, session::Label::Real);
   EXPECT_EQ(session::SessionStore(w.session()->path().toStdString()).load().candidates[0].label,
             session::Label::Unvetted);
@@ -506,26 +511,47 @@ TEST(Session, ASessionOpenInAnotherProcessOpensReadOnlyWithABannerAndNothingIsLo
   EXPECT_EQ(SessionLock::holder(path)->describe(), SessionLock::self().describe());
 }
 
-TEST(Session, NewAnalysesNeverOverwriteASessionAndTheDemoGoesToAppData) {
+// Issue 18 §6: sessions are not written into the data folder (shared or archived frames) but into a per-user
+// folder, named after the input and a hash of the inputs' paths; a session written beside the frames before
+// is still offered when the inputs are opened again; a new analysis never overwrites a session.
+TEST(Session, NewAnalysesGoToTheSessionsFolderNeverOverwriteAndOldSessionsBesideTheFramesAreOffered) {
   test::TempDir dir;
   const std::vector<std::string> inputs = {(dir / "frames.fits.fz").string()};
-  const QString first = defaultSessionPath(inputs, false);
-  EXPECT_EQ(first.toStdString(), (dir / "frames.synthtrack-session.json").string());
+  const QString folder = QString::fromStdString((dir / "sessions").string());
+  const QString first = defaultSessionPath(inputs, false, folder);
+  static const QRegularExpression name("^frames-[0-9a-f]{8}\\.synthtrack-session\\.json$");
+  EXPECT_TRUE(name.match(QFileInfo(first).fileName()).hasMatch()) << first.toStdString();
+  EXPECT_EQ(QFileInfo(first).absolutePath(), folder);
+  EXPECT_EQ(defaultSessionPath(inputs, false, folder), first);  // the same inputs, the same file
+  std::filesystem::create_directory(dir / "night2");
+  EXPECT_NE(defaultSessionPath({(dir / "night2" / "frames.fits.fz").string()}, false, folder), first)
+      << "two observations of the same name share a session file";
   std::ofstream(first.toStdString()) << "{}";
-  EXPECT_EQ(freeSessionPath(first).toStdString(), (dir / "frames.synthtrack-session-2.json").string());
+  EXPECT_EQ(freeSessionPath(first), QString(first).replace(".json", "-2.json"));
   const QString demo = defaultSessionPath({}, true);
   EXPECT_TRUE(demo.startsWith(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)))
       << demo.toStdString();
-  // A folder that cannot be written to sends the session to the fallback folder (not testable as root).
-  if (geteuid() != 0) {
-    std::filesystem::create_directory(dir / "ro");
-    std::filesystem::permissions(dir / "ro",
-                                 std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
-    const QString fallback = defaultSessionPath({(dir / "ro" / "a.fits").string()}, false,
-                                                QString::fromStdString((dir / "fb").string()));
-    EXPECT_EQ(fallback.toStdString(), (dir / "fb" / "a.synthtrack-session.json").string());
-    std::filesystem::permissions(dir / "ro", std::filesystem::perms::owner_all);
-  }
+  EXPECT_TRUE(defaultSessionPath(inputs, false).startsWith(sessionFolder()));
+
+  // A session beside the frames, from before: the new analysis is saved in the sessions folder and the
+  // status bar points at the old one (File > Open session… opens it as any session).
+  const QString legacy = legacySessionPath(inputs);
+  EXPECT_EQ(legacy.toStdString(), (dir / "frames.synthtrack-session.json").string());
+  std::ofstream(legacy.toStdString()) << "{}";
+  Observation obs;
+  SessionController controller(&obs, {});
+  QString notice;
+  QObject::connect(&controller, &SessionController::notice, [&](const QString& text) { notice = text; });
+  controller.prepareNew(inputs, false);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1)), "frames");
+  EXPECT_EQ(controller.path(), defaultSessionPath(inputs, false));
+  EXPECT_TRUE(notice.contains(legacy)) << notice.toStdString();
+  ASSERT_TRUE(controller.autosaver()->flush());
+  EXPECT_EQ(std::filesystem::file_size(legacy.toStdString()), 2u);  // never written over
+  int besideFrames = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path()))
+    besideFrames += entry.path().filename().string().find("synthtrack-session") != std::string::npos;
+  EXPECT_EQ(besideFrames, 1) << "only the old session is in the data folder";
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

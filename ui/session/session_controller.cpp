@@ -1,5 +1,6 @@
 #include "session_controller.hpp"
 
+#include <QCryptographicHash>
 #include <QDir>
 #include <QFile>
 #include <QFileInfo>
@@ -25,24 +26,29 @@ QString baseName(const QFileInfo& info) {
 
 }  // namespace
 
-QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo, const QString& fallbackDir) {
-  QString fallback = fallbackDir;
-  if (fallback.isEmpty())
-    fallback = QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + "/sessions";
-  if (demo || inputs.empty()) {
-    QDir().mkpath(fallback);
-    return QDir(fallback).filePath(QString("demo") + kSuffix);
-  }
+QString sessionFolder(const QString& folder) {
+  return folder.isEmpty() ? QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + "/sessions"
+                          : folder;
+}
+
+QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo, const QString& folder) {
+  const QString sessions = sessionFolder(folder);
+  QDir().mkpath(sessions);
+  if (demo || inputs.empty()) return QDir(sessions).filePath(QString("demo") + kSuffix);
+  // NAME-HASH: the name for a person, the hash of the inputs' absolute paths so that two observations of
+  // the same name (night1/obs.fits, night2/obs.fits) never share a file.
+  QCryptographicHash hash(QCryptographicHash::Sha1);
+  for (const auto& in : inputs)
+    hash.addData(QFileInfo(QString::fromStdString(in)).absoluteFilePath().toUtf8().append('\n'));
+  const QString tag = QString::fromLatin1(hash.result().toHex().left(8));
+  return QDir(sessions).filePath(baseName(QFileInfo(QString::fromStdString(inputs.front()))) + "-" + tag +
+                                 kSuffix);
+}
+
+QString legacySessionPath(const std::vector<std::string>& inputs) {
+  if (inputs.empty()) return {};
   const QFileInfo first(QString::fromStdString(inputs.front()));
-  const QString name = baseName(first) + kSuffix;
-  const QFileInfo dir(first.absolutePath());
-  // A folder without any write permission bit is read-only data (shared or archived frames): the session
-  // goes to the fallback even where the user could write there anyway (root ignores the bits).
-  constexpr auto kWriteBits = QFileDevice::WriteOwner | QFileDevice::WriteGroup | QFileDevice::WriteOther;
-  if (dir.isDir() && dir.isWritable() && (dir.permissions() & kWriteBits))
-    return QDir(first.absolutePath()).filePath(name);
-  QDir().mkpath(fallback);
-  return QDir(fallback).filePath(name);
+  return QDir(first.absolutePath()).filePath(baseName(first) + kSuffix);
 }
 
 QString freeSessionPath(const QString& path) {
@@ -170,8 +176,13 @@ void SessionController::startNext() {
   m_demo = next.demo;
   const QString preferred = next.path.isEmpty() ? defaultSessionPath(m_inputs, m_demo) : next.path;
   const QString path = freeSessionPath(preferred);
+  // A session of these inputs from before sessions moved out of the data folder is still offered.
+  const QString legacy = next.path.isEmpty() && !m_demo ? legacySessionPath(m_inputs) : QString();
   if (path != preferred)
     emit notice("An earlier session of this observation is kept in " + preferred +
+                " (File > Open session… resumes it); this one is saved to " + path);
+  else if (!legacy.isEmpty() && QFileInfo::exists(legacy))
+    emit notice("An earlier session of this observation is kept beside its frames in " + legacy +
                 " (File > Open session… resumes it); this one is saved to " + path);
   m_settings = nlohmann::json::object();
   m_sessionResult = nullptr;

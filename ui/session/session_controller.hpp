@@ -3,8 +3,9 @@
 // after every change of the Observation (new observation, pre-processing, result, a candidate's label, note,
 // fit or artifact flags, the selection, the velocity unit). The state is gathered on the GUI thread
 // (makeSession) and written by SessionAutosaver's worker. The file of a new analysis is chosen by
-// defaultSessionPath(); an existing file is never overwritten by a new analysis (the next free name is used),
-// nor are vetted candidates by a new pre-processing run or search (the analysis goes on in a new file).
+// defaultSessionPath() (a per-user folder, not the data folder); an existing file is never overwritten by a
+// new analysis (the next free name is used), nor are vetted candidates by a new pre-processing run or search
+// (the analysis goes on in a new file).
 #include <QObject>
 #include <QString>
 #include <functional>
@@ -21,12 +22,19 @@
 
 namespace st::ui {
 
-/// Where a new analysis of `inputs` keeps its session: beside the first input when that folder is writable
-/// (NAME.synthtrack-session.json, NAME = the input's file name without its FITS extensions, or the folder's
-/// name), else in `fallbackDir` (QStandardPaths::AppDataLocation + "/sessions" when empty), which the demo
-/// always uses ("demo.synthtrack-session.json"; a new demo run prunes the older ones, pruneDemoAutosaves()).
+/// The folder of new sessions: `folder`, or QStandardPaths::AppDataLocation + "/sessions" when it is empty.
+/// Sessions are not written into the data folder (shared or archived frames, other users' nights).
+[[nodiscard]] QString sessionFolder(const QString& folder = {});
+/// Where a new analysis of `inputs` keeps its session: sessionFolder(folder) + "/NAME-HASH.synthtrack-session
+/// .json", NAME = the first input's file name without its FITS extensions (or the folder's name), HASH = 8 hex
+/// digits of the SHA-1 of the inputs' absolute paths; the demo's is "demo.synthtrack-session.json" there (a
+/// new demo run prunes the older ones, pruneDemoAutosaves()). The folder is created.
 [[nodiscard]] QString defaultSessionPath(const std::vector<std::string>& inputs, bool demo,
-                                         const QString& fallbackDir = {});
+                                         const QString& folder = {});
+/// Where sessions were written before they left the data folder: NAME.synthtrack-session.json beside the
+/// first input ("" without inputs). A file there is still offered when the inputs are opened again, and
+/// opens like any session.
+[[nodiscard]] QString legacySessionPath(const std::vector<std::string>& inputs);
 /// `path` when no file is there, else the first of NAME-2.EXT, NAME-3.EXT, ... that is free.
 [[nodiscard]] QString freeSessionPath(const QString& path);
 
