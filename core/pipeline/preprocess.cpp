@@ -185,6 +185,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
            << m.shiftPx << " +- " << m.shiftSigmaPx << " px;";
     out.notes.push_back(note.str());
   }
+  // With a device for the matched filter, the filtered cube's host buffer (1.5 GB for 1500 x 512^2: 0.5-1.5 s
+  // of page faults on one core) is allocated on another thread while the stages up to the filter run; the
+  // device then downloads into it (issue 16). Without one, the CPU filter's copy allocates it as before.
+  std::future<std::vector<float>> filteredBuffer;
+  if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
+    filteredBuffer = std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
   {
     SubProgress sub(progress, 0.4, 0.65);
@@ -219,12 +225,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     }
   }
   lap("per-pixel background");
-  // With a device for the matched filter, the filtered cube's host buffer (1.5 GB for 1500 x 512^2: ~0.3-1 s
-  // of page faults on one core) is allocated on another thread while the stages up to the filter run; the
-  // device then downloads into it (issue 16). Without one, the CPU filter's copy allocates it as before.
-  std::future<std::vector<float>> filteredBuffer;
-  if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
-    filteredBuffer = std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   if (!stars.subtractRegion.empty()) {
     // Before the cosmic-ray pixels are zeroed: they hold their time neighbours' values until then.
     SubProgress sub(progress, 0.65, 0.75);
@@ -270,13 +270,16 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
                                                      radius, sub, cancel, &stars.moverMask);
   }
+  lap("zeroing");  // cosmic-ray pixels, masks, unmeasured pixels, single-frame sources
   if (params.removeResidualMean) {
     SubProgress sub(progress, 0.8, 0.83);
-    out.residualMeanRms = stats::removeResidualMeans(cube, params.residualMeshPx, 5.0, sub, cancel);
+    out.residualMeanRms =
+        removeResidualMeansOn(params.accelerator, cube, params.residualMeshPx, 5.0, sub, cancel, out.notes);
   }
+  lap("residual means");
   if (params.weightedFilter)
     out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
-  lap("residual means and noise model");
+  lap("noise model");
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.83, 1.0);
     // The one extra full cube (pixels only: masked samples are already 0, so no mask copy).
@@ -285,7 +288,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       // The pixels are written by filterCubeFromOn (a device reads the zero-biased cube and writes the
       // filtered one: no host copy of the cube).
       f = FrameCube(cube.width(), cube.height(), 0);
-      if (filteredBuffer.valid()) f.pixels() = filteredBuffer.get();
+      if (filteredBuffer.valid()) {
+        const auto t0 = std::chrono::steady_clock::now();
+        f.pixels() = filteredBuffer.get();
+        const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (waited > 0.01)
+          out.notes.push_back("matched filter: waited " + std::to_string(waited) +
+                              " s for the filtered cube's host buffer (allocated since the per-pixel background)");
+      }
       f.info() = cube.info();
       f.header = cube.header;
       f.wcs = cube.wcs;

@@ -24,6 +24,20 @@ stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCub
   return stats::globalBackground(cube, params);
 }
 
+double removeResidualMeansOn(PreprocessAccelerator* accel, FrameCube& cube, int meshPx, double clipSigma,
+                             ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      const double rms = accel->removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return rms;
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "residual means", e));
+    }
+  }
+  return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
+}
+
 stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameCube& cube,
                                             const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,

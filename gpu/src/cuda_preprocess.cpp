@@ -16,6 +16,7 @@
 #include "global_background_host.hpp"
 #include "host_buffer.hpp"
 #include "preprocess_params.hpp"
+#include "residual_means_host.hpp"
 #include "resident_cube.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
@@ -98,6 +99,37 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
     DeviceResources& r = ensureResources(m_res);
     return globalBackgroundUploaded(cube, params, r.compute.get());
+  }
+
+  double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
+                             CancelToken& cancel) override {
+    Stopwatch sw;
+    const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    m_kept = DeviceBuffer<float>();
+    m_keptData = nullptr;
+    DeviceBuffer<float> pix(nf * np);
+    Uploader up(r, cube.pixels().data(), np);
+    up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
+    r.copy.sync();
+    const double upload = sw.lap();
+    cancel.throwIfCancelled();
+    progress.report(0.3, "residual means (GPU)");
+    const double rms = removeResidualMeansOnDevice(pix.get(), cube.width(), cube.height(), static_cast<int>(nf),
+                                                   meshPx, clipSigma, r.compute.get());
+    const double kernels = sw.lap();
+    cancel.throwIfCancelled();
+    // Every kernel succeeded: the host cube is written now.
+    download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get());
+    const double down = sw.lap();
+    m_kept = std::move(pix);
+    m_keptData = cube.pixels().data();
+    m_keptKey = cubeKey(cube);
+    m_note = "residual means on " + name() + ": upload " + ms(upload) + ", kernels and host fill " + ms(kernels) +
+             ", download " + ms(down) + "; frames kept on the device for the matched filter";
+    progress.report(1.0, "residual means (GPU)");
+    return rms;
   }
 
   stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
@@ -297,12 +329,23 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
         }
       });
     }
-    DeviceBuffer<float> in(nf * np), out(nf * np);
+    // The frames removeResidualMeans left on the device, when this is that cube unchanged: no upload.
+    DeviceBuffer<float> in = std::move(m_kept);
+    const bool kept = !hasMask && in.size() == nf * np && m_keptData == cube.pixels().data() &&
+                      m_keptKey == cubeKey(cube);
+    m_keptData = nullptr;
+    if (!kept) {
+      in = DeviceBuffer<float>();  // another cube's: freed first
+      in = DeviceBuffer<float>(nf * np);
+    }
+    DeviceBuffer<float> out(nf * np);
     DeviceBuffer<std::uint8_t> mask;
     if (hasMask) mask = toDevice(cube.mask());
-    Uploader up(r, cube.pixels().data(), np);
-    up.upload(in.get(), 0, static_cast<int>(nf), r.copy.get());
-    r.copy.sync();
+    if (!kept) {
+      Uploader up(r, cube.pixels().data(), np);
+      up.upload(in.get(), 0, static_cast<int>(nf), r.copy.get());
+      r.copy.sync();
+    }
     const double upload = sw.lap();
     FilterLaunch p{};
     p.in = in.get();
@@ -419,7 +462,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       resident = "kept on the device for the search";
     }
     m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
-             (weighted ? ", weighted" : "") + "): upload " + ms(upload) + ", kernels " + ms(kernels) +
+             (weighted ? ", weighted" : "") + "): " +
+             (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
+             ", kernels " + ms(kernels) +
              " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " + ms(Event::elapsed(k1, k2)) +
              ")" + (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
              ", download " + ms(down) + "; filtered cube " + resident;
@@ -431,6 +476,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   std::unique_ptr<DeviceResources> m_res;
   std::string m_note;
   bool m_keepResident = true;
+  // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.
+  DeviceBuffer<float> m_kept;
+  const float* m_keptData = nullptr;
+  std::uint64_t m_keptKey = 0;
 };
 
 }  // namespace

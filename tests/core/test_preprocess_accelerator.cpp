@@ -8,6 +8,7 @@
 #include "st/common/error.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/psf/moffat.hpp"
+#include "st/stats/noise_model.hpp"
 
 namespace st {
 namespace {
@@ -30,6 +31,12 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     ++calls;
     act();
     return stack::filterCube(cube, kernel, progress, cancel, noise);
+  }
+  double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
+                             CancelToken& cancel) override {
+    ++calls;
+    act();
+    return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
   int calls = 0;
 
@@ -76,6 +83,14 @@ TEST(PreprocessAccelerator, DeviceFailureFallsBackToTheCpuWithAWarning) {
   EXPECT_NE(notes[1].find("matched filter on fake device failed"), std::string::npos) << notes[1];
   EXPECT_EQ(fa.pixels(), fb.pixels());
   EXPECT_EQ(ma.sigmaF, mb.sigmaF);
+
+  FrameCube za = fa, zb = fa;
+  const double rmsA = pipeline::removeResidualMeansOn(&fail, za, 16, 5.0, progress, cancel, notes);
+  const double rmsB = stats::removeResidualMeans(zb, 16, 5.0, progress, cancel);
+  ASSERT_EQ(notes.size(), 3u);
+  EXPECT_NE(notes[2].find("residual means on fake device failed"), std::string::npos) << notes[2];
+  EXPECT_EQ(za.pixels(), zb.pixels());
+  EXPECT_EQ(rmsA, rmsB);
 }
 
 TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {

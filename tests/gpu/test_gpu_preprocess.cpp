@@ -6,6 +6,8 @@
 //  - matched filter (stack::filterCube), uniform and inverse-variance weighted, kernels of FWHM 2 and 3.5 px
 //    (the second past OpenCV's switch to a DFT): every filtered pixel within 2e-5 of the filtered noise and
 //    sigma_F within 1e-4 relative (float summation in another order);
+//  - residual means (stats::removeResidualMeans): pixels within 1e-6 relative, the rms within 1e-9, and the
+//    frames kept on the device for the matched filter of the same cube;
 //  - the filtered cube left on the device is used by the exact and tree searches and stackAt without an
 //    upload, with the same results as a search that uploads.
 // Every test skips when no CUDA device is usable.
@@ -251,6 +253,72 @@ TEST(GpuFilter, KernelTooLargeIsAGpuErrorAndTheCubeIsUntouched) {
   ASSERT_EQ(notes.size(), 1u);
   EXPECT_NE(notes[0].find("the CPU did it instead"), std::string::npos) << notes[0];
   EXPECT_GT(r.sigmaF, 0.0);
+}
+
+// The residual means (stats::removeResidualMeans) on the device: each frame's offsets per mesh cell removed
+// as the CPU does (cells with too few values filled with the frame's median, a frame with none left alone);
+// pixels within float rounding (1e-6 relative), the rms within 1e-9. The frames stay on the device for the
+// matched filter of that cube (no upload) and give the filter of the CPU's frames; a cube changed in between
+// is uploaded.
+TEST(GpuResidualMeans, MatchesCpuAndFeedsTheFilter) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  stats::NoiseModel model;
+  FrameCube in = zeroBiased(100, 80, 40, 9, false, model);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-3.0f, 3.0f);
+  for (std::size_t k = 0; k < in.frameCount(); ++k) {
+    float* f = in.frame(k);
+    const float a = u(rng), b = 0.05f * u(rng);
+    for (int y = 0; y < in.height(); ++y)
+      for (int x = 0; x < in.width(); ++x) {
+        float& v = f[static_cast<std::size_t>(y) * in.width() + x];
+        if (v != 0.0f) v += a + b * x;  // a residual level and slope per frame
+        if (k % 7 == 3 && x < 32 && y < 32) v = 0.0f;  // a cell without values: the frame's median
+        if (k == 5) v = 0.0f;                          // a frame without any: left alone
+      }
+  }
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube cpu = in, dev = in;
+  const double a = stats::removeResidualMeans(cpu, 32, 5.0, progress, cancel);
+  const double b = accel->removeResidualMeans(dev, 32, 5.0, progress, cancel);
+  std::printf("%s\n", accel->lastNote().c_str());
+  EXPECT_NEAR(b, a, 1e-9 * a);
+  EXPECT_GT(a, 0.1);
+  std::size_t bad = 0, nans = 0;
+  for (std::size_t i = 0; i < cpu.pixels().size(); ++i) {
+    const float c = cpu.pixels()[i], d = dev.pixels()[i];
+    if (std::isnan(c) && std::isnan(d)) {
+      ++nans;  // non-finite pixels are left alone by both
+      continue;
+    }
+    bad += !(std::fabs(double(d) - double(c)) <= 1e-6 * std::max(1.0, std::fabs(double(c))));
+  }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_GT(nans, 0u);
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.0));
+  accel->setKeepResident(false);
+  FrameCube out(dev.width(), dev.height(), 0);
+  out.info() = dev.info();
+  const auto m = accel->filterCubeFrom(dev, out, kernel, progress, cancel, nullptr, 0);
+  EXPECT_NE(accel->lastNote().find("residual means' frames on the device"), std::string::npos)
+      << accel->lastNote();
+  FrameCube ref = dev;  // the same frames uploaded
+  ref.mask().clear();
+  const auto r = accel->filterCube(ref, kernel, progress, cancel, nullptr, 0);
+  EXPECT_EQ(std::memcmp(out.pixels().data(), ref.pixels().data(), ref.pixels().size() * 4), 0);
+  EXPECT_EQ(m.sigmaF, r.sigmaF);
+  // Changed in between (the check samples 4096 pixels, pixel 0 among them; the pipeline changes nothing
+  // between the two): uploaded, not the stale device frames.
+  FrameCube again = in;
+  accel->removeResidualMeans(again, 32, 5.0, progress, cancel);
+  again.pixels()[0] += 100.0f;
+  FrameCube out2(again.width(), again.height(), 0);
+  out2.info() = again.info();
+  accel->filterCubeFrom(again, out2, kernel, progress, cancel, nullptr, 0);
+  EXPECT_NE(accel->lastNote().find("upload"), std::string::npos) << accel->lastNote();
+  EXPECT_EQ(accel->lastNote().find("residual means' frames"), std::string::npos) << accel->lastNote();
+  accel->setKeepResident(true);
 }
 
 // filterCubeFrom (the pipeline's path: the zero-biased cube read, the filtered one written, no host copy):

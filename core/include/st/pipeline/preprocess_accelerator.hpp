@@ -34,6 +34,13 @@ class PreprocessAccelerator {
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                                     const detect::MovingMask* exclude, ProgressSink& progress,
                                                     CancelToken& cancel) = 0;
+  /// Same contract as stats::removeResidualMeans (cell means within the rounding of its double sums). A
+  /// device may keep the frames it leaves in `cube` and filter them without an upload when filterCubeFrom's
+  /// source is this cube, unchanged in between (same buffer and sampled pixels). The default is the CPU's.
+  virtual double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
+                                     CancelToken& cancel) {
+    return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
+  }
   /// Same contract as stack::filterCube. `revision` (search::FilteredCube::revision, 0 = none): the
   /// filtered frames will carry it, so a device may keep them for the search under it.
   virtual stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
@@ -58,6 +65,11 @@ class PreprocessAccelerator {
 /// the CPU.
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params, std::vector<std::string>& notes);
+
+/// stats::removeResidualMeans on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
+/// the CPU; a device run adds its lastNote().
+double removeResidualMeansOn(PreprocessAccelerator* accel, FrameCube& cube, int meshPx, double clipSigma,
+                             ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes);
 
 /// stats::subtractPixelBackground on `accel` when given, else (or when the device fails: st::GpuError) on
 /// the CPU; a device failure adds a warning to `notes` naming the stage and the device's message, a device
