@@ -13,6 +13,11 @@ packages=(
   python3-astropy python3-numpy
   xvfb xauth saods9
   libxml2-utils
+  # Plate solving (synthtrack-cli solve, preprocess --plate-solve; optional at run time). The Tycho-2 index
+  # of 22'-30' quads (88 MB) is the densest Debian packages: its stars around the pointing also make the
+  # small index files built for each field (core/astro/field_index.hpp), which solve the shared 26' Lowell
+  # frames; -08 (30'-44'), -09 and -10-19 are for wider fields and left out to keep the download modest.
+  astrometry.net astrometry-data-tycho2-07-littleendian
 )
 
 missing=()
