@@ -105,6 +105,19 @@ astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XySta
   return solution;
 }
 
+astro::PlateSolution plateSolveRawCube(FrameCube& cube, const astro::PlateSolveParams& params,
+                                       ProgressSink& progress, CancelToken& cancel) {
+  const std::vector<io::XyStar> stars = frameStars(cube, progress, cancel);
+  astro::PlateSolution solution = plateSolveCube(cube, stars, params, progress, cancel);
+  std::vector<FitsCard> kept;
+  for (auto& c : cube.header.cards)
+    if (!Wcs::isWcsKeyword(c.key)) kept.push_back(std::move(c));
+  cube.header.cards = std::move(kept);
+  for (const auto& c : solution.wcs->toHeader().cards)
+    cube.header.cards.push_back(c);
+  return solution;
+}
+
 astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSolveParams& params,
                                         ProgressSink& progress, CancelToken& cancel) {
   const std::vector<io::XyStar> stars = firstFrameStars(prepared.stars, prepared.frames, prepared.skyRate);

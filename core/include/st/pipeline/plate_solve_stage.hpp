@@ -31,6 +31,12 @@ std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress
 astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XyStar>& stars,
                                     astro::PlateSolveParams params, ProgressSink& progress, CancelToken& cancel);
 
+/// Plate-solves the first frame of a cube not yet calibrated (frameStars, then plateSolveCube) and writes the
+/// solution into cube.header as WCS cards (replacing any), so that calibration's trim (which moves CRPIX)
+/// and every later stage carry it exactly like a header WCS. Throws as astro::plateSolve.
+astro::PlateSolution plateSolveRawCube(FrameCube& cube, const astro::PlateSolveParams& params,
+                                       ProgressSink& progress, CancelToken& cancel);
+
 /// plateSolveCube on a pre-processed cube from its static-source catalogue (prepared.stars at
 /// prepared.skyRate); prepared.filtered.frames gets the same WCS; a note saying what was solved is appended to
 /// prepared.notes.
