@@ -40,8 +40,8 @@ double separationArcsec(const Wcs::Sky& a, const Wcs::Sky& b) {
   return std::acos(std::clamp(s, -1.0, 1.0)) / d * 3600.0;
 }
 
-nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load, const astro::PlateSolveParams& params,
-                        const CliArgs& cli) {
+nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load,
+                        const astro::PlateSolveParams& params, const CliArgs& cli) {
   TerminalProgress progress;
   CancelToken& cancel = processCancelToken();
   FrameCube cube = io::loadFrames({file}, load, progress, cancel);
@@ -67,7 +67,8 @@ nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load, co
     nlohmann::json diffs = nlohmann::json::array();
     for (const auto& p : points)
       diffs.push_back(separationArcsec(headerWcs->pixelToSky(p[0], p[1]), s.wcs->pixelToSky(p[0], p[1])));
-    j["header_wcs_diff_arcsec"] = {{"centre", diffs[0]}, {"corners", {diffs[1], diffs[2], diffs[3], diffs[4]}}};
+    j["header_wcs_diff_arcsec"] = {{"centre", diffs[0]},
+                                   {"corners", {diffs[1], diffs[2], diffs[3], diffs[4]}}};
     // Where the solution's centre lies in the header WCS's pixels, relative to the centre (px).
     const Wcs::Sky c = s.wcs->pixelToSky(0.5 * w, 0.5 * h);
     const auto [hx, hy] = headerWcs->skyToPixel(c.raDeg, c.decDeg);
@@ -77,7 +78,8 @@ nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load, co
     std::filesystem::create_directories(*dir);
     std::string name = std::filesystem::path(file).filename().string();
     for (const char* ext : {".fz", ".gz", ".fits", ".fit", ".fts"})
-      if (name.size() > std::strlen(ext) && name.compare(name.size() - std::strlen(ext), std::string::npos, ext) == 0)
+      if (name.size() > std::strlen(ext) &&
+          name.compare(name.size() - std::strlen(ext), std::string::npos, ext) == 0)
         name.resize(name.size() - std::strlen(ext));
     const std::string out = (std::filesystem::path(*dir) / (name + ".wcs")).string();
     io::writeHeaderFile(out, s.header);
@@ -108,21 +110,25 @@ int cmdSolve(const Args& args) {
     const nlohmann::json j = solveOne(file, load, params, cli);
     all.push_back(j);
     if (cli.flag("json")) continue;
-    std::printf("%s: RA %.6f Dec %+.6f deg at the centre, %.4f arcsec/px, %s, %zu of %zu stars given, %.1f s\n",
-                file.c_str(), j["ra_deg"].get<double>(), j["dec_deg"].get<double>(),
-                j["scale_arcsec_px"].get<double>(),
-                j["index"].get<std::string>().empty() ? "index not named" : j["index"].get<std::string>().c_str(),
-                j["stars_given"].get<std::size_t>(), j["stars_found"].get<std::size_t>(), j["elapsed_s"].get<double>());
+    std::printf(
+        "%s: RA %.6f Dec %+.6f deg at the centre, %.4f arcsec/px, %s, %zu of %zu stars given, %.1f s\n",
+        file.c_str(), j["ra_deg"].get<double>(), j["dec_deg"].get<double>(),
+        j["scale_arcsec_px"].get<double>(),
+        j["index"].get<std::string>().empty() ? "index not named" : j["index"].get<std::string>().c_str(),
+        j["stars_given"].get<std::size_t>(), j["stars_found"].get<std::size_t>(),
+        j["elapsed_s"].get<double>());
     if (j.contains("header_wcs_diff_arcsec")) {
       const auto& d = j["header_wcs_diff_arcsec"];
       std::printf("  header WCS vs solution: %.3f arcsec at the centre; corners %.3f %.3f %.3f %.3f arcsec\n",
                   d["centre"].get<double>(), d["corners"][0].get<double>(), d["corners"][1].get<double>(),
                   d["corners"][2].get<double>(), d["corners"][3].get<double>());
       std::printf("  the solution's centre in the header WCS's pixels: (%+.3f, %+.3f) px from the centre\n",
-                  j["header_wcs_centre_offset_px"][0].get<double>(), j["header_wcs_centre_offset_px"][1].get<double>());
+                  j["header_wcs_centre_offset_px"][0].get<double>(),
+                  j["header_wcs_centre_offset_px"][1].get<double>());
     }
     if (j.contains("wcs_file")) std::printf("  wrote %s\n", j["wcs_file"].get<std::string>().c_str());
-    if (j.contains("work_dir")) std::printf("  solve-field's files: %s\n", j["work_dir"].get<std::string>().c_str());
+    if (j.contains("work_dir"))
+      std::printf("  solve-field's files: %s\n", j["work_dir"].get<std::string>().c_str());
   }
   if (cli.flag("json")) std::printf("%s\n", all.dump(2).c_str());
   return 0;

@@ -5,11 +5,13 @@
 namespace st::app {
 
 std::set<std::string> plateSolveOptionNames() {
-  return {"solve-scale", "solve-ra", "solve-dec", "solve-radius", "solve-time-limit", "solve-stars", "index-dir",
-          "solve-field"};
+  return {"solve-scale",      "solve-ra",    "solve-dec", "solve-radius",
+          "solve-time-limit", "solve-stars", "index-dir", "solve-field"};
 }
 
-std::set<std::string> plateSolveFlagNames() { return {"keep-solve-files"}; }
+std::set<std::string> plateSolveFlagNames() {
+  return {"keep-solve-files"};
+}
 
 const char* plateSolveOptionsHelp() {
   return "plate solving (astrometry.net's solve-field; Debian packages astrometry.net and\n"
@@ -33,10 +35,12 @@ astro::PlateSolveParams plateSolveParamsFromArgs(const CliArgs& args) {
     return v;
   };
   p.scaleArcsecPerPx = positive("solve-scale");
-  if (args.has("solve-ra") != args.has("solve-dec")) throw UsageError("give --solve-ra and --solve-dec together");
+  if (args.has("solve-ra") != args.has("solve-dec"))
+    throw UsageError("give --solve-ra and --solve-dec together");
   p.raDeg = args.number("solve-ra");
   p.decDeg = args.number("solve-dec");
-  if (p.raDeg && !(*p.raDeg >= 0.0 && *p.raDeg < 360.0)) throw UsageError("--solve-ra must be in [0, 360) deg");
+  if (p.raDeg && !(*p.raDeg >= 0.0 && *p.raDeg < 360.0))
+    throw UsageError("--solve-ra must be in [0, 360) deg");
   if (p.decDeg && !(std::abs(*p.decDeg) <= 90.0)) throw UsageError("--solve-dec must be in [-90, 90] deg");
   if (const auto r = positive("solve-radius")) p.radiusDeg = *r;
   if (const auto t = positive("solve-time-limit")) p.timeLimitS = *t;

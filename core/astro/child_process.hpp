@@ -18,9 +18,9 @@ struct ChildResult {
 };
 
 /// Runs argv[0] (looked up on PATH) with `argv`, no shell, in its own process group, stdout and stderr
-/// written to `stdoutPath` / `stderrPath`. Polls every 50 ms: past `timeLimitS` seconds of wall time the group
-/// is stopped (SIGTERM, then SIGKILL after 2 s) and timedOut set; when `cancel` is set the group is stopped
-/// the same way and st::Cancelled thrown. `progress` gets the elapsed fraction of the limit. Throws
+/// written to `stdoutPath` / `stderrPath`. Polls every 50 ms: past `timeLimitS` seconds of wall time the
+/// group is stopped (SIGTERM, then SIGKILL after 2 s) and timedOut set; when `cancel` is set the group is
+/// stopped the same way and st::Cancelled thrown. `progress` gets the elapsed fraction of the limit. Throws
 /// st::InputError when the program cannot be started.
 ChildResult runChild(const std::vector<std::string>& argv, const std::string& stdoutPath,
                      const std::string& stderrPath, double timeLimitS, ProgressSink& progress,

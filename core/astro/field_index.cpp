@@ -26,7 +26,8 @@ std::string magnitudeColumn(const std::string& table) {
   for (const auto& c : h.cards) {
     if (c.key.rfind("TTYPE", 0) != 0) continue;
     std::string name = c.value;
-    while (!name.empty() && name.back() == ' ') name.pop_back();
+    while (!name.empty() && name.back() == ' ')
+      name.pop_back();
     if (name == "MAG_VT") return name;
     if (first.empty() && name.rfind("MAG", 0) == 0) first = name;
   }
@@ -44,7 +45,8 @@ bool runQuiet(const std::vector<std::string>& argv, const std::string& dir, cons
   const ChildResult r = runChild(argv, dir + "/" + name + ".out", dir + "/" + name + ".err", 60.0, progress,
                                  cancel, "plate solving: field index");
   if (r.exitCode == 0 && !r.timedOut) return true;
-  why = argv[0] + " failed (exit " + std::to_string(r.exitCode) + "): " + tailOfFile(dir + "/" + name + ".err", 4);
+  why = argv[0] + " failed (exit " + std::to_string(r.exitCode) +
+        "): " + tailOfFile(dir + "/" + name + ".err", 4);
   return false;
 }
 
@@ -71,8 +73,8 @@ std::string buildFieldIndexes(const PlateSolveParams& params, const std::vector<
                                              [](const auto& a, const auto& b) { return a.scale < b.scale; });
   const std::string region = dir + "/field-stars.fits";
   const double radius = params.radiusDeg + 0.5 * diagonalArcmin / 60.0;
-  if (!runQuiet({query, "-r", num(*params.raDeg), "-d", num(*params.decDeg), "-R", num(radius), "-T", "-o", region,
-                 source.path},
+  if (!runQuiet({query, "-r", num(*params.raDeg), "-d", num(*params.decDeg), "-R", num(radius), "-T", "-o",
+                 region, source.path},
                 dir, "query-starkd", progress, cancel, why))
     return {};
   if (rowCount(region) < 5) {
@@ -91,9 +93,27 @@ std::string buildFieldIndexes(const PlateSolveParams& params, const std::vector<
     if (!indexSuitsField(probe, 2.5 * sideArcmin, diagonalArcmin)) continue;
     char name[64];
     std::snprintf(name, sizeof name, "index-99%02d.fits", scale);
-    std::vector<std::string> argv = {build, "-i", region, "-e", "1", "-o", out + "/" + name, "-P", std::to_string(scale),
-                                     "-E", "-M", "-d", "3", "-p", "64", "-R", "64", "-I",
-                                     std::to_string(990000 + scale), "-t", dir};
+    std::vector<std::string> argv = {build,
+                                     "-i",
+                                     region,
+                                     "-e",
+                                     "1",
+                                     "-o",
+                                     out + "/" + name,
+                                     "-P",
+                                     std::to_string(scale),
+                                     "-E",
+                                     "-M",
+                                     "-d",
+                                     "3",
+                                     "-p",
+                                     "64",
+                                     "-R",
+                                     "64",
+                                     "-I",
+                                     std::to_string(990000 + scale),
+                                     "-t",
+                                     dir};
     if (!mag.empty()) argv.insert(argv.end(), {"-S", mag});
     if (!runQuiet(argv, dir, "build-index-" + std::to_string(scale), progress, cancel, why)) return {};
     ++built;

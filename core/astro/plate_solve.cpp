@@ -36,7 +36,8 @@ class WorkDir {
  public:
   WorkDir() {
     std::string pattern = (std::filesystem::temp_directory_path() / "synthtrack-solve-XXXXXX").string();
-    if (::mkdtemp(pattern.data()) == nullptr) throw InputError("cannot create a temporary folder for solve-field");
+    if (::mkdtemp(pattern.data()) == nullptr)
+      throw InputError("cannot create a temporary folder for solve-field");
     m_path = pattern;
   }
   ~WorkDir() {
@@ -81,9 +82,10 @@ void checkIndexes(const PlateSolveParams& p, const std::vector<IndexFile>& index
   const std::vector<std::string> packages = indexPackagesFor(side);
   std::string advice;
   if (packages.empty()) {
-    advice = "the Tycho-2 index packages start at quads of 22', too large for this field: index files of a "
-             "deeper catalogue (astrometry.net's 4200 or 5200 series for quads of " +
-             fmt(0.1 * side, 2) + "'-" + fmt(diagonal, 2) + "') must be put in a folder given as the index folder";
+    advice =
+        "the Tycho-2 index packages start at quads of 22', too large for this field: index files of a "
+        "deeper catalogue (astrometry.net's 4200 or 5200 series for quads of " +
+        fmt(0.1 * side, 2) + "'-" + fmt(diagonal, 2) + "') must be put in a folder given as the index folder";
   } else {
     advice = "install";
     for (const auto& pkg : packages)
@@ -92,12 +94,13 @@ void checkIndexes(const PlateSolveParams& p, const std::vector<IndexFile>& index
   throw InputError("plate solving: no index file suits a field of " + fmt(side, 3) + "' (" +
                    std::to_string(width) + " x " + std::to_string(height) + " px at about " +
                    fmt(*p.scaleArcsecPerPx) + " arcsec/px; quads of " + fmt(0.1 * side, 2) + "'-" +
-                   fmt(diagonal, 3) + "' are needed); installed: " + describeIndexes(indexes) + "; " + advice + before);
+                   fmt(diagonal, 3) + "' are needed); installed: " + describeIndexes(indexes) + "; " +
+                   advice + before);
 }
 
-std::vector<std::string> solveFieldArgs(const std::string& program, const PlateSolveParams& p, const WorkDir& dir,
-                                        const std::string& config, int width, int height, double timeLimitS,
-                                        std::optional<double> oddsToSolve) {
+std::vector<std::string> solveFieldArgs(const std::string& program, const PlateSolveParams& p,
+                                        const WorkDir& dir, const std::string& config, int width, int height,
+                                        double timeLimitS, std::optional<double> oddsToSolve) {
   const int limit = std::max(1, static_cast<int>(std::ceil(timeLimitS)));
   std::vector<std::string> a = {program,
                                 "--overwrite",
@@ -145,7 +148,8 @@ std::vector<std::string> solveFieldArgs(const std::string& program, const PlateS
   }
   a.insert(a.end(), {"--scale-low", fmt(lo, 8), "--scale-high", fmt(hi, 8)});
   if (p.raDeg && p.decDeg)
-    a.insert(a.end(), {"--ra", fmt(*p.raDeg, 10), "--dec", fmt(*p.decDeg, 10), "--radius", fmt(p.radiusDeg, 6)});
+    a.insert(a.end(),
+             {"--ra", fmt(*p.raDeg, 10), "--dec", fmt(*p.decDeg, 10), "--radius", fmt(p.radiusDeg, 6)});
   if (!config.empty()) a.insert(a.end(), {"--config", config});
   if (oddsToSolve) a.insert(a.end(), {"--odds-to-solve", fmt(*oddsToSolve, 6)});
   a.push_back(dir.file("stars.xyls"));
@@ -158,8 +162,10 @@ std::string solvingIndex(const std::string& log) {
   const auto at = log.find(marker);
   if (at == std::string::npos) return {};
   auto end = log.find_first_of("\n", at);
-  std::string name = log.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
-  while (!name.empty() && (name.back() == '.' || name.back() == ' ' || name.back() == '\r')) name.pop_back();
+  std::string name =
+      log.substr(at + marker.size(), end == std::string::npos ? std::string::npos : end - at - marker.size());
+  while (!name.empty() && (name.back() == '.' || name.back() == ' ' || name.back() == '\r'))
+    name.pop_back();
   return name;
 }
 
@@ -197,8 +203,9 @@ struct Attempt {
 };
 
 Attempt runSolveField(const std::string& program, const PlateSolveParams& p, const WorkDir& dir,
-                      const std::string& config, const std::string& prefix, int width, int height, double limitS,
-                      std::optional<double> odds, ProgressSink& progress, CancelToken& cancel) {
+                      const std::string& config, const std::string& prefix, int width, int height,
+                      double limitS, std::optional<double> odds, ProgressSink& progress,
+                      CancelToken& cancel) {
   auto argv = solveFieldArgs(program, p, dir, config, width, height, limitS, odds);
   std::replace(argv.begin(), argv.end(), std::string("solve"), prefix);  // --out PREFIX
   Attempt a;
@@ -206,7 +213,8 @@ Attempt runSolveField(const std::string& program, const PlateSolveParams& p, con
   a.run = detail::runChild(argv, dir.file(prefix + ".stdout"), dir.file(prefix + ".stderr"), limitS, progress,
                            cancel, "plate solving");
   std::error_code ec;
-  a.solved = !a.run.timedOut && a.run.exitCode == 0 && std::filesystem::exists(dir.file(prefix + ".solved"), ec) &&
+  a.solved = !a.run.timedOut && a.run.exitCode == 0 &&
+             std::filesystem::exists(dir.file(prefix + ".solved"), ec) &&
              std::filesystem::exists(dir.file(prefix + ".wcs"), ec);
   return a;
 }
@@ -237,7 +245,8 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
                          const PlateSolveParams& params, ProgressSink& progress, CancelToken& cancel) {
   if (!(params.timeLimitS > 0.0)) throw InputError("plate solving: the time limit must be > 0 s");
   if (params.scaleArcsecPerPx && !(*params.scaleArcsecPerPx > 0.0))
-    throw InputError("plate solving: the scale hint must be > 0 arcsec/px, got " + fmt(*params.scaleArcsecPerPx));
+    throw InputError("plate solving: the scale hint must be > 0 arcsec/px, got " +
+                     fmt(*params.scaleArcsecPerPx));
   if (width <= 0 || height <= 0) throw InputError("plate solving: the frame size must be positive");
   const std::string program = detail::findProgram(params.solveField);
   if (program.empty())
@@ -247,15 +256,16 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
   const std::vector<std::string> dirs = params.indexDirs.empty() ? configIndexDirs(config) : params.indexDirs;
   const std::vector<IndexFile> indexes = findIndexFiles(dirs);
   if (indexes.empty())
-    throw InputError("plate solving: no astrometry.net index files (index-*.fits) in " + joinDirs(dirs) + ": " +
-                     kInstallHint);
+    throw InputError("plate solving: no astrometry.net index files (index-*.fits) in " + joinDirs(dirs) +
+                     ": " + kInstallHint);
 
   std::vector<io::XyStar> usable;
   for (const auto& s : stars)
     if (std::isfinite(s.x) && std::isfinite(s.y) && std::isfinite(s.flux)) usable.push_back(s);
   if (usable.size() < 4)
     throw InputError("plate solving needs at least 4 stars, got " + std::to_string(usable.size()));
-  std::stable_sort(usable.begin(), usable.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
+  std::stable_sort(usable.begin(), usable.end(),
+                   [](const auto& a, const auto& b) { return a.flux > b.flux; });
   if (usable.size() > params.maxStars) usable.resize(std::max<std::size_t>(params.maxStars, 4));
 
   WorkDir dir;
@@ -263,7 +273,8 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
   io::writeXylist(dir.file("stars.xyls"), usable, width, height);
   const auto start = std::chrono::steady_clock::now();
   auto remaining = [&] {
-    return params.timeLimitS - std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return params.timeLimitS -
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
   const std::string what = std::to_string(usable.size()) + " stars, " + hintText(params);
   auto finish = [&](const Attempt& a, const std::string& how) {
@@ -282,15 +293,15 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
     const double side = std::max(width, height) * *params.scaleArcsecPerPx / 60.0;
     const double diagonal = std::hypot(width, height) * *params.scaleArcsecPerPx / 60.0;
     std::string why;
-    const std::string folder = detail::buildFieldIndexes(params, indexes, side / params.scaleTolerance,
-                                                         diagonal * params.scaleTolerance, dir.path(), progress,
-                                                         cancel, why);
+    const std::string folder =
+        detail::buildFieldIndexes(params, indexes, side / params.scaleTolerance,
+                                  diagonal * params.scaleTolerance, dir.path(), progress, cancel, why);
     if (!folder.empty()) {
       PlateSolveParams linear = params;
       linear.tweakOrder = 1;
-      const Attempt a = runSolveField(program, linear, dir, writeConfig(dir, "field.cfg", {folder}), "field", width,
-                                      height, std::max(1.0, 0.5 * remaining()), params.fieldIndexOddsToSolve,
-                                      progress, cancel);
+      const Attempt a =
+          runSolveField(program, linear, dir, writeConfig(dir, "field.cfg", {folder}), "field", width, height,
+                        std::max(1.0, 0.5 * remaining()), params.fieldIndexOddsToSolve, progress, cancel);
       if (a.solved) return finish(a, "field index (3-star quads from the installed index stars)");
       before = a.run.timedOut ? "; the field's own index found nothing within its half of the time limit"
                               : "; the field's own index found nothing";
@@ -302,8 +313,8 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
   // 2. The installed index files.
   checkIndexes(params, indexes, width, height, before);
   if (remaining() < 1.0)
-    throw InputError("plate solving: no solution within the time limit of " + fmt(params.timeLimitS) + " s (" +
-                     what + before + ")");
+    throw InputError("plate solving: no solution within the time limit of " + fmt(params.timeLimitS) +
+                     " s (" + what + before + ")");
   const std::string ownConfig =
       !params.indexDirs.empty() ? writeConfig(dir, "installed.cfg", params.indexDirs) : params.configPath;
   const Attempt a = runSolveField(program, params, dir, ownConfig, "installed", width, height, remaining(),
@@ -311,12 +322,13 @@ PlateSolution plateSolve(const std::vector<io::XyStar>& stars, int width, int he
   if (a.solved) return finish(a, "installed index files");
   const std::string full = what + ", index files in " + joinDirs(dirs) + before;
   if (a.run.timedOut)
-    throw InputError("plate solving: no solution within the time limit of " + fmt(params.timeLimitS) + " s (" +
-                     full + "); allow more time, or check the scale and pointing hints");
+    throw InputError("plate solving: no solution within the time limit of " + fmt(params.timeLimitS) +
+                     " s (" + full + "); allow more time, or check the scale and pointing hints");
   if (a.run.exitCode != 0) {
     std::string err = detail::tailOfFile(dir.file("installed.stderr"), 12);
     if (err.empty()) err = detail::tailOfFile(dir.file("installed.stdout"), 12);
-    throw InputError("plate solving: solve-field failed (exit " + std::to_string(a.run.exitCode) + "): " + err);
+    throw InputError("plate solving: solve-field failed (exit " + std::to_string(a.run.exitCode) +
+                     "): " + err);
   }
   const std::string err = detail::tailOfFile(dir.file("installed.stderr"), 6);
   throw InputError("plate solving: astrometry.net found no solution (" + full +

@@ -41,7 +41,8 @@ std::optional<double> angle(const FitsHeader& h, const char* key, bool hours) {
     if (parts.size() == 1) return std::stod(parts[0]);
     if (parts.size() != 3) return std::nullopt;
     const bool negative = parts[0].find('-') != std::string::npos;
-    const double v = std::abs(std::stod(parts[0])) + std::stod(parts[1]) / 60.0 + std::stod(parts[2]) / 3600.0;
+    const double v =
+        std::abs(std::stod(parts[0])) + std::stod(parts[1]) / 60.0 + std::stod(parts[2]) / 3600.0;
     return (negative ? -v : v) * (hours ? 15.0 : 1.0);
   } catch (const std::exception&) {
     return std::nullopt;
@@ -79,8 +80,8 @@ PlateSolveHints plateSolveHints(const FitsHeader& header) {
   const char* pairs[][2] = {{"RA", "DEC"}, {"OBJCTRA", "OBJCTDEC"}, {"TELRA", "TELDEC"}};
   for (const auto& p : pairs) {
     const auto raText = header.getString(p[0]);
-    const bool sexagesimal = raText && (raText->find(':') != std::string::npos ||
-                                        raText->find(' ') != std::string::npos);
+    const bool sexagesimal =
+        raText && (raText->find(':') != std::string::npos || raText->find(' ') != std::string::npos);
     const auto ra = angle(header, p[0], sexagesimal);
     const auto dec = angle(header, p[1], false);
     if (ra && dec && *ra >= 0.0 && *ra < 360.0 && std::abs(*dec) <= 90.0) {
@@ -154,7 +155,8 @@ std::vector<std::string> indexPackagesFor(double fieldArcmin) {
       out.emplace_back(name);
     }
   }
-  if (kQuadArcmin[20] >= lo && kQuadArcmin[10] <= hi) out.emplace_back("astrometry-data-tycho2-10-19-littleendian");
+  if (kQuadArcmin[20] >= lo && kQuadArcmin[10] <= hi)
+    out.emplace_back("astrometry-data-tycho2-10-19-littleendian");
   return out;
 }
 

@@ -11,13 +11,14 @@ namespace st::io {
 
 void writeXylist(const std::string& path, const std::vector<XyStar>& stars, int width, int height) {
   if (width <= 0 || height <= 0)
-    throw InputError("xylist '" + path + "': image size must be positive, got " + std::to_string(width) + " x " +
-                     std::to_string(height));
+    throw InputError("xylist '" + path + "': image size must be positive, got " + std::to_string(width) +
+                     " x " + std::to_string(height));
   std::vector<XyStar> kept;
   kept.reserve(stars.size());
   for (const XyStar& s : stars)
     if (std::isfinite(s.x) && std::isfinite(s.y) && std::isfinite(s.flux)) kept.push_back(s);
-  std::stable_sort(kept.begin(), kept.end(), [](const XyStar& a, const XyStar& b) { return a.flux > b.flux; });
+  std::stable_sort(kept.begin(), kept.end(),
+                   [](const XyStar& a, const XyStar& b) { return a.flux > b.flux; });
 
   detail::FitsFile f = detail::FitsFile::create(path);
   int status = 0;
@@ -90,7 +91,8 @@ void writeHeaderFile(const std::string& path, const FitsHeader& header) {
   fits_create_img(f.get(), BYTE_IMG, 0, nullptr, &status);
   f.check(status, "creating the header");
   for (const FitsCard& c : header.cards) {
-    if (c.key.empty() || c.key == "COMMENT" || c.key == "HISTORY" || c.key == "END" || isStructuralKeyword(c.key))
+    if (c.key.empty() || c.key == "COMMENT" || c.key == "HISTORY" || c.key == "END" ||
+        isStructuralKeyword(c.key))
       continue;
     std::string card = c.key;
     card.resize(8, ' ');

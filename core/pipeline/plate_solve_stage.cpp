@@ -96,10 +96,13 @@ std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress
 }
 
 astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XyStar>& stars,
-                                    astro::PlateSolveParams params, ProgressSink& progress, CancelToken& cancel) {
-  if (!params.scaleArcsecPerPx && cube.plateScaleArcsecPerPx) params.scaleArcsecPerPx = cube.plateScaleArcsecPerPx;
+                                    astro::PlateSolveParams params, ProgressSink& progress,
+                                    CancelToken& cancel) {
+  if (!params.scaleArcsecPerPx && cube.plateScaleArcsecPerPx)
+    params.scaleArcsecPerPx = cube.plateScaleArcsecPerPx;
   astro::applyHints(params, astro::plateSolveHints(cube.header));
-  astro::PlateSolution solution = astro::plateSolve(stars, cube.width(), cube.height(), params, progress, cancel);
+  astro::PlateSolution solution =
+      astro::plateSolve(stars, cube.width(), cube.height(), params, progress, cancel);
   cube.wcs = solution.wcs;
   cube.plateScaleArcsecPerPx = solution.scaleArcsecPerPx;
   return solution;
@@ -133,12 +136,14 @@ astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSo
 
 std::string describeSolution(const astro::PlateSolution& s) {
   char text[400];
-  std::snprintf(text, sizeof text,
-                "plate-solved by astrometry.net: centre RA %.6f Dec %+.6f deg, %.4f arcsec/px, %zu stars given, "
-                "%s, %.1f s",
-                s.centreRaDeg, s.centreDecDeg, s.scaleArcsecPerPx, s.starsGiven,
-                s.index.empty() ? "index not named" : ("index " + std::filesystem::path(s.index).filename().string()).c_str(),
-                s.elapsedS);
+  std::snprintf(
+      text, sizeof text,
+      "plate-solved by astrometry.net: centre RA %.6f Dec %+.6f deg, %.4f arcsec/px, %zu stars given, "
+      "%s, %.1f s",
+      s.centreRaDeg, s.centreDecDeg, s.scaleArcsecPerPx, s.starsGiven,
+      s.index.empty() ? "index not named"
+                      : ("index " + std::filesystem::path(s.index).filename().string()).c_str(),
+      s.elapsedS);
   return text;
 }
 

@@ -48,12 +48,15 @@ std::string indexDir(const TempDir& dir, const std::string& name) {
   return d.string();
 }
 
-std::vector<io::XyStar> fourStars() { return {{10, 20, 5}, {100, 30, 50}, {40, 90, 7}, {70, 60, 1}}; }
+std::vector<io::XyStar> fourStars() {
+  return {{10, 20, 5}, {100, 30, 50}, {40, 90, 7}, {70, 60, 1}};
+}
 
 TEST(Xylist, WritesOneBasedColumnsSortedByFluxThatCfitsioReads) {
   TempDir dir;
   const std::string path = (dir / "stars.xyls").string();
-  io::writeXylist(path, {{0.0, 0.0, 1.0}, {10.25, 3.5, 9.0}, {std::nan(""), 1.0, 100.0}, {4.0, 7.0, 3.0}}, 64, 48);
+  io::writeXylist(path, {{0.0, 0.0, 1.0}, {10.25, 3.5, 9.0}, {std::nan(""), 1.0, 100.0}, {4.0, 7.0, 3.0}}, 64,
+                  48);
   fitsfile* f = nullptr;
   int status = 0;
   ASSERT_EQ(fits_open_diskfile(&f, path.c_str(), READONLY, &status), 0);
@@ -115,8 +118,8 @@ TEST(PlateSolveHints, ReadsScaleAndSexagesimalPointingFromAHeaderWithoutWcs) {
 
 TEST(PlateSolveIndex, ScaleFromFileNamesAndPackagesForAFieldSize) {
   TempDir dir;
-  for (const char* n : {"index-tycho2-07.littleendian.fits", "index-4208.fits", "index-5206-03.fits", "notes.txt",
-                        "index-4119.fits"})
+  for (const char* n : {"index-tycho2-07.littleendian.fits", "index-4208.fits", "index-5206-03.fits",
+                        "notes.txt", "index-4119.fits"})
     std::ofstream(dir / n) << "";
   const auto found = astro::findIndexFiles({dir.path().string(), (dir / "missing").string()});
   ASSERT_EQ(found.size(), 4u);
@@ -135,8 +138,10 @@ TEST(PlateSolveIndex, ScaleFromFileNamesAndPackagesForAFieldSize) {
   EXPECT_EQ(pk[1], "astrometry-data-tycho2-08-littleendian");
   EXPECT_TRUE(astro::indexPackagesFor(5.0).empty());
   EXPECT_EQ(astro::indexPackagesFor(600.0).back(), "astrometry-data-tycho2-10-19-littleendian");
-  std::ofstream(dir / "astrometry.cfg") << "# comment\nadd_path /a/b\nindex /c/d/index-4107.fits\nautoindex\n";
-  EXPECT_EQ(astro::configIndexDirs((dir / "astrometry.cfg").string()), (std::vector<std::string>{"/a/b", "/c/d"}));
+  std::ofstream(dir / "astrometry.cfg")
+      << "# comment\nadd_path /a/b\nindex /c/d/index-4107.fits\nautoindex\n";
+  EXPECT_EQ(astro::configIndexDirs((dir / "astrometry.cfg").string()),
+            (std::vector<std::string>{"/a/b", "/c/d"}));
 }
 
 std::string messageOf(const std::function<void()>& f) {
@@ -184,7 +189,9 @@ TEST(PlateSolve, NoIndexFilesOrNoneForTheFieldSizeNamesThePackage) {
   p.scaleArcsecPerPx = 0.2;  // a 4.8' field: smaller than any Tycho-2 quad
   m = messageOf([&] { (void)astro::plateSolve(fourStars(), 1432, 1370, p, progress, cancel); });
   EXPECT_NE(m.find("deeper catalogue"), std::string::npos) << m;
-  EXPECT_NE(messageOf([&] { (void)astro::plateSolve({{1, 1, 1}}, 128, 128, p, progress, cancel); }).find("at least 4"),
+  EXPECT_NE(messageOf([&] {
+              (void)astro::plateSolve({{1, 1, 1}}, 128, 128, p, progress, cancel);
+            }).find("at least 4"),
             std::string::npos);
 }
 
@@ -216,7 +223,8 @@ TEST(PlateSolve, TimeLimitAndCancelStopTheProgramPromptly) {
   p.timeLimitS = 0.5;
   CancelToken cancel;
   auto t0 = std::chrono::steady_clock::now();
-  const std::string m = messageOf([&] { (void)astro::plateSolve(fourStars(), 128, 128, p, progress, cancel); });
+  const std::string m =
+      messageOf([&] { (void)astro::plateSolve(fourStars(), 128, 128, p, progress, cancel); });
   EXPECT_NE(m.find("no solution within the time limit of 0.5 s"), std::string::npos) << m;
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 5.0);
   p.timeLimitS = 60.0;
@@ -239,12 +247,15 @@ TEST(PlateSolve, ReadsTheSolutionAndPassesTheStarListAndHintsAsArguments) {
   io::writeHeaderFile(wcsFile, wcs);
   // A stand-in for solve-field: records its arguments, copies the WCS to --dir/--out.wcs, says which index.
   const std::string args = (dir / "args.txt").string();
-  const std::string body = "for a in \"$@\"; do echo \"$a\" >> '" + args +
-                           "'; done\n"
-                           "while [ $# -gt 0 ]; do case \"$1\" in --dir) d=\"$2\"; shift;; --out) o=\"$2\"; shift;; "
-                           "esac; shift; done\n"
-                           "cp '" + wcsFile + "' \"$d/$o.wcs\" && touch \"$d/$o.solved\"\n"
-                           "echo 'Field 1: solved with index index-tycho2-07.littleendian.fits.'\n";
+  const std::string body =
+      "for a in \"$@\"; do echo \"$a\" >> '" + args +
+      "'; done\n"
+      "while [ $# -gt 0 ]; do case \"$1\" in --dir) d=\"$2\"; shift;; --out) o=\"$2\"; shift;; "
+      "esac; shift; done\n"
+      "cp '" +
+      wcsFile +
+      "' \"$d/$o.wcs\" && touch \"$d/$o.solved\"\n"
+      "echo 'Field 1: solved with index index-tycho2-07.littleendian.fits.'\n";
   astro::PlateSolveParams p;
   p.solveField = script(dir, "solve-field", body);
   p.indexDirs = {indexDir(dir, "index-4200.fits")};  // quads of 2'-2.8' for this 3.2' field
@@ -263,9 +274,10 @@ TEST(PlateSolve, ReadsTheSolutionAndPassesTheStarListAndHintsAsArguments) {
   EXPECT_EQ(s.index, "index-tycho2-07.littleendian.fits");
   EXPECT_EQ(s.starsGiven, 4u);
   const std::string a = readText(args);
-  for (const char* expected : {"--x-column\nX\n", "--y-column\nY\n", "--sort-column\nFLUX\n", "--width\n128\n",
-                               "--height\n64\n", "--scale-units\narcsecperpix\n", "--scale-low\n1.153846", "--scale-high\n1.95\n",
-                               "--ra\n150.01\n", "--dec\n2\n", "--radius\n2\n", "--config\n"})
+  for (const char* expected :
+       {"--x-column\nX\n", "--y-column\nY\n", "--sort-column\nFLUX\n", "--width\n128\n", "--height\n64\n",
+        "--scale-units\narcsecperpix\n", "--scale-low\n1.153846", "--scale-high\n1.95\n", "--ra\n150.01\n",
+        "--dec\n2\n", "--radius\n2\n", "--config\n"})
     EXPECT_NE(a.find(expected), std::string::npos) << expected << " not in\n" << a;
 }
 
@@ -280,7 +292,7 @@ TEST(PlateSolveStage, CatalogueStarsMoveToTheFirstFrame) {
   b.x = 99.0, b.y = 40.0, b.flux = 5.0;
   const auto stars = pipeline::firstFrameStars({a, b}, cube, Velocity{-0.5, 0.25});
   // x + v (t_0 - t_ref) + o_0 = 50 + 5 + 1.5, 40 - 2.5 - 2
-  ASSERT_EQ(stars.size(), 1u);  // b: 99 + 5 + 1.5 = 105.5 is outside 100 columns
+  ASSERT_EQ(stars.size(), 1u);          // b: 99 + 5 + 1.5 = 105.5 is outside 100 columns
   EXPECT_NEAR(stars[0].x, 56.5, 1e-6);  // MJD times: ~1e-6 s resolution
   EXPECT_NEAR(stars[0].y, 35.5, 1e-6);
   EXPECT_DOUBLE_EQ(stars[0].flux, 10.0);

@@ -68,7 +68,8 @@ TEST(PlateSolveReal, LowellFrameWithoutWcsAgreesWithItsHeaderWcs) {
   EXPECT_EQ(cube.wcs, s.wcs);
 
   const double w = cube.width() - 1.0, h = cube.height() - 1.0;
-  const double centre = separationArcsec(truth->pixelToSky(0.5 * w, 0.5 * h), s.wcs->pixelToSky(0.5 * w, 0.5 * h));
+  const double centre =
+      separationArcsec(truth->pixelToSky(0.5 * w, 0.5 * h), s.wcs->pixelToSky(0.5 * w, 0.5 * h));
   double worstCorner = 0.0;
   std::string corners;
   for (const auto& [x, y] : {std::pair{0.0, 0.0}, {w, 0.0}, {0.0, h}, {w, h}}) {
@@ -76,10 +77,11 @@ TEST(PlateSolveReal, LowellFrameWithoutWcsAgreesWithItsHeaderWcs) {
     worstCorner = std::max(worstCorner, d);
     corners += " " + std::to_string(d);
   }
-  std::printf("plate solve of %s: %zu sources, %s, %.1f s; header WCS vs solution: centre %.3f arcsec, corners%s "
-              "arcsec; scale %.5f vs %.5f arcsec/px\n",
-              file.filename().c_str(), stars.size(), s.method.c_str(), seconds, centre, corners.c_str(),
-              s.scaleArcsecPerPx, truth->plateScaleArcsecPerPx());
+  std::printf(
+      "plate solve of %s: %zu sources, %s, %.1f s; header WCS vs solution: centre %.3f arcsec, corners%s "
+      "arcsec; scale %.5f vs %.5f arcsec/px\n",
+      file.filename().c_str(), stars.size(), s.method.c_str(), seconds, centre, corners.c_str(),
+      s.scaleArcsecPerPx, truth->plateScaleArcsecPerPx());
   EXPECT_LT(centre, 1.0);
   EXPECT_LT(worstCorner, 3.0);
   EXPECT_NEAR(s.scaleArcsecPerPx / truth->plateScaleArcsecPerPx(), 1.0, 0.003);

@@ -117,11 +117,11 @@ struct PlateSolution {
   double scaleArcsecPerPx = 0.0;
   double centreRaDeg = 0.0;  ///< sky position of the frame centre ((width-1)/2, (height-1)/2)
   double centreDecDeg = 0.0;
-  std::string index;  ///< the index file that solved it (from solve-field's log), when it says
+  std::string index;   ///< the index file that solved it (from solve-field's log), when it says
   std::string method;  ///< "field index (...)" or "installed index files"
   std::size_t starsGiven = 0;
   double elapsedS = 0.0;
-  std::string log;  ///< solve-field's stdout
+  std::string log;      ///< solve-field's stdout
   std::string workDir;  ///< kept only with PlateSolveParams::keepWorkDir
 };
 

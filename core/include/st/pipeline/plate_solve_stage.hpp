@@ -29,7 +29,8 @@ std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress
 /// Hints missing from `params` are taken from cube.header (astro::plateSolveHints) and from
 /// cube.plateScaleArcsecPerPx. Throws as astro::plateSolve.
 astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XyStar>& stars,
-                                    astro::PlateSolveParams params, ProgressSink& progress, CancelToken& cancel);
+                                    astro::PlateSolveParams params, ProgressSink& progress,
+                                    CancelToken& cancel);
 
 /// Plate-solves the first frame of a cube not yet calibrated (frameStars, then plateSolveCube) and writes the
 /// solution into cube.header as WCS cards (replacing any), so that calibration's trim (which moves CRPIX)
@@ -38,8 +39,8 @@ astro::PlateSolution plateSolveRawCube(FrameCube& cube, const astro::PlateSolveP
                                        ProgressSink& progress, CancelToken& cancel);
 
 /// plateSolveCube on a pre-processed cube from its static-source catalogue (prepared.stars at
-/// prepared.skyRate); prepared.filtered.frames gets the same WCS; a note saying what was solved is appended to
-/// prepared.notes.
+/// prepared.skyRate); prepared.filtered.frames gets the same WCS; a note saying what was solved is appended
+/// to prepared.notes.
 astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSolveParams& params,
                                         ProgressSink& progress, CancelToken& cancel);
 
