@@ -59,6 +59,7 @@ nlohmann::json solveOne(const std::string& file, const io::LoadOptions& load,
   j["dec_deg"] = s.centreDecDeg;
   j["scale_arcsec_px"] = s.scaleArcsecPerPx;
   j["index"] = s.index;
+  j["method"] = s.method;
   j["elapsed_s"] = s.elapsedS;
   if (!s.workDir.empty()) j["work_dir"] = s.workDir;
   if (headerWcs) {
@@ -111,12 +112,12 @@ int cmdSolve(const Args& args) {
     all.push_back(j);
     if (cli.flag("json")) continue;
     std::printf(
-        "%s: RA %.6f Dec %+.6f deg at the centre, %.4f arcsec/px, %s, %zu of %zu stars given, %.1f s\n",
+        "%s: RA %.6f Dec %+.6f deg at the centre, %.4f arcsec/px, %s (%s), %zu of %zu stars given, %.1f s\n",
         file.c_str(), j["ra_deg"].get<double>(), j["dec_deg"].get<double>(),
         j["scale_arcsec_px"].get<double>(),
         j["index"].get<std::string>().empty() ? "index not named" : j["index"].get<std::string>().c_str(),
-        j["stars_given"].get<std::size_t>(), j["stars_found"].get<std::size_t>(),
-        j["elapsed_s"].get<double>());
+        j["method"].get<std::string>().c_str(), j["stars_given"].get<std::size_t>(),
+        j["stars_found"].get<std::size_t>(), j["elapsed_s"].get<double>());
     if (j.contains("header_wcs_diff_arcsec")) {
       const auto& d = j["header_wcs_diff_arcsec"];
       std::printf("  header WCS vs solution: %.3f arcsec at the centre; corners %.3f %.3f %.3f %.3f arcsec\n",

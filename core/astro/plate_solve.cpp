@@ -99,8 +99,9 @@ void checkIndexes(const PlateSolveParams& p, const std::vector<IndexFile>& index
 }
 
 std::vector<std::string> solveFieldArgs(const std::string& program, const PlateSolveParams& p,
-                                        const WorkDir& dir, const std::string& config, int width, int height,
-                                        double timeLimitS, std::optional<double> oddsToSolve) {
+                                        const WorkDir& dir, const std::string& config,
+                                        const std::string& prefix, int width, int height, double timeLimitS,
+                                        std::optional<double> oddsToSolve) {
   const int limit = std::max(1, static_cast<int>(std::ceil(timeLimitS)));
   std::vector<std::string> a = {program,
                                 "--overwrite",
@@ -128,7 +129,7 @@ std::vector<std::string> solveFieldArgs(const std::string& program, const PlateS
                                 "--temp-dir",
                                 dir.path(),
                                 "--out",
-                                "solve",
+                                prefix,
                                 "--new-fits",
                                 "none",
                                 "--corr",
@@ -206,8 +207,7 @@ Attempt runSolveField(const std::string& program, const PlateSolveParams& p, con
                       const std::string& config, const std::string& prefix, int width, int height,
                       double limitS, std::optional<double> odds, ProgressSink& progress,
                       CancelToken& cancel) {
-  auto argv = solveFieldArgs(program, p, dir, config, width, height, limitS, odds);
-  std::replace(argv.begin(), argv.end(), std::string("solve"), prefix);  // --out PREFIX
+  auto argv = solveFieldArgs(program, p, dir, config, prefix, width, height, limitS, odds);
   Attempt a;
   a.prefix = prefix;
   a.run = detail::runChild(argv, dir.file(prefix + ".stdout"), dir.file(prefix + ".stderr"), limitS, progress,

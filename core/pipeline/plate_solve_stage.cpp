@@ -135,16 +135,13 @@ astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSo
 }
 
 std::string describeSolution(const astro::PlateSolution& s) {
-  char text[400];
-  std::snprintf(
-      text, sizeof text,
-      "plate-solved by astrometry.net: centre RA %.6f Dec %+.6f deg, %.4f arcsec/px, %zu stars given, "
-      "%s, %.1f s",
-      s.centreRaDeg, s.centreDecDeg, s.scaleArcsecPerPx, s.starsGiven,
-      s.index.empty() ? "index not named"
-                      : ("index " + std::filesystem::path(s.index).filename().string()).c_str(),
-      s.elapsedS);
-  return text;
+  const std::string index =
+      s.index.empty() ? std::string("index not named") : std::filesystem::path(s.index).filename().string();
+  char text[200];
+  std::snprintf(text, sizeof text, "centre RA %.6f Dec %+.6f deg, %.4f arcsec/px, %zu stars given, %.1f s",
+                s.centreRaDeg, s.centreDecDeg, s.scaleArcsecPerPx, s.starsGiven, s.elapsedS);
+  return "plate-solved by astrometry.net: " + std::string(text) + " (" + index +
+         (s.method.empty() ? std::string{} : ", " + s.method) + ")";
 }
 
 }  // namespace st::pipeline
