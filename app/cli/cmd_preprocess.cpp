@@ -76,9 +76,9 @@ const char* kHelp =
     "                          within the cgroup's limit); the peak is estimated and printed first, and an\n"
     "                          input that does not fit stops with exit 1 before any pixel is read\n"
     "  (with --crop, the calibration frames are cropped alike)\n"
-    "  --plate-solve           when the frames have no WCS, plate-solve the star catalogue with\n"
-    "                          astrometry.net (see the plate-solving options below) and write the WCS\n"
-    "                          into every output, so that RA/Dec, the compass and ADES work\n"
+    "  --plate-solve           when the frames have no WCS, plate-solve the first frame with astrometry.net\n"
+    "                          (the pre-processed star catalogue when that fails; options below) and carry\n"
+    "                          the WCS into every output, so that RA/Dec, the compass and ADES work\n"
     "  --json                  print the sidecar to stdout as well\n";
 
 }  // namespace

@@ -27,8 +27,8 @@ const char* kHelp =
     "Plate-solves the first frame of each FILE: the sources found in it (brightest first) go to\n"
     "astrometry.net's solve-field, whose WCS is printed (centre, scale) and, with --wcs-dir, written as\n"
     "DIR/<file>.wcs (a header-only FITS file). A header WCS is ignored for the solve and compared with the\n"
-    "solution (arcsec at the centre and the four corners). `preprocess --plate-solve` does the same on the\n"
-    "pre-processed star catalogue and writes the WCS into its outputs.\n\n"
+    "solution (arcsec at the centre and the four corners). `preprocess --plate-solve` solves the first frame\n"
+    "the same way (the pre-processed star catalogue when that fails) and writes the WCS into its outputs.\n\n"
     "  --wcs-dir DIR           write each solution to DIR/<file name>.wcs\n"
     "  --json                  JSON output\n";
 
