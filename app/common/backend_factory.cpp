@@ -43,8 +43,8 @@ bool cudaCompiledIn() {
   return ST_HAVE_CUDA != 0;
 }
 
-std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(const search::SearchBackend& backend,
-                                                                           std::string& message) {
+std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(
+    const search::SearchBackend& backend, std::string& message) {
   if (backend.name().rfind("cuda", 0) != 0) {
     message = "pre-processing on the CPU";
     return nullptr;

@@ -66,8 +66,8 @@ std::vector<std::string> parseDeviceSummary(const std::string& summary);
 /// The device for the pre-processing's per-pixel background and matched filter (issue 16) that goes with a
 /// search on `backend`: the CUDA one when the backend is CUDA (its name starts with "cuda") and a device is
 /// usable, else null (the CPU). `message` says which, for the log.
-std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(const search::SearchBackend& backend,
-                                                                           std::string& message);
+std::unique_ptr<pipeline::PreprocessAccelerator> makePreprocessAccelerator(
+    const search::SearchBackend& backend, std::string& message);
 
 /// Whether this build has the CUDA backend compiled in.
 bool cudaCompiledIn();

@@ -66,7 +66,8 @@ std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessPa
   if (!fullScale) {
     const auto bitpix = cube.header.getDouble("BITPIX");
     if (bitpix && *bitpix > 0 && *bitpix <= 32)
-      fullScale = std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
+      fullScale =
+          std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
   }
   if (!fullScale) return std::nullopt;
   auto median = [](std::vector<float> v) {
@@ -190,7 +191,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // device then downloads into it (issue 16). Without one, the CPU filter's copy allocates it as before.
   std::future<std::vector<float>> filteredBuffer;
   if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
-    filteredBuffer = std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
+    filteredBuffer =
+        std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
   {
     SubProgress sub(progress, 0.4, 0.65);
@@ -211,7 +213,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
         exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
                     exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
     stats::Background bg = subtractPixelBackgroundOn(params.accelerator, cube, params.background, &exclude,
-                                                       sub, cancel, out.notes);
+                                                     sub, cancel, out.notes);
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
@@ -228,8 +230,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (!stars.subtractRegion.empty()) {
     // Before the cosmic-ray pixels are zeroed: they hold their time neighbours' values until then.
     SubProgress sub(progress, 0.65, 0.75);
-    out.starSubtraction =
-        detect::subtractStarTemplate(cube, stars.subtractRegion, &out.noise, params.starSubtraction, sub, cancel);
+    out.starSubtraction = detect::subtractStarTemplate(cube, stars.subtractRegion, &out.noise,
+                                                       params.starSubtraction, sub, cancel);
     const detect::StarSubtraction& ss = out.starSubtraction;
     std::ostringstream note;
     if (ss.applied) {
@@ -245,9 +247,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
            << " of the span around each frame; their cores masked, and " << ss.excessPositions
            << " sky positions whose residuals vary more than " << params.starSubtraction.maxVarianceRatio
            << "x the background; the residuals of " << ss.whitenedPositions
-           << " sky positions with a smaller excess divided by its square root; " << ss.pixelsZeroed << " pixel-frames without a template zeroed";
-    }
-    else
+           << " sky positions with a smaller excess divided by its square root; " << ss.pixelsZeroed
+           << " pixel-frames without a template zeroed";
+    } else
       note << "stars not subtracted (the span is too short for a template outside each frame's window): "
               "masked down to one stack sigma instead";
     out.notes.push_back(note.str());
@@ -293,8 +295,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
         f.pixels() = filteredBuffer.get();
         const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         if (waited > 0.01)
-          out.notes.push_back("matched filter: waited " + std::to_string(waited) +
-                              " s for the filtered cube's host buffer (allocated since the per-pixel background)");
+          out.notes.push_back(
+              "matched filter: waited " + std::to_string(waited) +
+              " s for the filtered cube's host buffer (allocated since the per-pixel background)");
       }
       f.info() = cube.info();
       f.header = cube.header;
@@ -311,10 +314,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.revision = search::nextCubeRevision();
     const stats::NoiseModel* noise = params.weightedFilter ? &out.noiseModel : nullptr;
     const stack::MatchedFilterResult mf =
-        params.keepZeroBiased
-            ? filterCubeFromOn(params.accelerator, cube, f, kernel, sub, cancel, noise, out.notes,
-                               out.filtered.revision)
-            : filterCubeOn(params.accelerator, f, kernel, sub, cancel, noise, out.notes, out.filtered.revision);
+        params.keepZeroBiased ? filterCubeFromOn(params.accelerator, cube, f, kernel, sub, cancel, noise,
+                                                 out.notes, out.filtered.revision)
+                              : filterCubeOn(params.accelerator, f, kernel, sub, cancel, noise, out.notes,
+                                             out.filtered.revision);
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();

@@ -13,7 +13,8 @@ std::string fallbackNote(const PreprocessAccelerator& accel, const char* stage, 
 }  // namespace
 
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
-                                    const stats::GlobalBackgroundParams& params, std::vector<std::string>& notes) {
+                                    const stats::GlobalBackgroundParams& params,
+                                    std::vector<std::string>& notes) {
   if (accel) {
     try {
       return accel->globalBackground(cube, params);

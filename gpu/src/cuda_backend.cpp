@@ -191,7 +191,8 @@ class CudaBackend final : public CudaSearchBackend {
 
   /// The key of a tree plan and workspace: the resident cube (0 when it is not kept: nothing is kept then),
   /// the frame times and offsets, the grid, the cut and the tiling options (FNV-1a).
-  std::uint64_t treePlanKey(const search::FilteredCube& cube, const search::VelocityGrid& grid, int cut) const {
+  std::uint64_t treePlanKey(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                            int cut) const {
     if (m_cubeKey == 0) return 0;
     std::uint64_t h = 1469598103934665603ull;
     auto mix = [&h](const void* data, std::size_t bytes) {
@@ -445,7 +446,8 @@ class CudaBackend final : public CudaSearchBackend {
   std::atomic<bool> m_abort{false};
   std::vector<int> m_ordinals;
   std::uint64_t m_cubeKey = 0;
-  std::vector<TreeWorkspace> m_tree;  ///< per device: the tree search's arenas and tables, kept (see searchTree)
+  std::vector<TreeWorkspace>
+      m_tree;  ///< per device: the tree search's arenas and tables, kept (see searchTree)
   std::shared_ptr<const TreeDevicePlan> m_treePlan;  ///< the tree plan those were made for
   std::uint64_t m_treeKey = 0;                       ///< its treePlanKey (0: none kept)
 };

@@ -95,7 +95,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
 
-  stats::ClipStats globalBackground(const FrameCube& cube, const stats::GlobalBackgroundParams& params) override {
+  stats::ClipStats globalBackground(const FrameCube& cube,
+                                    const stats::GlobalBackgroundParams& params) override {
     ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
     DeviceResources& r = ensureResources(m_res);
     return globalBackgroundUploaded(cube, params, r.compute.get());
@@ -116,8 +117,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     const double upload = sw.lap();
     cancel.throwIfCancelled();
     progress.report(0.3, "residual means (GPU)");
-    const double rms = removeResidualMeansOnDevice(pix.get(), cube.width(), cube.height(), static_cast<int>(nf),
-                                                   meshPx, clipSigma, r.compute.get());
+    const double rms = removeResidualMeansOnDevice(pix.get(), cube.width(), cube.height(),
+                                                   static_cast<int>(nf), meshPx, clipSigma, r.compute.get());
     const double kernels = sw.lap();
     cancel.throwIfCancelled();
     // Every kernel succeeded: the host cube is written now.
@@ -126,8 +127,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     m_kept = std::move(pix);
     m_keptData = cube.pixels().data();
     m_keptKey = cubeKey(cube);
-    m_note = "residual means on " + name() + ": upload " + ms(upload) + ", kernels and host fill " + ms(kernels) +
-             ", download " + ms(down) + "; frames kept on the device for the matched filter";
+    m_note = "residual means on " + name() + ": upload " + ms(upload) + ", kernels and host fill " +
+             ms(kernels) + ", download " + ms(down) + "; frames kept on the device for the matched filter";
     progress.report(1.0, "residual means (GPU)");
     return rms;
   }
@@ -266,9 +267,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     const double host = sw.lap();
     m_note = "per-pixel background on " + name() + ": tables " + ms(hostTables) + ", upload " + ms(upload) +
              ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
-             " passes), kernels " + ms(kernels) + " (prepare " +
-             ms(Event::elapsed(k0, k1)) + ", clip " + ms(Event::elapsed(k1, k2)) + ", subtract " +
-             ms(Event::elapsed(k2, k3)) + "), download " + ms(down) + ", host " + ms(host);
+             " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", clip " +
+             ms(Event::elapsed(k1, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
+             ms(down) + ", host " + ms(host);
     progress.report(1.0, "per-pixel background (GPU)");
     return out;
   }
@@ -331,8 +332,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     }
     // The frames removeResidualMeans left on the device, when this is that cube unchanged: no upload.
     DeviceBuffer<float> in = std::move(m_kept);
-    const bool kept = !hasMask && in.size() == nf * np && m_keptData == cube.pixels().data() &&
-                      m_keptKey == cubeKey(cube);
+    const bool kept =
+        !hasMask && in.size() == nf * np && m_keptData == cube.pixels().data() && m_keptKey == cubeKey(cube);
     m_keptData = nullptr;
     if (!kept) {
       in = DeviceBuffer<float>();  // another cube's: freed first
@@ -461,13 +462,14 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       slot.key = residentKey(dest, revision);
       resident = "kept on the device for the search";
     }
-    m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
-             (weighted ? ", weighted" : "") + "): " +
-             (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
-             ", kernels " + ms(kernels) +
-             " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " + ms(Event::elapsed(k1, k2)) +
-             ")" + (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
-             ", download " + ms(down) + "; filtered cube " + resident;
+    m_note =
+        "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
+        (weighted ? ", weighted" : "") + "): " +
+        (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
+        ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
+        ms(Event::elapsed(k1, k2)) + ")" +
+        (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) + ", download " +
+        ms(down) + "; filtered cube " + resident;
     progress.report(1.0, "matched filter (GPU)");
     return result;
   }

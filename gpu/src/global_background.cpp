@@ -46,8 +46,16 @@ stats::ClipStats clip(const float* pix, const std::uint8_t* mask, const std::vec
   DeviceBuffer<unsigned long long> c(kGlobalMomentBlocks);
   std::vector<double> sH(kGlobalMomentBlocks), ssH(kGlobalMomentBlocks);
   std::vector<unsigned long long> cH(kGlobalMomentBlocks);
-  GlobalMomentsLaunch p{pix, mask, framesD.get(), static_cast<int>(frames.size()), np,
-                        std::numeric_limits<double>::infinity(), shift, s.get(), ss.get(), c.get()};
+  GlobalMomentsLaunch p{pix,
+                        mask,
+                        framesD.get(),
+                        static_cast<int>(frames.size()),
+                        np,
+                        std::numeric_limits<double>::infinity(),
+                        shift,
+                        s.get(),
+                        ss.get(),
+                        c.get()};
   stats::ClipStats out;
   std::size_t previous = std::numeric_limits<std::size_t>::max();
   for (int it = 1; it <= 100; ++it) {
@@ -68,7 +76,8 @@ stats::ClipStats clip(const float* pix, const std::uint8_t* mask, const std::vec
     if (n == 0) break;
     const double meanShifted = sum / static_cast<double>(n);
     out.mean = shift + meanShifted;
-    out.sigma = n > 1 ? std::sqrt(std::max(0.0, (sumSq - sum * meanShifted) / static_cast<double>(n - 1))) : 0.0;
+    out.sigma =
+        n > 1 ? std::sqrt(std::max(0.0, (sumSq - sum * meanShifted) / static_cast<double>(n - 1))) : 0.0;
     if (n == previous) {
       out.converged = true;
       break;
@@ -99,8 +108,8 @@ stats::ClipStats globalBackgroundUploaded(const FrameCube& cube, const stats::Gl
   std::vector<int> compact(frames.size());
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const std::size_t n = static_cast<std::size_t>(frames[k]);
-    ST_CUDA_CHECK(cudaMemcpyAsync(pix.get() + k * np, cube.frame(n), np * sizeof(float), cudaMemcpyHostToDevice,
-                                  stream));
+    ST_CUDA_CHECK(cudaMemcpyAsync(pix.get() + k * np, cube.frame(n), np * sizeof(float),
+                                  cudaMemcpyHostToDevice, stream));
     if (hasMask)
       ST_CUDA_CHECK(cudaMemcpyAsync(mask.get() + k * np, cube.mask().data() + n * np, np,
                                     cudaMemcpyHostToDevice, stream));

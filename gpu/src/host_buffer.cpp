@@ -24,7 +24,7 @@ std::vector<float> prefaultedFloats(std::size_t n) {
   if (hi > lo + (std::size_t{64} << 20)) {  // only worth it for large buffers
     auto* base = reinterpret_cast<char*>(lo);
     const std::size_t pages = (hi - lo) / kPage;
-    madvise(base, hi - lo, MADV_HUGEPAGE);  // a hint: ignored where transparent huge pages are off
+    madvise(base, hi - lo, MADV_HUGEPAGE);      // a hint: ignored where transparent huge pages are off
     constexpr std::size_t kChunkPages = 16384;  // 64 MiB
     parallelFor(pages, kChunkPages, [&](std::size_t p0, std::size_t p1) {
       madvise(base + p0 * kPage, (p1 - p0) * kPage, MADV_POPULATE_WRITE);  // failure: faulted by resize

@@ -15,12 +15,21 @@ double removeResidualMeansOnDevice(float* pix, int width, int height, int nf, in
   const std::size_t cells = static_cast<std::size_t>(nx) * ny;
   if (nf <= 0 || cells == 0) return 0.0;
   DeviceBuffer<double> means(static_cast<std::size_t>(nf) * cells);
-  const ResidualMeansLaunch p{pix, width, height, nf, mesh, nx, ny, clipSigma,
-                              static_cast<int>(std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16)),
-                              means.get()};
+  const ResidualMeansLaunch p{
+      pix,
+      width,
+      height,
+      nf,
+      mesh,
+      nx,
+      ny,
+      clipSigma,
+      static_cast<int>(std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16)),
+      means.get()};
   launchResidualCellMeans(p, stream);
   std::vector<double> m(static_cast<std::size_t>(nf) * cells);
-  ST_CUDA_CHECK(cudaMemcpyAsync(m.data(), means.get(), m.size() * sizeof(double), cudaMemcpyDeviceToHost, stream));
+  ST_CUDA_CHECK(
+      cudaMemcpyAsync(m.data(), means.get(), m.size() * sizeof(double), cudaMemcpyDeviceToHost, stream));
   ST_CUDA_CHECK(cudaStreamSynchronize(stream));
   // Per frame, as core/stats/noise_model.cpp: cells without a mean take the median of the frame's others; a
   // frame without any is left alone; the rms over every cell of the frames that have one.
@@ -46,7 +55,8 @@ double removeResidualMeansOnDevice(float* pix, int width, int height, int nf, in
       ++counted;
     }
   }
-  ST_CUDA_CHECK(cudaMemcpyAsync(means.get(), m.data(), m.size() * sizeof(double), cudaMemcpyHostToDevice, stream));
+  ST_CUDA_CHECK(
+      cudaMemcpyAsync(means.get(), m.data(), m.size() * sizeof(double), cudaMemcpyHostToDevice, stream));
   DeviceBuffer<unsigned char> skipD = toDevice(skip);
   launchResidualSubtract(pix, width, height, nf, mesh, nx, ny, means.get(), skipD.get(), stream);
   ST_CUDA_CHECK(cudaStreamSynchronize(stream));

@@ -14,11 +14,11 @@ namespace st::gpu {
 struct ResidualMeansLaunch {
   const float* pix;  ///< nf frames of width x height
   int width, height, nf;
-  int mesh;              ///< cell side (>= 8)
-  int nx, ny;            ///< cells per row / column
-  double clipSigma;      ///< k
-  int minCount;          ///< max(32, mesh^2 / 16)
-  double* means;         ///< out: [nf][ny][nx], NaN where fewer than minCount values
+  int mesh;          ///< cell side (>= 8)
+  int nx, ny;        ///< cells per row / column
+  double clipSigma;  ///< k
+  int minCount;      ///< max(32, mesh^2 / 16)
+  double* means;     ///< out: [nf][ny][nx], NaN where fewer than minCount values
 };
 
 /// The clipped mean of every (frame, cell).

@@ -44,7 +44,9 @@ __device__ T blockSum(T v, T* scratch) {
   return out;
 }
 
-__device__ __forceinline__ bool usable(float v) { return v != 0.0f && isfinite(v); }
+__device__ __forceinline__ bool usable(float v) {
+  return v != 0.0f && isfinite(v);
+}
 
 // One block per (cell, frame): core/stats/noise_model.cpp clippedMean of the cell's non-zero finite values.
 __global__ void __launch_bounds__(kThreads) residualCellMeansKernel(ResidualMeansLaunch p) {

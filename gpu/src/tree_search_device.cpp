@@ -207,9 +207,10 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
              std::to_string(tree.tileRows) + " rows, partial stacks " +
              std::to_string(tree.arenaBytes() >> 20) + " MiB, tables " +
              std::to_string(tree.tableBytes() >> 20) + " MiB (" +
-             (kept ? "kept from the last search" : job.treePlanKey ? "made, kept for the next" : "made") +
-             "), top " + std::to_string(tree.cut) +
-             " levels in registers" + levels;
+             (kept              ? "kept from the last search"
+              : job.treePlanKey ? "made, kept for the next"
+                                : "made") +
+             "), top " + std::to_string(tree.cut) + " levels in registers" + levels;
   return out;
 }
 

@@ -27,7 +27,8 @@ class PreprocessAccelerator {
   [[nodiscard]] virtual std::string lastNote() const { return {}; }
   /// Same contract as stats::globalBackground, mean and sigma within the rounding of its double sums (the
   /// same samples, count and passes). The default is the CPU's.
-  virtual stats::ClipStats globalBackground(const FrameCube& cube, const stats::GlobalBackgroundParams& params) {
+  virtual stats::ClipStats globalBackground(const FrameCube& cube,
+                                            const stats::GlobalBackgroundParams& params) {
     return stats::globalBackground(cube, params);
   }
   /// Same contract as stats::subtractPixelBackground.
@@ -64,7 +65,8 @@ class PreprocessAccelerator {
 /// stats::globalBackground on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU.
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
-                                    const stats::GlobalBackgroundParams& params, std::vector<std::string>& notes);
+                                    const stats::GlobalBackgroundParams& params,
+                                    std::vector<std::string>& notes);
 
 /// stats::removeResidualMeans on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU; a device run adds its lastNote().
