@@ -10,6 +10,7 @@
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/pipeline/memory_plan.hpp"
+#include "st/pipeline/plate_solve_stage.hpp"
 #include "st/pipeline/prepared_cube.hpp"
 #include "st/search/tiled_search.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -42,6 +43,20 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
   }
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
+  // --plate-solve (pipeline/plate_solve_stage.hpp): the first raw frame, else the star catalogue after
+  // pre-processing; a search without a WCS is still a search, so a failure is a warning.
+  std::string solved;
+  bool solveCatalogue = false;
+  if (o.plateSolve && !raw.wcs) {
+    try {
+      SubProgress solveProgress(progress, 0.2, 0.2);
+      solved = "WCS of the first frame " + pipeline::describeSolution(pipeline::plateSolveRawCube(
+                                               raw, o.plateSolveParams, solveProgress, cancel));
+    } catch (const InputError& e) {
+      solveCatalogue = true;
+      solved = std::string("plate solving the first frame: ") + e.what();
+    }
+  }
   pipeline::PreprocessParams params;
   params.accelerator = accelerator;
   params.calib = in.calib;
@@ -57,6 +72,15 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
   SubProgress prepProgress(progress, 0.2, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(raw), params, prepProgress, cancel);
   warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());
+  if (!solved.empty()) prepared.notes.push_back(solved);
+  if (solveCatalogue) {
+    try {
+      SubProgress solveProgress(progress, 0.5, 0.5);
+      pipeline::plateSolvePrepared(prepared, o.plateSolveParams, solveProgress, cancel);
+    } catch (const InputError& e) {
+      warnings.push_back(std::string("no WCS: plate solving the star catalogue: ") + e.what());
+    }
+  }
   if (o.fwhm) prepared.filtered.psfFwhmPx = *o.fwhm;
   if (o.sigmaF) prepared.filtered.sigmaF = *o.sigmaF;
   return prepared;

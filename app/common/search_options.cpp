@@ -2,6 +2,7 @@
 
 #include <cstdio>
 
+#include "plate_solve_args.hpp"
 #include "st/common/memory_budget.hpp"
 
 namespace st::app {
@@ -19,25 +20,19 @@ Velocity parsePair(const std::string& text, const std::string& name) {
 
 }  // namespace
 
-std::set<std::string> searchFlagNames() { return {"grid-step-fwhm", "no-register"}; }
+std::set<std::string> searchFlagNames() {
+  std::set<std::string> flags = {"grid-step-fwhm", "no-register", "plate-solve"};
+  flags.merge(plateSolveFlagNames());
+  return flags;
+}
 
 std::set<std::string> searchOptionNames() {
-  return {"vmax-px-s",
-          "vmax-arcsec-min",
-          "vmax-deg-day",
-          "centre-px-s",
-          "grid-step-px",
-          "snr",
-          "fap",
-          "min-frame-fraction",
-          "max-candidates",
-          "sigma-f",
-          "fwhm",
-          "backend",
-          "frame-precision",
-          "method",
-          "fit-max",
-          "memory-limit"};
+  std::set<std::string> names = plateSolveOptionNames();
+  names.merge(std::set<std::string>{"vmax-px-s", "vmax-arcsec-min", "vmax-deg-day", "centre-px-s",
+                                    "grid-step-px", "snr", "fap", "min-frame-fraction", "max-candidates",
+                                    "sigma-f", "fwhm", "backend", "frame-precision", "method", "fit-max",
+                                    "memory-limit"});
+  return names;
 }
 
 const char* searchOptionsHelp() {
@@ -51,6 +46,9 @@ const char* searchOptionsHelp() {
          "  --grid-step-fwhm      grid step = PSF FWHM over the time span (the paper's coarsest)\n"
          "  --no-register         raw input: no per-frame registration in pre-processing (the linear sky\n"
          "                        rate is the model even where the star field jumps)\n"
+         "  --plate-solve         raw input without a WCS: plate-solve the first frame with astrometry.net\n"
+         "                        (--solve-scale, --solve-ra/--solve-dec, --solve-time-limit, --index-dir;\n"
+         "                        `synthtrack-cli solve --help`), so that fits get RA/Dec and reports ADES\n"
          "  --snr S | --fap P     threshold: SNR (default 7) or target false-alarm probability over all "
          "trials\n"
          "  --min-frame-fraction F  ignore cells seen by fewer than F x frames (default 0.5)\n"
@@ -107,11 +105,14 @@ SearchOptions parseSearchOptions(const CliArgs& cli) {
     p.maxCandidates = static_cast<std::size_t>(*n);
   }
   o.registerFrames = !cli.flag("no-register");
+  o.plateSolve = cli.flag("plate-solve");
+  o.plateSolveParams = plateSolveParamsFromArgs(cli);
   o.sigmaF = cli.number("sigma-f");
   o.fwhm = cli.number("fwhm");
   if (auto b = cli.value("backend")) o.backend = *b;
   if (auto f = cli.value("frame-precision")) {
-    if (*f != "fp32" && *f != "fp16") throw UsageError("--frame-precision must be fp32 or fp16, got '" + *f + "'");
+    if (*f != "fp32" && *f != "fp16")
+      throw UsageError("--frame-precision must be fp32 or fp16, got '" + *f + "'");
     o.framePrecision = *f;
   }
   p.method = search::SearchMethod::Auto;

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "cli_args.hpp"
+#include "st/astro/plate_solve.hpp"
 #include "st/search/search_run.hpp"
 
 namespace st::app {
@@ -15,6 +16,10 @@ struct SearchOptions {
   std::optional<double> sigmaF;  ///< override of the filtered frames' noise
   std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
   bool registerFrames = true;    ///< per-frame registration in pre-processing (--no-register turns it off)
+  /// --plate-solve: raw frames without a WCS get one from astrometry.net before pre-processing
+  /// (pipeline::plateSolveRawCube), with these settings (plate_solve_args.hpp).
+  bool plateSolve = false;
+  astro::PlateSolveParams plateSolveParams;
   std::string backend = "auto";
   /// --frame-precision: "fp32" (default) or "fp16" (CUDA exact search only; backend_factory.hpp)
   std::string framePrecision = "fp32";
@@ -26,7 +31,8 @@ struct SearchOptions {
 /// Names of the valued options parseSearchOptions reads (without "--").
 std::set<std::string> searchOptionNames();
 
-/// Names of the valueless options (flags) parseSearchOptions reads: grid-step-fwhm, no-register.
+/// Names of the valueless options (flags) parseSearchOptions reads: grid-step-fwhm, no-register, plate-solve
+/// and plate_solve_args.hpp's.
 std::set<std::string> searchFlagNames();
 
 /// Help text for those options (one per line, indented).
