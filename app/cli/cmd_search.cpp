@@ -2,6 +2,7 @@
 // candidates above threshold with their false-alarm probabilities (paper Prob_false).
 #include <cstdio>
 #include <fstream>
+#include <string>
 #include <nlohmann/json.hpp>
 
 #include "backend_factory.hpp"
@@ -53,10 +54,12 @@ void printEstimate(const PlannedSearch& p) {
   if (e.treeAdditions > 0.0) {
     std::fprintf(
         stderr,
-        "  %s tree:  %.3g additions (%.0fx fewer), %.0f MB working (tiles of %d rows), estimate %.3g "
+        "  %s tree:  %.3g additions (%.0fx fewer), %.0f MB working (tiles of %d rows%s), estimate %.3g "
         "s\n",
         tree ? ">" : " ", e.treeAdditions, e.exactAdditions / e.treeAdditions, e.treeWorkingBytes / mb,
-        e.treeTileRows, e.treeSeconds);
+        e.treeTileRows,
+        e.treeBlocks > 1 ? (", " + std::to_string(e.treeBlocks) + " velocity blocks").c_str() : "",
+        e.treeSeconds);
   }
   std::fprintf(stderr, "method: %s (%s)\n", std::string(choice.method.name()).c_str(), choice.reason.c_str());
 }

@@ -94,6 +94,7 @@ MethodCostModel cudaCostModel() {
   m.exactFixedS = kCudaExactFixedS;
   m.treeOpsWeight = kCudaExactAdditionsPerS / kCudaTreeAdditionsPerS;
   m.treeFixedS = kCudaTreeFixedS;
+  m.treeVelocityBlocks = false;
   return m;
 }
 
@@ -128,9 +129,16 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   const bool distinctTimes = dtS.size() >= 2 && *std::max_element(dtS.begin(), dtS.end()) >
                                                     *std::min_element(dtS.begin(), dtS.end());
   if (!distinctTimes || grid.count() == 0 || !(grid.stepPxS > 0.0) || width <= 0 || height <= 0) return e;
-  const TreePlan plan = buildTreePlan(dtS, grid);
-  e.treeTileRows = treeTileRows(plan, width, treeTileBudgetPerThread(threads, bufferBytes));
-  e.treeAdditions = treeAdditions(plan, width, height, e.treeTileRows);
+  // A grid whose 1-row tile does not fit a thread's share is searched in velocity blocks (tree_search.hpp):
+  // priced by its largest block, times the number of blocks.
+  const std::size_t tileBudget = treeTileBudgetPerThread(threads, bufferBytes);
+  const TreeBlocks blocks = model.treeVelocityBlocks
+                                ? treeVelocityBlocks(dtS, grid, width, treeBlockSplitBytes(bufferBytes))
+                                : TreeBlocks{1, 1, grid.nvx, grid.nvy};
+  const TreePlan plan = buildTreePlan(dtS, VelocityGrid{grid.centre, grid.stepPxS, blocks.blockNvx, blocks.blockNvy});
+  e.treeBlocks = blocks.count();
+  e.treeTileRows = treeTileRows(plan, width, tileBudget);
+  e.treeAdditions = blocks.count() * treeAdditions(plan, width, height, e.treeTileRows);
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
   priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.

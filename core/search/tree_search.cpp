@@ -375,10 +375,47 @@ std::size_t treeTileBudgetPerThread(unsigned threads, std::size_t totalBytes) {
   return std::clamp(total / std::max(1u, threads), kTreeMinTileBudgetBytes, kTreeTileBudgetBytes);
 }
 
+std::size_t treeBlockSplitBytes(std::size_t totalBytes) {
+  return std::clamp(totalBytes > 0 ? totalBytes : kTreeBuffersBytes, kTreeMinTileBudgetBytes, kTreeTileBudgetBytes);
+}
+
+TreeBlocks treeVelocityBlocks(const std::vector<double>& dtS, const VelocityGrid& grid, int width,
+                              std::size_t tileBudgetBytes, const std::vector<PixelOffset>& offsets) {
+  TreeBlocks b;
+  b.blockNvx = grid.nvx;
+  b.blockNvy = grid.nvy;
+  if (grid.count() == 0 || dtS.size() < 2 || width <= 0) return b;
+  // Split both axes alike until one row of the largest block's partial stacks fits the thread's share.
+  for (int k = 1; k <= std::max(grid.nvx, grid.nvy); ++k) {
+    const int nbx = (grid.nvx + k - 1) / k, nby = (grid.nvy + k - 1) / k;
+    const VelocityGrid block{grid.centre, grid.stepPxS, nbx, nby};
+    b.blocksX = (grid.nvx + nbx - 1) / nbx;
+    b.blocksY = (grid.nvy + nby - 1) / nby;
+    b.blockNvx = nbx;
+    b.blockNvy = nby;
+    if (treeTileBytes(buildTreePlan(dtS, block, offsets), width, 1) <= tileBudgetBytes) break;
+  }
+  return b;
+}
+
+VelocityGrid treeBlockGrid(const VelocityGrid& grid, const TreeBlocks& blocks, int bx, int by, int& ix0,
+                           int& iy0) {
+  ix0 = bx * blocks.blockNvx;
+  iy0 = by * blocks.blockNvy;
+  const int nx = std::min(blocks.blockNvx, grid.nvx - ix0), ny = std::min(blocks.blockNvy, grid.nvy - iy0);
+  // The block's cell j is the grid's cell i0 + j: its centre sits (i0 + (n - 1) / 2) - (N - 1) / 2 steps away.
+  const Velocity c{grid.centre.vx + (ix0 + 0.5 * (nx - 1) - 0.5 * (grid.nvx - 1)) * grid.stepPxS,
+                   grid.centre.vy + (iy0 + 0.5 * (ny - 1) - 0.5 * (grid.nvy - 1)) * grid.stepPxS};
+  return VelocityGrid{c, grid.stepPxS, nx, ny};
+}
+
 namespace detail {
 
-KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
-                              const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
+namespace {
+
+/// One block of velocities (the whole grid when its partial stacks fit).
+KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
+                             const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
   const TreePlan plan = buildTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
   SearchParams params;
   params.maxCandidates = p.maxHits;
@@ -453,6 +490,54 @@ KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid,
     }
     out.hitsTotal += w->hitsTotal;
     out.hits.insert(out.hits.end(), w->hits.begin(), w->hits.end());
+  }
+  return out;
+}
+
+}  // namespace
+
+KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
+                              const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
+  const TreeBlocks blocks = treeVelocityBlocks(frames.timeOffsetsS(), grid, frames.width(),
+                                                treeBlockSplitBytes(p.bufferBytes), frames.frameOffsets());
+  if (blocks.count() == 1) return treeSearchBlock(frames, grid, roi, p, progress, cancel);
+  KernelOutput out;
+  VelocityMap& map = out.map;
+  map.nvx = grid.nvx;
+  map.nvy = grid.nvy;
+  map.maxSnr.assign(grid.count(), 0.0f);
+  map.argX.assign(grid.count(), -1);
+  map.argY.assign(grid.count(), -1);
+  const int total = blocks.count();
+  for (int by = 0; by < blocks.blocksY; ++by) {
+    for (int bx = 0; bx < blocks.blocksX; ++bx) {
+      const int b = by * blocks.blocksX + bx;
+      int ix0 = 0, iy0 = 0;
+      const VelocityGrid sub = treeBlockGrid(grid, blocks, bx, by, ix0, iy0);
+      SubProgress part(progress, static_cast<double>(b) / total, static_cast<double>(b + 1) / total);
+      KernelOutput o = treeSearchBlock(frames, sub, roi, p, part, cancel);
+      for (CellHit& h : o.hits) {
+        h.ivx += ix0;
+        h.ivy += iy0;
+      }
+      out.hits.insert(out.hits.end(), o.hits.begin(), o.hits.end());
+      out.hitsTotal += o.hitsTotal;
+      for (int jy = 0; jy < sub.nvy; ++jy) {
+        for (int jx = 0; jx < sub.nvx; ++jx) {
+          const std::size_t from = static_cast<std::size_t>(jy) * sub.nvx + jx;
+          const std::size_t to = static_cast<std::size_t>(iy0 + jy) * grid.nvx + (ix0 + jx);
+          map.maxSnr[to] = o.map.maxSnr[from];
+          map.argX[to] = o.map.argX[from];
+          map.argY[to] = o.map.argY[from];
+        }
+      }
+    }
+  }
+  // Each block kept its best maxHits cells; the whole search keeps the best maxHits of them, as one tree would.
+  if (p.maxHits > 0 && out.hits.size() > p.maxHits) {
+    std::nth_element(out.hits.begin(), out.hits.begin() + static_cast<std::ptrdiff_t>(p.maxHits), out.hits.end(),
+                     [](const CellHit& a, const CellHit& c) { return a.snr > c.snr; });
+    out.hits.resize(p.maxHits);
   }
   return out;
 }

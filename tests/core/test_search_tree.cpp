@@ -149,10 +149,10 @@ TEST(SearchTree, MatchesExactOnInjectedObjects) {
     }();
     SearchParams params;  // SNR 7
     const SearchResult exact = backend->search(fc, grid, params, progress, cancel);
-    params.method = "tree";
+    params.method = st::search::SearchMethod::Tree;
     const SearchResult tree = backend->search(fc, grid, params, progress, cancel);
-    EXPECT_EQ(tree.method, "tree");
-    EXPECT_EQ(exact.method, "exact");
+    EXPECT_EQ(tree.method, st::search::SearchMethod::Tree);
+    EXPECT_EQ(exact.method, st::search::SearchMethod::Exact);
     EXPECT_EQ(tree.trials.total(), exact.trials.total());
     for (const Injected& o : objects) {
       const Candidate* e = nearest(exact, o.x, o.y, 3);
@@ -194,7 +194,7 @@ void expectSumsAlongImpliedShifts(int w, int h, std::size_t frames, const Veloci
   grid.centre = {grid.centre.vx / span, grid.centre.vy / span};
   grid.stepPxS /= span;
   SearchParams params;
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   params.minFrameFraction = 0.3;
   NullProgress progress;
   CancelToken cancel;
@@ -245,7 +245,7 @@ TEST(SearchTree, NoisePeaksAboveThresholdPlusOneMostlyKept) {
   CancelToken cancel;
   auto backend = makeCpuBackend();
   const SearchResult exact = backend->search(fc, grid, params, progress, cancel);
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   const SearchResult tree = backend->search(fc, grid, params, progress, cancel);
   // Noise peaks are not objects: the tree samples up to ~1/4 of the frames 1 px off the exact track, which
   // decorrelates a peak made of noise, so a few may drop below threshold (objects do not: see
@@ -271,6 +271,90 @@ TEST(SearchTree, NoisePeaksAboveThresholdPlusOneMostlyKept) {
   EXPECT_LE(diffs[diffs.size() / 2], 0.05);
 }
 
+// Velocity blocks (tree_search.hpp, issue 20): the blocks tile the grid, each block's cell j is the grid's cell
+// i0 + j, and a grid too large for one tree's 1-row tile is searched block by block with every velocity's
+// map maximum equal to the brute-force sum along its block's implied shifts, the object found at its place
+// and velocity (indices of the whole grid).
+TEST(SearchTree, VelocityBlocksTileTheGrid) {
+  const VelocityGrid grid{{0.3, -0.2}, 0.013, 23, 17};
+  const TreeBlocks b{3, 2, 8, 9};
+  std::vector<int> seen(grid.count(), 0);
+  for (int by = 0; by < b.blocksY; ++by) {
+    for (int bx = 0; bx < b.blocksX; ++bx) {
+      int ix0 = 0, iy0 = 0;
+      const VelocityGrid sub = treeBlockGrid(grid, b, bx, by, ix0, iy0);
+      EXPECT_EQ(sub.stepPxS, grid.stepPxS);
+      for (int jy = 0; jy < sub.nvy; ++jy) {
+        for (int jx = 0; jx < sub.nvx; ++jx) {
+          ++seen[static_cast<std::size_t>(iy0 + jy) * grid.nvx + ix0 + jx];
+          EXPECT_NEAR(sub.at(jx, jy).vx, grid.at(ix0 + jx, iy0 + jy).vx, 1e-12);
+          EXPECT_NEAR(sub.at(jx, jy).vy, grid.at(ix0 + jx, iy0 + jy).vy, 1e-12);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<std::ptrdiff_t>(grid.count()));
+}
+
+TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
+  // 128 x 128 px, 64 uneven frames, 121^2 velocities: one tree's 1-row tile needs ~33 MB, more than the
+  // smallest split size (24 MB, bufferBytes 1 byte), so the grid is split.
+  const psf::Moffat psf{psf::Moffat::radiusForFwhm(2.5, 4.0), 4.0};
+  VelocityGrid grid{{0.0, 0.0}, 0.0, 121, 121};
+  const Injected o{70.0, 50.0, {0.0, 0.0}};
+  FilteredCube fc = injectedCube({}, psf, 4, 20.0, 128, 128, 64, 3, grid);
+  const double span = fc.frames.timeSpanS();
+  std::vector<Injected> objects{{o.x, o.y, {37.4 / span, -21.8 / span}}};
+  fc = injectedCube(objects, psf, 4, 20.0, 128, 128, 64, 3, grid);
+  const std::vector<double> dt = fc.frames.timeOffsetsS();
+  const TreeBlocks blocks = treeVelocityBlocks(dt, grid, 128, treeBlockSplitBytes(1));
+  ASSERT_GT(blocks.count(), 1) << "the test's grid no longer needs blocks";
+  std::printf("%d x %d blocks of %d x %d velocities\n", blocks.blocksX, blocks.blocksY, blocks.blockNvx,
+              blocks.blockNvy);
+  SearchParams params;
+  params.method = st::search::SearchMethod::Tree;
+  params.bufferBytes = 1;
+  NullProgress progress;
+  CancelToken cancel;
+  const SearchResult r = makeCpuBackend()->search(fc, grid, params, progress, cancel);
+  ASSERT_EQ(r.map.maxSnr.size(), grid.count());
+  std::size_t checked = 0;
+  for (int by = 0; by < blocks.blocksY; ++by) {
+    for (int bx = 0; bx < blocks.blocksX; ++bx) {
+      int ix0 = 0, iy0 = 0;
+      const VelocityGrid sub = treeBlockGrid(grid, blocks, bx, by, ix0, iy0);
+      const TreePlan plan = buildTreePlan(dt, sub);
+      // A sample of each block's velocities (corners and a diagonal).
+      for (int j = 0; j < std::min(sub.nvx, sub.nvy); j += 7) {
+        for (const auto& [jx, jy] : {std::pair{j, j}, std::pair{sub.nvx - 1 - j, j}}) {
+          const std::size_t iv = static_cast<std::size_t>(iy0 + jy) * grid.nvx + ix0 + jx;
+          const int x = r.map.argX[iv], y = r.map.argY[iv];
+          if (x < 0) continue;
+          const auto s = treeImpliedShifts(plan, jx, jy);
+          double sum = 0.0;
+          for (std::size_t n = 0; n < fc.frames.frameCount(); ++n) {
+            const int xs = x + s[n].first, ys = y + s[n].second;
+            if (xs < 0 || ys < 0 || xs >= 128 || ys >= 128) continue;
+            sum += fc.frames.frame(n)[static_cast<std::size_t>(ys) * 128 + xs];
+          }
+          const IpsaCell exact = ipsaReference(fc.frames, dt, x, y, grid.at(ix0 + jx, iy0 + jy));
+          ASSERT_NEAR(r.map.maxSnr[iv], sum / (fc.sigmaF * std::sqrt(double(exact.nIn))), 2e-4)
+              << "velocity " << ix0 + jx << "," << iy0 + jy;
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 4u * static_cast<std::size_t>(blocks.count()));
+  const Candidate* c = nearest(r, o.x, o.y, 2);
+  ASSERT_NE(c, nullptr) << "object lost";
+  const Velocity v = objects.front().v;
+  EXPECT_LE(std::abs(c->v.vx - v.vx), 2.0 * grid.stepPxS);
+  EXPECT_LE(std::abs(c->v.vy - v.vy), 2.0 * grid.stepPxS);
+  EXPECT_EQ(c->v.vx, grid.at(c->ivx, c->ivy).vx);  // indices of the whole grid
+  EXPECT_GT(c->snr, 0.85 * 20.0);
+}
+
 TEST(SearchTree, RejectsUnknownMethodAndBadInput) {
   FilteredCube fc;
   fc.frames = test::noiseCube(16, 16, {0.0, 1.0, 2.0}, 1.0, 1);
@@ -284,7 +368,7 @@ TEST(SearchTree, RejectsUnknownMethodAndBadInput) {
   EXPECT_THROW(makeCpuBackend()->search(fc, grid, params, progress, cancel), InputError);
   EXPECT_THROW(buildTreePlan({1.0}, grid), InputError);
   EXPECT_THROW(buildTreePlan({1.0, 1.0}, grid), InputError);
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   fc.frames = test::noiseCube(16, 16, {0.0, 0.0}, 1.0, 1);
   EXPECT_THROW(makeCpuBackend()->search(fc, grid, params, progress, cancel), InputError);
 }

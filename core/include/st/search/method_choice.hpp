@@ -54,6 +54,9 @@ struct MethodCostModel {
   double exactWidthPx = 0.0;
   double treeOpsWeight = 1.0;  ///< one tree addition (treeAdditions) in exact-equivalent additions
   double treeFixedS = 0.0;     ///< tree search start-up (plan, tile buffers), s
+  /// The CPU tree splits a grid too large for one tree into velocity blocks (tree_search.hpp); the CUDA tree
+  /// does not, so its estimate prices one tree.
+  bool treeVelocityBlocks = true;
 };
 
 /// The CPU model for `threads` workers; `exactAdditionsPerS` defaults to
@@ -78,6 +81,7 @@ struct MethodEstimate {
   std::size_t cubeBytes = 0;          ///< the cube, already held
   int width = 0;                      ///< image width, px (for priceMethods)
   int treeTileRows = 0;               ///< rows per tile (treeTileRows)
+  int treeBlocks = 1;                 ///< velocity blocks, one tree each (treeVelocityBlocks)
   int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
   double psfFwhmPx = 0.0;             ///< the cube's PSF FWHM, px (0: unknown)
   double treeSnrLoss = 0.0;           ///< treeSnrLoss(psfFwhmPx), 0 when the FWHM is unknown

@@ -41,6 +41,31 @@ int treeTileRows(const TreePlan& plan, int width, std::size_t tileBudgetBytes = 
 /// [kTreeMinTileBudgetBytes, kTreeTileBudgetBytes].
 std::size_t treeTileBudgetPerThread(unsigned threads, std::size_t totalBytes = 0);
 
+/// Velocity blocks (issue 20): the tree's partial stacks grow with the square of the grid's side (a 1-row
+/// tile of 2000 x 1024 px needs 10.1 GB at 801^2 velocities, 152 MB at 101^2), so a grid whose 1-row tile
+/// exceeds treeBlockSplitBytes is searched in blocks of neighbouring velocities, one tree each, the same
+/// additions in all (5.95e12 for 801^2 in one tree, 64 blocks of 101^2 5.7e12). Cells and the velocity map
+/// are merged as one search's; the values are the tree's for the block's own plan (within the tree's 1 px of
+/// the exact shifts, as always), so they may differ slightly from one tree over the whole grid.
+struct TreeBlocks {
+  int blocksX = 1, blocksY = 1;      ///< blocks along vx and vy
+  int blockNvx = 0, blockNvy = 0;    ///< velocities of a full block (the last ones may have fewer)
+  [[nodiscard]] int count() const noexcept { return blocksX * blocksY; }
+};
+
+/// The 1-row tile size above which the grid is split: the search buffers `totalBytes` (0: kTreeBuffersBytes)
+/// clamped to [kTreeMinTileBudgetBytes, kTreeTileBudgetBytes], whatever the thread count (the paper's
+/// problem, ~75 MB a row, stays one tree with the default buffers; a small memory budget splits sooner).
+std::size_t treeBlockSplitBytes(std::size_t totalBytes);
+
+/// The fewest blocks (split alike along both axes) whose 1-row tile fits `tileBudgetBytes`.
+TreeBlocks treeVelocityBlocks(const std::vector<double>& dtS, const VelocityGrid& grid, int width,
+                              std::size_t tileBudgetBytes, const std::vector<PixelOffset>& offsets = {});
+
+/// Block (bx, by)'s grid: its cell j is `grid`'s cell (ix0 + jx, iy0 + jy).
+VelocityGrid treeBlockGrid(const VelocityGrid& grid, const TreeBlocks& blocks, int bx, int by, int& ix0,
+                           int& iy0);
+
 /// Runs the tree search. Validates like the exact backend (validateSearchInput); result.method = "tree",
 /// result.backend = "cpu". Throws st::InputError, st::Cancelled.
 SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, const SearchParams& params,
