@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "backend_factory.hpp"
 #include "st/candidate/candidate_fit.hpp"
@@ -112,16 +114,17 @@ search::SearchResult demoSearch(const DemoOptions& o, const pipeline::Prepared& 
   return search::searchWithMethod(backend, prepared.filtered, grid, params, progress, cancel);
 }
 
-/// The candidate nearest the truth object in position and velocity, or nullptr.
-const nlohmann::json* matchTruth(const nlohmann::json& result, const sim::TruthObject& t, double stepPxS) {
-  const nlohmann::json* best = nullptr;
+/// The index of the candidate nearest the truth object in position and velocity, if one is near enough.
+std::optional<std::size_t> matchTruth(const std::vector<search::Candidate>& candidates, const sim::TruthObject& t,
+                                      double stepPxS) {
+  std::optional<std::size_t> best;
   double bestD = 1e300;
-  for (const auto& c : result["candidates"]) {
-    const double dPos = std::hypot(c["x"].get<double>() - t.xRefPx, c["y"].get<double>() - t.yRefPx);
-    const double dVel =
-        std::hypot(c["vx_px_s"].get<double>() - t.vxPxPerS, c["vy_px_s"].get<double>() - t.vyPxPerS);
+  for (std::size_t i = 0; i < candidates.size(); ++i) {
+    const search::Candidate& c = candidates[i];
+    const double dPos = std::hypot(c.x - t.xRefPx, c.y - t.yRefPx);
+    const double dVel = std::hypot(c.v.vx - t.vxPxPerS, c.v.vy - t.vyPxPerS);
     if (dPos <= 3.0 && dVel <= 2.0 * stepPxS && dPos < bestD) {
-      best = &c;
+      best = i;
       bestD = dPos;
     }
   }
@@ -171,10 +174,11 @@ int cmdDemo(const Args& args) {
 
   // 4. Co-moving fits and segment checks of the best candidates.
   const int nFits = std::min<int>(o.fits, static_cast<int>(result.candidates.size()));
+  std::vector<std::optional<candidate::FitSummary>> fits(result.candidates.size());  // typed; JSON only written
   for (int i = 0; i < nFits; ++i) {
     progress.report(0.9 + 0.1 * i / std::max(1, nFits), "co-moving fits");
-    report["candidates"][i]["fit"] =
-        report::toFlatJson(candidate::fitCandidate(prepared, result.candidates[i], gain, cancel));
+    fits[i] = candidate::fitCandidate(prepared, result.candidates[i], gain, cancel);
+    report["candidates"][i]["fit"] = report::toFlatJson(*fits[i]);
   }
   progress.finish();
   report::writeJsonFile(path("candidates.json"), report);
@@ -202,19 +206,17 @@ int cmdDemo(const Args& args) {
       result.grid.nvy, result.grid.stepPxS, result.snrThreshold, result.candidates.size(), result.elapsedS);
   int found = 0;
   for (const auto& t : sim.truth.objects) {
-    const nlohmann::json* c = matchTruth(report, t, result.grid.stepPxS);
-    if (c != nullptr) ++found;
+    const auto match = matchTruth(result.candidates, t, result.grid.stepPxS);
+    if (match) ++found;
     std::printf("  truth %s: x %.1f y %.1f v (%.3f, %.3f) px/s, %.2f deg/day, expected SNR %.1f -> %s",
                 t.name.c_str(), t.xRefPx, t.yRefPx, t.vxPxPerS, t.vyPxPerS, t.rateDegPerDay, t.expectedSnr,
-                c != nullptr ? "FOUND" : "not found");
-    if (c != nullptr) {
-      std::printf(" at x %d y %d, search SNR %.1f", (*c)["x"].get<int>(), (*c)["y"].get<int>(),
-                  (*c)["snr"].get<double>());
-      if (c->contains("fit") && (*c)["fit"]["status"] == "converged") {
-        const auto& f = (*c)["fit"];
-        std::printf(", fit x %.2f y %.2f, SNR %.1f", f["x"].get<double>(), f["y"].get<double>(),
-                    f["snr"].get<double>());
-        if (f.contains("rate_deg_day")) std::printf(", %.2f deg/day", f["rate_deg_day"].get<double>());
+                match ? "FOUND" : "not found");
+    if (match) {
+      const search::Candidate& c = result.candidates[*match];
+      std::printf(" at x %d y %d, search SNR %.1f", c.x, c.y, c.snr);
+      if (const auto& f = fits[*match]; f && f->converged()) {
+        std::printf(", fit x %.2f y %.2f, SNR %.1f", f->x, f->y, f->snr);
+        if (f->sky) std::printf(", %.2f deg/day", f->sky->rateDegPerDay);
       }
     }
     std::printf("\n");

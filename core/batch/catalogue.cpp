@@ -7,6 +7,8 @@
 #include <optional>
 #include <set>
 
+#include "st/report/candidate_json.hpp"
+
 namespace st::batch {
 
 namespace {
@@ -78,10 +80,9 @@ nlohmann::json entryFor(const Detection& d, const std::string& observation) {
 }  // namespace
 
 std::array<double, 4> bestState(const nlohmann::json& c) {
-  if (c.contains("fit") && c["fit"].value("status", std::string()) == "converged") {
-    const auto& f = c["fit"];
-    return {f["x"].get<double>(), f["y"].get<double>(), f["vx_px_s"].get<double>(),
-            f["vy_px_s"].get<double>()};
+  if (c.contains("fit")) {  // the typed record decides what "converged" means (candidate::FitSummary)
+    const candidate::FitSummary fit = report::fitFromFlatJson(c["fit"], "catalogue: candidate's fit");
+    if (fit.converged()) return {fit.x, fit.y, fit.v.vx, fit.v.vy};
   }
   return {c["x"].get<double>(), c["y"].get<double>(), c["vx_px_s"].get<double>(), c["vy_px_s"].get<double>()};
 }

@@ -1,10 +1,10 @@
-#include "st/detect/moving_mask.hpp"
+#include "st/common/moving_mask.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 
-namespace st::detect {
+namespace st {
 
 MovingMask::MovingMask(const FrameCube& cube, Velocity rate)
     : MovingMask(cube.width(), cube.height(), cube.timeOffsetsS(), rate, cube.frameOffsets()) {}
@@ -80,4 +80,4 @@ std::size_t MovingMask::count() const {
   return static_cast<std::size_t>(std::count(m_canvas.begin(), m_canvas.end(), std::uint8_t{1}));
 }
 
-}  // namespace st::detect
+}  // namespace st

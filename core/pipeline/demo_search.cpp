@@ -1,22 +1,22 @@
 #include "st/pipeline/demo_search.hpp"
 
-#include "st/sim/simulator.hpp"
+#include "st/search/demo_grid.hpp"
 
 namespace st::pipeline {
 
 search::GridSpec demoGridSpec(std::optional<double> plateScaleArcsecPerPx) {
   search::GridSpec spec;
-  spec.halfRange = sim::kDemoHalfRangeDegPerDay;
+  spec.halfRange = search::kDemoHalfRangeDegPerDay;
   spec.unit = search::VelocityUnit::DegPerDay;
   spec.plateScaleArcsecPerPx = plateScaleArcsecPerPx;
   spec.stepRule = search::StepRule::PixelsOverSpan;
-  spec.stepPx = sim::kDemoGridStepPx;
+  spec.stepPx = search::kDemoGridStepPx;
   return spec;
 }
 
 search::SearchParams demoSearchParams() {
   search::SearchParams params;
-  params.method = "auto";
+  params.method = search::SearchMethod::Auto;
   return params;
 }
 

@@ -125,7 +125,7 @@ namespace {
 // The per-pixel clip of every row: fills out.level, out.sigma, out.filled, out.sigmaN; calls
 // onRow(y, buf, frames, clip) for each row after its clip (buf: the row's samples of the frames used).
 template <class OnRow>
-Background clipRows(const FrameCube& cube, const BackgroundParams& params, const detect::MovingMask* exclude,
+Background clipRows(const FrameCube& cube, const BackgroundParams& params, const MovingMask* exclude,
                     ProgressSink& progress, CancelToken& cancel, const OnRow& onRow) {
   Background out;
   out.global = globalBackground(cube, params.global);
@@ -192,7 +192,7 @@ Background clipRows(const FrameCube& cube, const BackgroundParams& params, const
 }  // namespace
 
 Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
-                              const detect::MovingMask* exclude, ProgressSink& progress,
+                              const MovingMask* exclude, ProgressSink& progress,
                               CancelToken& cancel) {
   return clipRows(cube, params, exclude, progress, cancel,
                   [](std::size_t, const std::vector<float>&, const std::vector<std::size_t>&, const RowClip&,
@@ -200,7 +200,7 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
 }
 
 Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
-                                   const detect::MovingMask* exclude, ProgressSink& progress,
+                                   const MovingMask* exclude, ProgressSink& progress,
                                    CancelToken& cancel) {
   const int w = cube.width();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();

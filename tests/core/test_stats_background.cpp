@@ -162,7 +162,7 @@ TEST(Background, ExcludedStaticSourceDoesNotBiasLevel) {
   FrameCube cube = noisyCube(32, 32, 100, 5.0, 6);
   for (std::size_t n = 0; n < cube.frameCount(); ++n)
     cube.frame(n)[16 * 32 + 16] += 25.0f;  // below the strong-signal cut
-  detect::MovingMask mask(32, 32, cube.timeOffsetsS(), {});
+  st::MovingMask mask(32, 32, cube.timeOffsetsS(), {});
   mask.set(16, 16);
   NullProgress p;
   CancelToken c;

@@ -19,7 +19,7 @@
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
-#include "st/sim/simulator.hpp"
+#include "st/search/demo_grid.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
@@ -209,8 +209,8 @@ void MainWindow::onPreparedChanged() {
                                                      *prepared->filtered),
                             QString("the demo's grid: ±%1 deg/day in %2 px steps (as synthtrack-cli demo; "
                                     "the paper's, for other observations: ±12 deg/day in 1 px steps)")
-                                .arg(sim::kDemoHalfRangeDegPerDay)
-                                .arg(sim::kDemoGridStepPx));
+                                .arg(search::kDemoHalfRangeDegPerDay)
+                                .arg(search::kDemoGridStepPx));
         } catch (const std::exception& e) {  // the paper's grid stays
           statusBar()->showMessage("Demo grid not set: " + QString::fromStdString(e.what()), 10000);
         }

@@ -5,6 +5,8 @@
 // the integer shift of ARCHITECTURE.md's IPSA
 // convention. Its canvas spans every reference position that some frame sees, so stars that drift into or
 // out of the field are covered too. Used to exclude static sources from the background and to zero them.
+// Pure geometry on the frames' times and offsets, so it lives in common: the background statistics (stats)
+// and the static-source detection (detect) both use it (st/detect/moving_mask.hpp keeps the old name).
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -12,7 +14,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/units.hpp"
 
-namespace st::detect {
+namespace st {
 
 class MovingMask {
  public:
@@ -61,4 +63,4 @@ class MovingMask {
   std::vector<std::uint8_t> m_canvas;
 };
 
-}  // namespace st::detect
+}  // namespace st

@@ -9,10 +9,10 @@
 
 namespace st::pipeline {
 
-/// The demo's grid: +-sim::kDemoHalfRangeDegPerDay (8) deg/day around the sky rate, in steps of
-/// sim::kDemoGridStepPx (1.5) px of motion over the time span (st/sim/simulator.hpp). A demo setting, coarser
-/// than the paper's +-12 deg/day at 1 px (§4.4) that `synthtrack-cli search` and the GUI use for other
-/// observations. `plateScaleArcsecPerPx` converts deg/day to px/s (makeVelocityGrid throws st::InputError
+/// The demo's grid: +-search::kDemoHalfRangeDegPerDay (8) deg/day around the sky rate, in steps of
+/// search::kDemoGridStepPx (1.5) px of motion over the time span (st/search/demo_grid.hpp). A demo setting,
+/// coarser than the paper's +-12 deg/day at 1 px (§4.4) that `synthtrack-cli search` and the GUI use for
+/// other observations. `plateScaleArcsecPerPx` converts deg/day to px/s (makeVelocityGrid throws st::InputError
 /// without one).
 [[nodiscard]] search::GridSpec demoGridSpec(std::optional<double> plateScaleArcsecPerPx);
 

@@ -34,6 +34,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/psf/moffat.hpp"
+#include "st/search/demo_grid.hpp"
 #include "st/sim/truth.hpp"
 
 namespace st::sim {
@@ -177,12 +178,10 @@ SimParams preset(std::string_view name);
 /// The valid preset names.
 std::vector<std::string> presetNames();
 
-/// The demo's search grid, shared by the GUI's --demo and `synthtrack-cli demo`: +-8 deg/day around the sky
-/// rate in steps of 1.5 px over the time span. A demo setting, coarser than the paper's +-12 deg/day at 1 px
-/// (the demo object moves at 5.97 deg/day, and 1.5 px is half the ~3 px PSF, paper §4), so the demo's
-/// search takes seconds on a laptop's CPU.
-inline constexpr double kDemoHalfRangeDegPerDay = 8.0;
-inline constexpr double kDemoGridStepPx = 1.5;
+/// The demo's search grid (st/search/demo_grid.hpp, where the pipeline and the GUI read it): +-8 deg/day
+/// around the sky rate in steps of 1.5 px over the time span.
+using search::kDemoGridStepPx;
+using search::kDemoHalfRangeDegPerDay;
 
 /// The demo's half-range for preset `name`, deg/day around the sky rate: enough to reach its objects with
 /// margin and small enough to search in seconds: paper-neo 8 (object at 5.97 deg/day), known-pair 1.5

@@ -10,7 +10,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
-#include "st/detect/moving_mask.hpp"
+#include "st/common/moving_mask.hpp"
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::stats {
@@ -56,7 +56,7 @@ struct Background {
 /// out. Tiled by rows over worker threads; the clip of each pixel gives exactly sigmaClip's result on that
 /// pixel's samples. Throws st::InputError when no pixel has enough samples; st::Cancelled.
 Background estimateBackground(const FrameCube& cube, const BackgroundParams& params,
-                              const detect::MovingMask* exclude, ProgressSink& progress, CancelToken& cancel);
+                              const MovingMask* exclude, ProgressSink& progress, CancelToken& cancel);
 
 /// estimateBackground, then the subtraction in place of a background per frame and pixel: the mean of the
 /// pixel's clipped background samples outside +- moverWindowFraction x span of the frame (the whole clipped
@@ -64,7 +64,7 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
 /// times are not sorted). Masked pixels become 0.
 /// Returns what estimateBackground returns (`level` is the whole clipped mean, for display).
 Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
-                                   const detect::MovingMask* exclude, ProgressSink& progress,
+                                   const MovingMask* exclude, ProgressSink& progress,
                                    CancelToken& cancel);
 
 /// Subtracts `level` from every frame in place; masked pixels become 0, so the frames are zero-biased and
