@@ -10,6 +10,7 @@
 
 #include <QAbstractItemView>
 #include <QHeaderView>
+#include <QAction>
 #include <QComboBox>
 #include <QDir>
 #include <QFile>
@@ -30,11 +31,14 @@
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "search_panel.hpp"
+#include "stamp_strip.hpp"
 #include "session_controller.hpp"
 #include "figure_dialog.hpp"
 #include "motion_vs_sky.hpp"
 #include "st/candidate/candidate_measurement.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/session/session.hpp"
 #include "test_support.hpp"
 #include "ui_test_support.hpp"
 #include "velocity_map_widget.hpp"
@@ -405,6 +409,122 @@ TEST(VettingWalkthrough, OneVelocityConventionInTableMapInspectorFitAndCaption) 
   const QString text = QString::fromUtf8(file.readAll());
   EXPECT_TRUE(text.contains(rateDegDay)) << "the caption's rate";
   EXPECT_TRUE(text.contains("deg/day vs sky"));
+}
+
+// Issue 18 §6: pre-processing's list of moving sources is offered as candidates (Run menu and the table's
+// context menu), beside the search's: the ones the search found already are not added twice, labels stay,
+// the session goes on in the same file, and the table flags them.
+TEST(VettingWalkthrough, PreprocessingMoversAreAddedAsCandidatesForVetting) {
+  auto w = searchedWindow();
+  Observation* obs = w->observation();
+  const auto result = obs->result();
+  const search::Candidate found = result->candidates[0];
+  auto view = std::make_shared<PreparedView>(*obs->prepared());
+  auto products = std::make_shared<pipeline::Prepared>();
+  detect::MovingSource missed;  // a mover the search did not list
+  missed.x = 70.2;
+  missed.y = 12.8;
+  missed.v = {-2.0, 1.0};
+  missed.shiftPx = 4.0;
+  missed.shiftSigmaPx = 0.5;
+  missed.snr = 9.5;
+  missed.moving = true;
+  detect::MovingSource same = missed;  // the search's own candidate 1
+  same.x = found.x + 0.4;
+  same.y = found.y - 0.3;
+  same.v = {found.v.vx + 0.2, found.v.vy};
+  detect::MovingSource still = missed;  // measured, but not moving
+  still.x = 20.0;
+  still.moving = false;
+  products->movers = {missed, same, still};
+  view->products = products;
+  obs->setPrepared(view);
+  obs->setResult(result);
+  obs->setCandidateLabel(0, Label::Real);
+  ASSERT_TRUE(w->session()->autosaver()->flush());
+  const QString path = w->session()->path();
+  ASSERT_FALSE(path.isEmpty());
+  QAction* action = w->findChild<QAction*>("action.addMovers");
+  ASSERT_TRUE(action);
+  EXPECT_TRUE(action->isEnabled());
+  EXPECT_EQ(action->text(), "Add pre-processing's 1 mover as candidates");
+
+  const std::size_t n = result->candidates.size();
+  action->trigger();
+  ASSERT_EQ(obs->result()->candidates.size(), n + 1);
+  const search::Candidate& added = obs->result()->candidates[n];
+  EXPECT_EQ(added.x, 70);
+  EXPECT_EQ(added.y, 13);
+  EXPECT_EQ(added.v, missed.v);
+  EXPECT_DOUBLE_EQ(added.snr, 9.5);
+  EXPECT_EQ(obs->candidateState(0)->label, Label::Real);  // the vetting so far is kept
+  EXPECT_TRUE(QString::fromStdString(obs->candidateState(static_cast<int>(n))->note).contains("8.0 sigma"));
+  const QAbstractItemModel* m = w->candidates()->filter()->sourceModel();
+  EXPECT_TRUE(m->index(static_cast<int>(n), CandidateModel::Flags).data().toString().contains("pre-processing mover"));
+  EXPECT_FALSE(m->index(0, CandidateModel::Flags).data().toString().contains("mover"));
+  EXPECT_EQ(w->imageView()->markers().size(), std::min<std::size_t>(n + 1, 100));
+  EXPECT_FALSE(action->isEnabled());  // nothing left to add
+  EXPECT_EQ(w->addMoversAsCandidates(), 0);
+  // The same session file, now with the mover and the label.
+  ASSERT_TRUE(w->session()->autosaver()->flush());
+  EXPECT_EQ(w->session()->path(), path);
+  const session::Session saved = session::SessionStore(path.toStdString()).load();
+  ASSERT_EQ(saved.candidates.size(), n + 1);
+  EXPECT_EQ(saved.candidates[0].label, Label::Real);
+}
+
+// Issue 18 §6: more figure sources through the figure dialog's export: the candidate's stamps and segment
+// strip (the inspector's rows) and the fit's data | model | residual, each tile a panel on the row's shared
+// limits, captioned with the candidate's SNR and motion relative to the stars.
+TEST(VettingWalkthrough, StampsSegmentsAndTheFitsResidualAreFigureSources) {
+  auto w = searchedWindow();
+  w->selectCandidate(0);
+  CandidateInspector* inspector = w->candidateInspector();
+  ASSERT_TRUE(test::waitFor([&] { return !inspector->busy() && inspector->stamps()->tileCount() > 0; }));
+  ASSERT_GT(inspector->segmentStrip()->tileCount(), 0);
+  // The fit panel's data | model | residual, as a finished fit leaves them.
+  auto image = std::make_shared<const Image>(21, 21, 1.0f);
+  w->fitPanel()->residualView()->setTiles({{image, "data", false}, {image, "model", false}, {image, "residual", false}});
+  FigureDialog* d = w->figureDialog();
+  d->refreshSources();
+  const QStringList names = d->sourceNames();
+  test::TempDir dir;
+  QDir().mkpath("ui_screens");
+  const auto exportAs = [&](const QString& source, const QString& file) {
+    const int index = static_cast<int>(names.indexOf(source));
+    EXPECT_GE(index, 0) << source.toStdString() << " not in " << names.join(", ").toStdString();
+    if (index < 0) return QString();
+    d->setSource(index);
+    d->setFigureSize({7.0, 0.0, 100});
+    bool done = false, ok = false;
+    QString message;
+    auto c = QObject::connect(d, &FigureDialog::exportFinished, [&](const QString&, bool good, const QString& m) {
+      done = true;
+      ok = good;
+      message = m;
+    });
+    const QString path = QString::fromStdString((dir.path() / file.toStdString()).string());
+    EXPECT_TRUE(d->exportTo(path)) << d->lastMessage().toStdString();
+    EXPECT_TRUE(test::waitFor([&] { return done; }));
+    QObject::disconnect(c);
+    EXPECT_TRUE(ok) << message.toStdString();
+    return path;
+  };
+  for (const auto& [source, file] : std::vector<std::pair<QString, QString>>{
+           {"Candidate: candidate stamps", "stamps.png"},
+           {"Candidate: segment strip", "segments.png"},
+           {"Co-moving fit: fit data, model, residual", "fit.png"}}) {
+    const QImage png(exportAs(source, file));
+    EXPECT_EQ(png.width(), 700) << file.toStdString();
+    EXPECT_GT(png.height(), 100) << file.toStdString();
+    png.save("ui_screens/figure_" + file);
+  }
+  // The caption: the candidate, its SNR and its motion relative to the stars.
+  QFile svg(exportAs("Candidate: candidate stamps", "stamps.svg"));
+  ASSERT_TRUE(svg.open(QIODevice::ReadOnly));
+  const QString text = QString::fromUtf8(svg.readAll());
+  EXPECT_TRUE(text.contains("Candidate #1")) << "caption";
+  EXPECT_TRUE(text.contains("vs sky")) << "caption";
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

@@ -15,6 +15,7 @@
 
 #include "candidate_vetting.hpp"
 #include "motion_vs_sky.hpp"
+#include "st/candidate/movers.hpp"
 
 namespace st::ui {
 
@@ -32,6 +33,7 @@ int CandidateModel::columnCount(const QModelIndex& parent) const {
 
 QString CandidateModel::flagsOf(const search::Candidate& c) const {
   QStringList flags;
+  if (candidate::isMover(c)) flags << "pre-processing mover";  // not from the search (its SNR: the stack's)
   const auto& raw = m_obs->raw();
   const auto& prepared = m_obs->prepared();
   if (raw) {

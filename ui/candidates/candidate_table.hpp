@@ -55,8 +55,9 @@ class CandidateModel : public QAbstractTableModel {
   /// Only the note is editable (it goes to Observation::setCandidateNote).
   Qt::ItemFlags flags(const QModelIndex& index) const override;
   bool setData(const QModelIndex& index, const QVariant& value, int role) override;
-  /// Flags shown for a candidate: "edge" within 2 PSF widths of the border, "partial" when fewer than all
-  /// frames contributed.
+  /// Flags shown for a candidate: "pre-processing mover" for one added from pre-processing's movers
+  /// (candidate::isMover), "edge" within 2 PSF widths of the border, "partial" when fewer than all frames
+  /// contributed.
   QString flagsOf(const search::Candidate& c) const;
   void reload();
   /// One candidate's row changed (its vetting state).

@@ -22,6 +22,7 @@
 #include "motion_vs_sky.hpp"
 #include "st/common/error.hpp"
 #include "image_view.hpp"
+#include "stamp_strip.hpp"
 
 namespace st::ui {
 namespace {
@@ -154,6 +155,14 @@ void FigureDialog::refreshSources() {
     for (QCustomPlot* p : m_ctx.root->findChildren<QCustomPlot*>())
       m_sources.push_back(
           {QString("%1: plot %2").arg(dockTitle(p)).arg(++counts[dockTitle(p) + "/p"]), nullptr, p});
+    for (StampStrip* strip : m_ctx.root->findChildren<StampStrip*>()) {
+      if (strip->tileCount() == 0) continue;  // nothing shown yet (no candidate inspected or fitted)
+      const QString name = strip->objectName().isEmpty() ? QString("stamps %1").arg(++counts[dockTitle(strip) + "/s"])
+                                                          : strip->objectName();
+      Source source{QString("%1: %2").arg(dockTitle(strip), name), nullptr, nullptr, false};
+      source.strip = strip;
+      m_sources.push_back(source);
+    }
   }
   m_sources.push_back({"Preset: sky-tracked beside object-tracked (paper fig_st_sky_and_nea)", {}, {}, true});
   const QSignalBlocker block(m_source);
@@ -202,7 +211,7 @@ void FigureDialog::onSourceChanged() {
   const int i = m_source->currentIndex();
   if (i < 0 || i >= static_cast<int>(m_sources.size())) return;
   const Source& s = m_sources[static_cast<std::size_t>(i)];
-  const bool image = s.view || s.preset;
+  const bool image = s.view || s.preset || s.strip;
   for (QWidget* w : std::initializer_list<QWidget*>{m_units, m_xLabel, m_yLabel, m_colourBar, m_scaleBar,
                                                     m_compass, m_axes})
     w->setEnabled(image);
@@ -221,6 +230,9 @@ void FigureDialog::onSourceChanged() {
   if (s.preset) {
     m_title->clear();
     m_units->setText("IPSA sum of " + bunit);
+  } else if (s.strip) {
+    m_title->setText(s.name.section(": ", 1));
+    m_units->setText("SNR");  // the inspector's stamps are in SNR units; the fit's in counts (edit here)
   } else if (s.view) {
     const QString overlay = s.view->overlayText();
     m_title->setText(overlay);
@@ -301,6 +313,44 @@ std::function<ImageFigure()> FigureDialog::presetBuilder(QString& error) {
   };
 }
 
+std::function<ImageFigure()> FigureDialog::stripBuilder(const StampStrip& strip) {
+  ImageFigure fig;
+  const auto [lo, hi] = strip.limits();
+  for (int i = 0; i < strip.tileCount(); ++i) {
+    const StampStrip::Tile& tile = strip.tile(i);
+    if (!tile.image) continue;
+    ImagePanel p;
+    p.image = tile.image;
+    p.lo = lo;
+    p.hi = hi;
+    p.display = strip.displaySettings();
+    p.title = tile.flagged ? tile.caption + " (flagged)" : tile.caption;
+    p.title.replace('\n', ", ");
+    p.units = m_units->text();
+    p.xLabel = m_xLabel->text();
+    p.yLabel = m_yLabel->text();
+    p.showColourBar = m_colourBar->isChecked();  // on every panel: the layout gives each the same room
+    p.showScaleBar = m_scaleBar->isChecked() && i == 0;
+    p.showAxes = m_axes->isChecked();
+    p.plateScaleArcsecPerPx = m_ctx.observation ? m_ctx.observation->plateScale() : std::nullopt;
+    if (m_compass->isChecked() && i == 0 && m_ctx.observation && m_ctx.observation->selectedCandidate()) {
+      const search::Candidate* c = m_ctx.observation->selectedCandidate();
+      p.compass = compassNear(c->x, c->y);
+    }
+    fig.panels.push_back(std::move(p));
+  }
+  fig.title = m_title->text();
+  const Observation* obs = m_ctx.observation;
+  if (const search::Candidate* c = obs ? obs->selectedCandidate() : nullptr)
+    fig.caption = QString("Candidate #%1 at (%2, %3) px: search SNR %4, %5.")
+                      .arg(*obs->selected() + 1)
+                      .arg(c->x)
+                      .arg(c->y)
+                      .arg(c->snr, 0, 'f', 1)
+                      .arg(describeMotion(motionVsSky(*obs, c->x, c->y, c->v)));
+  return [fig] { return fig; };
+}
+
 std::function<void()> FigureDialog::makeJob(const Source& source, const QString& path, QString& error) {
   const FigureFormat format = figureFormatForPath(path);
   FigureSize size = figureSize();
@@ -327,6 +377,8 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
     build = presetBuilder(error);
   else if (source.view && source.view->image())
     build = imageBuilder(*source.view);
+  else if (source.strip && source.strip->tileCount() > 0)
+    build = stripBuilder(*source.strip);
   else
     error = "The view shows no image.";
   if (!build) return {};

@@ -1,6 +1,7 @@
 #pragma once
 // "Export figure…": any image view of the window (the central view, the inspector's stamps, …) or any plot
-// (the velocity map, profiles, …), or the preset of the paper's figure fig_st_sky_and_nea for the selected
+// (the velocity map, profiles, …), any row of stamps (the candidate's stamps and segment strip, the fit's
+// data | model | residual), or the preset of the paper's figure fig_st_sky_and_nea for the selected
 // candidate, to PNG at a chosen DPI, SVG or PDF (figure_export.hpp). Image figures get a colour bar with its
 // units, a scale bar in arcsec when the plate scale is known, a N/E compass when the observation has a WCS,
 // a title and axis labels (figure_render.hpp). Stacking and painting run on a worker thread; plots are
@@ -29,6 +30,7 @@ class QCustomPlot;
 namespace st::ui {
 
 class ImageView;
+class StampStrip;
 
 class FigureDialog : public QDialog {
   Q_OBJECT
@@ -75,6 +77,7 @@ class FigureDialog : public QDialog {
     QPointer<ImageView> view;
     QPointer<QCustomPlot> plot;
     bool preset = false;
+    QPointer<StampStrip> strip;  ///< a row of stamps (candidate stamps, segments, the fit's data/model/residual)
   };
   void buildUi();
   void onSourceChanged();
@@ -84,6 +87,9 @@ class FigureDialog : public QDialog {
   /// Builds the figure of a view (cropping happens in the worker).
   std::function<ImageFigure()> imageBuilder(const ImageView& view);
   std::function<ImageFigure()> presetBuilder(QString& error);
+  /// One panel per tile of `strip`, on the strip's shared display limits, captioned
+  /// with the selected candidate's SNR and motion relative to the stars (motion_vs_sky.hpp).
+  std::function<ImageFigure()> stripBuilder(const StampStrip& strip);
   [[nodiscard]] std::optional<Compass> compassNear(double x, double y) const;
   [[nodiscard]] FigureSize figureSize() const;
 

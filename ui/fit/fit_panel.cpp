@@ -90,6 +90,7 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   m_cost->yAxis->setNumberFormat("g");
   m_cost->yAxis->setNumberPrecision(6);
   m_residual = new StampStrip(this);
+  m_residual->setObjectName("fit data, model, residual");  // a figure source under this name
   m_residual->setMinimumHeight(130);
   m_residual->setPlaceholder("residual (data − model, summed along the track)");
   DisplaySettings d;

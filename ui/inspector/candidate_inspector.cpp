@@ -61,12 +61,14 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_title = new QLabel("No candidate selected.", this);
   m_title->setWordWrap(true);
   m_stamps = new StampStrip(this);
+  m_stamps->setObjectName("candidate stamps");  // the figure dialog lists strips by these names
   m_stamps->setPlaceholder("select a candidate");
   m_stamps->setMinimumHeight(120);
   m_stamps->setToolTip(
       "Stacks around the candidate in SNR units, on one scale: at the sky rate (a moving "
       "source streaks) and at the candidate's velocity (it is a point).");
   m_segments = new StampStrip(this);
+  m_segments->setObjectName("segment strip");
   m_segments->setMinimumHeight(110);
   m_segments->setToolTip(
       "K = 4 equal-time stacks at the candidate's velocity (paper §4.4, fig_4epoch); a "
@@ -74,6 +76,7 @@ CandidateInspector::CandidateInspector(Observation* observation, const CoreServi
   m_segmentLabel = new QLabel(this);
   m_segmentLabel->setWordWrap(true);
   m_movie = new StampStrip(this);
+  m_movie->setObjectName("frame movie");
   m_movie->setMinimumHeight(120);
   m_slider = new QSlider(Qt::Horizontal, this);
   m_slider->setEnabled(false);

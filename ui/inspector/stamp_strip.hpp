@@ -37,6 +37,7 @@ class StampStrip : public QWidget {
 
   [[nodiscard]] int tileCount() const noexcept { return static_cast<int>(m_tiles.size()); }
   [[nodiscard]] const Tile& tile(int i) const { return m_tiles.at(static_cast<std::size_t>(i)); }
+  [[nodiscard]] const DisplaySettings& displaySettings() const noexcept { return m_settings; }
   /// The limits the tiles are drawn with.
   [[nodiscard]] std::pair<double, double> limits() const noexcept { return {m_lo, m_hi}; }
 

@@ -72,6 +72,12 @@ class MainWindow : public QMainWindow {
   static constexpr double kAskBeforeCancelS = 10.0;
   /// The open "Cancel the search?" question, or null.
   [[nodiscard]] QMessageBox* cancelQuestion() const { return m_cancelQuestion; }
+  /// Adds pre-processing's movers (PreparedView::products->movers) that the search did not find to the
+  /// result as candidates (candidate::moverCandidates; flag "pre-processing mover", a note with the shift
+  /// and SNR), keeping every label and the session file. Returns how many were added.
+  int addMoversAsCandidates();
+  /// The movers addMoversAsCandidates() would add, with their notes.
+  [[nodiscard]] std::vector<std::pair<search::Candidate, std::string>> pendingMovers() const;
   /// Selects candidate `index` (0-based, in the result's order): centres the view, sets the velocity.
   void selectCandidate(int index);
   void showSource(Source source, int layer = 0);

@@ -78,6 +78,9 @@ class SessionController : public QObject {
              nlohmann::json settings, bool demoAutosave = false);
   /// Save the current state to `path` from now on (File > Save session as…; never pruned).
   void saveAs(const QString& path);
+  /// `result` (about to be set on the Observation) continues the current one (candidates added to it, every
+  /// earlier candidate and its state kept): it is saved to the same file, never forked as a new search is.
+  void continueWith(const search::SearchResult* result) { m_sessionResult = result; }
   /// While restoring a session, the intermediate states are not saved.
   void setSuspended(bool suspended) { m_suspended = suspended; }
   /// Builds the current session and queues it (nothing without a path or while suspended).
