@@ -168,9 +168,12 @@ int benchSearch(const Args& args) {
   cube.psfFwhmPx = 3.0;
   const double span = cube.frames.timeSpanS();
   const search::VelocityGrid grid{{0.0, 0.0}, 1.0 / span, static_cast<int>(nv), static_cast<int>(nv)};
-  const std::string method = cli.value("method").value_or("exact");
-  if (method == "tree") return benchTree(cube, grid, !cli.flag("no-exact"), cli.flag("json"));
-  if (method != "exact") throw UsageError("--method must be exact or tree, got '" + method + "'");
+  const std::string name = cli.value("method").value_or("exact");
+  const auto method = search::parseSearchMethod(name);
+  if (method == search::SearchMethod::Tree)
+    return benchTree(cube, grid, !cli.flag("no-exact"), cli.flag("json"));
+  if (method != search::SearchMethod::Exact)
+    throw UsageError("--method must be exact or tree, got '" + name + "'");
   search::SearchParams params;
   params.snrThreshold = 7.0;
   auto backend = search::makeCpuBackend();

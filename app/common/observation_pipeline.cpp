@@ -223,7 +223,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                                 search::costModelFor(backend), threads, o.request.params.bufferBytes);
     const search::MethodChoice c0 =
         search::chooseMethod(o.request.params.method, e0, backend.supports(kTree), backend.name());
-    memory.inMemory = pipeline::estimateSearchPeak(shape, e0, std::string(c0.method.name()));
+    memory.inMemory = pipeline::estimateSearchPeak(shape, e0, c0.method);
     const bool fits = memory.inMemory.total() <= budget;
     memory.lines.push_back("search in memory: estimated peak " + memory.inMemory.describe() +
                            (fits ? "" : ": over the budget, out of core"));
@@ -293,17 +293,17 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   } else {
     const pipeline::CubeShape held{width, height, fc.frames.frameCount()};
     if (prepared) {
-      const auto peakOf = [&](const std::string& m) {
+      const auto peakOf = [&](search::SearchMethod m) {
         MemoryEstimate p = pipeline::estimateSearchPeak(held, e, m);
         p.add("per-pixel images", pipeline::kPreprocessImageBytesPerPixel * width * height);
         if (fit) p.add("zero-biased cube (for --fit)", 4.0 * held.samples());
         return p;
       };
-      MemoryEstimate searchPeak = peakOf(std::string(method.method.name()));
+      MemoryEstimate searchPeak = peakOf(method.method);
       if (searchPeak.total() > budget && method.method == kTree && o.request.params.method == kAuto &&
-          peakOf("exact").total() <= budget) {
+          peakOf(kExact).total() <= budget) {
         method = {kExact, "auto: exact (the tree search's buffers do not fit the memory budget)"};
-        searchPeak = peakOf("exact");
+        searchPeak = peakOf(kExact);
       }
       memory.lines.push_back("search in memory: estimated peak " + searchPeak.describe() +
                              (searchPeak.total() > budget ? " (over the budget)" : ""));

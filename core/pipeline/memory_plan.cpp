@@ -10,8 +10,8 @@ namespace st::pipeline {
 
 namespace {
 
-double searchWorking(const search::MethodEstimate& e, const std::string& method) {
-  return static_cast<double>(method == "tree" ? e.treeWorkingBytes : e.exactWorkingBytes);
+double searchWorking(const search::MethodEstimate& e, search::SearchMethod method) {
+  return static_cast<double>(method == search::SearchMethod::Tree ? e.treeWorkingBytes : e.exactWorkingBytes);
 }
 
 }  // namespace
@@ -31,11 +31,11 @@ MemoryEstimate estimatePreprocessPeak(const CubeShape& s, bool keepZeroBiased, u
 }
 
 MemoryEstimate estimateSearchPeak(const CubeShape& s, const search::MethodEstimate& est,
-                                  const std::string& method) {
+                                  search::SearchMethod method) {
   MemoryEstimate e;
   e.add("filtered cube", 4.0 * s.samples());
   e.add("pixel mask", 1.0 * s.samples());
-  e.add(method == "tree" ? "tree search buffers" : "exact search buffers", searchWorking(est, method));
+  e.add(method == search::SearchMethod::Tree ? "tree search buffers" : "exact search buffers", searchWorking(est, method));
   e.add("cells above threshold", kHitBytes * kExpectedHits);
   e.add("base", kBaseBytes);
   return e;
@@ -46,7 +46,7 @@ std::size_t searchBufferBytes(std::size_t budgetBytes) {
 }
 
 TiledSearchPlan planTiledSearch(const CubeShape& s, int overlapPx, std::size_t budgetBytes,
-                                const search::MethodEstimate& est, const std::string& method,
+                                const search::MethodEstimate& est, search::SearchMethod method,
                                 unsigned threads) {
   TiledSearchPlan p;
   p.overlapPx = overlapPx;
@@ -61,7 +61,7 @@ TiledSearchPlan planTiledSearch(const CubeShape& s, int overlapPx, std::size_t b
     e.add("tile of the filtered cube", 4.0 * s.frames * readPixels);
     e.add("tile pixel mask", 1.0 * s.frames * readPixels);
     e.add("loader plane buffers", 5.0 * std::max(1u, threads) * readPixels);
-    e.add(method == "tree" ? "tree search buffers" : "exact search buffers", searchWorking(est, method));
+    e.add(method == search::SearchMethod::Tree ? "tree search buffers" : "exact search buffers", searchWorking(est, method));
     e.add("cells above threshold", kHitBytes * kExpectedHits);
     e.add("base", kBaseBytes);
     return e;

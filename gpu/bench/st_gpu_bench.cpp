@@ -236,7 +236,7 @@ int run(int argc, char** argv) {
     tb.profileTree = true;
     auto tree = st::gpu::makeCudaBenchBackend(whyNot, to, tb);
     st::search::SearchParams tp = params;
-    tp.method = "tree";
+    tp.method = st::search::SearchMethod::Tree;
     for (int rep = 0; rep < 2; ++rep) {
       const auto r = tree->search(cube, grid, tp, quiet, cancel);
       std::printf(

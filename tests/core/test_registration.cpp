@@ -104,7 +104,7 @@ TEST(Registration, TreeFollowsTheOffsets) {
   EXPECT_LE(plan.maxAbsErrX, 1);
   EXPECT_LE(plan.maxAbsErrY, 1);
   search::SearchParams params;
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   params.minFrameFraction = 0.3;
   NullProgress progress;
   CancelToken cancel;

@@ -39,7 +39,7 @@ MethodChoice autoOnCpu(int size, int frames, int nv, MethodEstimate* out = nullp
   const Problem p = evenProblem(frames, 16.7, nv);
   const MethodEstimate e = estimateMethods(size, size, p.dt, p.grid, cpuCostModel(2), 2);
   if (out) *out = e;
-  return chooseMethod("auto", e, true, "cpu (2 threads)");
+  return chooseMethod(st::search::SearchMethod::Auto, e, true, "cpu (2 threads)");
 }
 
 /// A backend that says nothing about methods (so: exact only), recording what it was asked to run.
@@ -54,7 +54,7 @@ class ExactOnlyBackend final : public SearchBackend {
     r.grid = grid;
     r.trials = {cube.frames.width(), cube.frames.height(), grid.nvx, grid.nvy};
     r.backend = name();
-    r.method = "exact";
+    r.method = st::search::SearchMethod::Exact;
     return r;
   }
   Image stackAt(const FilteredCube& cube, Velocity v, StackMode) override {
@@ -76,12 +76,12 @@ struct NullProgress final : ProgressSink {
 
 TEST(SearchMethod, ExplicitRequestsAreKeptOrRefusedNamingTheBackend) {
   const MethodEstimate none;
-  EXPECT_EQ(chooseMethod("exact", none, true, "cpu").method, "exact");
-  EXPECT_EQ(chooseMethod("exact", none, true, "cpu").reason, "requested");
-  EXPECT_EQ(chooseMethod("tree", none, true, "cpu").method, "tree");
-  EXPECT_EQ(chooseMethod("tree", none, true, "cpu").reason, "requested");
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Exact, none, true, "cpu").method, st::search::SearchMethod::Exact);
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Exact, none, true, "cpu").reason, "requested");
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Tree, none, true, "cpu").method, st::search::SearchMethod::Tree);
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Tree, none, true, "cpu").reason, "requested");
   try {
-    (void)chooseMethod("tree", none, false, "cuda: Fake GPU");
+    (void)chooseMethod(st::search::SearchMethod::Tree, none, false, "cuda: Fake GPU");
     ADD_FAILURE() << "tree on a backend without it must throw";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cuda: Fake GPU"), std::string::npos) << e.what();
@@ -113,7 +113,7 @@ TEST(SearchMethod, SmallProblemResolvesToExact) {
   // 64 x 128^2 x 21^2: the tree needs 20x fewer additions but was slower in the bench (0.13 s vs 0.105 s).
   MethodEstimate e;
   const MethodChoice c = autoOnCpu(128, 64, 21, &e);
-  EXPECT_EQ(c.method, "exact") << c.reason;
+  EXPECT_EQ(c.method, st::search::SearchMethod::Exact) << c.reason;
   EXPECT_EQ(c.reason.rfind("auto: exact", 0), 0u) << c.reason;
   EXPECT_DOUBLE_EQ(e.exactAdditions, 128.0 * 128.0 * 64.0 * 21.0 * 21.0);
   EXPECT_GT(e.treeAdditions, 0.0);
@@ -123,7 +123,7 @@ TEST(SearchMethod, SmallProblemResolvesToExact) {
 TEST(SearchMethod, PaperProblemResolvesToTree) {
   MethodEstimate e;
   const MethodChoice c = autoOnCpu(512, 1500, 100, &e);
-  EXPECT_EQ(c.method, "tree") << c.reason;
+  EXPECT_EQ(c.method, st::search::SearchMethod::Tree) << c.reason;
   EXPECT_EQ(c.reason.rfind("auto: tree", 0), 0u) << c.reason;
   EXPECT_DOUBLE_EQ(e.exactAdditions, 1500.0 * 512.0 * 512.0 * 100.0 * 100.0);
   // bench search --method tree, paper problem: 1.21e10-1.22e10 tree additions, tiles of 6 rows.
@@ -140,9 +140,9 @@ TEST(SearchMethod, PaperProblemResolvesToTree) {
 TEST(SearchMethod, MidSizedProblemsFollowTheMeasuredCrossover) {
   // Measured on the 2-core VM (README): 500 x 512^2 x 15^2 exact 2.6 s, tree 0.45 s -> the tree pays;
   // 200 x 256^2 x 11^2 exact 0.24 s, tree 0.09 s -> under a second saved, exact keeps the full SNR.
-  EXPECT_EQ(autoOnCpu(512, 500, 15).method, "tree");
-  EXPECT_EQ(autoOnCpu(256, 200, 11).method, "exact");
-  EXPECT_EQ(autoOnCpu(128, 30, 9).method, "exact");
+  EXPECT_EQ(autoOnCpu(512, 500, 15).method, st::search::SearchMethod::Tree);
+  EXPECT_EQ(autoOnCpu(256, 200, 11).method, st::search::SearchMethod::Exact);
+  EXPECT_EQ(autoOnCpu(128, 30, 9).method, st::search::SearchMethod::Exact);
   // A larger grid only helps the tree: exact grows with N_v, the tree's top level about as N_v too.
   MethodEstimate small, large;
   (void)autoOnCpu(256, 500, 11, &small);
@@ -176,15 +176,15 @@ TEST(SearchMethod, CostModelFollowsTheBackendAndTheMeasuredRate) {
   // On the GPU model the paper problem would go to the tree once a GPU backend supports it.
   const Problem paper = evenProblem(1500, 16.7, 100);
   const MethodEstimate g = estimateMethods(512, 512, paper.dt, paper.grid, cudaCostModel(), 1);
-  EXPECT_EQ(chooseMethod("auto", g, true, "cuda").method, "exact");  // 0.46 s: under a second to save
-  EXPECT_EQ(chooseMethod("auto", g, false, "cuda").method, "exact");
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Auto, g, true, "cuda").method, st::search::SearchMethod::Exact);  // 0.46 s: under a second to save
+  EXPECT_EQ(chooseMethod(st::search::SearchMethod::Auto, g, false, "cuda").method, st::search::SearchMethod::Exact);
 }
 
 TEST(SearchMethod, NoTreePlanWithoutDistinctTimes) {
   const MethodEstimate e = estimateMethods(64, 64, {0.0, 0.0, 0.0}, {{0, 0}, 0.1, 5, 5}, cpuCostModel(2), 2);
   EXPECT_EQ(e.treeAdditions, 0.0);
-  const MethodChoice c = chooseMethod("auto", e, true, "cpu");
-  EXPECT_EQ(c.method, "exact");
+  const MethodChoice c = chooseMethod(st::search::SearchMethod::Auto, e, true, "cpu");
+  EXPECT_EQ(c.method, st::search::SearchMethod::Exact);
   EXPECT_NE(c.reason.find("no tree plan"), std::string::npos) << c.reason;
 }
 
@@ -194,20 +194,20 @@ TEST(SearchMethod, BackendWithoutTreeGetsExactWithTheReason) {
   EXPECT_FALSE(gpu.supportsMethod("tree"));
   const FilteredCube fc = tinyCube();
   const VelocityGrid grid{{0.0, 0.0}, 0.5, 5, 5};
-  const MethodChoice c = resolveMethod(gpu, fc, grid, "auto");
-  EXPECT_EQ(c.method, "exact");
+  const MethodChoice c = resolveMethod(gpu, fc, grid, SearchMethod::Auto);
+  EXPECT_EQ(c.method, st::search::SearchMethod::Exact);
   EXPECT_NE(c.reason.find("cuda: Fake GPU"), std::string::npos) << c.reason;
   EXPECT_NE(c.reason.find("no tree search"), std::string::npos) << c.reason;
 
   NullProgress progress;
   CancelToken cancel;
   SearchParams params;
-  params.method = "auto";
+  params.method = st::search::SearchMethod::Auto;
   const SearchResult r = searchWithMethod(gpu, fc, grid, params, progress, cancel);
   EXPECT_EQ(gpu.asked, "exact");  // the backend never sees "auto"
-  EXPECT_EQ(r.method, "exact");
+  EXPECT_EQ(r.method, st::search::SearchMethod::Exact);
   EXPECT_EQ(r.methodReason, c.reason);
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   EXPECT_THROW((void)searchWithMethod(gpu, fc, grid, params, progress, cancel), InputError);
 }
 
@@ -221,13 +221,13 @@ TEST(SearchMethod, CpuBackendRunsBothAndTheReportSaysWhich) {
   NullProgress progress;
   CancelToken cancel;
   SearchParams params;
-  params.method = "auto";
+  params.method = st::search::SearchMethod::Auto;
   const SearchResult a = searchWithMethod(*cpu, fc, grid, params, progress, cancel);
-  EXPECT_EQ(a.method, "exact");
+  EXPECT_EQ(a.method, st::search::SearchMethod::Exact);
   EXPECT_EQ(a.methodReason.rfind("auto: exact", 0), 0u) << a.methodReason;
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   const SearchResult t = searchWithMethod(*cpu, fc, grid, params, progress, cancel);
-  EXPECT_EQ(t.method, "tree");
+  EXPECT_EQ(t.method, st::search::SearchMethod::Tree);
   EXPECT_EQ(t.methodReason, "requested");
   const nlohmann::json j = report::searchResultToJson(fc, a, {"tiny.fits"});
   EXPECT_EQ(j["method"], "exact");

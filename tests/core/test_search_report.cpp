@@ -38,7 +38,7 @@ search::SearchResult twoCandidates() {
   star.nIn = 7;
   r.candidates = {moving, star};
   r.trials = {64, 64, 21, 21};
-  r.method = "tree";
+  r.method = st::search::SearchMethod::Tree;
   r.methodReason = "auto: tree, clearly faster (estimated exact 9 s, tree 1 s; \"9x\")";
   return r;
 }
@@ -118,7 +118,7 @@ search::SearchResult awkwardResult() {
   r.snrThreshold = 6.999999999999999;
   r.tRefMjd = 60000.123456789012;
   r.backend = "cpu (2 threads)";
-  r.method = "tree";
+  r.method = st::search::SearchMethod::Tree;
   r.elapsedS = 0.1234567;
   r.cellsAboveThreshold = 123456789012;
   r.sidelobesMerged = 3;

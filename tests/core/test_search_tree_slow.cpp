@@ -52,7 +52,7 @@ TEST(SearchTreeSlow, PaperCadenceInjectedObjects) {
     fc.psfFwhmPx = psf.fwhm();
     SearchParams params;
     const SearchResult exact = backend->search(fc, grid, params, progress, cancel);
-    params.method = "tree";
+    params.method = st::search::SearchMethod::Tree;
     const SearchResult tree = backend->search(fc, grid, params, progress, cancel);
     for (const auto& [x, y] : at) {
       const Candidate* e = nearestCandidate(exact, x, y, 3);

@@ -79,7 +79,7 @@ LossResult measureLoss(double fwhm, int n, int nv, unsigned seed) {
   CancelToken cancel;
   search::SearchParams params;
   params.snrThreshold = 0.5;
-  params.method = "tree";
+  params.method = st::search::SearchMethod::Tree;
   const search::SearchResult tree = search::treeSearch(cube, grid, params, progress, cancel);
   std::vector<double> losses;
   for (const Truth& t : truths) {

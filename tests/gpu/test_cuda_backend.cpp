@@ -158,7 +158,7 @@ void checkAgainstReference(Kern rowKernel) {
   EXPECT_EQ(r.candidates.front().y, 20);
   EXPECT_EQ(r.candidates.front().ivx, 6);
   EXPECT_EQ(r.candidates.front().ivy, 2);
-  EXPECT_EQ(r.method, "exact");
+  EXPECT_EQ(r.method, st::search::SearchMethod::Exact);
   EXPECT_EQ(r.trials.total(), double(p.cube.frames.width()) * 47 * p.grid.nvx * p.grid.nvy);
   EXPECT_NE(gpu->lastNote().find("resident"), std::string::npos) << gpu->lastNote();
   EXPECT_NE(gpu->lastNote().find(kernelName(rowKernel)), std::string::npos) << gpu->lastNote();

@@ -54,7 +54,7 @@ Problem registeredProblem(bool fineGrid, bool tree) {
   p.params.snrThreshold = 3.5;
   p.params.maxCandidates = 100000;
   p.params.minFrameFraction = 0.5;
-  if (tree) p.params.method = "tree";
+  if (tree) p.params.method = st::search::SearchMethod::Tree;
   return p;
 }
 
@@ -123,7 +123,7 @@ TEST(CudaRegistration, TreeGivesTheCpuTreesResult) {
     CancelToken cancel;
     const SearchResult g = gpu->search(p.cube, p.grid, p.params, progress, cancel);
     const SearchResult c = search::treeSearch(p.cube, p.grid, p.params, progress, cancel);
-    EXPECT_EQ(g.method, "tree");
+    EXPECT_EQ(g.method, st::search::SearchMethod::Tree);
     SCOPED_TRACE("cut " + std::to_string(cut));
     expectSame(g, c);
   }

@@ -46,7 +46,7 @@ struct Problem {
 
 Problem standardProblem() {
   Problem p{makeCube(96, 70, 64, 11), VelocityGrid{{3.0, 1.0}, 0.35, 37, 31}, {}};
-  p.params.method = "tree";
+  p.params.method = st::search::SearchMethod::Tree;
   p.params.snrThreshold = 4.5;
   p.params.minFrameFraction = 0.3;
   return p;
@@ -56,7 +56,7 @@ void expectSameAsCpuTree(const SearchResult& g, const Problem& p) {
   NullProgress progress;
   CancelToken cancel;
   const SearchResult c = search::treeSearch(p.cube, p.grid, p.params, progress, cancel);
-  EXPECT_EQ(g.method, "tree");
+  EXPECT_EQ(g.method, st::search::SearchMethod::Tree);
   ASSERT_EQ(g.map.maxSnr.size(), c.map.maxSnr.size());
   for (std::size_t iv = 0; iv < c.map.maxSnr.size(); ++iv) {
     EXPECT_NEAR(g.map.maxSnr[iv], c.map.maxSnr[iv], 1e-6 * std::max(1.0f, std::abs(c.map.maxSnr[iv]))) << iv;
@@ -190,7 +190,7 @@ TEST(CudaTree, ReSearchKeepsTheWorkspaceAndStillGivesTheCpuTreesResult) {
   p.grid = VelocityGrid{{3.0, 1.0}, 0.4, 31, 29};
   run("made, kept for the next", "another grid");
   SearchParams exact = p.params;
-  exact.method = "exact";
+  exact.method = st::search::SearchMethod::Exact;
   gpu->search(p.cube, p.grid, exact, progress, cancel);
   run("made, kept for the next", "after an exact search");
   p.cube = makeCube(96, 70, 64, 12);

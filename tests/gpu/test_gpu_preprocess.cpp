@@ -412,7 +412,7 @@ TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
   // A new revision (new pixels) is uploaded again, never served stale; a cube without one is never kept.
   cube.frames.pixels()[1] += 1000.0f;
   cube.revision = search::nextCubeRevision();
-  params.method = "exact";
+  params.method = st::search::SearchMethod::Exact;
   resident->search(cube, grid, params, progress, cancel);
   EXPECT_EQ(resident->lastNote().find("no upload"), std::string::npos) << resident->lastNote();
   EXPECT_NE(resident->lastNote().find("kept"), std::string::npos) << resident->lastNote();

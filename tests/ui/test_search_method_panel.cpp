@@ -48,8 +48,8 @@ TEST(SearchMethodPanel, SelectorDefaultsToAutoAndExplainsTheTradeOff) {
   QComboBox* method = methodCombo(panel);
   ASSERT_NE(method, nullptr);
   EXPECT_EQ(method->count(), 3);
-  EXPECT_EQ(panel.method(), "auto");
-  EXPECT_EQ(panel.params().method, "auto");
+  EXPECT_EQ(panel.method(), st::search::SearchMethod::Auto);
+  EXPECT_EQ(panel.params().method, st::search::SearchMethod::Auto);
   const QString tip = method->toolTip();
   EXPECT_TRUE(tip.contains("N_pix·N_v")) << tip.toStdString();
   EXPECT_TRUE(tip.contains("median ~1%") && tip.contains("worst ~5%")) << tip.toStdString();
@@ -60,17 +60,17 @@ TEST(SearchMethodPanel, SelectorDefaultsToAutoAndExplainsTheTradeOff) {
   panel.setGridPxS({}, 1.0, 0.25);
   EXPECT_TRUE(methodLine(panel).startsWith("Auto → exact:")) << panel.estimateText().toStdString();
   QTest::keyClick(method, Qt::Key_Down);
-  EXPECT_EQ(panel.params().method, "exact");
+  EXPECT_EQ(panel.params().method, st::search::SearchMethod::Exact);
   EXPECT_TRUE(methodLine(panel).startsWith("exact:")) << panel.estimateText().toStdString();
   EXPECT_TRUE(methodLine(panel).contains("(tree ~")) << panel.estimateText().toStdString();
   QTest::keyClick(method, Qt::Key_Down);
-  EXPECT_EQ(panel.params().method, "tree");
+  EXPECT_EQ(panel.params().method, st::search::SearchMethod::Tree);
   EXPECT_TRUE(methodLine(panel).startsWith("tree:")) << panel.estimateText().toStdString();
   EXPECT_TRUE(methodLine(panel).contains("exact ~")) << panel.estimateText().toStdString();
   panel.setMethod("auto");
-  EXPECT_EQ(panel.method(), "auto");
+  EXPECT_EQ(panel.method(), st::search::SearchMethod::Auto);
   panel.setMethod("fastest");  // ignored
-  EXPECT_EQ(panel.method(), "auto");
+  EXPECT_EQ(panel.method(), st::search::SearchMethod::Auto);
 }
 
 TEST(SearchMethodPanel, AutoResolvesToTheTreeWhereItPays) {
@@ -101,7 +101,7 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
   EXPECT_FALSE(panel.estimateText().contains("CPU figures")) << panel.estimateText().toStdString();
 
   auto result = std::make_shared<search::SearchResult>();
-  result->method = "tree";
+  result->method = st::search::SearchMethod::Tree;
   result->methodReason = "auto: tree, clearly faster (estimated exact 56 s, tree 4 s; 110x fewer additions)";
   result->backend = "cpu";
   result->snrThreshold = 7.0;
@@ -112,7 +112,7 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
   EXPECT_TRUE(status.startsWith("tree search on cpu: 3 candidates")) << status.toStdString();
   EXPECT_TRUE(status.contains("auto: tree, clearly faster")) << status.toStdString();
   result = std::make_shared<search::SearchResult>(*result);
-  result->method = "exact";
+  result->method = st::search::SearchMethod::Exact;
   result->methodReason = "requested";
   result->candidates.resize(1);
   result->sidelobesMerged = 2;

@@ -117,7 +117,7 @@ TEST(SessionSearchSettings, ReopeningRestoresTheSearchPanel) {
   EXPECT_EQ(p.snrThreshold, 8.5);
   ASSERT_TRUE(p.targetFap.has_value());
   EXPECT_DOUBLE_EQ(*p.targetFap, 0.001);
-  EXPECT_EQ(p.method, "tree");
+  EXPECT_EQ(p.method, st::search::SearchMethod::Tree);
   EXPECT_EQ(panel->backendKind(), BackendKind::Cpu);
   EXPECT_EQ(w2.observation()->unit(), VelocityUnit::PxPerS);
   EXPECT_EQ(child<QComboBox>(panel, "px/s")->currentText(), "px/s");  // the panel shows the saved unit
@@ -155,7 +155,7 @@ TEST(SessionSearchSettings, AnOlderFileWithoutTheKeysOpensWithDefaults) {
   const search::SearchParams p = panel->params();
   EXPECT_EQ(p.snrThreshold, search::SearchParams{}.snrThreshold);
   EXPECT_FALSE(p.targetFap.has_value());
-  EXPECT_EQ(p.method, "auto");
+  EXPECT_EQ(p.method, st::search::SearchMethod::Auto);
   EXPECT_EQ(panel->backendKind(), BackendKind::Auto);
   const search::VelocityGrid g = panel->grid();
   EXPECT_EQ(g.stepPxS, 0.25);

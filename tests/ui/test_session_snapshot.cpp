@@ -34,7 +34,7 @@ void fillObservation(Observation& obs) {
   result->grid = {{0.1, 0.2}, 1.0 / 3.0, 3, 1};
   result->map = {3, 1, {1.5f, 7.0f / 3.0f, 9.0f}, {1, 2, 3}, {4, 5, 6}};
   result->backend = "fake cpu";
-  result->method = "exact";
+  result->method = st::search::SearchMethod::Exact;
   result->snrThreshold = 7.0;
   result->tRefMjd = 60000.1 + 1e-9;
   result->trials = {40, 30, 3, 1};
@@ -75,7 +75,7 @@ TEST(SessionSnapshot, RoundTripIsExactThroughTheFileText) {
   params.grid = {{1.0 / 3.0, -2.0}, 0.125, 5, 7};
   params.search.snrThreshold = 6.5;
   params.search.targetFap = 1e-3;
-  params.search.method = "tree";
+  params.search.method = st::search::SearchMethod::Tree;
   params.backend = BackendKind::Cpu;
   const session::Session s = makeSession(obs, {"/data/a.fits", "/data/b.fits"}, params, {{"station", "G96"}});
   ASSERT_EQ(s.candidates.size(), 2u);
@@ -94,7 +94,7 @@ TEST(SessionSnapshot, RoundTripIsExactThroughTheFileText) {
   EXPECT_EQ(snap.parameters.grid.nvy, 7);
   EXPECT_EQ(snap.parameters.search.snrThreshold, 6.5);
   EXPECT_EQ(snap.parameters.search.targetFap, 1e-3);
-  EXPECT_EQ(snap.parameters.search.method, "tree");
+  EXPECT_EQ(snap.parameters.search.method, st::search::SearchMethod::Tree);
   EXPECT_EQ(snap.parameters.backend, BackendKind::Cpu);
   EXPECT_EQ(snap.unit, VelocityUnit::DegPerDay);
   ASSERT_TRUE(snap.selected.has_value());

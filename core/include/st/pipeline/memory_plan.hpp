@@ -54,10 +54,10 @@ struct CubeShape {
 /// kept beside the filtered one (search --fit, preprocess -o with --filtered).
 MemoryEstimate estimatePreprocessPeak(const CubeShape& shape, bool keepZeroBiased, unsigned threads);
 
-/// Peak of searching a filtered cube of `shape` held in memory with method `method` ("exact"/"tree"),
+/// Peak of searching a filtered cube of `shape` held in memory with method `method` (Exact or Tree),
 /// `estimate` from search::estimateMethods for that shape.
 MemoryEstimate estimateSearchPeak(const CubeShape& shape, const search::MethodEstimate& estimate,
-                                  const std::string& method);
+                                  search::SearchMethod method);
 
 /// The out-of-core plan of a search: tiles, overlap and one tile's estimate.
 struct TiledSearchPlan {
@@ -70,7 +70,7 @@ struct TiledSearchPlan {
 /// Tiles for a search of `shape` with `overlapPx` under `budgetBytes`; `estimate` prices the tile's
 /// search working set (its per-thread scratch does not depend on the tile's height).
 TiledSearchPlan planTiledSearch(const CubeShape& shape, int overlapPx, std::size_t budgetBytes,
-                                const search::MethodEstimate& estimate, const std::string& method,
+                                const search::MethodEstimate& estimate, search::SearchMethod method,
                                 unsigned threads);
 
 /// The search buffers (SearchParams::bufferBytes) a budget allows: a quarter of it, at most the default
