@@ -47,6 +47,18 @@ struct KernelParams {
   int ivyEnd = -1;
 };
 
+/// A velocity map of `grid` with no maximum yet (SNR 0, argX/argY -1): filled by merging searches of parts
+/// (tiles, velocity blocks, rows of the grid).
+inline VelocityMap emptyVelocityMap(const VelocityGrid& grid) {
+  VelocityMap map;
+  map.nvx = grid.nvx;
+  map.nvy = grid.nvy;
+  map.maxSnr.assign(grid.count(), 0.0f);
+  map.argX.assign(grid.count(), -1);
+  map.argY.assign(grid.count(), -1);
+  return map;
+}
+
 struct KernelOutput {
   VelocityMap map;
   std::vector<CellHit> hits;   ///< the highest-SNR cells above threshold, at most maxHits, unsorted

@@ -48,11 +48,7 @@ SearchResult mergeRowSearches(const FilteredCube& cube, const VelocityGrid& grid
                               std::vector<RowSearch> parts, std::string backend) {
   const auto start = std::chrono::steady_clock::now();
   SearchResult result = startSearchResult(cube, grid, params, std::move(backend), SearchMethod::Exact);
-  result.map.nvx = grid.nvx;
-  result.map.nvy = grid.nvy;
-  result.map.maxSnr.assign(grid.count(), 0.0f);
-  result.map.argX.assign(grid.count(), -1);
-  result.map.argY.assign(grid.count(), -1);
+  result.map = detail::emptyVelocityMap(grid);
   std::vector<int> covered(static_cast<std::size_t>(grid.nvy), 0);
   std::vector<CellHit> hits;
   for (RowSearch& p : parts) {

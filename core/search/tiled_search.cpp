@@ -83,12 +83,8 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   std::vector<PixelOffset> offsets;  // the frames' registration offsets (FRAMES table), for the sidelobes
   double psfFwhm = 0.0;
   Velocity skyRate;
+  result.map = detail::emptyVelocityMap(grid);
   VelocityMap& map = result.map;
-  map.nvx = grid.nvx;
-  map.nvy = grid.nvy;
-  map.maxSnr.assign(grid.count(), 0.0f);
-  map.argX.assign(grid.count(), -1);
-  map.argY.assign(grid.count(), -1);
   for (std::size_t t = 0; t < tiles.size(); ++t) {
     cancel.throwIfCancelled();
     const SearchTile& tile = tiles[t];

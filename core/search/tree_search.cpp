@@ -467,12 +467,8 @@ KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, 
   });
 
   KernelOutput out;
+  out.map = emptyVelocityMap(grid);
   VelocityMap& map = out.map;
-  map.nvx = grid.nvx;
-  map.nvy = grid.nvy;
-  map.maxSnr.assign(nv, 0.0f);
-  map.argX.assign(nv, -1);
-  map.argY.assign(nv, -1);
   for (const auto& w : pool) {
     if (!w) continue;
     for (std::size_t iv = 0; iv < nv; ++iv) {
@@ -502,12 +498,8 @@ KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid,
                                                 treeBlockSplitBytes(p.bufferBytes), frames.frameOffsets());
   if (blocks.count() == 1) return treeSearchBlock(frames, grid, roi, p, progress, cancel);
   KernelOutput out;
+  out.map = emptyVelocityMap(grid);
   VelocityMap& map = out.map;
-  map.nvx = grid.nvx;
-  map.nvy = grid.nvy;
-  map.maxSnr.assign(grid.count(), 0.0f);
-  map.argX.assign(grid.count(), -1);
-  map.argY.assign(grid.count(), -1);
   const int total = blocks.count();
   for (int by = 0; by < blocks.blocksY; ++by) {
     for (int bx = 0; bx < blocks.blocksX; ++bx) {
