@@ -181,6 +181,18 @@ TEST(SearchTree, MatchesExactOnInjectedObjects) {
   EXPECT_LE(losses.back(), 0.10) << "worst SNR loss";
 }
 
+/// The brute-force sum of F_n(x + sx_n, y + sy_n) over the frames (samples outside the frame contribute 0).
+double sumAlongShifts(const FrameCube& frames, int x, int y, const std::vector<std::pair<int, int>>& s) {
+  const int w = frames.width(), h = frames.height();
+  double sum = 0.0;
+  for (std::size_t n = 0; n < frames.frameCount(); ++n) {
+    const int xs = x + s[n].first, ys = y + s[n].second;
+    if (xs < 0 || ys < 0 || xs >= w || ys >= h) continue;
+    sum += frames.frame(n)[static_cast<std::size_t>(ys) * w + xs];
+  }
+  return sum;
+}
+
 // Every velocity's map maximum: S there equals the brute-force sum of F_n(x + sx_n, y + sy_n) along the
 // tree's implied shifts (samples outside the frame contribute 0), normalised with the exact N_in.
 void expectSumsAlongImpliedShifts(int w, int h, std::size_t frames, const VelocityGrid& gridInSpanUnits,
@@ -207,14 +219,7 @@ void expectSumsAlongImpliedShifts(int w, int h, std::size_t frames, const Veloci
       const int x = r.map.argX[iv];
       const int y = r.map.argY[iv];
       if (x < 0) continue;  // no cell with enough frames
-      const auto s = treeImpliedShifts(plan, ix, iy);
-      double sum = 0.0;
-      for (std::size_t n = 0; n < fc.frames.frameCount(); ++n) {
-        const int xs = x + s[n].first;
-        const int ys = y + s[n].second;
-        if (xs < 0 || ys < 0 || xs >= w || ys >= h) continue;
-        sum += fc.frames.frame(n)[static_cast<std::size_t>(ys) * w + xs];
-      }
+      const double sum = sumAlongShifts(fc.frames, x, y, treeImpliedShifts(plan, ix, iy));
       const IpsaCell exact = ipsaReference(fc.frames, dt, x, y, grid.at(ix, iy));
       ASSERT_NEAR(r.map.maxSnr[iv], sum / std::sqrt(double(exact.nIn)), 2e-4) << ix << "," << iy;
     }
@@ -330,13 +335,7 @@ TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
           const std::size_t iv = static_cast<std::size_t>(iy0 + jy) * grid.nvx + ix0 + jx;
           const int x = r.map.argX[iv], y = r.map.argY[iv];
           if (x < 0) continue;
-          const auto s = treeImpliedShifts(plan, jx, jy);
-          double sum = 0.0;
-          for (std::size_t n = 0; n < fc.frames.frameCount(); ++n) {
-            const int xs = x + s[n].first, ys = y + s[n].second;
-            if (xs < 0 || ys < 0 || xs >= 128 || ys >= 128) continue;
-            sum += fc.frames.frame(n)[static_cast<std::size_t>(ys) * 128 + xs];
-          }
+          const double sum = sumAlongShifts(fc.frames, x, y, treeImpliedShifts(plan, jx, jy));
           const IpsaCell exact = ipsaReference(fc.frames, dt, x, y, grid.at(ix0 + jx, iy0 + jy));
           ASSERT_NEAR(r.map.maxSnr[iv], sum / (fc.sigmaF * std::sqrt(double(exact.nIn))), 2e-4)
               << "velocity " << ix0 + jx << "," << iy0 + jy;
