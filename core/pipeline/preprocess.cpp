@@ -194,26 +194,43 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     filteredBuffer =
         std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
-  {
-    SubProgress sub(progress, 0.4, 0.65);
-    // The movers are left out too: a slow one covers a pixel for a good part of the frames and would
-    // raise its background (and lose that much of its signal).
-    // Where the stars are subtracted (a drifting field), their wide footprints are left out as well.
-    detect::MovingMask exclude = stars.mask;
-    if (!stars.subtractRegion.empty()) {
-      const auto& wide = stars.subtractRegion.canvas();
-      for (std::size_t i = 0; i < wide.size(); ++i)
-        if (wide[i])
-          exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
-                      exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
-    }
-    const auto& movers = stars.moverMask.canvas();
-    for (std::size_t i = 0; i < movers.size(); ++i)
-      if (movers[i])
+  // The movers are left out of the per-pixel background too: a slow one covers a pixel for a good part of
+  // the frames and would raise its background (and lose that much of its signal). Where the stars are
+  // subtracted (a drifting field), their wide footprints are left out as well.
+  detect::MovingMask exclude = stars.mask;
+  if (!stars.subtractRegion.empty()) {
+    const auto& wide = stars.subtractRegion.canvas();
+    for (std::size_t i = 0; i < wide.size(); ++i)
+      if (wide[i])
         exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
                     exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
-    stats::Background bg = subtractPixelBackgroundOn(params.accelerator, cube, params.background, &exclude,
-                                                     sub, cancel, out.notes);
+  }
+  const auto& moverCanvas = stars.moverMask.canvas();
+  for (std::size_t i = 0; i < moverCanvas.size(); ++i)
+    if (moverCanvas[i])
+      exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
+                  exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
+  // Per-pixel background, star subtraction, zeroing (cosmic-ray pixels, masks, unmeasured pixels,
+  // single-frame sources) and residual means: on a device that keeps the cube between them when there is
+  // one (issue 16), else stage by stage (pipeline/preprocess_accelerator.cpp).
+  ZeroBiasInputs zin;
+  zin.background = params.background;
+  zin.exclude = &exclude;
+  zin.subtractRegion = &stars.subtractRegion;
+  zin.starSubtraction = params.starSubtraction;
+  zin.cosmicRayPixels = &cr.pixels;
+  zin.starMask = &stars.mask;
+  zin.moverMask = &stars.moverMask;
+  zin.singleFrameSnr = params.singleFrameSnr;
+  zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
+  zin.removeResidualMean = params.removeResidualMean;
+  zin.residualMeshPx = params.residualMeshPx;
+  ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
+  for (auto& stage : zb.stageSeconds)
+    out.stageSeconds.push_back(std::move(stage));
+  last = std::chrono::steady_clock::now();
+  {
+    stats::Background& bg = zb.background;
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
     out.noise = std::move(bg.sigma);
@@ -226,21 +243,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
           "the global mean");
     }
   }
-  lap("per-pixel background");
-  if (!stars.subtractRegion.empty()) {
-    // Before the cosmic-ray pixels are zeroed: they hold their time neighbours' values until then.
-    SubProgress sub(progress, 0.65, 0.75);
-    out.starSubtraction = detect::subtractStarTemplate(cube, stars.subtractRegion, &out.noise,
-                                                       params.starSubtraction, sub, cancel);
+  if (zb.starsAttempted) {
+    out.starSubtraction = std::move(zb.starSubtraction);
     const detect::StarSubtraction& ss = out.starSubtraction;
     std::ostringstream note;
     if (ss.applied) {
-      // The sky positions whose residuals vary too much are masked with the cores.
-      const auto& ex = ss.excess.canvas();
-      for (std::size_t i = 0; i < ex.size(); ++i)
-        if (ex[i])
-          stars.mask.set(stars.mask.x0() + static_cast<int>(i) % stars.mask.canvasWidth(),
-                         stars.mask.y0() + static_cast<int>(i) / stars.mask.canvasWidth());
       note << "stars subtracted (drifting field): a sky-registered template of "
            << static_cast<long long>(std::lround(ss.meanTemplateFrames))
            << " frames on average per pixel, leaving out +-" << params.starSubtraction.windowFraction
@@ -253,32 +260,17 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       note << "stars not subtracted (the span is too short for a template outside each frame's window): "
               "masked down to one stack sigma instead";
     out.notes.push_back(note.str());
-    lap("star subtraction");
   }
-  calib::zeroPixels(cube, cr.pixels);
   out.cosmicRayPixels = std::move(cr.pixels);
-  {
-    SubProgress sub(progress, 0.75, 0.8);
-    out.staticPixelsZeroed = detect::zeroMasked(cube, stars.mask, sub, cancel);
-    if (!stars.subtractRegion.empty() && !out.starSubtraction.applied)
-      out.staticPixelsZeroed += detect::zeroMasked(cube, stars.subtractRegion, sub, cancel);
-    out.unmeasuredPixelsZeroed = detect::zeroUnmeasured(cube, unmeasured, stars.moverMask);
-    if (out.unmeasuredPixelsZeroed > 0) {
-      out.notes.push_back(std::to_string(out.unmeasuredPixelsZeroed) +
-                          " pixels seen in some frames but without a measured background (static-mask "
-                          "edges, bright static light) zeroed in every frame");
-    }
-    const int radius = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
-    out.singleFrame = detect::zeroSingleFrameSources(cube, out.noise, out.sigmaN, params.singleFrameSnr,
-                                                     radius, sub, cancel, &stars.moverMask);
+  out.staticPixelsZeroed = zb.staticPixelsZeroed;
+  out.unmeasuredPixelsZeroed = zb.unmeasuredPixelsZeroed;
+  if (out.unmeasuredPixelsZeroed > 0) {
+    out.notes.push_back(std::to_string(out.unmeasuredPixelsZeroed) +
+                        " pixels seen in some frames but without a measured background (static-mask "
+                        "edges, bright static light) zeroed in every frame");
   }
-  lap("zeroing");  // cosmic-ray pixels, masks, unmeasured pixels, single-frame sources
-  if (params.removeResidualMean) {
-    SubProgress sub(progress, 0.8, 0.83);
-    out.residualMeanRms =
-        removeResidualMeansOn(params.accelerator, cube, params.residualMeshPx, 5.0, sub, cancel, out.notes);
-  }
-  lap("residual means");
+  out.singleFrame = std::move(zb.singleFrame);
+  if (params.removeResidualMean) out.residualMeanRms = zb.residualMeanRms;
   if (params.weightedFilter)
     out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
   lap("noise model");

@@ -1,5 +1,8 @@
 #include "st/pipeline/preprocess_accelerator.hpp"
 
+#include <chrono>
+
+#include "st/calib/cosmic_rays.hpp"
 #include "st/common/error.hpp"
 
 namespace st::pipeline {
@@ -89,6 +92,78 @@ stack::MatchedFilterResult filterCubeFromOn(PreprocessAccelerator* accel, const 
   filtered.pixels() = source.pixels();
   filtered.mask().clear();
   return stack::filterCube(filtered, kernel, progress, cancel, noise);
+}
+
+ZeroBiasResult zeroBiasStages(PreprocessAccelerator* accel, FrameCube& cube, const ZeroBiasInputs& in,
+                              ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes) {
+  ZeroBiasResult out;
+  auto last = std::chrono::steady_clock::now();
+  auto lap = [&](const char* stage) {
+    const auto now = std::chrono::steady_clock::now();
+    out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - last).count());
+    last = now;
+  };
+  {
+    SubProgress sub(progress, 0.4, 0.65);
+    out.background = subtractPixelBackgroundOn(accel, cube, in.background, in.exclude, sub, cancel, notes);
+  }
+  lap("per-pixel background");
+  out.starsAttempted = in.subtractRegion && !in.subtractRegion->empty();
+  if (out.starsAttempted) {
+    // Before the cosmic-ray pixels are zeroed: they hold their time neighbours' values until then.
+    SubProgress sub(progress, 0.65, 0.75);
+    out.starSubtraction = detect::subtractStarTemplate(cube, *in.subtractRegion, &out.background.sigma,
+                                                       in.starSubtraction, sub, cancel);
+    if (out.starSubtraction.applied && in.starMask) {
+      // The sky positions whose residuals vary too much are masked with the cores.
+      const MovingMask& ex = out.starSubtraction.excess;
+      const auto& c = ex.canvas();
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (c[i])
+          in.starMask->set(ex.x0() + static_cast<int>(i) % ex.canvasWidth(),
+                           ex.y0() + static_cast<int>(i) / ex.canvasWidth());
+    }
+    lap("star subtraction");
+  }
+  if (in.cosmicRayPixels) calib::zeroPixels(cube, *in.cosmicRayPixels);
+  {
+    SubProgress sub(progress, 0.75, 0.8);
+    const MovingMask none;
+    const MovingMask& movers = in.moverMask ? *in.moverMask : none;
+    if (in.starMask) out.staticPixelsZeroed = detect::zeroMasked(cube, *in.starMask, sub, cancel);
+    if (out.starsAttempted && !out.starSubtraction.applied)
+      out.staticPixelsZeroed += detect::zeroMasked(cube, *in.subtractRegion, sub, cancel);
+    out.unmeasuredPixelsZeroed = detect::zeroUnmeasured(cube, out.background.filled, movers);
+    out.singleFrame =
+        detect::zeroSingleFrameSources(cube, out.background.sigma, out.background.sigmaN, in.singleFrameSnr,
+                                       in.singleFrameRadiusPx, sub, cancel, &movers);
+  }
+  lap("zeroing");  // cosmic-ray pixels, masks, unmeasured pixels, single-frame sources
+  if (in.removeResidualMean) {
+    SubProgress sub(progress, 0.8, 0.83);
+    out.residualMeanRms =
+        removeResidualMeansOn(accel, cube, in.residualMeshPx, in.residualClipSigma, sub, cancel, notes);
+  }
+  lap("residual means");
+  return out;
+}
+
+ZeroBiasResult zeroBiasOn(PreprocessAccelerator* accel, FrameCube& cube, const ZeroBiasInputs& in,
+                          ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes) {
+  if (accel) {
+    const MovingMask starMask = in.starMask ? *in.starMask : MovingMask();
+    try {
+      ZeroBiasResult out;
+      if (accel->zeroBias(cube, in, out, progress, cancel)) {
+        if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+        return out;
+      }
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "per-pixel background to residual means", e));
+      if (in.starMask) *in.starMask = starMask;
+    }
+  }
+  return zeroBiasStages(accel, cube, in, progress, cancel, notes);
 }
 
 }  // namespace st::pipeline

@@ -38,6 +38,14 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
+  bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult&, ProgressSink&,
+                CancelToken&) override {
+    ++calls;
+    (void)cube;
+    if (in.starMask) in.starMask->set(in.starMask->x0(), in.starMask->y0());  // restored by zeroBiasOn
+    act();
+    return false;  // not supported: the stages one by one
+  }
   int calls = 0;
 
  private:
@@ -138,6 +146,45 @@ TEST(PreprocessAccelerator, FilterFromSourceLeavesItAndMatchesTheCpuOnACopy) {
     EXPECT_EQ(source.pixels(), before.pixels());
     EXPECT_EQ(source.mask(), before.mask());
   }
+}
+
+TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheStages) {
+  const FrameCube raw = noiseCube(40, 30, 24);
+  MovingMask stars(raw, Velocity{0.5, 0.0}), movers(raw, Velocity{-0.2, 0.1});
+  for (int y = 12; y < 16; ++y)
+    for (int x = 10; x < 14; ++x)
+      stars.set(x, y);
+  movers.set(25, 20);
+  const MovingMask starsBefore = stars;
+  std::vector<std::uint64_t> cr = {5, 1234, 20000};
+  pipeline::ZeroBiasInputs in;
+  in.background.maxFrames = 24;
+  in.cosmicRayPixels = &cr;
+  in.starMask = &stars;
+  in.moverMask = &movers;
+  in.residualMeshPx = 16;
+  NullProgress p;
+  CancelToken c;
+  FrameCube cpu = raw, dev = raw;
+  std::vector<std::string> cpuNotes, notes;
+  const pipeline::ZeroBiasResult a = pipeline::zeroBiasStages(nullptr, cpu, in, p, c, cpuNotes);
+  EXPECT_TRUE(cpuNotes.empty());
+  MovingMask cpuStars = stars;
+  stars = starsBefore;
+  FakeAccelerator fail(FakeAccelerator::Mode::Fail);
+  const pipeline::ZeroBiasResult b = pipeline::zeroBiasOn(&fail, dev, in, p, c, notes);
+  EXPECT_EQ(stars.canvas(), cpuStars.canvas());  // the failed device's change undone
+  EXPECT_EQ(dev.pixels(), cpu.pixels());
+  EXPECT_EQ(b.staticPixelsZeroed, a.staticPixelsZeroed);
+  EXPECT_GT(a.staticPixelsZeroed, 0u);
+  EXPECT_EQ(b.singleFrame.zeroedPerFrame, a.singleFrame.zeroedPerFrame);
+  EXPECT_DOUBLE_EQ(b.residualMeanRms, a.residualMeanRms);
+  ASSERT_FALSE(notes.empty());
+  EXPECT_NE(notes.front().find("per-pixel background to residual means on fake device failed"),
+            std::string::npos)
+      << notes.front();
+  EXPECT_EQ(fail.calls, 3);  // zeroBias, then the per-pixel background and residual means (both failing)
+  EXPECT_EQ(b.stageSeconds.size(), 3u);  // no star subtraction without a region
 }
 
 }  // namespace

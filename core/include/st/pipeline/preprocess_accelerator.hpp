@@ -12,11 +12,43 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/star_subtraction.hpp"
+#include "st/detect/static_sources.hpp"
 #include "st/stack/matched_filter.hpp"
 #include "st/stats/background.hpp"
 #include "st/stats/noise_model.hpp"
 
 namespace st::pipeline {
+
+/// What pipeline::preprocess's stages from the per-pixel background to the residual means take (issue 16:
+/// a device may run them all on one upload of the cube).
+struct ZeroBiasInputs {
+  stats::BackgroundParams background;
+  const detect::MovingMask* exclude = nullptr;         ///< left out of the per-pixel background
+  const detect::MovingMask* subtractRegion = nullptr;  ///< stars subtracted (drifting field) when not empty
+  detect::StarSubtractionParams starSubtraction;
+  const std::vector<std::uint64_t>* cosmicRayPixels = nullptr;  ///< zeroed (calib::zeroPixels)
+  /// Zeroed in every frame (detect::zeroMasked); the star subtraction's excess positions are added to it.
+  detect::MovingMask* starMask = nullptr;
+  const detect::MovingMask* moverMask = nullptr;  ///< kept by zeroUnmeasured and zeroSingleFrameSources
+  double singleFrameSnr = 5.0;
+  int singleFrameRadiusPx = 1;
+  bool removeResidualMean = true;
+  int residualMeshPx = 64;
+  double residualClipSigma = 5.0;
+};
+
+/// Their results; stageSeconds: "per-pixel background", "star subtraction" (when attempted), "zeroing",
+/// "residual means", as pipeline::Prepared::stageSeconds.
+struct ZeroBiasResult {
+  stats::Background background;
+  bool starsAttempted = false;  ///< subtractRegion was not empty
+  detect::StarSubtraction starSubtraction;
+  std::size_t staticPixelsZeroed = 0, unmeasuredPixelsZeroed = 0;
+  detect::SingleFrameSources singleFrame;
+  double residualMeanRms = 0.0;
+  std::vector<std::pair<std::string, double>> stageSeconds;
+};
 
 class PreprocessAccelerator {
  public:
@@ -60,7 +92,27 @@ class PreprocessAccelerator {
     filtered.mask().clear();
     return filterCube(filtered, kernel, progress, cancel, noise, revision);
   }
+  /// The stages of zeroBiasStages (per-pixel background, star subtraction, the zeroing stages, residual
+  /// means) with the cube kept on the device from one upload to one download; same results within the
+  /// per-stage tolerances. False: not supported (the caller runs zeroBiasStages). On st::GpuError the host
+  /// cube is as it was (the caller restores *in.starMask and runs zeroBiasStages).
+  virtual bool zeroBias(FrameCube& cube, const ZeroBiasInputs& in, ZeroBiasResult& out,
+                        ProgressSink& progress, CancelToken& cancel) {
+    (void)cube, (void)in, (void)out, (void)progress, (void)cancel;
+    return false;
+  }
 };
+
+/// The stages from the per-pixel background to the residual means one after the other (pipeline::preprocess
+/// before issue 16's resident cube): per-pixel background and residual means through the *On functions
+/// below, star subtraction and zeroing on the CPU. `progress` is the pipeline's (0.4 to 0.83).
+ZeroBiasResult zeroBiasStages(PreprocessAccelerator* accel, FrameCube& cube, const ZeroBiasInputs& in,
+                              ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes);
+
+/// accel->zeroBias when it is supported (adding its lastNote()); else, or on st::GpuError (a warning in
+/// `notes`, *in.starMask restored), zeroBiasStages.
+ZeroBiasResult zeroBiasOn(PreprocessAccelerator* accel, FrameCube& cube, const ZeroBiasInputs& in,
+                          ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes);
 
 /// stats::globalBackground on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU.
