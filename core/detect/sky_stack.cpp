@@ -5,10 +5,81 @@
 #include <limits>
 #include <vector>
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
+
 #include "st/common/parallel.hpp"
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::detect {
+namespace {
+
+// One frame row added into the stack's canvas row (sum, cnt and mx already offset to the frame's column 0),
+// leaving out masked samples. The AVX2 path does the same arithmetic as the scalar one: an excluded sample
+// adds +0.0 to the sum (x + 0.0 == x) and to the count, and leaves the maximum; max_ps(v, m) is std::max(m, v)
+// for NaN and signed zeros too.
+void addStackRowMaskedScalar(double* sum, float* cnt, float* mx, const float* row, const std::uint8_t* mrow,
+                             int x0, int w, double subtract) {
+  for (int x = x0; x < w; ++x) {
+    if (mrow[x]) continue;
+    sum[x] += row[x] - subtract;
+    cnt[x] += 1.0f;
+    mx[x] = std::max(mx[x], row[x]);
+  }
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_SKY_STACK_AVX2 1
+__attribute__((target("avx2"))) void addStackRowMaskedAvx2(double* sum, float* cnt, float* mx,
+                                                           const float* row, const std::uint8_t* mrow, int w,
+                                                           double subtract) {
+  const __m256d sub = _mm256_set1_pd(subtract);
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256i zero = _mm256_setzero_si256();
+  int x = 0;
+  for (; x + 8 <= w; x += 8) {
+    const __m128i m8 = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(mrow + x));
+    const __m256 in = _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(m8), zero));
+    const __m256d inLo = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_cvtepu8_epi64(m8), zero));
+    const __m256d inHi =
+        _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_cvtepu8_epi64(_mm_srli_si128(m8, 4)), zero));
+    const __m256 v = _mm256_loadu_ps(row + x);
+    _mm256_storeu_ps(cnt + x, _mm256_add_ps(_mm256_loadu_ps(cnt + x), _mm256_and_ps(in, one)));
+    const __m256 m = _mm256_loadu_ps(mx + x);
+    _mm256_storeu_ps(mx + x, _mm256_blendv_ps(m, _mm256_max_ps(v, m), in));
+    const __m256d dLo = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(v)), sub);
+    const __m256d dHi = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)), sub);
+    _mm256_storeu_pd(sum + x, _mm256_add_pd(_mm256_loadu_pd(sum + x), _mm256_and_pd(dLo, inLo)));
+    _mm256_storeu_pd(sum + x + 4, _mm256_add_pd(_mm256_loadu_pd(sum + x + 4), _mm256_and_pd(dHi, inHi)));
+  }
+  addStackRowMaskedScalar(sum, cnt, mx, row, mrow, x, w, subtract);
+}
+#endif
+
+void addStackRowMasked(double* sum, float* cnt, float* mx, const float* row, const std::uint8_t* mrow, int w,
+                       double subtract) {
+#ifdef ST_SKY_STACK_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) return addStackRowMaskedAvx2(sum, cnt, mx, row, mrow, w, subtract);
+#endif
+  addStackRowMaskedScalar(sum, cnt, mx, row, mrow, 0, w, subtract);
+}
+
+__attribute__((target_clones("avx2", "default"))) void addStackRow(double* __restrict sum,
+                                                                   float* __restrict cnt,
+                                                                   float* __restrict mx,
+                                                                   const float* __restrict row, int w,
+                                                                   double subtract) {
+  for (int x = 0; x < w; ++x) {
+    const float v = row[x];
+    sum[x] += static_cast<double>(v) - subtract;
+    cnt[x] += 1.0f;
+    mx[x] = std::max(mx[x], v);
+  }
+}
+
+}  // namespace
 
 SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
                         CancelToken& cancel, std::size_t first, std::size_t last) {
@@ -36,15 +107,12 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
         if (y < 0 || y >= h) continue;
         const int off = geom.shiftX(n) + s.x0;  // frame column x -> canvas column x - off
         const float* row = cube.frame(n) + static_cast<std::size_t>(y) * w;
-        const std::uint8_t* mrow =
-            mask.empty() ? nullptr : mask.data() + n * np + static_cast<std::size_t>(y) * w;
-        for (int x = 0; x < w; ++x) {
-          if (mrow && mrow[x]) continue;
-          const int i = x - off;
-          sum[i] += row[x] - subtract;
-          cnt[i] += 1.0f;
-          mx[i] = std::max(mx[i], row[x]);
-        }
+        // Canvas column i = x - off; the first canvas column of this frame row is -off.
+        if (mask.empty())
+          addStackRow(sum.data() - off, cnt - off, mx - off, row, w, subtract);
+        else
+          addStackRowMasked(sum.data() - off, cnt - off, mx - off, row,
+                            mask.data() + n * np + static_cast<std::size_t>(y) * w, w, subtract);
       }
       float* mean = s.mean.data() + j * cw;
       for (int i = 0; i < cw; ++i) {

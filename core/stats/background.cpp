@@ -6,6 +6,10 @@
 #include <string>
 #include <vector>
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
+
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 
@@ -30,71 +34,247 @@ struct RowClip {
   std::vector<double> hi;  ///< the threshold that defined the final clipped set (samples <= hi)
 };
 
+// One pass of the clip over columns [xa, xa + B) of the row's nf samples: count, sum and sum of squares
+// (about shift) of the samples <= bound (NaN and a finished column's -inf bound admit none).
+template <int B>
+void clipPassScalar(const float* buf, std::size_t nf, int w, int xa, const double* bound, const double* shift,
+                    double* s, double* ss, std::size_t* c) {
+  const float* row = buf + xa;
+  for (std::size_t n = 0; n < nf; ++n, row += w) {
+    for (int j = 0; j < B; ++j) {
+      const double y = row[j];
+      const bool in = y <= bound[j];
+      const double d = in ? y - shift[j] : 0.0;
+      c[j] += in;
+      s[j] += d;
+      ss[j] += d * d;
+    }
+  }
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_BACKGROUND_AVX2 1
+// The same pass for 16 columns with AVX2: the same operations per sample in the same order (an excluded
+// sample adds +0.0 and 0, as the scalar select does; no fused multiply-add).
+__attribute__((target("avx2"))) void clipPass16Avx2(const float* buf, std::size_t nf, int w, int xa,
+                                                    const double* bound, const double* shift, double* s,
+                                                    double* ss, std::size_t* c) {
+  __m256d b[4], sh[4], sv[4], ssv[4];
+  __m256i cv[4];
+  for (int q = 0; q < 4; ++q) {
+    b[q] = _mm256_loadu_pd(bound + 4 * q);
+    sh[q] = _mm256_loadu_pd(shift + 4 * q);
+    sv[q] = _mm256_setzero_pd();
+    ssv[q] = _mm256_setzero_pd();
+    cv[q] = _mm256_setzero_si256();
+  }
+  const float* row = buf + xa;
+  for (std::size_t n = 0; n < nf; ++n, row += w) {
+    const __m256 lo = _mm256_loadu_ps(row), hi = _mm256_loadu_ps(row + 8);
+    const __m256d y[4] = {_mm256_cvtps_pd(_mm256_castps256_ps128(lo)), _mm256_cvtps_pd(_mm256_extractf128_ps(lo, 1)),
+                          _mm256_cvtps_pd(_mm256_castps256_ps128(hi)), _mm256_cvtps_pd(_mm256_extractf128_ps(hi, 1))};
+    for (int q = 0; q < 4; ++q) {
+      const __m256d in = _mm256_cmp_pd(y[q], b[q], _CMP_LE_OQ);
+      const __m256d d = _mm256_and_pd(_mm256_sub_pd(y[q], sh[q]), in);
+      cv[q] = _mm256_sub_epi64(cv[q], _mm256_castpd_si256(in));
+      sv[q] = _mm256_add_pd(sv[q], d);
+      ssv[q] = _mm256_add_pd(ssv[q], _mm256_mul_pd(d, d));
+    }
+  }
+  for (int q = 0; q < 4; ++q) {
+    _mm256_storeu_pd(s + 4 * q, sv[q]);
+    _mm256_storeu_pd(ss + 4 * q, ssv[q]);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(c + 4 * q), cv[q]);
+  }
+}
+
+bool haveAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has;
+}
+#endif
+
+// The clip of columns [xa, xa + B) of the row, each column with exactly the iterations of sigmaClip; a
+// block stops when its own columns have converged (a column's result does not depend on the others', so
+// the blocks give the row's clip exactly, with the block's samples in L1/L2 for every pass).
+template <int B>
+void clipColumns(const float* buf, std::size_t nf, int w, int xa, double xi, double* mean, double* sigma,
+                 std::size_t* count, double* hiOut) {
+  double shift[B], hi[B], s[B], ss[B], bound[B];
+  std::size_t prev[B], c[B];
+  bool done[B];
+  int remaining = 0;
+  for (int j = 0; j < B; ++j) {
+    mean[j] = 0.0;
+    sigma[j] = 0.0;
+    count[j] = 0;
+    shift[j] = 0.0;
+    hi[j] = std::numeric_limits<double>::infinity();
+    prev[j] = std::numeric_limits<std::size_t>::max();
+    done[j] = true;
+    for (std::size_t n = 0; n < nf; ++n) {
+      const float v = buf[n * w + xa + j];
+      if (!std::isnan(v)) {
+        shift[j] = v;
+        done[j] = false;
+        break;
+      }
+    }
+    remaining += !done[j];
+  }
+  for (int it = 0; it < 100 && remaining > 0; ++it) {
+    for (int j = 0; j < B; ++j)
+      bound[j] = done[j] ? -std::numeric_limits<double>::infinity() : hi[j];
+    bool passed = false;
+#ifdef ST_BACKGROUND_AVX2
+    if constexpr (B == 16) {
+      if (haveAvx2()) {
+        clipPass16Avx2(buf, nf, w, xa, bound, shift, s, ss, c);
+        passed = true;
+      }
+    }
+#endif
+    if (!passed) {
+      std::fill_n(s, B, 0.0);
+      std::fill_n(ss, B, 0.0);
+      std::fill_n(c, B, std::size_t{0});
+      clipPassScalar<B>(buf, nf, w, xa, bound, shift, s, ss, c);
+    }
+    for (int j = 0; j < B; ++j) {
+      if (done[j]) continue;
+      count[j] = c[j];
+      if (c[j] == 0) {
+        done[j] = true;
+        --remaining;
+        continue;
+      }
+      const double m = s[j] / static_cast<double>(c[j]);
+      mean[j] = shift[j] + m;
+      sigma[j] =
+          c[j] > 1 ? std::sqrt(std::max(0.0, (ss[j] - s[j] * m) / static_cast<double>(c[j] - 1))) : 0.0;
+      if (c[j] == prev[j]) {
+        done[j] = true;
+        --remaining;
+        continue;
+      }
+      prev[j] = c[j];
+      hi[j] = mean[j] + xi * sigma[j];
+    }
+  }
+  for (int j = 0; j < B; ++j)
+    hiOut[j] = hi[j];
+}
+
+constexpr int kClipBlock = 16;
+
+// Per-pixel clip of one row: buf holds nf x w samples (frame-major), NaN where left out. Performs exactly
+// the arithmetic of sigmaClip (same shift, same summation order) for each column, in blocks of columns.
 RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi) {
   RowClip r;
   r.mean.assign(w, 0.0);
   r.sigma.assign(w, 0.0);
   r.count.assign(w, 0);
-  std::vector<double> shift(w, 0.0), hi(w, std::numeric_limits<double>::infinity());
-  std::vector<std::size_t> prev(w, std::numeric_limits<std::size_t>::max());
-  std::vector<std::uint8_t> done(w, 0);
-  for (int x = 0; x < w; ++x) {
-    done[x] = 1;
-    for (std::size_t n = 0; n < nf; ++n) {
-      const float v = buf[n * w + x];
-      if (!std::isnan(v)) {
-        shift[x] = v;
-        done[x] = 0;
-        break;
-      }
-    }
-  }
-  std::vector<double> s(w), ss(w);
-  std::vector<std::size_t> c(w);
-  // The samples' bound for this pass: hi, or -inf for a finished column (and NaN fails any comparison), so
-  // the pass has no branch and vectorises; the same sums in the same order as testing `done` per sample.
-  std::vector<double> bound(w);
-  int remaining = static_cast<int>(std::count(done.begin(), done.end(), 0));
-  for (int it = 0; it < 100 && remaining > 0; ++it) {
-    std::fill(s.begin(), s.end(), 0.0);
-    std::fill(ss.begin(), ss.end(), 0.0);
-    std::fill(c.begin(), c.end(), 0);
-    for (int x = 0; x < w; ++x)
-      bound[x] = done[x] ? -std::numeric_limits<double>::infinity() : hi[x];
-    for (std::size_t n = 0; n < nf; ++n) {
-      const float* row = buf.data() + n * w;
-      for (int x = 0; x < w; ++x) {
-        const double y = row[x];
-        const bool in = y <= bound[x];
-        const double d = in ? y - shift[x] : 0.0;
-        c[x] += in;
-        s[x] += d;
-        ss[x] += d * d;
-      }
-    }
-    for (int x = 0; x < w; ++x) {
-      if (done[x]) continue;
-      r.count[x] = c[x];
-      if (c[x] == 0) {
-        done[x] = 1;
-        --remaining;
-        continue;
-      }
-      const double m = s[x] / static_cast<double>(c[x]);
-      r.mean[x] = shift[x] + m;
-      r.sigma[x] =
-          c[x] > 1 ? std::sqrt(std::max(0.0, (ss[x] - s[x] * m) / static_cast<double>(c[x] - 1))) : 0.0;
-      if (c[x] == prev[x]) {
-        done[x] = 1;
-        --remaining;
-        continue;
-      }
-      prev[x] = c[x];
-      hi[x] = r.mean[x] + xi * r.sigma[x];
-    }
-  }
-  r.hi = std::move(hi);
+  r.hi.assign(w, std::numeric_limits<double>::infinity());
+  int x = 0;
+  for (; x + kClipBlock <= w; x += kClipBlock)
+    clipColumns<kClipBlock>(buf.data(), nf, w, x, xi, &r.mean[x], &r.sigma[x], &r.count[x], &r.hi[x]);
+  for (; x < w; ++x)
+    clipColumns<1>(buf.data(), nf, w, x, xi, &r.mean[x], &r.sigma[x], &r.count[x], &r.hi[x]);
   return r;
+}
+
+// One frame row of the per-pixel clip's buffer: NaN where the sample is left out (not finite, above
+// `strong`, masked or excluded). strong is the largest float <= the double threshold, so v > strong is the
+// double comparison.
+__attribute__((target_clones("avx2", "default"))) void gatherRow(float* __restrict dst,
+                                                                 const float* __restrict src,
+                                                                 const std::uint8_t* __restrict m,
+                                                                 const std::uint8_t* __restrict excluded, int w,
+                                                                 float strong) {
+  const float kNaN = std::numeric_limits<float>::quiet_NaN();
+  const float kMax = std::numeric_limits<float>::max();
+  for (int x = 0; x < w; ++x) {
+    const float v = src[x];
+    const bool keep = (std::fabs(v) <= kMax) & (v <= strong) & (m[x] == 0) & (excluded[x] == 0);
+    dst[x] = keep ? v : kNaN;
+  }
+}
+
+// Adds the row's samples at or below the clip bound hi (NaN counts 0) to sum and count, times sign. The
+// counts are doubles (exact integers) so the window's mean needs no integer conversion.
+void accumulateClippedScalar(const float* row, const double* hi, double* sum, double* count, int x0, int w,
+                             int sign) {
+  for (int x = x0; x < w; ++x) {
+    const double v = row[x];
+    const bool in = v <= hi[x];
+    sum[x] += in ? sign * v : 0.0;
+    count[x] += in ? sign : 0;
+  }
+}
+
+// The background of one frame row from the running window sums: the clipped mean outside the window where
+// enough samples remain (need: +inf for a pixel without a measured background), else the row's level.
+void windowLevelScalar(const double* total, const double* totalC, const double* winS, const double* winC,
+                       const double* need, const float* levelRow, float* level, int x0, int w) {
+  for (int x = x0; x < w; ++x) {
+    const double c = totalC[x] - winC[x];
+    level[x] = c >= need[x] ? static_cast<float>((total[x] - winS[x]) / c) : levelRow[x];
+  }
+}
+
+#ifdef ST_BACKGROUND_AVX2
+__attribute__((target("avx2"))) void accumulateClippedAvx2(const float* row, const double* hi, double* sum,
+                                                           double* count, int w, int sign) {
+  const __m256d sg = _mm256_set1_pd(sign);
+  int x = 0;
+  for (; x + 4 <= w; x += 4) {
+    const __m256d v = _mm256_cvtps_pd(_mm_loadu_ps(row + x));
+    const __m256d in = _mm256_cmp_pd(v, _mm256_loadu_pd(hi + x), _CMP_LE_OQ);
+    _mm256_storeu_pd(sum + x, _mm256_add_pd(_mm256_loadu_pd(sum + x), _mm256_and_pd(_mm256_mul_pd(sg, v), in)));
+    _mm256_storeu_pd(count + x, _mm256_add_pd(_mm256_loadu_pd(count + x), _mm256_and_pd(sg, in)));
+  }
+  accumulateClippedScalar(row, hi, sum, count, x, w, sign);
+}
+
+__attribute__((target("avx2"))) void windowLevelAvx2(const double* total, const double* totalC,
+                                                     const double* winS, const double* winC, const double* need,
+                                                     const float* levelRow, float* level, int w) {
+  int x = 0;
+  for (; x + 4 <= w; x += 4) {
+    const __m256d c = _mm256_sub_pd(_mm256_loadu_pd(totalC + x), _mm256_loadu_pd(winC + x));
+    const __m256d mean = _mm256_div_pd(_mm256_sub_pd(_mm256_loadu_pd(total + x), _mm256_loadu_pd(winS + x)), c);
+    const __m256d keep = _mm256_cmp_pd(c, _mm256_loadu_pd(need + x), _CMP_GE_OQ);
+    const __m256d fallback = _mm256_cvtps_pd(_mm_loadu_ps(levelRow + x));  // exact, and back below
+    _mm_storeu_ps(level + x, _mm256_cvtpd_ps(_mm256_blendv_pd(fallback, mean, keep)));
+  }
+  windowLevelScalar(total, totalC, winS, winC, need, levelRow, level, x, w);
+}
+#endif
+
+void accumulateClipped(const float* row, const double* hi, double* sum, double* count, int w, int sign) {
+#ifdef ST_BACKGROUND_AVX2
+  if (haveAvx2()) return accumulateClippedAvx2(row, hi, sum, count, w, sign);
+#endif
+  accumulateClippedScalar(row, hi, sum, count, 0, w, sign);
+}
+
+void windowLevel(const double* total, const double* totalC, const double* winS, const double* winC,
+                 const double* need, const float* levelRow, float* level, int w) {
+#ifdef ST_BACKGROUND_AVX2
+  if (haveAvx2()) return windowLevelAvx2(total, totalC, winS, winC, need, levelRow, level, w);
+#endif
+  windowLevelScalar(total, totalC, winS, winC, need, levelRow, level, 0, w);
+}
+
+// f -= level, 0 where masked or not finite.
+__attribute__((target_clones("avx2", "default"))) void subtractLevel(float* __restrict f,
+                                                                     const float* __restrict level,
+                                                                     const std::uint8_t* __restrict m, int w) {
+  const float kMax = std::numeric_limits<float>::max();
+  for (int x = 0; x < w; ++x) {
+    const float v = f[x] - level[x];
+    f[x] = (m[x] == 0) & (std::fabs(v) <= kMax) ? v : 0.0f;
+  }
 }
 
 }  // namespace
@@ -136,25 +316,23 @@ Background clipRows(const FrameCube& cube, const BackgroundParams& params, const
   out.sigma = Image(w, h);
   const double strong = out.global.mean + params.strongSignalXi * out.global.sigma;
   const auto& mask = cube.mask();
-  const float kNaN = std::numeric_limits<float>::quiet_NaN();
   std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
+  // The largest float <= strong: for a finite float v, v > strong (as doubles) is v > strongF.
+  float strongF = std::isnan(strong) ? std::numeric_limits<float>::infinity() : static_cast<float>(strong);
+  if (static_cast<double>(strongF) > strong)
+    strongF = std::nextafter(strongF, -std::numeric_limits<float>::infinity());
   parallelFor(static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
     std::vector<float> buf(frames.size() * static_cast<std::size_t>(w));
-    std::vector<std::uint8_t> excluded(static_cast<std::size_t>(w), 0);
+    std::vector<std::uint8_t> excluded(static_cast<std::size_t>(w), 0), noMask(static_cast<std::size_t>(w), 0);
     for (std::size_t y = y0; y < y1; ++y) {
       cancel.throwIfCancelled();
       for (std::size_t k = 0; k < frames.size(); ++k) {
         const std::size_t n = frames[k];
         const std::size_t off = n * cube.framePixels() + y * w;
         const float* src = cube.pixels().data() + off;
-        const std::uint8_t* m = mask.empty() ? nullptr : mask.data() + off;
+        const std::uint8_t* m = mask.empty() ? noMask.data() : mask.data() + off;
         if (exclude) exclude->coveredRow(n, static_cast<int>(y), excluded.data());
-        float* dst = buf.data() + k * w;
-        for (int x = 0; x < w; ++x) {
-          const float v = src[x];
-          const bool out1 = !std::isfinite(v) || v > strong || (m && m[x]) || excluded[x];
-          dst[x] = out1 ? kNaN : v;
-        }
+        gatherRow(buf.data() + k * w, src, m, excluded.data(), w, strongF);
       }
       const RowClip r = clipRow(buf, frames.size(), w, params.xi);
       for (int x = 0; x < w; ++x) {
@@ -229,43 +407,32 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
     const std::size_t nk = frames.size();
     // Running sums of the clipped samples inside the current window, per column.
     std::vector<double> winS(w, 0.0), total(w, 0.0);
-    std::vector<std::size_t> winC(w, 0), totalC(w, 0);
-    // Adds sample k's clipped values (NaN and those above the clip bound count 0) to sum and count, times
-    // sign; branch-free, so it vectorises.
-    auto accumulate = [&](std::size_t k, std::vector<double>& sum, std::vector<std::size_t>& count, int sign) {
-      const float* row = buf.data() + k * w;
-      for (int x = 0; x < w; ++x) {
-        const double v = row[x];
-        const bool in = v <= r.hi[x];
-        sum[x] += in ? sign * v : 0.0;
-        count[x] += in ? static_cast<std::size_t>(sign) : 0;
-      }
-    };
+    std::vector<double> winC(w, 0.0), totalC(w, 0.0);  // counts, exact in doubles
     for (std::size_t k = 0; k < nk; ++k)
-      accumulate(k, total, totalC, 1);
+      accumulateClipped(buf.data() + k * w, r.hi.data(), total.data(), totalC.data(), w, 1);
+    // Short sequences: 15 frames less the 7 of a middle frame's window leave 8; a third of the clipped
+    // samples (at least 4) still beats taking a mover's own flux into its background.
+    std::vector<double> need(w);
+    for (int x = 0; x < w; ++x)
+      need[x] = validRow[x] ? static_cast<double>(std::min(
+                                  params.minSamples, std::max<std::size_t>(4, static_cast<std::size_t>(totalC[x]) / 3)))
+                            : std::numeric_limits<double>::infinity();
     std::size_t curLo = 0, curHi = 0;
-    std::vector<float> level(w);
+    std::vector<float> level(levelRow, levelRow + w);
+    const std::vector<std::uint8_t> noMask(mask.empty() ? static_cast<std::size_t>(w) : 0, 0);
+    bool changed = true;
     for (std::size_t n = 0; n < nf; ++n) {
       if (window > 0.0) {
-        for (; curHi < hi[n]; ++curHi)
-          accumulate(curHi, winS, winC, 1);
-        for (; curLo < lo[n]; ++curLo)
-          accumulate(curLo, winS, winC, -1);
+        for (; curHi < hi[n]; ++curHi, changed = true)
+          accumulateClipped(buf.data() + curHi * w, r.hi.data(), winS.data(), winC.data(), w, 1);
+        for (; curLo < lo[n]; ++curLo, changed = true)
+          accumulateClipped(buf.data() + curLo * w, r.hi.data(), winS.data(), winC.data(), w, -1);
       }
-      for (int x = 0; x < w; ++x) {
-        // Short sequences: 15 frames less the 7 of a middle frame's window leave 8; a third of the clipped
-        // samples (at least 4) still beats taking a mover's own flux into its background.
-        const std::size_t c = totalC[x] - winC[x];
-        const std::size_t need = std::min(params.minSamples, std::max<std::size_t>(4, totalC[x] / 3));
-        level[x] =
-            validRow[x] && c >= need ? static_cast<float>((total[x] - winS[x]) / double(c)) : levelRow[x];
-      }
+      if (changed) windowLevel(total.data(), totalC.data(), winS.data(), winC.data(), need.data(), levelRow,
+                               level.data(), w);
+      changed = false;
       const std::size_t off = n * np + y * w;
-      float* f = pix + off;
-      for (int x = 0; x < w; ++x) {
-        const float v = f[x] - level[x];
-        f[x] = ((!mask.empty() && mask[off + x]) || !std::isfinite(v)) ? 0.0f : v;
-      }
+      subtractLevel(pix + off, level.data(), mask.empty() ? noMask.data() : mask.data() + off, w);
     }
   };
   return clipRows(cube, params, exclude, progress, cancel, onRow);
