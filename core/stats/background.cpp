@@ -26,8 +26,7 @@ std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted) {
   return idx;
 }
 
-// Per-pixel clip of one row: buf holds nf x w samples (frame-major), NaN where left out. Performs exactly
-// the arithmetic of sigmaClip (same shift, same summation order) for each column, vectorised over columns.
+// The per-pixel clip of one row's columns.
 struct RowClip {
   std::vector<double> mean, sigma;
   std::vector<std::size_t> count;
@@ -167,8 +166,9 @@ void clipColumns(const float* buf, std::size_t nf, int w, int xa, double xi, dou
 
 constexpr int kClipBlock = 16;
 
-// Per-pixel clip of one row: buf holds nf x w samples (frame-major), NaN where left out. Performs exactly
-// the arithmetic of sigmaClip (same shift, same summation order) for each column, in blocks of columns.
+// Per-pixel clip of one row: buf holds nf x w samples (frame-major), NaN where left out. sigmaClip's
+// iterations for each column (same shift and bounds; each column's samples summed in frame order), in
+// blocks of columns.
 RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi) {
   RowClip r;
   r.mean.assign(w, 0.0);

@@ -7,9 +7,14 @@ extern "C" {
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
@@ -30,6 +35,77 @@ double medianOf(std::vector<double>& v) {
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
+}
+
+/// Sums of d = x - centre and d^2 over the values with |d| <= limit, and their count, each sum kept in 8
+/// partial sums (value i in lane i % 8, the lanes added in order at the end) so that the additions do not
+/// wait on each other (a sequential sum is bound by the add latency: 4 cycles a value); the same lanes on
+/// every CPU, so the result does not depend on the AVX2 path (it differs from one sequential sum only in
+/// the last bits of a double).
+void clippedSumsScalar(const float* v, std::size_t n, std::size_t i0, double centre, double limit, double* s,
+                       double* ss, std::size_t* c) {
+  for (std::size_t i = i0; i < n; ++i) {
+    const double d = v[i] - centre;
+    const bool in = std::fabs(d) <= limit;
+    const double dd = in ? d : 0.0;
+    s[i % 8] += dd;
+    ss[i % 8] += dd * dd;
+    c[i % 8] += in;
+  }
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_NOISE_MODEL_AVX2 1
+__attribute__((target("avx2"))) std::size_t clippedSumsAvx2(const float* v, std::size_t n, double centre,
+                                                            double limit, double* s, double* ss,
+                                                            std::size_t* c) {
+  const __m256d ctr = _mm256_set1_pd(centre), lim = _mm256_set1_pd(limit);
+  const __m256d absMask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+  __m256d s0 = _mm256_setzero_pd(), s1 = s0, q0 = s0, q1 = s0;
+  __m256i c0 = _mm256_setzero_si256(), c1 = c0;
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 x = _mm256_loadu_ps(v + i);
+    const __m256d d0 = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(x)), ctr);
+    const __m256d d1 = _mm256_sub_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(x, 1)), ctr);
+    const __m256d in0 = _mm256_cmp_pd(_mm256_and_pd(d0, absMask), lim, _CMP_LE_OQ);
+    const __m256d in1 = _mm256_cmp_pd(_mm256_and_pd(d1, absMask), lim, _CMP_LE_OQ);
+    const __m256d e0 = _mm256_and_pd(d0, in0), e1 = _mm256_and_pd(d1, in1);
+    s0 = _mm256_add_pd(s0, e0);
+    s1 = _mm256_add_pd(s1, e1);
+    q0 = _mm256_add_pd(q0, _mm256_mul_pd(e0, e0));
+    q1 = _mm256_add_pd(q1, _mm256_mul_pd(e1, e1));
+    c0 = _mm256_sub_epi64(c0, _mm256_castpd_si256(in0));
+    c1 = _mm256_sub_epi64(c1, _mm256_castpd_si256(in1));
+  }
+  _mm256_storeu_pd(s, s0);
+  _mm256_storeu_pd(s + 4, s1);
+  _mm256_storeu_pd(ss, q0);
+  _mm256_storeu_pd(ss + 4, q1);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(c), c0);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(c + 4), c1);
+  return i;
+}
+#endif
+
+void clippedSums(const float* v, std::size_t n, double centre, double limit, double& sOut, double& ssOut,
+                 std::size_t& cOut) {
+  double s[8] = {}, ss[8] = {};
+  std::size_t c[8] = {};
+  std::size_t i0 = 0;
+#ifdef ST_NOISE_MODEL_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) i0 = clippedSumsAvx2(v, n, centre, limit, s, ss, c);
+#endif
+  clippedSumsScalar(v, n, i0, centre, limit, s, ss, c);
+  sOut = 0.0;
+  ssOut = 0.0;
+  cOut = 0;
+  for (int j = 0; j < 8; ++j) {
+    sOut += s[j];
+    ssOut += ss[j];
+    cOut += c[j];
+  }
 }
 
 /// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD of every s-th
@@ -55,14 +131,7 @@ double clippedMean(const std::vector<float>& v, double k, std::size_t minCount, 
   for (int it = 0; it < 5; ++it) {
     double s = 0.0, ss = 0.0;
     std::size_t c = 0;
-    const double limit = k * sigma;
-    for (float x : v) {  // branch-free (the values are finite): nothing to mispredict
-      const double d = x - centre;
-      const bool in = std::fabs(d) <= limit;
-      s += in ? d : 0.0;
-      ss += in ? d * d : 0.0;
-      c += in;
-    }
+    clippedSums(v.data(), v.size(), centre, k * sigma, s, ss, c);
     if (c < minCount) break;
     const double m = s / static_cast<double>(c);
     centre += m;
@@ -78,6 +147,36 @@ struct ColumnWeight {
   int i0 = 0, i1 = 0;
   double f = 0.0;
 };
+
+// row -= corr where row is non-zero and finite (zeroed and masked samples stay 0): v - 0 is v, also for
+// -0, infinities and NaN, so the AVX2 path subtracts everywhere with corr zeroed where not set.
+void subtractWhereSetScalar(float* row, const float* corr, int x0, int w) {
+  for (int x = x0; x < w; ++x)
+    if (row[x] != 0.0f && std::isfinite(row[x])) row[x] -= corr[x];
+}
+
+#ifdef ST_NOISE_MODEL_AVX2
+__attribute__((target("avx2"))) void subtractWhereSetAvx2(float* row, const float* corr, int w) {
+  const __m256 zero = _mm256_setzero_ps(), kMax = _mm256_set1_ps(std::numeric_limits<float>::max());
+  const __m256 absMask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  int x = 0;
+  for (; x + 8 <= w; x += 8) {
+    const __m256 v = _mm256_loadu_ps(row + x);
+    const __m256 set = _mm256_and_ps(_mm256_cmp_ps(v, zero, _CMP_NEQ_UQ),
+                                     _mm256_cmp_ps(_mm256_and_ps(v, absMask), kMax, _CMP_LE_OQ));
+    _mm256_storeu_ps(row + x, _mm256_sub_ps(v, _mm256_and_ps(_mm256_loadu_ps(corr + x), set)));
+  }
+  subtractWhereSetScalar(row, corr, x, w);
+}
+#endif
+
+void subtractWhereSet(float* row, const float* corr, int w) {
+#ifdef ST_NOISE_MODEL_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) return subtractWhereSetAvx2(row, corr, w);
+#endif
+  subtractWhereSetScalar(row, corr, 0, w);
+}
 
 }  // namespace
 
@@ -161,18 +260,26 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
     std::vector<float> values, scratch;
     std::vector<double> means(static_cast<std::size_t>(nx) * ny);
+    std::vector<float> corr(static_cast<std::size_t>(w));
     for (std::size_t n = b; n < e; ++n) {
       cancel.throwIfCancelled();
       float* f = cube.frame(n);
       std::vector<double> good;
       for (int j = 0; j < ny; ++j)
         for (int i = 0; i < nx; ++i) {
-          values.clear();
-          for (int y = j * mesh; y < std::min(h, (j + 1) * mesh); ++y)
-            for (int x = i * mesh; x < std::min(w, (i + 1) * mesh); ++x) {
-              const float v = f[static_cast<std::size_t>(y) * w + x];
-              if (v != 0.0f && std::isfinite(v)) values.push_back(v);
+          // The cell's non-zero finite values, in row order (branch-free: each written, kept or overwritten).
+          const int xa = i * mesh, xb = std::min(w, (i + 1) * mesh);
+          values.resize(static_cast<std::size_t>(mesh) * mesh);
+          std::size_t kept = 0;
+          for (int y = j * mesh; y < std::min(h, (j + 1) * mesh); ++y) {
+            const float* row = f + static_cast<std::size_t>(y) * w;
+            for (int x = xa; x < xb; ++x) {
+              const float v = row[x];
+              values[kept] = v;
+              kept += (v != 0.0f) & (std::fabs(v) <= std::numeric_limits<float>::max());
             }
+          }
+          values.resize(kept);
           const double m = clippedMean(values, clipSigma,
                                        std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16), scratch);
           means[static_cast<std::size_t>(j) * nx + i] = m;
@@ -194,13 +301,11 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
         for (int i = 0; i < nx; ++i)
           rowMesh[i] = means[static_cast<std::size_t>(j0) * nx + i] * (1.0 - fy) +
                        means[static_cast<std::size_t>(j1) * nx + i] * fy;
-        float* row = f + static_cast<std::size_t>(y) * w;
         for (int x = 0; x < w; ++x) {
-          float& v = row[x];
-          if (v == 0.0f || !std::isfinite(v)) continue;
           const ColumnWeight& c = columns[x];
-          v -= static_cast<float>(rowMesh[c.i0] * (1.0 - c.f) + rowMesh[c.i1] * c.f);
+          corr[x] = static_cast<float>(rowMesh[c.i0] * (1.0 - c.f) + rowMesh[c.i1] * c.f);
         }
+        subtractWhereSet(f + static_cast<std::size_t>(y) * w, corr.data(), w);
       }
       const std::size_t d = ++done;
       if (d % 32 == 0) progress.report(double(d) / double(nf), "residual means");
