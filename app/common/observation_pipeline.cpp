@@ -1,5 +1,6 @@
 #include "observation_pipeline.hpp"
 
+#include <filesystem>
 #include <optional>
 
 #include "backend_factory.hpp"
@@ -12,6 +13,7 @@
 #include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/plate_solve_stage.hpp"
 #include "st/pipeline/prepared_cube.hpp"
+#include "st/pipeline/preprocess_out_of_core.hpp"
 #include "st/search/tiled_search.hpp"
 #include "st/stack/matched_filter.hpp"
 #include "st/pipeline/preprocess.hpp"
@@ -121,6 +123,53 @@ FrameCube loadRegion(const ObservationInput& in, const search::TileRect& r, Canc
   return io::loadFrames(in.inputs, lo, quiet, cancel);
 }
 
+/// Raw frames whose in-memory pre-processing does not fit: pre-processed out of core in strips of rows into a
+/// filtered cube in o.scratchDir (pipeline/preprocess_out_of_core.hpp), each strip's masters built from the
+/// calibration frames cropped to it. The plan goes into `memory`; throws st::InputError when no strip fits.
+pipeline::OutOfCorePrepared preprocessRawOutOfCore(const ObservationInput& in, const SearchOptions& o,
+                                                   const pipeline::CubeShape& shape, MemoryPlan& memory,
+                                                   unsigned threads, const ObservationHooks& hooks,
+                                                   ProgressSink& progress, CancelToken& cancel) {
+  pipeline::PreprocessParams params;
+  params.calib = in.calib;
+  params.registerFrames = o.registerFrames;
+  params.keepZeroBiased = false;
+  const int overlap = pipeline::preprocessOverlapPx(params);
+  const pipeline::OutOfCorePreprocessPlan plan = pipeline::planOutOfCorePreprocess(
+      shape, memory.budget.bytes, threads, overlap, std::max(params.frameBackground.meshPx, params.residualMeshPx));
+  if (plan.strips.empty()) {
+    throw InputError(pipeline::overBudgetMessage(
+        std::to_string(shape.frames) + " frames of " + std::to_string(shape.width) + " x " +
+            std::to_string(shape.height) + " px: pre-processing out of core (the smallest strip of rows, " +
+            std::to_string(std::min(shape.height, 64 + 2 * overlap)) + " rows with the overlap)",
+        plan.smallestStrip, memory.budget));
+  }
+  memory.lines.push_back("pre-processing out of core: " + std::to_string(plan.strips.size()) +
+                         " strips of up to " + std::to_string(plan.strips.front().ownRows) + " rows (+" +
+                         std::to_string(overlap) + " rows of overlap each side), estimated peak " +
+                         plan.perStrip.describe());
+  if (hooks.memory) hooks.memory(memory);
+  const std::filesystem::path stem = std::filesystem::path(in.inputs.front()).filename().replace_extension();
+  const std::string path =
+      (std::filesystem::path(o.scratchDir) / (stem.string() + ".synthtrack-filtered.fits")).string();
+  const pipeline::RawRegionLoader load = [&](const search::TileRect& r) {
+    pipeline::RawRegion region;
+    region.raw = loadRegion(in, r, cancel);
+    pipeline::checkNotPrepared(region.raw, "search it with --preprocessed");
+    const auto [bx, by] = cropOrigin(in);
+    const io::CropRegion crop{bx + r.x0, by + r.y0, r.width, r.height};
+    NullProgress quiet;
+    const FrameCube bias = loadCalibrationFrames(in.bias, crop, quiet, cancel);
+    const FrameCube dark = loadCalibrationFrames(in.dark, crop, quiet, cancel);
+    const FrameCube flat = loadCalibrationFrames(in.flat, crop, quiet, cancel);
+    if (!bias.empty() || !dark.empty() || !flat.empty())
+      region.masters = calib::buildMasters(bias, dark, flat, region.raw, params.calib, quiet, cancel);
+    return region;
+  };
+  SubProgress sub(progress, 0.0, 0.5);
+  return pipeline::preprocessOutOfCore(load, shape, params, plan, path, sub, cancel);
+}
+
 /// A pre-processed input too large for memory: its header, times and WCS from a small corner (the WCS of
 /// a corner at the image's origin is the image's), sigma_F from the header or the options, else measured on
 /// a central region of `sigmaRegionPx` x `sigmaRegionPx` px.
@@ -200,23 +249,49 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   std::optional<pipeline::PreparedSearchInput> loaded;
   std::optional<OutOfCoreInput> ooc;
   std::vector<std::string> warnings, notes;
+  // Raw frames pre-processed out of core: their filtered cube on disk is then searched as a pre-processed
+  // input (`src`), and removed afterwards unless --keep-scratch.
+  std::optional<pipeline::OutOfCorePrepared> prepOoc;
+  ObservationInput scratchInput;
+  const ObservationInput* src = &in;
+  struct ScratchGuard {
+    std::string path;
+    ~ScratchGuard() {
+      std::error_code ec;
+      if (!path.empty()) std::filesystem::remove(path, ec);
+    }
+  } scratchGuard;
   if (!in.preprocessed) {
-    // Raw frames are pre-processed in memory: the whole cube must fit (the search is counted below).
+    // Raw frames are pre-processed in memory when the whole cube fits (the search is counted below), else
+    // out of core in strips of rows.
     memory.inMemory = pipeline::estimatePreprocessPeak(shape, fit, threads);
-    memory.lines.push_back("pre-processing in memory: estimated peak " + memory.inMemory.describe());
-    if (memory.inMemory.total() > budget) {
+    const bool fits = memory.inMemory.total() <= budget;
+    memory.lines.push_back("pre-processing in memory: estimated peak " + memory.inMemory.describe() +
+                           (fits ? "" : ": over the budget"));
+    if (!fits && fit) {
       throw InputError(pipeline::overBudgetMessage(
           std::to_string(shape.frames) + " frames of " + std::to_string(shape.width) + " x " +
-              std::to_string(shape.height) + " px: pre-processing in memory",
+              std::to_string(shape.height) +
+              " px: pre-processing in memory (--fit needs the whole zero-biased cube; without --fit the "
+              "frames are pre-processed out of core)",
           memory.inMemory, memory.budget));
     }
-    if (hooks.memory) hooks.memory(memory);
-    std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
-    const auto accel = makePreprocessAccelerator(backend, accelMessage);
-    prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
-  } else {
+    if (fits) {
+      if (hooks.memory) hooks.memory(memory);
+      std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
+      const auto accel = makePreprocessAccelerator(backend, accelMessage);
+      prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
+    } else {
+      prepOoc = preprocessRawOutOfCore(in, o, shape, memory, threads, hooks, progress, cancel);
+      if (!o.keepScratch) scratchGuard.path = prepOoc->path;
+      scratchInput.inputs = {prepOoc->path};
+      scratchInput.preprocessed = true;
+      src = &scratchInput;
+    }
+  }
+  if (!prepared) {
     // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
-    OutOfCoreInput m = outOfCoreMeta(in, o, shape.width, shape.height, cancel);
+    OutOfCoreInput m = outOfCoreMeta(*src, o, shape.width, shape.height, cancel);
     const search::VelocityGrid grid0 = search::makeVelocityGrid(o.request.grid, m.meta);
     const search::MethodEstimate e0 =
         search::estimateMethods(shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0,
@@ -229,13 +304,18 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                            (fits ? "" : ": over the budget, out of core"));
     if (hooks.memory) hooks.memory(memory);
     if (fits) {
-      loaded = loadPrepared(in, o, progress, cancel);
+      loaded = loadPrepared(*src, o, progress, cancel);
       warnings = std::move(loaded->warnings);
-      notes = std::move(loaded->notes);
+      notes.insert(notes.end(), loaded->notes.begin(), loaded->notes.end());
     } else {
       ooc = std::move(m);
       warnings = ooc->warnings;
     }
+  }
+  if (prepOoc) {
+    warnings.insert(warnings.begin(), prepOoc->warnings.begin(), prepOoc->warnings.end());
+    notes.insert(notes.begin(), prepOoc->notes.begin(), prepOoc->notes.end());
+    if (o.plateSolve) warnings.push_back("--plate-solve is not done out of core: the frames' own WCS is used");
   }
   search::FilteredCube* fcp = nullptr;
   if (prepared) fcp = &prepared->filtered;
@@ -285,9 +365,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     memory.perTile = plan.perTile;
     if (!(fc.sigmaF > 0.0)) {
       const int side = std::max(64, static_cast<int>(std::sqrt(static_cast<double>(tiles.front().read.pixels()))));
-      fc.sigmaF = centralSigmaF(in, o, width, height, std::min(side, 1024), ooc->notes, cancel);
+      fc.sigmaF = centralSigmaF(*src, o, width, height, std::min(side, 1024), ooc->notes, cancel);
     }
-    notes = ooc->notes;
+    notes.insert(notes.end(), ooc->notes.begin(), ooc->notes.end());
     memory.lines.push_back("out of core: " + std::to_string(tiles.size()) + " tiles (overlap " +
                            std::to_string(overlap) + " px), estimated peak " + memory.perTile.describe());
   } else {
@@ -320,7 +400,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     const search::TileLoader load = [&](const search::TileRect& t) {
       NullProgress quiet;
       pipeline::PreparedSearchInput p =
-          pipeline::searchInputFromPrepared(loadRegion(in, t, cancel), {o.fwhm, meta.sigmaF}, quiet, cancel);
+          pipeline::searchInputFromPrepared(loadRegion(*src, t, cancel), {o.fwhm, meta.sigmaF}, quiet, cancel);
       (void)filterTiles;
       return std::move(p.cube);
     };

@@ -82,8 +82,11 @@ pipeline::Prepared prepareObservation(const ObservationInput& input, const Searc
                                       pipeline::PreprocessAccelerator* accelerator = nullptr);
 
 /// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
-/// or the default; raw input whose in-memory pre-processing does not fit stops with st::InputError before
-/// any pixel is read (naming the need and the budget); a pre-processed cube whose in-memory search does not
+/// or the default; raw input whose in-memory pre-processing does not fit is pre-processed out of core in
+/// strips of rows into a filtered cube in options.scratchDir (pipeline/preprocess_out_of_core.hpp), which is
+/// then searched as a pre-processed cube and removed unless options.keepScratch; with `fit`, or when not
+/// even one strip fits, it stops with st::InputError before any pixel is read (naming the need and the
+/// budget); a pre-processed cube whose in-memory search does not
 /// fit is searched out of core (search/tiled_search.hpp), or stops so when not even one tile fits. Without
 /// `fit` the matched filter runs in place (no zero-biased copy).
 /// Returns the result JSON (report::searchResultToJson plus t_ref_utc, and with

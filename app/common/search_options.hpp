@@ -26,6 +26,10 @@ struct SearchOptions {
   long long fitMax = 50;  ///< candidates refined by the co-moving fit (--fit-max)
   /// --memory-limit ("8G", "500M"); none = the default budget (st/common/memory_budget.hpp)
   std::optional<std::string> memoryLimit;
+  /// --scratch DIR: where raw frames pre-processed out of core write their filtered cube (default: the
+  /// current directory); --keep-scratch keeps it (a cube to search again with --preprocessed).
+  std::string scratchDir = ".";
+  bool keepScratch = false;
 };
 
 /// Names of the valued options parseSearchOptions reads (without "--").

@@ -213,6 +213,72 @@ void writeCube(const std::string& path, const FrameCube& cube, const FitsHeader&
   f.close();
 }
 
+struct CubeRegionWriter::Impl {
+  FitsFile file;
+  int width = 0, height = 0;
+  std::size_t frames = 0;
+  std::vector<float> row;
+};
+
+CubeRegionWriter::CubeRegionWriter(const std::string& path, int width, int height, std::size_t frames,
+                                   const FitsHeader& header, const Wcs* wcs, const FitsHeader& extra) {
+  if (width <= 0 || height <= 0 || frames == 0)
+    throw InputError(path + ": cannot write an empty cube (" + std::to_string(width) + " x " +
+                     std::to_string(height) + " x " + std::to_string(frames) + ")");
+  m_impl = std::make_unique<Impl>(Impl{FitsFile::create(path), width, height, frames, {}});
+  int status = 0;
+  long naxes[3] = {width, height, static_cast<long>(frames)};
+  fits_create_img(m_impl->file.get(), FLOAT_IMG, 3, naxes, &status);
+  m_impl->file.check(status, "creating the image");
+  writeCards(m_impl->file, header, wcs);
+  writeCards(m_impl->file, extra, nullptr);
+}
+
+CubeRegionWriter::~CubeRegionWriter() = default;
+
+void CubeRegionWriter::write(const FrameCube& region, int srcX0, int srcY0, int cols, int rows, int x0, int y0) {
+  Impl& m = *m_impl;
+  if (region.frameCount() != m.frames || cols <= 0 || rows <= 0 || srcX0 < 0 || srcY0 < 0 ||
+      srcX0 + cols > region.width() || srcY0 + rows > region.height() || x0 < 0 || y0 < 0 ||
+      x0 + cols > m.width || y0 + rows > m.height)
+    throw InputError(m.file.path() + ": a region of " + std::to_string(cols) + " x " + std::to_string(rows) +
+                     " px at (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                     ") does not fit the cube or its source");
+  const std::size_t rw = static_cast<std::size_t>(region.width());
+  const std::size_t plane = region.framePixels();
+  m.row.resize(static_cast<std::size_t>(cols) * static_cast<std::size_t>(rows));
+  int status = 0;
+  for (std::size_t k = 0; k < m.frames; ++k) {
+    const float* src = region.frame(k);
+    const std::uint8_t* mask = region.mask().empty() ? nullptr : region.mask().data() + k * plane;
+    for (int r = 0; r < rows; ++r) {
+      const std::size_t from = static_cast<std::size_t>(srcY0 + r) * rw + static_cast<std::size_t>(srcX0);
+      float* to = m.row.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(cols);
+      for (int c = 0; c < cols; ++c)
+        to[c] = (mask != nullptr && mask[from + static_cast<std::size_t>(c)] != 0) ? std::nanf("")
+                                                                                  : src[from + static_cast<std::size_t>(c)];
+    }
+    // FITS's 1-based, inclusive corners; one frame per call.
+    long first[3] = {x0 + 1, y0 + 1, static_cast<long>(k) + 1};
+    long last[3] = {x0 + cols, y0 + rows, static_cast<long>(k) + 1};
+    fits_write_subset(m.file.get(), TFLOAT, first, last, m.row.data(), &status);
+    m.file.check(status, "writing rows " + std::to_string(y0 + 1) + "-" + std::to_string(y0 + rows) +
+                             " of plane " + std::to_string(k + 1));
+  }
+}
+
+void CubeRegionWriter::updateCards(const FitsHeader& cards) {
+  writeCards(m_impl->file, cards, nullptr);
+}
+
+void CubeRegionWriter::finish(const FrameCube& frames) {
+  if (frames.frameCount() != m_impl->frames)
+    throw InputError(m_impl->file.path() + ": the FRAMES table needs " + std::to_string(m_impl->frames) +
+                     " frames, got " + std::to_string(frames.frameCount()));
+  writeFramesTable(m_impl->file, frames);
+  m_impl->file.close();
+}
+
 void writeImage(const std::string& path, const Image& image, const FitsHeader& header) {
   if (image.empty()) throw InputError(path + ": cannot write an empty image");
   FitsFile f = FitsFile::create(path);

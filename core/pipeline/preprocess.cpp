@@ -134,7 +134,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   }
   lap("sky rate");
   detect::StaticSourceParams sp = params.stars;
-  sp.psfFwhmPx = params.psfFwhmPx;
+  sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;
   if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
@@ -157,7 +157,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
   }
   lap("static sources");
-  {
+  if (params.givenPsf) {
+    out.stars = stars.stars;
+    out.psf = *params.givenPsf;
+    out.psfFitted = true;  // fitted on the reference region
+  } else {
     // The PSF from the sky-rate stack before the per-pixel background, on the catalogue just found; the
     // stars' footprints (wing radius, dilation) are then drawn again at the fitted FWHM when the assumed
     // one was off by more than 15% (Lowell's 1.9 px stars masked as 3 px ones lose 10.6% of the pixels).

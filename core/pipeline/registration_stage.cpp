@@ -6,6 +6,11 @@ namespace st::pipeline {
 
 bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params, ProgressSink& progress,
                          CancelToken& cancel) {
+  if (params.givenRegistration) {
+    detect::applyRegistration(cube, *params.givenRegistration);
+    out.registration = *params.givenRegistration;
+    return false;  // the rate, when it came from this registration, is given as params.skyRate
+  }
   if (!params.registerFrames) {
     detect::applyRegistration(cube, {});
     out.registration = {};

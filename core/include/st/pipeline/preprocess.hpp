@@ -58,12 +58,18 @@ struct PreprocessParams {
   /// CLI --no-register turns it off.
   bool registerFrames = true;
   detect::RegistrationParams registration;
+  /// A registration measured before (on another region of the same frames: out-of-core pre-processing,
+  /// preprocess_out_of_core.hpp): applied as it is instead of measured. Wins over registerFrames.
+  std::optional<detect::Registration> givenRegistration;
   detect::StaticSourceParams stars;  ///< paper §4.3: SNR 7
   double singleFrameSnr = 7.0;       ///< paper §4.3: bright objects in single frames, SNR 7
   double psfFwhmPx = 3.0;            ///< footprint dilation before the fit, and the fallback PSF
   double psfBeta = 4.0;              ///< beta of the fallback PSF (paper §3.3)
   std::optional<std::pair<double, double>>
       psfStar;                                   ///< the star the user names for the PSF (0-based px, t_ref)
+  /// The PSF measured before (out-of-core pre-processing: on the reference region): used as it is, no PSF
+  /// fit, and the static sources' footprints drawn at its FWHM from the start.
+  std::optional<psf::Moffat> givenPsf;
   bool matchedFilter = true;                     ///< produce Prepared::filtered (one extra cube)
   /// Keep the zero-biased cube (Prepared::frames) beside the filtered one. False: the matched filter runs
   /// in place on it (one cube less at the peak; Prepared::frames is left empty), for a search without fits.

@@ -1,0 +1,90 @@
+#pragma once
+// Pre-processing raw frames out of core (issue 20): when the whole cube does not fit the memory budget, the
+// detector is cut into strips of full rows, each read with its overlap (CFITSIO's subset reader, through a
+// RawRegionLoader), pre-processed by pipeline::preprocess as if it were the whole frame, matched-filtered in
+// place, and the rows it owns written to one filtered cube on disk (io::CubeRegionWriter). That file is then
+// searched out of core like any filtered pre-processed cube (search/tiled_search.hpp).
+//
+// What is measured once, on the reference strip (the central one, processed first), and given to the others:
+// the registration (per-frame offsets), the sky rate and the PSF, so that every strip shifts, masks and
+// filters alike. What each strip measures for itself: the frames' SEP backgrounds, hot pixels, cosmic rays,
+// the static sources of its rows, the per-pixel background, the residual means and the noise model (all
+// local). The overlap is two mesh cells of the SEP background and of the residual means (the reach of their
+// 3-cell median filter and interpolation), and strips start on that mesh, so the owned rows see the meshes
+// of the whole frame. Each strip's filtered frames are scaled to the pooled sigma_F (the rms of the strips'
+// sigma_F over their owned rows), so that one SIGMAF holds for the file.
+//
+// Not done out of core: frames whose calibration trims them (TRIMSEC/DATASEC: a strip's trim would not be
+// the frame's; refused with a message), the co-moving fit (needs the zero-biased cube in memory).
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "st/calib/calibration.hpp"
+#include "st/common/frame_cube.hpp"
+#include "st/common/memory_budget.hpp"
+#include "st/common/progress.hpp"
+#include "st/pipeline/memory_plan.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/search/tiled_search.hpp"
+
+namespace st::pipeline {
+
+/// One strip: `read` (full width, the owned rows plus the overlap, clipped to the image) and the rows
+/// [ownY0, ownY0 + ownRows) whose filtered pixels it writes.
+struct PreprocessStrip {
+  search::TileRect read;
+  int ownY0 = 0;
+  int ownRows = 0;
+};
+
+struct OutOfCorePreprocessPlan {
+  std::vector<PreprocessStrip> strips;  ///< top to bottom; empty when not even the smallest strip fits
+  std::size_t reference = 0;            ///< the strip measured first (registration, sky rate, PSF)
+  int overlapPx = 0;
+  MemoryEstimate perStrip;       ///< the peak while the tallest strip is pre-processed
+  MemoryEstimate smallestStrip;  ///< the need of the smallest strip (for the message when none fits)
+};
+
+/// Overlap of the strips for `params`: two cells of the larger of the SEP and residual-mean meshes.
+int preprocessOverlapPx(const PreprocessParams& params);
+
+/// Strips of `shape` under `budgetBytes`: owned heights are multiples of `alignPx` (the mesh) but the last,
+/// as equal as that allows, each read with `overlapPx` rows above and below; the smallest strip owns
+/// `alignPx` rows.
+OutOfCorePreprocessPlan planOutOfCorePreprocess(const CubeShape& shape, std::size_t budgetBytes,
+                                                unsigned threads, int overlapPx, int alignPx);
+
+/// The raw frames of `rect` (image coordinates) and the calibration masters for exactly that region (none
+/// when the observation has no calibration frames).
+struct RawRegion {
+  FrameCube raw;
+  std::optional<calib::MasterCalibration> masters;
+};
+using RawRegionLoader = std::function<RawRegion(const search::TileRect&)>;
+
+struct OutOfCorePrepared {
+  std::string path;      ///< the filtered cube written (STPREP/STFILT = T, SIGMAF, SIGMAN, PSF, sky rate)
+  Prepared reference;    ///< the reference strip's result, without its cubes (notes, PSF, rates, stars)
+  double sigmaF = 0.0;   ///< pooled over the strips, counts (every strip scaled to it)
+  double sigmaN = 0.0;   ///< pooled, counts
+  std::vector<double> stripSigmaF;  ///< each strip's own sigma_F before scaling, top to bottom
+  std::size_t cosmicRays = 0;       ///< over all strips
+  std::size_t staticPixelsZeroed = 0;
+  std::vector<std::string> notes;     ///< the plan and the per-strip facts, for the user
+  std::vector<std::string> warnings;  ///< the loader's and calibration's (once each)
+  double elapsedS = 0.0;
+};
+
+/// Pre-processes the observation of `shape` strip by strip (`plan`, non-empty) into the filtered cube
+/// `outPath` (overwritten; removed again when this throws). `params.masters` is ignored: each region's come
+/// from `load`; params.matchedFilter must be on; the zero-biased frames are not kept. Throws st::InputError
+/// (frames trimmed by calibration, loader errors, a strip without usable pixels), st::FitsError,
+/// st::Cancelled.
+OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeShape& shape,
+                                      const PreprocessParams& params, const OutOfCorePreprocessPlan& plan,
+                                      const std::string& outPath, ProgressSink& progress, CancelToken& cancel);
+
+}  // namespace st::pipeline

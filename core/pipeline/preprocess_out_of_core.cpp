@@ -1,0 +1,193 @@
+#include "st/pipeline/preprocess_out_of_core.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+
+#include "st/common/error.hpp"
+#include "st/io/fits_writer.hpp"
+#include "st/pipeline/prepared_cube.hpp"
+
+namespace st::pipeline {
+namespace {
+
+int roundUp(int v, int step) {
+  return (v + step - 1) / step * step;
+}
+
+/// Strips owning `own` rows each (the last the rest), read with `overlap` rows on both sides.
+std::vector<PreprocessStrip> cutStrips(int width, int height, int own, int overlap) {
+  std::vector<PreprocessStrip> strips;
+  for (int y = 0; y < height; y += own) {
+    PreprocessStrip s;
+    s.ownY0 = y;
+    s.ownRows = std::min(own, height - y);
+    const int r0 = std::max(0, y - overlap);
+    const int r1 = std::min(height, y + s.ownRows + overlap);
+    s.read = {0, r0, width, r1 - r0};
+    strips.push_back(s);
+  }
+  return strips;
+}
+
+MemoryEstimate stripPeak(const CubeShape& shape, int readRows, unsigned threads) {
+  return estimatePreprocessPeak({shape.width, readRows, shape.frames}, false, threads);
+}
+
+/// The header of the whole image from a strip's: the WCS reference pixel moved back by the strip's origin.
+FitsHeader wholeImageHeader(FitsHeader h, int stripY0) {
+  if (const auto crpix2 = h.getDouble("CRPIX2")) h.setNumber("CRPIX2", *crpix2 + stripY0);
+  return h;
+}
+
+void appendOnce(std::vector<std::string>& to, const std::vector<std::string>& from) {
+  for (const auto& w : from)
+    if (std::find(to.begin(), to.end(), w) == to.end()) to.push_back(w);
+}
+
+}  // namespace
+
+int preprocessOverlapPx(const PreprocessParams& params) {
+  const int mesh = std::max(params.frameBackground.enabled ? params.frameBackground.meshPx : 0,
+                            params.removeResidualMean ? params.residualMeshPx : 0);
+  return 2 * std::max(mesh, 32);
+}
+
+OutOfCorePreprocessPlan planOutOfCorePreprocess(const CubeShape& shape, std::size_t budgetBytes,
+                                                unsigned threads, int overlapPx, int alignPx) {
+  OutOfCorePreprocessPlan plan;
+  plan.overlapPx = overlapPx;
+  alignPx = std::max(alignPx, 1);
+  const double budget = static_cast<double>(budgetBytes);
+  const int smallestRead = std::min(shape.height, alignPx + 2 * overlapPx);
+  plan.smallestStrip = stripPeak(shape, smallestRead, threads);
+  // The tallest owned height (a multiple of the mesh) whose interior strip fits.
+  int best = 0;
+  for (int own = roundUp(shape.height, alignPx); own >= alignPx; own -= alignPx) {
+    const int read = std::min(shape.height, own + 2 * overlapPx);
+    if (stripPeak(shape, read, threads).total() <= budget) {
+      best = own;
+      break;
+    }
+  }
+  if (best == 0) return plan;
+  // As many strips as that needs, their heights evened out (still on the mesh).
+  const int count = (shape.height + best - 1) / best;
+  const int own = std::min(best, roundUp((shape.height + count - 1) / count, alignPx));
+  plan.strips = cutStrips(shape.width, shape.height, own, overlapPx);
+  plan.reference = plan.strips.size() / 2;
+  int tallest = 0;
+  for (const auto& s : plan.strips)
+    tallest = std::max(tallest, s.read.height);
+  plan.perStrip = stripPeak(shape, tallest, threads);
+  return plan;
+}
+
+OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeShape& shape,
+                                      const PreprocessParams& params, const OutOfCorePreprocessPlan& plan,
+                                      const std::string& outPath, ProgressSink& progress, CancelToken& cancel) {
+  if (plan.strips.empty()) throw InputError("out-of-core pre-processing: no strip fits the memory budget");
+  if (!params.matchedFilter) throw InputError("out-of-core pre-processing writes the matched-filtered cube");
+  const auto start = std::chrono::steady_clock::now();
+  OutOfCorePrepared out;
+  out.path = outPath;
+  std::unique_ptr<io::CubeRegionWriter> writer;
+  FrameCube framesInfo;  // the frames' times, origins and offsets for the FRAMES table
+  // The strips in the order they are processed: the reference first.
+  std::vector<std::size_t> order{plan.reference};
+  for (std::size_t i = 0; i < plan.strips.size(); ++i)
+    if (i != plan.reference) order.push_back(i);
+  double rowsDone = 0.0;
+  try {
+    for (const std::size_t i : order) {
+      cancel.throwIfCancelled();
+      const PreprocessStrip& strip = plan.strips[i];
+      const bool reference = i == plan.reference;
+      SubProgress sub(progress, rowsDone / shape.height, (rowsDone + strip.ownRows) / shape.height);
+      sub.report(0.0, "pre-processing rows " + std::to_string(strip.ownY0 + 1) + "-" +
+                          std::to_string(strip.ownY0 + strip.ownRows) + " of " + std::to_string(shape.height) +
+                          " (out of core)");
+      RawRegion region = load(strip.read);
+      appendOnce(out.warnings, region.raw.warnings);
+      PreprocessParams p = params;
+      p.masters = std::move(region.masters);
+      p.keepZeroBiased = false;  // filtered in place: one cube per strip
+      if (!reference) {
+        const Prepared& ref = out.reference;
+        p.skyRate = ref.skyRate;
+        p.givenRegistration = ref.registration;
+        p.givenPsf = ref.psf;
+      }
+      Prepared prep = preprocess(std::move(region.raw), p, sub, cancel);
+      appendOnce(out.warnings, prep.calibration.warnings);
+      FrameCube& f = prep.filtered.frames;
+      if (f.width() != shape.width || f.height() != strip.read.height)
+        throw InputError("out-of-core pre-processing: the calibration trimmed rows " +
+                         std::to_string(strip.read.y0 + 1) + "-" +
+                         std::to_string(strip.read.y0 + strip.read.height) + " to " + std::to_string(f.width()) +
+                         " x " + std::to_string(f.height()) +
+                         " px (TRIMSEC/DATASEC): frames that calibration trims are pre-processed in memory only; "
+                         "give a larger --memory-limit, or --ignore-sections");
+      out.stripSigmaF.push_back(prep.filtered.sigmaF);
+      out.cosmicRays += prep.cosmicRays;
+      out.staticPixelsZeroed += prep.staticPixelsZeroed;
+      if (reference) {
+        out.sigmaF = prep.filtered.sigmaF;
+        out.sigmaN = prep.sigmaN;
+        framesInfo = FrameCube(1, 1, f.frameCount());
+        framesInfo.info() = f.info();
+        Prepared summary;  // the reference's facts without its pixels
+        summary.sigmaN = prep.sigmaN;
+        summary.global = prep.global;
+        summary.stars = prep.stars;
+        summary.movers = prep.movers;
+        summary.skyRate = prep.skyRate;
+        summary.skyRateMeasured = prep.skyRateMeasured;
+        summary.registration = prep.registration;
+        summary.calibration = prep.calibration;
+        summary.psf = prep.psf;
+        summary.psfFitted = prep.psfFitted;
+        summary.psfStarAt = prep.psfStarAt;
+        summary.notes = prep.notes;
+        summary.stageSeconds = prep.stageSeconds;
+        summary.filtered.sigmaF = prep.filtered.sigmaF;
+        summary.filtered.skyRate = prep.skyRate;
+        summary.filtered.psfFwhmPx = prep.psf.fwhm();
+        out.reference = std::move(summary);
+        writer = std::make_unique<io::CubeRegionWriter>(
+            outPath, shape.width, shape.height, shape.frames, wholeImageHeader(f.header, strip.read.y0), nullptr,
+            preparedCubeCards(out.reference, PreparedState::Filtered));
+      } else if (prep.filtered.sigmaF > 0.0 && out.sigmaF > 0.0) {
+        // One SIGMAF for the file: this strip's filtered frames scaled to the reference's noise.
+        const float scale = static_cast<float>(out.sigmaF / prep.filtered.sigmaF);
+        for (auto& v : f.pixels())
+          v *= scale;
+      }
+      writer->write(f, 0, strip.ownY0 - strip.read.y0, shape.width, strip.ownRows, 0, strip.ownY0);
+      rowsDone += strip.ownRows;
+    }
+    writer->finish(framesInfo);
+  } catch (...) {
+    writer.reset();
+    std::error_code ec;
+    std::filesystem::remove(outPath, ec);
+    throw;
+  }
+  const auto [lo, hi] = std::minmax_element(out.stripSigmaF.begin(), out.stripSigmaF.end());
+  const PreprocessStrip& ref = plan.strips[plan.reference];
+  std::ostringstream note;
+  note << "out of core: pre-processed in " << plan.strips.size() << " strips of up to "
+       << plan.strips.front().ownRows << " rows (+" << plan.overlapPx
+       << " rows of overlap each side); registration, sky rate and PSF measured on rows " << ref.ownY0 + 1 << "-"
+       << ref.ownY0 + ref.ownRows << "; the strips' sigma_F " << *lo << " to " << *hi
+       << ", each scaled to the reference's " << out.sigmaF << "; filtered cube written to " << outPath
+       << "; peak resident memory so far " << formatBytes(static_cast<double>(peakResidentBytes()));
+  out.notes = out.reference.notes;
+  out.notes.push_back(note.str());
+  out.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace st::pipeline
