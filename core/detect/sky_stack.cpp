@@ -94,33 +94,40 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
   s.max = Image(cw, ch, -std::numeric_limits<float>::infinity());
   const auto& mask = cube.mask();
   const std::size_t np = cube.framePixels();
-  parallelFor(static_cast<std::size_t>(ch), 8, [&](std::size_t j0, std::size_t j1) {
-    std::vector<double> sum(cw);
-    for (std::size_t j = j0; j < j1; ++j) {
-      cancel.throwIfCancelled();
-      std::fill(sum.begin(), sum.end(), 0.0);
-      float* cnt = s.count.data() + j * cw;
-      float* mx = s.max.data() + j * cw;
-      const int refY = s.y0 + static_cast<int>(j);
-      for (std::size_t n = first; n < last; ++n) {
-        const int y = refY + geom.shiftY(n);
+  // Bands of canvas rows, frames in the outer loop: each frame's rows of the band are contiguous in memory
+  // (streamed), the band's sums stay in cache; every canvas pixel still sums its frames in order.
+  constexpr std::size_t kBand = 8;
+  parallelFor(static_cast<std::size_t>(ch), kBand, [&](std::size_t j0, std::size_t j1) {
+    cancel.throwIfCancelled();
+    std::vector<double> sums(static_cast<std::size_t>(cw) * (j1 - j0), 0.0);
+    for (std::size_t n = first; n < last; ++n) {
+      const int off = geom.shiftX(n) + s.x0;  // frame column x -> canvas column x - off
+      for (std::size_t j = j0; j < j1; ++j) {
+        const int y = s.y0 + static_cast<int>(j) + geom.shiftY(n);
         if (y < 0 || y >= h) continue;
-        const int off = geom.shiftX(n) + s.x0;  // frame column x -> canvas column x - off
+        double* sum = sums.data() + (j - j0) * cw;
+        float* cnt = s.count.data() + j * cw;
+        float* mx = s.max.data() + j * cw;
         const float* row = cube.frame(n) + static_cast<std::size_t>(y) * w;
         // Canvas column i = x - off; the first canvas column of this frame row is -off.
         if (mask.empty())
-          addStackRow(sum.data() - off, cnt - off, mx - off, row, w, subtract);
+          addStackRow(sum - off, cnt - off, mx - off, row, w, subtract);
         else
-          addStackRowMasked(sum.data() - off, cnt - off, mx - off, row,
+          addStackRowMasked(sum - off, cnt - off, mx - off, row,
                             mask.data() + n * np + static_cast<std::size_t>(y) * w, w, subtract);
       }
+    }
+    for (std::size_t j = j0; j < j1; ++j) {
+      const double* sum = sums.data() + (j - j0) * cw;
+      float* cnt = s.count.data() + j * cw;
+      float* mx = s.max.data() + j * cw;
       float* mean = s.mean.data() + j * cw;
       for (int i = 0; i < cw; ++i) {
         mean[i] = cnt[i] > 0 ? static_cast<float>(sum[i] / cnt[i]) : 0.0f;
         if (cnt[i] == 0) mx[i] = 0.0f;
       }
-      if (j % 32 == 0) progress.report(static_cast<double>(j) / ch, "stack at sky rate");
     }
+    progress.report(static_cast<double>(j1) / ch, "stack at sky rate");
   });
   return s;
 }

@@ -7,6 +7,8 @@ extern "C" {
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <string>
@@ -108,30 +110,60 @@ void clippedSums(const float* v, std::size_t n, double centre, double limit, dou
   }
 }
 
+/// The k-th smallest of the finite values v (the value nth_element leaves at v[k]; v may be reordered):
+/// two values of an evenly spaced sample of 64 bracket rank k, one branch-free pass counts the values below
+/// the bracket and gathers those inside it, and nth_element runs on those only (about a fifth); when rank k
+/// falls outside the bracket, nth_element on all of v.
+float kthSmallest(std::vector<float>& v, std::size_t k, std::vector<float>& bracket) {
+  const std::size_t n = v.size();
+  if (n >= 256) {
+    constexpr int m = 64;
+    float sample[m];
+    for (int i = 0; i < m; ++i)
+      sample[i] = v[(2 * static_cast<std::size_t>(i) + 1) * n / (2 * m)];
+    std::sort(sample, sample + m);
+    const int at = static_cast<int>(static_cast<double>(k) * m / static_cast<double>(n));
+    const float lo = sample[std::max(0, at - 6)], hi = sample[std::min(m - 1, at + 6)];
+    bracket.resize(n);
+    std::size_t below = 0, inside = 0;
+    for (const float x : v) {
+      bracket[inside] = x;
+      inside += (x >= lo) & (x <= hi);
+      below += x < lo;
+    }
+    if (below <= k && k < below + inside) {
+      const auto kth = bracket.begin() + static_cast<std::ptrdiff_t>(k - below);
+      std::nth_element(bracket.begin(), kth, bracket.begin() + static_cast<std::ptrdiff_t>(inside));
+      return *kth;
+    }
+  }
+  const auto kth = v.begin() + static_cast<std::ptrdiff_t>(k);
+  std::nth_element(v.begin(), kth, v.end());
+  return *kth;
+}
+
 /// Mean of `v` clipped at +-k sigma about itself, started from the median and 1.4826 MAD of every s-th
 /// value (s = size / 1024, at least 1: the start only sets the first clip's bounds, which the iterations
 /// then refine on every value); NaN when fewer than `minCount` values. Up to 5 clip iterations; it stops
 /// once an iteration keeps as many values as the one before (the same set, so the centre and sigma no
 /// longer change: the ones after would repeat it). `start` is scratch space.
-double clippedMean(const std::vector<float>& v, double k, std::size_t minCount, std::vector<float>& start) {
-  if (v.size() < minCount) return std::nan("");
-  const std::size_t stride = std::max<std::size_t>(1, v.size() / 1024);
+double clippedMean(const float* v, std::size_t n, double k, std::size_t minCount, std::vector<float>& start,
+                   std::vector<float>& bracket) {
+  if (n < minCount) return std::nan("");
+  const std::size_t stride = std::max<std::size_t>(1, n / 1024);
   start.clear();
-  for (std::size_t i = 0; i < v.size(); i += stride)
+  for (std::size_t i = 0; i < n; i += stride)
     start.push_back(v[i]);
-  const auto mid = start.begin() + static_cast<std::ptrdiff_t>(start.size() / 2);
-  std::nth_element(start.begin(), mid, start.end());
-  double centre = *mid;
+  double centre = kthSmallest(start, start.size() / 2, bracket);
   for (float& x : start)
     x = std::fabs(x - static_cast<float>(centre));
-  std::nth_element(start.begin(), start.begin() + static_cast<std::ptrdiff_t>(start.size() / 2), start.end());
-  double sigma = 1.4826 * start[start.size() / 2];
+  double sigma = 1.4826 * kthSmallest(start, start.size() / 2, bracket);
   if (!(sigma > 0.0)) return centre;
   std::size_t previous = 0;
   for (int it = 0; it < 5; ++it) {
     double s = 0.0, ss = 0.0;
     std::size_t c = 0;
-    clippedSums(v.data(), v.size(), centre, k * sigma, s, ss, c);
+    clippedSums(v, n, centre, k * sigma, s, ss, c);
     if (c < minCount) break;
     const double m = s / static_cast<double>(c);
     centre += m;
@@ -140,6 +172,17 @@ double clippedMean(const std::vector<float>& v, double k, std::size_t minCount, 
     previous = c;
   }
   return centre;
+}
+
+/// Whether every value of p[0, n) is non-zero and finite (tested on the bits, so the loop vectorises).
+bool allSet(const float* p, int n) {
+  std::uint32_t bad = 0;
+  for (int i = 0; i < n; ++i) {
+    std::uint32_t u;
+    std::memcpy(&u, p + i, sizeof u);
+    bad |= static_cast<std::uint32_t>((u & 0x7fffffffu) == 0u) | static_cast<std::uint32_t>((u & 0x7f800000u) == 0x7f800000u);
+  }
+  return bad == 0;
 }
 
 /// Where column x falls between the mesh's cell centres: cells i0, i1 and the weight f of i1.
@@ -258,7 +301,7 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
   }
   std::atomic<std::size_t> done{0};
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
-    std::vector<float> values, scratch;
+    std::vector<float> values(static_cast<std::size_t>(mesh) * mesh), scratch, bracket;
     std::vector<double> means(static_cast<std::size_t>(nx) * ny);
     std::vector<float> corr(static_cast<std::size_t>(w));
     for (std::size_t n = b; n < e; ++n) {
@@ -269,19 +312,23 @@ double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, Progre
         for (int i = 0; i < nx; ++i) {
           // The cell's non-zero finite values, in row order (branch-free: each written, kept or overwritten).
           const int xa = i * mesh, xb = std::min(w, (i + 1) * mesh);
-          values.resize(static_cast<std::size_t>(mesh) * mesh);
           std::size_t kept = 0;
           for (int y = j * mesh; y < std::min(h, (j + 1) * mesh); ++y) {
             const float* row = f + static_cast<std::size_t>(y) * w;
+            if (allSet(row + xa, xb - xa)) {  // the usual case: the whole segment, copied
+              std::memcpy(values.data() + kept, row + xa, sizeof(float) * static_cast<std::size_t>(xb - xa));
+              kept += static_cast<std::size_t>(xb - xa);
+              continue;
+            }
             for (int x = xa; x < xb; ++x) {
               const float v = row[x];
               values[kept] = v;
               kept += (v != 0.0f) & (std::fabs(v) <= std::numeric_limits<float>::max());
             }
           }
-          values.resize(kept);
-          const double m = clippedMean(values, clipSigma,
-                                       std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16), scratch);
+          const double m = clippedMean(values.data(), kept, clipSigma,
+                                       std::max<std::size_t>(32, static_cast<std::size_t>(mesh) * mesh / 16), scratch,
+                                       bracket);
           means[static_cast<std::size_t>(j) * nx + i] = m;
           if (std::isfinite(m)) good.push_back(m);
         }
