@@ -101,6 +101,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                                               params.calib, sub, cancel);
   }
   lap("calibrate");
+  // With a device for the matched filter, the filtered cube's host buffer (1.5 GB for 1500 x 512^2: 0.5-1.5 s
+  // of page faults on one core) is allocated on another thread while the stages up to the filter run (from
+  // here: the device stages from the per-pixel background on take only ~0.4 s); the device then downloads
+  // into it (issue 16). Without one, the CPU filter's copy allocates it as before.
+  std::future<std::vector<float>> filteredBuffer;
+  if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
+    filteredBuffer =
+        std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   {
     SubProgress sub(progress, 0.1, 0.12);
     out.frameBackgrounds = stats::removeFrameBackgrounds(cube, params.frameBackground, sub, cancel);
@@ -190,13 +198,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
            << m.shiftPx << " +- " << m.shiftSigmaPx << " px;";
     out.notes.push_back(note.str());
   }
-  // With a device for the matched filter, the filtered cube's host buffer (1.5 GB for 1500 x 512^2: 0.5-1.5 s
-  // of page faults on one core) is allocated on another thread while the stages up to the filter run; the
-  // device then downloads into it (issue 16). Without one, the CPU filter's copy allocates it as before.
-  std::future<std::vector<float>> filteredBuffer;
-  if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
-    filteredBuffer =
-        std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   std::vector<std::uint8_t> unmeasured;  // pixels whose background had too few samples
   // The movers are left out of the per-pixel background too: a slow one covers a pixel for a good part of
   // the frames and would raise its background (and lose that much of its signal). Where the stars are
@@ -276,7 +277,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   out.singleFrame = std::move(zb.singleFrame);
   if (params.removeResidualMean) out.residualMeanRms = zb.residualMeanRms;
   if (params.weightedFilter)
-    out.noiseModel = stats::estimateNoiseModel(cube, out.noise, unmeasured, params.noise, cancel);
+    out.noiseModel =
+        estimateNoiseModelOn(params.accelerator, cube, out.noise, unmeasured, params.noise, cancel, out.notes);
   lap("noise model");
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.83, 1.0);

@@ -42,6 +42,22 @@ double removeResidualMeansOn(PreprocessAccelerator* accel, FrameCube& cube, int 
   return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
 }
 
+stats::NoiseModel estimateNoiseModelOn(PreprocessAccelerator* accel, const FrameCube& zeroBiased,
+                                       const Image& pixelSigma, const std::vector<std::uint8_t>& unmeasured,
+                                       const stats::NoiseModelParams& params, CancelToken& cancel,
+                                       std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      stats::NoiseModel out = accel->estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return out;
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "noise model", e));
+    }
+  }
+  return stats::estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
+}
+
 stats::Background subtractPixelBackgroundOn(PreprocessAccelerator* accel, FrameCube& cube,
                                             const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,

@@ -2,7 +2,7 @@
 # Issue 16 on the GPU machine, from binaries packed by scripts/devrun-pack.sh into this script's folder:
 # GPU tests (preprocess, backend, tree), memcheck of the pre-processing tests, the paper problem's
 # pre-processing per stage on the GPU, the search benchmark (exact + tree, PSF source), the demo.
-# Usage: devrun_issue16.sh [tests] [apptests] [memcheck] [prep] [bench] [demo] [demo16] [fits1500] [prepcpu] [prepcpu2]
+# Usage: devrun_issue16.sh [tests] [apptests] [memcheck] [prep] [prepstage] [bench] [demo] [demo16] [fits1500] [prepcpu] [prepcpu2]
 # (MC_TESTS: the test binaries memcheck runs, default every st_gpu_test_*)
 set -uo pipefail
 D=$(cd "$(dirname "$0")" && pwd)
@@ -25,6 +25,8 @@ for step in "$@"; do
                 grep -E "ERROR SUMMARY|LEAK SUMMARY|PASSED|FAILED" "$O/memcheck_$(basename "$t").log" | head -4
               done ;;
     prep) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cuda 2>"$O/prep_gpu.err" | tee "$O/prep_gpu.log" ;;
+    prepstage) # the stage-by-stage device path of before the resident zero-biased cube (ST_GPU_STAGEWISE)
+               ST_GPU_STAGEWISE=1 "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cuda 2>"$O/prep_gpu_stagewise.err" | tee "$O/prep_gpu_stagewise.log" ;;
     prepcpu2) ST_THREADS=2 taskset -c 0,1 "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cpu 2>/dev/null | tee "$O/prep_cpu2.log" ;;
     prepcpu) "$D/synthtrack-cli" bench preprocess --frames 1500 --backend cpu 2>/dev/null | tee "$O/prep_cpu16.log" ;;
     bench) "$D/st_gpu_bench" 1500 512 100 12 500 tree 2>&1 | tee "$O/treebench.log" | grep -vE "^  device 0: tree" ;;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <exception>
@@ -22,6 +23,8 @@
 #include "st/common/parallel.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "uploader.hpp"
+#include "zero_bias.hpp"
+#include "zero_bias_kernels.hpp"
 
 namespace st::gpu {
 namespace {
@@ -133,9 +136,166 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     return rms;
   }
 
+  stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                                       const std::vector<std::uint8_t>& unmeasured,
+                                       const stats::NoiseModelParams& params, CancelToken& cancel) override {
+    Stopwatch sw;
+    const int w = zeroBiased.width(), h = zeroBiased.height();
+    const std::size_t nf = zeroBiased.frameCount(), np = zeroBiased.framePixels();
+    // The variance map and the reference sigma before the frame scales: the CPU's own function on a cube of
+    // no frames (its frame-scale loop is then empty and the typical scale 1).
+    const FrameCube shape(w, h, 0);
+    stats::NoiseModel m = stats::estimateNoiseModel(shape, pixelSigma, unmeasured, params, cancel);
+    const double hostMap = sw.lap();
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    cudaStream_t s = r.compute.get();
+    // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged.
+    const bool kept = m_kept.size() == nf * np && m_keptData == zeroBiased.pixels().data() &&
+                      m_keptKey == cubeKey(zeroBiased);
+    DeviceBuffer<float> uploaded;
+    const float* pix = m_kept.get();
+    if (!kept) {
+      uploaded = DeviceBuffer<float>(std::max<std::size_t>(1, nf * np));
+      Uploader up(r, zeroBiased.pixels().data(), np);
+      up.upload(uploaded.get(), 0, static_cast<int>(nf), r.copy.get());
+      r.copy.sync();
+      pix = uploaded.get();
+    }
+    const double upload = sw.lap();
+    DeviceBuffer<float> var = toDevice(m.variance.pixels);
+    DeviceBuffer<double> med(std::max<std::size_t>(1, nf));
+    DeviceBuffer<unsigned> cnt(std::max<std::size_t>(1, nf));
+    launchFrameMedians(pix, var.get(), np, static_cast<int>(nf), std::max(1, params.sampleStride), med.get(),
+                       cnt.get(), s);
+    ST_CUDA_CHECK(cudaStreamSynchronize(s));
+    const std::vector<double> medians = toHost(med, nf);
+    const std::vector<unsigned> counts = toHost(cnt, nf);
+    const double kernels = sw.lap();
+    cancel.throwIfCancelled();
+    // stats::estimateNoiseModel's frame scales from the medians (kChi2OneMedian: the median of chi^2 with
+    // one degree of freedom), the typical one for frames without 100 values.
+    constexpr double kChi2OneMedian = 0.454936423119572;
+    m.frameScale.assign(nf, std::nan(""));
+    for (std::size_t n = 0; n < nf; ++n)
+      if (counts[n] >= 100) m.frameScale[n] = std::sqrt(medians[n] / kChi2OneMedian);
+    std::vector<double> scales;
+    for (double v : m.frameScale)
+      if (std::isfinite(v) && v > 0.0) scales.push_back(v);
+    double typical = 1.0;
+    if (!scales.empty()) {
+      const auto mid = scales.begin() + static_cast<std::ptrdiff_t>(scales.size() / 2);
+      std::nth_element(scales.begin(), mid, scales.end());
+      typical = *mid;
+    }
+    for (double& v : m.frameScale)
+      if (!(std::isfinite(v) && v > 0.0)) v = typical;
+    m.sigmaRef *= typical;
+    m_note = "noise model on " + name() + ": variance map on the host " + ms(hostMap) + ", " +
+             (kept ? "frames already on the device" : "upload " + ms(upload)) + ", frame medians " +
+             ms(kernels);
+    return m;
+  }
+
   stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                             const detect::MovingMask* exclude, ProgressSink& progress,
                                             CancelToken& cancel) override {
+    return pixelBackground(cube, params, exclude, progress, cancel, nullptr);
+  }
+
+  bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult& out,
+                ProgressSink& progress, CancelToken& cancel) override {
+    // Benchmark knob: ST_GPU_STAGEWISE=1 runs the stages one by one as before (the cube uploaded and
+    // downloaded by the per-pixel background and the residual means, star subtraction and zeroing on the
+    // CPU), for before/after figures from one binary.
+    if (const char* e = std::getenv("ST_GPU_STAGEWISE"); e && *e && *e != '0') return false;
+    const int w = cube.width(), h = cube.height();
+    const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+    Stopwatch sw;
+    auto lap = [&](const char* stage) { out.stageSeconds.emplace_back(stage, sw.lap()); };
+    KeptCube kc;
+    {
+      SubProgress sub(progress, 0.4, 0.65);
+      out.background = pixelBackground(cube, in.background, in.exclude, sub, cancel, &kc);
+    }
+    const std::string bgNote = m_note;
+    lap("per-pixel background");
+    ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+    DeviceResources& r = ensureResources(m_res);
+    cudaStream_t s = r.compute.get();
+    const DeviceCubeRef d{kc.pix.get(), kc.hasMask ? kc.mask.get() : nullptr, w, h, static_cast<int>(nf)};
+    const float* sigma = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
+    out.starsAttempted = in.subtractRegion && !in.subtractRegion->empty();
+    if (out.starsAttempted) {
+      cancel.throwIfCancelled();
+      out.starSubtraction =
+          subtractStarTemplateOnDevice(cube, d, *in.subtractRegion, sigma, in.starSubtraction, s);
+      if (out.starSubtraction.applied && in.starMask) {
+        const MovingMask& ex = out.starSubtraction.excess;
+        const auto& c = ex.canvas();
+        for (std::size_t i = 0; i < c.size(); ++i)
+          if (c[i])
+            in.starMask->set(ex.x0() + static_cast<int>(i) % ex.canvasWidth(),
+                             ex.y0() + static_cast<int>(i) / ex.canvasWidth());
+      }
+      progress.report(0.75, "star subtraction (GPU)");
+      lap("star subtraction");
+    }
+    cancel.throwIfCancelled();
+    if (in.cosmicRayPixels) zeroPixelsOnDevice(d, *in.cosmicRayPixels, s);
+    const MovingMask none;
+    const MovingMask& movers = in.moverMask ? *in.moverMask : none;
+    if (in.starMask) out.staticPixelsZeroed = zeroMaskedOnDevice(d, *in.starMask, s);
+    if (out.starsAttempted && !out.starSubtraction.applied)
+      out.staticPixelsZeroed += zeroMaskedOnDevice(d, *in.subtractRegion, s);
+    out.unmeasuredPixelsZeroed = zeroUnmeasuredOnDevice(d, out.background.filled, movers, s);
+    const float* noise = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
+    out.singleFrame = zeroSingleFrameSourcesOnDevice(d, noise, out.background.sigmaN, in.singleFrameSnr,
+                                                     in.singleFrameRadiusPx, &movers, s);
+    progress.report(0.8, "zeroing (GPU)");
+    lap("zeroing");
+    cancel.throwIfCancelled();
+    kc.mask = DeviceBuffer<std::uint8_t>();
+    kc.sigma = DeviceBuffer<float>();
+    Stopwatch rm;
+    if (in.removeResidualMean)
+      out.residualMeanRms = removeResidualMeansOnDevice(kc.pix.get(), w, h, static_cast<int>(nf),
+                                                        in.residualMeshPx, in.residualClipSigma, s);
+    ST_CUDA_CHECK(cudaStreamSynchronize(s));
+    const double rmKernels = rm.lap();
+    cancel.throwIfCancelled();
+    // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter.
+    m_kept = DeviceBuffer<float>();
+    m_keptData = nullptr;
+    download(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s);
+    const double down = rm.lap();
+    m_kept = std::move(kc.pix);
+    m_keptData = cube.pixels().data();
+    m_keptKey = cubeKey(cube);
+    progress.report(0.83, "residual means (GPU)");
+    lap("residual means");
+    std::string stages;
+    for (const auto& [stage, sec] : out.stageSeconds)
+      stages += (stages.empty() ? "" : ", ") + stage + " " + ms(sec);
+    m_note = "per-pixel background to residual means on " + name() +
+             ", the cube kept on the device: " + stages + " (residual means kernels " + ms(rmKernels) +
+             ", download " + ms(down) + "; frames kept for the matched filter); " + bgNote;
+    return true;
+  }
+
+ private:
+  /// The device buffers the per-pixel background leaves for zeroBias's next stages.
+  struct KeptCube {
+    DeviceBuffer<float> pix, sigma;
+    DeviceBuffer<std::uint8_t> mask;
+    bool hasMask = false;
+  };
+
+  /// stats::subtractPixelBackground; with `keep`, the zero-biased frames (and the mask and sigma) stay on
+  /// the device in *keep and the host cube is not written.
+  stats::Background pixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                    const detect::MovingMask* exclude, ProgressSink& progress,
+                                    CancelToken& cancel, KeptCube* keep) {
     Stopwatch sw;
     const int w = cube.width(), h = cube.height();
     const std::size_t nf = cube.frameCount(), np = cube.framePixels();
@@ -255,8 +415,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                        " unmasked background samples (frames used: " + std::to_string(nk) + ")");
     }
     cancel.throwIfCancelled();
-    // Every kernel succeeded: the host cube is written now.
-    download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), s);
+    // Every kernel succeeded: the host cube is written now (unless the frames stay on the device).
+    if (!keep) download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), s);
     const double down = sw.lap();
     out.pixelsFilled = np - nValid;
     out.filled.resize(np);
@@ -269,11 +429,18 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
              ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
              " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", clip " +
              ms(Event::elapsed(k1, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
-             ms(down) + ", host " + ms(host);
+             (keep ? std::string("kept on the device") : ms(down)) + ", host " + ms(host);
+    if (keep) {
+      keep->pix = std::move(pix);
+      keep->sigma = std::move(sigma);
+      keep->hasMask = !cube.mask().empty();
+      keep->mask = std::move(mask);
+    }
     progress.report(1.0, "per-pixel background (GPU)");
     return out;
   }
 
+ public:
   stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
                                         ProgressSink& progress, CancelToken& cancel,
                                         const stats::NoiseModel* noise, std::uint64_t revision) override {

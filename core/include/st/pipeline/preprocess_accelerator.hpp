@@ -74,6 +74,14 @@ class PreprocessAccelerator {
                                      CancelToken& cancel) {
     return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
+  /// Same contract as stats::estimateNoiseModel: the same variance map, frame scales from the same order
+  /// statistic. A device may read the frames removeResidualMeans or zeroBias left on it when `zeroBiased`
+  /// is that cube unchanged. The default is the CPU's.
+  virtual stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                                               const std::vector<std::uint8_t>& unmeasured,
+                                               const stats::NoiseModelParams& params, CancelToken& cancel) {
+    return stats::estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
+  }
   /// Same contract as stack::filterCube. `revision` (search::FilteredCube::revision, 0 = none): the
   /// filtered frames will carry it, so a device may keep them for the search under it.
   virtual stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
@@ -119,6 +127,13 @@ ZeroBiasResult zeroBiasOn(PreprocessAccelerator* accel, FrameCube& cube, const Z
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params,
                                     std::vector<std::string>& notes);
+
+/// stats::estimateNoiseModel on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
+/// the CPU; a device run adds its lastNote().
+stats::NoiseModel estimateNoiseModelOn(PreprocessAccelerator* accel, const FrameCube& zeroBiased,
+                                       const Image& pixelSigma, const std::vector<std::uint8_t>& unmeasured,
+                                       const stats::NoiseModelParams& params, CancelToken& cancel,
+                                       std::vector<std::string>& notes);
 
 /// stats::removeResidualMeans on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU; a device run adds its lastNote().

@@ -1,0 +1,359 @@
+// zero_bias.hpp: the host side of star subtraction and zeroing on a cube kept on the device. The tables
+// (blocks of frames, Lanczos weights, region positions, templates from the block sums) are made exactly as
+// core/detect/star_subtraction.cpp and core/detect/static_sources.cpp make them.
+#include "zero_bias.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <utility>
+
+#include "cuda_check.hpp"
+#include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
+#include "zero_bias_kernels.hpp"
+
+namespace st::gpu {
+namespace {
+
+template <class T>
+std::vector<T> toHost(const DeviceBuffer<T>& d, std::size_t count, cudaStream_t s) {
+  std::vector<T> out(count);
+  if (count) {
+    ST_CUDA_CHECK(cudaMemcpyAsync(out.data(), d.get(), count * sizeof(T), cudaMemcpyDeviceToHost, s));
+    ST_CUDA_CHECK(cudaStreamSynchronize(s));
+  }
+  return out;
+}
+
+DeviceBuffer<unsigned long long> zeros(std::size_t n, cudaStream_t s) {
+  DeviceBuffer<unsigned long long> d(std::max<std::size_t>(n, 1));
+  ST_CUDA_CHECK(cudaMemsetAsync(d.get(), 0, d.size() * sizeof(unsigned long long), s));
+  return d;
+}
+
+std::vector<int> regionPixels(const MovingMask& region) {
+  std::vector<int> out;
+  const auto& c = region.canvas();
+  for (int i = 0; i < static_cast<int>(c.size()); ++i)
+    if (c[i]) out.push_back(i);
+  return out;
+}
+
+std::pair<double, double> fractionalOffset(const MovingMask& region, const FrameCube& cube, std::size_t n,
+                                           double dt) {
+  const Velocity v = region.rate();
+  const FrameInfo& f = cube.info()[n];
+  return {f.offsetXPx + v.vx * dt - region.shiftX(n), f.offsetYPx + v.vy * dt - region.shiftY(n)};
+}
+
+/// The per-frame Lanczos tables on the device (sign +1: sampling the frames at +f; -1: the template at -f).
+struct LanczosTables {
+  DeviceBuffer<int> sx, sy, ox, oy;
+  DeviceBuffer<double> wx, wy;
+  LanczosFrames view() const { return {sx.get(), sy.get(), ox.get(), oy.get(), wx.get(), wy.get()}; }
+};
+
+LanczosTables lanczosTables(const MovingMask& region, const FrameCube& cube, const std::vector<double>& dt,
+                            double sign) {
+  const std::size_t nf = cube.frameCount();
+  std::vector<int> sx(nf), sy(nf), ox(nf), oy(nf);
+  std::vector<double> wx(6 * nf), wy(6 * nf);
+  for (std::size_t n = 0; n < nf; ++n) {
+    const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
+    ox[n] = detect::lanczos3Weights(sign > 0 ? fx : -fx, wx.data() + 6 * n);
+    oy[n] = detect::lanczos3Weights(sign > 0 ? fy : -fy, wy.data() + 6 * n);
+    sx[n] = region.shiftX(n);
+    sy[n] = region.shiftY(n);
+  }
+  return {toDevice(sx), toDevice(sy), toDevice(ox), toDevice(oy), toDevice(wx), toDevice(wy)};
+}
+
+void shiftsOf(const MovingMask& m, std::size_t nf, std::vector<int>& sx, std::vector<int>& sy) {
+  sx.resize(nf);
+  sy.resize(nf);
+  for (std::size_t n = 0; n < nf; ++n) {
+    sx[n] = m.shiftX(n);
+    sy[n] = m.shiftY(n);
+  }
+}
+
+}  // namespace
+
+detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, DeviceCubeRef d,
+                                                     const MovingMask& region, const float* sigma,
+                                                     const detect::StarSubtractionParams& params,
+                                                     cudaStream_t s) {
+  detect::StarSubtraction out;
+  const std::size_t nf = cube.frameCount();
+  if (region.empty() || nf < 4 || region.frameCount() != nf) return out;
+  const std::vector<int> targets = regionPixels(region);
+  if (targets.empty()) return out;
+  MovingMask grown = region;
+  grown.dilate(5);
+  const std::vector<int> pix = regionPixels(grown);
+  const std::vector<double> dt = cube.timeOffsetsS();
+  const double window = params.windowFraction * cube.timeSpanS();
+
+  std::vector<std::size_t> order(nf);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return dt[a] < dt[b]; });
+  const int nb = std::max(1, std::min<int>(params.blocks, static_cast<int>(nf)));
+  std::vector<int> blockOf(nf);
+  std::vector<double> t0(nb, 1e300), t1(nb, -1e300);
+  for (std::size_t k = 0; k < nf; ++k) {
+    const int b = static_cast<int>(k * nb / nf);
+    blockOf[order[k]] = b;
+    t0[b] = std::min(t0[b], dt[order[k]]);
+    t1[b] = std::max(t1[b], dt[order[k]]);
+  }
+  auto excluded = [&](int b, int c) { return t0[c] <= t1[b] + window && t1[c] >= t0[b] - window; };
+  bool any = false;
+  for (int b = 0; b < nb && !any; ++b)
+    for (int c = 0; c < nb; ++c)
+      if (!excluded(b, c)) any = true;
+  if (!any) return out;
+
+  const int cw = region.canvasWidth(), ch = region.canvasHeight();
+  const std::size_t np = pix.size();
+  // The frames of each block in ascending order (the CPU's loop over n).
+  std::vector<int> blockFrames, blockStart(nb + 1, 0);
+  for (int b = 0; b < nb; ++b) {
+    blockStart[b] = static_cast<int>(blockFrames.size());
+    for (std::size_t n = 0; n < nf; ++n)
+      if (blockOf[n] == b) blockFrames.push_back(static_cast<int>(n));
+  }
+  blockStart[nb] = static_cast<int>(blockFrames.size());
+
+  // Per-block sums and counts of the resampled frames at the grown region's positions.
+  const LanczosTables plus = lanczosTables(region, cube, dt, +1.0);
+  DeviceBuffer<int> posD = toDevice(pix), framesD = toDevice(blockFrames), startD = toDevice(blockStart);
+  DeviceBuffer<float> sumD(np * nb), cntD(np * nb);
+  StarTemplateLaunch tl{};
+  tl.pix = d.pix;
+  tl.mask = d.mask;
+  tl.width = d.width;
+  tl.height = d.height;
+  tl.positions = posD.get();
+  tl.np = static_cast<int>(np);
+  tl.cw = cw;
+  tl.x0 = region.x0();
+  tl.y0 = region.y0();
+  tl.blockFrames = framesD.get();
+  tl.blockStart = startD.get();
+  tl.nb = nb;
+  tl.lz = plus.view();
+  tl.sum = sumD.get();
+  tl.cnt = cntD.get();
+  launchStarTemplateSums(tl, s);
+  const std::vector<float> sum = toHost(sumD, np * nb, s), cnt = toHost(cntD, np * nb, s);
+
+  // One template per block over the canvas (the CPU's loop, one block per thread: each writes its own
+  // template; the frame counts summed are whole numbers, so their total is the CPU's in any order).
+  const std::size_t canvasSize = static_cast<std::size_t>(cw) * ch;
+  std::vector<float> tmpl(canvasSize * nb, 0.0f);
+  std::vector<std::uint8_t> valid(canvasSize * nb, 0);
+  std::vector<double> framesSumOf(nb, 0.0);
+  std::vector<std::size_t> framesNOf(nb, 0);
+  parallelFor(static_cast<std::size_t>(nb), 1, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t b = b0; b < b1; ++b) {
+      for (std::size_t k = 0; k < np; ++k) {
+        double sv = 0.0, c = 0.0;
+        for (int o = 0; o < nb; ++o)
+          if (!excluded(static_cast<int>(b), o)) {
+            sv += sum[o * np + k];
+            c += cnt[o * np + k];
+          }
+        if (c >= params.minTemplateFrames) {
+          tmpl[b * canvasSize + pix[k]] = static_cast<float>(sv / c);
+          valid[b * canvasSize + pix[k]] = 1;
+          framesSumOf[b] += c;
+          ++framesNOf[b];
+        }
+      }
+    }
+  });
+  double framesSum = 0.0;
+  std::size_t framesN = 0;
+  for (int b = 0; b < nb; ++b) {
+    framesSum += framesSumOf[b];
+    framesN += framesNOf[b];
+  }
+  out.meanTemplateFrames = framesN ? framesSum / framesN : 0.0;
+
+  // Subtract, frame by frame, the block's template at -f; the residual variance per position.
+  const LanczosTables minus = lanczosTables(region, cube, dt, -1.0);
+  DeviceBuffer<int> targetsD = toDevice(targets), blockOfD = toDevice(blockOf);
+  DeviceBuffer<float> tmplD = toDevice(tmpl);
+  DeviceBuffer<std::uint8_t> validD = toDevice(valid);
+  const std::size_t nt = targets.size();
+  DeviceBuffer<double> r2D(nt), s2D(nt);
+  DeviceBuffer<float> samplesD(nt);
+  DeviceBuffer<unsigned long long> counts = zeros(2, s);
+  StarSubtractLaunch sl{};
+  sl.pix = d.pix;
+  sl.width = d.width;
+  sl.height = d.height;
+  sl.nf = d.nf;
+  sl.targets = targetsD.get();
+  sl.nt = static_cast<int>(nt);
+  sl.cw = cw;
+  sl.ch = ch;
+  sl.x0 = region.x0();
+  sl.y0 = region.y0();
+  sl.blockOf = blockOfD.get();
+  sl.lz = minus.view();
+  sl.tmpl = tmplD.get();
+  sl.valid = validD.get();
+  sl.sigma = sigma;
+  sl.r2 = r2D.get();
+  sl.s2 = s2D.get();
+  sl.samples = samplesD.get();
+  sl.counts = counts.get();
+  launchStarSubtract(sl, s);
+  const std::vector<unsigned long long> c2 = toHost(counts, 2, s);
+  out.pixelsSubtracted = c2[0];
+  out.pixelsZeroed = c2[1];
+  out.excess = MovingMask(cube, region.rate());
+  if (sigma) {
+    const std::vector<double> r2 = toHost(r2D, nt, s), s2 = toHost(s2D, nt, s);
+    const std::vector<float> samples = toHost(samplesD, nt, s);
+    std::vector<int> wPos;
+    std::vector<float> wFactor;
+    for (std::size_t k = 0; k < nt; ++k) {
+      if (samples[k] < params.minExcessSamples || !(s2[k] > 0.0)) continue;
+      const double ratio = r2[k] / s2[k];
+      if (ratio <= 1.0 + params.excessSignificance * std::sqrt(2.0 / samples[k])) continue;
+      if (ratio > params.maxVarianceRatio) {
+        out.excess.set(region.x0() + targets[k] % cw, region.y0() + targets[k] / cw);
+      } else {
+        wPos.push_back(targets[k]);
+        wFactor.push_back(static_cast<float>(1.0 / std::sqrt(ratio)));
+      }
+    }
+    out.whitenedPositions = wPos.size();
+    out.excessPositions = out.excess.count();
+    out.excess.dilate(1);
+    if (!wPos.empty()) {
+      DeviceBuffer<int> wPosD = toDevice(wPos);
+      DeviceBuffer<float> wFactorD = toDevice(wFactor);
+      launchWhiten(d.pix, d.width, d.height, d.nf, wPosD.get(), wFactorD.get(), static_cast<int>(wPos.size()),
+                   cw, region.x0(), region.y0(), minus.sx.get(), minus.sy.get(), s);
+      ST_CUDA_CHECK(cudaStreamSynchronize(s));
+    }
+  }
+  out.applied = true;
+  return out;
+}
+
+void zeroPixelsOnDevice(DeviceCubeRef d, const std::vector<std::uint64_t>& pixels, cudaStream_t s) {
+  if (pixels.empty()) return;
+  DeviceBuffer<std::uint64_t> idx = toDevice(pixels);
+  launchZeroIndices(d.pix, static_cast<std::size_t>(d.nf) * d.width * d.height, idx.get(), pixels.size(), s);
+  ST_CUDA_CHECK(cudaStreamSynchronize(s));
+}
+
+std::size_t zeroMaskedOnDevice(DeviceCubeRef d, const MovingMask& mask, cudaStream_t s) {
+  if (mask.empty()) return 0;
+  std::vector<int> xy;
+  const auto& c = mask.canvas();
+  for (int j = 0; j < mask.canvasHeight(); ++j)
+    for (int i = 0; i < mask.canvasWidth(); ++i)
+      if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i]) {
+        xy.push_back(mask.x0() + i);
+        xy.push_back(mask.y0() + j);
+      }
+  if (xy.empty()) return 0;
+  std::vector<int> sx, sy;
+  shiftsOf(mask, static_cast<std::size_t>(d.nf), sx, sy);
+  DeviceBuffer<int> xyD = toDevice(xy), sxD = toDevice(sx), syD = toDevice(sy);
+  DeviceBuffer<unsigned long long> count = zeros(1, s);
+  launchZeroMasked(d.pix, d.width, d.height, d.nf, xyD.get(), static_cast<int>(xy.size() / 2), sxD.get(),
+                   syD.get(), count.get(), s);
+  return static_cast<std::size_t>(toHost(count, 1, s)[0]);
+}
+
+std::size_t zeroUnmeasuredOnDevice(DeviceCubeRef d, const std::vector<std::uint8_t>& unmeasured,
+                                   const MovingMask& keep, cudaStream_t s) {
+  const int w = d.width, h = d.height;
+  const std::size_t np = static_cast<std::size_t>(w) * h;
+  if (unmeasured.size() != np) return 0;
+  std::vector<std::uint8_t> kept(np, 0);
+  if (!keep.empty()) {
+    std::vector<std::pair<int, int>> shifts;
+    for (std::size_t n = 0; n < keep.frameCount(); ++n)
+      shifts.emplace_back(keep.shiftX(n), keep.shiftY(n));
+    std::sort(shifts.begin(), shifts.end());
+    shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
+    const auto& c = keep.canvas();
+    for (int j = 0; j < keep.canvasHeight(); ++j)
+      for (int i = 0; i < keep.canvasWidth(); ++i) {
+        if (!c[static_cast<std::size_t>(j) * keep.canvasWidth() + i]) continue;
+        for (const auto& [sx, sy] : shifts) {
+          const int x = keep.x0() + i + sx, y = keep.y0() + j + sy;
+          if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
+        }
+      }
+  }
+  std::vector<int> pixels;
+  for (std::size_t i = 0; i < np; ++i)
+    if (!kept[i] && unmeasured[i]) pixels.push_back(static_cast<int>(i));
+  if (pixels.empty()) return 0;
+  DeviceBuffer<int> pixD = toDevice(pixels);
+  DeviceBuffer<unsigned long long> count = zeros(1, s);
+  launchZeroUnmeasured(d.pix, np, d.nf, pixD.get(), static_cast<int>(pixels.size()), count.get(), s);
+  return static_cast<std::size_t>(toHost(count, 1, s)[0]);
+}
+
+detect::SingleFrameSources zeroSingleFrameSourcesOnDevice(DeviceCubeRef d, const float* sigma, double sigmaN,
+                                                          double snr, int radiusPx, const MovingMask* keep,
+                                                          cudaStream_t s) {
+  detect::SingleFrameSources out;
+  const std::size_t nf = static_cast<std::size_t>(d.nf);
+  constexpr unsigned long long kSeedCap = 1ull << 22;
+  DeviceBuffer<std::uint64_t> seeds(kSeedCap);
+  DeviceBuffer<unsigned long long> seedCount = zeros(1, s), perFrame = zeros(nf, s), zeroed = zeros(nf, s);
+  SingleFrameLaunch p{};
+  p.pix = d.pix;
+  p.width = d.width;
+  p.height = d.height;
+  p.nf = d.nf;
+  p.sigma = sigma;
+  p.sigmaN = sigmaN;
+  p.snr = snr;
+  p.radius = radiusPx;
+  DeviceBuffer<std::uint8_t> canvas;
+  DeviceBuffer<int> ksx, ksy;
+  if (keep && !keep->empty()) {
+    std::vector<int> sx, sy;
+    shiftsOf(*keep, nf, sx, sy);
+    canvas = toDevice(keep->canvas());
+    ksx = toDevice(sx);
+    ksy = toDevice(sy);
+    p.keepCanvas = canvas.get();
+    p.keepCw = keep->canvasWidth();
+    p.keepCh = keep->canvasHeight();
+    p.keepX0 = keep->x0();
+    p.keepY0 = keep->y0();
+    p.keepSx = ksx.get();
+    p.keepSy = ksy.get();
+  }
+  p.seeds = seeds.get();
+  p.seedCap = kSeedCap;
+  p.seedCount = seedCount.get();
+  p.seedsPerFrame = perFrame.get();
+  p.zeroedPerFrame = zeroed.get();
+  launchSingleFrameSeeds(p, s);
+  const unsigned long long n = toHost(seedCount, 1, s)[0];
+  if (n > kSeedCap)
+    throw GpuError("single-frame sources: " + std::to_string(n) +
+                   " seeds, more than the device's list holds (" + std::to_string(kSeedCap) + ")");
+  launchSingleFrameZero(p, n, s);
+  const std::vector<unsigned long long> seedsH = toHost(perFrame, nf, s), zeroedH = toHost(zeroed, nf, s);
+  out.seedsPerFrame.assign(seedsH.begin(), seedsH.end());
+  out.zeroedPerFrame.assign(zeroedH.begin(), zeroedH.end());
+  return out;
+}
+
+}  // namespace st::gpu
