@@ -1,5 +1,5 @@
 // synthtrack: the desktop application.
-//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--screenshot FILE.png]
+//   synthtrack [INPUT…] [--demo] [--session FILE] [--search] [--select N] [--fit] [--plate-solve] [--screenshot FILE.png]
 //   [--quit] [--export-figure FILE] [--figure-dpi DPI] [--export-reports DIR] [--dialog figure|reports]
 //   [--accept-fit] [--label N=LABEL]... [--bias PATH]... [--flat PATH]... [--dark PATH]...
 //   [--no-calibration-offer]
@@ -83,8 +83,14 @@ int main(int argc, char** argv) {
   const QCommandLineOption dark("dark", "Dark frames (file or folder; repeatable).", "PATH");
   const QCommandLineOption noOffer("no-calibration-offer",
                                    "Do not use the bias/, flat/, dark/ folders found beside the science folder.");
+  const QCommandLineOption plateSolve("plate-solve",
+                                      "Plate-solve frames without a WCS (astrometry.net) after pre-processing.");
+  const QCommandLineOption solveField("solve-field", "The solve-field program (kept in the settings).", "PROGRAM");
+  const QCommandLineOption indexDir("index-dir", "A folder of astrometry.net index files (repeatable; kept).",
+                                    "DIR");
   parser.addOptions({demo, session, search, select, fit, screenshot, width, quit, figure, dpi, reports,
-                     dialog, acceptFit, label, colours, bias, flat, dark, noOffer});
+                     dialog, acceptFit, label, colours, bias, flat, dark, noOffer, plateSolve, solveField,
+                     indexDir});
   parser.process(app);
 
   st::ui::ScriptOptions script;
@@ -123,6 +129,9 @@ int main(int argc, char** argv) {
   script.flat = parser.values(flat);
   script.dark = parser.values(dark);
   script.noCalibrationOffer = parser.isSet(noOffer);
+  script.plateSolve = parser.isSet(plateSolve);
+  script.solveField = parser.value(solveField);
+  script.indexDirs = parser.values(indexDir);
 
   st::ui::MainWindow window(st::app::makeCoreServices());
   window.show();

@@ -46,6 +46,8 @@ QString jobName(JobKind kind) {
       return "Opening session";
     case JobKind::Fit:
       return "Fitting";
+    case JobKind::PlateSolve:
+      return "Plate solving";
   }
   return "Working";
 }

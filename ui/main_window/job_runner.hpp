@@ -36,10 +36,10 @@ class PolledProgress final : public ProgressSink {
 };
 
 /// What a job is. The GUI tells jobs apart by this, never by the text it shows (jobName).
-enum class JobKind { Load, Preprocess, Search, OpenSession, Fit };
+enum class JobKind { Load, Preprocess, Search, OpenSession, Fit, PlateSolve };
 
 /// The text shown for a job in the status bar and in messages: "Loading", "Pre-processing", "Searching",
-/// "Opening session", "Fitting".
+/// "Opening session", "Fitting", "Plate solving".
 QString jobName(JobKind kind);
 
 class JobRunner : public QObject {

@@ -58,6 +58,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   buildSession();  // main_window_session.cpp
   buildMenus();
   buildStatusBar();
+  buildWcsBanner();  // main_window_plate_solve.cpp
 
   connect(m_jobs, &JobRunner::finished, this, &MainWindow::onJobFinished);
   connect(m_obs, &Observation::rawChanged, this, &MainWindow::onRawChanged);
@@ -265,6 +266,7 @@ void MainWindow::buildMenus() {
   run->addAction("&Search", QKeySequence("Ctrl+R"), this, &MainWindow::runSearch);
   run->addAction("&Cancel", QKeySequence("Esc"), this, &MainWindow::cancelFromKey);
   run->addActions(m_candidates->table()->actions());  // "Fit selected candidate" (F), built with the docks
+  buildPlateSolveActions(run);
   auto* autoPre = run->addAction("Pre-process after loading");
   autoPre->setCheckable(true);
   autoPre->setChecked(m_autoPreprocess);

@@ -20,6 +20,7 @@ class QLabel;
 class QProgressBar;
 class QPushButton;
 class QMenu;
+class QAction;
 class QDockWidget;
 
 namespace st::ui {
@@ -72,6 +73,13 @@ class MainWindow : public QMainWindow {
   static constexpr double kAskBeforeCancelS = 10.0;
   /// The open "Cancel the search?" question, or null.
   [[nodiscard]] QMessageBox* cancelQuestion() const { return m_cancelQuestion; }
+  /// Plate solving (main_window_plate_solve.cpp): starts a job that finds the WCS of frames without one with
+  /// astrometry.net (PlateSolveSettings), from the pre-processing's star catalogue when there is one, else
+  /// from the first frame's sources; on success the WCS is attached to the observation (wcsChanged). False
+  /// (with a status message) without frames or while another job runs.
+  bool runPlateSolve();
+  /// The last successful solution, one line (centre, scale, index, stars, time); empty before one.
+  [[nodiscard]] const QString& plateSolveSummary() const noexcept { return m_plateSolveSummary; }
   /// Adds pre-processing's movers (PreparedView::products->movers) that the search did not find to the
   /// result as candidates (candidate::moverCandidates; flag "pre-processing mover", a note with the shift
   /// and SNR), keeping every label and the session file. Returns how many were added.
@@ -151,6 +159,10 @@ class MainWindow : public QMainWindow {
   void buildSession();
   /// The banner above the image while the session is read-only (open in another window or process).
   void buildReadOnlyBanner();
+  /// The banner above the image while the frames have no WCS, with "Plate solve" (main_window_plate_solve.cpp).
+  void buildWcsBanner();
+  void buildPlateSolveActions(QMenu* run);
+  void updateWcsBanner();
   /// Asks for a file and saves the current state there (the way out of read-only); false when not saved.
   bool saveSessionCopy();
   /// Closing a read-only window with unsaved changes: asks to save a copy, discard or stay. True to close.
@@ -190,6 +202,12 @@ class MainWindow : public QMainWindow {
   SessionController* m_session = nullptr;
   QLabel* m_sessionLabel = nullptr;
   QWidget* m_readOnlyBanner = nullptr;  ///< objectName "session.readOnlyBanner"
+  QWidget* m_wcsBanner = nullptr;       ///< objectName "wcs.banner": no WCS, "Plate solve"
+  QLabel* m_wcsText = nullptr;
+  QPushButton* m_wcsSolve = nullptr;
+  QAction* m_plateSolveAction = nullptr;
+  QString m_plateSolveError;    ///< the last plate solve's failure, shown in the banner
+  QString m_plateSolveSummary;  ///< the last plate solve's success
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   bool m_scripted = false;
   FigureDialog* m_figureDialog = nullptr;

@@ -156,7 +156,10 @@ void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QStr
                                   .arg(m_obs->result() ? "; the previous result is shown" : ""));
   } else if (!ok) {
     m_jobLabel->setText(name + " failed");
-    showError(name + " failed", message);
+    if (kind == JobKind::PlateSolve)  // the WCS banner keeps the message, with "Try again" and "Settings…"
+      statusBar()->showMessage(name + " failed: " + message, 20000);
+    else
+      showError(name + " failed", message);
   } else {
     m_jobLabel->setText(QString("%1 done in %2 s").arg(name).arg(elapsedS, 0, 'f', 1));
   }

@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "core_services.hpp"
+#include "st/io/wcs.hpp"
 #include "st/search/types.hpp"
 #include "st/session/session.hpp"
 #include "velocity_units.hpp"
@@ -89,6 +90,31 @@ class Observation : public QObject {
     }
   }
 
+  /// A WCS found for frames that had none (plate solving, main_window_plate_solve.cpp): attached to the loaded
+  /// cube (its wcs, plate scale and header WCS cards, so a later pre-processing carries it as a header WCS)
+  /// and to the pre-processed cubes, the one in-place change of the shared cubes. GUI thread only, while no
+  /// job runs (the plate-solve job's apply closure): wcs and header are read on the GUI thread and by jobs,
+  /// never by the live-stack workers, which read pixels only. Emits wcsChanged.
+  void attachWcs(std::shared_ptr<const Wcs> wcs, double plateScaleArcsecPerPx) {
+    if (!m_raw || !wcs) return;
+    const auto attach = [&](const FrameCube& cube) {
+      auto& c = const_cast<FrameCube&>(cube);  // see above: the documented exception to "const once shared"
+      c.wcs = wcs;
+      c.plateScaleArcsecPerPx = plateScaleArcsecPerPx;
+    };
+    attach(*m_raw);
+    auto& header = const_cast<FrameCube&>(*m_raw).header;
+    std::vector<FitsCard> kept;
+    for (auto& c : header.cards)
+      if (!Wcs::isWcsKeyword(c.key)) kept.push_back(std::move(c));
+    header.cards = std::move(kept);
+    for (const auto& c : wcs->toHeader().cards)
+      header.cards.push_back(c);
+    if (m_prepared && m_prepared->filtered) attach(m_prepared->filtered->frames);
+    if (m_prepared && m_prepared->unfiltered) attach(m_prepared->unfiltered->frames);
+    emit wcsChanged();
+  }
+
   /// A new observation: drops everything derived from the previous one.
   void setRaw(std::shared_ptr<const FrameCube> raw, const QString& label) {
     m_raw = std::move(raw);
@@ -155,6 +181,8 @@ class Observation : public QObject {
 
  signals:
   void rawChanged();
+  /// The loaded frames got a WCS (attachWcs).
+  void wcsChanged();
   void preparedChanged();
   void resultChanged();
   void gridChanged();

@@ -12,6 +12,7 @@
 
 #include "calibration_files.hpp"
 #include "figure_dialog.hpp"
+#include "plate_solve_settings.hpp"
 #include "fit_panel.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -49,6 +50,12 @@ ScriptRunner::ScriptRunner(MainWindow* window) : QObject(window), m_window(windo
 void ScriptRunner::run(const ScriptOptions& options) {
   m_script = options;
   m_window->setScripted(true);
+  if (!options.solveField.isEmpty() || !options.indexDirs.isEmpty()) {
+    PlateSolveSettings settings = PlateSolveSettings::load();
+    if (!options.solveField.isEmpty()) settings.solveField = options.solveField;
+    if (!options.indexDirs.isEmpty()) settings.indexDirs = options.indexDirs;
+    settings.save();
+  }
   if (!options.session.isEmpty())
     m_window->openSession(options.session);
   else if (options.demo)
@@ -113,10 +120,17 @@ void ScriptRunner::advance(JobKind finished) {
     std::printf("grid: %s\nestimate: %s\n", search->gridOrigin().toLocal8Bit().constData(),
                 search->estimateText().toLocal8Bit().constData());
     std::fflush(stdout);
-    if (script.search)
-      m_window->runSearch();
-    else
-      finish(true, {});
+    const auto& raw = m_window->observation()->raw();
+    if (script.plateSolve && raw && !raw->wcs) {
+      if (!m_window->runPlateSolve()) finish(false, "plate solving could not start");
+      return;
+    }
+    searchOrFinish();
+  }
+  if (finished == JobKind::PlateSolve) {
+    std::printf("plate solve: %s\n", m_window->plateSolveSummary().toLocal8Bit().constData());
+    std::fflush(stdout);
+    searchOrFinish();
   }
   if (finished == JobKind::Search) {
     // Scripted runs list the candidates on stdout, so a figure's --select N can be chosen reproducibly.
@@ -132,6 +146,13 @@ void ScriptRunner::advance(JobKind finished) {
     if (script.fit && m_window->observation()->selectedCandidate()) return runFit();
     finish(true, {});
   }
+}
+
+void ScriptRunner::searchOrFinish() {
+  if (m_script->search)
+    m_window->runSearch();
+  else
+    finish(true, {});
 }
 
 void ScriptRunner::runFit() {

@@ -40,6 +40,11 @@ struct ScriptOptions {
   /// /--flat/--dark`; a role given here replaces what was offered from beside the science folder.
   QStringList bias, flat, dark;
   bool noCalibrationOffer = false;  ///< clear the offered bias/, flat/, dark/ folders (given ones stay)
+  /// --plate-solve: after pre-processing, frames without a WCS are plate-solved (MainWindow::runPlateSolve)
+  /// before the search; a failure ends the script with solve-field's message.
+  bool plateSolve = false;
+  QString solveField;     ///< --solve-field PROGRAM: kept in the plate-solve settings
+  QStringList indexDirs;  ///< --index-dir DIR (repeatable): kept in the plate-solve settings
 };
 
 class ScriptRunner : public QObject {
@@ -64,6 +69,8 @@ class ScriptRunner : public QObject {
   /// Prints the Calibration stage's offer note and bias/flat/dark lists on stdout ("calibration ...").
   void printCalibration();
   void advance(JobKind finished);
+  /// After pre-processing (and plate solving): the search, or the end.
+  void searchOrFinish();
   void runFit();
   void finish(bool ok, const QString& message);
   /// --accept-fit and --label; false with a message on stderr for a bad one.
