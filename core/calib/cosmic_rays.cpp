@@ -3,7 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <cstdint>
 #include <mutex>
+#include <vector>
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 #include "st/common/parallel.hpp"
 #include "st/detect/moving_mask.hpp"
@@ -112,6 +118,44 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   for (std::size_t i = 0; i < minMean.size(); ++i)
     if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
   return p;
+}
+
+// The pixels i (in order) that pass isHit's pre-test: not f - max(fa, fb) <= thr (NaN passes).
+void preTestScalar(const float* f, const float* fa, const float* fb, std::size_t i0, std::size_t np, float thr,
+                   std::vector<std::uint32_t>& out) {
+  for (std::size_t i = i0; i < np; ++i)
+    if (!(f[i] - std::max(fa[i], fb[i]) <= thr)) out.push_back(static_cast<std::uint32_t>(i));
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_COSMIC_RAYS_AVX2 1
+// max_ps(b, a) is std::max(a, b) (a when either is NaN); NLE_UQ is !(x <= thr).
+__attribute__((target("avx2"))) std::size_t preTestAvx2(const float* f, const float* fa, const float* fb,
+                                                        std::size_t np, float thr,
+                                                        std::vector<std::uint32_t>& out) {
+  const __m256 t = _mm256_set1_ps(thr);
+  std::size_t i = 0;
+  for (; i + 8 <= np; i += 8) {
+    const __m256 mx = _mm256_max_ps(_mm256_loadu_ps(fb + i), _mm256_loadu_ps(fa + i));
+    const __m256 d = _mm256_sub_ps(_mm256_loadu_ps(f + i), mx);
+    unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d, t, _CMP_NLE_UQ)));
+    while (bits) {
+      out.push_back(static_cast<std::uint32_t>(i) + static_cast<std::uint32_t>(__builtin_ctz(bits)));
+      bits &= bits - 1;
+    }
+  }
+  return i;
+}
+#endif
+
+void preTest(const float* f, const float* fa, const float* fb, std::size_t np, float thr,
+             std::vector<std::uint32_t>& out) {
+  std::size_t i0 = 0;
+#ifdef ST_COSMIC_RAYS_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) i0 = preTestAvx2(f, fa, fb, np, thr, out);
+#endif
+  preTestScalar(f, fa, fb, i0, np, thr, out);
 }
 
 // Value exceeded by a fraction `q` of `v` (v is reordered).
@@ -223,14 +267,16 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   // Pass 1, read-only: seeds.
   parallelFor(nf, 4, [&](std::size_t n0, std::size_t n1) {
     std::vector<std::uint64_t> local;
+    std::vector<std::uint32_t> candidates;
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const auto [a, b] = neighbours(n, nf);
       const float *f = px + n * np, *fa = px + a * np, *fb = px + b * np;
-      for (std::size_t i = 0; i < np; ++i) {  // the pre-test of isHit, vectorisable
-        if (f[i] - std::max(fa[i], fb[i]) <= thr) continue;
+      // The pre-test of isHit, 8 pixels at a time on the AVX2 path; the candidates in order.
+      candidates.clear();
+      preTest(f, fa, fb, np, thr, candidates);
+      for (const std::uint32_t i : candidates)
         if (isHit(n, static_cast<int>(i % w), static_cast<int>(i / w), thr)) local.push_back(n * np + i);
-      }
     }
     std::lock_guard lock(m);
     out.pixels.insert(out.pixels.end(), local.begin(), local.end());

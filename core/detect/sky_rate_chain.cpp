@@ -2,8 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <iterator>
 #include <numeric>
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 #include <Eigen/Dense>
 #include <opencv2/core.hpp>
@@ -58,6 +64,47 @@ Layout layoutBlocks(const FrameCube& cube, Velocity rate, const SkyRateParams& p
   return l;
 }
 
+// sum[x] += f[x] - background and cnt[x] += 1 where m[x] is not set (m may be null). The AVX2 path adds
+// +0.0 where masked, which leaves both as they are: the scalar loop's values exactly.
+void addRowScalar(double* sum, double* cnt, const float* f, const std::uint8_t* m, int x0, int n, double background) {
+  for (int x = x0; x < n; ++x) {
+    if (m && m[x]) continue;
+    sum[x] += f[x] - background;
+    cnt[x] += 1.0;
+  }
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_SKY_RATE_CHAIN_AVX2 1
+__attribute__((target("avx2"))) int addRowAvx2(double* sum, double* cnt, const float* f, const std::uint8_t* m,
+                                               int n, double background) {
+  const __m256d bg = _mm256_set1_pd(background), one = _mm256_set1_pd(1.0);
+  const __m256i zero = _mm256_setzero_si256();
+  int x = 0;
+  for (; x + 4 <= n; x += 4) {
+    __m256d in = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    if (m) {
+      std::int32_t m4;
+      std::memcpy(&m4, m + x, sizeof m4);
+      in = _mm256_castsi256_pd(_mm256_cmpeq_epi64(_mm256_cvtepu8_epi64(_mm_cvtsi32_si128(m4)), zero));
+    }
+    const __m256d d = _mm256_sub_pd(_mm256_cvtps_pd(_mm_loadu_ps(f + x)), bg);
+    _mm256_storeu_pd(sum + x, _mm256_add_pd(_mm256_loadu_pd(sum + x), _mm256_and_pd(d, in)));
+    _mm256_storeu_pd(cnt + x, _mm256_add_pd(_mm256_loadu_pd(cnt + x), _mm256_and_pd(one, in)));
+  }
+  return x;
+}
+#endif
+
+void addRow(double* sum, double* cnt, const float* f, const std::uint8_t* m, int n, double background) {
+  int x0 = 0;
+#ifdef ST_SKY_RATE_CHAIN_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) x0 = addRowAvx2(sum, cnt, f, m, n, background);
+#endif
+  addRowScalar(sum, cnt, f, m, x0, n, background);
+}
+
 BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last, Velocity rate,
                       double background, double sigma, const std::vector<double>& dt) {
   const int w = cube.width(), h = cube.height();
@@ -78,12 +125,10 @@ BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last
       double* srow = sum.ptr<double>(y);
       double* crow = cnt.ptr<double>(y);
       const std::size_t row = static_cast<std::size_t>(y + sy) * w;
-      for (int x = std::max(0, -sx); x < std::min(w, w - sx); ++x) {
-        const std::size_t i = row + static_cast<std::size_t>(x + sx);
-        if (!mask.empty() && mask[n * np + i]) continue;
-        srow[x] += f[i] - background;
-        crow[x] += 1.0;
-      }
+      const int x0 = std::max(0, -sx), x1 = std::min(w, w - sx);
+      const std::size_t i0 = row + static_cast<std::size_t>(x0 + sx);
+      addRow(srow + x0, crow + x0, f + i0, mask.empty() ? nullptr : mask.data() + n * np + i0, x1 - x0,
+             background);
     }
   }
   b.meanShift *= 1.0 / static_cast<double>(last - first);

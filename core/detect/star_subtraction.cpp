@@ -99,6 +99,13 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
   const auto& mask = cube.mask();
   const std::size_t fp = cube.framePixels();
 
+  // The canvas columns and rows of the grown region's and the targets' positions, divided out once.
+  std::vector<int> pixI(np), pixJ(np), tgtI(targets.size()), tgtJ(targets.size());
+  for (std::size_t k = 0; k < np; ++k)
+    pixI[k] = pix[k] % cw, pixJ[k] = pix[k] / cw;
+  for (std::size_t k = 0; k < targets.size(); ++k)
+    tgtI[k] = targets[k] % cw, tgtJ[k] = targets[k] / cw;
+
   // Per-block sums and counts of the resampled frames at the region's canvas positions.
   std::vector<std::vector<float>> sum(nb, std::vector<float>(np, 0.0f));
   std::vector<std::vector<float>> cnt(nb, std::vector<float>(np, 0.0f));
@@ -116,7 +123,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
         const int sx = region.shiftX(n), sy = region.shiftY(n);
         for (std::size_t k = 0; k < np; ++k) {
           // Taps at x + ox .. x + ox + 5 (and the same in y).
-          const int x = region.x0() + pix[k] % cw + sx + ox, y = region.y0() + pix[k] / cw + sy + oy;
+          const int x = region.x0() + pixI[k] + sx + ox, y = region.y0() + pixJ[k] + sy + oy;
           if (x < 0 || y < 0 || x + 5 >= w || y + 5 >= h) continue;
           double v = 0.0;
           bool bad = false;
@@ -195,7 +202,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
       const float* t = tmpl[b].data();
       const std::uint8_t* ok = valid[b].data();
       for (std::size_t k = 0; k < targets.size(); ++k) {
-        const int i = targets[k] % cw, j = targets[k] / cw;
+        const int i = tgtI[k], j = tgtJ[k];
         const int x = region.x0() + i + sx, y = region.y0() + j + sy;
         if (x < 0 || y < 0 || x >= w || y >= h) continue;
         float& px = f[static_cast<std::size_t>(y) * w + x];

@@ -2,9 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <vector>
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 #include "st/common/parallel.hpp"
 #include "st/detect/sky_stack.hpp"
@@ -426,6 +432,47 @@ std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unm
   return zeroed;
 }
 
+namespace {
+
+// The pixels i (in order) with may[i] set and !(f[i] < thr[i]).
+void findSeedsScalar(const float* f, const float* thr, const std::int32_t* may, std::size_t i0, std::size_t np,
+                     std::vector<int>& seeds) {
+  for (std::size_t i = i0; i < np; ++i)
+    if (may[i] && !(f[i] < thr[i])) seeds.push_back(static_cast<int>(i));
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_STATIC_SOURCES_AVX2 1
+__attribute__((target("avx2"))) std::size_t findSeedsAvx2(const float* f, const float* thr,
+                                                          const std::int32_t* may, std::size_t np,
+                                                          std::vector<int>& seeds) {
+  std::size_t i = 0;
+  for (; i + 8 <= np; i += 8) {
+    const __m256 lt = _mm256_cmp_ps(_mm256_loadu_ps(f + i), _mm256_loadu_ps(thr + i), _CMP_LT_OQ);
+    const __m256 seed =
+        _mm256_andnot_ps(lt, _mm256_castsi256_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(may + i))));
+    unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(seed));
+    while (bits) {
+      seeds.push_back(static_cast<int>(i) + __builtin_ctz(bits));
+      bits &= bits - 1;
+    }
+  }
+  return i;
+}
+#endif
+
+void findSeeds(const float* f, const float* thr, const std::int32_t* may, std::size_t np,
+               std::vector<int>& seeds) {
+  std::size_t i0 = 0;
+#ifdef ST_STATIC_SOURCES_AVX2
+  static const bool avx2 = __builtin_cpu_supports("avx2") != 0;
+  if (avx2) i0 = findSeedsAvx2(f, thr, may, np, seeds);
+#endif
+  findSeedsScalar(f, thr, may, i0, np, seeds);
+}
+
+}  // namespace
+
 SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, double sigmaN, double snr,
                                           int radiusPx, ProgressSink& progress, CancelToken& cancel,
                                           const MovingMask* keep) {
@@ -437,17 +484,30 @@ SingleFrameSources zeroSingleFrameSources(FrameCube& cube, const Image& sigma, d
   const bool perPixel = sigma.size() == np;
   const int r2 = radiusPx * radiusPx;
   const bool useKeep = keep && !keep->empty();
+  // Per pixel, the float threshold equivalent to the double test f < snr * s (the smallest float >= snr * s:
+  // NaN stays NaN, so NaN samples and thresholds seed as before) and whether s > 0 lets it seed at all.
+  std::vector<float> thr(np);
+  std::vector<std::int32_t> may(np);
+  for (std::size_t i = 0; i < np; ++i) {
+    const double s = perPixel ? sigma.pixels[i] : sigmaN;
+    const double t = snr * s;
+    float tf = static_cast<float>(t);
+    if (static_cast<double>(tf) < t) tf = std::nextafter(tf, std::numeric_limits<float>::infinity());
+    thr[i] = tf;
+    may[i] = s <= 0 ? 0 : -1;
+  }
   parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
     std::vector<int> seeds;
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       float* f = cube.frame(n);
       seeds.clear();
-      for (std::size_t i = 0; i < np; ++i) {
-        const double s = perPixel ? sigma.pixels[i] : sigmaN;
-        if (s <= 0 || f[i] < snr * s) continue;
-        if (useKeep && keep->covers(n, static_cast<int>(i) % w, static_cast<int>(i) / w)) continue;
-        seeds.push_back(static_cast<int>(i));
+      findSeeds(f, thr.data(), may.data(), np, seeds);
+      if (useKeep) {
+        std::size_t kept = 0;
+        for (const int i : seeds)
+          if (!keep->covers(n, i % w, i / w)) seeds[kept++] = i;
+        seeds.resize(kept);
       }
       out.seedsPerFrame[n] = seeds.size();
       for (int p : seeds) {

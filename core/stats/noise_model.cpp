@@ -114,19 +114,20 @@ void clippedSums(const float* v, std::size_t n, double centre, double limit, dou
 /// two values of an evenly spaced sample of 64 bracket rank k, one branch-free pass counts the values below
 /// the bracket and gathers those inside it, and nth_element runs on those only (about a fifth); when rank k
 /// falls outside the bracket, nth_element on all of v.
-float kthSmallest(std::vector<float>& v, std::size_t k, std::vector<float>& bracket) {
+template <class T>
+T kthSmallest(std::vector<T>& v, std::size_t k, std::vector<T>& bracket) {
   const std::size_t n = v.size();
   if (n >= 256) {
     constexpr int m = 64;
-    float sample[m];
+    T sample[m];
     for (int i = 0; i < m; ++i)
       sample[i] = v[(2 * static_cast<std::size_t>(i) + 1) * n / (2 * m)];
     std::sort(sample, sample + m);
     const int at = static_cast<int>(static_cast<double>(k) * m / static_cast<double>(n));
-    const float lo = sample[std::max(0, at - 6)], hi = sample[std::min(m - 1, at + 6)];
+    const T lo = sample[std::max(0, at - 6)], hi = sample[std::min(m - 1, at + 6)];
     bracket.resize(n);
     std::size_t below = 0, inside = 0;
-    for (const float x : v) {
+    for (const T x : v) {
       bracket[inside] = x;
       inside += (x >= lo) & (x <= hi);
       below += x < lo;
@@ -428,7 +429,7 @@ NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSig
   m.frameScale.assign(nf, std::nan(""));
   const int stride = std::max(1, params.sampleStride);
   parallelFor(nf, 4, [&](std::size_t b, std::size_t e) {
-    std::vector<double> r;
+    std::vector<double> r, bracket;
     for (std::size_t n = b; n < e; ++n) {
       cancel.throwIfCancelled();
       const float* f = zeroBiased.frame(n);
@@ -437,7 +438,7 @@ NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSig
         const float v = m.variance.pixels[i];
         if (f[i] != 0.0f && v > 0.0f && std::isfinite(f[i])) r.push_back(double(f[i]) * f[i] / v);
       }
-      if (r.size() >= 100) m.frameScale[n] = std::sqrt(medianOf(r) / kChi2OneMedian);
+      if (r.size() >= 100) m.frameScale[n] = std::sqrt(kthSmallest(r, r.size() / 2, bracket) / kChi2OneMedian);
     }
   });
   std::vector<double> scales;
