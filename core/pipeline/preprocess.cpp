@@ -156,6 +156,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.cosmicRays = cr.total;
   }
   lap("cosmic rays");
+  // The cube does not change again until the per-pixel background (static sources and the PSF only read
+  // it): a device may upload it meanwhile (issue 16). The guard, destroyed before `out`, waits for that.
+  const std::shared_ptr<void> prefetched = params.accelerator ? params.accelerator->prefetch(cube) : nullptr;
   detect::StaticSources stars;
   // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
   // change until the per-pixel background).

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <thread>
 
@@ -90,6 +91,15 @@ std::string ms(double s) {
   return text;
 }
 
+/// Benchmark knob: ST_GPU_STAGEWISE=1 runs the pre-processing as before the resident zero-biased cube (the
+/// cube uploaded and downloaded by the per-pixel background and again by the residual means, star
+/// subtraction, zeroing and the noise model on the CPU, no prefetch), for before/after figures from one
+/// binary.
+bool stagewise() {
+  const char* e = std::getenv("ST_GPU_STAGEWISE");
+  return e && *e && *e != '0';
+}
+
 class CudaPreprocess final : public CudaPreprocessAccelerator {
  public:
   explicit CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {}
@@ -136,9 +146,45 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     return rms;
   }
 
+  std::shared_ptr<void> prefetch(const FrameCube& cube) override {
+    if (stagewise()) return nullptr;
+    if (m_prefetch) m_prefetch->join();
+    auto p = std::make_shared<Prefetch>();
+    p->data = cube.pixels().data();
+    p->size = cube.pixels().size();
+    p->maskSize = cube.mask().size();
+    p->key = cubeKey(cube);
+    const std::uint8_t* maskData = cube.mask().data();
+    // One thread, one core: the host copies into the pinned staging buffers (~10 GB/s) run beside the
+    // CPU stages (static sources, PSF: ~1 s) instead of on every core at the per-pixel background.
+    p->thread = std::jthread([this, q = p.get(), maskData] {
+      try {
+        Stopwatch sw;
+        ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+        DeviceResources& r = ensureResources(m_prefetchRes);
+        q->pix = DeviceBuffer<float>(q->size);
+        if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
+        stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float));
+        if (q->maskSize) stagedUpload(r, q->mask.get(), maskData, q->maskSize);
+        r.copy.sync();
+        q->seconds = sw.lap();
+        q->ok = true;
+      } catch (const std::exception&) {
+        q->ok = false;  // the per-pixel background uploads the cube itself
+      }
+    });
+    m_prefetch = p;
+    // The guard joins the upload's thread when the pipeline lets it go (before its cube is freed).
+    return std::shared_ptr<void>(static_cast<void*>(p.get()), [p](void*) { p->join(); });
+  }
+
   stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
                                        const std::vector<std::uint8_t>& unmeasured,
                                        const stats::NoiseModelParams& params, CancelToken& cancel) override {
+    if (stagewise()) {
+      m_note.clear();
+      return stats::estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
+    }
     Stopwatch sw;
     const int w = zeroBiased.width(), h = zeroBiased.height();
     const std::size_t nf = zeroBiased.frameCount(), np = zeroBiased.framePixels();
@@ -205,10 +251,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
 
   bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult& out,
                 ProgressSink& progress, CancelToken& cancel) override {
-    // Benchmark knob: ST_GPU_STAGEWISE=1 runs the stages one by one as before (the cube uploaded and
-    // downloaded by the per-pixel background and the residual means, star subtraction and zeroing on the
-    // CPU), for before/after figures from one binary.
-    if (const char* e = std::getenv("ST_GPU_STAGEWISE"); e && *e && *e != '0') return false;
+    if (stagewise()) return false;
     const int w = cube.width(), h = cube.height();
     const std::size_t nf = cube.frameCount(), np = cube.framePixels();
     Stopwatch sw;
@@ -226,10 +269,11 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     const DeviceCubeRef d{kc.pix.get(), kc.hasMask ? kc.mask.get() : nullptr, w, h, static_cast<int>(nf)};
     const float* sigma = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
     out.starsAttempted = in.subtractRegion && !in.subtractRegion->empty();
+    std::string starTiming;
     if (out.starsAttempted) {
       cancel.throwIfCancelled();
-      out.starSubtraction =
-          subtractStarTemplateOnDevice(cube, d, *in.subtractRegion, sigma, in.starSubtraction, s);
+      out.starSubtraction = subtractStarTemplateOnDevice(cube, d, *in.subtractRegion, sigma,
+                                                         in.starSubtraction, s, &starTiming);
       if (out.starSubtraction.applied && in.starMask) {
         const MovingMask& ex = out.starSubtraction.excess;
         const auto& c = ex.canvas();
@@ -279,7 +323,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       stages += (stages.empty() ? "" : ", ") + stage + " " + ms(sec);
     m_note = "per-pixel background to residual means on " + name() +
              ", the cube kept on the device: " + stages + " (residual means kernels " + ms(rmKernels) +
-             ", download " + ms(down) + "; frames kept for the matched filter); " + bgNote;
+             ", download " + ms(down) + "; frames kept for the matched filter); star subtraction: " +
+             (starTiming.empty() ? "none" : starTiming) + "; " + bgNote;
     return true;
   }
 
@@ -327,11 +372,20 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
     DeviceResources& r = ensureResources(m_res);
     cudaStream_t s = r.compute.get();
-    DeviceBuffer<float> pix(nf * np), buf(nk * np), level(np), sigma(np);
+    // The cube (and its mask) uploaded by prefetch() behind the CPU stages, when it is this one unchanged.
+    const std::shared_ptr<Prefetch> pf = std::move(m_prefetch);
+    if (pf) pf->join();
+    const bool prefetched = pf && pf->ok && pf->data == cube.pixels().data() && pf->size == nf * np &&
+                            pf->maskSize == cube.mask().size() && pf->key == cubeKey(cube);
+    DeviceBuffer<float> pix = prefetched ? std::move(pf->pix) : DeviceBuffer<float>(nf * np);
+    DeviceBuffer<std::uint8_t> mask;
+    if (prefetched)
+      mask = std::move(pf->mask);
+    else if (!cube.mask().empty())
+      mask = toDevice(cube.mask());
+    DeviceBuffer<float> buf(nk * np), level(np), sigma(np);
     DeviceBuffer<double> hiBuf(np);
     DeviceBuffer<std::uint8_t> valid(np);
-    DeviceBuffer<std::uint8_t> mask;
-    if (!cube.mask().empty()) mask = toDevice(cube.mask());
     std::vector<int> used(frames.begin(), frames.end());
     DeviceBuffer<int> usedD = toDevice(used), loD = toDevice(lo), hiD = toDevice(hi);
     DeviceBuffer<std::uint8_t> canvas;
@@ -354,9 +408,11 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       p.canvasW = exclude->canvasWidth();
       p.canvasH = exclude->canvasHeight();
     }
-    Uploader up(r, cube.pixels().data(), np);
-    up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
-    r.copy.sync();
+    if (!prefetched) {
+      Uploader up(r, cube.pixels().data(), np);
+      up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
+      r.copy.sync();
+    }
     const double upload = sw.lap();
     // The global background (first estimate and strong-signal level) from the uploaded cube.
     out.global = globalBackgroundOnDevice(cube, pix.get(), cube.mask().empty() ? nullptr : mask.get(),
@@ -425,7 +481,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     out.sigmaN = std::sqrt(sumVar / static_cast<double>(nValid));
     if (params.noiseMap) out.noiseMap = stats::boxSmooth(out.sigma, params.noiseMapBoxPx, ok);
     const double host = sw.lap();
-    m_note = "per-pixel background on " + name() + ": tables " + ms(hostTables) + ", upload " + ms(upload) +
+    m_note = "per-pixel background on " + name() + ": tables " + ms(hostTables) + ", upload " +
+             (prefetched ? "prefetched behind the CPU stages (" + ms(pf->seconds) +
+                               " on its thread; waited " + ms(upload) + ")"
+                         : ms(upload)) +
              ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
              " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", clip " +
              ms(Event::elapsed(k1, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
@@ -643,6 +702,36 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
 
   DeviceInfo m_device;
   std::unique_ptr<DeviceResources> m_res;
+  /// prefetch()'s upload: the cube's identity, and its device copy once `ok`.
+  struct Prefetch {
+    std::jthread thread;
+    DeviceBuffer<float> pix;
+    DeviceBuffer<std::uint8_t> mask;
+    const float* data = nullptr;
+    std::size_t size = 0, maskSize = 0;
+    std::uint64_t key = 0;
+    bool ok = false;
+    double seconds = 0.0;
+    void join() {
+      if (thread.joinable()) thread.join();
+    }
+    ~Prefetch() { join(); }
+  };
+  /// Host -> device through `r`'s pinned staging buffers, the host copies on this thread alone.
+  static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes) {
+    for (std::size_t off = 0; off < bytes; off += kStagingBytes) {
+      const std::size_t len = std::min(kStagingBytes, bytes - off);
+      const int b = r.nextStaging;
+      r.nextStaging ^= 1;
+      r.stagingFree[b].sync();
+      std::memcpy(r.staging[b].get(), static_cast<const char*>(src) + off, len);
+      ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, r.staging[b].get(), len,
+                                    cudaMemcpyHostToDevice, r.copy.get()));
+      r.stagingFree[b].record(r.copy.get());
+    }
+  }
+  std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
+  std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
   std::string m_note;
   bool m_keepResident = true;
   // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.

@@ -4,6 +4,8 @@
 #include "zero_bias.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -11,7 +13,6 @@
 
 #include "cuda_check.hpp"
 #include "st/common/error.hpp"
-#include "st/common/parallel.hpp"
 #include "zero_bias_kernels.hpp"
 
 namespace st::gpu {
@@ -84,8 +85,19 @@ void shiftsOf(const MovingMask& m, std::size_t nf, std::vector<int>& sx, std::ve
 detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, DeviceCubeRef d,
                                                      const MovingMask& region, const float* sigma,
                                                      const detect::StarSubtractionParams& params,
-                                                     cudaStream_t s) {
+                                                     cudaStream_t s, std::string* timing) {
   detect::StarSubtraction out;
+  auto last = std::chrono::steady_clock::now();
+  auto lap = [&](const char* phase) {
+    const auto now = std::chrono::steady_clock::now();
+    if (timing) {
+      char text[64];
+      std::snprintf(text, sizeof text, "%s%s %.1f ms", timing->empty() ? "" : ", ", phase,
+                    std::chrono::duration<double>(now - last).count() * 1e3);
+      *timing += text;
+    }
+    last = now;
+  };
   const std::size_t nf = cube.frameCount();
   if (region.empty() || nf < 4 || region.frameCount() != nf) return out;
   const std::vector<int> targets = regionPixels(region);
@@ -114,6 +126,7 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
     for (int c = 0; c < nb; ++c)
       if (!excluded(b, c)) any = true;
   if (!any) return out;
+  lap("regions and blocks");
 
   const int cw = region.canvasWidth(), ch = region.canvasHeight();
   const std::size_t np = pix.size();
@@ -147,46 +160,33 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
   tl.sum = sumD.get();
   tl.cnt = cntD.get();
   launchStarTemplateSums(tl, s);
-  const std::vector<float> sum = toHost(sumD, np * nb, s), cnt = toHost(cntD, np * nb, s);
+  lap("block sums");
 
-  // One template per block over the canvas (the CPU's loop, one block per thread: each writes its own
-  // template; the frame counts summed are whole numbers, so their total is the CPU's in any order).
+  // One template per block over the canvas (the CPU's loop, on the device: the frame counts summed are
+  // whole numbers, so their total is the CPU's in any order).
   const std::size_t canvasSize = static_cast<std::size_t>(cw) * ch;
-  std::vector<float> tmpl(canvasSize * nb, 0.0f);
-  std::vector<std::uint8_t> valid(canvasSize * nb, 0);
-  std::vector<double> framesSumOf(nb, 0.0);
-  std::vector<std::size_t> framesNOf(nb, 0);
-  parallelFor(static_cast<std::size_t>(nb), 1, [&](std::size_t b0, std::size_t b1) {
-    for (std::size_t b = b0; b < b1; ++b) {
-      for (std::size_t k = 0; k < np; ++k) {
-        double sv = 0.0, c = 0.0;
-        for (int o = 0; o < nb; ++o)
-          if (!excluded(static_cast<int>(b), o)) {
-            sv += sum[o * np + k];
-            c += cnt[o * np + k];
-          }
-        if (c >= params.minTemplateFrames) {
-          tmpl[b * canvasSize + pix[k]] = static_cast<float>(sv / c);
-          valid[b * canvasSize + pix[k]] = 1;
-          framesSumOf[b] += c;
-          ++framesNOf[b];
-        }
-      }
-    }
-  });
-  double framesSum = 0.0;
-  std::size_t framesN = 0;
-  for (int b = 0; b < nb; ++b) {
-    framesSum += framesSumOf[b];
-    framesN += framesNOf[b];
-  }
+  std::vector<std::uint8_t> excl(static_cast<std::size_t>(nb) * nb);
+  for (int b = 0; b < nb; ++b)
+    for (int o = 0; o < nb; ++o)
+      excl[static_cast<std::size_t>(b) * nb + o] = excluded(b, o) ? 1 : 0;
+  DeviceBuffer<std::uint8_t> exclD = toDevice(excl);
+  DeviceBuffer<float> tmplD(canvasSize * nb);
+  DeviceBuffer<std::uint8_t> validD(canvasSize * nb);
+  ST_CUDA_CHECK(cudaMemsetAsync(tmplD.get(), 0, canvasSize * nb * sizeof(float), s));
+  ST_CUDA_CHECK(cudaMemsetAsync(validD.get(), 0, canvasSize * nb, s));
+  DeviceBuffer<unsigned long long> frameTotals = zeros(2, s);
+  launchStarTemplateBuild(sumD.get(), cntD.get(), static_cast<int>(np), nb, exclD.get(), posD.get(),
+                          canvasSize, params.minTemplateFrames, tmplD.get(), validD.get(), frameTotals.get(),
+                          frameTotals.get() + 1, s);
+  const std::vector<unsigned long long> totals = toHost(frameTotals, 2, s);
+  const double framesSum = static_cast<double>(totals[0]);
+  const std::size_t framesN = static_cast<std::size_t>(totals[1]);
   out.meanTemplateFrames = framesN ? framesSum / framesN : 0.0;
+  lap("templates");
 
   // Subtract, frame by frame, the block's template at -f; the residual variance per position.
   const LanczosTables minus = lanczosTables(region, cube, dt, -1.0);
   DeviceBuffer<int> targetsD = toDevice(targets), blockOfD = toDevice(blockOf);
-  DeviceBuffer<float> tmplD = toDevice(tmpl);
-  DeviceBuffer<std::uint8_t> validD = toDevice(valid);
   const std::size_t nt = targets.size();
   DeviceBuffer<double> r2D(nt), s2D(nt);
   DeviceBuffer<float> samplesD(nt);
@@ -211,6 +211,7 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
   sl.s2 = s2D.get();
   sl.samples = samplesD.get();
   sl.counts = counts.get();
+  lap("uploads");
   launchStarSubtract(sl, s);
   const std::vector<unsigned long long> c2 = toHost(counts, 2, s);
   out.pixelsSubtracted = c2[0];
@@ -243,6 +244,9 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
       ST_CUDA_CHECK(cudaStreamSynchronize(s));
     }
   }
+  lap("subtraction and whitening");
+  if (timing)
+    *timing += " (" + std::to_string(np) + " template positions, " + std::to_string(nt) + " targets)";
   out.applied = true;
   return out;
 }

@@ -5,6 +5,7 @@
 #include <cuda_runtime.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -27,7 +28,7 @@ struct DeviceCubeRef {
 detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, DeviceCubeRef d,
                                                      const MovingMask& region, const float* sigma,
                                                      const detect::StarSubtractionParams& params,
-                                                     cudaStream_t s);
+                                                     cudaStream_t s, std::string* timing = nullptr);
 
 /// calib::zeroPixels.
 void zeroPixelsOnDevice(DeviceCubeRef d, const std::vector<std::uint64_t>& pixels, cudaStream_t s);

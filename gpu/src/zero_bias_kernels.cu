@@ -57,6 +57,38 @@ __global__ void __launch_bounds__(kThreads) starTemplateKernel(StarTemplateLaunc
   p.cnt[static_cast<std::size_t>(b) * p.np + k] = cnt;
 }
 
+__global__ void __launch_bounds__(kThreads)
+    starTemplateBuildKernel(const float* sum, const float* cnt, int np, int nb, const std::uint8_t* excluded,
+                            const int* positions, std::size_t canvasSize, double minFrames, float* tmpl,
+                            std::uint8_t* valid, unsigned long long* framesSum, unsigned long long* framesN) {
+  const int k = blockIdx.x * blockDim.x + threadIdx.x;
+  const int b = blockIdx.y;
+  bool kept = false;
+  unsigned long long frames = 0;
+  if (k < np) {
+    double sv = 0.0, c = 0.0;
+    for (int o = 0; o < nb; ++o)
+      if (!excluded[b * nb + o]) {
+        sv = __dadd_rn(sv, static_cast<double>(sum[static_cast<std::size_t>(o) * np + k]));
+        c = __dadd_rn(c, static_cast<double>(cnt[static_cast<std::size_t>(o) * np + k]));
+      }
+    if (c >= minFrames) {
+      const std::size_t at = static_cast<std::size_t>(b) * canvasSize + positions[k];
+      tmpl[at] = __double2float_rn(__ddiv_rn(sv, c));
+      valid[at] = 1;
+      kept = true;
+      frames = static_cast<unsigned long long>(c);  // a whole number of frames
+    }
+  }
+  for (int o = 16; o > 0; o >>= 1)
+    frames += __shfl_down_sync(0xffffffffu, frames, o);
+  const unsigned ballot = __ballot_sync(0xffffffffu, kept);
+  if ((threadIdx.x & 31) == 0 && ballot) {
+    atomicAdd(framesSum, frames);
+    atomicAdd(framesN, static_cast<unsigned long long>(__popc(ballot)));
+  }
+}
+
 __global__ void __launch_bounds__(kThreads) starSubtractKernel(StarSubtractLaunch p) {
   const int k = blockIdx.x * blockDim.x + threadIdx.x;
   unsigned long long subtracted = 0, zeroed = 0;
@@ -298,6 +330,16 @@ void launchStarTemplateSums(const StarTemplateLaunch& p, cudaStream_t s) {
   if (p.np <= 0 || p.nb <= 0) return;
   starTemplateKernel<<<dim3(blocksFor(p.np), p.nb), kThreads, 0, s>>>(p);
   checkLaunch("starTemplateKernel");
+}
+
+void launchStarTemplateBuild(const float* sum, const float* cnt, int np, int nb, const std::uint8_t* excluded,
+                             const int* positions, std::size_t canvasSize, double minFrames, float* tmpl,
+                             std::uint8_t* valid, unsigned long long* framesSum, unsigned long long* framesN,
+                             cudaStream_t s) {
+  if (np <= 0 || nb <= 0) return;
+  starTemplateBuildKernel<<<dim3(blocksFor(np), nb), kThreads, 0, s>>>(
+      sum, cnt, np, nb, excluded, positions, canvasSize, minFrames, tmpl, valid, framesSum, framesN);
+  checkLaunch("starTemplateBuildKernel");
 }
 
 void launchStarSubtract(const StarSubtractLaunch& p, cudaStream_t s) {

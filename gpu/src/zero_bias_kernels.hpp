@@ -39,6 +39,14 @@ struct StarTemplateLaunch {
 };
 void launchStarTemplateSums(const StarTemplateLaunch& p, cudaStream_t s);
 
+/// Block b's template from the block sums of the blocks outside its window (excluded[b * nb + o] = 1 for
+/// those inside), the CPU's double sums over o in order: tmpl[b][positions[k]] = float(s / c) and valid = 1
+/// where c >= minFrames (tmpl and valid zeroed before); framesSum/framesN: totals of those c and positions.
+void launchStarTemplateBuild(const float* sum, const float* cnt, int np, int nb, const std::uint8_t* excluded,
+                             const int* positions, std::size_t canvasSize, double minFrames, float* tmpl,
+                             std::uint8_t* valid, unsigned long long* framesSum, unsigned long long* framesN,
+                             cudaStream_t s);
+
 /// The subtraction of each frame's block template (weights of -f), one thread per target position over
 /// the frames in order.
 struct StarSubtractLaunch {

@@ -13,10 +13,13 @@
 //  - the noise model (stats::estimateNoiseModel) on the device, from the kept frames and from an upload:
 //    frame scales, variance map and reference sigma equal to the CPU's (same order statistic); in the
 //    pipeline within 1e-5 relative (its input cube differs by the stages' rounding).
+//  - prefetch(): the cube uploaded behind the CPU stages is used by the next per-pixel background (note),
+//    and not when that is another buffer or the same one changed meanwhile (results still the CPU's).
 // Every test skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include "st/common/error.hpp"
@@ -24,6 +27,7 @@
 #include "st/pipeline/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/sim/simulator.hpp"
+#include "st/stats/background.hpp"
 #include "st/stats/noise_model.hpp"
 
 namespace st {
@@ -134,8 +138,13 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
   const pipeline::ZeroBiasResult a = pipeline::zeroBiasStages(nullptr, cpu, in, p, c, notes);
   in.starMask = &gpuCores;
   pipeline::ZeroBiasResult b;
-  ASSERT_TRUE(accel->zeroBias(gpu, in, b, p, c));
+  {
+    const std::shared_ptr<void> guard = accel->prefetch(gpu);  // uploaded behind "the CPU stages"
+    ASSERT_TRUE(accel->zeroBias(gpu, in, b, p, c));
+  }
   EXPECT_NE(accel->lastNote().find("kept on the device"), std::string::npos) << accel->lastNote();
+  EXPECT_NE(accel->lastNote().find("prefetched behind the CPU stages"), std::string::npos)
+      << accel->lastNote();
 
   ASSERT_TRUE(a.starsAttempted);
   ASSERT_TRUE(a.starSubtraction.applied);
@@ -187,6 +196,40 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
   EXPECT_NE(accel->lastNote().find("upload"), std::string::npos) << accel->lastNote();
   EXPECT_EQ(devUp.frameScale, cpuUp.frameScale);
   EXPECT_EQ(devUp.sigmaRef, cpuUp.sigmaRef);
+}
+
+TEST(GpuZeroBias, PrefetchOfAnotherCubeIsNotUsed) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  const FrameCube raw = driftingCube(64, 48, 40, 5);
+  FrameCube other = driftingCube(64, 48, 40, 6), cpu = raw, gpu = raw;
+  stats::BackgroundParams params;
+  NullProgress p;
+  CancelToken c;
+  const stats::Background a = stats::subtractPixelBackground(cpu, params, nullptr, p, c);
+  stats::Background b;
+  {
+    const std::shared_ptr<void> guard = accel->prefetch(other);  // another buffer: uploaded, not used
+    b = accel->subtractPixelBackground(gpu, params, nullptr, p, c);
+  }
+  EXPECT_EQ(accel->lastNote().find("prefetched"), std::string::npos) << accel->lastNote();
+  EXPECT_NEAR(b.sigmaN, a.sigmaN, 1e-9 * a.sigmaN);
+  std::size_t first = 0;
+  EXPECT_EQ(mismatches(gpu.pixels(), cpu.pixels(), 1e-6, &first), 0u) << "first at " << first;
+  // The same buffer changed after the prefetch (its sampled pixels): not used either.
+  FrameCube changed = raw, cpu2 = raw;
+  stats::Background b2;
+  {
+    const std::shared_ptr<void> guard = accel->prefetch(changed);
+    for (float& v : changed.pixels())
+      v += 1.0f;
+    for (float& v : cpu2.pixels())
+      v += 1.0f;
+    b2 = accel->subtractPixelBackground(changed, params, nullptr, p, c);
+  }
+  EXPECT_EQ(accel->lastNote().find("prefetched"), std::string::npos) << accel->lastNote();
+  const stats::Background a2 = stats::subtractPixelBackground(cpu2, params, nullptr, p, c);
+  EXPECT_NEAR(b2.sigmaN, a2.sigmaN, 1e-9 * a2.sigmaN);
+  EXPECT_EQ(mismatches(changed.pixels(), cpu2.pixels(), 1e-6, &first), 0u) << "first at " << first;
 }
 
 TEST(GpuZeroBias, PipelineWithTheDeviceMatchesTheCpu) {

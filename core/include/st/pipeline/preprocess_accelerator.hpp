@@ -6,6 +6,7 @@
 // it was, when its device fails. core knows only this interface; the CUDA one is in gpu/
 // (st::gpu::makeCudaPreprocessAccelerator).
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,13 @@ class PreprocessAccelerator {
   virtual stats::ClipStats globalBackground(const FrameCube& cube,
                                             const stats::GlobalBackgroundParams& params) {
     return stats::globalBackground(cube, params);
+  }
+  /// `cube` is the input of the next subtractPixelBackground or zeroBias and does not change until then (the
+  /// stages in between only read it): a device may start uploading it now, behind those stages. The
+  /// returned guard (may be null) must be destroyed before the cube: its destructor waits for the upload.
+  virtual std::shared_ptr<void> prefetch(const FrameCube& cube) {
+    (void)cube;
+    return nullptr;
   }
   /// Same contract as stats::subtractPixelBackground.
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
