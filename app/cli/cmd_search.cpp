@@ -23,7 +23,9 @@ namespace {
 constexpr const char* kHelp =
     "usage: synthtrack-cli search INPUT... [--preprocessed] [--fit] [options]\n"
     "  Searches the frames over a grid of trial velocities (paper §4.4). Raw INPUT is\n"
-    "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults: no bias/flat frames).\n"
+    "  pre-processed first (as 'synthtrack-cli preprocess' with its defaults).\n"
+    "  --bias F / --flat F / --dark F   calibration frames of raw INPUT (files or folders; repeat for "
+    "several)\n"
     "  --preprocessed        INPUT was written by 'synthtrack-cli preprocess', told by its header: the\n"
     "                        zero-biased cube (-o; STFILT = F) is matched-filtered with the header's PSF\n"
     "                        (PSFFWHM, PSFBETA) first, the filtered cube (--filtered; STFILT = T) is "
@@ -94,7 +96,7 @@ void printTable(const nlohmann::json& j) {
 
 int cmdSearch(const Args& args) {
   std::set<std::string> valued = searchOptionNames();
-  valued.insert("out");
+  valued.insert({"out", "bias", "flat", "dark"});
   for (const auto& n : loadOptionNames())
     valued.insert(n);
   auto flags = calibFlagNames();
@@ -107,8 +109,11 @@ int cmdSearch(const Args& args) {
   }
   if (cli.positionals().empty()) throw UsageError("no INPUT given");
   ObservationInput input{
-      cli.positionals(),       loadOptionsFromArgs(cli), cli.flag("preprocessed"), {}, {}, {},
+      cli.positionals(),  loadOptionsFromArgs(cli), cli.flag("preprocessed"),
+      cli.values("bias"), cli.values("dark"),       cli.values("flat"),
       calibParamsFromArgs(cli)};
+  if (input.preprocessed && !(input.bias.empty() && input.dark.empty() && input.flat.empty()))
+    throw UsageError("--bias/--flat/--dark calibrate raw INPUT: a --preprocessed cube is calibrated already");
   if (cli.flag("fit") && input.preprocessed) {
     throw UsageError("--fit needs the unfiltered frames: give the raw INPUT without --preprocessed");
   }

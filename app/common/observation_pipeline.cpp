@@ -1,5 +1,6 @@
 #include "observation_pipeline.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <optional>
 
@@ -123,10 +124,16 @@ FrameCube loadRegion(const ObservationInput& in, const search::TileRect& r, Canc
   return io::loadFrames(in.inputs, lo, quiet, cancel);
 }
 
+void appendOnceTo(std::vector<std::string>& to, const std::vector<std::string>& from) {
+  for (const auto& w : from)
+    if (std::find(to.begin(), to.end(), w) == to.end()) to.push_back(w);
+}
+
 /// Raw frames whose in-memory pre-processing does not fit: pre-processed out of core in strips of rows into a
-/// filtered cube in o.scratchDir (pipeline/preprocess_out_of_core.hpp), each strip's masters built from the
-/// calibration frames cropped to it. The plan goes into `memory`; throws st::InputError when no strip fits.
+/// filtered cube in o.scratchDir (pipeline/preprocess_out_of_core.hpp), the calibration masters built once
+/// for the whole frame and cropped to each strip. The plan goes into `memory`; throws st::InputError when no strip fits.
 pipeline::OutOfCorePrepared preprocessRawOutOfCore(const ObservationInput& in, const SearchOptions& o,
+                                                   const io::InputSummary& summary,
                                                    const pipeline::CubeShape& shape, MemoryPlan& memory,
                                                    unsigned threads, const ObservationHooks& hooks,
                                                    ProgressSink& progress, CancelToken& cancel) {
@@ -152,22 +159,39 @@ pipeline::OutOfCorePrepared preprocessRawOutOfCore(const ObservationInput& in, c
   const std::filesystem::path stem = std::filesystem::path(in.inputs.front()).filename().replace_extension();
   const std::string path =
       (std::filesystem::path(o.scratchDir) / (stem.string() + ".synthtrack-filtered.fits")).string();
+  std::vector<std::string> trimWarnings;
+  const std::optional<calib::Section> trim = calib::trimRegion(
+      summary.header, shape.width, shape.height, summary.files.front(), params.calib, trimWarnings);
+  // The masters are built once for the whole frame (one normalised flat for every strip) and cropped to
+  // each strip; the science frame they are checked against is the first frame's header and size.
+  std::optional<calib::MasterCalibration> masters;
+  {
+    const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
+    const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
+    const FrameCube flat = loadCalibrationFrames(in.flat, in.load.crop, progress, cancel);
+    if (!bias.empty() || !dark.empty() || !flat.empty()) {
+      FrameCube science(shape.width, shape.height, 1);
+      science.header = summary.header;
+      science.info()[0].file = summary.files.front();
+      masters = calib::buildMasters(bias, dark, flat, science, params.calib, progress, cancel);
+      appendOnceTo(trimWarnings, masters->warnings);
+    }
+  }
   const pipeline::RawRegionLoader load = [&](const search::TileRect& r) {
     pipeline::RawRegion region;
     region.raw = loadRegion(in, r, cancel);
+    // The strip's own crop clips the image sections (TRIMSEC ...) to it: said once for the frame instead.
+    std::erase_if(region.raw.warnings,
+                  [](const std::string& w) { return w.find("outside the crop") != std::string::npos; });
     pipeline::checkNotPrepared(region.raw, "search it with --preprocessed");
-    const auto [bx, by] = cropOrigin(in);
-    const io::CropRegion crop{bx + r.x0, by + r.y0, r.width, r.height};
-    NullProgress quiet;
-    const FrameCube bias = loadCalibrationFrames(in.bias, crop, quiet, cancel);
-    const FrameCube dark = loadCalibrationFrames(in.dark, crop, quiet, cancel);
-    const FrameCube flat = loadCalibrationFrames(in.flat, crop, quiet, cancel);
-    if (!bias.empty() || !dark.empty() || !flat.empty())
-      region.masters = calib::buildMasters(bias, dark, flat, region.raw, params.calib, quiet, cancel);
+    if (masters) region.masters = calib::cropMasters(*masters, {r.x0, r.y0, r.width, r.height});
     return region;
   };
   SubProgress sub(progress, 0.0, 0.5);
-  return pipeline::preprocessOutOfCore(load, shape, params, plan, path, sub, cancel);
+  pipeline::OutOfCorePrepared prepared =
+      pipeline::preprocessOutOfCore(load, shape, trim, params, plan, path, sub, cancel);
+  prepared.warnings.insert(prepared.warnings.begin(), trimWarnings.begin(), trimWarnings.end());
+  return prepared;
 }
 
 /// A pre-processed input too large for memory: its header, times and WCS from a small corner (the WCS of
@@ -282,7 +306,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       const auto accel = makePreprocessAccelerator(backend, accelMessage);
       prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
     } else {
-      prepOoc = preprocessRawOutOfCore(in, o, shape, memory, threads, hooks, progress, cancel);
+      prepOoc = preprocessRawOutOfCore(in, o, summary, shape, memory, threads, hooks, progress, cancel);
       if (!o.keepScratch) scratchGuard.path = prepOoc->path;
       scratchInput.inputs = {prepOoc->path};
       scratchInput.preprocessed = true;

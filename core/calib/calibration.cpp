@@ -302,6 +302,57 @@ void trimInPlace(FrameCube& cube, const Section& s) {
 
 }  // namespace
 
+std::optional<Section> trimRegion(const FitsHeader& header, int width, int height, const std::string& file,
+                                  const CalibParams& params, std::vector<std::string>& warnings) {
+  if (!params.trim) return std::nullopt;
+  FrameCube frame(width, height, 1);  // the sections are read from a cube's header and size
+  frame.header = header;
+  frame.info()[0].file = file;
+  std::optional<Section> s = trimFrom(frame, params, warnings);
+  if (s && s->x0 == 0 && s->y0 == 0 && s->width == width && s->height == height) return std::nullopt;
+  return s;
+}
+
+MasterCalibration cropMasters(const MasterCalibration& m, const Section& region) {
+  if (region.x0 < 0 || region.y0 < 0 || region.width <= 0 || region.height <= 0 ||
+      region.x0 + region.width > m.width || region.y0 + region.height > m.height)
+    throw InputError("calibration masters of " + sizeText(m.width, m.height) + " cannot be cropped to " +
+                     sizeText(region.width, region.height) + " at (" + std::to_string(region.x0) + ", " +
+                     std::to_string(region.y0) + ")");
+  MasterCalibration c = m;
+  c.width = region.width;
+  c.height = region.height;
+  const auto cropImage = [&](const Image& in) {
+    if (in.empty()) return Image();
+    Image out(region.width, region.height);
+    for (int y = 0; y < region.height; ++y)
+      std::copy_n(in.pixels.begin() + static_cast<std::ptrdiff_t>(y + region.y0) * m.width + region.x0,
+                  region.width, out.pixels.begin() + static_cast<std::ptrdiff_t>(y) * region.width);
+    return out;
+  };
+  c.bias = cropImage(m.bias);
+  c.darkPerS = cropImage(m.darkPerS);
+  c.flat = cropImage(m.flat);
+  if (!m.bad.empty()) {
+    c.bad.assign(static_cast<std::size_t>(region.width) * static_cast<std::size_t>(region.height), 0);
+    for (int y = 0; y < region.height; ++y)
+      std::copy_n(m.bad.begin() + static_cast<std::ptrdiff_t>(y + region.y0) * m.width + region.x0, region.width,
+                  c.bad.begin() + static_cast<std::ptrdiff_t>(y) * region.width);
+  }
+  // The sections moved into the region and clipped to it (none when nothing is left).
+  const auto cropSection = [&](const std::optional<Section>& s) -> std::optional<Section> {
+    if (!s) return std::nullopt;
+    const int x0 = std::max(s->x0, region.x0), y0 = std::max(s->y0, region.y0);
+    const int x1 = std::min(s->x0 + s->width, region.x0 + region.width);
+    const int y1 = std::min(s->y0 + s->height, region.y0 + region.height);
+    if (x1 <= x0 || y1 <= y0) return std::nullopt;
+    return Section{x0 - region.x0, y0 - region.y0, x1 - x0, y1 - y0};
+  };
+  c.biasSec = cropSection(m.biasSec);
+  c.trimSec = cropSection(m.trimSec);
+  return c;
+}
+
 CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
                                    const CalibParams& params, ProgressSink& progress, CancelToken& cancel) {
   CalibrationReport rep;

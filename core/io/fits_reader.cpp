@@ -303,6 +303,7 @@ InputSummary summarizeInputs(const std::vector<std::string>& inputs, const LoadO
   h.erase("NAXIS3");
   const auto wcs = Wcs::fromHeader(h, &s.warnings);
   s.hasWcs = wcs != nullptr;
+  s.header = h;
   if (options.plateScaleArcsecPerPx && (options.forcePlateScale || !wcs)) {
     s.plateScaleArcsecPerPx = options.plateScaleArcsecPerPx;
   } else if (wcs) {

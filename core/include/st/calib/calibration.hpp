@@ -73,6 +73,19 @@ struct CalibrationReport {
 CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
                                    const CalibParams& params, ProgressSink& progress, CancelToken& cancel);
 
+/// The region (0-based) that applyCalibration trims frames of `width` x `height` px with `header` to
+/// (params.trimSec, else TRIMSEC, else DATASEC; clipped or ignored as it does, with its warnings); none when
+/// it keeps the whole frame. Out-of-core pre-processing maps its strips onto the trimmed image with it.
+std::optional<Section> trimRegion(const FitsHeader& header, int width, int height, const std::string& file,
+                                  const CalibParams& params, std::vector<std::string>& warnings);
+
+/// The masters of `region` (0-based, inside the masters' frame) of the frame they were built for: images
+/// and bad-pixel mask cropped, BIASSEC/TRIMSEC moved into the region and clipped to it (none when nothing
+/// is left). Out-of-core pre-processing builds the masters once for the whole frame and crops them to each
+/// strip, so that every strip is calibrated with the same normalised flat. Throws st::InputError when the
+/// region leaves the frame.
+MasterCalibration cropMasters(const MasterCalibration& masters, const Section& region);
+
 /// The binning of a header as text ("3 3"), from CCDSUM, or XBINNING/YBINNING, or BINNING; empty if absent.
 std::string binningOf(const FitsHeader& header);
 

@@ -71,6 +71,7 @@ struct InputSummary {
   std::string timeSource;      ///< keywords the times came from, e.g. "DATE-OBS+UTCSTART (start) + EXPTIME/2"
   std::string wcsDescription;  ///< e.g. "RA---TAN-SIP / DEC--TAN-SIP, centre 303.2064 +46.0174"
   std::vector<double> mjdMid;  ///< every frame's mid-time, sorted
+  FitsHeader header;           ///< the first frame's, describing the loaded 2-D frame (crop applied)
 };
 
 /// Describes `inputs` from their headers only (no pixels): the same checks and time rules as loadFrames,

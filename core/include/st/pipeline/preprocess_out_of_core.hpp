@@ -14,8 +14,10 @@
 // of the whole frame. Each strip's filtered frames are scaled to the pooled sigma_F (the rms of the strips'
 // sigma_F over their owned rows), so that one SIGMAF holds for the file.
 //
-// Not done out of core: frames whose calibration trims them (TRIMSEC/DATASEC: a strip's trim would not be
-// the frame's; refused with a message), the co-moving fit (needs the zero-biased cube in memory).
+// Frames that calibration trims (TRIMSEC/DATASEC, overscan columns): strips are cut from the raw frames and
+// each is trimmed to the part of the frame's trim region it holds (calib::trimRegion gives the frame's), so
+// the file is the trimmed image, as in memory; the overscan level is the median of the strip's own rows.
+// Not done out of core: the co-moving fit (needs the zero-biased cube in memory).
 #include <cstddef>
 #include <functional>
 #include <optional>
@@ -78,13 +80,15 @@ struct OutOfCorePrepared {
   double elapsedS = 0.0;
 };
 
-/// Pre-processes the observation of `shape` strip by strip (`plan`, non-empty) into the filtered cube
-/// `outPath` (overwritten; removed again when this throws). `params.masters` is ignored: each region's come
+/// Pre-processes the observation of `shape` (raw frames) strip by strip (`plan`, non-empty) into the
+/// filtered cube `outPath` (overwritten; removed again when this throws), the image `trim` (raw-frame
+/// coordinates, calib::trimRegion; none = the whole frame). `params.masters` is ignored: each region's come
 /// from `load`; params.matchedFilter must be on; the zero-biased frames are not kept. Throws st::InputError
-/// (frames trimmed by calibration, loader errors, a strip without usable pixels), st::FitsError,
-/// st::Cancelled.
+/// (a strip trimmed otherwise than `trim` says, loader errors, a strip without usable pixels),
+/// st::FitsError, st::Cancelled.
 OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeShape& shape,
-                                      const PreprocessParams& params, const OutOfCorePreprocessPlan& plan,
-                                      const std::string& outPath, ProgressSink& progress, CancelToken& cancel);
+                                      const std::optional<calib::Section>& trim, const PreprocessParams& params,
+                                      const OutOfCorePreprocessPlan& plan, const std::string& outPath,
+                                      ProgressSink& progress, CancelToken& cancel);
 
 }  // namespace st::pipeline
