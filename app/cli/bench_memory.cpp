@@ -4,6 +4,7 @@
 // process (so that each run's peak resident memory, VmHWM, is its own) in memory and with --memory-limit
 // (default: a third of the cube), and prints wall time, CPU time, peak memory, tiles and whether the
 // candidates are identical. The page cache is warm for both (the file was just written and read once).
+// --raw does the same for raw frames whose pre-processing runs out of core (pipeline/preprocess_out_of_core).
 #include <unistd.h>
 
 #include <chrono>
@@ -11,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -23,6 +25,7 @@
 #include "st/common/memory_budget.hpp"
 #include "st/common/parallel.hpp"
 #include "st/io/fits_writer.hpp"
+#include "st/pipeline/memory_plan.hpp"
 #include "st/psf/moffat.hpp"
 
 namespace st::app {
@@ -36,10 +39,9 @@ struct Run {
   nlohmann::json j;
 };
 
-Run runSearch(const fs::path& cube, const fs::path& dir, const std::string& tag,
-              const std::vector<std::string>& extra) {
-  std::vector<std::string> args{"search", cube.string(), "--preprocessed", "--json"};
-  args.insert(args.end(), extra.begin(), extra.end());
+/// Runs `synthtrack-cli ARGS` as a child process (stdout, stderr to DIR/TAG.json, .err); its wall and CPU
+/// time and stdout parsed as JSON (empty when `json` is false).
+Run runChild(std::vector<std::string> args, const fs::path& dir, const std::string& tag, bool json = true) {
   const fs::path out = dir / (tag + ".json");
   const fs::path err = dir / (tag + ".err");
   const auto t0 = std::chrono::steady_clock::now();
@@ -63,23 +65,88 @@ Run runSearch(const fs::path& cube, const fs::path& dir, const std::string& tag,
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     std::ifstream in(err);
     std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    throw InputError("bench memory: the search (" + tag + ") failed: " + text);
+    throw InputError("bench memory: " + args.front() + " (" + tag + ") failed: " + text);
   }
-  std::ifstream(out) >> r.j;
+  if (json) std::ifstream(out) >> r.j;
   return r;
+}
+
+Run runSearch(const fs::path& cube, const fs::path& dir, const std::string& tag,
+              const std::vector<std::string>& extra, bool preprocessed = true) {
+  std::vector<std::string> args{"search", cube.string(), "--json"};
+  if (preprocessed) args.push_back("--preprocessed");
+  args.insert(args.end(), extra.begin(), extra.end());
+  return runChild(args, dir, tag);
+}
+
+double bestSnr(const Run& r) {
+  double best = 0.0;
+  for (const auto& c : r.j["candidates"])
+    best = std::max(best, c["snr"].get<double>());
+  return best;
+}
+
+/// --raw: simulated raw frames (the simulator's small preset at FRAMES x W x H) searched with pre-processing
+/// in memory and out of core (strips of rows) under a budget of half the in-memory pre-processing estimate.
+int benchMemoryRaw(long long frames, int w, int h, const std::optional<std::string>& limitArg) {
+  const double estimate =
+      pipeline::estimatePreprocessPeak({w, h, static_cast<std::size_t>(frames)}, false, workerCount()).total();
+  const std::string limit =
+      limitArg.value_or(std::to_string(static_cast<long long>(estimate / 2.0 / 1048576.0)) + "M");
+  const fs::path dir = fs::temp_directory_path() / ("st-bench-memory-raw-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path raw = dir / "raw.fits";
+  runChild({"simulate", "--preset", "small", "--frames", std::to_string(frames), "--size",
+            std::to_string(w) + "x" + std::to_string(h), "-o", raw.string()},
+           dir, "simulate", false);
+  const std::vector<std::string> common{"--vmax-deg-day", "40", "--backend", "cpu", "--scratch", dir.string()};
+  std::vector<std::string> mem = common, ooc = common;
+  mem.insert(mem.end(), {"--memory-limit", "64G"});
+  ooc.insert(ooc.end(), {"--memory-limit", limit});
+  runSearch(raw, dir, "warm", mem, false);
+  const Run a = runSearch(raw, dir, "in-memory", mem, false);
+  const Run b = runSearch(raw, dir, "out-of-core", ooc, false);
+  fs::remove_all(dir);
+  std::printf("bench memory --raw: %s, %u threads, %s\n", cpuModel().c_str(), workerCount(), utcNow().c_str());
+  std::printf("problem: raw frames of the small preset, %lld x %d x %d px (%.0f MB float32), pre-processed and "
+              "searched (+-40 deg/day, auto method); in-memory pre-processing estimated at %s\n",
+              frames, w, h, 4.0 * w * h * static_cast<double>(frames) / 1048576.0, formatBytes(estimate).c_str());
+  const auto line = [](const char* name, const Run& r) {
+    std::printf("  %-12s wall %7.2f s, CPU %7.2f s, peak resident %s, %zu candidates, best SNR %.2f\n", name,
+                r.wallS, r.cpuS, formatBytes(r.j["memory"]["peak_resident_bytes"].get<double>()).c_str(),
+                r.j["candidates"].size(), bestSnr(r));
+  };
+  line("in memory", a);
+  std::printf("  (budget %s)\n", limit.c_str());
+  line("out of core", b);
+  std::printf("out of core / in memory: wall %.2fx, CPU %.2fx, peak %.2fx; best SNR %.2f vs %.2f\n",
+              b.wallS / a.wallS, b.cpuS / a.cpuS,
+              b.j["memory"]["peak_resident_bytes"].get<double>() / a.j["memory"]["peak_resident_bytes"].get<double>(),
+              bestSnr(b), bestSnr(a));
+  return 0;
 }
 
 }  // namespace
 
 int benchMemory(const Args& args) {
-  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method", "keep"}, {"help"});
+  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method", "keep"}, {"help", "raw"});
   if (cli.flag("help")) {
     std::printf(
         "usage: synthtrack-cli bench memory [--frames N] [--size WxH] [--vmax-px-s V] [--method exact|tree]\n"
-        "                                   [--memory-limit SIZE]\n"
+        "                                   [--memory-limit SIZE] [--raw]\n"
         "  in-memory vs out-of-core search of a filtered cube (default 400 x 512x512, 0.1 px/s, exact,\n"
-        "  out of core under a third of the cube)\n");
+        "  out of core under a third of the cube)\n"
+        "  --raw: simulated raw frames (small preset; default 200 x 512x1024) pre-processed and searched in\n"
+        "  memory and out of core (strips of rows) under half the in-memory pre-processing estimate\n");
     return 0;
+  }
+  if (cli.flag("raw")) {
+    int rw = 512, rh = 1024;
+    if (auto s = cli.value("size")) {
+      if (std::sscanf(s->c_str(), "%dx%d", &rw, &rh) != 2 || rw < 32 || rh < 32)
+        throw UsageError("--size must be WxH with both >= 32, got '" + *s + "'");
+    }
+    return benchMemoryRaw(cli.integer("frames").value_or(200), rw, rh, cli.value("memory-limit"));
   }
   const long long frames = cli.integer("frames").value_or(400);
   int w = 512, h = 512;
