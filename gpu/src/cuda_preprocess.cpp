@@ -175,7 +175,14 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     });
     m_prefetch = p;
     // The guard joins the upload's thread when the pipeline lets it go (before its cube is freed).
-    return std::shared_ptr<void>(static_cast<void*>(p.get()), [p](void*) { p->join(); });
+    // Unused by then (the pipeline stopped before its per-pixel background: cancelled, an error), its device
+    // copy is freed rather than held until the next prefetch.
+    return std::shared_ptr<void>(static_cast<void*>(p.get()), [p](void*) {
+      p->join();
+      p->ok = false;
+      p->pix = DeviceBuffer<float>();
+      p->mask = DeviceBuffer<std::uint8_t>();
+    });
   }
 
   stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
