@@ -133,7 +133,10 @@ int cmdPreprocess(const Args& args) {
     if (need.total() > static_cast<double>(budget.bytes)) {
       throw InputError(pipeline::overBudgetMessage(std::to_string(shape.frames) + " frames of " +
                                                        std::to_string(shape.width) + " x " +
-                                                       std::to_string(shape.height) + " px: pre-processing",
+                                                       std::to_string(shape.height) +
+                                                       " px: pre-processing in memory (`preprocess` writes the "
+                                                       "whole zero-biased cube; `search --keep-scratch` "
+                                                       "pre-processes out of core and keeps the filtered cube)",
                                                    need, budget));
     }
   }
