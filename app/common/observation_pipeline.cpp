@@ -1,5 +1,7 @@
 #include "observation_pipeline.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <optional>
@@ -156,9 +158,15 @@ pipeline::OutOfCorePrepared preprocessRawOutOfCore(const ObservationInput& in, c
                          std::to_string(overlap) + " rows of overlap each side), estimated peak " +
                          plan.perStrip.describe());
   if (hooks.memory) hooks.memory(memory);
-  const std::filesystem::path stem = std::filesystem::path(in.inputs.front()).filename().replace_extension();
-  const std::string path =
-      (std::filesystem::path(o.scratchDir) / (stem.string() + ".synthtrack-filtered.fits")).string();
+  std::filesystem::path first(in.inputs.front());
+  if (first.filename().empty()) first = first.parent_path();  // a folder given as "science/"
+  const std::filesystem::path stem = first.filename().replace_extension();
+  // A kept cube has a name to find it by; a temporary one is the process's own (two runs in one folder, or
+  // a cube kept before, are never overwritten or removed by another run).
+  const std::string name = o.keepScratch ? stem.string() + ".synthtrack-filtered.fits"
+                                         : stem.string() + ".synthtrack-filtered." + std::to_string(::getpid()) +
+                                               ".fits";
+  const std::string path = (std::filesystem::path(o.scratchDir) / name).string();
   std::vector<std::string> trimWarnings;
   const std::optional<calib::Section> trim = calib::trimRegion(
       summary.header, shape.width, shape.height, summary.files.front(), params.calib, trimWarnings);

@@ -321,13 +321,16 @@ TEST_F(OutOfCoreCli, RawInputOverTheBudgetIsPreProcessedOutOfCoreInStrips) {
   nlohmann::json again;
   std::ifstream(path("tall-again.json")) >> again;
   EXPECT_EQ(again["candidates"].size(), ooc["candidates"].size());
-  // Without --keep-scratch nothing is left behind.
-  std::filesystem::remove(kept);
+  // Without --keep-scratch nothing is left behind, and the cube kept before is neither overwritten nor
+  // removed (a temporary scratch cube has the process's own name).
+  const auto keptTime = std::filesystem::last_write_time(kept);
   auto gone = common;
   gone.insert(gone.end(), {"--memory-limit", "170M", "--scratch", scratch.string()});
   const auto [rcGone, rssGone] = runMeasured(gone, path("tall-gone.json"), path("tall-gone.err"));
   EXPECT_EQ(rcGone, 0) << readText(path("tall-gone.err"));
-  EXPECT_TRUE(std::filesystem::is_empty(scratch));
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(scratch), std::filesystem::directory_iterator()), 1);
+  EXPECT_TRUE(std::filesystem::exists(kept));
+  EXPECT_EQ(std::filesystem::last_write_time(kept), keptTime);
   // --fit needs the whole cube: refused before the work, naming the need.
   auto fit = gone;
   fit.push_back("--fit");
