@@ -34,18 +34,6 @@ std::size_t framesInside(const FrameCube& cube, const std::vector<std::size_t>& 
   return count;
 }
 
-/// stackStamp in SNR units: divided by sigma_F sqrt(N_in at the centre). Returns the centre's SNR.
-double snrStamp(const search::FilteredCube& cube, const std::vector<std::size_t>& frames,
-                const std::vector<double>& timesS, const search::Candidate& c, Velocity v, int half,
-                Image& out, std::size_t& nIn) {
-  out = vet::stackStamp(cube.frames, frames, c.x, c.y, v, 0.0, half);
-  nIn = framesInside(cube.frames, frames, timesS, c.x, c.y, v);
-  const double scale = nIn > 0 ? 1.0 / (cube.sigmaF * std::sqrt(static_cast<double>(nIn))) : 0.0;
-  for (float& p : out.pixels)
-    p = static_cast<float>(p * scale);
-  return out.at(half, half);
-}
-
 std::string format(const char* fmt, double a, double b, double c) {
   char buf[256];
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
@@ -67,8 +55,10 @@ vet::SegmentReport segmentStrip(const InspectionInput& in, const std::vector<dou
       m.tMidOffsetS += timesS[n] / static_cast<double>(m.frames.size());
     m.predictedX = in.candidate.x + in.candidate.v.vx * m.tMidOffsetS;
     m.predictedY = in.candidate.y + in.candidate.v.vy * m.tMidOffsetS;
-    m.forcedSnr =
-        snrStamp(cube, m.frames, timesS, in.candidate, in.candidate.v, in.stampHalf, m.stack, m.framesInside);
+    SnrStamp stamp = snrStampAt(cube, m.frames, in.candidate, in.candidate.v, in.stampHalf);
+    m.forcedSnr = stamp.centreSnr;
+    m.framesInside = stamp.nIn;
+    m.stack = std::move(stamp.image);
     m.expectedSnr =
         nInAll > 0 ? snr * std::sqrt(static_cast<double>(m.framesInside) / static_cast<double>(nInAll)) : 0.0;
     m.missing = m.framesInside > 0 && m.forcedSnr < m.expectedSnr - in.segmentOptions.missingSigma &&
@@ -124,6 +114,19 @@ void cutMovie(const InspectionInput& in, const std::vector<double>& timesS, Insp
 
 }  // namespace
 
+SnrStamp snrStampAt(const search::FilteredCube& cube, const std::vector<std::size_t>& frames,
+                    const search::Candidate& c, Velocity v, int half) {
+  const std::vector<double> timesS = cube.frames.timeOffsetsS();
+  SnrStamp out;
+  out.image = vet::stackStamp(cube.frames, frames, c.x, c.y, v, 0.0, half);
+  out.nIn = framesInside(cube.frames, frames, timesS, c.x, c.y, v);
+  const double scale = out.nIn > 0 ? 1.0 / (cube.sigmaF * std::sqrt(static_cast<double>(out.nIn))) : 0.0;
+  for (float& p : out.image.pixels)
+    p = static_cast<float>(p * scale);
+  out.centreSnr = out.image.at(half, half);
+  return out;
+}
+
 Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   if (!in.filtered || in.filtered->frames.empty())
     throw InputError("candidate inspector: no filtered cube (run pre-processing first)");
@@ -136,12 +139,14 @@ Inspection inspectCandidate(const InspectionInput& in, CancelToken& cancel) {
   std::iota(all.begin(), all.end(), std::size_t{0});
 
   Inspection out;
-  std::size_t nInTrack = 0;
-  std::size_t nInSky = 0;
-  out.trackSnr =
-      snrStamp(cube, all, timesS, in.candidate, in.candidate.v, in.stampHalf, out.trackStamp, nInTrack);
+  SnrStamp tracked = snrStampAt(cube, all, in.candidate, in.candidate.v, in.stampHalf);
+  const std::size_t nInTrack = tracked.nIn;
+  out.trackSnr = tracked.centreSnr;
+  out.trackStamp = std::move(tracked.image);
   cancel.throwIfCancelled();
-  out.skySnr = snrStamp(cube, all, timesS, in.candidate, cube.skyRate, in.stampHalf, out.skyStamp, nInSky);
+  SnrStamp sky = snrStampAt(cube, all, in.candidate, cube.skyRate, in.stampHalf);
+  out.skySnr = sky.centreSnr;
+  out.skyStamp = std::move(sky.image);
   out.segments = segmentStrip(in, timesS, out.trackSnr, nInTrack, cancel);
   cutMovie(in, timesS, out, cancel);
 

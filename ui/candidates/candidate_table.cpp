@@ -319,7 +319,9 @@ CandidatePanel::CandidatePanel(Observation* observation, QWidget* parent)
   arrows->setParent(m_table->horizontalHeader());
   m_table->horizontalHeader()->setStyle(arrows);
   m_table->setSelectionBehavior(QAbstractItemView::SelectRows);
-  m_table->setSelectionMode(QAbstractItemView::SingleSelection);
+  // Several rows may be selected (Ctrl/Shift+click) for a sheet of candidates (Export figure); the current
+  // row is the Observation's selected candidate, as before.
+  m_table->setSelectionMode(QAbstractItemView::ExtendedSelection);
   m_table->setEditTriggers(QAbstractItemView::DoubleClicked | QAbstractItemView::EditKeyPressed);
   m_table->verticalHeader()->setVisible(false);
   m_table->verticalHeader()->setDefaultSectionSize(20);
@@ -422,6 +424,14 @@ void CandidatePanel::onResult() {
   m_table->resizeColumnsToContents();
 }
 
+std::vector<int> CandidatePanel::selectedCandidates() const {
+  std::vector<int> out;
+  for (int r = 0; r < m_filter->rowCount(); ++r)
+    if (m_table->selectionModel()->isRowSelected(r, {}))
+      out.push_back(m_filter->mapToSource(m_filter->index(r, 0)).row());
+  return out;
+}
+
 void CandidatePanel::selectCandidate(int index) {
   m_obs->setSelected(index);
 }
@@ -433,7 +443,13 @@ void CandidatePanel::onSelectionFromObservation() {
     m_table->clearSelection();
   } else {
     const QModelIndex proxy = m_filter->mapFromSource(m_model->index(*sel, 0));
-    if (proxy.isValid()) {
+    const QModelIndex current = m_table->selectionModel()->currentIndex();
+    if (proxy.isValid() && current.isValid() && current.row() == proxy.row() &&
+        m_table->selectionModel()->hasSelection()) {
+      // The table's own click made it current: the click applies its selection itself (Ctrl+click adds the
+      // row and keeps the others).
+      m_table->scrollTo(proxy);
+    } else if (proxy.isValid()) {
       m_table->selectionModel()->setCurrentIndex(
           proxy, QItemSelectionModel::ClearAndSelect | QItemSelectionModel::Rows);
       m_table->scrollTo(proxy);

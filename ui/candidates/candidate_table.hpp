@@ -102,6 +102,9 @@ class CandidatePanel : public QWidget {
   [[nodiscard]] CandidateFilter* filter() const noexcept { return m_filter; }
   /// Selects the candidate with this index in the search result (source row).
   void selectCandidate(int index);
+  /// The candidates whose rows are selected (Ctrl/Shift+click), as indices into the search result, in the
+  /// table's order (its sort). The current row, the Observation's selected candidate, is among them.
+  [[nodiscard]] std::vector<int> selectedCandidates() const;
   /// Labels the selected candidate (a reason only with Label::Artifact) and selects the next unvetted one
   /// in the table's order (after it, wrapping round; the selection stays when none is left). False when no
   /// candidate is selected.

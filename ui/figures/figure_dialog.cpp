@@ -18,6 +18,7 @@
 #include <QtConcurrent>
 #include <qcustomplot.h>
 
+#include "candidate_sheet.hpp"
 #include "figure_preset.hpp"
 #include "motion_vs_sky.hpp"
 #include "st/common/error.hpp"
@@ -96,7 +97,13 @@ void FigureDialog::buildUi() {
   m_stampHalf->setRange(8, 500);
   m_stampHalf->setValue(40);
   m_stampHalf->setSuffix(" px");
-  m_stampHalf->setToolTip("Preset: half size of each stamp around the candidate");
+  m_stampHalf->setToolTip("Preset and candidate sheets: half size of each stamp around the candidate");
+  connect(m_stampHalf, &QSpinBox::valueChanged, this, [this](int v) {
+    const int i = m_source->currentIndex();
+    const bool sheet = i >= 0 && i < static_cast<int>(m_sources.size()) &&
+                       m_sources[static_cast<std::size_t>(i)].sheet != Source::Sheet::None;
+    (sheet ? m_sheetHalf : m_presetHalf) = v;
+  });
   auto* sizeRow = new QHBoxLayout;
   for (QWidget* w : std::initializer_list<QWidget*>{m_width, new QLabel("×", this), m_height, m_dpi})
     sizeRow->addWidget(w);
@@ -116,7 +123,7 @@ void FigureDialog::buildUi() {
   }());
   form->addRow("Show", checks);
   form->addRow("Size", sizeRow);
-  form->addRow("Preset stamp", m_stampHalf);
+  form->addRow("Stamp half size", m_stampHalf);
   form->addRow("File (.png .svg .pdf)", pathRow);
   m_status = new QLabel(this);
   m_status->setWordWrap(true);
@@ -164,6 +171,17 @@ void FigureDialog::refreshSources() {
       m_sources.push_back(source);
     }
   }
+  if (m_ctx.observation && m_ctx.observation->result()) {
+    for (const auto which : {Source::Sheet::Selected, Source::Sheet::Shown}) {
+      const auto n = sheetCandidates(which).size();
+      Source sheet{which == Source::Sheet::Selected
+                       ? QString("Sheet: candidates selected in the table (%1)").arg(n)
+                       : QString("Sheet: all candidates shown by the table's filters (%1)").arg(n),
+                   {}, {}, false};
+      sheet.sheet = which;
+      m_sources.push_back(sheet);
+    }
+  }
   m_sources.push_back({"Preset: sky-tracked beside object-tracked (paper fig_st_sky_and_nea)", {}, {}, true});
   const QSignalBlocker block(m_source);
   m_source->clear();
@@ -183,6 +201,33 @@ QStringList FigureDialog::sourceNames() const {
 
 int FigureDialog::presetIndex() const {
   return static_cast<int>(m_sources.size()) - 1;
+}
+
+int FigureDialog::sheetIndex(bool shown) const {
+  const auto want = shown ? Source::Sheet::Shown : Source::Sheet::Selected;
+  for (std::size_t i = 0; i < m_sources.size(); ++i)
+    if (m_sources[i].sheet == want) return static_cast<int>(i);
+  return -1;
+}
+
+void FigureDialog::setStampHalfSize(int px) {
+  m_stampHalf->setValue(px);
+}
+
+std::vector<int> FigureDialog::sheetCandidates(Source::Sheet which) const {
+  const Observation* obs = m_ctx.observation;
+  std::vector<int> out;
+  if (!obs || !obs->result()) return out;
+  const int n = static_cast<int>(obs->result()->candidates.size());
+  if (which == Source::Sheet::Selected) {
+    for (int i : m_ctx.selectedCandidates ? m_ctx.selectedCandidates() : std::vector<int>{})
+      if (i >= 0 && i < n) out.push_back(i);
+    if (out.empty() && obs->selected() && *obs->selected() < n) out.push_back(*obs->selected());
+  } else if (which == Source::Sheet::Shown) {
+    for (int i = 0; i < n; ++i)
+      if (obs->candidateShown(i)) out.push_back(i);
+  }
+  return out;
 }
 
 void FigureDialog::setSource(int index) {
@@ -211,12 +256,17 @@ void FigureDialog::onSourceChanged() {
   const int i = m_source->currentIndex();
   if (i < 0 || i >= static_cast<int>(m_sources.size())) return;
   const Source& s = m_sources[static_cast<std::size_t>(i)];
-  const bool image = s.view || s.preset || s.strip;
+  const bool sheet = s.sheet != Source::Sheet::None;
+  const bool image = s.view || s.preset || s.strip || sheet;
   for (QWidget* w : std::initializer_list<QWidget*>{m_units, m_xLabel, m_yLabel, m_colourBar, m_scaleBar,
                                                     m_compass, m_axes})
     w->setEnabled(image);
   m_crop->setEnabled(s.view != nullptr);
-  m_stampHalf->setEnabled(s.preset);
+  m_stampHalf->setEnabled(s.preset || sheet);
+  {
+    const QSignalBlocker block(m_stampHalf);
+    m_stampHalf->setValue(sheet ? m_sheetHalf : m_presetHalf);
+  }
   const auto& raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
   // A compass needs the observation's WCS: say so where the choice is made, not by a figure without one.
   const bool hasWcs = raw && raw->wcs && m_ctx.pixelToSky;
@@ -230,6 +280,9 @@ void FigureDialog::onSourceChanged() {
   if (s.preset) {
     m_title->clear();
     m_units->setText("IPSA sum of " + bunit);
+  } else if (sheet) {
+    m_title->clear();
+    m_units->setText("SNR");  // the sheet's stamps are in SNR units, like the inspector's
   } else if (s.strip) {
     m_title->setText(s.name.section(": ", 1));
     m_units->setText("SNR");  // the inspector's stamps are in SNR units; the fit's in counts (edit here)
@@ -351,6 +404,45 @@ std::function<ImageFigure()> FigureDialog::stripBuilder(const StampStrip& strip)
   return [fig] { return fig; };
 }
 
+std::function<ImageFigure()> FigureDialog::sheetBuilder(Source::Sheet which, QString& error) {
+  const Observation* obs = m_ctx.observation;
+  auto cube = obs && obs->prepared() ? obs->prepared()->filtered : nullptr;
+  const std::vector<int> chosen = sheetCandidates(which);
+  if (!cube || !obs->result()) {
+    error = "A sheet of candidates needs a search result.";
+    return {};
+  }
+  if (chosen.empty()) {
+    error = which == Source::Sheet::Selected
+                ? "No candidate is selected in the candidates table (Ctrl+click or Shift+click rows)."
+                : "The candidates table's filters show no candidate.";
+    return {};
+  }
+  // Names and motions are read here, on the GUI thread (the Observation is the GUI's); the worker stacks.
+  std::vector<SheetEntry> entries;
+  for (int i : chosen) {
+    const search::Candidate& c = obs->result()->candidates[static_cast<std::size_t>(i)];
+    const session::CandidateState* state = obs->candidateState(i);
+    entries.push_back({i + 1, c, describeMotion(motionVsSky(*obs, c.x, c.y, c.v)),
+                       state ? QString(session::toString(state->label)) : QString("unvetted")});
+  }
+  CandidateSheetOptions o;
+  o.halfSizePx = m_stampHalf->value();
+  o.display.limits = LimitsMode::ZScale;
+  o.display.colormap = Colormap::Inferno;
+  o.plateScaleArcsecPerPx = m_scaleBar->isChecked() ? obs->plateScale() : std::nullopt;
+  o.units = m_units->text();
+  o.colourBar = m_colourBar->isChecked();
+  o.axes = m_axes->isChecked();
+  const QString title = m_title->text();
+  return [cube, entries, o, title] {
+    CancelToken never;
+    ImageFigure fig = candidateSheetFigure(*cube, entries, o, never);
+    if (!title.isEmpty()) fig.title = title;
+    return fig;
+  };
+}
+
 std::function<void()> FigureDialog::makeJob(const Source& source, const QString& path, QString& error) {
   const FigureFormat format = figureFormatForPath(path);
   FigureSize size = figureSize();
@@ -379,6 +471,8 @@ std::function<void()> FigureDialog::makeJob(const Source& source, const QString&
     build = imageBuilder(*source.view);
   else if (source.strip && source.strip->tileCount() > 0)
     build = stripBuilder(*source.strip);
+  else if (source.sheet != Source::Sheet::None)
+    build = sheetBuilder(source.sheet, error);
   else
     error = "The view shows no image.";
   if (!build) return {};

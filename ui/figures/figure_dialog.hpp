@@ -44,17 +44,26 @@ class FigureDialog : public QDialog {
     std::function<std::shared_ptr<const search::FilteredCube>()> stackCube;
     /// CoreServices::pixelToSky, for the compass (may be empty).
     std::function<std::optional<std::pair<double, double>>(const FrameCube&, double, double)> pixelToSky;
+    /// The candidates selected in the candidates table (indices into the result, in the table's order), for
+    /// the sheet of selected candidates (may be empty).
+    std::function<std::vector<int>()> selectedCandidates;
   };
 
   explicit FigureDialog(Context context, QWidget* parent = nullptr);
 
   /// Re-lists the views and plots (called when shown).
   void refreshSources();
-  /// Names of the sources as listed; the preset is last.
+  /// Names of the sources as listed: views, plots, stamp strips, the two candidate sheets (selected in
+  /// the table, shown by its filters) when there is a search result, the preset last.
   [[nodiscard]] QStringList sourceNames() const;
   /// Chooses source `index` (in sourceNames()); the title and units are filled in from it.
   void setSource(int index);
   [[nodiscard]] int presetIndex() const;
+  /// Index of the sheet of the candidates selected in the table (`shown` false) or of all the candidates the
+  /// table's filters (label, SNR, false alarms, flags) show (`shown` true); -1 without a search result.
+  [[nodiscard]] int sheetIndex(bool shown) const;
+  /// Half size of the preset's and the sheet's stamps, px.
+  void setStampHalfSize(int px);
   /// Size and resolution (height 0 = from the figure's aspect ratio).
   void setFigureSize(const FigureSize& size);
   void setTitle(const QString& title);
@@ -78,6 +87,7 @@ class FigureDialog : public QDialog {
     QPointer<QCustomPlot> plot;
     bool preset = false;
     QPointer<StampStrip> strip;  ///< a row of stamps (candidate stamps, segments, the fit's data/model/residual)
+    enum class Sheet { None, Selected, Shown } sheet = Sheet::None;  ///< a sheet of several candidates
   };
   void buildUi();
   void onSourceChanged();
@@ -90,6 +100,10 @@ class FigureDialog : public QDialog {
   /// One panel per tile of `strip`, on the strip's shared display limits, captioned
   /// with the selected candidate's SNR and motion relative to the stars (motion_vs_sky.hpp).
   std::function<ImageFigure()> stripBuilder(const StampStrip& strip);
+  /// The grid of per-candidate stamps (candidate_sheet.hpp) of the selected or shown candidates.
+  std::function<ImageFigure()> sheetBuilder(Source::Sheet which, QString& error);
+  /// Indices of the candidates a sheet shows, in order.
+  [[nodiscard]] std::vector<int> sheetCandidates(Source::Sheet which) const;
   [[nodiscard]] std::optional<Compass> compassNear(double x, double y) const;
   [[nodiscard]] FigureSize figureSize() const;
 
@@ -114,6 +128,8 @@ class FigureDialog : public QDialog {
   QLabel* m_status = nullptr;
   QFutureWatcher<QString> m_watcher;
   QString m_runningPath;
+  int m_presetHalf = 40;  ///< the stamp half size chosen for the preset and for the sheets, kept apart
+  int m_sheetHalf = 12;
 };
 
 }  // namespace st::ui

@@ -12,6 +12,7 @@ namespace {
 
 // Layout of a panel, in points.
 constexpr double kTitleH = 16.0;
+constexpr double kTitleLineH = 11.0;  // each further line of a panel title
 constexpr double kAxisLeft = 34.0;
 constexpr double kAxisBottom = 26.0;
 constexpr double kBarGap = 6.0;
@@ -38,7 +39,14 @@ double bottomMargin(const ImagePanel& p) {
   return p.showAxes ? kAxisBottom : 2.0;
 }
 double topMargin(const ImagePanel& p) {
-  return p.title.isEmpty() ? 4.0 : kTitleH;
+  return p.title.isEmpty() ? 4.0 : kTitleH + kTitleLineH * static_cast<double>(p.title.count('\n'));
+}
+
+// Columns and rows of the grid the panels are laid out in.
+std::pair<int, int> gridOf(const ImageFigure& figure) {
+  const int n = std::max(static_cast<int>(figure.panels.size()), 1);
+  const int cols = figure.columns > 0 ? std::min(figure.columns, n) : n;
+  return {cols, (n + cols - 1) / cols};
 }
 
 QString tickText(double v) {
@@ -205,9 +213,16 @@ void paintPanel(QPainter& painter, const QRectF& area, const ImagePanel& p) {
   const QRectF rect(left, area.top() + topMargin(p), drawn.width(), drawn.height());
   if (!p.title.isEmpty()) {
     painter.setPen(Qt::black);
-    painter.setFont(figureFont(9, true));
-    painter.drawText(QRectF(rect.left() - 20, area.top(), rect.width() + 40, kTitleH - 3),
-                     Qt::AlignHCenter | Qt::AlignVCenter, p.title);
+    // The first line bold, further lines (a sheet's rate and direction) smaller, each centred on the image.
+    const QStringList lines = p.title.split('\n');
+    for (int k = 0; k < lines.size(); ++k) {
+      painter.setFont(k == 0 ? figureFont(9, true) : figureFont(8));
+      const double y = area.top() + (k == 0 ? 0.0 : kTitleH - 3 + kTitleLineH * (k - 1));
+      painter.drawText(QRectF(rect.left() - kPanelGap / 2 - leftMargin(p) / 2, y,
+                              rect.width() + kPanelGap + leftMargin(p) / 2 + rightMargin(p) / 2,
+                              k == 0 ? kTitleH - 3 : kTitleLineH),
+                       Qt::AlignHCenter | Qt::AlignVCenter | Qt::TextDontClip, lines[k]);
+    }
   }
   painter.drawImage(rect, renderImage(img, p.lo, p.hi, p.display));
   const PixelMap map{rect, scale, scale};
@@ -219,15 +234,16 @@ void paintPanel(QPainter& painter, const QRectF& area, const ImagePanel& p) {
 }  // namespace
 
 QSizeF naturalFigureSize(const ImageFigure& figure, double widthPt) {
-  const auto n = static_cast<double>(std::max<std::size_t>(figure.panels.size(), 1));
-  const double panelW = (widthPt - kPanelGap * (n - 1)) / n;
+  const auto [cols, rows] = gridOf(figure);
+  const double panelW = (widthPt - kPanelGap * (cols - 1)) / cols;
   double panelH = 0.0;
   for (const auto& p : figure.panels) {
     if (!p.image || p.image->empty()) continue;
     const double w = panelW - leftMargin(p) - rightMargin(p);
     panelH = std::max(panelH, w * p.image->height / p.image->width + topMargin(p) + bottomMargin(p));
   }
-  const double h = panelH + (figure.title.isEmpty() ? 0 : kFigTitleH) + captionHeight(figure, widthPt);
+  const double h = panelH * rows + kPanelGap * (rows - 1) + (figure.title.isEmpty() ? 0 : kFigTitleH) +
+                   captionHeight(figure, widthPt);
   return {widthPt, std::ceil(std::max(h, 40.0))};
 }
 
@@ -253,10 +269,15 @@ void paintImageFigure(QPainter& painter, const QSizeF& size, const ImageFigure& 
     painter.drawText(QRectF(6, bottom + 2, size.width() - 12, capH - 4),
                      Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, figure.caption);
   }
-  const auto n = static_cast<double>(std::max<std::size_t>(figure.panels.size(), 1));
-  const double panelW = (size.width() - kPanelGap * (n - 1)) / n;
-  for (std::size_t i = 0; i < figure.panels.size(); ++i)
-    paintPanel(painter, QRectF(i * (panelW + kPanelGap), top, panelW, bottom - top), figure.panels[i]);
+  const auto [cols, rows] = gridOf(figure);
+  const double panelW = (size.width() - kPanelGap * (cols - 1)) / cols;
+  const double panelH = (bottom - top - kPanelGap * (rows - 1)) / rows;
+  for (std::size_t i = 0; i < figure.panels.size(); ++i) {
+    const auto col = static_cast<double>(static_cast<int>(i) % cols);
+    const auto row = static_cast<double>(static_cast<int>(i) / cols);
+    paintPanel(painter, QRectF(col * (panelW + kPanelGap), top + row * (panelH + kPanelGap), panelW, panelH),
+               figure.panels[i]);
+  }
   painter.restore();
 }
 

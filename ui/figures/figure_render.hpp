@@ -58,11 +58,13 @@ struct ImagePanel {
   bool showAxes = true;
 };
 
-/// A whole figure: panels in one row, with an optional title above and caption below.
+/// A whole figure: panels in a grid of `columns` columns (0: all in one row), filled row by row, with an
+/// optional title above and caption below. A panel title may have several lines ('\n').
 struct ImageFigure {
   QString title;
   QString caption;
   std::vector<ImagePanel> panels;
+  int columns = 0;
 };
 
 /// Paints `figure` into the rectangle (0, 0, size) of `painter` (logical units: points). Fonts are sized in

@@ -2,6 +2,7 @@
 #include <QMenu>
 
 #include "figure_dialog.hpp"
+#include "candidate_table.hpp"
 #include "fit_panel.hpp"
 #include "inspector_panel.hpp"
 #include "main_window.hpp"
@@ -32,6 +33,7 @@ FigureDialog* MainWindow::figureDialog() {
     ctx.central = m_view;
     ctx.stackCube = [this] { return m_inspector->stackCube(); };
     ctx.pixelToSky = m_services.pixelToSky;
+    ctx.selectedCandidates = [this] { return m_candidates->selectedCandidates(); };
     m_figureDialog = new FigureDialog(std::move(ctx), this);
   }
   return m_figureDialog;

@@ -61,6 +61,17 @@ struct Inspection {
   std::vector<vet::ArtifactFlag> flags;
 };
 
+/// A stamp of st::vet::stackStamp in SNR units: the IPSA sum of `frames` around the candidate's cell
+/// (c.x, c.y) at velocity v (px/s; the search's rounding), divided by sigma_F sqrt(N_in), N_in = the frames
+/// whose sample of the centre cell is inside the frame and unmasked. (2 half + 1)^2 pixels.
+struct SnrStamp {
+  Image image;
+  double centreSnr = 0.0;  ///< image at the centre: the search statistic of the cell
+  std::size_t nIn = 0;
+};
+[[nodiscard]] SnrStamp snrStampAt(const search::FilteredCube& cube, const std::vector<std::size_t>& frames,
+                                  const search::Candidate& c, Velocity v, int half);
+
 /// Computes everything above. Throws st::InputError when the input has no filtered cube or sigma_F <= 0,
 /// st::Cancelled when cancelled.
 [[nodiscard]] Inspection inspectCandidate(const InspectionInput& input, CancelToken& cancel);
