@@ -25,7 +25,9 @@ MemoryEstimate estimatePreprocessPeak(const CubeShape& s, bool keepZeroBiased, u
   e.add("per-pixel images", kPreprocessImageBytesPerPixel * pixels);
   e.add("per-frame records", kPreprocessBytesPerFrame * static_cast<double>(s.frames));
   const double rowBuffers = static_cast<double>(std::min<std::size_t>(s.frames, 2000)) * s.width * 8.0 * 4.0;
-  e.add("per-thread buffers", std::max(1u, threads) * (rowBuffers + 4.0 * pixels));
+  // Per thread: the per-pixel background's row buffers and kPreprocessThreadBytesPerPixel of frame-sized
+  // buffers (a frame's FFT and SEP buffers, stack bands).
+  e.add("per-thread buffers", std::max(1u, threads) * (rowBuffers + kPreprocessThreadBytesPerPixel * pixels));
   e.add("base", kBaseBytes);
   return e;
 }

@@ -259,6 +259,8 @@ TEST_F(OutOfCoreCli, RawInputOverTheBudgetExitsOneNamingTheNeed) {
 // in-memory run does not report, the process stays under the budget, and the scratch cube is removed (or
 // kept with --keep-scratch, a valid pre-processed cube).
 TEST_F(OutOfCoreCli, RawInputOverTheBudgetIsPreProcessedOutOfCoreInStrips) {
+  // The per-thread buffers count in the plan: two threads (CI's) whatever machine runs the test.
+  ::setenv("ST_THREADS", "2", 1);
   const auto [rcSim, rssSim] =
       runMeasured({"simulate", "--preset", "small", "--frames", "100", "--size", "256x1024", "--seed", "3", "-o",
                    path("tall.fits").string()},

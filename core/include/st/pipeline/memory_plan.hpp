@@ -10,7 +10,8 @@
 //   the zero-biased copy 4/sample only when it is kept (--fit; otherwise the matched filter runs in place),
 //   kPreprocessImageBytesPerPixel per frame pixel (background, noise, stacks, masks, filter weights) and
 //   kPreprocessBytesPerFrame per frame,
-//   per-thread row buffers of the per-pixel background (min(N, 2000) x W x 8) and the filter's frame;
+//   per-thread row buffers of the per-pixel background (min(N, 2000) x W x 32) and
+//   kPreprocessThreadBytesPerPixel per frame pixel (the thread's frame buffers);
 // - a search: the filtered cube 4/sample (+ mask), the backend's working set (MethodEstimate: exact kernel
 //   scratch, or the tree's partial stacks sized by SearchParams::bufferBytes), the map and the cells above
 //   threshold (kHitBytes each, at most maxCandidates, kExpectedHits assumed);
@@ -34,6 +35,11 @@ namespace st::pipeline {
 /// rounded up so that the estimate is 10-15% above those peaks.
 inline constexpr double kPreprocessImageBytesPerPixel = 320.0;
 inline constexpr double kPreprocessBytesPerFrame = 32.0 * 1024;
+/// Frame-sized buffers each pre-processing thread holds (a frame's FFT and SEP buffers, stack bands), bytes
+/// per frame pixel. Measured 2026-11-27 (dev VM): strips of 256 x 448 px x 100 frames peaked at 148 MB
+/// with 2 threads and 231 MB with 16 (5.1 MB more per thread, 44 B per frame pixel, beyond the 4 B counted
+/// before); 56 leaves a margin.
+inline constexpr double kPreprocessThreadBytesPerPixel = 56.0;
 /// Bytes held per cell above threshold (CellHit plus sorting and clustering).
 inline constexpr double kHitBytes = 80.0;
 /// Cells above threshold assumed by the estimate (a field with bright residuals; at most maxCandidates).
