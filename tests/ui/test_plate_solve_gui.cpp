@@ -84,6 +84,10 @@ struct FakeAstrometry {
   QString solveField;
   QString indexDir;
   FakeAstrometry() {
+    // ctest runs this file's tests as parallel processes: each its own settings file, or one test's
+    // solve-field (a 30 s sleep) is read by another (seen on the dev VM at -j2, 2026-11-27).
+    QCoreApplication::setApplicationName(
+        QStringLiteral("synthtrack-plate-solve-gui-%1").arg(QCoreApplication::applicationPid()));
     FitsHeader wcs;
     test::setTanWcs(wcs, 150.0, 2.0, 64.5, 48.5, 1.5);
     const std::string wcsFile = (dir / "truth.wcs").string();
