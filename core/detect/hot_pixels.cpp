@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "st/common/parallel.hpp"
+#include "st/common/prefault.hpp"
 
 namespace st::detect {
 
@@ -60,7 +61,8 @@ std::vector<std::size_t> findHotPixels(const FrameCube& cube, double background,
 std::size_t maskPixelsInAllFrames(FrameCube& cube, const std::vector<std::size_t>& pixels) {
   if (pixels.empty()) return 0;
   auto& mask = cube.mask();
-  if (mask.empty()) mask.assign(cube.pixels().size(), 0);
+  // 393 MB for 1500 x 512^2: its page faults on every core instead of one (issue 16).
+  if (mask.empty()) mask = prefaultedZeros(cube.pixels().size(), std::uint8_t{0});
   const std::size_t np = cube.framePixels();
   for (std::size_t n = 0; n < cube.frameCount(); ++n)
     for (std::size_t i : pixels)
