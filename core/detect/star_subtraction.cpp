@@ -33,15 +33,6 @@ std::vector<int> regionPixels(const MovingMask& region) {
   return out;
 }
 
-// The frame's sub-pixel offset beyond the mask's integer shift: the true sky motion (the frame's
-// registration offset o_n plus the linear motion) is shift + f.
-std::pair<double, double> fractionalOffset(const MovingMask& region, const FrameCube& cube, std::size_t n,
-                                           double dt) {
-  const Velocity v = region.rate();
-  const FrameInfo& f = cube.info()[n];
-  return {f.offsetXPx + v.vx * dt - region.shiftX(n), f.offsetYPx + v.vy * dt - region.shiftY(n)};
-}
-
 // Whether any of p[0, n) is non-zero (8 bytes at a time).
 bool anySet(const std::uint8_t* p, int n) {
   std::uint64_t acc = 0;
@@ -71,44 +62,78 @@ int lanczos3Weights(double f, double w[6]) {
   return b - 2;
 }
 
-StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, const Image* sigma,
-                                     const StarSubtractionParams& params, ProgressSink& progress,
-                                     CancelToken& cancel) {
-  StarSubtraction out;
+std::optional<StarTemplatePlan> planStarTemplate(const FrameCube& cube, const MovingMask& region,
+                                                 const StarSubtractionParams& params) {
   const std::size_t nf = cube.frameCount();
-  if (region.empty() || nf < 4 || region.frameCount() != nf) return out;
-  const std::vector<int> targets = regionPixels(region);
-  if (targets.empty()) return out;
+  if (region.empty() || nf < 4 || region.frameCount() != nf) return std::nullopt;
+  StarTemplatePlan plan;
+  plan.targets = regionPixels(region);
+  if (plan.targets.empty()) return std::nullopt;
   // The template covers the region grown by the interpolation's reach (6 x 6 taps: up to 3 px along each
   // axis, so 3 sqrt(2) on the diagonals), so that its edge is subtracted too. A disc of 3 px left the
   // corner taps of the region's rim without a template, and those pixels were zeroed: a ring around every
   // star in 30-70% of the frames (paper-neo seed 24: 8% of its asteroid's PSF^2-weighted track).
   MovingMask grown = region;
   grown.dilate(5);
-  const std::vector<int> pix = regionPixels(grown);
+  plan.positions = regionPixels(grown);
   const std::vector<double> dt = cube.timeOffsetsS();
   const double window = params.windowFraction * cube.timeSpanS();
-
   // Blocks of consecutive times, equal counts.
   std::vector<std::size_t> order(nf);
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return dt[a] < dt[b]; });
   const int nb = std::max(1, std::min<int>(params.blocks, static_cast<int>(nf)));
-  std::vector<int> blockOf(nf);
+  plan.blocks = nb;
+  plan.blockOf.assign(nf, 0);
   std::vector<double> t0(nb, 1e300), t1(nb, -1e300);
   for (std::size_t k = 0; k < nf; ++k) {
     const int b = static_cast<int>(k * nb / nf);
-    blockOf[order[k]] = b;
+    plan.blockOf[order[k]] = b;
     t0[b] = std::min(t0[b], dt[order[k]]);
     t1[b] = std::max(t1[b], dt[order[k]]);
   }
-  // Block b' is excluded from block b's template when their time ranges come within the window.
-  auto excluded = [&](int b, int c) { return t0[c] <= t1[b] + window && t1[c] >= t0[b] - window; };
+  // Block c is excluded from block b's template when their time ranges come within the window.
+  plan.excluded.assign(static_cast<std::size_t>(nb) * nb, 0);
   bool any = false;
-  for (int b = 0; b < nb && !any; ++b)
-    for (int c = 0; c < nb; ++c)
-      if (!excluded(b, c)) any = true;
-  if (!any) return out;
+  for (int b = 0; b < nb; ++b)
+    for (int c = 0; c < nb; ++c) {
+      const bool ex = t0[c] <= t1[b] + window && t1[c] >= t0[b] - window;
+      plan.excluded[static_cast<std::size_t>(b) * nb + c] = ex ? 1 : 0;
+      any = any || !ex;
+    }
+  if (!any) return std::nullopt;
+  return plan;
+}
+
+std::pair<double, double> starTemplateFractionalOffset(const MovingMask& region, const FrameCube& cube,
+                                                       std::size_t n, double dt) {
+  const Velocity v = region.rate();
+  const FrameInfo& f = cube.info()[n];
+  return {f.offsetXPx + v.vx * dt - region.shiftX(n), f.offsetYPx + v.vy * dt - region.shiftY(n)};
+}
+
+double starResidualVerdict(double r2, double s2, double samples, const StarSubtractionParams& params) {
+  if (samples < params.minExcessSamples || !(s2 > 0.0)) return 0.0;
+  // The ratio of S samples scatters by sqrt(2 / S) about 1 (chi-square: a heavy upper tail).
+  const double ratio = r2 / s2;
+  if (ratio <= 1.0 + params.excessSignificance * std::sqrt(2.0 / samples)) return 0.0;
+  if (ratio > params.maxVarianceRatio) return -1.0;
+  return 1.0 / std::sqrt(ratio);
+}
+
+StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, const Image* sigma,
+                                     const StarSubtractionParams& params, ProgressSink& progress,
+                                     CancelToken& cancel) {
+  StarSubtraction out;
+  const std::size_t nf = cube.frameCount();
+  const std::optional<StarTemplatePlan> plan = planStarTemplate(cube, region, params);
+  if (!plan) return out;
+  const std::vector<int>& targets = plan->targets;
+  const std::vector<int>& pix = plan->positions;
+  const std::vector<double> dt = cube.timeOffsetsS();
+  const int nb = plan->blocks;
+  const std::vector<int>& blockOf = plan->blockOf;
+  auto excluded = [&](int b, int c) { return plan->excluded[static_cast<std::size_t>(b) * nb + c] != 0; };
 
   const int w = cube.width(), h = cube.height(), cw = region.canvasWidth();
   const std::size_t np = pix.size();
@@ -132,13 +157,14 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
       for (std::size_t n = 0; n < nf; ++n) {
         if (blockOf[n] != static_cast<int>(b)) continue;
         cancel.throwIfCancelled();
-        const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
+        const auto [fx, fy] = starTemplateFractionalOffset(region, cube, n, dt[n]);
         double wx[6], wy[6];
         const int ox = lanczos3Weights(fx, wx), oy = lanczos3Weights(fy, wy);
         const float* f = cube.frame(n);
         const std::uint8_t* m = mask.empty() ? nullptr : mask.data() + n * fp;
         const int sx = region.shiftX(n), sy = region.shiftY(n);
-        // Rows of this frame with a masked pixel, counted cumulatively: taps on rows without one need no test.
+        // Rows of this frame with a masked pixel, counted cumulatively: taps on rows without one need no
+        // test.
         maskedRows[0] = 0;
         for (int y = 0; y < h; ++y)
           maskedRows[y + 1] = maskedRows[y] + (m && anySet(m + static_cast<std::size_t>(y) * w, w) ? 1 : 0);
@@ -227,7 +253,7 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const int b = blockOf[n];
-      const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
+      const auto [fx, fy] = starTemplateFractionalOffset(region, cube, n, dt[n]);
       // Template at canvas position X - f: base X, offset -f.
       double wx[6], wy[6];
       const int ox = lanczos3Weights(-fx, wx), oy = lanczos3Weights(-fy, wy);
@@ -291,15 +317,11 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
     // The whitened positions and their factors, listed once: the per-frame pass visits only those.
     std::vector<std::pair<int, float>> whiten;
     for (std::size_t k = 0; k < targets.size(); ++k) {
-      if (samples[k] < params.minExcessSamples || !(s2[k] > 0.0)) continue;
-      // The ratio of S samples scatters by sqrt(2 / S) about 1 (chi-square: a heavy upper tail).
-      const double ratio = r2[k] / s2[k];
-      if (ratio <= 1.0 + params.excessSignificance * std::sqrt(2.0 / samples[k])) continue;
-      if (ratio > params.maxVarianceRatio) {
+      const double verdict = starResidualVerdict(r2[k], s2[k], samples[k], params);
+      if (verdict < 0.0)
         out.excess.set(region.x0() + targets[k] % cw, region.y0() + targets[k] / cw);
-      } else {
-        whiten.emplace_back(targets[k], static_cast<float>(1.0 / std::sqrt(ratio)));
-      }
+      else if (verdict > 0.0)
+        whiten.emplace_back(targets[k], static_cast<float>(verdict));
     }
     out.whitenedPositions = whiten.size();
     out.excessPositions = out.excess.count();

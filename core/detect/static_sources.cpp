@@ -214,8 +214,8 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
-                                const StaticSourceParams& params, ProgressSink& progress,
-                                CancelToken& cancel, SkyStackCache* stacks) {
+                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel,
+                                SkyStackCache* stacks) {
   SkyStackCache own;
   SkyStackCache& cache = stacks ? *stacks : own;
   StaticSources out;
@@ -292,8 +292,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
     described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
-  const Motion motion =
-      measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw, noise.sigma, params, cache, cancel);
+  const Motion motion = measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw,
+                                       noise.sigma, params, cache, cancel);
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
@@ -302,8 +302,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     // second halves of the frames (a slow moving object is a streak there, and its halves shift).
     if (k >= nPerPixel) {
       if (halves.empty())
-        halves =
-            detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cache, cancel);
+        halves = detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cache,
+                                    cancel);
       int peak = comp.front();
       for (int p : comp)
         if (snrF[p] > snrF[peak]) peak = p;
@@ -330,7 +330,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       // all the same (one pixel, dilated below): the per-pixel background leaves its seeing residuals there,
       // and on the Lowell frames leaving them found a slow SNR 9 candidate at one. Where the stars are
       // subtracted, the template removes such a star and nothing is masked: a 5-pixel cross at every faint
-      // star had cost paper-neo seed 24's asteroid, which passes 1 px from a V = 22.5 star, 5.6% of its track.
+      // star had cost paper-neo seed 24's asteroid, which passes 1 px from a V = 22.5 star, 5.6% of its
+      // track.
       const double wing = detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, maskFrames,
                                                narrow ? 2.0 * noise.sigma : noise.sigma);
       if (wing > 0.0)
@@ -338,8 +339,9 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       else if (!subtracted)
         out.mask.set(static_cast<int>(std::lround(st.x)), static_cast<int>(std::lround(st.y)));
       if (subtracted)
-        detail::setDisc(out.subtractRegion, st.x, st.y,
-                        detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
+        detail::setDisc(
+            out.subtractRegion, st.x, st.y,
+            detail::wingRadiusPx(st.flux, params.psfFwhmPx, params.wingBeta, frames, noise.sigma));
     }
     // Diffraction spikes along the detector axes and the column bleed of saturated (or very bright) stars.
     if (st.saturated || st.snr >= params.spikeSnr) {
@@ -350,8 +352,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
       // test whitens or masks what is left. Masking them whole cost paper-neo seed 28's asteroid, whose
       // track runs along a saturated star's spike for half the span, 30% of its PSF^2-weighted track.
       // The bleed stays masked: clipped pixels carry nothing.
-      detail::maskSpikes(subtracted ? out.subtractRegion : out.mask, s.mean, s.count, noise.sigma, s.x0, s.y0, st,
-                         0, armHalf);
+      detail::maskSpikes(subtracted ? out.subtractRegion : out.mask, s.mean, s.count, noise.sigma, s.x0, s.y0,
+                         st, 0, armHalf);
       detail::maskBleed(out.mask, s.mean, s.count, noise.sigma, s.x0, s.y0, st, armHalf);
     }
     out.stars.push_back(std::move(st));
@@ -366,15 +368,40 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   return out;
 }
 
-std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel) {
-  if (mask.empty()) return 0;
-  // The set reference positions, listed once.
+std::vector<std::pair<int, int>> maskedPositions(const MovingMask& mask) {
   std::vector<std::pair<int, int>> set;
   const auto& c = mask.canvas();
   for (int j = 0; j < mask.canvasHeight(); ++j)
     for (int i = 0; i < mask.canvasWidth(); ++i)
       if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i])
         set.emplace_back(mask.x0() + i, mask.y0() + j);
+  return set;
+}
+
+std::vector<std::uint8_t> coveredInSomeFrame(const MovingMask& mask, int w, int h) {
+  std::vector<std::uint8_t> kept(static_cast<std::size_t>(w) * h, 0);
+  if (mask.empty()) return kept;
+  std::vector<std::pair<int, int>> shifts;
+  for (std::size_t n = 0; n < mask.frameCount(); ++n)
+    shifts.emplace_back(mask.shiftX(n), mask.shiftY(n));
+  std::sort(shifts.begin(), shifts.end());
+  shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
+  const auto& c = mask.canvas();
+  for (int j = 0; j < mask.canvasHeight(); ++j)
+    for (int i = 0; i < mask.canvasWidth(); ++i) {
+      if (!c[static_cast<std::size_t>(j) * mask.canvasWidth() + i]) continue;
+      for (const auto& [sx, sy] : shifts) {
+        const int x = mask.x0() + i + sx, y = mask.y0() + j + sy;
+        if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
+      }
+    }
+  return kept;
+}
+
+std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& progress, CancelToken& cancel) {
+  if (mask.empty()) return 0;
+  // The set reference positions, listed once.
+  const std::vector<std::pair<int, int>> set = maskedPositions(mask);
   std::vector<std::size_t> perFrame(cube.frameCount(), 0);
   const int w = cube.width(), h = cube.height();
   parallelFor(cube.frameCount(), 16, [&](std::size_t n0, std::size_t n1) {
@@ -400,24 +427,8 @@ std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unm
                            const MovingMask& keep) {
   const int w = cube.width(), h = cube.height();
   if (unmeasured.size() != cube.framePixels()) return 0;
-  // Pixels `keep` covers in some frame: its set reference positions moved by each distinct shift.
-  std::vector<std::uint8_t> kept(cube.framePixels(), 0);
-  if (!keep.empty()) {
-    std::vector<std::pair<int, int>> shifts;
-    for (std::size_t n = 0; n < keep.frameCount(); ++n)
-      shifts.emplace_back(keep.shiftX(n), keep.shiftY(n));
-    std::sort(shifts.begin(), shifts.end());
-    shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
-    const auto& c = keep.canvas();
-    for (int j = 0; j < keep.canvasHeight(); ++j)
-      for (int i = 0; i < keep.canvasWidth(); ++i) {
-        if (!c[static_cast<std::size_t>(j) * keep.canvasWidth() + i]) continue;
-        for (const auto& [sx, sy] : shifts) {
-          const int x = keep.x0() + i + sx, y = keep.y0() + j + sy;
-          if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
-        }
-      }
-  }
+  // Pixels `keep` covers in some frame.
+  const std::vector<std::uint8_t> kept = coveredInSomeFrame(keep, w, h);
   std::size_t zeroed = 0;
   for (std::size_t i = 0; i < kept.size(); ++i) {
     if (kept[i] || !unmeasured[i]) continue;
@@ -435,8 +446,8 @@ std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unm
 namespace {
 
 // The pixels i (in order) with may[i] set and !(f[i] < thr[i]).
-void findSeedsScalar(const float* f, const float* thr, const std::int32_t* may, std::size_t i0, std::size_t np,
-                     std::vector<int>& seeds) {
+void findSeedsScalar(const float* f, const float* thr, const std::int32_t* may, std::size_t i0,
+                     std::size_t np, std::vector<int>& seeds) {
   for (std::size_t i = i0; i < np; ++i)
     if (may[i] && !(f[i] < thr[i])) seeds.push_back(static_cast<int>(i));
 }
@@ -449,8 +460,8 @@ __attribute__((target("avx2"))) std::size_t findSeedsAvx2(const float* f, const 
   std::size_t i = 0;
   for (; i + 8 <= np; i += 8) {
     const __m256 lt = _mm256_cmp_ps(_mm256_loadu_ps(f + i), _mm256_loadu_ps(thr + i), _CMP_LT_OQ);
-    const __m256 seed =
-        _mm256_andnot_ps(lt, _mm256_castsi256_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(may + i))));
+    const __m256 seed = _mm256_andnot_ps(
+        lt, _mm256_castsi256_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(may + i))));
     unsigned bits = static_cast<unsigned>(_mm256_movemask_ps(seed));
     while (bits) {
       seeds.push_back(static_cast<int>(i) + __builtin_ctz(bits));

@@ -155,6 +155,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cr = calib::removeCosmicRays(cube, cp, sub, cancel);
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
+    if (cr.sourceSeeds > 0)
+      out.notes.push_back(std::to_string(cr.sourceSeeds) +
+                          " pixel(s) that stood above their time neighbours like cosmic-ray hits were kept: "
+                          "each is the core of a source the PSF resolves (a bright mover, a variable star), "
+                          "not a hit");
   }
   lap("cosmic rays");
   // The cube does not change again until the per-pixel background (static sources and the PSF only read
@@ -164,6 +169,21 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;
+  // On a device, from the cube prefetch() is uploading (issue 16); a device failure: a note, the CPU stacks.
+  if (params.accelerator)
+    skyStacks.setProvider([&out, accel = params.accelerator, failed = false](
+                              const FrameCube& c, Velocity rate, double subtract, std::size_t first,
+                              std::size_t last) mutable -> std::optional<detect::SkyStack> {
+      if (failed) return std::nullopt;
+      try {
+        return accel->skyStack(c, rate, subtract, first, last);
+      } catch (const GpuError& e) {
+        failed = true;
+        out.notes.push_back("warning: the stacks at the sky rate fell back to the CPU (" + accel->name() +
+                            ": " + e.what() + ")");
+        return std::nullopt;
+      }
+    });
   {
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
@@ -188,6 +208,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.38, 0.4);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
     lap("static sources at the fitted FWHM");
+  }
+  if (params.accelerator) {
+    std::ostringstream note;
+    note << "stacks at the sky rate: " << skyStacks.made() << " made (" << skyStacks.provided() << " on "
+         << params.accelerator->name() << ") in " << skyStacks.seconds() << " s";
+    out.notes.push_back(note.str());
   }
   skyStacks = detect::SkyStackCache();  // its memory (several canvases) is not needed any more
   out.stars = stars.stars;
@@ -281,8 +307,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   out.singleFrame = std::move(zb.singleFrame);
   if (params.removeResidualMean) out.residualMeanRms = zb.residualMeanRms;
   if (params.weightedFilter)
-    out.noiseModel =
-        estimateNoiseModelOn(params.accelerator, cube, out.noise, unmeasured, params.noise, cancel, out.notes);
+    out.noiseModel = estimateNoiseModelOn(params.accelerator, cube, out.noise, unmeasured, params.noise,
+                                          cancel, out.notes);
   lap("noise model");
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.83, 1.0);

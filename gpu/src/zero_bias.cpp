@@ -1,13 +1,14 @@
 // zero_bias.hpp: the host side of star subtraction and zeroing on a cube kept on the device. The tables
-// (blocks of frames, Lanczos weights, region positions, templates from the block sums) are made exactly as
-// core/detect/star_subtraction.cpp and core/detect/static_sources.cpp make them.
+// (blocks of frames, region positions, the fractional offsets, the residuals' verdicts, the masks' positions)
+// come from core's own functions (detect::planStarTemplate, starTemplateFractionalOffset,
+// starResidualVerdict, maskedPositions, coveredInSomeFrame); the kernels do the per-pixel work.
 #include "zero_bias.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cmath>
-#include <numeric>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -34,21 +35,6 @@ DeviceBuffer<unsigned long long> zeros(std::size_t n, cudaStream_t s) {
   return d;
 }
 
-std::vector<int> regionPixels(const MovingMask& region) {
-  std::vector<int> out;
-  const auto& c = region.canvas();
-  for (int i = 0; i < static_cast<int>(c.size()); ++i)
-    if (c[i]) out.push_back(i);
-  return out;
-}
-
-std::pair<double, double> fractionalOffset(const MovingMask& region, const FrameCube& cube, std::size_t n,
-                                           double dt) {
-  const Velocity v = region.rate();
-  const FrameInfo& f = cube.info()[n];
-  return {f.offsetXPx + v.vx * dt - region.shiftX(n), f.offsetYPx + v.vy * dt - region.shiftY(n)};
-}
-
 /// The per-frame Lanczos tables on the device (sign +1: sampling the frames at +f; -1: the template at -f).
 struct LanczosTables {
   DeviceBuffer<int> sx, sy, ox, oy;
@@ -62,7 +48,7 @@ LanczosTables lanczosTables(const MovingMask& region, const FrameCube& cube, con
   std::vector<int> sx(nf), sy(nf), ox(nf), oy(nf);
   std::vector<double> wx(6 * nf), wy(6 * nf);
   for (std::size_t n = 0; n < nf; ++n) {
-    const auto [fx, fy] = fractionalOffset(region, cube, n, dt[n]);
+    const auto [fx, fy] = detect::starTemplateFractionalOffset(region, cube, n, dt[n]);
     ox[n] = detect::lanczos3Weights(sign > 0 ? fx : -fx, wx.data() + 6 * n);
     oy[n] = detect::lanczos3Weights(sign > 0 ? fy : -fy, wy.data() + 6 * n);
     sx[n] = region.shiftX(n);
@@ -99,33 +85,13 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
     last = now;
   };
   const std::size_t nf = cube.frameCount();
-  if (region.empty() || nf < 4 || region.frameCount() != nf) return out;
-  const std::vector<int> targets = regionPixels(region);
-  if (targets.empty()) return out;
-  MovingMask grown = region;
-  grown.dilate(5);
-  const std::vector<int> pix = regionPixels(grown);
+  const std::optional<detect::StarTemplatePlan> plan = detect::planStarTemplate(cube, region, params);
+  if (!plan) return out;
+  const std::vector<int>& targets = plan->targets;
+  const std::vector<int>& pix = plan->positions;
   const std::vector<double> dt = cube.timeOffsetsS();
-  const double window = params.windowFraction * cube.timeSpanS();
-
-  std::vector<std::size_t> order(nf);
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return dt[a] < dt[b]; });
-  const int nb = std::max(1, std::min<int>(params.blocks, static_cast<int>(nf)));
-  std::vector<int> blockOf(nf);
-  std::vector<double> t0(nb, 1e300), t1(nb, -1e300);
-  for (std::size_t k = 0; k < nf; ++k) {
-    const int b = static_cast<int>(k * nb / nf);
-    blockOf[order[k]] = b;
-    t0[b] = std::min(t0[b], dt[order[k]]);
-    t1[b] = std::max(t1[b], dt[order[k]]);
-  }
-  auto excluded = [&](int b, int c) { return t0[c] <= t1[b] + window && t1[c] >= t0[b] - window; };
-  bool any = false;
-  for (int b = 0; b < nb && !any; ++b)
-    for (int c = 0; c < nb; ++c)
-      if (!excluded(b, c)) any = true;
-  if (!any) return out;
+  const int nb = plan->blocks;
+  const std::vector<int>& blockOf = plan->blockOf;
   lap("regions and blocks");
 
   const int cw = region.canvasWidth(), ch = region.canvasHeight();
@@ -165,11 +131,7 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
   // One template per block over the canvas (the CPU's loop, on the device: the frame counts summed are
   // whole numbers, so their total is the CPU's in any order).
   const std::size_t canvasSize = static_cast<std::size_t>(cw) * ch;
-  std::vector<std::uint8_t> excl(static_cast<std::size_t>(nb) * nb);
-  for (int b = 0; b < nb; ++b)
-    for (int o = 0; o < nb; ++o)
-      excl[static_cast<std::size_t>(b) * nb + o] = excluded(b, o) ? 1 : 0;
-  DeviceBuffer<std::uint8_t> exclD = toDevice(excl);
+  DeviceBuffer<std::uint8_t> exclD = toDevice(plan->excluded);
   DeviceBuffer<float> tmplD(canvasSize * nb);
   DeviceBuffer<std::uint8_t> validD(canvasSize * nb);
   ST_CUDA_CHECK(cudaMemsetAsync(tmplD.get(), 0, canvasSize * nb * sizeof(float), s));
@@ -223,14 +185,12 @@ detect::StarSubtraction subtractStarTemplateOnDevice(const FrameCube& cube, Devi
     std::vector<int> wPos;
     std::vector<float> wFactor;
     for (std::size_t k = 0; k < nt; ++k) {
-      if (samples[k] < params.minExcessSamples || !(s2[k] > 0.0)) continue;
-      const double ratio = r2[k] / s2[k];
-      if (ratio <= 1.0 + params.excessSignificance * std::sqrt(2.0 / samples[k])) continue;
-      if (ratio > params.maxVarianceRatio) {
+      const double verdict = detect::starResidualVerdict(r2[k], s2[k], samples[k], params);
+      if (verdict < 0.0) {
         out.excess.set(region.x0() + targets[k] % cw, region.y0() + targets[k] / cw);
-      } else {
+      } else if (verdict > 0.0) {
         wPos.push_back(targets[k]);
-        wFactor.push_back(static_cast<float>(1.0 / std::sqrt(ratio)));
+        wFactor.push_back(static_cast<float>(verdict));
       }
     }
     out.whitenedPositions = wPos.size();
@@ -261,13 +221,10 @@ void zeroPixelsOnDevice(DeviceCubeRef d, const std::vector<std::uint64_t>& pixel
 std::size_t zeroMaskedOnDevice(DeviceCubeRef d, const MovingMask& mask, cudaStream_t s) {
   if (mask.empty()) return 0;
   std::vector<int> xy;
-  const auto& c = mask.canvas();
-  for (int j = 0; j < mask.canvasHeight(); ++j)
-    for (int i = 0; i < mask.canvasWidth(); ++i)
-      if (c[static_cast<std::size_t>(j) * mask.canvasWidth() + i]) {
-        xy.push_back(mask.x0() + i);
-        xy.push_back(mask.y0() + j);
-      }
+  for (const auto& [x, y] : detect::maskedPositions(mask)) {
+    xy.push_back(x);
+    xy.push_back(y);
+  }
   if (xy.empty()) return 0;
   std::vector<int> sx, sy;
   shiftsOf(mask, static_cast<std::size_t>(d.nf), sx, sy);
@@ -283,23 +240,7 @@ std::size_t zeroUnmeasuredOnDevice(DeviceCubeRef d, const std::vector<std::uint8
   const int w = d.width, h = d.height;
   const std::size_t np = static_cast<std::size_t>(w) * h;
   if (unmeasured.size() != np) return 0;
-  std::vector<std::uint8_t> kept(np, 0);
-  if (!keep.empty()) {
-    std::vector<std::pair<int, int>> shifts;
-    for (std::size_t n = 0; n < keep.frameCount(); ++n)
-      shifts.emplace_back(keep.shiftX(n), keep.shiftY(n));
-    std::sort(shifts.begin(), shifts.end());
-    shifts.erase(std::unique(shifts.begin(), shifts.end()), shifts.end());
-    const auto& c = keep.canvas();
-    for (int j = 0; j < keep.canvasHeight(); ++j)
-      for (int i = 0; i < keep.canvasWidth(); ++i) {
-        if (!c[static_cast<std::size_t>(j) * keep.canvasWidth() + i]) continue;
-        for (const auto& [sx, sy] : shifts) {
-          const int x = keep.x0() + i + sx, y = keep.y0() + j + sy;
-          if (x >= 0 && y >= 0 && x < w && y < h) kept[static_cast<std::size_t>(y) * w + x] = 1;
-        }
-      }
-  }
+  const std::vector<std::uint8_t> kept = detect::coveredInSomeFrame(keep, w, h);
   std::vector<int> pixels;
   for (std::size_t i = 0; i < np; ++i)
     if (!kept[i] && unmeasured[i]) pixels.push_back(static_cast<int>(i));

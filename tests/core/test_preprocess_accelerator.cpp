@@ -1,11 +1,13 @@
 // The pipeline's device hook (st/pipeline/preprocess_accelerator.hpp): a device that fails (st::GpuError)
 // leaves the stage to the CPU, with a warning naming the stage and the device's message, and the result is
-// the CPU's; a device that works is used; other errors are not swallowed.
+// the CPU's; a device that works is used; other errors are not swallowed. The sky-rate stacks' provider (a
+// device's detect::SkyStackCache::Provider) is used when it makes a stack, the CPU stacks when it makes none.
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "st/common/error.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/stats/noise_model.hpp"
@@ -185,6 +187,31 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
       << notes.front();
   EXPECT_EQ(fail.calls, 3);  // zeroBias, then the per-pixel background and residual means (both failing)
   EXPECT_EQ(b.stageSeconds.size(), 3u);  // no star subtraction without a region
+}
+
+TEST(SkyStackCache, ProviderStacksAreUsedAndNoneFallsBackToTheCpu) {
+  const FrameCube c = noiseCube(48, 40, 30);
+  NullProgress progress;
+  CancelToken cancel;
+  const Velocity rate{0.5, -0.2};
+  detect::SkyStackCache cache;
+  int asked = 0;
+  cache.setProvider([&](const FrameCube& cube, Velocity v, double subtract, std::size_t first,
+                        std::size_t last) -> std::optional<detect::SkyStack> {
+    ++asked;
+    EXPECT_NE(last, 0u);  // resolved
+    if (first != 0) return std::nullopt;
+    detect::SkyStack s = detect::stackAtSkyRate(cube, v, subtract, progress, cancel, first, last);
+    s.mean.pixels[0] = 12345.0f;  // a marker: this stack is the provider's
+    return s;
+  });
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel).mean.pixels[0], 12345.0f);
+  const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, 100.0, progress, cancel, 10, 20);
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 10, 20).mean.pixels, cpu.mean.pixels);
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 0, 30).mean.pixels[0], 12345.0f);  // cached
+  EXPECT_EQ(asked, 2);
+  EXPECT_EQ(cache.made(), 2);
+  EXPECT_EQ(cache.provided(), 1);
 }
 
 }  // namespace

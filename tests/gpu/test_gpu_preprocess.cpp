@@ -9,18 +9,24 @@
 //  - residual means (stats::removeResidualMeans): pixels within 1e-6 relative, the rms within 1e-9, and the
 //    frames kept on the device for the matched filter of the same cube;
 //  - the filtered cube left on the device is used by the exact and tree searches and stackAt without an
-//    upload, with the same results as a search that uploads.
+//    upload, with the same results as a search that uploads;
+//  - the stacks at the sky rate (detect::stackAtSkyRate) from the prefetched cube: equal to the CPU's
+//    (tolerance 0: the same double sums in the same order; NaN where the CPU has NaN), with and without a
+//    mask, whole cube, thirds and halves; none for a cube that was not prefetched.
 // Every test skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <thread>
 
 #include "gpu_test_cubes.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/stack/ipsa.hpp"
@@ -272,7 +278,7 @@ TEST(GpuResidualMeans, MatchesCpuAndFeedsTheFilter) {
     for (int y = 0; y < in.height(); ++y)
       for (int x = 0; x < in.width(); ++x) {
         float& v = f[static_cast<std::size_t>(y) * in.width() + x];
-        if (v != 0.0f) v += a + b * x;  // a residual level and slope per frame
+        if (v != 0.0f) v += a + b * x;                 // a residual level and slope per frame
         if (k % 7 == 3 && x < 32 && y < 32) v = 0.0f;  // a cell without values: the frame's median
         if (k == 5) v = 0.0f;                          // a frame without any: left alone
       }
@@ -372,6 +378,52 @@ TEST(GpuFilter, FromSourceEqualsFilterOfACopy) {
 
 // The filtered cube stays on the device: the exact search, the tree search and stackAt of that cube upload
 // nothing and give what a backend that uploads gives.
+void expectSameBits(const Image& a, const Image& b, const char* what) {
+  ASSERT_EQ(a.width, b.width) << what;
+  ASSERT_EQ(a.height, b.height) << what;
+  std::size_t bad = 0, first = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const float u = a.pixels[i], v = b.pixels[i];
+    if (std::isnan(u) && std::isnan(v)) continue;
+    if (std::memcmp(&u, &v, sizeof u) != 0 && bad++ == 0) first = i;
+  }
+  EXPECT_EQ(bad, 0u) << what << ": first at " << first << ": " << a.pixels[first] << " vs "
+                     << b.pixels[first];
+}
+
+TEST(GpuSkyStack, EqualsTheCpuStacksFromThePrefetchedCube) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  NullProgress progress;
+  CancelToken cancel;
+  for (const bool withMask : {false, true}) {
+    SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
+    const FrameCube c = rawCube(64, 48, 40, 11, withMask);
+    const Velocity rate{1.3, -0.45};  // px/s: ~26 x 9 px over the 20 s of frames, a canvas wider than a frame
+    const std::shared_ptr<void> guard = accel->prefetch(c);
+    const std::pair<std::size_t, std::size_t> ranges[] = {{0, 40},  {0, 13}, {13, 27},
+                                                          {27, 40}, {0, 20}, {20, 40}};
+    for (const auto& [first, last] : ranges) {
+      SCOPED_TRACE("frames " + std::to_string(first) + " to " + std::to_string(last));
+      // None until the prefetch's upload is done (the CPU stacks meanwhile): asked again until then.
+      std::optional<detect::SkyStack> dev;
+      for (int tries = 0; tries < 1000 && !dev; ++tries) {
+        dev = accel->skyStack(c, rate, 100.0, first, last);
+        if (!dev) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+      ASSERT_TRUE(dev.has_value());
+      const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, 100.0, progress, cancel, first, last);
+      EXPECT_EQ(dev->x0, cpu.x0);
+      EXPECT_EQ(dev->y0, cpu.y0);
+      expectSameBits(dev->mean, cpu.mean, "mean");
+      expectSameBits(dev->count, cpu.count, "count");
+      expectSameBits(dev->max, cpu.max, "max");
+    }
+    // Another cube (a copy: not the one prefetched): the device makes none, the CPU stacks.
+    const FrameCube other = c;
+    EXPECT_FALSE(accel->skyStack(other, rate, 100.0, 0, 40).has_value());
+  }
+}
+
 TEST(GpuResident, FilteredCubeIsSearchedWithoutUpload) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   ST_REQUIRE_GPU(resident);

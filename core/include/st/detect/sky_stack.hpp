@@ -5,7 +5,9 @@
 // and are not counted; masked samples neither.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
+#include <optional>
 #include <tuple>
 
 #include "st/common/frame_cube.hpp"
@@ -34,13 +36,28 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
 /// the cache is in use; requests differing in rate, subtracted level or frame range are separate stacks.
 class SkyStackCache {
  public:
-  /// stackAtSkyRate(cube, rate, subtract, progress, cancel, first, last), made on the first request.
+  /// Makes a stack elsewhere (a device, issue 16): the same contract as stackAtSkyRate(cube, rate, subtract,
+  /// first, last) with `last` resolved (never 0); none: not made there, the CPU makes it.
+  using Provider = std::function<std::optional<SkyStack>(
+      const FrameCube& cube, Velocity rate, double subtract, std::size_t first, std::size_t last)>;
+
+  /// stackAtSkyRate(cube, rate, subtract, progress, cancel, first, last), made on the first request (by the
+  /// provider when there is one and it makes it).
   const SkyStack& stack(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
                         CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
+
+  void setProvider(Provider provider) { m_provider = std::move(provider); }
+  /// Stacks made so far, those of them the provider made, and the wall time spent making them (s).
+  [[nodiscard]] int made() const { return m_made; }
+  [[nodiscard]] int provided() const { return m_provided; }
+  [[nodiscard]] double seconds() const { return m_seconds; }
 
  private:
   using Key = std::tuple<const void*, double, double, double, std::size_t, std::size_t>;
   std::map<Key, SkyStack> m_stacks;
+  Provider m_provider;
+  int m_made = 0, m_provided = 0;
+  double m_seconds = 0.0;
 };
 
 /// A smooth local background of an image: one-sided clip (xi = 3) of each `mesh` x `mesh` cell over pixels

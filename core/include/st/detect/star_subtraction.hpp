@@ -8,6 +8,10 @@
 // template, resampled back to frame n's offset, is subtracted there. Only the stars' cores, where single
 // frames see them, are masked afterwards.
 #include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <utility>
+#include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
@@ -40,13 +44,13 @@ struct StarSubtractionParams {
 
 struct StarSubtraction {
   bool applied = false;
-  std::size_t pixelsSubtracted = 0;  ///< pixel-frames from which a template value was subtracted
-  std::size_t pixelsZeroed = 0;      ///< pixel-frames of the region without a template there: zeroed
+  std::size_t pixelsSubtracted = 0;   ///< pixel-frames from which a template value was subtracted
+  std::size_t pixelsZeroed = 0;       ///< pixel-frames of the region without a template there: zeroed
   std::size_t whitenedPositions = 0;  ///< sky positions whose residuals were divided by sqrt(R) <= 2
   std::size_t excessPositions = 0;    ///< sky positions with R > maxVarianceRatio (before dilation)
   /// Those positions, dilated by 1 px, following the sky (same geometry as the region): to be zeroed.
   MovingMask excess;
-  double meanTemplateFrames = 0.0;   ///< frames averaged per template pixel, mean over the region
+  double meanTemplateFrames = 0.0;  ///< frames averaged per template pixel, mean over the region
 };
 
 /// Subtracts, in every frame of the zero-biased `cube`, the sky-registered template of the stars at the
@@ -63,5 +67,31 @@ StarSubtraction subtractStarTemplate(FrameCube& cube, const MovingMask& region, 
 /// Lanczos-3 weights for sampling at position f relative to an integer pixel: six taps starting at the
 /// returned offset (floor(f) - 2), normalised to 1.
 int lanczos3Weights(double f, double w[6]);
+
+/// What subtractStarTemplate prepares before it reads a pixel (shared with the GPU path, issue 16).
+struct StarTemplatePlan {
+  std::vector<int> targets;    ///< canvas positions (indices into region's canvas) the region sets
+  std::vector<int> positions;  ///< the template's positions: the region grown by 5 px (the taps' reach)
+  int blocks = 0;              ///< blocks of consecutive times, equal counts
+  std::vector<int> blockOf;    ///< frame -> its block
+  /// blocks x blocks, [b * blocks + c]: block c's time range comes within the window of block b's (left out
+  /// of b's template).
+  std::vector<std::uint8_t> excluded;
+};
+
+/// subtractStarTemplate's plan; none when it does not apply (region empty or of another frame count, fewer
+/// than 4 frames, no block outside another's window).
+std::optional<StarTemplatePlan> planStarTemplate(const FrameCube& cube, const MovingMask& region,
+                                                 const StarSubtractionParams& params);
+
+/// Frame n's sub-pixel offset beyond region's integer shift (dt: its time offset, s): the true sky motion
+/// (registration offset plus the linear motion) is shift + this.
+std::pair<double, double> starTemplateFractionalOffset(const MovingMask& region, const FrameCube& cube,
+                                                       std::size_t n, double dt);
+
+/// The verdict on one sky position's residuals: r2 = sum of squared residuals, s2 = sum of the background
+/// variances, over `samples` frames. 0: left as it is; else the factor (1 / sqrt(R)) its residuals are
+/// multiplied by, or -1: R > maxVarianceRatio, masked (StarSubtraction::excess).
+double starResidualVerdict(double r2, double s2, double samples, const StarSubtractionParams& params);
 
 }  // namespace st::detect

@@ -9,7 +9,9 @@
 // A source whose centroid moves between the stacks of the first and last thirds of the frames (a slow moving
 // object, a short streak that looks like a star) is not static: it is listed as a mover and left unmasked.
 #include <cstddef>
+#include <cstdint>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -94,7 +96,7 @@ struct StaticSources {
   std::vector<Star> stars;           ///< sorted by decreasing flux
   MovingMask mask;                   ///< footprints, dilated, at t_ref; follows the sky rate
   std::vector<MovingSource> movers;  ///< sources of the stack that moved: not in `stars`, not masked
-  MovingMask moverMask;     ///< the movers' footprints (streaks in the sky-rate stack), dilated like `mask`
+  MovingMask moverMask;  ///< the movers' footprints (streaks in the sky-rate stack), dilated like `mask`
   /// Drifting field with subtractStars: the stars' wide footprints (down to one stack sigma, dilated for
   /// sub-pixel motion) where their template is subtracted; empty otherwise.
   MovingMask subtractRegion;
@@ -111,8 +113,16 @@ struct StaticSources {
 /// dilated by ceil(dilateFwhm * FWHM) + 1 px. The stacks come from `stacks` when given (shared with a
 /// second search of the same cube at another FWHM, and with the PSF stage). Throws st::Cancelled.
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
-                                const StaticSourceParams& params, ProgressSink& progress,
-                                CancelToken& cancel, SkyStackCache* stacks = nullptr);
+                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel,
+                                SkyStackCache* stacks = nullptr);
+
+/// The reference positions (x0 + i, y0 + j) that `mask`'s canvas sets, row by row (zeroMasked's list, shared
+/// with the GPU path).
+std::vector<std::pair<int, int>> maskedPositions(const MovingMask& mask);
+
+/// The detector pixels (row-major, width x height) that `mask` covers in some frame: its set positions moved
+/// by each distinct shift (zeroUnmeasured's keep mask, shared with the GPU path).
+std::vector<std::uint8_t> coveredInSomeFrame(const MovingMask& mask, int width, int height);
 
 /// Sets every pixel covered by `mask` to 0 in every frame (frames must be zero-biased). Returns the number of
 /// pixels zeroed over all frames.

@@ -7,12 +7,14 @@
 // (st::gpu::makeCudaPreprocessAccelerator).
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
 #include "st/detect/static_sources.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -70,6 +72,15 @@ class PreprocessAccelerator {
   virtual std::shared_ptr<void> prefetch(const FrameCube& cube) {
     (void)cube;
     return nullptr;
+  }
+  /// detect::stackAtSkyRate(cube, rate, subtract, first, last) (last resolved, never 0): the same sums in
+  /// the same order (equal stacks); none when the device cannot make it without a whole upload of its own
+  /// (e.g. `cube` is not the one prefetch() took). The cube only needs to be unchanged since prefetch().
+  /// The default makes none (the CPU stacks).
+  virtual std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
+                                                   std::size_t first, std::size_t last) {
+    (void)cube, (void)rate, (void)subtract, (void)first, (void)last;
+    return std::nullopt;
   }
   /// Same contract as stats::subtractPixelBackground.
   virtual stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,

@@ -1,0 +1,163 @@
+#pragma once
+// The CUDA pre-processing accelerator (gpu/include/st/gpu/preprocess.hpp), one class whose stages live in
+// one file each (issue 16):
+//   cuda_preprocess.cpp             the device, globalBackground, prefetch, the staged copies, the factory
+//   cuda_preprocess_sky_stack.cpp  the stacks at the sky rate (static sources, PSF) from the prefetched cube
+//   cuda_preprocess_background.cpp the per-pixel background (subtractPixelBackground)
+//   cuda_preprocess_zero_bias.cpp  zeroBias: the per-pixel background to the residual means on one upload
+//   cuda_preprocess_residuals.cpp  removeResidualMeans and estimateNoiseModel
+//   cuda_preprocess_filter.cpp     the matched filter (filterCube, filterCubeFrom)
+// Host side: the CPU's tables (frames used, windows, weights) are made exactly as core makes them, the
+// kernels (preprocess_kernels.cu, zero_bias_kernels.cu, ...) do the per-pixel and per-frame work, and the
+// host cube is written only after every kernel has succeeded, so a st::GpuError leaves it as it was (the
+// caller falls back to the CPU).
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cuda_check.hpp"
+#include "device_info.hpp"
+#include "st/gpu/preprocess.hpp"
+#include "uploader.hpp"
+
+namespace st::gpu {
+
+namespace preprocess_detail {
+
+template <class T>
+std::vector<T> toHost(const DeviceBuffer<T>& d, std::size_t count) {
+  std::vector<T> out(count);
+  if (count) ST_CUDA_CHECK(cudaMemcpy(out.data(), d.get(), count * sizeof(T), cudaMemcpyDeviceToHost));
+  return out;
+}
+
+class Stopwatch {
+ public:
+  double lap() {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - m_last).count();
+    m_last = now;
+    return s;
+  }
+
+ private:
+  std::chrono::steady_clock::time_point m_last = std::chrono::steady_clock::now();
+};
+
+inline std::string ms(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f ms", s * 1e3);
+  return text;
+}
+
+/// Benchmark knob: ST_GPU_STAGEWISE=1 runs the pre-processing as before the resident zero-biased cube (the
+/// cube uploaded and downloaded by the per-pixel background and again by the residual means, star
+/// subtraction, zeroing and the noise model on the CPU, no prefetch), for before/after figures from one
+/// binary.
+inline bool stagewise() {
+  const char* e = std::getenv("ST_GPU_STAGEWISE");
+  return e && *e && *e != '0';
+}
+
+/// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
+/// core while the next piece's DMA runs).
+void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s);
+
+/// stats/background.cpp evenlySpaced.
+std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted);
+
+}  // namespace preprocess_detail
+
+class CudaPreprocess final : public CudaPreprocessAccelerator {
+ public:
+  explicit CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {}
+
+  [[nodiscard]] std::string name() const override { return "cuda: " + m_device.name; }
+  [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
+  void setKeepResident(bool keep) override { m_keepResident = keep; }
+
+  stats::ClipStats globalBackground(const FrameCube& cube,
+                                    const stats::GlobalBackgroundParams& params) override;
+  double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
+                             CancelToken& cancel) override;
+  std::shared_ptr<void> prefetch(const FrameCube& cube) override;
+  std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
+                                           std::size_t first, std::size_t last) override;
+  stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                                       const std::vector<std::uint8_t>& unmeasured,
+                                       const stats::NoiseModelParams& params, CancelToken& cancel) override;
+  stats::Background subtractPixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                            const detect::MovingMask* exclude, ProgressSink& progress,
+                                            CancelToken& cancel) override;
+  bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult& out,
+                ProgressSink& progress, CancelToken& cancel) override;
+  stack::MatchedFilterResult filterCube(FrameCube& cube, const stack::FilterKernel& kernel,
+                                        ProgressSink& progress, CancelToken& cancel,
+                                        const stats::NoiseModel* noise, std::uint64_t revision) override;
+  stack::MatchedFilterResult filterCubeFrom(const FrameCube& source, FrameCube& filtered,
+                                            const stack::FilterKernel& kernel, ProgressSink& progress,
+                                            CancelToken& cancel, const stats::NoiseModel* noise,
+                                            std::uint64_t revision) override;
+
+ private:
+  /// The device buffers the per-pixel background leaves for zeroBias's next stages.
+  struct KeptCube {
+    DeviceBuffer<float> pix, sigma;
+    DeviceBuffer<std::uint8_t> mask;
+    bool hasMask = false;
+  };
+
+  /// stats::subtractPixelBackground; with `keep`, the zero-biased frames (and the mask and sigma) stay on
+
+  /// stats::subtractPixelBackground; with `keep`, the zero-biased frames (and the mask and sigma) stay on
+  /// the device in *keep and the host cube is not written.
+  stats::Background pixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
+                                    const detect::MovingMask* exclude, ProgressSink& progress,
+                                    CancelToken& cancel, KeptCube* keep);
+  /// The matched filter of `cube`'s pixels (with its mask when `hasMask`) written into `dest` (which may be
+  /// `cube`); `freshDest`: dest's pixels are (re)allocated here, on another thread while the device works.
+  stack::MatchedFilterResult filter(const FrameCube& cube, bool hasMask, FrameCube& dest, bool freshDest,
+                                    const stack::FilterKernel& kernel, ProgressSink& progress,
+                                    CancelToken& cancel, const stats::NoiseModel* noise,
+                                    std::uint64_t revision);
+
+  DeviceInfo m_device;
+  std::unique_ptr<DeviceResources> m_res;
+  /// prefetch()'s upload: the cube's identity, and its device copy once `ok`.
+  struct Prefetch {
+    std::jthread thread;
+    DeviceBuffer<float> pix;
+    DeviceBuffer<std::uint8_t> mask;
+    const float* data = nullptr;
+    std::size_t size = 0, maskSize = 0;
+    std::uint64_t key = 0;
+    bool ok = false;
+    std::atomic<bool> finished{false};  ///< the thread is done (ok or not): join() will not wait
+    double seconds = 0.0;
+    void join() {
+      if (thread.joinable()) thread.join();
+    }
+    ~Prefetch() { join(); }
+  };
+  /// Host -> device through `r`'s pinned staging buffers, the host copies on this thread and
+  /// kPrefetchCopyThreads - 1 helpers.
+  static constexpr std::size_t kPrefetchCopyThreads = 4;
+  static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes);
+  std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
+  std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
+  std::string m_note;
+  bool m_keepResident = true;
+  // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.
+  DeviceBuffer<float> m_kept;
+  const float* m_keptData = nullptr;
+  std::uint64_t m_keptKey = 0;
+};
+
+}  // namespace st::gpu

@@ -1,0 +1,91 @@
+// CudaPreprocess::zeroBias: the per-pixel background, star subtraction, the zeroing stages and the residual
+// means with the cube kept on the device from one upload to one download (issue 16).
+#include "cuda_preprocess.hpp"
+#include "residual_means_host.hpp"
+#include "resident_cube.hpp"
+#include "zero_bias.hpp"
+
+namespace st::gpu {
+
+using namespace preprocess_detail;
+
+bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in,
+                              pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
+  if (stagewise()) return false;
+  const int w = cube.width(), h = cube.height();
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  Stopwatch sw;
+  auto lap = [&](const char* stage) { out.stageSeconds.emplace_back(stage, sw.lap()); };
+  KeptCube kc;
+  {
+    SubProgress sub(progress, 0.4, 0.65);
+    out.background = pixelBackground(cube, in.background, in.exclude, sub, cancel, &kc);
+  }
+  const std::string bgNote = m_note;
+  lap("per-pixel background");
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = ensureResources(m_res);
+  cudaStream_t s = r.compute.get();
+  const DeviceCubeRef d{kc.pix.get(), kc.hasMask ? kc.mask.get() : nullptr, w, h, static_cast<int>(nf)};
+  const float* sigma = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
+  out.starsAttempted = in.subtractRegion && !in.subtractRegion->empty();
+  std::string starTiming;
+  if (out.starsAttempted) {
+    cancel.throwIfCancelled();
+    out.starSubtraction =
+        subtractStarTemplateOnDevice(cube, d, *in.subtractRegion, sigma, in.starSubtraction, s, &starTiming);
+    if (out.starSubtraction.applied && in.starMask) {
+      const MovingMask& ex = out.starSubtraction.excess;
+      const auto& c = ex.canvas();
+      for (std::size_t i = 0; i < c.size(); ++i)
+        if (c[i])
+          in.starMask->set(ex.x0() + static_cast<int>(i) % ex.canvasWidth(),
+                           ex.y0() + static_cast<int>(i) / ex.canvasWidth());
+    }
+    progress.report(0.75, "star subtraction (GPU)");
+    lap("star subtraction");
+  }
+  cancel.throwIfCancelled();
+  if (in.cosmicRayPixels) zeroPixelsOnDevice(d, *in.cosmicRayPixels, s);
+  const MovingMask none;
+  const MovingMask& movers = in.moverMask ? *in.moverMask : none;
+  if (in.starMask) out.staticPixelsZeroed = zeroMaskedOnDevice(d, *in.starMask, s);
+  if (out.starsAttempted && !out.starSubtraction.applied)
+    out.staticPixelsZeroed += zeroMaskedOnDevice(d, *in.subtractRegion, s);
+  out.unmeasuredPixelsZeroed = zeroUnmeasuredOnDevice(d, out.background.filled, movers, s);
+  const float* noise = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
+  out.singleFrame = zeroSingleFrameSourcesOnDevice(d, noise, out.background.sigmaN, in.singleFrameSnr,
+                                                   in.singleFrameRadiusPx, &movers, s);
+  progress.report(0.8, "zeroing (GPU)");
+  lap("zeroing");
+  cancel.throwIfCancelled();
+  kc.mask = DeviceBuffer<std::uint8_t>();
+  kc.sigma = DeviceBuffer<float>();
+  Stopwatch rm;
+  if (in.removeResidualMean)
+    out.residualMeanRms = removeResidualMeansOnDevice(kc.pix.get(), w, h, static_cast<int>(nf),
+                                                      in.residualMeshPx, in.residualClipSigma, s);
+  ST_CUDA_CHECK(cudaStreamSynchronize(s));
+  const double rmKernels = rm.lap();
+  cancel.throwIfCancelled();
+  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter.
+  m_kept = DeviceBuffer<float>();
+  m_keptData = nullptr;
+  download(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s);
+  const double down = rm.lap();
+  m_kept = std::move(kc.pix);
+  m_keptData = cube.pixels().data();
+  m_keptKey = cubeKey(cube);
+  progress.report(0.83, "residual means (GPU)");
+  lap("residual means");
+  std::string stages;
+  for (const auto& [stage, sec] : out.stageSeconds)
+    stages += (stages.empty() ? "" : ", ") + stage + " " + ms(sec);
+  m_note = "per-pixel background to residual means on " + name() +
+           ", the cube kept on the device: " + stages + " (residual means kernels " + ms(rmKernels) +
+           ", download " + ms(down) + "; frames kept for the matched filter); star subtraction: " +
+           (starTiming.empty() ? "none" : starTiming) + "; " + bgNote;
+  return true;
+}
+
+}  // namespace st::gpu

@@ -1,0 +1,48 @@
+// detect::stackAtSkyRate on the device (sky_stack_kernels.hpp). Canvas pixel (i, j) takes frame n's pixel
+// (i + x0 + shiftX[n], j + y0 + shiftY[n]) when it lies in the frame and is not masked: the sum of
+// (double(v) - subtract) in frame order, the count, the largest value; mean = float(sum / count), and 0 mean
+// and maximum where no frame contributed (core/detect/sky_stack.cpp).
+#include <cmath>
+
+#include "cuda_check.hpp"
+#include "sky_stack_kernels.hpp"
+
+namespace st::gpu {
+namespace {
+
+__global__ void skyStackKernel(SkyStackLaunch p) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int j = static_cast<int>(blockIdx.y);
+  if (i >= p.cw || j >= p.ch) return;
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  double sum = 0.0;
+  float cnt = 0.0f;
+  float mx = -INFINITY;
+  for (int n = p.first; n < p.last; ++n) {
+    const int y = p.y0 + j + __ldg(p.shiftY + n);
+    const int x = i + p.x0 + __ldg(p.shiftX + n);
+    if (y < 0 || y >= p.height || x < 0 || x >= p.width) continue;
+    const std::size_t q = static_cast<std::size_t>(n) * np + static_cast<std::size_t>(y) * p.width + x;
+    if (p.mask && p.mask[q]) continue;
+    const float v = p.pix[q];
+    sum = __dadd_rn(sum, __dsub_rn(static_cast<double>(v), p.subtract));
+    cnt += 1.0f;
+    mx = mx < v ? v : mx;  // std::max(mx, v)
+  }
+  const std::size_t o = static_cast<std::size_t>(j) * p.cw + i;
+  p.mean[o] = cnt > 0.0f ? static_cast<float>(__ddiv_rn(sum, static_cast<double>(cnt))) : 0.0f;
+  p.count[o] = cnt;
+  p.max[o] = cnt == 0.0f ? 0.0f : mx;
+}
+
+}  // namespace
+
+void launchSkyStack(const SkyStackLaunch& p, cudaStream_t s) {
+  if (p.cw <= 0 || p.ch <= 0) return;
+  constexpr int kThreads = 128;
+  const dim3 grid(static_cast<unsigned>((p.cw + kThreads - 1) / kThreads), static_cast<unsigned>(p.ch));
+  skyStackKernel<<<grid, kThreads, 0, s>>>(p);
+  checkLaunch("skyStackKernel");
+}
+
+}  // namespace st::gpu
