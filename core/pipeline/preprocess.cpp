@@ -155,11 +155,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cr = calib::removeCosmicRays(cube, cp, sub, cancel);
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
-    if (cr.sourceSeeds > 0)
-      out.notes.push_back(std::to_string(cr.sourceSeeds) +
-                          " pixel(s) that stood above their time neighbours like cosmic-ray hits were kept: "
-                          "each is the core of a source the PSF resolves (a bright mover, a variable star), "
-                          "not a hit");
   }
   lap("cosmic rays");
   // The cube does not change again until the per-pixel background (static sources and the PSF only read
