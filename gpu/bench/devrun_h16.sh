@@ -13,6 +13,7 @@ nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
 date -u
 NEW=$W/synthtrack-cli
 OLD=$W/base/synthtrack-cli
+MID=$W/mid/synthtrack-cli  # optional: an intermediate build (BINS="OLD MID NEW")
 for step in "$@"; do
   echo "=== $step $(date -u +%H:%M:%S)"
   case $step in
@@ -26,7 +27,7 @@ for step in "$@"; do
                 grep -E "ERROR SUMMARY|LEAK SUMMARY|PASSED|FAILED" "$O/memcheck_$t.log" | head -4
               done ;;
     prep) for r in ${PREP_ROUNDS:-1}; do
-            for b in OLD NEW; do
+            for b in ${BINS:-OLD NEW}; do
               bin=${!b}
               "$bin" bench preprocess --frames 1500 --backend cuda 2>"$O/prep_${b}_$r.err" >"$O/prep_${b}_$r.log"
               echo "--- $b round $r"; grep -vE "^note: (stars subtracted|sky rate|registration)" "$O/prep_${b}_$r.log" | head -40
@@ -39,7 +40,7 @@ for step in "$@"; do
              done ;;
     fits) "$NEW" demo --frames 1500 --backend cuda --fits 0 --out /tmp/d1500 >"$O/d1500.log" 2>&1
           cat /tmp/d1500/observation.fits >/dev/null
-          for b in OLD NEW NEW OLD; do
+          for b in ${FITS_BINS:-OLD NEW NEW OLD}; do
             bin=${!b}
             /usr/bin/time -f "$b fits to candidates wall %e s" "$bin" search /tmp/d1500/observation.fits \
               --backend cuda --out /tmp/s1500_$b.csv >"$O/s1500_$b.log" 2>"$O/s1500_$b.err"
