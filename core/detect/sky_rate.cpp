@@ -153,7 +153,7 @@ bool agrees(const PairRates& p, Velocity pairRate, Velocity chainRate, Velocity*
 }  // namespace
 
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
-                       CancelToken& cancel) {
+                       CancelToken& cancel, const ShiftedSumsProvider* sums) {
   SkyRate out;
   const std::size_t nf = cube.frameCount();
   const std::size_t len =
@@ -174,7 +174,8 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   out.reliable = true;
   const std::string pairText =
       "pairs of short blocks gave (" + fixed(out.rate.vx) + ", " + fixed(out.rate.vy) + ") px/s";
-  const detail::ChainResult chain = detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel);
+  const detail::ChainResult chain =
+      detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
   if (!chain.ok) {
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;
     return out;

@@ -66,7 +66,8 @@ Layout layoutBlocks(const FrameCube& cube, Velocity rate, const SkyRateParams& p
 
 // sum[x] += f[x] - background and cnt[x] += 1 where m[x] is not set (m may be null). The AVX2 path adds
 // +0.0 where masked, which leaves both as they are: the scalar loop's values exactly.
-void addRowScalar(double* sum, double* cnt, const float* f, const std::uint8_t* m, int x0, int n, double background) {
+void addRowScalar(double* sum, double* cnt, const float* f, const std::uint8_t* m, int x0, int n,
+                  double background) {
   for (int x = x0; x < n; ++x) {
     if (m && m[x]) continue;
     sum[x] += f[x] - background;
@@ -76,8 +77,8 @@ void addRowScalar(double* sum, double* cnt, const float* f, const std::uint8_t* 
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define ST_SKY_RATE_CHAIN_AVX2 1
-__attribute__((target("avx2"))) int addRowAvx2(double* sum, double* cnt, const float* f, const std::uint8_t* m,
-                                               int n, double background) {
+__attribute__((target("avx2"))) int addRowAvx2(double* sum, double* cnt, const float* f,
+                                               const std::uint8_t* m, int n, double background) {
   const __m256d bg = _mm256_set1_pd(background), one = _mm256_set1_pd(1.0);
   const __m256i zero = _mm256_setzero_si256();
   int x = 0;
@@ -105,25 +106,39 @@ void addRow(double* sum, double* cnt, const float* f, const std::uint8_t* m, int
   addRowScalar(sum, cnt, f, m, x0, n, background);
 }
 
-BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last, Velocity rate,
-                      double background, double sigma, const std::vector<double>& dt) {
-  const int w = cube.width(), h = cube.height();
-  BlockStack b;
+// Block [first, last)'s shifts at `rate` about its own mean time: frame n's stack pixel (x, y) takes frame
+// pixel (x + sx, y + sy); its mean time and mean shift into `b`.
+ShiftedBlock blockShifts(std::size_t first, std::size_t last, Velocity rate, const std::vector<double>& dt,
+                         BlockStack& b) {
+  ShiftedBlock s;
+  s.first = first;
+  s.last = last;
   for (std::size_t n = first; n < last; ++n)
     b.tS += dt[n];
   b.tS /= static_cast<double>(last - first);
-  cv::Mat sum = cv::Mat::zeros(h, w, CV_64F), cnt = cv::Mat::zeros(h, w, CV_64F);
-  const auto& mask = cube.mask();
-  const std::size_t np = cube.framePixels();
   for (std::size_t n = first; n < last; ++n) {
     const int sx = static_cast<int>(std::lround(rate.vx * (dt[n] - b.tS)));
     const int sy = static_cast<int>(std::lround(rate.vy * (dt[n] - b.tS)));
     b.meanShift.x += sx, b.meanShift.y += sy;
+    s.sx.push_back(sx);
+    s.sy.push_back(sy);
+  }
+  b.meanShift *= 1.0 / static_cast<double>(last - first);
+  return s;
+}
+
+// shiftedSums of one block into sum and cnt (frame-sized, zeroed).
+void addShifted(const FrameCube& cube, const ShiftedBlock& blk, double background, double* sum, double* cnt) {
+  const int w = cube.width(), h = cube.height();
+  const auto& mask = cube.mask();
+  const std::size_t np = cube.framePixels();
+  for (std::size_t n = blk.first; n < blk.last; ++n) {
+    const int sx = blk.sx[n - blk.first], sy = blk.sy[n - blk.first];
     const float* f = cube.frame(n);
     // Stack pixel (x, y) takes frame pixel (x + sx, y + sy).
     for (int y = std::max(0, -sy); y < std::min(h, h - sy); ++y) {
-      double* srow = sum.ptr<double>(y);
-      double* crow = cnt.ptr<double>(y);
+      double* srow = sum + static_cast<std::size_t>(y) * w;
+      double* crow = cnt + static_cast<std::size_t>(y) * w;
       const std::size_t row = static_cast<std::size_t>(y + sy) * w;
       const int x0 = std::max(0, -sx), x1 = std::min(w, w - sx);
       const std::size_t i0 = row + static_cast<std::size_t>(x0 + sx);
@@ -131,17 +146,20 @@ BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last
              background);
     }
   }
-  b.meanShift *= 1.0 / static_cast<double>(last - first);
+}
+
+// The block's stack from its sums: only where (nearly) every frame of the block contributed: where only the
+// frames of one end of the block do, a star sits at their mean residual of the whole-pixel shifts, not the
+// block's (up to 0.5 px off: at 16.4 px/s and 16.7 Hz the residual ramps through a pixel over ~50 frames).
+void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums, int w, int h,
+                 double sigma) {
   b.value = cv::Mat::zeros(h, w, CV_32F);
   b.noise = cv::Mat::zeros(h, w, CV_32F);
   b.covered = cv::Mat::zeros(h, w, CV_8U);
-  // Only where (nearly) every frame of the block contributed: where only the frames of one end of the block
-  // do, a star sits at their mean residual of the whole-pixel shifts, not the block's (up to 0.5 px off:
-  // at 16.4 px/s and 16.7 Hz the residual ramps through a pixel over ~50 frames).
-  const double full = kFullCoverage * static_cast<double>(last - first);
+  const double full = kFullCoverage * static_cast<double>(blk.last - blk.first);
   for (int y = 0; y < h; ++y) {
-    const double* srow = sum.ptr<double>(y);
-    const double* crow = cnt.ptr<double>(y);
+    const double* srow = sums.sum.data() + static_cast<std::size_t>(y) * w;
+    const double* crow = sums.count.data() + static_cast<std::size_t>(y) * w;
     float* v = b.value.ptr<float>(y);
     float* n = b.noise.ptr<float>(y);
     unsigned char* cov = b.covered.ptr<unsigned char>(y);
@@ -152,7 +170,39 @@ BlockStack stackBlock(const FrameCube& cube, std::size_t first, std::size_t last
       n[x] = static_cast<float>(sigma / std::sqrt(crow[x]));
     }
   }
-  return b;
+}
+
+// The blocks' stacks at `rate`: their sums from `provider` when it makes them, else on the CPU (in parallel
+// over the blocks).
+std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout, Velocity rate,
+                                    double background, double sigma, const std::vector<double>& dt,
+                                    const ShiftedSumsProvider* provider, CancelToken& cancel) {
+  const std::size_t k = layout.count();
+  const int w = cube.width(), h = cube.height();
+  std::vector<BlockStack> stacks(k);
+  std::vector<ShiftedBlock> blocks(k);
+  for (std::size_t b = 0; b < k; ++b)
+    blocks[b] = blockShifts(layout.first[b], layout.first[b + 1], rate, dt, stacks[b]);
+  std::optional<std::vector<ShiftedSums>> made;
+  if (provider && *provider) {
+    made = (*provider)(cube, blocks, background);
+    if (made && made->size() != k) made.reset();
+  }
+  parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t b = b0; b < b1; ++b) {
+      cancel.throwIfCancelled();
+      if (made) {
+        finishBlock(stacks[b], blocks[b], (*made)[b], w, h, sigma);
+      } else {
+        ShiftedSums sums;
+        sums.sum.assign(cube.framePixels(), 0.0);
+        sums.count.assign(cube.framePixels(), 0.0);
+        addShifted(cube, blocks[b], background, sums.sum.data(), sums.count.data());
+        finishBlock(stacks[b], blocks[b], sums, w, h, sigma);
+      }
+    }
+  });
+  return stacks;
 }
 
 // out(x, y) = in(x + gx, y + gy), zero where that falls outside `in`.
@@ -329,7 +379,7 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
 }  // namespace
 
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
-                         const SkyRateParams& params, CancelToken& cancel) {
+                         const SkyRateParams& params, CancelToken& cancel, const ShiftedSumsProvider* sums) {
   ChainResult out;
   const Layout layout = layoutBlocks(cube, start, params);
   if (layout.first.size() < 3) {
@@ -342,13 +392,8 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
   Velocity rate = start;
   for (int it = 0; it < 4; ++it) {
-    std::vector<BlockStack> stacks(k);
-    parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b < b1; ++b) {
-        cancel.throwIfCancelled();
-        stacks[b] = stackBlock(cube, layout.first[b], layout.first[b + 1], rate, background, sigma, dt);
-      }
-    });
+    const std::vector<BlockStack> stacks =
+        stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel);
     const std::vector<Link> links =
         measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel);
     if (!connected(k, links)) {
@@ -387,3 +432,20 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
 }
 
 }  // namespace st::detect::detail
+
+namespace st::detect {
+
+std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<ShiftedBlock>& blocks,
+                                     double background) {
+  std::vector<ShiftedSums> out(blocks.size());
+  parallelFor(blocks.size(), 1, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t b = b0; b < b1; ++b) {
+      out[b].sum.assign(cube.framePixels(), 0.0);
+      out[b].count.assign(cube.framePixels(), 0.0);
+      detail::addShifted(cube, blocks[b], background, out[b].sum.data(), out[b].count.data());
+    }
+  });
+  return out;
+}
+
+}  // namespace st::detect

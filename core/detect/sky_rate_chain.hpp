@@ -21,6 +21,7 @@ struct ChainResult {
 /// Chains blocks of `cube` starting from `start` (px/s): see measureSkyRate. Not ok (with `why`) when
 /// the cube is too short for two blocks or the blocks cannot all be linked.
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
-                         const SkyRateParams& params, CancelToken& cancel);
+                         const SkyRateParams& params, CancelToken& cancel,
+                         const ShiftedSumsProvider* sums = nullptr);
 
 }  // namespace st::detect::detail

@@ -130,16 +130,43 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     rateFromRegistration = registerFramesStage(out, cube, params, sub, cancel);
   }
   lap("registration");
+  // The cube does not change again until the per-pixel background but at the cosmic-ray fills (patched into
+  // the device's copy below; the sky rate, static sources and PSF only read it): a device may upload it
+  // meanwhile and make the sky rate's and the static sources' stacks from it (issue 16). The guard,
+  // destroyed before `out`, waits for that.
+  const std::shared_ptr<void> prefetched = params.accelerator ? params.accelerator->prefetch(cube) : nullptr;
+  detect::ShiftedSumsProvider deviceSums;
+  int sumsAsked = 0, sumsMade = 0;
+  if (params.accelerator)
+    deviceSums = [&out, &sumsAsked, &sumsMade, accel = params.accelerator, failed = false](
+                     const FrameCube& c, const std::vector<detect::ShiftedBlock>& blocks,
+                     double background) mutable -> std::optional<std::vector<detect::ShiftedSums>> {
+      ++sumsAsked;
+      if (failed) return std::nullopt;
+      try {
+        std::optional<std::vector<detect::ShiftedSums>> made = accel->shiftedSums(c, blocks, background);
+        sumsMade += made ? 1 : 0;
+        return made;
+      } catch (const GpuError& e) {
+        failed = true;
+        out.notes.push_back("warning: the sky rate's block stacks fell back to the CPU (" + accel->name() +
+                            ": " + e.what() + ")");
+        return std::nullopt;
+      }
+    };
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
   } else if (!rateFromRegistration) {
-    const detect::SkyRate r =
-        detect::measureSkyRate(cube, out.global.mean, out.global.sigma, params.skyRateParams, cancel);
+    const detect::SkyRate r = detect::measureSkyRate(cube, out.global.mean, out.global.sigma,
+                                                     params.skyRateParams, cancel, &deviceSums);
     out.skyRate = r.rate;
     out.skyRateMeasured = r.reliable;
     std::ostringstream note;
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
+    if (params.accelerator && sumsAsked > 0)
+      out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsMade) + " of " +
+                          std::to_string(sumsAsked) + " iterations on " + params.accelerator->name());
   }
   lap("sky rate");
   detect::StaticSourceParams sp = params.stars;
@@ -155,11 +182,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cr = calib::removeCosmicRays(cube, cp, sub, cancel);
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
+    if (params.accelerator) params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
   }
   lap("cosmic rays");
-  // The cube does not change again until the per-pixel background (static sources and the PSF only read
-  // it): a device may upload it meanwhile (issue 16). The guard, destroyed before `out`, waits for that.
-  const std::shared_ptr<void> prefetched = params.accelerator ? params.accelerator->prefetch(cube) : nullptr;
   detect::StaticSources stars;
   // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
   // change until the per-pixel background).

@@ -102,9 +102,10 @@ void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src
     const int b = r.nextStaging;
     r.nextStaging ^= 1;
     r.stagingFree[b].sync();
-    // On kPrefetchCopyThreads cores (the CPU stages keep the others): one core's copy into pinned memory
-    // (~7 GB/s: 283 ms for the paper's cube and mask, H100 machine 2026-11-27 14:28) was slower than the DMA,
-    // and the device's sky-rate stacks wait for the upload.
+    // On kPrefetchCopyThreads cores (the CPU stages keep the others). 4 copied the paper's cube and mask in
+    // 137 ms instead of one core's 283 (H100 machine, 2026-11-27 14:41) when the prefetch started after the
+    // cosmic rays; started after registration it has the sky rate and the cosmic rays (~0.7 s) to run behind,
+    // and one copy thread slows the sky rate's 16 least (15:22 run: pre-processing 2.47-2.50 s).
     char* stage = static_cast<char*>(r.staging[b].get());
     const char* from = static_cast<const char*>(src) + off;
     const std::size_t per = (len + kPrefetchCopyThreads - 1) / kPrefetchCopyThreads;

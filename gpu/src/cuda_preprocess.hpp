@@ -2,7 +2,9 @@
 // The CUDA pre-processing accelerator (gpu/include/st/gpu/preprocess.hpp), one class whose stages live in
 // one file each (issue 16):
 //   cuda_preprocess.cpp             the device, globalBackground, prefetch, the staged copies, the factory
-//   cuda_preprocess_sky_stack.cpp  the stacks at the sky rate (static sources, PSF) from the prefetched cube
+//   cuda_preprocess_sky_stack.cpp  the stacks from the prefetched cube: the sky rate's block sums, the
+//                                  cosmic-ray fills patched in, the stacks at the sky rate (static sources,
+//                                  PSF)
 //   cuda_preprocess_background.cpp the per-pixel background (subtractPixelBackground)
 //   cuda_preprocess_zero_bias.cpp  zeroBias: the per-pixel background to the residual means on one upload
 //   cuda_preprocess_residuals.cpp  removeResidualMeans and estimateNoiseModel
@@ -88,6 +90,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override;
   std::shared_ptr<void> prefetch(const FrameCube& cube) override;
+  void patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) override;
+  std::optional<std::vector<detect::ShiftedSums>> shiftedSums(const FrameCube& cube,
+                                                              const std::vector<detect::ShiftedBlock>& blocks,
+                                                              double background) override;
   std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
                                            std::size_t first, std::size_t last) override;
   stats::NoiseModel estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
@@ -146,9 +152,13 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     }
     ~Prefetch() { join(); }
   };
+  /// The prefetch when it is `cube`'s (same buffer and sizes), its upload done and its key still the cube's;
+  /// else null (with !waitForUpload, also while the upload runs).
+  std::shared_ptr<Prefetch> readyPrefetch(const FrameCube& cube, bool waitForUpload);
   /// Host -> device through `r`'s pinned staging buffers, the host copies on this thread and
-  /// kPrefetchCopyThreads - 1 helpers.
-  static constexpr std::size_t kPrefetchCopyThreads = 4;
+  /// kPrefetchCopyThreads - 1 helpers (none now: the upload runs behind the sky rate, whose threads it would
+  /// slow; see stagedUpload).
+  static constexpr std::size_t kPrefetchCopyThreads = 1;
   static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed

@@ -1,6 +1,8 @@
-// CudaPreprocess::skyStack: the stacks at the sky rate (detect::stackAtSkyRate) that the static-source search
-// and the PSF stage ask for, made from the calibrated cube prefetch() uploads behind those stages (issue 16):
-// no upload of its own; the sums are the CPU's (sky_stack_kernels.cu), so the stacks are equal.
+// CudaPreprocess: what the stages before the per-pixel background make from the calibrated cube prefetch()
+// uploads behind them (issue 16), with no upload of their own: the sky rate's block sums
+// (detect::shiftedSums), the cosmic-ray fills patched into the device's copy, and the stacks at the sky rate
+// (detect::stackAtSkyRate) that the static-source search and the PSF stage ask for. The sums are the CPU's
+// (sky_stack_kernels.cu), so the results are equal.
 #include <vector>
 
 #include "cuda_preprocess.hpp"
@@ -12,23 +14,107 @@ namespace st::gpu {
 
 using namespace preprocess_detail;
 
+std::shared_ptr<CudaPreprocess::Prefetch> CudaPreprocess::readyPrefetch(const FrameCube& cube,
+                                                                        bool waitForUpload) {
+  if (stagewise()) return nullptr;
+  std::shared_ptr<Prefetch> pf = m_prefetch;
+  if (!pf || pf->data != cube.pixels().data() || pf->size != cube.pixels().size() ||
+      pf->maskSize != cube.mask().size())
+    return nullptr;
+  // Without waiting: the CPU's stack (~0.1 s for 1500 x 512^2 on 16 threads) is quicker than waiting for an
+  // upload that has just begun.
+  if (!waitForUpload && !pf->finished.load()) return nullptr;
+  pf->join();
+  if (!pf->ok || pf->key != cubeKey(cube)) return nullptr;
+  return pf;
+}
+
+void CudaPreprocess::patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) {
+  std::shared_ptr<Prefetch> pf = m_prefetch;
+  if (!pf || pf->data != cube.pixels().data() || pf->size != cube.pixels().size()) return;
+  try {
+    pf->join();
+    if (!pf->ok) return;
+    if (!pixels.empty()) {
+      std::vector<float> values(pixels.size());
+      for (std::size_t k = 0; k < pixels.size(); ++k)
+        values[k] = cube.pixels()[pixels[k]];
+      ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+      DeviceResources& r = ensureResources(m_res);
+      DeviceBuffer<std::uint64_t> idx = toDevice(pixels);
+      DeviceBuffer<float> val = toDevice(values);
+      launchScatter(pf->pix.get(), idx.get(), val.get(), pixels.size(), r.compute.get());
+      r.compute.sync();
+    }
+    pf->key = cubeKey(cube);
+  } catch (const std::exception&) {
+    // Dropped: the stages after upload the cube themselves.
+    pf->ok = false;
+    pf->pix = DeviceBuffer<float>();
+    pf->mask = DeviceBuffer<std::uint8_t>();
+  }
+}
+
+std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
+    const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background) {
+  const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
+  if (!pf || blocks.empty()) return std::nullopt;
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels(), k = blocks.size();
+  std::vector<int> first(k), start(k + 1, 0), sx, sy;
+  for (std::size_t b = 0; b < k; ++b) {
+    const detect::ShiftedBlock& blk = blocks[b];
+    if (blk.last > nf || blk.first > blk.last || blk.sx.size() != blk.last - blk.first ||
+        blk.sy.size() != blk.sx.size())
+      return std::nullopt;
+    first[b] = static_cast<int>(blk.first);
+    sx.insert(sx.end(), blk.sx.begin(), blk.sx.end());
+    sy.insert(sy.end(), blk.sy.begin(), blk.sy.end());
+    start[b + 1] = static_cast<int>(sx.size());
+  }
+  Stopwatch sw;
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = ensureResources(m_res);
+  cudaStream_t s = r.compute.get();
+  DeviceBuffer<int> firstD = toDevice(first), startD = toDevice(start);
+  DeviceBuffer<int> sxD = toDevice(sx.empty() ? std::vector<int>{0} : sx);
+  DeviceBuffer<int> syD = toDevice(sy.empty() ? std::vector<int>{0} : sy);
+  DeviceBuffer<double> sum(k * np), count(k * np);
+  ShiftedSumsLaunch p{};
+  p.pix = pf->pix.get();
+  p.mask = pf->maskSize ? pf->mask.get() : nullptr;
+  p.width = cube.width();
+  p.height = cube.height();
+  p.blocks = static_cast<int>(k);
+  p.first = firstD.get();
+  p.start = startD.get();
+  p.sx = sxD.get();
+  p.sy = syD.get();
+  p.background = background;
+  p.sum = sum.get();
+  p.count = count.get();
+  launchShiftedSums(p, s);
+  std::vector<detect::ShiftedSums> out(k);
+  for (std::size_t b = 0; b < k; ++b) {
+    out[b].sum.resize(np);
+    out[b].count.resize(np);
+    ST_CUDA_CHECK(cudaMemcpyAsync(out[b].sum.data(), sum.get() + b * np, np * sizeof(double),
+                                  cudaMemcpyDeviceToHost, s));
+    ST_CUDA_CHECK(cudaMemcpyAsync(out[b].count.data(), count.get() + b * np, np * sizeof(double),
+                                  cudaMemcpyDeviceToHost, s));
+  }
+  r.compute.sync();
+  m_note = "the sky rate's " + std::to_string(k) + " block sums on " + name() + ": " + ms(sw.lap());
+  return out;
+}
+
 std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, Velocity rate,
                                                          double subtract, std::size_t first,
                                                          std::size_t last) {
-  if (stagewise()) return std::nullopt;
-  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const std::size_t nf = cube.frameCount();
   if (last == 0 || last > nf) last = nf;
-  const std::shared_ptr<Prefetch> pf = m_prefetch;
-  if (!pf || first >= last || pf->data != cube.pixels().data() || pf->size != nf * np ||
-      pf->maskSize != cube.mask().size())
-    return std::nullopt;
-  // Only once the upload is done: the CPU's stack (~0.1 s for 1500 x 512^2 on 16 threads) is quicker than
-  // waiting for it (~0.2 s from the prefetch's start: the static-source search asks for the whole cube's
-  // stack right away); its thirds and halves come later.
-  if (!pf->finished.load()) return std::nullopt;
   Stopwatch sw;
-  pf->join();
-  if (!pf->ok || pf->key != cubeKey(cube)) return std::nullopt;
+  const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
+  if (!pf || first >= last) return std::nullopt;
   const double waited = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = ensureResources(m_res);

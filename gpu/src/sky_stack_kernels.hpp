@@ -3,6 +3,7 @@
 // the PSF stage ask for, made from the prefetched calibrated cube).
 #include <cuda_runtime.h>
 
+#include <cstddef>
 #include <cstdint>
 
 namespace st::gpu {
@@ -25,5 +26,25 @@ struct SkyStackLaunch {
 /// One thread per canvas pixel, its frames in order: the CPU's double sums in its order (no multiply, so
 /// nothing to contract: equal stacks), count and maximum as std::max.
 void launchSkyStack(const SkyStackLaunch& p, cudaStream_t s);
+
+/// detect::shiftedSums of k blocks on a cube already on the device: one thread per (pixel, block), the
+/// block's frames in order, the CPU's double arithmetic (equal sums).
+struct ShiftedSumsLaunch {
+  const float* pix = nullptr;
+  const std::uint8_t* mask = nullptr;  ///< or null
+  int width = 0, height = 0;
+  int blocks = 0;
+  const int* first = nullptr;  ///< per block: its first frame
+  const int* start = nullptr;  ///< per block + 1: its first entry in sx/sy (the block's frames in order)
+  const int* sx = nullptr;
+  const int* sy = nullptr;
+  double background = 0.0;
+  double* sum = nullptr;  ///< blocks x width x height
+  double* count = nullptr;
+};
+void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s);
+
+/// pix[index[k]] = value[k] for k < n (the cosmic-ray fills patched into a prefetched cube).
+void launchScatter(float* pix, const std::uint64_t* index, const float* value, std::size_t n, cudaStream_t s);
 
 }  // namespace st::gpu

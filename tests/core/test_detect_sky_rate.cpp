@@ -125,6 +125,21 @@ TEST(SkyRateChain, FieldChangesCompletely) {
     EXPECT_GT(r.blocks[b].tS, r.blocks[b - 1].tS);
   }
   EXPECT_LT(r.residualRmsPx, 0.1) << r.note;
+  // The chain's block stacks made by a provider (a device's, issue 16) with shiftedSums' result: the same
+  // rate, blocks and note.
+  int calls = 0;
+  const ShiftedSumsProvider provider = [&](const FrameCube& cc, const std::vector<ShiftedBlock>& blocks,
+                                           double background) -> std::optional<std::vector<ShiftedSums>> {
+    ++calls;
+    return shiftedSums(cc, blocks, background);
+  };
+  const SkyRate p = measureSkyRate(cube, 0.0, 1.0, {}, c, &provider);
+  EXPECT_GE(calls, 1);
+  EXPECT_EQ(p.rate, r.rate);
+  EXPECT_EQ(p.note, r.note);
+  ASSERT_EQ(p.blocks.size(), r.blocks.size());
+  for (std::size_t b = 0; b < r.blocks.size(); ++b)
+    EXPECT_EQ(p.blocks[b].offsetPx, r.blocks[b].offsetPx);
 }
 
 }  // namespace

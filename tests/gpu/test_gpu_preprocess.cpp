@@ -12,7 +12,10 @@
 //    upload, with the same results as a search that uploads;
 //  - the stacks at the sky rate (detect::stackAtSkyRate) from the prefetched cube: equal to the CPU's
 //    (tolerance 0: the same double sums in the same order; NaN where the CPU has NaN), with and without a
-//    mask, whole cube, thirds and halves; none for a cube that was not prefetched.
+//    mask, whole cube, thirds and halves; none for a cube that was not prefetched;
+//  - the sky rate's block sums (detect::shiftedSums) from the prefetched cube: equal to the CPU's (tolerance
+//    0), shifts reaching out of the frame included; after pixels of the cube change and are passed to
+//    patchPrefetch (the cosmic-ray fills), the device's stacks and sums are those of the changed cube.
 // Every test skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
@@ -26,6 +29,7 @@
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/detect/sky_rate.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/search/ipsa.hpp"
@@ -421,6 +425,72 @@ TEST(GpuSkyStack, EqualsTheCpuStacksFromThePrefetchedCube) {
     // Another cube (a copy: not the one prefetched): the device makes none, the CPU stacks.
     const FrameCube other = c;
     EXPECT_FALSE(accel->skyStack(other, rate, 100.0, 0, 40).has_value());
+  }
+}
+
+/// Asks until the prefetch's upload is done (none before: the CPU makes it meanwhile).
+template <class F>
+auto whenUploaded(F f) -> decltype(f()) {
+  decltype(f()) r;
+  for (int tries = 0; tries < 1000 && !r; ++tries) {
+    r = f();
+    if (!r) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return r;
+}
+
+void expectSameSums(const std::vector<detect::ShiftedSums>& a, const std::vector<detect::ShiftedSums>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ASSERT_EQ(a[k].sum.size(), b[k].sum.size());
+    std::size_t bad = 0;
+    for (std::size_t i = 0; i < a[k].sum.size(); ++i) {
+      const double u = a[k].sum[i], v = b[k].sum[i];
+      if (!(std::isnan(u) && std::isnan(v)) && std::memcmp(&u, &v, sizeof u) != 0) ++bad;
+      if (a[k].count[i] != b[k].count[i]) ++bad;
+    }
+    EXPECT_EQ(bad, 0u) << "block " << k;
+  }
+}
+
+TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool withMask : {false, true}) {
+    SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
+    FrameCube c = rawCube(64, 48, 40, 13, withMask);
+    const std::shared_ptr<void> guard = accel->prefetch(c);
+    std::vector<detect::ShiftedBlock> blocks(3);
+    const std::size_t bounds[4] = {0, 12, 25, 40};
+    for (std::size_t b = 0; b < 3; ++b) {
+      blocks[b].first = bounds[b];
+      blocks[b].last = bounds[b + 1];
+      for (std::size_t n = bounds[b]; n < bounds[b + 1]; ++n) {
+        blocks[b].sx.push_back(static_cast<int>(n % 9) - 4 + (b == 2 ? 70 : 0));  // block 2: mostly outside
+        blocks[b].sy.push_back(static_cast<int>(n % 5) - 2);
+      }
+    }
+    const auto dev = whenUploaded([&] { return accel->shiftedSums(c, blocks, 100.0); });
+    ASSERT_TRUE(dev.has_value());
+    expectSameSums(*dev, detect::shiftedSums(c, blocks, 100.0));
+    // Pixels change (as the cosmic-ray fills do) and are patched in: the device's results follow.
+    std::vector<std::uint64_t> changed;
+    for (std::uint64_t i = 17; i < c.pixels().size(); i += 1013) {
+      c.pixels()[i] = 5000.0f + static_cast<float>(i % 7);
+      changed.push_back(i);
+    }
+    accel->patchPrefetch(c, changed);
+    const auto patched = accel->shiftedSums(c, blocks, 100.0);
+    ASSERT_TRUE(patched.has_value());
+    expectSameSums(*patched, detect::shiftedSums(c, blocks, 100.0));
+    NullProgress progress;
+    CancelToken cancel;
+    const Velocity rate{1.3, -0.45};
+    const std::optional<detect::SkyStack> stack = accel->skyStack(c, rate, 100.0, 0, 40);
+    ASSERT_TRUE(stack.has_value());
+    const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, 100.0, progress, cancel, 0, 40);
+    expectSameBits(stack->mean, cpu.mean, "mean");
+    expectSameBits(stack->count, cpu.count, "count");
+    expectSameBits(stack->max, cpu.max, "max");
   }
 }
 

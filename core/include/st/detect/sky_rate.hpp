@@ -2,6 +2,8 @@
 // The sky rate: how fast the stars move across the detector (px/s). Zero for a tracked telescope; the drift
 // rate when the sky moves (paper §4.1: scanning at 5"/s). Measured from the stars when not given.
 #include <cstddef>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,28 @@ struct SkyRate {
   double residualRmsPx = 0.0;  ///< rms over blocks of |offsetPx| (both axes), px
 };
 
+/// A block of frames [first, last) stacked with frame n shifted so that stack pixel (x, y) takes frame pixel
+/// (x + sx[n - first], y + sy[n - first]) (the chained refinement's block stacks).
+struct ShiftedBlock {
+  std::size_t first = 0, last = 0;
+  std::vector<int> sx, sy;
+};
+
+/// Per stack pixel (row-major, the frame's size): the sum of (F_n - background) over the block's unmasked
+/// samples that fall inside their frame, in frame order, and their count.
+struct ShiftedSums {
+  std::vector<double> sum, count;
+};
+
+/// shiftedSums on the CPU (the reference).
+std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<ShiftedBlock>& blocks,
+                                     double background);
+
+/// Makes every block's sums elsewhere (a device, issue 16) with shiftedSums' result; none: not made there,
+/// the CPU makes them.
+using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>>(
+    const FrameCube& cube, const std::vector<ShiftedBlock>& blocks, double background)>;
+
 /// Measures the sky rate from the stars, with the global background `background` removed and faint pixels
 /// (< detectSigma * sigma / sqrt(frames averaged)) zeroed.
 /// First estimate: phase correlation (OpenCV) of pairs of short adjacent blocks spread over the cube (median
@@ -68,7 +92,8 @@ struct SkyRate {
 /// px/s of the truth, the 1500-frame seed 5 within 0.001 (tests/core/test_detect_sky_rate_slow.cpp); a
 /// synthetic field crossing the frame 3.7 times within 0.01; a magnitude-14 mover among the "small" preset's
 /// stars within 0.02 px/s.
+/// `sums`, when given, makes the chain's block stacks (the same sums: the same result).
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
-                       CancelToken& cancel);
+                       CancelToken& cancel, const ShiftedSumsProvider* sums = nullptr);
 
 }  // namespace st::detect

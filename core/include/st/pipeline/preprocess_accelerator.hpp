@@ -14,6 +14,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/sky_rate.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
 #include "st/detect/static_sources.hpp"
@@ -67,11 +68,26 @@ class PreprocessAccelerator {
     return stats::globalBackground(cube, params);
   }
   /// `cube` is the input of the next subtractPixelBackground or zeroBias and does not change until then (the
-  /// stages in between only read it): a device may start uploading it now, behind those stages. The
-  /// returned guard (may be null) must be destroyed before the cube: its destructor waits for the upload.
+  /// stages in between only read it) but at the pixels later passed to patchPrefetch: a device may start
+  /// uploading it now, behind those stages. The returned guard (may be null) must be destroyed before the
+  /// cube: its destructor waits for the upload.
   virtual std::shared_ptr<void> prefetch(const FrameCube& cube) {
     (void)cube;
     return nullptr;
+  }
+  /// The prefetched cube's pixels at these flat indices (n * width * height + y * width + x: the cosmic-ray
+  /// fills) changed since prefetch(cube), nothing else: a device updates its copy, or drops it when it
+  /// cannot (the stages after then upload the cube themselves). Never throws.
+  virtual void patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) {
+    (void)cube, (void)pixels;
+  }
+  /// detect::shiftedSums(cube, blocks, background) (the sky rate's block stacks): the same sums in the same
+  /// order; none when the device cannot make them without an upload of its own (`cube` is not the prefetched
+  /// one, or its upload is not done yet). The default makes none.
+  virtual std::optional<std::vector<detect::ShiftedSums>> shiftedSums(
+      const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background) {
+    (void)cube, (void)blocks, (void)background;
+    return std::nullopt;
   }
   /// detect::stackAtSkyRate(cube, rate, subtract, first, last) (last resolved, never 0): the same sums in
   /// the same order (equal stacks); none when the device cannot make it without a whole upload of its own
