@@ -263,11 +263,39 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     return !prot.mask.covers(n, x, y) || ex > params.protectedExcess * prot.signalAt(n, x, y);
   };
   const float thr = static_cast<float>(out.seedThreshold);
+  // The core of a source the PSF resolves (CosmicRayParams::sourceMedianLow): the 3 x 3 median above the
+  // 5 x 5 ring's median, against the pixel's own value above it. Masked pixels take no part.
+  const bool shapeTest = params.sourceMedianLow > 0.0;
+  auto resolvedSource = [&](std::size_t n, int x, int y) {
+    if (x < 2 || y < 2 || x >= w - 2 || y >= h - 2) return false;
+    const float* f = px + n * np;
+    const std::uint8_t* mk = mask.empty() ? nullptr : mask.data() + n * np;
+    float inner[9], ring[16];
+    int ni = 0, nr = 0;
+    for (int dy = -2; dy <= 2; ++dy)
+      for (int dx = -2; dx <= 2; ++dx) {
+        const std::size_t q = static_cast<std::size_t>(y + dy) * w + (x + dx);
+        if (mk && mk[q]) continue;
+        if (std::abs(dx) == 2 || std::abs(dy) == 2)
+          ring[nr++] = f[q];
+        else
+          inner[ni++] = f[q];
+      }
+    if (ni < 9 || nr < 8) return false;
+    std::nth_element(ring, ring + nr / 2, ring + nr);
+    std::nth_element(inner, inner + 4, inner + 9);
+    const double level = ring[nr / 2];
+    const double core = f[static_cast<std::size_t>(y) * w + x] - level, med = inner[4] - level;
+    return med >= params.sourceMedianSigma * out.sigma && med >= params.sourceMedianLow * core &&
+           med <= params.sourceMedianHigh * core;
+  };
   std::mutex m;
+  std::size_t sourceSeeds = 0;
   // Pass 1, read-only: seeds.
   parallelFor(nf, 4, [&](std::size_t n0, std::size_t n1) {
     std::vector<std::uint64_t> local;
     std::vector<std::uint32_t> candidates;
+    std::size_t sources = 0;
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       const auto [a, b] = neighbours(n, nf);
@@ -275,13 +303,21 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
       // The pre-test of isHit, 8 pixels at a time on the AVX2 path; the candidates in order.
       candidates.clear();
       preTest(f, fa, fb, np, thr, candidates);
-      for (const std::uint32_t i : candidates)
-        if (isHit(n, static_cast<int>(i % w), static_cast<int>(i / w), thr)) local.push_back(n * np + i);
+      for (const std::uint32_t i : candidates) {
+        const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+        if (!isHit(n, x, y, thr)) continue;
+        if (shapeTest && resolvedSource(n, x, y))
+          ++sources;
+        else
+          local.push_back(n * np + i);
+      }
     }
     std::lock_guard lock(m);
+    sourceSeeds += sources;
     out.pixels.insert(out.pixels.end(), local.begin(), local.end());
     progress.report(0.5 + 0.4 * static_cast<double>(n1) / nf, "cosmic rays");
   });
+  out.sourceSeeds = sourceSeeds;
   // Pass 2, read-only: grow by the 8-neighbours above the grow threshold (twice, for short tracks).
   const float grow = static_cast<float>(out.growThreshold);
   std::sort(out.pixels.begin(), out.pixels.end());

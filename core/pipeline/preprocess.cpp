@@ -183,6 +183,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
     if (params.accelerator) params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
+    if (cr.sourceSeeds > 0)
+      out.notes.push_back(std::to_string(cr.sourceSeeds) +
+                          " pixel(s) that stood above their time neighbours like cosmic-ray hits were kept: "
+                          "each is the core of a source the PSF resolves (a bright mover, a variable star), "
+                          "not a hit");
   }
   lap("cosmic rays");
   detect::StaticSources stars;

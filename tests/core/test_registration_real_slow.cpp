@@ -6,10 +6,13 @@
 // 2026-11-27 the crop itself was shifted, with masked bands along its edges that real dithers do not have).
 // Pre-processed and searched like the undithered sequence (test_pipeline_real_slow.cpp's grid,
 // +-0.2 deg/day in 1 px steps over the span), the asteroid must be found at the same place (within 1 px), the
-// same velocity relative to the stars (within 3 px over the span) and an SNR not below 85% of the
-// undithered one (the issue's 3% is not met yet: see the SNR check); the registration must report per-frame
-// offsets that match the dithers within 0.3 px. Runs on a 1024 x 1024 crop around the asteroid: ~60 CPU-s
-// (2-3 min wall on the shared 2-core machine).
+// same velocity relative to the stars (within 3 px over the span) and an SNR not below 92% of the
+// undithered one (the issue's 3% is not met yet: see the SNR check), both taken at the best phase of the
+// search's pixel lattice (refine_candidate.hpp: the dithered
+// run's offsets count from its first frame, the undithered run's model from t_ref, and the rounding of the
+// shifts then falls differently on the asteroid's sub-pixel track); the registration must report per-frame
+// offsets that match the dithers within 0.3 px. Runs on a 1024 x 1024 crop around the asteroid: ~100 CPU-s
+// (3-4 min wall on the shared 2-core machine).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -62,6 +65,7 @@ FrameCube crop(const FrameCube& in, const std::vector<std::pair<int, int>>& dith
 
 struct Found {
   search::Candidate candidate;  ///< at the refined velocity (refine_candidate.hpp)
+  search::Candidate phased;     ///< at the refined velocity and the best lattice phase
   double gridSnr = 0.0;          ///< on the search's own grid
   bool found = false;
   detect::Registration registration;
@@ -76,7 +80,7 @@ Found prepareAndSearch(FrameCube calibrated, double plateFallback) {
   params.calib.subtractOverscan = false;
   params.calib.trim = false;
   params.calib.useHeaderSections = false;
-  const Prepared out = preprocess(std::move(calibrated), params, p, c);
+  Prepared out = preprocess(std::move(calibrated), params, p, c);
   for (const auto& n : out.notes)
     std::printf("  note: %s\n", n.c_str());
   const double span = out.filtered.frames.timeSpanS();
@@ -94,6 +98,7 @@ Found prepareAndSearch(FrameCube calibrated, double plateFallback) {
   if (it != r.candidates.end()) {
     f.gridSnr = it->snr;
     f.candidate = test::refineCandidate(out.filtered, *it, step);
+    f.phased = test::refineCandidatePhase(out.filtered, f.candidate, step);
     f.found = true;
   }
   return f;
@@ -158,14 +163,19 @@ TEST(RegistrationReal, Lowell5945DitheredAndRepointedIsFoundAsUndithered) {
   const Velocity a{still.candidate.v.vx - still.skyRate.vx, still.candidate.v.vy - still.skyRate.vy};
   const Velocity b{moved.candidate.v.vx - moved.skyRate.vx, moved.candidate.v.vy - moved.skyRate.vy};
   EXPECT_LE(std::hypot(a.vx - b.vx, a.vy - b.vy) * span, 3.0) << "relative velocities differ";
-  // Not yet the issue's 3%: measured 716 vs 773 (0.926) with the dithered field's stars subtracted by the
-  // sky-registered template (0.875 with the detector-pixel background alone). What remains is estimated at
-  // fixed detector pixels (per-pixel background, noise), under which the dithered sky moves. Held at 0.85
-  // so that a regression shows; see the report of branch `register`.
-  EXPECT_GE(moved.candidate.snr, 0.85 * still.candidate.snr);
-  std::printf("SNR ratio dithered / undithered %.3f at refined velocities, %.3f on the grids (issue target "
-              ">= 0.97)\n",
-              moved.candidate.snr / still.candidate.snr, moved.gridSnr / still.gridSnr);
+  // The issue's 3%, at each run's best lattice phase. Measured 2026-11-27 (dev VM): refined 1187.2 vs 1056.6
+  // (0.890) with the lattices as they fall, 1.02 with the dithered offsets moved by the undithered model's
+  // 0.31 px. Until the cosmic-ray stage kept the cores of resolved sources (calib/cosmic_rays.hpp,
+  // sourceMedianLow) it zeroed 2-10 of 5945's core pixels per frame, differently in the two runs: 790 vs 712.
+  std::printf("SNR ratio dithered / undithered %.3f at refined velocities, %.3f on the grids; at the best lattice "
+              "phases %.2f / %.2f = %.3f (issue target 0.97-1.03)\n",
+              moved.candidate.snr / still.candidate.snr, moved.gridSnr / still.gridSnr, moved.phased.snr,
+              still.phased.snr, moved.phased.snr / still.phased.snr);
+  // Not yet the issue's 3%: 0.934 (0.947 with the undithered run's PSF given to both). The dithered filtered
+  // frames are noisier than their noise model says (sigma_F / sigma_ref 1.28 against 1.16 undithered, same
+  // PSF): faint sources below the catalogue move under the detector-pixel background with the dithers and
+  // stay in the frames, and the star template adds its own noise. Held at 0.92 so that a regression shows.
+  EXPECT_GE(moved.phased.snr, 0.92 * still.phased.snr);
 }
 
 }  // namespace

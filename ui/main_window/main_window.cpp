@@ -35,6 +35,7 @@
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
+#include "out_of_core_controller.hpp"
 #include "processing_panel.hpp"
 #include "recovery_dialog.hpp"
 #include "search_panel.hpp"
@@ -59,6 +60,7 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   buildMenus();
   buildStatusBar();
   buildWcsBanner();  // main_window_plate_solve.cpp
+  new OutOfCoreController(this);  // Run > Memory limit…, cubes larger than the budget
 
   connect(m_jobs, &JobRunner::finished, this, &MainWindow::onJobFinished);
   connect(m_obs, &Observation::rawChanged, this, &MainWindow::onRawChanged);

@@ -18,6 +18,7 @@
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
+#include "out_of_core_controller.hpp"
 #include "main_window.hpp"
 #include "st/search/demo_grid.hpp"
 #include "processing_panel.hpp"
@@ -45,10 +46,20 @@ void MainWindow::openInputs(const QStringList& paths) {
   const CalibrationOffer offer = offerCalibrationFolders(paths);
   if (!offer.folders.empty()) m_processing->offerFiles(offer.folders, offer.note);
   m_session->prepareNew(inputs, false);
-  startLoad(label, [load, inputs](ProgressSink& progress, CancelToken& cancel) {
-    if (!load) throwMissingService("FITS reader");
-    return load(inputs, progress, cancel);
-  });
+  // A cube larger than the memory budget opens out of core (out_of_core_controller.hpp); the rest as before.
+  OutOfCoreController* ooc = OutOfCoreController::of(this);
+  const std::size_t budget = ooc->budget().bytes;
+  const bool started = m_jobs->start(
+      JobKind::Load, [this, ooc, load, inputs, label, budget](ProgressSink& progress, CancelToken& cancel) {
+        if (auto apply = ooc->openIfNeeded(inputs, budget, label, progress, cancel)) return apply;
+        if (!load) throwMissingService("FITS reader");
+        auto cube = std::make_shared<const FrameCube>(load(inputs, progress, cancel));
+        return std::function<void()>([this, cube, label] {
+          OutOfCoreController::of(this)->clear();
+          m_obs->setRaw(cube, label);
+        });
+      });
+  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
 }
 
 void MainWindow::openDemo() {
@@ -68,7 +79,10 @@ void MainWindow::startLoad(const QString& label, std::function<FrameCube(Progres
   const bool started =
       m_jobs->start(JobKind::Load, [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
-        return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
+        return std::function<void()>([this, cube, label] {
+          OutOfCoreController::of(this)->clear();
+          m_obs->setRaw(cube, label);
+        });
       });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
 }
@@ -86,6 +100,10 @@ bool MainWindow::rawIsPrepared() const {
 void MainWindow::runPreprocess() {
   auto raw = m_obs->raw();
   if (!raw) return;
+  if (OutOfCoreController::of(this)->active()) {  // a prepared cube, opened as such: nothing to pre-process
+    statusBar()->showMessage("Out of core: the cube is pre-processed already and is searched as it is", 10000);
+    return;
+  }
   auto preprocess = m_services.preprocess;
   auto makeBackend = m_services.makeBackend;
   const auto stages = m_processing->stages();
@@ -110,6 +128,7 @@ void MainWindow::runPreprocess() {
 void MainWindow::runSearch() {
   const auto& prepared = m_obs->prepared();
   if (!prepared || !prepared->filtered) return;
+  if (OutOfCoreController* ooc = OutOfCoreController::of(this); ooc->active()) return ooc->runSearch();
   auto cube = prepared->filtered;
   auto makeBackend = m_services.makeBackend;
   const search::VelocityGrid grid = m_search->grid();
