@@ -15,6 +15,8 @@
 #include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/io/wcs.hpp"
+#include "st/common/parallel.hpp"
+#include "st/pipeline/out_of_core_cube.hpp"
 #include "st/psf/moffat_fit.hpp"
 #include "st/session/preprocess_settings.hpp"
 #include "st/sim/simulator.hpp"
@@ -224,6 +226,9 @@ ui::CoreServices makeCoreServices() {
   ui::CoreServices s;
   s.loadFrames = [](const std::vector<std::string>& inputs, ProgressSink& progress, CancelToken& cancel) {
     return io::loadFrames(inputs, io::LoadOptions{}, progress, cancel);
+  };
+  s.planOpen = [](const std::vector<std::string>& inputs, std::size_t budgetBytes, CancelToken& cancel) {
+    return pipeline::planOpen(inputs, io::LoadOptions{}, budgetBytes, workerCount(), cancel);
   };
   s.simulateDemo = simulateDemo;
 #ifdef ST_GUI_HAVE_PIPELINE

@@ -412,6 +412,10 @@ std::function<ImageFigure()> FigureDialog::sheetBuilder(Source::Sheet which, QSt
     error = "A sheet of candidates needs a search result.";
     return {};
   }
+  if (!obs->prepared()->outOfCore.empty()) {
+    error = "A sheet of candidate stamps needs the cube in memory: unavailable out of core.";
+    return {};
+  }
   if (chosen.empty()) {
     error = which == Source::Sheet::Selected
                 ? "No candidate is selected in the candidates table (Ctrl+click or Shift+click rows)."

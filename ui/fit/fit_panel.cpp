@@ -236,6 +236,10 @@ void FitPanel::fitSelected() {
   const auto* c = m_obs->selectedCandidate();
   const auto prepared = m_obs->prepared();
   if (!c || !prepared || m_jobs->busy()) return;
+  if (!prepared->outOfCore.empty()) {
+    m_status->setText("Co-moving fits need the cube in memory: unavailable out of core.");
+    return;
+  }
   if (!m_services || !m_services->fitCandidate) {
     m_status->setText("This build has no co-moving fit.");
     return;

@@ -229,6 +229,11 @@ void CandidateInspector::start() {
   const auto* c = m_obs->selectedCandidate();
   const auto& prepared = m_obs->prepared();
   if (!c || !prepared || !prepared->filtered) return;
+  if (!prepared->outOfCore.empty()) {
+    m_status->setText("Unavailable out of core: the segment check, artifact flags and movie need the cube in "
+                      "memory.");
+    return;
+  }
   InspectionInput in;
   in.filtered = prepared->filtered;
   if (prepared->unfiltered)

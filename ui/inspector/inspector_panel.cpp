@@ -125,7 +125,7 @@ bool InspectorPanel::useUnfiltered() const {
 
 std::shared_ptr<const search::FilteredCube> InspectorPanel::stackCube() const {
   const auto& p = m_obs->prepared();
-  if (!p) return nullptr;
+  if (!p || !p->outOfCore.empty()) return nullptr;  // out of core: no cube in memory to stack
   return useUnfiltered() && p->unfiltered ? p->unfiltered : p->filtered;
 }
 
@@ -136,6 +136,10 @@ void InspectorPanel::setPoint(double x, double y) {
 }
 
 void InspectorPanel::requestStamps() {
+  if (const auto& p = m_obs->prepared(); p && !p->outOfCore.empty()) {
+    m_trackLabel->setText("Stamps unavailable out of core (they need the cube in memory)");
+    return;
+  }
   const auto cube = stackCube();
   if (!cube || m_px < 0) return;
   m_scrubber->request(cube, m_obs->skyRate(), m_obs->stackMode(), kSkyTag);

@@ -17,6 +17,7 @@
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
 #include "st/fit/comoving_fit.hpp"
+#include "st/pipeline/out_of_core_cube.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/types.hpp"
 #include "st/session/preprocess_settings.hpp"
@@ -84,6 +85,11 @@ struct PreparedView {
   /// cube is held once), and its background and noise images into `layers`, so those members are empty
   /// here. Null when the pipeline did not run (test fakes).
   std::shared_ptr<const pipeline::Prepared> products;
+  /// Non-empty when the cube is not held in memory (a pre-processed cube over the memory budget, opened out
+  /// of core: out_of_core_controller.hpp), saying why. `filtered` then holds only a 16 x 16 corner of every
+  /// frame (times, offsets, WCS, sigma_F, sky rate, PSF), not the image: what needs the whole cube (live
+  /// stacks, the inspector, fits, stamp figures) says it is unavailable.
+  std::string outOfCore;
 };
 
 /// A radial profile at a point of an image with its Moffat fit (paper \label{MoffatPsf}).
@@ -118,6 +124,12 @@ struct FitOutcome {
 using FitStepCallback = std::function<void(const FitStep&)>;
 
 struct CoreServices {
+  /// How to hold `inputs` under a memory budget of `budgetBytes` (pipeline::planOpen: in memory, out of core
+  /// for a prepared cube, refused for raw frames), called in the load job's worker before loadFrames. Empty:
+  /// every input is loaded in memory (test fakes, whose inputs are not FITS files).
+  std::function<pipeline::OpenPlan(const std::vector<std::string>& inputs, std::size_t budgetBytes,
+                                   CancelToken& cancel)>
+      planOpen;
   /// Loads files and/or folders into one cube (st::io::loadFrames).
   std::function<FrameCube(const std::vector<std::string>& inputs, ProgressSink&, CancelToken&)> loadFrames;
   /// Simulates the demo observation (st::sim preset "paper-neo").

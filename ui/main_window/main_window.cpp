@@ -35,6 +35,7 @@
 #include "image_view.hpp"
 #include "inspector_panel.hpp"
 #include "job_runner.hpp"
+#include "motion_vs_sky.hpp"
 #include "out_of_core_controller.hpp"
 #include "processing_panel.hpp"
 #include "recovery_dialog.hpp"
@@ -60,7 +61,19 @@ MainWindow::MainWindow(CoreServices services, QWidget* parent)
   buildMenus();
   buildStatusBar();
   buildWcsBanner();  // main_window_plate_solve.cpp
-  new OutOfCoreController(this);  // Run > Memory limit…, cubes larger than the budget
+  auto* ooc = new OutOfCoreController(this);  // Run > Memory limit…, cubes larger than the budget
+  connect(ooc, &OutOfCoreController::stackReady, this,
+          [this](const std::shared_ptr<const Image>& sum, Velocity v, double elapsedS) {
+            if (!outOfCore() || static_cast<Source>(m_sourceCombo->currentData().toInt()) != Source::Stack) return;
+            if (v.vx != m_obs->velocity().vx || v.vy != m_obs->velocity().vy) return;  // superseded
+            m_view->setImage(sum);
+            const Velocity shown = toShownVsSky(*m_obs, v);
+            m_view->setOverlayText(QString("IPSA sum at v = (%1, %2) %3 vs sky (out of core: summed in strips)")
+                                       .arg(shown.vx, 0, 'g', 4)
+                                       .arg(shown.vy, 0, 'g', 4)
+                                       .arg(unitLabel(shownUnit(*m_obs))));
+            m_stackLabel->setText(QString("IPSA sum out of core: %1 s").arg(elapsedS, 0, 'f', 1));
+          });
 
   connect(m_jobs, &JobRunner::finished, this, &MainWindow::onJobFinished);
   connect(m_obs, &Observation::rawChanged, this, &MainWindow::onRawChanged);

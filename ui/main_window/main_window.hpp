@@ -65,6 +65,8 @@ class MainWindow : public QMainWindow {
   void runPreprocess();
   /// The loaded cube was written by `synthtrack-cli preprocess` (header STPREP, pipeline/prepared_cube.hpp).
   [[nodiscard]] bool rawIsPrepared() const;
+  /// The observation is open out of core (a prepared cube over the memory budget; out_of_core_controller.hpp).
+  [[nodiscard]] bool outOfCore() const;
   void runSearch();
   /// Esc (Run > Cancel): closes an open drop-down or menu and nothing else; otherwise cancels the running
   /// job, after asking when a search has run for kAskBeforeCancelS or more (the question is non-modal).

@@ -20,8 +20,9 @@
 #include "job_runner.hpp"
 #include "out_of_core_controller.hpp"
 #include "main_window.hpp"
-#include "st/search/demo_grid.hpp"
 #include "processing_panel.hpp"
+#include "st/common/error.hpp"
+#include "st/search/demo_grid.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
 #include "st/pipeline/demo_search.hpp"
@@ -46,19 +47,24 @@ void MainWindow::openInputs(const QStringList& paths) {
   const CalibrationOffer offer = offerCalibrationFolders(paths);
   if (!offer.folders.empty()) m_processing->offerFiles(offer.folders, offer.note);
   m_session->prepareNew(inputs, false);
-  // A cube larger than the memory budget opens out of core (out_of_core_controller.hpp); the rest as before.
+  // A cube larger than the memory budget opens out of core, raw frames larger than it are refused
+  // (out_of_core_controller.hpp); the decision reads headers, in the worker, through the planOpen service.
   OutOfCoreController* ooc = OutOfCoreController::of(this);
   const std::size_t budget = ooc->budget().bytes;
-  const bool started = m_jobs->start(
-      JobKind::Load, [this, ooc, load, inputs, label, budget](ProgressSink& progress, CancelToken& cancel) {
-        if (auto apply = ooc->openIfNeeded(inputs, budget, label, progress, cancel)) return apply;
-        if (!load) throwMissingService("FITS reader");
-        auto cube = std::make_shared<const FrameCube>(load(inputs, progress, cancel));
-        return std::function<void()>([this, cube, label] {
-          OutOfCoreController::of(this)->clear();
-          m_obs->setRaw(cube, label);
-        });
-      });
+  auto planOpen = m_services.planOpen;
+  const bool started = m_jobs->start(JobKind::Load, [this, ooc, planOpen, load, inputs, label, budget](
+                                                         ProgressSink& progress, CancelToken& cancel) {
+    if (planOpen) {
+      const pipeline::OpenPlan plan = planOpen(inputs, budget, cancel);
+      if (plan.mode == pipeline::OpenMode::Refused)
+        throw InputError(plan.reason + "; or raise Run > Memory limit…");
+      if (plan.mode == pipeline::OpenMode::OutOfCore)
+        return ooc->open(inputs, budget, label, plan, progress, cancel);
+    }
+    if (!load) throwMissingService("FITS reader");
+    auto cube = std::make_shared<const FrameCube>(load(inputs, progress, cancel));
+    return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
+  });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
 }
 
@@ -79,10 +85,7 @@ void MainWindow::startLoad(const QString& label, std::function<FrameCube(Progres
   const bool started =
       m_jobs->start(JobKind::Load, [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
-        return std::function<void()>([this, cube, label] {
-          OutOfCoreController::of(this)->clear();
-          m_obs->setRaw(cube, label);
-        });
+        return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
       });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
 }
@@ -100,7 +103,7 @@ bool MainWindow::rawIsPrepared() const {
 void MainWindow::runPreprocess() {
   auto raw = m_obs->raw();
   if (!raw) return;
-  if (OutOfCoreController::of(this)->active()) {  // a prepared cube, opened as such: nothing to pre-process
+  if (outOfCore()) {  // a prepared cube, opened as such: nothing to pre-process
     statusBar()->showMessage("Out of core: the cube is pre-processed already and is searched as it is", 10000);
     return;
   }
@@ -128,7 +131,11 @@ void MainWindow::runPreprocess() {
 void MainWindow::runSearch() {
   const auto& prepared = m_obs->prepared();
   if (!prepared || !prepared->filtered) return;
-  if (OutOfCoreController* ooc = OutOfCoreController::of(this); ooc->active()) return ooc->runSearch();
+  if (outOfCore()) {
+    if (!OutOfCoreController::of(this)->runSearch())
+      statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    return;
+  }
   auto cube = prepared->filtered;
   auto makeBackend = m_services.makeBackend;
   const search::VelocityGrid grid = m_search->grid();
@@ -184,7 +191,8 @@ void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QStr
   }
   // A cube written by `synthtrack-cli preprocess` opens as prepared whatever the setting: the service takes
   // its header's PSF, noise and sky rate and does not run the pipeline on it again.
-  if (ok && kind == JobKind::Load && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
+  // Out of core it is opened pre-processed already.
+  if (ok && kind == JobKind::Load && !outOfCore() && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
 }
 
 void MainWindow::onRawChanged() {
@@ -217,7 +225,7 @@ void MainWindow::onPreparedChanged() {
   m_search->setReady(prepared && prepared->filtered);
   if (prepared) {
     m_processing->setSummary(QString::fromStdString(prepared->summary));
-    if (rawIsPrepared())
+    if (rawIsPrepared() && prepared->outOfCore.empty())
       statusBar()->showMessage("Opened as a prepared cube (written by synthtrack-cli preprocess): not "
                                "pre-processed again; PSF, sky rate and noise from its header",
                                20000);
@@ -241,7 +249,16 @@ void MainWindow::onPreparedChanged() {
     }
   }
   refreshSourceList();
-  if (prepared && prepared->filtered) showSource(Source::Stack);
+  // Out of core the view keeps the mean of all frames (a stack is a pass over the whole file).
+  if (outOfCore())
+    showSource(Source::RawFrame);
+  else if (prepared && prepared->filtered)
+    showSource(Source::Stack);
+}
+
+bool MainWindow::outOfCore() const {
+  const auto& prepared = m_obs->prepared();
+  return prepared && !prepared->outOfCore.empty();
 }
 
 void MainWindow::selectCandidate(int index) {

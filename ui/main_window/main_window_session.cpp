@@ -17,6 +17,7 @@
 
 #include "eliding_label.hpp"
 #include "job_runner.hpp"
+#include "out_of_core_controller.hpp"
 #include "main_window.hpp"
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
@@ -220,6 +221,8 @@ void MainWindow::openSession(const QString& path) {
   const auto defaults = m_services.preprocessStages;
   const BackendKind kind = m_search->backendKind();
   const std::string file = QFileInfo(path).absoluteFilePath().toStdString();
+  auto planOpen = m_services.planOpen;
+  const std::size_t budget = OutOfCoreController::of(this)->budget().bytes;
   const bool started =
       m_jobs->start(JobKind::OpenSession, [=, this](ProgressSink& progress, CancelToken& cancel) {
         auto opened = std::make_shared<OpenedSession>();
@@ -238,6 +241,12 @@ void MainWindow::openSession(const QString& path) {
         } else {
           if (!load) throwMissingService("FITS reader");
           if (snap.inputs.empty()) throw InputError("session '" + file + "' names no input files");
+          // A cube over the memory budget is never loaded whole (issue 20): sessions reopen in memory only.
+          if (planOpen && planOpen(snap.inputs, budget, cancel).mode != pipeline::OpenMode::InMemory)
+            throw InputError("the inputs of session '" + file + "' are larger than the memory budget of " +
+                             formatBytes(static_cast<double>(budget)) +
+                             ": a session reopens in memory only; open the cube with File > Open (a "
+                             "pre-processed cube opens out of core) or raise Run > Memory limit…");
           opened->raw = std::make_shared<const FrameCube>(load(snap.inputs, progress, cancel));
         }
         if (!preprocess) throwMissingService("pre-processing pipeline");

@@ -7,6 +7,7 @@
 #include "inspector_panel.hpp"
 #include "main_window.hpp"
 #include "motion_vs_sky.hpp"
+#include "out_of_core_controller.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -24,8 +25,13 @@ void MainWindow::refreshSourceList() {
   m_sourceCombo->clear();
   const auto& raw = m_obs->raw();
   const auto& prepared = m_obs->prepared();
-  if (raw) m_sourceCombo->addItem("Raw frame", static_cast<int>(Source::RawFrame));
-  if (prepared) {
+  if (outOfCore()) {  // one image in memory, the mean; stacks summed in strips from the file
+    m_sourceCombo->addItem("Mean of all frames (out of core)", static_cast<int>(Source::RawFrame));
+    m_sourceCombo->addItem("Stack at velocity (out of core, in strips)", static_cast<int>(Source::Stack));
+  } else if (raw) {
+    m_sourceCombo->addItem("Raw frame", static_cast<int>(Source::RawFrame));
+  }
+  if (prepared && !outOfCore()) {
     for (std::size_t k = 0; k < prepared->layers.size(); ++k)
       m_sourceCombo->addItem(QString::fromStdString(prepared->layers[k].first),
                              static_cast<int>(Source::Layer) + static_cast<int>(k));
@@ -67,7 +73,10 @@ void MainWindow::refreshCentral() {
   switch (source) {
     case Source::RawFrame:
       if (m_obs->raw()) m_view->setImage(frameOf(*m_obs->raw(), m_frameSpin->value()), true);
-      m_view->setOverlayText(QString("raw frame %1").arg(m_frameSpin->value()));
+      if (outOfCore())
+        m_view->setOverlayText("mean of all frames (out of core: read in strips)");
+      else
+        m_view->setOverlayText(QString("raw frame %1").arg(m_frameSpin->value()));
       break;
     case Source::FilteredFrame:
       if (prepared && prepared->filtered)
@@ -96,6 +105,16 @@ void MainWindow::refreshCentral() {
 
 void MainWindow::requestCentralStack() {
   if (static_cast<Source>(m_sourceCombo->currentData().toInt()) != Source::Stack) return;
+  if (outOfCore()) {
+    const Velocity v = m_obs->velocity();
+    OutOfCoreController::of(this)->requestStack(v);
+    const Velocity shown = toShownVsSky(*m_obs, v);
+    m_view->setOverlayText(QString("summing the IPSA stack at v = (%1, %2) %3 vs sky in strips (out of core)…")
+                               .arg(shown.vx, 0, 'g', 4)
+                               .arg(shown.vy, 0, 'g', 4)
+                               .arg(unitLabel(shownUnit(*m_obs))));
+    return;
+  }
   auto cube = m_inspector->stackCube();
   if (!cube) return;
   const Velocity v = m_obs->velocity();

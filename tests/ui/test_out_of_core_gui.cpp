@@ -1,0 +1,269 @@
+// A cube larger than the GUI's memory budget (issue 20 item 4). With Run > Memory limit set small, a
+// pre-processed cube opens OUT OF CORE (a banner and the status-bar label say so, with the budget); the view
+// shows the mean of all frames read in strips (equal to the in-memory mean); Search runs core's out-of-core
+// path (planTiledSearch + searchTiled, as `synthtrack-cli search --preprocessed`) as a job, can be
+// cancelled, and finds the same best candidate as the in-memory core search of the same cube; the selected
+// candidate's stack is summed in strips and equals stack::stackIpsa. Raw frames over the budget are refused
+// with what to run instead. Core: stackOutOfCore equals stack::stackIpsa; planOpen's three answers.
+//
+// ST_OUT_OF_CORE_SCREENSHOT_DIR, when set, gets a grab of the window in the banner state
+// (out_of_core_banner.png).
+#include <gtest/gtest.h>
+
+#include <QDir>
+#include <QFile>
+#include <QLabel>
+#include <QSettings>
+#include <QStatusBar>
+#include <chrono>
+#include <cstdio>
+
+#include "candidate_inspector.hpp"
+#include "job_runner.hpp"
+#include "main_window.hpp"
+#include "observation.hpp"
+#include "out_of_core_controller.hpp"
+#include "search_panel.hpp"
+#include "st/io/fits_writer.hpp"
+#include "st/pipeline/out_of_core_cube.hpp"
+#include "st/pipeline/prepared_cube.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/search/cpu_backend.hpp"
+#include "st/search/method_choice.hpp"
+#include "st/stack/ipsa.hpp"
+#include "test_support.hpp"
+#include "ui_test_support.hpp"
+
+using namespace st;
+using namespace st::ui;
+
+namespace {
+
+constexpr int kW = 96, kH = 96;
+constexpr std::size_t kFrames = 1024;
+const Velocity kV{1.5, -1.0};
+
+/// 1024 filtered frames 0.02 s apart, zero but for a dot of 1 moving at kV through (48, 40) at t_ref: 38 MB
+/// on disk.
+FrameCube dotCube() {
+  FrameCube cube(kW, kH, kFrames);
+  for (std::size_t n = 0; n < kFrames; ++n)
+    cube.info()[n].mjdMid = 60000.0 + static_cast<double>(n) * 0.02 / 86400.0;
+  const auto dt = cube.timeOffsetsS();
+  for (std::size_t n = 0; n < kFrames; ++n) {
+    const int x = 48 + static_cast<int>(std::lround(kV.vx * dt[n]));
+    const int y = 40 + static_cast<int>(std::lround(kV.vy * dt[n]));
+    cube.frame(n)[static_cast<std::size_t>(y) * kW + x] = 1.0f;
+  }
+  return cube;
+}
+
+/// `cube` written as a prepared, filtered cube (STPREP, STFILT = T, SIGMAF 0.05, PSFFWHM 2.5).
+std::string writePrepared(const test::TempDir& dir, const FrameCube& cube) {
+  pipeline::Prepared p;
+  p.psf = psf::Moffat::fromFwhm(2.5, pipeline::kDefaultPsfBeta);
+  p.psfFitted = true;
+  p.sigmaN = 0.05;
+  p.filtered.sigmaF = 0.05;
+  const std::string path = (dir / "prepared.fits").string();
+  io::writeCube(path, cube, pipeline::preparedCubeCards(p, pipeline::PreparedState::Filtered));
+  return path;
+}
+
+/// The fakes' services with the real planOpen (the out-of-core decision reads the FITS headers).
+CoreServices servicesWithPlanOpen() {
+  CoreServices s = test::fakeServices(test::movingDotCube(8, 8, 2, {}, 1, 1));
+  s.planOpen = [](const std::vector<std::string>& inputs, std::size_t budget, CancelToken& cancel) {
+    return pipeline::planOpen(inputs, {}, budget, 2, cancel);
+  };
+  return s;
+}
+
+/// Each test process its own settings file (ctest runs the tests of this file as parallel processes), removed
+/// at the end.
+struct OwnSettings {
+  OwnSettings() {
+    QCoreApplication::setApplicationName(
+        QStringLiteral("synthtrack-out-of-core-gui-%1").arg(QCoreApplication::applicationPid()));
+  }
+  ~OwnSettings() {
+    const QString file = QSettings().fileName();
+    QSettings().clear();
+    QFile::remove(file);
+  }
+};
+
+}  // namespace
+
+TEST(OutOfCoreGui, CoreStacksInStripsEqualTheInMemoryStack) {
+  test::TempDir dir;
+  const FrameCube cube = dotCube();
+  const std::string path = writePrepared(dir, cube);
+  NullProgress progress;
+  CancelToken cancel;
+  const pipeline::OutOfCoreCube ooc = pipeline::openOutOfCore({path}, {}, progress, cancel);
+  EXPECT_EQ(ooc.shape.frames, kFrames);
+  EXPECT_DOUBLE_EQ(ooc.meta.sigmaF, 0.05);
+  // 2 MB: strips of a few rows (each with the overlap of the largest shift at kV).
+  const Image strips = pipeline::stackOutOfCore(ooc, kV, 2u << 20, progress, cancel);
+  const stack::StackResult whole = stack::stackIpsa(cube, kV);
+  EXPECT_EQ(strips.pixels, whole.sum.pixels);
+}
+
+TEST(OutOfCoreGui, CorePlanOpenKeepsWhatFitsOpensPreparedOutOfCoreAndRefusesRawFrames) {
+  test::TempDir dir;
+  FrameCube small = test::movingDotCube(64, 64, 50, {2.0, 1.0}, 30, 30);
+  const std::string raw = (dir / "raw.fits").string();
+  io::writeCube(raw, small, {});
+  CancelToken cancel;
+  // 8 GB: everything fits.
+  pipeline::OpenPlan plan = pipeline::planOpen({raw}, {}, std::size_t{8} << 30, 2, cancel);
+  EXPECT_EQ(plan.mode, pipeline::OpenMode::InMemory);
+  EXPECT_EQ(plan.shape.frames, 50u);
+  // 50 MB: below the base of any estimate. Raw frames are refused, naming the CLI that pre-processes them
+  // out of core.
+  plan = pipeline::planOpen({raw}, {}, 50u << 20, 2, cancel);
+  EXPECT_EQ(plan.mode, pipeline::OpenMode::Refused);
+  EXPECT_FALSE(plan.prepared);
+  EXPECT_NE(plan.reason.find("synthtrack-cli search"), std::string::npos) << plan.reason;
+  EXPECT_NE(plan.reason.find("--keep-scratch"), std::string::npos) << plan.reason;
+  EXPECT_NE(plan.reason.find("50 frames of 64 x 64 px"), std::string::npos) << plan.reason;
+  // The same frames written as a prepared cube open out of core.
+  const std::string prepared = writePrepared(dir, small);
+  plan = pipeline::planOpen({prepared}, {}, 50u << 20, 2, cancel);
+  EXPECT_EQ(plan.mode, pipeline::OpenMode::OutOfCore);
+  EXPECT_TRUE(plan.prepared);
+  EXPECT_GT(plan.need.total(), 50.0 * (1 << 20));
+}
+
+TEST(OutOfCoreGui, ACubeOverTheBudgetOpensOutOfCoreAndIsSearchedInTiles) {
+  const auto start = std::chrono::steady_clock::now();
+  OwnSettings settings;
+  test::TempDir dir;
+  const FrameCube cube = dotCube();
+  const std::string path = writePrepared(dir, cube);
+  std::shared_ptr<const Image> shownStack;  // what OutOfCoreController::stackReady gave, declared before `w`
+  Velocity shownV;
+  MainWindow w(servicesWithPlanOpen());
+  w.resize(1366, 768);
+  w.show();
+  w.setScripted(true);  // errors go to the status bar, not to a modal box
+  OutOfCoreController* ooc = OutOfCoreController::of(&w);
+  ASSERT_NE(ooc, nullptr);
+  EXPECT_THROW(ooc->setMemoryLimit("lots"), InputError);
+  // The cube needs ~143 MB held in the GUI; a search tile of it ~85 MB.
+  ooc->setMemoryLimit("100M");
+  EXPECT_EQ(ooc->budget().bytes, 100u << 20);
+  auto* label = w.findChild<QLabel*>("memory.label");
+  ASSERT_NE(label, nullptr);
+  EXPECT_TRUE(label->text().startsWith("memory budget 100")) << label->text().toStdString();
+
+  w.openInputs({QString::fromStdString(path)});
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 30000));
+  ASSERT_TRUE(w.observation()->prepared()) << w.statusBar()->currentMessage().toStdString();
+  ASSERT_TRUE(ooc->active());
+  EXPECT_TRUE(w.outOfCore());
+  EXPECT_TRUE(label->text().contains("OUT OF CORE")) << label->text().toStdString();
+  auto* banner = w.findChild<QLabel*>("memory.outOfCoreText");
+  ASSERT_NE(banner, nullptr);
+  EXPECT_TRUE(banner->isVisible());
+  EXPECT_TRUE(banner->text().contains("Out of core")) << banner->text().toStdString();
+  EXPECT_TRUE(banner->text().contains("1024 frames of 96 × 96 px")) << banner->text().toStdString();
+  EXPECT_TRUE(banner->text().contains("memory budget of 100 MB")) << banner->text().toStdString();
+  EXPECT_TRUE(banner->text().contains("unavailable")) << banner->text().toStdString();
+  EXPECT_TRUE(w.statusBar()->currentMessage().startsWith("Opened out of core"))
+      << w.statusBar()->currentMessage().toStdString();
+  // The view: the mean of all frames, as in memory.
+  const auto& raw = w.observation()->raw();
+  ASSERT_EQ(raw->frameCount(), 1u);
+  const stack::StackResult still = stack::stackIpsa(cube, Velocity{});
+  for (std::size_t k = 0; k < still.sum.size(); k += 97)
+    EXPECT_NEAR(raw->frame(0)[k], still.sum.pixels[k] / kFrames, 1e-6);
+  test::waitFor([] { return false; }, 300);  // the layouts settle (the banner's height, the labels' widths)
+  if (const QByteArray shots = qgetenv("ST_OUT_OF_CORE_SCREENSHOT_DIR"); !shots.isEmpty()) {
+    QDir().mkpath(QString::fromLocal8Bit(shots));
+    EXPECT_TRUE(w.grab().save(QString::fromLocal8Bit(shots) + "/out_of_core_banner.png"));
+  }
+
+  search::SearchParams params = w.searchPanel()->params();
+  params.method = search::SearchMethod::Exact;
+  w.searchPanel()->setParams(params);
+  w.searchPanel()->setGridPxS(kV, 1.0, 0.5);
+  // Cancelled at once: the job stops, no result.
+  w.runSearch();
+  ASSERT_TRUE(w.jobs()->busy());
+  EXPECT_EQ(w.jobs()->currentKind(), JobKind::Search);
+  w.jobs()->cancel();
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 5000));
+  EXPECT_FALSE(w.observation()->result());
+
+  // The search, with the out-of-core stack of the best candidate that selecting it asks for.
+  QObject::connect(ooc, &OutOfCoreController::stackReady, &w,
+                   [&](const std::shared_ptr<const Image>& sum, Velocity v, double) {
+                     shownStack = sum;
+                     shownV = v;
+                   });
+  w.runSearch();
+  ASSERT_TRUE(w.jobs()->busy());
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 60000));
+  const QString status = w.statusBar()->currentMessage();
+  ASSERT_TRUE(w.observation()->result()) << status.toStdString();
+  EXPECT_TRUE(status.startsWith("Search out of core")) << status.toStdString();
+  std::printf("%s\n", status.toLocal8Bit().constData());
+  const auto& result = *w.observation()->result();
+  ASSERT_FALSE(result.candidates.empty());
+  // The same best candidate as the in-memory core search of the whole cube.
+  search::FilteredCube whole;
+  whole.frames = cube;
+  whole.sigmaF = 0.05;
+  whole.psfFwhmPx = 2.5;
+  auto backend = search::makeCpuBackend();
+  NullProgress progress;
+  CancelToken cancel;
+  const search::SearchResult inMemory =
+      search::searchWithMethod(*backend, whole, w.searchPanel()->grid(), params, progress, cancel);
+  ASSERT_FALSE(inMemory.candidates.empty());
+  EXPECT_EQ(result.candidates.size(), inMemory.candidates.size());
+  EXPECT_EQ(result.candidates[0].x, inMemory.candidates[0].x);
+  EXPECT_EQ(result.candidates[0].y, inMemory.candidates[0].y);
+  EXPECT_EQ(result.candidates[0].v, inMemory.candidates[0].v);
+  EXPECT_NEAR(result.candidates[0].snr, inMemory.candidates[0].snr, 1e-6 * inMemory.candidates[0].snr);
+  EXPECT_EQ(result.candidates[0].x, 48);
+  EXPECT_EQ(result.candidates[0].y, 40);
+  EXPECT_EQ(result.candidates[0].v, kV);
+  // The best candidate is selected; its stack, summed in strips in a worker, equals the in-memory one.
+  EXPECT_EQ(w.observation()->selected(), std::optional<int>(0));
+  ASSERT_TRUE(test::waitFor([&] { return shownStack != nullptr; }, 20000));
+  EXPECT_EQ(shownV, kV);
+  EXPECT_EQ(shownStack->pixels, stack::stackIpsa(cube, kV).sum.pixels);
+  // What needs the cube in memory says so.
+  EXPECT_FALSE(w.candidateInspector()->busy());
+
+  const double elapsedS =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("out-of-core GUI test: %.1f s\n", elapsedS);
+  EXPECT_LT(elapsedS, 60.0);
+}
+
+TEST(OutOfCoreGui, RawFramesOverTheBudgetAreRefusedWithWhatToDo) {
+  OwnSettings settings;
+  test::TempDir dir;
+  const std::string raw = (dir / "raw.fits").string();
+  io::writeCube(raw, test::movingDotCube(64, 64, 50, {2.0, 1.0}, 30, 30), {});
+  MainWindow w(servicesWithPlanOpen());
+  w.show();
+  w.setScripted(true);
+  OutOfCoreController* ooc = OutOfCoreController::of(&w);
+  ooc->setMemoryLimit("50M");
+  w.openInputs({QString::fromStdString(raw)});
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 20000));
+  const QString status = w.statusBar()->currentMessage();
+  EXPECT_FALSE(w.observation()->raw());
+  EXPECT_FALSE(ooc->active());
+  EXPECT_TRUE(status.contains("synthtrack-cli search")) << status.toStdString();
+  EXPECT_TRUE(status.contains("--keep-scratch")) << status.toStdString();
+  EXPECT_TRUE(status.contains("Run > Memory limit")) << status.toStdString();
+  EXPECT_FALSE(w.findChild<QLabel*>("memory.outOfCoreText")->isVisible());
+}
+
+ST_UI_TEST_MAIN_ISOLATED()
