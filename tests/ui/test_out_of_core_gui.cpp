@@ -19,6 +19,7 @@
 #include <cstdio>
 
 #include "candidate_inspector.hpp"
+#include "fit_panel.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "observation.hpp"
@@ -236,8 +237,14 @@ TEST(OutOfCoreGui, ACubeOverTheBudgetOpensOutOfCoreAndIsSearchedInTiles) {
   ASSERT_TRUE(test::waitFor([&] { return shownStack != nullptr; }, 20000));
   EXPECT_EQ(shownV, kV);
   EXPECT_EQ(shownStack->pixels, stack::stackIpsa(cube, kV).sum.pixels);
-  // What needs the cube in memory says so.
+  // What needs the cube in memory says so, and does not run on the 16 x 16 corner the window holds.
   EXPECT_FALSE(w.candidateInspector()->busy());
+  EXPECT_TRUE(w.candidateInspector()->statusText().contains("Unavailable out of core"))
+      << w.candidateInspector()->statusText().toStdString();
+  w.fitPanel()->fitSelected();
+  EXPECT_FALSE(w.jobs()->busy());
+  EXPECT_TRUE(w.fitPanel()->statusText().contains("unavailable out of core"))
+      << w.fitPanel()->statusText().toStdString();
 
   const double elapsedS =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
