@@ -1,7 +1,5 @@
 #include "observation_pipeline.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <filesystem>
 #include <optional>
@@ -16,7 +14,7 @@
 #include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/plate_solve_stage.hpp"
 #include "st/pipeline/prepared_cube.hpp"
-#include "st/pipeline/preprocess_out_of_core.hpp"
+#include "st/pipeline/raw_out_of_core.hpp"
 #include "st/search/tiled_search.hpp"
 #include "st/stack/matched_filter.hpp"
 #include "st/pipeline/preprocess.hpp"
@@ -24,18 +22,6 @@
 #include "st/search/velocity_grid.hpp"
 
 namespace st::app {
-
-FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
-                                const std::optional<io::CropRegion>& crop, ProgressSink& progress,
-                                CancelToken& cancel) {
-  if (files.empty()) return {};
-  io::LoadOptions opt;  // calibration frames need no times: a nominal clock
-  opt.startMjd = 0.0;
-  opt.frameRateHz = 1.0;
-  opt.scienceFrames = false;  // bias/dark/flat are expected here: no 'not a science frame' warning
-  opt.crop = crop;            // cropped as the science frames are, so that the masters match them
-  return io::loadFrames(files, opt, progress, cancel);
-}
 
 pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOptions& o,
                                       ProgressSink& progress, CancelToken& cancel,
@@ -124,82 +110,6 @@ FrameCube loadRegion(const ObservationInput& in, const search::TileRect& r, Canc
   lo.crop = io::CropRegion{bx + r.x0, by + r.y0, r.width, r.height};
   NullProgress quiet;
   return io::loadFrames(in.inputs, lo, quiet, cancel);
-}
-
-void appendOnceTo(std::vector<std::string>& to, const std::vector<std::string>& from) {
-  for (const auto& w : from)
-    if (std::find(to.begin(), to.end(), w) == to.end()) to.push_back(w);
-}
-
-/// Raw frames whose in-memory pre-processing does not fit: pre-processed out of core in strips of rows into a
-/// filtered cube in o.scratchDir (pipeline/preprocess_out_of_core.hpp), the calibration masters built once
-/// for the whole frame and cropped to each strip. The plan goes into `memory`; throws st::InputError when no strip fits.
-pipeline::OutOfCorePrepared preprocessRawOutOfCore(const ObservationInput& in, const SearchOptions& o,
-                                                   const io::InputSummary& summary,
-                                                   const pipeline::CubeShape& shape, MemoryPlan& memory,
-                                                   unsigned threads, const ObservationHooks& hooks,
-                                                   ProgressSink& progress, CancelToken& cancel) {
-  pipeline::PreprocessParams params;
-  params.calib = in.calib;
-  params.registerFrames = o.registerFrames;
-  params.keepZeroBiased = false;
-  const int overlap = pipeline::preprocessOverlapPx(params);
-  const pipeline::OutOfCorePreprocessPlan plan = pipeline::planOutOfCorePreprocess(
-      shape, memory.budget.bytes, threads, overlap, std::max(params.frameBackground.meshPx, params.residualMeshPx));
-  if (plan.strips.empty()) {
-    throw InputError(pipeline::overBudgetMessage(
-        std::to_string(shape.frames) + " frames of " + std::to_string(shape.width) + " x " +
-            std::to_string(shape.height) + " px: pre-processing out of core (the smallest strip of rows, " +
-            std::to_string(std::min(shape.height, 64 + 2 * overlap)) + " rows with the overlap)",
-        plan.smallestStrip, memory.budget));
-  }
-  memory.lines.push_back("pre-processing out of core: " + std::to_string(plan.strips.size()) +
-                         " strips of up to " + std::to_string(plan.strips.front().ownRows) + " rows (+" +
-                         std::to_string(overlap) + " rows of overlap each side), estimated peak " +
-                         plan.perStrip.describe());
-  if (hooks.memory) hooks.memory(memory);
-  std::filesystem::path first(in.inputs.front());
-  if (first.filename().empty()) first = first.parent_path();  // a folder given as "science/"
-  const std::filesystem::path stem = first.filename().replace_extension();
-  // A kept cube has a name to find it by; a temporary one is the process's own (two runs in one folder, or
-  // a cube kept before, are never overwritten or removed by another run).
-  const std::string name = o.keepScratch ? stem.string() + ".synthtrack-filtered.fits"
-                                         : stem.string() + ".synthtrack-filtered." + std::to_string(::getpid()) +
-                                               ".fits";
-  const std::string path = (std::filesystem::path(o.scratchDir) / name).string();
-  std::vector<std::string> trimWarnings;
-  const std::optional<calib::Section> trim = calib::trimRegion(
-      summary.header, shape.width, shape.height, summary.files.front(), params.calib, trimWarnings);
-  // The masters are built once for the whole frame (one normalised flat for every strip) and cropped to
-  // each strip; the science frame they are checked against is the first frame's header and size.
-  std::optional<calib::MasterCalibration> masters;
-  {
-    const FrameCube bias = loadCalibrationFrames(in.bias, in.load.crop, progress, cancel);
-    const FrameCube dark = loadCalibrationFrames(in.dark, in.load.crop, progress, cancel);
-    const FrameCube flat = loadCalibrationFrames(in.flat, in.load.crop, progress, cancel);
-    if (!bias.empty() || !dark.empty() || !flat.empty()) {
-      FrameCube science(shape.width, shape.height, 1);
-      science.header = summary.header;
-      science.info()[0].file = summary.files.front();
-      masters = calib::buildMasters(bias, dark, flat, science, params.calib, progress, cancel);
-      appendOnceTo(trimWarnings, masters->warnings);
-    }
-  }
-  const pipeline::RawRegionLoader load = [&](const search::TileRect& r) {
-    pipeline::RawRegion region;
-    region.raw = loadRegion(in, r, cancel);
-    // The strip's own crop clips the image sections (TRIMSEC ...) to it: said once for the frame instead.
-    std::erase_if(region.raw.warnings,
-                  [](const std::string& w) { return w.find("outside the crop") != std::string::npos; });
-    pipeline::checkNotPrepared(region.raw, "search it with --preprocessed");
-    if (masters) region.masters = calib::cropMasters(*masters, {r.x0, r.y0, r.width, r.height});
-    return region;
-  };
-  SubProgress sub(progress, 0.0, 0.5);
-  pipeline::OutOfCorePrepared prepared =
-      pipeline::preprocessOutOfCore(load, shape, trim, params, plan, path, sub, cancel);
-  prepared.warnings.insert(prepared.warnings.begin(), trimWarnings.begin(), trimWarnings.end());
-  return prepared;
 }
 
 /// A pre-processed input too large for memory: its header, times and WCS from a small corner (the WCS of
@@ -314,7 +224,14 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       const auto accel = makePreprocessAccelerator(backend, accelMessage);
       prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
     } else {
-      prepOoc = preprocessRawOutOfCore(in, o, summary, shape, memory, threads, hooks, progress, cancel);
+      // Out of core in strips of rows (pipeline/raw_out_of_core.hpp): planned (and shown) before any pixel.
+      const pipeline::RawObservationFiles files{in.inputs, in.load, in.bias, in.dark, in.flat, in.calib};
+      const pipeline::RawOutOfCorePlan plan = pipeline::planRawOutOfCore(
+          files, summary, {o.registerFrames, o.scratchDir, o.keepScratch}, memory.budget, threads);
+      memory.lines.push_back(plan.description);
+      if (hooks.memory) hooks.memory(memory);
+      SubProgress sub(progress, 0.0, 0.5);
+      prepOoc = pipeline::preprocessRawOutOfCore(files, summary, plan, sub, cancel);
       if (!o.keepScratch) scratchGuard.path = prepOoc->path;
       scratchInput.inputs = {prepOoc->path};
       scratchInput.preprocessed = true;

@@ -16,6 +16,7 @@
 #include "st/common/progress.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/pipeline/preprocess.hpp"
+#include "st/pipeline/raw_out_of_core.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/types.hpp"
 
@@ -29,11 +30,8 @@ struct ObservationInput {
   calib::CalibParams calib;  ///< overscan / section choices (--no-overscan, --ignore-sections)
 };
 
-/// Loads bias, dark or flat frames (files or folders; none = an empty cube) with a nominal clock, no
-/// science-frame warnings, cropped with `crop` as the science frames are.
-FrameCube loadCalibrationFrames(const std::vector<std::string>& files,
-                                const std::optional<io::CropRegion>& crop, ProgressSink& progress,
-                                CancelToken& cancel);
+/// Loads bias, dark or flat frames (pipeline/raw_out_of_core.hpp).
+using pipeline::loadCalibrationFrames;
 
 /// The memory plan of the run (issue 20), printed with the search plan.
 struct MemoryPlan {
