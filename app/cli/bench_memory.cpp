@@ -129,15 +129,16 @@ int benchMemoryRaw(long long frames, int w, int h, const std::optional<std::stri
 }  // namespace
 
 int benchMemory(const Args& args) {
-  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method", "keep"}, {"help", "raw"});
+  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method"}, {"help", "raw", "keep"});
   if (cli.flag("help")) {
     std::printf(
         "usage: synthtrack-cli bench memory [--frames N] [--size WxH] [--vmax-px-s V] [--method exact|tree]\n"
-        "                                   [--memory-limit SIZE] [--raw]\n"
+        "                                   [--memory-limit SIZE] [--raw] [--keep]\n"
         "  in-memory vs out-of-core search of a filtered cube (default 400 x 512x512, 0.1 px/s, exact,\n"
         "  out of core under a third of the cube)\n"
         "  --raw: simulated raw frames (small preset; default 200 x 512x1024) pre-processed and searched in\n"
-        "  memory and out of core (strips of rows) under half the in-memory pre-processing estimate\n");
+        "  memory and out of core (strips of rows) under half the in-memory pre-processing estimate\n"
+        "  --keep: (not with --raw) the temporary folder (cube, each run's JSON and log) is left in place\n");
     return 0;
   }
   if (cli.flag("raw")) {
@@ -202,7 +203,7 @@ int benchMemory(const Args& args) {
   runSearch(path, dir, "warm", mem);  // page cache and allocator warm for both
   const Run a = runSearch(path, dir, "in-memory", mem);
   const Run b = runSearch(path, dir, "out-of-core", ooc);
-  if (!cli.has("keep")) fs::remove_all(dir);
+  if (!cli.flag("keep")) fs::remove_all(dir);
   const bool same = a.j["candidates"] == b.j["candidates"] &&
                     a.j["cells_above_threshold"] == b.j["cells_above_threshold"];
   std::printf("bench memory: %s, %u threads, %s\n", cpuModel().c_str(), workerCount(), utcNow().c_str());
@@ -220,7 +221,8 @@ int benchMemory(const Args& args) {
   line("in memory", a);
   std::printf("  (budget %s)\n", limit.c_str());
   line("out of core", b);
-  std::printf("out of core / in memory: wall %.2fx, peak %.2fx; candidates %s\n", b.wallS / a.wallS,
+  std::printf("out of core / in memory: wall %.2fx, CPU %.2fx, peak %.2fx; candidates %s\n", b.wallS / a.wallS,
+              b.cpuS / a.cpuS,
               b.j["memory"]["peak_resident_bytes"].get<double>() / a.j["memory"]["peak_resident_bytes"].get<double>(),
               same ? "identical" : "DIFFER");
   return same ? 0 : 1;

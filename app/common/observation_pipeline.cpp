@@ -280,6 +280,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supports(kTree), backend.name());
   std::vector<search::SearchTile> tiles;
+  unsigned treeThreads = 0;  // out of core: the tree's threads that fit the budget
   if (ooc) {
     memory.outOfCore = true;
     // The search's overlap, plus the matched filter's reach when tiles are filtered on loading.
@@ -309,6 +310,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
           plan.smallestTile, memory.budget));
     }
     tiles = plan.tiles;
+    treeThreads = plan.treeThreads;
     memory.tiles = tiles.size();
     memory.overlapPx = overlap;
     memory.perTile = plan.perTile;
@@ -344,6 +346,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   if (ooc) {
     search::SearchParams params = o.request.params;
     params.method = method.method;
+    params.treeThreads = treeThreads;
     const search::FilteredCube& meta = fc;
     const bool filterTiles = ooc->header.state == pipeline::PreparedState::ZeroBiased;
     const search::TileLoader load = [&](const search::TileRect& t) {

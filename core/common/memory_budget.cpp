@@ -1,6 +1,9 @@
 #include "st/common/memory_budget.hpp"
 
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cctype>
@@ -148,6 +151,27 @@ std::string MemoryEstimate::describe() const {
   }
   os << ")";
   return os.str();
+}
+
+void releaseFreeHeapMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
+HeapReuseScope::HeapReuseScope() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
+HeapReuseScope::~HeapReuseScope() {
+#if defined(__GLIBC__)
+  mallopt(M_MMAP_THRESHOLD, 128 * 1024);
+  mallopt(M_TRIM_THRESHOLD, 128 * 1024);
+  malloc_trim(0);
+#endif
 }
 
 std::size_t peakResidentBytes() {

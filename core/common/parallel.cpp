@@ -20,10 +20,16 @@ unsigned workerCount() {
 
 void parallelFor(std::size_t n, std::size_t chunk,
                  const std::function<void(std::size_t, std::size_t)>& body) {
+  parallelFor(n, chunk, body, 0);
+}
+
+void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std::size_t, std::size_t)>& body,
+                 unsigned maxThreads) {
   if (n == 0) return;
   chunk = std::max<std::size_t>(1, chunk);
   const std::size_t chunks = (n + chunk - 1) / chunk;
-  const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(workerCount(), chunks));
+  const unsigned cap = maxThreads > 0 ? std::min(maxThreads, workerCount()) : workerCount();
+  const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(cap, chunks));
   if (threads <= 1) {
     for (std::size_t b = 0; b < n; b += chunk)
       body(b, std::min(n, b + chunk));

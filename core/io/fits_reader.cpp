@@ -144,15 +144,26 @@ void readJob(const LoadPlan& plan, const ReadJob& job, FrameCube& cube,
   const ScannedFile& s = plan.files[job.fileIndex];
   std::vector<char> flags;
   const PixelRegion& r = plan.region;
-  const bool whole = r.x0 == 0 && r.y0 == 0 && r.width == s.width && r.height == s.height;
-  if (s.rawFloatOffset >= 0 && whole) {
+  if (s.rawFloatOffset >= 0) {
+    // Plain float32: the region's rows straight from the file (one read for full-width rows, else one per
+    // row), byte-swapped here. Crops and out-of-core tiles read as fast as whole frames (CFITSIO's subset
+    // reader took 3x the CPU time, issue 20).
     RawFile f(s.path);
     const std::size_t n = cube.framePixels();
+    const long long planeBytes = 4LL * s.width * s.height;
+    const bool fullRows = r.x0 == 0 && r.width == s.width;
     for (const auto& [plane, dest] : job.planes) {
       cancel.throwIfCancelled();
-      f.read(cube.frame(dest), n * 4,
-             s.rawFloatOffset + static_cast<long long>(plane) * static_cast<long long>(n) * 4, s.hdu, plane);
-      if (swapFloats(cube.frame(dest), n, flags)) masks[dest].assign(flags.begin(), flags.end());
+      float* out = cube.frame(dest);
+      const long long base = s.rawFloatOffset + static_cast<long long>(plane) * planeBytes;
+      if (fullRows) {
+        f.read(out, n * 4, base + 4LL * r.y0 * s.width, s.hdu, plane);
+      } else {
+        for (int y = 0; y < r.height; ++y)
+          f.read(out + static_cast<std::size_t>(y) * r.width, static_cast<std::size_t>(r.width) * 4,
+                 base + 4LL * ((static_cast<long long>(r.y0) + y) * s.width + r.x0), s.hdu, plane);
+      }
+      if (swapFloats(out, n, flags)) masks[dest].assign(flags.begin(), flags.end());
       frameDone();
     }
     return;

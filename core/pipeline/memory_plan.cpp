@@ -53,7 +53,20 @@ TiledSearchPlan planTiledSearch(const CubeShape& s, int overlapPx, std::size_t b
   TiledSearchPlan p;
   p.overlapPx = overlapPx;
   const double perPixel = 5.0 * static_cast<double>(s.frames);  // float + mask byte per frame
-  const double fixed = searchWorking(est, method) + kHitBytes * kExpectedHits + kBaseBytes;
+  const double others = kHitBytes * kExpectedHits + kBaseBytes;
+  double working = searchWorking(est, method);
+  if (method == search::SearchMethod::Tree && est.treeBusyThreads > 1 && est.treeTileBytes > 0) {
+    // Every busy thread holds one tile of partial stacks: no more threads than half the room allows.
+    const double stacks = static_cast<double>(est.treeTileBytes);
+    const double shared = working - est.treeBusyThreads * stacks;  // the map and N_in ranges
+    const double half = 0.5 * (static_cast<double>(budgetBytes) - others - shared);
+    const auto fit = static_cast<unsigned>(std::clamp(std::floor(half / stacks), 1.0, double(est.treeBusyThreads)));
+    p.treeThreads = fit;
+    working = shared + fit * stacks;
+  } else if (method == search::SearchMethod::Tree) {
+    p.treeThreads = std::max(1u, est.treeBusyThreads);
+  }
+  const double fixed = working + others;
   // The loader's per-thread plane (float + flags) of a tile is at most one read row band of the tile: count
   // it as part of the tile (5 bytes x threads per pixel).
   const double perPixelAll = perPixel + 5.0 * std::max(1u, threads);
@@ -63,7 +76,10 @@ TiledSearchPlan planTiledSearch(const CubeShape& s, int overlapPx, std::size_t b
     e.add("tile of the filtered cube", 4.0 * s.frames * readPixels);
     e.add("tile pixel mask", 1.0 * s.frames * readPixels);
     e.add("loader plane buffers", 5.0 * std::max(1u, threads) * readPixels);
-    e.add(method == search::SearchMethod::Tree ? "tree search buffers" : "exact search buffers", searchWorking(est, method));
+    e.add(method == search::SearchMethod::Tree
+              ? "tree search buffers (" + std::to_string(p.treeThreads) + " threads)"
+              : "exact search buffers",
+          working);
     e.add("cells above threshold", kHitBytes * kExpectedHits);
     e.add("base", kBaseBytes);
     return e;

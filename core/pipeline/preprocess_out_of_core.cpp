@@ -192,6 +192,9 @@ OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeSha
       rowsDone += strip.ownRows;
     }
     writer->finish(framesInfo);
+    // What the strips freed stays in the threads' arenas (the next strip reuses it); the search that follows
+    // counts none of it (measured: 114 -> 82 MB resident when the search of 100 x 256 x 1024 starts).
+    releaseFreeHeapMemory();
   } catch (...) {
     writer.reset();
     std::error_code ec;

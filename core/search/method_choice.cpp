@@ -144,8 +144,10 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.
   const std::size_t tiles = static_cast<std::size_t>((height + e.treeTileRows - 1) / e.treeTileRows);
   const std::size_t busy = std::min<std::size_t>(std::max(1u, threads), tiles);
+  e.treeTileBytes = treeTileBytes(plan, width, e.treeTileRows);
+  e.treeBusyThreads = static_cast<unsigned>(busy);
   e.treeWorkingBytes =
-      busy * treeTileBytes(plan, width, e.treeTileRows) + 12 * grid.count() +
+      busy * e.treeTileBytes + 12 * grid.count() +
       static_cast<std::size_t>(width + height) * static_cast<std::size_t>(grid.nvx + grid.nvy) * 8;
   return e;
 }

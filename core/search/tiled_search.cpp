@@ -7,6 +7,7 @@
 
 #include "ipsa_kernel.hpp"
 #include "st/common/error.hpp"
+#include "st/common/memory_budget.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/search/search_run.hpp"
 #include "st/search/velocity_grid.hpp"
@@ -85,6 +86,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   Velocity skyRate;
   result.map = detail::emptyVelocityMap(grid);
   VelocityMap& map = result.map;
+  const HeapReuseScope reuse;  // each tile's cube and the tree's stacks land on the previous tile's pages
   for (std::size_t t = 0; t < tiles.size(); ++t) {
     cancel.throwIfCancelled();
     const SearchTile& tile = tiles[t];
@@ -132,6 +134,7 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
         tp.minFrames = result.minFrames;
         tp.maxHits = params.maxCandidates;
         tp.bufferBytes = params.bufferBytes;
+        tp.threads = params.treeThreads;
         out = detail::treeSearchRegion(cube.frames, grid, roi, tp, sub, cancel);
       }
     }

@@ -11,6 +11,7 @@ struct TreeRegionParams {
   int minFrames = 1;
   std::size_t maxHits = 10000;
   std::size_t bufferBytes = 0;  ///< partial stacks of all threads together (0: kTreeBuffersBytes)
+  unsigned threads = 0;         ///< at most this many threads (0: workerCount()), SearchParams::treeThreads
 };
 
 /// Tree search of output cells in `roi` (the frames around it are read as the image: samples outside the

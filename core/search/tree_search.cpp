@@ -455,7 +455,9 @@ KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, 
   const std::size_t tiles = static_cast<std::size_t>((roi.height + cx.tileRows - 1) / cx.tileRows);
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "velocity search (tree)");
-  parallelFor(tiles, 1, [&](std::size_t b, std::size_t e) {
+  parallelFor(
+      tiles, 1,
+      [&](std::size_t b, std::size_t e) {
     std::unique_ptr<WorkerState> ws = acquire();
     for (std::size_t t = b; t < e; ++t) {
       runTile(cx, *ws, roi.y0 + static_cast<int>(t) * cx.tileRows);
@@ -464,7 +466,8 @@ KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, 
     }
     std::lock_guard lock(mutex);
     pool.push_back(std::move(ws));
-  });
+      },
+      p.threads);
 
   KernelOutput out;
   out.map = emptyVelocityMap(grid);
@@ -546,6 +549,7 @@ SearchResult treeSearch(const FilteredCube& cube, const VelocityGrid& grid, cons
   p.minFrames = result.minFrames;
   p.maxHits = params.maxCandidates;
   p.bufferBytes = params.bufferBytes;
+  p.threads = params.treeThreads;
   const detail::Roi roi{0, 0, cube.frames.width(), cube.frames.height()};
   detail::KernelOutput out = detail::treeSearchRegion(cube.frames, grid, roi, p, progress, cancel);
   result.map = std::move(out.map);

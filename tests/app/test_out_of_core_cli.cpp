@@ -167,6 +167,38 @@ TEST_P(OutOfCoreMethods, CubeThreeTimesTheBudgetGivesTheInMemoryCandidatesWithin
 
 INSTANTIATE_TEST_SUITE_P(Cpu, OutOfCoreMethods, ::testing::Values("exact", "tree"));
 
+// The tree search out of core holds one tile of partial stacks per thread (issue 20): with 16 threads under
+// a 128 MB budget (25^2 velocities) they alone would need ~16 x 23 MB, so the plan runs the tree on fewer
+// threads (SearchParams::treeThreads); before, the plan counted them all (369 MB on a 512^2 cube) and the
+// search stopped with exit 1. For 1, 2 and 16 threads (ST_THREADS) the run stays under the budget (VmHWM) and gives the
+// in-memory candidates.
+class OutOfCoreTreeThreads : public OutOfCoreCli, public ::testing::WithParamInterface<int> {};
+
+TEST_P(OutOfCoreTreeThreads, TreeStaysUnderTheBudgetWhateverTheThreadCount) {
+  const std::string threads = std::to_string(GetParam());
+  ::setenv("ST_THREADS", threads.c_str(), 1);
+  const std::vector<std::string> grid{"--vmax-px-s", "0.3"};
+  auto memArgs = grid, oocArgs = grid;
+  oocArgs.insert(oocArgs.end(), {"--memory-limit", kBudget});
+  const auto [rcMem, rssMem, mem] = search("tree", memArgs, "threads-mem-" + threads);
+  ASSERT_EQ(rcMem, 0) << readText(path("threads-mem-" + threads + ".err"));
+  const auto [rcOoc, rssOoc, ooc] = search("tree", oocArgs, "threads-ooc-" + threads);
+  const std::string err = readText(path("threads-ooc-" + threads + ".err"));
+  ::unsetenv("ST_THREADS");
+  ASSERT_EQ(rcOoc, 0) << err;
+  EXPECT_TRUE(ooc["memory"]["out_of_core"].get<bool>());
+  const auto peak = ooc["memory"]["peak_resident_bytes"].get<std::size_t>();
+  std::printf("tree, %s threads, --memory-limit %s: VmHWM %.0f MB, %llu tiles\n", threads.c_str(), kBudget,
+              peak / 1048576.0, ooc["memory"]["tiles"].get<unsigned long long>());
+  EXPECT_LT(peak, kBudgetBytes) << err;
+  EXPECT_EQ(mem["candidates"], ooc["candidates"]);
+  EXPECT_EQ(mem["cells_above_threshold"], ooc["cells_above_threshold"]);
+  (void)rssMem;
+  (void)rssOoc;
+}
+
+INSTANTIATE_TEST_SUITE_P(Cpu, OutOfCoreTreeThreads, ::testing::Values(1, 2, 16));
+
 /// The candidates of two runs are the same: positions, velocities, frame counts and every other value equal,
 /// except that sums of filtered pixels (snr, sum) may differ by float rounding (1e-5 relative) and the false-
 /// alarm probability by what that does to it (1e-2 relative): the CPU matched filter is an FFT, whose

@@ -312,5 +312,48 @@ TEST(IoReader, CropsFramesToACommonRegion) {
   EXPECT_EQ(c.frame(1)[0], 1.0f + 8.0f) << "b.fits: x=1, y=1 of an 8-wide frame";
 }
 
+// Crops of a plain float32 cube (the out-of-core tiles' reads, issue 20) are read straight from the file,
+// full-width strips in one read and narrower rectangles row by row: the same pixels and NaN masks as the
+// same region of the whole frames.
+TEST(IoReader, FloatCubeCropsEqualTheWholeFramesRegion) {
+  TempDir dir;
+  FrameCube cube(13, 9, 3);
+  for (std::size_t i = 0; i < cube.pixels().size(); ++i)
+    cube.pixels()[i] = 0.25f * static_cast<float>(i) - 40.0f;
+  cube.frame(1)[4 * 13 + 6] = NAN;
+  for (std::size_t n = 0; n < 3; ++n) {
+    cube.info()[n].mjdMid = 60000.0 + static_cast<double>(n) / 86400.0;
+    cube.info()[n].exposureS = 1.0;
+  }
+  const std::string path = (dir / "f.fits").string();
+  writeCube(path, cube);
+  NullProgress progress;
+  CancelToken cancel;
+  const FrameCube whole = loadFrames({path}, LoadOptions{}, progress, cancel);
+  ASSERT_EQ(whole.mask().size(), whole.pixels().size());
+  for (const PixelRegion r : {PixelRegion{0, 3, 13, 4}, PixelRegion{5, 2, 4, 5}, PixelRegion{12, 8, 1, 1}}) {
+    LoadOptions o;
+    o.crop = r;
+    const FrameCube c = loadFrames({path}, o, progress, cancel);
+    ASSERT_EQ(c.width(), r.width);
+    ASSERT_EQ(c.height(), r.height);
+    ASSERT_EQ(c.frameCount(), 3u);
+    const bool hasNan = r.x0 <= 6 && 6 < r.x0 + r.width && r.y0 <= 4 && 4 < r.y0 + r.height;
+    ASSERT_EQ(c.mask().empty(), !hasNan) << r.x0 << "," << r.y0;
+    for (std::size_t n = 0; n < 3; ++n) {
+      for (int y = 0; y < r.height; ++y) {
+        for (int x = 0; x < r.width; ++x) {
+          const std::size_t from = n * whole.framePixels() + static_cast<std::size_t>(r.y0 + y) * 13 + r.x0 + x;
+          const std::size_t to = n * c.framePixels() + static_cast<std::size_t>(y) * r.width + x;
+          EXPECT_EQ(c.pixels()[to], whole.pixels()[from]) << n << " " << x << " " << y;
+          if (hasNan) {
+            EXPECT_EQ(c.mask()[to], whole.mask()[from]) << n << " " << x << " " << y;
+          }
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace st::io

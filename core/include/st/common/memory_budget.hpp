@@ -59,4 +59,23 @@ struct MemoryEstimate {
 /// Peak resident set of this process so far (VmHWM, bytes); 0 when unreadable.
 std::size_t peakResidentBytes();
 
+/// Gives the heap's free pages back to the system (glibc's malloc_trim(0), every arena; nothing elsewhere).
+/// Between the stages of an out-of-core run: the allocator keeps what a stage freed in its threads' arenas
+/// (measured: ~70 MB resident after pre-processing 100 x 256 x 1024 in strips with 2 threads), which the
+/// next stage's estimate does not count.
+void releaseFreeHeapMemory();
+
+/// While alive, large blocks the heap frees are kept for the next allocation instead of being unmapped
+/// (glibc: mmap and trim thresholds raised to 1 GiB; nothing elsewhere); at its end the glibc defaults
+/// (128 KiB) are set back and the free pages released. For loops that allocate and free the same large
+/// buffers over and over (the out-of-core search's tiles): the kernel no longer faults and zeroes their pages
+/// each time (measured: 400 x 512^2 tree search in 14 tiles, 0.9 -> 0.2 s of system time, +6 MB VmHWM).
+class HeapReuseScope {
+ public:
+  HeapReuseScope();
+  ~HeapReuseScope();
+  HeapReuseScope(const HeapReuseScope&) = delete;
+  HeapReuseScope& operator=(const HeapReuseScope&) = delete;
+};
+
 }  // namespace st

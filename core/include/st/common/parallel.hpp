@@ -14,4 +14,9 @@ unsigned workerCount();
 /// workerCount() threads (the calling thread is one of them). Blocks until all are done.
 void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std::size_t, std::size_t)>& body);
 
+/// As above on up to min(workerCount(), maxThreads) threads (0: workerCount()): a stage whose per-thread
+/// buffers must fit a memory budget (the out-of-core tree search) runs on fewer threads.
+void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std::size_t, std::size_t)>& body,
+                 unsigned maxThreads);
+
 }  // namespace st

@@ -71,10 +71,16 @@ struct TiledSearchPlan {
   int overlapPx = 0;
   MemoryEstimate perTile;       ///< the peak while the largest tile is searched
   MemoryEstimate smallestTile;  ///< the need of the smallest tile (for the message when none fits)
+  /// The tree's threads (SearchParams::treeThreads): estimate.treeBusyThreads, fewer when their partial
+  /// stacks would take more than half of what the budget leaves beside the base and the cells (at least 1).
+  unsigned treeThreads = 0;
 };
 
 /// Tiles for a search of `shape` with `overlapPx` under `budgetBytes`; `estimate` prices the tile's
-/// search working set (its per-thread scratch does not depend on the tile's height).
+/// search working set (its per-thread scratch does not depend on the tile's height). The tree's threads
+/// are lowered (treeThreads) when all of them would not leave room for a tile: the working set of the tree
+/// grows by one tile of partial stacks per thread (~22 MB a thread for 81^2 velocities x 100 frames x
+/// 256 px wide), which 16 threads cannot hold under a 170 MB budget.
 TiledSearchPlan planTiledSearch(const CubeShape& shape, int overlapPx, std::size_t budgetBytes,
                                 const search::MethodEstimate& estimate, search::SearchMethod method,
                                 unsigned threads);

@@ -81,6 +81,8 @@ struct MethodEstimate {
   std::size_t cubeBytes = 0;          ///< the cube, already held
   int width = 0;                      ///< image width, px (for priceMethods)
   int treeTileRows = 0;               ///< rows per tile (treeTileRows)
+  std::size_t treeTileBytes = 0;      ///< one thread's partial stacks (treeTileBytes of those rows)
+  unsigned treeBusyThreads = 0;       ///< threads holding a tile at once (min(threads, tiles of rows))
   int treeBlocks = 1;                 ///< velocity blocks, one tree each (treeVelocityBlocks)
   int treeMaxShiftErrorPx = 0;        ///< max |tree shift - round(v dt)| over the grid (tree_plan.hpp)
   double psfFwhmPx = 0.0;             ///< the cube's PSF FWHM, px (0: unknown)

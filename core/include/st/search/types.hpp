@@ -66,6 +66,10 @@ struct SearchParams {
   /// Search buffers of all threads together (the tree's partial stacks), bytes; 0 = the default
   /// (kTreeBuffersBytes, tree_search.hpp). Sized from the memory budget (issue 20); no effect on results.
   std::size_t bufferBytes = 0;
+  /// Threads the CPU tree search runs on at most (0: st::workerCount()). The out-of-core plan lowers it
+  /// when every thread's partial stacks would not fit the memory budget beside a tile (issue 20); the tile
+  /// rows stay those of workerCount() threads, so the results do not change.
+  unsigned treeThreads = 0;
 };
 
 /// One detection, at its best cell after clustering in (x, y, vx, vy).
