@@ -157,6 +157,7 @@ OutOfCoreSearch searchOutOfCore(const OutOfCoreCube& cube, const search::Velocit
                                        plan.smallestTile, budget));
   }
   params.method = method.method;
+  params.treeThreads = plan.treeThreads;  // the tree's threads whose buffers fit beside a tile
   const double sigmaF = cube.meta.sigmaF;
   const search::TileLoader load = [&](const search::TileRect& t) {
     NullProgress quiet;
