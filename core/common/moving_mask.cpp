@@ -38,6 +38,14 @@ void MovingMask::set(int x, int y) {
   m_canvas[static_cast<std::size_t>(j) * m_cw + i] = 1;
 }
 
+void MovingMask::add(const MovingMask& other) {
+  const auto& c = other.m_canvas;
+  for (std::size_t i = 0; i < c.size(); ++i)
+    if (c[i])
+      set(other.m_x0 + static_cast<int>(i % static_cast<std::size_t>(other.m_cw)),
+          other.m_y0 + static_cast<int>(i / static_cast<std::size_t>(other.m_cw)));
+}
+
 bool MovingMask::isSetAtRef(int x, int y) const {
   const int i = x - m_x0, j = y - m_y0;
   if (i < 0 || j < 0 || i >= m_cw || j >= m_ch) return false;

@@ -258,18 +258,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // the frames and would raise its background (and lose that much of its signal). Where the stars are
   // subtracted (a drifting field), their wide footprints are left out as well.
   detect::MovingMask exclude = stars.mask;
-  if (!stars.subtractRegion.empty()) {
-    const auto& wide = stars.subtractRegion.canvas();
-    for (std::size_t i = 0; i < wide.size(); ++i)
-      if (wide[i])
-        exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
-                    exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
-  }
-  const auto& moverCanvas = stars.moverMask.canvas();
-  for (std::size_t i = 0; i < moverCanvas.size(); ++i)
-    if (moverCanvas[i])
-      exclude.set(exclude.x0() + static_cast<int>(i) % exclude.canvasWidth(),
-                  exclude.y0() + static_cast<int>(i) / exclude.canvasWidth());
+  exclude.add(stars.subtractRegion);
+  exclude.add(stars.moverMask);
   // Per-pixel background, star subtraction, zeroing (cosmic-ray pixels, masks, unmeasured pixels,
   // single-frame sources) and residual means: on a device that keeps the cube between them when there is
   // one (issue 16), else stage by stage (pipeline/preprocess_accelerator.cpp).

@@ -132,12 +132,7 @@ ZeroBiasResult zeroBiasStages(PreprocessAccelerator* accel, FrameCube& cube, con
                                                        in.starSubtraction, sub, cancel);
     if (out.starSubtraction.applied && in.starMask) {
       // The sky positions whose residuals vary too much are masked with the cores.
-      const MovingMask& ex = out.starSubtraction.excess;
-      const auto& c = ex.canvas();
-      for (std::size_t i = 0; i < c.size(); ++i)
-        if (c[i])
-          in.starMask->set(ex.x0() + static_cast<int>(i) % ex.canvasWidth(),
-                           ex.y0() + static_cast<int>(i) / ex.canvasWidth());
+      in.starMask->add(out.starSubtraction.excess);
     }
     lap("star subtraction");
   }

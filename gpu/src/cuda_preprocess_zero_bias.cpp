@@ -35,12 +35,8 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
     out.starSubtraction =
         subtractStarTemplateOnDevice(cube, d, *in.subtractRegion, sigma, in.starSubtraction, s, &starTiming);
     if (out.starSubtraction.applied && in.starMask) {
-      const MovingMask& ex = out.starSubtraction.excess;
-      const auto& c = ex.canvas();
-      for (std::size_t i = 0; i < c.size(); ++i)
-        if (c[i])
-          in.starMask->set(ex.x0() + static_cast<int>(i) % ex.canvasWidth(),
-                           ex.y0() + static_cast<int>(i) / ex.canvasWidth());
+      // The sky positions whose residuals vary too much are masked with the cores.
+      in.starMask->add(out.starSubtraction.excess);
     }
     progress.report(0.75, "star subtraction (GPU)");
     lap("star subtraction");

@@ -40,6 +40,8 @@ class MovingMask {
 
   /// Sets the reference position (x, y); positions off the canvas are ignored.
   void set(int x, int y);
+  /// Sets every reference position `other` has set (the union; positions off this canvas are ignored).
+  void add(const MovingMask& other);
   [[nodiscard]] bool isSetAtRef(int x, int y) const;
   /// True when pixel (x, y) of frame n is covered.
   [[nodiscard]] bool covers(std::size_t n, int x, int y) const {
