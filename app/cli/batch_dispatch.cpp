@@ -68,6 +68,7 @@ std::vector<batch::Outcome> dispatch(Cluster& cluster, const std::vector<batch::
   };
   const auto loseWorker = [&](int w, const std::string& why) {
     alive.erase(w);
+    cluster.notePeerLost(w);
     const auto held = queue.lose(w);
     std::string what = "nothing";
     if (held) {

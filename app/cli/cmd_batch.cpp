@@ -245,9 +245,9 @@ int cmdBatch(const Args& args) {
       std::fprintf(stderr, "batch:   %s: %s\n", e["observation"].get<std::string>().c_str(),
                    e["reason"].get<std::string>().c_str());
     std::fflush(stderr);
-    return 3;
+    return cluster.finishRank(3);
   }
-  return catalogue["errors"].empty() ? 0 : 1;
+  return cluster.finishRank(catalogue["errors"].empty() ? 0 : 1);
 }
 
 }  // namespace st::app

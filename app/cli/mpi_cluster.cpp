@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <thread>
 
@@ -133,6 +134,20 @@ std::vector<std::string> Cluster::gather(const std::string& mine) {
 #else
   return {mine};
 #endif
+}
+
+int Cluster::finishRank(int code) {
+  if (!m_started || m_rank != 0 || m_lostPeers.empty()) return code;
+  std::string ranks;
+  for (const int r : m_lostPeers)
+    ranks += (ranks.empty() ? "" : ", ") + std::to_string(r);
+  std::fprintf(stderr,
+               "batch: everything is written; ending the MPI job with MPI_Abort(%d), since MPI_Finalize would "
+               "wait for the lost rank(s) %s\n",
+               code, ranks.c_str());
+  std::fflush(stdout);
+  std::fflush(stderr);
+  abort(code);
 }
 
 void Cluster::abort(int code) {

@@ -41,6 +41,14 @@ class Cluster {
   std::vector<std::string> gather(const std::string& mine);
   /// Ends every rank of the job with `code` (MPI_Abort); a plain exit without MPI.
   [[noreturn]] void abort(int code);
+  /// Rank 0 declared `rank` dead (it stopped answering). MPI_Finalize waits for every rank of the job, the
+  /// dead one included, so a job that lost a rank must end by finishRank() instead of a plain return.
+  void notePeerLost(int rank) noexcept { m_lostPeers.push_back(rank); }
+  [[nodiscard]] const std::vector<int>& lostPeers() const noexcept { return m_lostPeers; }
+  /// Returns `code` for a normal end (MPI_Finalize in the destructor). When a peer was lost, rank 0 ends the
+  /// whole job with `code` (MPI_Abort) instead: the survivors, their work done and reported, would otherwise
+  /// wait in MPI_Finalize for the dead rank forever, and so would mpirun.
+  int finishRank(int code);
   /// Whether MPI support was compiled in.
   static bool compiledIn();
 
@@ -54,6 +62,7 @@ class Cluster {
   int m_localSize = 1;
   bool m_nodeHasRoot = true;
   std::string m_host;
+  std::vector<int> m_lostPeers;
 };
 
 }  // namespace st::app
