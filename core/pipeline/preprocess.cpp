@@ -103,7 +103,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   lap("calibrate");
   {
     SubProgress sub(progress, 0.1, 0.12);
-    out.frameBackgrounds = stats::removeFrameBackgrounds(cube, params.frameBackground, sub, cancel);
+    out.frameBackgrounds =
+        removeFrameBackgroundsOn(params.accelerator, cube, params.frameBackground, sub, cancel, out.notes);
     if (out.frameBackgrounds.framesSkipped > 0)
       out.notes.push_back(std::to_string(out.frameBackgrounds.framesSkipped) +
                           " frame(s) without a background model (SEP failed): their sky level was kept");
@@ -125,11 +126,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     filteredBuffer =
         std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
   bool rateFromRegistration = false;
+  std::size_t framesMoved = 0;
   {
     SubProgress sub(progress, 0.1, 0.12);
-    rateFromRegistration = registerFramesStage(out, cube, params, sub, cancel);
+    rateFromRegistration = registerFramesStage(out, cube, params, sub, cancel, &framesMoved);
   }
   lap("registration");
+  // Unless registration moved frames, the pixels are those the frame backgrounds left: a device that kept
+  // them need not upload them again for the prefetch below.
+  if (params.accelerator && framesMoved == 0) params.accelerator->framesUnchangedSinceFrameBackgrounds(cube);
   // The cube does not change again until the per-pixel background but at the cosmic-ray fills (patched into
   // the device's copy below; the sky rate, static sources and PSF only read it): a device may upload it
   // meanwhile and make the sky rate's and the static sources' stacks from it (issue 16). The guard,

@@ -15,6 +15,22 @@ std::string fallbackNote(const PreprocessAccelerator& accel, const char* stage, 
 
 }  // namespace
 
+stats::FrameBackgrounds removeFrameBackgroundsOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                                 const stats::FrameBackgroundParams& params,
+                                                 ProgressSink& progress, CancelToken& cancel,
+                                                 std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      stats::FrameBackgrounds out = accel->removeFrameBackgrounds(cube, params, progress, cancel);
+      if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+      return out;
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "frame backgrounds", e));
+    }
+  }
+  return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+}
+
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params,
                                     std::vector<std::string>& notes) {

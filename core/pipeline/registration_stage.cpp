@@ -5,7 +5,8 @@
 namespace st::pipeline {
 
 bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params, ProgressSink& progress,
-                         CancelToken& cancel) {
+                         CancelToken& cancel, std::size_t* framesMoved) {
+  if (framesMoved) *framesMoved = 0;
   if (params.givenRegistration) {
     detect::applyRegistration(cube, *params.givenRegistration);
     out.registration = *params.givenRegistration;
@@ -20,6 +21,7 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
   out.notes.push_back(reg.note);
   if (params.registration.alignWholePixels) {
     const std::size_t moved = detect::alignWholePixels(cube, reg, cancel);
+    if (framesMoved) *framesMoved = moved;
     if (moved > 0) {
       out.notes.push_back("registration: " + std::to_string(moved) +
                           " frame(s) moved by whole pixels onto the first frame's pixel grid (the pixels they "

@@ -1,6 +1,7 @@
 // The CUDA pre-processing accelerator: the device, the global background, the prefetch of the calibrated
 // cube, the staged copies and the factory (the stages: cuda_preprocess.hpp).
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <memory>
@@ -55,7 +56,23 @@ stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
   return globalBackgroundUploaded(cube, params, r.compute.get());
 }
 
+void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) {
+  // Benchmark knob: ST_GPU_SEP_NO_REUSE=1 uploads the prefetch's pixels as before.
+  const char* e = std::getenv("ST_GPU_SEP_NO_REUSE");
+  const bool reuse = !(e && *e && *e != '0');
+  m_sepFramesValid = reuse && m_sepFrames.size() > 0 && m_sepFramesData == cube.pixels().data() &&
+                     m_sepFrames.size() == cube.pixels().size();
+}
+
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
+  // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here.
+  DeviceBuffer<float> kept;
+  if (m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
+      m_sepFrames.size() == cube.pixels().size())
+    kept = std::move(m_sepFrames);
+  m_sepFrames = DeviceBuffer<float>();
+  m_sepFramesData = nullptr;
+  m_sepFramesValid = false;
   if (stagewise()) return nullptr;
   if (m_prefetch) m_prefetch->join();
   auto p = std::make_shared<Prefetch>();
@@ -66,14 +83,15 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   const std::uint8_t* maskData = cube.mask().data();
   // A thread of its own and kPrefetchCopyThreads cores: the host copies into the pinned staging buffers run
   // beside the CPU stages (static sources, PSF) instead of on every core at the per-pixel background.
-  p->thread = std::jthread([this, q = p.get(), maskData] {
+  p->thread = std::jthread([this, q = p.get(), maskData, kept = std::move(kept)]() mutable {
     try {
       Stopwatch sw;
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
       DeviceResources& r = ensureResources(m_prefetchRes);
-      q->pix = DeviceBuffer<float>(q->size);
+      q->keptFrames = kept.size() > 0;
+      q->pix = q->keptFrames ? std::move(kept) : DeviceBuffer<float>(q->size);
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
-      stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float));
+      if (!q->keptFrames) stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float));
       if (q->maskSize) stagedUpload(r, q->mask.get(), maskData, q->maskSize);
       r.copy.sync();
       q->seconds = sw.lap();

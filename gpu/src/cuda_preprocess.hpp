@@ -2,6 +2,7 @@
 // The CUDA pre-processing accelerator (gpu/include/st/gpu/preprocess.hpp), one class whose stages live in
 // one file each (issue 16):
 //   cuda_preprocess.cpp             the device, globalBackground, prefetch, the staged copies, the factory
+//   cuda_preprocess_frame_backgrounds.cpp  the frame backgrounds (SEP per frame: frame_backgrounds.*)
 //   cuda_preprocess_sky_stack.cpp  the stacks from the prefetched cube: the sky rate's block sums, the
 //                                  cosmic-ray fills patched in, the stacks at the sky rate (static sources,
 //                                  PSF)
@@ -85,8 +86,11 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
 
+  stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
+                                                 ProgressSink& progress, CancelToken& cancel) override;
   stats::ClipStats globalBackground(const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params) override;
+  void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) override;
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override;
   std::shared_ptr<void> prefetch(const FrameCube& cube) override;
@@ -145,6 +149,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     std::size_t size = 0, maskSize = 0;
     std::uint64_t key = 0;
     bool ok = false;
+    bool keptFrames = false;  ///< the pixels came from the frame backgrounds' frames, not an upload
     std::atomic<bool> finished{false};  ///< the thread is done (ok or not): join() will not wait
     double seconds = 0.0;
     void join() {
@@ -162,6 +167,11 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
+  // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
+  // cube once the pipeline has said its pixels did not change since (framesUnchangedSinceFrameBackgrounds).
+  DeviceBuffer<float> m_sepFrames;
+  const float* m_sepFramesData = nullptr;
+  bool m_sepFramesValid = false;
   std::string m_note;
   bool m_keepResident = true;
   // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.

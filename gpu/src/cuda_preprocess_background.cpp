@@ -165,8 +165,9 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   if (params.noiseMap) out.noiseMap = stats::boxSmooth(out.sigma, params.noiseMapBoxPx, ok);
   const double host = sw.lap();
   m_note = "per-pixel background on " + name() + ": tables " + ms(hostTables) + ", upload " +
-           (prefetched ? "prefetched behind the CPU stages (" + ms(pf->seconds) + " on its thread; waited " +
-                             ms(upload) + ")"
+           (prefetched ? std::string(pf->keptFrames ? "none (the frame backgrounds' frames; mask "
+                                                    : "prefetched behind the CPU stages (") +
+                             ms(pf->seconds) + " on its thread; waited " + ms(upload) + ")"
                        : ms(upload)) +
            ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
            " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", clip " +

@@ -34,6 +34,12 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return stack::filterCube(cube, kernel, progress, cancel, noise);
   }
+  stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
+                                                 ProgressSink& progress, CancelToken& cancel) override {
+    ++calls;
+    act();
+    return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  }
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override {
     ++calls;
@@ -101,6 +107,14 @@ TEST(PreprocessAccelerator, DeviceFailureFallsBackToTheCpuWithAWarning) {
   EXPECT_NE(notes[2].find("residual means on fake device failed"), std::string::npos) << notes[2];
   EXPECT_EQ(za.pixels(), zb.pixels());
   EXPECT_EQ(rmsA, rmsB);
+
+  FrameCube sa = noiseCube(48, 40, 30), sb = sa;
+  const auto la = pipeline::removeFrameBackgroundsOn(&fail, sa, {}, progress, cancel, notes);
+  const auto lb = stats::removeFrameBackgrounds(sb, {}, progress, cancel);
+  ASSERT_EQ(notes.size(), 4u);
+  EXPECT_NE(notes[3].find("frame backgrounds on fake device failed"), std::string::npos) << notes[3];
+  EXPECT_EQ(sa.pixels(), sb.pixels());
+  EXPECT_EQ(la.level, lb.level);
 }
 
 TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {

@@ -61,12 +61,25 @@ class PreprocessAccelerator {
   [[nodiscard]] virtual std::string name() const = 0;
   /// How the last stage ran on the device (times of upload, kernels, download), for the notes; may be empty.
   [[nodiscard]] virtual std::string lastNote() const { return {}; }
+  /// Same contract as stats::removeFrameBackgrounds (SEP's background per frame): the same levels and rms
+  /// (within the rounding of SEP's double sums), the frames within float rounding of the CPU's. The default
+  /// is the CPU's.
+  virtual stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube,
+                                                         const stats::FrameBackgroundParams& params,
+                                                         ProgressSink& progress, CancelToken& cancel) {
+    return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  }
   /// Same contract as stats::globalBackground, mean and sigma within the rounding of its double sums (the
   /// same samples, count and passes). The default is the CPU's.
   virtual stats::ClipStats globalBackground(const FrameCube& cube,
                                             const stats::GlobalBackgroundParams& params) {
     return stats::globalBackground(cube, params);
   }
+  /// The pipeline's word that `cube`'s pixels are still those removeFrameBackgrounds(cube) left (the stages
+  /// since changed only its mask and frame info): a device that kept those frames may let the next
+  /// prefetch(cube) use them instead of uploading the pixels again; without this call it must not. The
+  /// default does nothing.
+  virtual void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) { (void)cube; }
   /// `cube` is the input of the next subtractPixelBackground or zeroBias and does not change until then (the
   /// stages in between only read it) but at the pixels later passed to patchPrefetch: a device may start
   /// uploading it now, behind those stages. The returned guard (may be null) must be destroyed before the
@@ -156,6 +169,13 @@ ZeroBiasResult zeroBiasStages(PreprocessAccelerator* accel, FrameCube& cube, con
 /// `notes`, *in.starMask restored), zeroBiasStages.
 ZeroBiasResult zeroBiasOn(PreprocessAccelerator* accel, FrameCube& cube, const ZeroBiasInputs& in,
                           ProgressSink& progress, CancelToken& cancel, std::vector<std::string>& notes);
+
+/// stats::removeFrameBackgrounds on `accel` when given, else (or on st::GpuError, with a warning in `notes`,
+/// the cube as it was) on the CPU; a device run adds its lastNote().
+stats::FrameBackgrounds removeFrameBackgroundsOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                                 const stats::FrameBackgroundParams& params,
+                                                 ProgressSink& progress, CancelToken& cancel,
+                                                 std::vector<std::string>& notes);
 
 /// stats::globalBackground on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU.

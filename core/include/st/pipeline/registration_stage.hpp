@@ -14,7 +14,9 @@ namespace st::pipeline {
 /// Measures and applies the registration of `cube` when params.registerFrames (else clears any offsets and
 /// returns Unmeasured). Notes the model and its rms in out.notes; sets out.skyRate (and
 /// out.skyRateMeasured) and returns true when the per-frame model is used and no sky rate was given.
+/// `framesMoved` (optional): the frames whose pixels were moved by whole pixels (0: the pixels are as they
+/// were; only the frame info changed).
 bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params, ProgressSink& progress,
-                         CancelToken& cancel);
+                         CancelToken& cancel, std::size_t* framesMoved = nullptr);
 
 }  // namespace st::pipeline

@@ -1,0 +1,95 @@
+// CudaPreprocess: the frame backgrounds (stats::removeFrameBackgrounds, SEP per frame) on the device: the
+// calibrated cube (and its mask) uploaded, SEP's mesh statistics and spline on the device with the
+// per-frame filter and spline derivatives on the host (frame_backgrounds.*), the frames downloaded.
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+
+#include "cuda_preprocess.hpp"
+#include "frame_backgrounds.hpp"
+
+namespace st::gpu {
+
+using namespace preprocess_detail;
+
+namespace {
+
+/// Bytes from pageable host memory to the device through `r`'s pinned staging buffers (the host copies on
+/// every core, as Uploader does for frames).
+void uploadBytes(DeviceResources& r, void* dst, const void* src, std::size_t bytes, cudaStream_t s) {
+  for (std::size_t off = 0; off < bytes; off += kStagingBytes) {
+    const std::size_t len = std::min(kStagingBytes, bytes - off);
+    const int b = r.nextStaging;
+    r.nextStaging ^= 1;
+    r.stagingFree[b].sync();
+    char* stage = static_cast<char*>(r.staging[b].get());
+    const char* from = static_cast<const char*>(src) + off;
+    parallelFor(len, std::size_t{1} << 21,
+                [&](std::size_t lo, std::size_t hi) { std::memcpy(stage + lo, from + lo, hi - lo); });
+    ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, stage, len, cudaMemcpyHostToDevice, s));
+    r.stagingFree[b].record(s);
+  }
+}
+
+/// Benchmark knob: ST_GPU_SEP_ON_CPU=1 leaves the frame backgrounds to the CPU (libsep) as before, for
+/// before/after figures from one binary.
+bool sepOnCpu() {
+  const char* e = std::getenv("ST_GPU_SEP_ON_CPU");
+  return e && *e && *e != '0';
+}
+
+}  // namespace
+
+stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
+                                                               const stats::FrameBackgroundParams& params,
+                                                               ProgressSink& progress, CancelToken& cancel) {
+  m_note.clear();
+  m_sepFrames = DeviceBuffer<float>();
+  m_sepFramesData = nullptr;
+  m_sepFramesValid = false;
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  if (!params.enabled || nf == 0 || sepOnCpu())
+    return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  Stopwatch sw;
+  progress.report(0.0, "frame backgrounds (GPU)");
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = ensureResources(m_res);
+  const bool hasMask = cube.mask().size() == cube.pixels().size();
+  DeviceBuffer<float> pix(nf * np);
+  DeviceBuffer<std::uint8_t> mask(hasMask ? nf * np : 0);
+  Uploader up(r, cube.pixels().data(), np);
+  up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
+  if (hasMask) uploadBytes(r, mask.get(), cube.mask().data(), nf * np, r.copy.get());
+  r.copy.sync();
+  const double upload = sw.lap();
+  cancel.throwIfCancelled();
+  progress.report(0.3, "frame backgrounds (GPU)");
+  const SepFrameBackgrounds sep = removeFrameBackgroundsOnDevice(
+      pix.get(), hasMask ? mask.get() : nullptr, cube.width(), cube.height(), static_cast<int>(nf),
+      params.meshPx, params.filterCells, r.compute.get());
+  sw.lap();
+  cancel.throwIfCancelled();
+  progress.report(0.7, "frame backgrounds (GPU)");
+  // Every kernel succeeded: the host cube is written now.
+  download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get());
+  const double down = sw.lap();
+  // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise).
+  m_sepFrames = std::move(pix);
+  m_sepFramesData = cube.pixels().data();
+  stats::FrameBackgrounds out;
+  out.level = sep.level;
+  out.rms = sep.rms;
+  out.restoredLevel = sep.restored;
+  std::size_t finite = 0;
+  for (const double l : out.level)
+    finite += std::isfinite(l) ? 1 : 0;
+  out.framesSkipped = nf - finite;
+  m_note = "frame backgrounds on " + name() + ": upload " + ms(upload) + ", meshes " + ms(sep.meshSeconds) +
+           ", filter and splines on the host " + ms(sep.hostSeconds) + ", subtraction " +
+           ms(sep.subtractSeconds) + ", download " + ms(down) +
+           "; frames kept on the device for the prefetch";
+  progress.report(1.0, "frame backgrounds (GPU)");
+  return out;
+}
+
+}  // namespace st::gpu
