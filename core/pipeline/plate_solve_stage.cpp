@@ -112,13 +112,21 @@ astro::PlateSolution plateSolveRawCube(FrameCube& cube, const astro::PlateSolveP
                                        ProgressSink& progress, CancelToken& cancel) {
   const std::vector<io::XyStar> stars = frameStars(cube, progress, cancel);
   astro::PlateSolution solution = plateSolveCube(cube, stars, params, progress, cancel);
+  attachHeaderWcs(cube, solution.wcs, cube.plateScaleArcsecPerPx);
+  return solution;
+}
+
+void attachHeaderWcs(FrameCube& cube, std::shared_ptr<const Wcs> wcs,
+                     std::optional<double> plateScaleArcsecPerPx) {
+  if (!wcs) return;
   std::vector<FitsCard> kept;
   for (auto& c : cube.header.cards)
     if (!Wcs::isWcsKeyword(c.key)) kept.push_back(std::move(c));
   cube.header.cards = std::move(kept);
-  for (const auto& c : solution.wcs->toHeader().cards)
+  for (const auto& c : wcs->toHeader().cards)
     cube.header.cards.push_back(c);
-  return solution;
+  cube.wcs = std::move(wcs);
+  cube.plateScaleArcsecPerPx = plateScaleArcsecPerPx;
 }
 
 astro::PlateSolution plateSolvePrepared(Prepared& prepared, const astro::PlateSolveParams& params,

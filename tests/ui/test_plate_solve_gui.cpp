@@ -22,6 +22,9 @@
 #include "main_window.hpp"
 #include "plate_solve_settings.hpp"
 #include "script_runner.hpp"
+#include "session_snapshot.hpp"
+#include "session_controller.hpp"
+#include "st/session/session.hpp"
 #include "st/io/wcs.hpp"
 #include "st/io/xylist.hpp"
 #include "test_support.hpp"
@@ -29,6 +32,7 @@
 
 using namespace st;
 using namespace st::ui;
+using nlohmann::json;
 
 namespace {
 
@@ -173,6 +177,64 @@ TEST(PlateSolveGui, TheBannerOffersPlateSolvingAndTheSolvedWcsIsUsed) {
       EXPECT_EQ(box->text(), "N/E compass");
     }
   w.saveScreenshot("ui_screens/plate_solve_solved.png");
+}
+
+// The solved WCS is part of the session: the file records it, and reopening the session (frames still without
+// a WCS of their own) attaches it again before pre-processing, so RA/Dec work without solving again.
+TEST(PlateSolveGui, TheSolvedWcsIsSavedInTheSessionAndAttachedOnReopening) {
+  FakeAstrometry astrometry;
+  astrometry.use(astrometry.solveField);
+  QString path;
+  {
+    MainWindow w(services());
+    openAndPrepare(w);
+    ASSERT_TRUE(w.runPlateSolve());
+    ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 30000));
+    ASSERT_TRUE(w.observation()->raw()->wcs);
+    ASSERT_TRUE(w.observation()->solvedWcs());
+    ASSERT_TRUE(w.session()->autosaver()->flush());
+    path = w.session()->path();
+    ASSERT_FALSE(path.isEmpty());
+  }
+  const session::Session saved = session::SessionStore(path.toStdString()).load();
+  ASSERT_TRUE(saved.parameters.contains("plate_solve")) << saved.parameters.dump();
+  EXPECT_NEAR(saved.parameters["plate_solve"]["scale_arcsec_px"].get<double>(), 1.5, 1e-6);
+
+  // Reopened in a window whose solve-field would fail: nothing is solved again.
+  astrometry.use("/nonexistent/solve-field");
+  MainWindow w2(services());
+  w2.resize(1366, 768);
+  w2.show();
+  w2.openSession(path);
+  ASSERT_TRUE(test::waitFor([&] { return w2.observation()->prepared() && !w2.jobs()->busy(); }, 30000));
+  const auto& raw = w2.observation()->raw();
+  ASSERT_TRUE(raw->wcs) << w2.statusBar()->currentMessage().toStdString();
+  const Wcs::Sky centre = raw->wcs->pixelToSky(63.5, 47.5);
+  EXPECT_NEAR(centre.raDeg, 150.0, 1e-9);
+  EXPECT_NEAR(centre.decDeg, 2.0, 1e-9);
+  EXPECT_NEAR(*w2.observation()->plateScale(), 1.5, 1e-6);
+  EXPECT_TRUE(w2.observation()->prepared()->filtered->frames.wcs);
+  EXPECT_TRUE(raw->header.getString("CTYPE1").has_value());
+  EXPECT_FALSE(banner(w2)->isVisible());
+  // Still recorded as solved, so the next save keeps it.
+  ASSERT_TRUE(w2.observation()->solvedWcs());
+  ASSERT_TRUE(w2.session()->autosaver()->flush());
+  EXPECT_TRUE(session::SessionStore(path.toStdString()).load().parameters.contains("plate_solve"));
+}
+
+// A damaged "plate_solve" member is an error naming the file and the key, not a silent loss of the WCS.
+TEST(PlateSolveGui, ADamagedSavedWcsIsAnErrorNamingTheKey) {
+  session::Session s;
+  s.parameters["plate_solve"] = {{"scale_arcsec_px", 1.5}, {"wcs_cards", {{{"key", "CTYPE1"}}}}};
+  try {
+    (void)restoreSnapshot(s, {}, "/tmp/x.json");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/tmp/x.json: parameters.plate_solve.wcs_cards"), std::string::npos)
+        << e.what();
+  }
+  s.parameters["plate_solve"] = {{"scale_arcsec_px", 1.5}, {"wcs_cards", json::array()}};
+  EXPECT_THROW((void)restoreSnapshot(s, {}, "/tmp/x.json"), InputError);
 }
 
 TEST(PlateSolveGui, AMissingSolveFieldIsReportedInTheBanner) {

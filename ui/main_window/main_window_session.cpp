@@ -22,6 +22,7 @@
 #include "processing_panel.hpp"
 #include "search_panel.hpp"
 #include "session_controller.hpp"
+#include "st/pipeline/plate_solve_stage.hpp"
 #include "stack_scrubber.hpp"
 
 namespace st::ui {
@@ -235,9 +236,10 @@ void MainWindow::openSession(const QString& path) {
         opened->changes = s.changes;
         opened->settings = s.settings;
         const auto& snap = opened->snapshot;
+        FrameCube raw;
         if (snap.parameters.demo) {
           if (!simulate) throwMissingService("simulator");
-          opened->raw = std::make_shared<const FrameCube>(simulate(progress, cancel));
+          raw = simulate(progress, cancel);
         } else {
           if (!load) throwMissingService("FITS reader");
           if (snap.inputs.empty()) throw InputError("session '" + file + "' names no input files");
@@ -247,8 +249,13 @@ void MainWindow::openSession(const QString& path) {
                              formatBytes(static_cast<double>(budget)) +
                              ": a session reopens in memory only; open the cube with File > Open (a "
                              "pre-processed cube opens out of core) or raise Run > Memory limit…");
-          opened->raw = std::make_shared<const FrameCube>(load(snap.inputs, progress, cancel));
+          raw = load(snap.inputs, progress, cancel);
         }
+        // The WCS plate-solved for these frames when the session was made: pre-processing carries it as a
+        // header WCS, as after "Plate solve" (frames that have a WCS of their own by now keep theirs).
+        if (snap.solvedWcs && !raw.wcs)
+          pipeline::attachHeaderWcs(raw, snap.solvedWcs->wcs, snap.solvedWcs->plateScaleArcsecPerPx);
+        opened->raw = std::make_shared<const FrameCube>(std::move(raw));
         if (!preprocess) throwMissingService("pre-processing pipeline");
         opened->prepared = std::make_shared<const PreparedView>(
             preprocess(opened->raw, snap.parameters.stages, progress, cancel));
@@ -275,6 +282,9 @@ void MainWindow::applyOpenedSession(const OpenedSession& opened) {
   if (!opened.backendMessage.empty())
     m_search->setBackendMessage("stacks: " + QString::fromStdString(opened.backendMessage));
   m_obs->setPrepared(opened.prepared);
+  // Recorded as solved again (saved with the session from now on), the banner hidden.
+  if (snap.solvedWcs && opened.raw && opened.raw->wcs == snap.solvedWcs->wcs)
+    m_obs->attachWcs(snap.solvedWcs->wcs, snap.solvedWcs->plateScaleArcsecPerPx);
   // The search panel as it was saved: unit, grid (exactly), threshold, method, backend.
   if (snap.unitSaved) {
     m_search->setUnit(snap.unit);

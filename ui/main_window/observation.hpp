@@ -10,6 +10,7 @@
 
 #include "core_services.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/plate_solve_stage.hpp"
 #include "st/search/types.hpp"
 #include "st/session/session.hpp"
 #include "velocity_units.hpp"
@@ -97,28 +98,31 @@ class Observation : public QObject {
   /// never by the live-stack workers, which read pixels only. Emits wcsChanged.
   void attachWcs(std::shared_ptr<const Wcs> wcs, double plateScaleArcsecPerPx) {
     if (!m_raw || !wcs) return;
+    // See above: the documented exception to "const once shared".
+    pipeline::attachHeaderWcs(const_cast<FrameCube&>(*m_raw), wcs, plateScaleArcsecPerPx);
     const auto attach = [&](const FrameCube& cube) {
-      auto& c = const_cast<FrameCube&>(cube);  // see above: the documented exception to "const once shared"
+      auto& c = const_cast<FrameCube&>(cube);
       c.wcs = wcs;
       c.plateScaleArcsecPerPx = plateScaleArcsecPerPx;
     };
-    attach(*m_raw);
-    auto& header = const_cast<FrameCube&>(*m_raw).header;
-    std::vector<FitsCard> kept;
-    for (auto& c : header.cards)
-      if (!Wcs::isWcsKeyword(c.key)) kept.push_back(std::move(c));
-    header.cards = std::move(kept);
-    for (const auto& c : wcs->toHeader().cards)
-      header.cards.push_back(c);
     if (m_prepared && m_prepared->filtered) attach(m_prepared->filtered->frames);
     if (m_prepared && m_prepared->unfiltered) attach(m_prepared->unfiltered->frames);
+    m_solvedWcs = SolvedWcs{std::move(wcs), plateScaleArcsecPerPx};
     emit wcsChanged();
   }
+  /// The WCS attached by attachWcs() to this observation's frames, which have none of their own: saved in the
+  /// session and attached again when it is reopened. Empty for frames with a header WCS.
+  struct SolvedWcs {
+    std::shared_ptr<const Wcs> wcs;
+    double plateScaleArcsecPerPx = 0.0;
+  };
+  [[nodiscard]] const std::optional<SolvedWcs>& solvedWcs() const { return m_solvedWcs; }
 
   /// A new observation: drops everything derived from the previous one.
   void setRaw(std::shared_ptr<const FrameCube> raw, const QString& label) {
     m_raw = std::move(raw);
     m_label = label;
+    m_solvedWcs.reset();
     m_prepared.reset();
     m_result.reset();
     m_states.clear();
@@ -197,6 +201,7 @@ class Observation : public QObject {
 
  private:
   std::shared_ptr<const FrameCube> m_raw;
+  std::optional<SolvedWcs> m_solvedWcs;
   std::shared_ptr<const PreparedView> m_prepared;
   session::CandidateState* mutableState(int index) {
     return index >= 0 && index < static_cast<int>(m_states.size())

@@ -150,6 +150,12 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
     if (u == obs.unit()) unit = key;
   s.parameters["view"] = {{"selected", obs.selected() ? json(*obs.selected()) : json(nullptr)},
                           {"velocity_unit", unit}};
+  if (const auto& solved = obs.solvedWcs(); solved && solved->wcs) {
+    json cards = json::array();
+    for (const FitsCard& c : solved->wcs->toHeader().cards)
+      cards.push_back({{"key", c.key}, {"value", c.value}, {"is_string", c.isString}});
+    s.parameters["plate_solve"] = {{"scale_arcsec_px", solved->plateScaleArcsecPerPx}, {"wcs_cards", cards}};
+  }
   const auto& result = obs.result();
   if (!result) return s;
   // The cube gives the sky rate, frame count and WCS the candidate keys need; without one (never in the app,
@@ -169,6 +175,37 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
   return s;
 }
 
+namespace {
+
+/// "plate_solve" of a session file back to a WCS; throws st::InputError naming the file and the key at fault.
+Observation::SolvedWcs restoreSolvedWcs(const json& saved, const std::string& where) {
+  const std::string at = where + ": parameters.plate_solve";
+  if (!saved.is_object() || !saved.contains("wcs_cards") || !saved["wcs_cards"].is_array())
+    throw InputError(at + ": expected an object with a 'wcs_cards' array");
+  FitsHeader header;
+  for (const json& c : saved["wcs_cards"]) {
+    if (!c.is_object() || !c.contains("key") || !c["key"].is_string() || !c.contains("value") ||
+        !c["value"].is_string())
+      throw InputError(at + ".wcs_cards: each card needs a string 'key' and 'value'");
+    FitsCard card;
+    card.key = c["key"].get<std::string>();
+    card.value = c["value"].get<std::string>();
+    card.isString = c.value("is_string", false);
+    header.cards.push_back(std::move(card));
+  }
+  std::vector<std::string> warnings;
+  Observation::SolvedWcs solved;
+  solved.wcs = Wcs::fromHeader(header, &warnings);
+  if (!solved.wcs)
+    throw InputError(at + ".wcs_cards: not a usable WCS" + (warnings.empty() ? "" : " (" + warnings[0] + ")"));
+  solved.plateScaleArcsecPerPx = valueOr<double>(saved, "scale_arcsec_px", 0.0, at);
+  if (!(solved.plateScaleArcsecPerPx > 0.0))
+    throw InputError(at + ".scale_arcsec_px: expected a plate scale > 0 arcsec/px");
+  return solved;
+}
+
+}  // namespace
+
 SessionSnapshot restoreSnapshot(const session::Session& session, const std::vector<StageSpec>& defaults,
                                 const std::string& where) {
   SessionSnapshot snap;
@@ -181,6 +218,7 @@ SessionSnapshot restoreSnapshot(const session::Session& session, const std::vect
   snap.parameters.stages =
       restoreStages(p.contains("preprocess") ? p["preprocess"] : json(), defaults, where);
   restoreSearchParameters(p.contains("search") ? p["search"] : json(), snap.parameters, where);
+  if (p.contains("plate_solve")) snap.solvedWcs = restoreSolvedWcs(p["plate_solve"], where);
   const json view = p.contains("view") ? p["view"] : json::object();
   const std::string unit = valueOr<std::string>(view, "velocity_unit", "px_s", where);
   for (const auto& [u, key] : kUnits)

@@ -14,6 +14,10 @@
 //                   "method" ("auto" | "exact" | "tree"), "backend" ("auto" | "cpu" | "gpu")}
 //   "view":        {"selected": 0-based candidate index or null, "velocity_unit": "px_s" | "arcsec_min" |
 //   "deg_day"}
+//   "plate_solve": only when the frames had no WCS and one was plate-solved in the GUI (Observation::
+//                  solvedWcs): {"scale_arcsec_px": number, "wcs_cards": [{"key", "value", "is_string"}, ...]}
+//                  (Wcs::toHeader()'s cards, mapping the first loaded frame's pixels); reopening attaches it
+//                  to the reloaded frames before they are pre-processed.
 // Every key is optional on reading: a file from an older build that lacks one (e.g. "method", "backend",
 // "demo_autosave") loads with the GUI's default for it (SessionParameters' defaults: SNR 7, method auto,
 // backend auto); keys are only ever added, so Session::version does not change for them (an older build
@@ -71,6 +75,8 @@ struct SessionSnapshot {
   std::optional<int> selected;  ///< 0-based, within range of the result
   VelocityUnit unit = VelocityUnit::PxPerS;
   bool unitSaved = false;  ///< the file names the unit (else the window keeps its own default)
+  /// The plate-solved WCS of frames without one ("plate_solve"); empty when the session has none.
+  std::optional<Observation::SolvedWcs> solvedWcs;
 };
 
 /// The inverse of makeSession(). `defaults` are the pipeline's stages (CoreServices::preprocessStages): a

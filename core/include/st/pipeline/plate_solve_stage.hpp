@@ -3,6 +3,8 @@
 // pre-processing's static-source catalogue (stars found in the sky-rate stack) or from the sources of one
 // frame, through astro::plateSolve (astrometry.net). The solution is used like a header WCS: it maps the
 // pixels of the cube's FIRST frame (FrameCube::wcs), so writers, RA/Dec, the compass and ADES take it as is.
+#include <memory>
+#include <optional>
 #include <vector>
 
 #include "st/astro/plate_solve.hpp"
@@ -31,6 +33,12 @@ std::vector<io::XyStar> frameStars(const FrameCube& cube, ProgressSink& progress
 astro::PlateSolution plateSolveCube(FrameCube& cube, const std::vector<io::XyStar>& stars,
                                     astro::PlateSolveParams params, ProgressSink& progress,
                                     CancelToken& cancel);
+
+/// Gives `cube` the WCS `wcs` as if its header had it: cube.wcs, cube.plateScaleArcsecPerPx, and the header's
+/// WCS cards replaced by wcs->toHeader()'s, so that calibration's trim (which moves CRPIX) and every later
+/// stage carry it like a header WCS. A null `wcs` changes nothing.
+void attachHeaderWcs(FrameCube& cube, std::shared_ptr<const Wcs> wcs,
+                     std::optional<double> plateScaleArcsecPerPx);
 
 /// Plate-solves the first frame of a cube not yet calibrated (frameStars, then plateSolveCube) and writes the
 /// solution into cube.header as WCS cards (replacing any), so that calibration's trim (which moves CRPIX)
