@@ -40,8 +40,14 @@ std::vector<std::size_t> findHotPixels(const FrameCube& cube, double background,
       }
     });
   }
+  return hotPixelsFromExcess(minExcess, cube.width(), cube.height(), nf, sigma, params);
+}
+
+std::vector<std::size_t> hotPixelsFromExcess(const std::vector<float>& minExcess, int w, int h,
+                                             std::size_t nf, double sigma, const HotPixelParams& params) {
+  const int blocks =
+      static_cast<int>(std::clamp<std::size_t>(params.blocks, 1, std::max<std::size_t>(1, nf)));
   const double blockSigma = sigma / std::sqrt(std::max<double>(1.0, static_cast<double>(nf) / blocks));
-  const int w = cube.width(), h = cube.height();
   std::vector<std::size_t> hot;
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {

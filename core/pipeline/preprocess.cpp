@@ -110,9 +110,24 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                           " frame(s) without a background model (SEP failed): their sky level was kept");
   }
   lap("frame backgrounds");
+  // The frames are as the frame backgrounds left them: a device that kept them reads them from there for
+  // the global background and the hot pixels (issue 16).
+  if (params.accelerator) params.accelerator->framesUnchangedSinceFrameBackgrounds(cube, true);
   out.global = globalBackgroundOn(params.accelerator, cube, params.background.global, out.notes);
   if (params.findHotPixels) {
-    const auto hot = detect::findHotPixels(cube, out.global.mean, out.global.sigma, {}, cancel);
+    const detect::HotPixelParams hp;
+    std::optional<std::vector<float>> excess;
+    if (params.accelerator) {
+      try {
+        excess = params.accelerator->hotPixelExcess(cube, out.global.mean, hp);
+      } catch (const GpuError& e) {
+        out.notes.push_back("warning: the hot pixels fell back to the CPU (" + params.accelerator->name() +
+                            ": " + e.what() + ")");
+      }
+    }
+    const auto hot = excess ? detect::hotPixelsFromExcess(*excess, cube.width(), cube.height(),
+                                                          cube.frameCount(), out.global.sigma, hp)
+                            : detect::findHotPixels(cube, out.global.mean, out.global.sigma, hp, cancel);
     out.hotPixels = detect::maskPixelsInAllFrames(cube, hot);
   }
   lap("global background");
@@ -134,7 +149,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   lap("registration");
   // Unless registration moved frames, the pixels are those the frame backgrounds left: a device that kept
   // them need not upload them again for the prefetch below.
-  if (params.accelerator && framesMoved == 0) params.accelerator->framesUnchangedSinceFrameBackgrounds(cube);
+  if (params.accelerator) params.accelerator->framesUnchangedSinceFrameBackgrounds(cube, framesMoved == 0);
   // The cube does not change again until the per-pixel background but at the cosmic-ray fills (patched into
   // the device's copy below; the sky rate, static sources and PSF only read it): a device may upload it
   // meanwhile and make the sky rate's and the static sources' stacks from it (issue 16). The guard,

@@ -2,8 +2,8 @@
 # Issue 16 device run of 2026-11-27 evening (SEP's frame backgrounds on the device): unpacks pkg.tar.xz (the
 # new binaries of scripts/devrun-pack.sh, base/synthtrack-cli = a build before the change, lib/) and runs the
 # steps named: tests memcheck prep fits demo. In `prep`, NEW is also run with ST_GPU_SEP_ON_CPU=1 (the frame
-# backgrounds on the CPU, as before) and ST_GPU_SEP_NO_REUSE=1 (on the device, but the prefetch uploads the
-# pixels again), so each change's share shows in one run.
+# backgrounds on the CPU, as before) and ST_GPU_SEP_NO_REUSE=1 (on the device, but their frames not reused:
+# the global background, hot pixels and prefetch as before), so each change's share shows in one run.
 set -uo pipefail
 D=$(cd "$(dirname "$0")" && pwd)
 W=/tmp/sep16
@@ -17,6 +17,7 @@ nproc
 date -u
 NEW=$W/synthtrack-cli
 OLD=$W/base/synthtrack-cli
+MID=$W/mid/synthtrack-cli  # optional: an intermediate build (BINS="OLD MID NEW")
 summary() { grep -E "^(preprocess:|  [a-z]|sigma_n|stars [0-9]|sky rate \(|cosmic-ray pixels)|frame backgrounds on|stacks at the sky rate|block stacks" "$1" | cut -c1-260 | head -${2:-40}; grep -oE "upload (prefetched|none)[^)]*\)" "$1"; }
 for step in "$@"; do
   echo "=== $step $(date -u +%H:%M:%S)"
@@ -35,6 +36,7 @@ for step in "$@"; do
             for b in ${BINS:-OLD NEW CPUSEP NOREUSE}; do
               case $b in
                 OLD) cmd=("$OLD") ;;
+                MID) cmd=("$MID") ;;
                 NEW) cmd=("$NEW") ;;
                 CPUSEP) cmd=(env ST_GPU_SEP_ON_CPU=1 "$NEW") ;;
                 NOREUSE) cmd=(env ST_GPU_SEP_NO_REUSE=1 "$NEW") ;;

@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "cuda_preprocess.hpp"
+#include "frame_backgrounds.hpp"
 #include "global_background_host.hpp"
 #include "resident_cube.hpp"
 #include "st/common/parallel.hpp"
@@ -53,15 +54,46 @@ stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = ensureResources(m_res);
+  m_note.clear();
+  // The frames the frame backgrounds left on the device, when the pipeline vouched they are this cube's.
+  if (const float* kept = keptFrames(cube)) {
+    const stats::ClipStats out = globalBackgroundOnDevice(
+        cube, kept, m_sepMask.size() ? m_sepMask.get() : nullptr, params, r.compute.get());
+    m_note = "global background on " + name() + " from the frame backgrounds' frames (no upload)";
+    return out;
+  }
   return globalBackgroundUploaded(cube, params, r.compute.get());
 }
 
-void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) {
-  // Benchmark knob: ST_GPU_SEP_NO_REUSE=1 uploads the prefetch's pixels as before.
+std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube& cube, double background,
+                                                                 const detect::HotPixelParams& params) {
+  const float* kept = keptFrames(cube);
+  if (!kept) return std::nullopt;
+  Stopwatch sw;
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = ensureResources(m_res);
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const int blocks = static_cast<int>(
+      std::clamp<std::size_t>(static_cast<std::size_t>(params.blocks), 1, std::max<std::size_t>(1, nf)));
+  DeviceBuffer<float> excess(np);
+  launchHotPixelExcess(kept, m_sepMask.size() ? m_sepMask.get() : nullptr, np, static_cast<int>(nf), blocks,
+                       background, excess.get(), r.compute.get());
+  std::vector<float> out(np);
+  ST_CUDA_CHECK(cudaMemcpyAsync(out.data(), excess.get(), np * sizeof(float), cudaMemcpyDeviceToHost,
+                                r.compute.get()));
+  r.compute.sync();
+  m_sepMask = DeviceBuffer<std::uint8_t>();  // the pipeline masks the hot pixels next: the kept mask is stale
+  m_note = "hot pixels' block means on " + name() + " from the frame backgrounds' frames: " + ms(sw.lap());
+  return out;
+}
+
+void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) {
+  // Benchmark knob: ST_GPU_SEP_NO_REUSE=1 uploads as before (global background, hot pixels on the CPU, the
+  // prefetch's pixels).
   const char* e = std::getenv("ST_GPU_SEP_NO_REUSE");
   const bool reuse = !(e && *e && *e != '0');
-  m_sepFramesValid = reuse && m_sepFrames.size() > 0 && m_sepFramesData == cube.pixels().data() &&
-                     m_sepFrames.size() == cube.pixels().size();
+  m_sepFramesValid = unchanged && reuse && m_sepFrames.size() > 0 &&
+                     m_sepFramesData == cube.pixels().data() && m_sepFrames.size() == cube.pixels().size();
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
@@ -71,6 +103,7 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       m_sepFrames.size() == cube.pixels().size())
     kept = std::move(m_sepFrames);
   m_sepFrames = DeviceBuffer<float>();
+  m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;
   m_sepFramesValid = false;
   if (stagewise()) return nullptr;

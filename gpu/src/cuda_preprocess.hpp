@@ -90,7 +90,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                                  ProgressSink& progress, CancelToken& cancel) override;
   stats::ClipStats globalBackground(const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params) override;
-  void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) override;
+  void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) override;
+  std::optional<std::vector<float>> hotPixelExcess(const FrameCube& cube, double background,
+                                                   const detect::HotPixelParams& params) override;
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override;
   std::shared_ptr<void> prefetch(const FrameCube& cube) override;
@@ -169,9 +171,20 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
   // cube once the pipeline has said its pixels did not change since (framesUnchangedSinceFrameBackgrounds).
+  // globalBackground and hotPixelExcess read them too, with the mask uploaded with them (freed once the hot
+  // pixels are found: the pipeline then masks them).
   DeviceBuffer<float> m_sepFrames;
+  DeviceBuffer<std::uint8_t> m_sepMask;
   const float* m_sepFramesData = nullptr;
   bool m_sepFramesValid = false;
+  /// The kept frames when the pipeline vouched that they are `cube`'s and the cube's mask is the size of the
+  /// kept one (none or the same); else null.
+  const float* keptFrames(const FrameCube& cube) const {
+    return m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
+                   m_sepFrames.size() == cube.pixels().size() && cube.mask().size() == m_sepMask.size()
+               ? m_sepFrames.get()
+               : nullptr;
+  }
   std::string m_note;
   bool m_keepResident = true;
   // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.

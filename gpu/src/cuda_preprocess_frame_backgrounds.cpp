@@ -45,6 +45,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
                                                                ProgressSink& progress, CancelToken& cancel) {
   m_note.clear();
   m_sepFrames = DeviceBuffer<float>();
+  m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;
   m_sepFramesValid = false;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
@@ -75,6 +76,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   const double down = sw.lap();
   // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise).
   m_sepFrames = std::move(pix);
+  m_sepMask = std::move(mask);
   m_sepFramesData = cube.pixels().data();
   stats::FrameBackgrounds out;
   out.level = sep.level;
@@ -87,7 +89,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   m_note = "frame backgrounds on " + name() + ": upload " + ms(upload) + ", meshes " + ms(sep.meshSeconds) +
            ", filter and splines on the host " + ms(sep.hostSeconds) + ", subtraction " +
            ms(sep.subtractSeconds) + ", download " + ms(down) +
-           "; frames kept on the device for the prefetch";
+           "; frames kept on the device for the global background, hot pixels and prefetch";
   progress.report(1.0, "frame backgrounds (GPU)");
   return out;
 }

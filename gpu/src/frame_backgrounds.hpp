@@ -13,7 +13,7 @@
 //   - per row and pixel (one block per frame and row): the node values along y, the x second derivatives
 //     and the bicubic spline along x (SEP's float arithmetic, its column steps from a host table), the
 //     background subtracted and the restored level added back, as the CPU does.
-// Plain structs only (C++17).
+// The hot pixels' per-pixel excess is made from the same kept frames. Plain structs only (C++17).
 #include <cuda_runtime.h>
 
 #include <cstddef>
@@ -86,5 +86,11 @@ struct SepFrameBackgrounds {
 SepFrameBackgrounds removeFrameBackgroundsOnDevice(float* pix, const std::uint8_t* mask, int width,
                                                    int height, int nf, int meshPx, int filterCells,
                                                    cudaStream_t stream);
+
+/// detect::findHotPixels's per-pixel excess from frames on the device (the frames the frame backgrounds
+/// keep): for each pixel, the smallest over `blocks` blocks of float(sum / count - background), the sum of
+/// its unmasked samples in frame order in double (the CPU's order and arithmetic), 0 without samples.
+void launchHotPixelExcess(const float* pix, const std::uint8_t* mask, std::size_t framePixels, int nf,
+                          int blocks, double background, float* minExcess, cudaStream_t s);
 
 }  // namespace st::gpu

@@ -340,7 +340,38 @@ __global__ void __launch_bounds__(kRowThreads) sepSubtractKernel(SepSubtractLaun
   }
 }
 
+// One thread per pixel: core/detect/hot_pixels.cpp's block sums in its order and arithmetic.
+__global__ void hotPixelExcessKernel(const float* pix, const std::uint8_t* mask, std::size_t np, int nf,
+                                     int blocks, double background, float* minExcess) {
+  const std::size_t i = static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i >= np) return;
+  float lowest = 1e30f;
+  for (int b = 0; b < blocks; ++b) {
+    const std::size_t n0 = static_cast<std::size_t>(nf) * b / blocks;
+    const std::size_t n1 = static_cast<std::size_t>(nf) * (b + 1) / blocks;
+    double s = 0.0;
+    unsigned c = 0;
+    for (std::size_t n = n0; n < n1; ++n) {
+      const bool in = !mask || !mask[n * np + i];
+      s = __dadd_rn(s, in ? static_cast<double>(pix[n * np + i]) : 0.0);
+      c += in;
+    }
+    const float e =
+        c ? static_cast<float>(__dsub_rn(__ddiv_rn(s, static_cast<double>(c)), background)) : 0.0f;
+    lowest = e < lowest ? e : lowest;  // std::min(lowest, e)
+  }
+  minExcess[i] = lowest;
+}
+
 }  // namespace
+
+void launchHotPixelExcess(const float* pix, const std::uint8_t* mask, std::size_t framePixels, int nf,
+                          int blocks, double background, float* minExcess, cudaStream_t s) {
+  if (framePixels == 0) return;
+  const unsigned grid = static_cast<unsigned>((framePixels + 255) / 256);
+  hotPixelExcessKernel<<<grid, 256, 0, s>>>(pix, mask, framePixels, nf, blocks, background, minExcess);
+  checkLaunch("hotPixelExcessKernel");
+}
 
 void launchSepMeshes(const SepMeshLaunch& p, cudaStream_t s) {
   const long long blocks = static_cast<long long>(p.nf) * p.nx * p.ny;

@@ -3,9 +3,12 @@
 // frames whose size is not a multiple of the mesh (SEP's short last column and row of meshes), a sky
 // gradient, stars, cosmic rays, NaN samples, with and without a mask, a masked region that leaves meshes
 // "bad" (SEP fills them from their nearest valid meshes), a frame of one mesh row, the 512^2 frames of the
-// paper's problem. Levels and rms are SEP's within float rounding (the device reduces SEP's double sums in
-// another order: rounding only), every pixel within 1e-6 relative of the CPU's. A device failure leaves the
-// cube as it was and the CPU does the work (removeFrameBackgroundsOn). Every test skips without a device.
+// paper's problem. The frames stay on the device: once the pipeline vouches for them
+// (framesUnchangedSinceFrameBackgrounds), the global background (within 1e-12) and the hot pixels' block
+// means (the same pixels) come from them without an upload, and not after it says they changed. Levels and
+// rms are SEP's within float rounding (the device reduces SEP's double sums in another order: rounding only),
+// every pixel within 1e-6 relative of the CPU's. A device failure leaves the cube as it was and the CPU does
+// the work (removeFrameBackgroundsOn). Every test skips without a device.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,8 +19,10 @@
 
 #include "st/common/error.hpp"
 #include "st/common/progress.hpp"
+#include "st/detect/hot_pixels.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/stats/background.hpp"
 #include "st/stats/noise_model.hpp"
 
 namespace st {
@@ -139,6 +144,40 @@ TEST(GpuFrameBackgrounds, TheOnFunctionUsesTheDeviceAndNotesIt) {
       accel->removeFrameBackgrounds(off, stats::FrameBackgroundParams{false, 64, 3}, progress, cancel);
   EXPECT_EQ(std::memcmp(off.pixels().data(), in.pixels().data(), in.pixels().size() * sizeof(float)), 0);
   EXPECT_EQ(c.level.size(), in.frameCount());
+}
+
+TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool withMask : {false, true}) {
+    FrameCube cube = skyCube(150, 120, 30, 7, withMask);
+    // Hot pixels: raised in every frame, their neighbours not.
+    for (std::size_t k = 0; k < cube.frameCount(); ++k)
+      for (const std::size_t i : {std::size_t{40 * 150 + 70}, std::size_t{90 * 150 + 20}})
+        cube.frame(k)[i] += 400.0f;
+    NullProgress progress;
+    CancelToken cancel;
+    accel->removeFrameBackgrounds(cube, {}, progress, cancel);
+    accel->framesUnchangedSinceFrameBackgrounds(cube, true);
+    const stats::ClipStats g = accel->globalBackground(cube, {});
+    EXPECT_NE(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
+    const stats::ClipStats c = stats::globalBackground(cube, {});
+    EXPECT_NEAR(g.mean, c.mean, 1e-12 * std::fabs(c.mean));
+    EXPECT_NEAR(g.sigma, c.sigma, 1e-12 * c.sigma);
+    EXPECT_EQ(g.count, c.count);
+    const detect::HotPixelParams hp;
+    const auto excess = accel->hotPixelExcess(cube, c.mean, hp);
+    ASSERT_TRUE(excess.has_value());
+    const auto dev =
+        detect::hotPixelsFromExcess(*excess, cube.width(), cube.height(), cube.frameCount(), c.sigma, hp);
+    const auto cpu = detect::findHotPixels(cube, c.mean, c.sigma, hp, cancel);
+    EXPECT_EQ(dev, cpu);
+    EXPECT_GE(cpu.size(), 2u);
+    // Once the pipeline says the pixels may have changed, nothing comes from the kept frames.
+    accel->framesUnchangedSinceFrameBackgrounds(cube, false);
+    EXPECT_FALSE(accel->hotPixelExcess(cube, c.mean, hp).has_value());
+    accel->globalBackground(cube, {});
+    EXPECT_EQ(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
+  }
 }
 
 }  // namespace

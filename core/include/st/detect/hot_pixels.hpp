@@ -21,6 +21,13 @@ struct HotPixelParams {
 std::vector<std::size_t> findHotPixels(const FrameCube& cube, double background, double sigma,
                                        const HotPixelParams& params, CancelToken& cancel);
 
+/// findHotPixels's selection from each pixel's smallest block-mean excess over `background` (`minExcess`,
+/// width x height; the excess of block b = float(sum of the pixel's unmasked samples of frames
+/// [nf b / blocks, nf (b + 1) / blocks) in frame order, in double, / their count - background), 0 without
+/// samples), so that a device may compute the excess and the CPU's own selection picks the pixels.
+std::vector<std::size_t> hotPixelsFromExcess(const std::vector<float>& minExcess, int width, int height,
+                                             std::size_t frames, double sigma, const HotPixelParams& params);
+
 /// Masks the given pixels in every frame (allocates the cube's mask when needed). Returns how many.
 std::size_t maskPixelsInAllFrames(FrameCube& cube, const std::vector<std::size_t>& pixels);
 

@@ -13,6 +13,7 @@
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
+#include "st/detect/hot_pixels.hpp"
 #include "st/detect/moving_mask.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/detect/sky_stack.hpp"
@@ -75,11 +76,21 @@ class PreprocessAccelerator {
                                             const stats::GlobalBackgroundParams& params) {
     return stats::globalBackground(cube, params);
   }
-  /// The pipeline's word that `cube`'s pixels are still those removeFrameBackgrounds(cube) left (the stages
-  /// since changed only its mask and frame info): a device that kept those frames may let the next
-  /// prefetch(cube) use them instead of uploading the pixels again; without this call it must not. The
-  /// default does nothing.
-  virtual void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube) { (void)cube; }
+  /// The pipeline's word whether `cube`'s pixels are still those removeFrameBackgrounds(cube) left (the
+  /// stages since changed only its mask and frame info; false: they may have changed). Until it says false,
+  /// a device that kept those frames may use them for globalBackground, hotPixelExcess and the next
+  /// prefetch(cube) instead of uploading the pixels; without a true it must not. The default does nothing.
+  virtual void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) {
+    (void)cube, (void)unchanged;
+  }
+  /// The smallest block-mean excess of each pixel that detect::findHotPixels computes (see
+  /// detect::hotPixelsFromExcess: the same sums in the same order, so the same pixels); none when the device
+  /// cannot make it without an upload of its own. The default makes none (the CPU finds the pixels).
+  virtual std::optional<std::vector<float>> hotPixelExcess(const FrameCube& cube, double background,
+                                                           const detect::HotPixelParams& params) {
+    (void)cube, (void)background, (void)params;
+    return std::nullopt;
+  }
   /// `cube` is the input of the next subtractPixelBackground or zeroBias and does not change until then (the
   /// stages in between only read it) but at the pixels later passed to patchPrefetch: a device may start
   /// uploading it now, behind those stages. The returned guard (may be null) must be destroyed before the
