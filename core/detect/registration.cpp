@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "registration_links.hpp"
+#include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 
 namespace st::detect {
@@ -414,11 +415,49 @@ void applyRegistration(FrameCube& cube, const Registration& reg) {
   }
 }
 
+namespace {
+
+/// Moves the content of frame n by -sign * shift[n] (new(x, y) = old(x + sign sx, y + sign sy) where that
+/// lies in the frame; elsewhere 0 and masked when the cube has a mask). Returns the frames moved.
+std::size_t shiftFrames(FrameCube& cube, const std::vector<std::pair<int, int>>& shift, int sign,
+                        CancelToken& cancel) {
+  const std::size_t nf = cube.frameCount();
+  const int w = cube.width(), h = cube.height();
+  const std::size_t np = cube.framePixels();
+  const bool masked = cube.mask().size() == cube.pixels().size();
+  std::atomic<std::size_t> moved{0};
+  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
+    std::vector<float> pix(np);
+    std::vector<std::uint8_t> msk(masked ? np : 0);
+    for (std::size_t n = b; n < e; ++n) {
+      const int sx = sign * shift[n].first, sy = sign * shift[n].second;
+      if (sx == 0 && sy == 0) continue;
+      cancel.throwIfCancelled();
+      float* f = cube.frame(n);
+      std::uint8_t* m = masked ? cube.mask().data() + n * np : nullptr;
+      std::fill(pix.begin(), pix.end(), 0.0f);
+      std::fill(msk.begin(), msk.end(), std::uint8_t{1});
+      const int x0 = std::max(0, -sx), x1 = std::min(w, w - sx);
+      for (int y = std::max(0, -sy); y < std::min(h, h - sy); ++y) {
+        if (x1 <= x0) break;
+        const std::size_t dst = static_cast<std::size_t>(y) * w + x0;
+        const std::size_t src = static_cast<std::size_t>(y + sy) * w + x0 + sx;
+        std::copy_n(f + src, x1 - x0, pix.data() + dst);
+        if (m) std::copy_n(m + src, x1 - x0, msk.data() + dst);
+      }
+      std::copy(pix.begin(), pix.end(), f);
+      if (m) std::copy(msk.begin(), msk.end(), m);
+      moved.fetch_add(1);
+    }
+  });
+  return moved.load();
+}
+
+}  // namespace
+
 std::size_t alignWholePixels(FrameCube& cube, Registration& reg, CancelToken& cancel) {
   const std::size_t nf = cube.frameCount();
   if (reg.model != Registration::Model::PerFrame || reg.offsets.size() != nf) return 0;
-  const int w = cube.width(), h = cube.height();
-  const std::size_t np = cube.framePixels();
   std::vector<std::pair<int, int>> shift(nf);
   bool any = false;
   for (std::size_t n = 0; n < nf; ++n) {
@@ -426,38 +465,48 @@ std::size_t alignWholePixels(FrameCube& cube, Registration& reg, CancelToken& ca
     any = any || shift[n].first != 0 || shift[n].second != 0;
   }
   if (!any) return 0;
-  if (cube.mask().empty()) cube.mask().assign(np * nf, 0);
-  std::atomic<std::size_t> moved{0};
-  parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
-    std::vector<float> pix(np);
-    std::vector<std::uint8_t> msk(np);
-    for (std::size_t n = b; n < e; ++n) {
-      const auto [sx, sy] = shift[n];
-      if (sx == 0 && sy == 0) continue;
-      cancel.throwIfCancelled();
-      float* f = cube.frame(n);
-      std::uint8_t* m = cube.mask().data() + n * np;
-      std::fill(pix.begin(), pix.end(), 0.0f);
-      std::fill(msk.begin(), msk.end(), std::uint8_t{1});
-      // new(x, y) = old(x + sx, y + sy) where that lies in the frame.
-      const int x0 = std::max(0, -sx), x1 = std::min(w, w - sx);
-      for (int y = std::max(0, -sy); y < std::min(h, h - sy); ++y) {
-        if (x1 <= x0) break;
-        const std::size_t dst = static_cast<std::size_t>(y) * w + x0;
-        const std::size_t src = static_cast<std::size_t>(y + sy) * w + x0 + sx;
-        std::copy_n(f + src, x1 - x0, pix.data() + dst);
-        std::copy_n(m + src, x1 - x0, msk.data() + dst);
-      }
-      std::copy(pix.begin(), pix.end(), f);
-      std::copy(msk.begin(), msk.end(), m);
-      moved.fetch_add(1);
-    }
-  });
+  // new(x, y) = old(x + sx, y + sy): the uncovered pixels masked.
+  if (cube.mask().empty()) cube.mask().assign(cube.framePixels() * nf, 0);
+  const std::size_t moved = shiftFrames(cube, shift, 1, cancel);
   for (std::size_t n = 0; n < nf; ++n) {
     reg.offsets[n].x -= shift[n].first;
     reg.offsets[n].y -= shift[n].second;
   }
-  return moved.load();
+  reg.alignedPx = std::move(shift);
+  return moved;
+}
+
+void restoreWholePixels(FrameCube& cube, const Registration& reg, CancelToken& cancel) {
+  if (reg.alignedPx.empty()) return;
+  const std::size_t nf = cube.frameCount();
+  if (reg.alignedPx.size() != nf || cube.info().size() != nf)
+    throw InputError("registration: " + std::to_string(reg.alignedPx.size()) + " whole-pixel shifts for " +
+                     std::to_string(nf) + " frames");
+  shiftFrames(cube, reg.alignedPx, -1, cancel);
+  for (std::size_t n = 0; n < nf; ++n) {
+    cube.info()[n].offsetXPx += reg.alignedPx[n].first;
+    cube.info()[n].offsetYPx += reg.alignedPx[n].second;
+  }
+}
+
+std::vector<std::uint32_t> alignedCoverage(const Registration& reg, int width, int height) {
+  if (reg.alignedPx.empty()) return {};
+  // Per row, the covered columns of each frame as a difference array.
+  std::vector<std::uint32_t> out(static_cast<std::size_t>(width) * height, 0);
+  std::vector<int> diff(static_cast<std::size_t>(width) + 1);
+  for (int y = 0; y < height; ++y) {
+    std::fill(diff.begin(), diff.end(), 0);
+    for (const auto& [sx, sy] : reg.alignedPx) {
+      if (y + sy < 0 || y + sy >= height) continue;
+      const int lo = std::clamp(-sx, 0, width), hi = std::clamp(width - sx, lo, width);
+      ++diff[static_cast<std::size_t>(lo)];
+      --diff[static_cast<std::size_t>(hi)];
+    }
+    int c = 0;
+    for (int x = 0; x < width; ++x)
+      out[static_cast<std::size_t>(y) * width + x] = static_cast<std::uint32_t>(c += diff[static_cast<std::size_t>(x)]);
+  }
+  return out;
 }
 
 }  // namespace st::detect

@@ -341,9 +341,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   }
   out.singleFrame = std::move(zb.singleFrame);
   if (params.removeResidualMean) out.residualMeanRms = zb.residualMeanRms;
-  if (params.weightedFilter)
+  if (params.weightedFilter) {
     out.noiseModel = estimateNoiseModelOn(params.accelerator, cube, out.noise, unmeasured, params.noise,
                                           cancel, out.notes);
+    out.noiseModel.framesCovering = detect::alignedCoverage(out.registration, cube.width(), cube.height());
+  }
   lap("noise model");
   if (params.matchedFilter) {
     SubProgress sub(progress, 0.83, 1.0);
@@ -385,6 +387,20 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();
     lap("matched filter");
+  }
+  // Frames moved onto frame 0's grid by whole pixels (registration) go back onto their own grids, their
+  // offsets whole again: the search's N_in then counts only the frames that saw each track position (on
+  // frame 0's grid, the pixels a frame does not cover are 0 but inside it). The per-pixel maps (background,
+  // noise, noise model) stay on frame 0's grid.
+  if (!out.registration.alignedPx.empty()) {
+    if (!out.frames.empty()) detect::restoreWholePixels(out.frames, out.registration, cancel);
+    if (!out.filtered.frames.empty()) detect::restoreWholePixels(out.filtered.frames, out.registration, cancel);
+    for (std::size_t n = 0; n < out.registration.offsets.size(); ++n) {
+      out.registration.offsets[n].x += out.registration.alignedPx[n].first;
+      out.registration.offsets[n].y += out.registration.alignedPx[n].second;
+    }
+    out.registration.alignedPx.clear();
+    lap("whole-pixel alignment undone");
   }
   progress.report(1.0, "pre-processing done");
   out.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -132,6 +132,9 @@ OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeSha
       PreprocessParams p = params;
       p.masters = std::move(region.masters);
       p.keepZeroBiased = false;  // filtered in place: one cube per strip
+      // A strip moved by whole pixels onto frame 0's grid would lose the rows its shift pushes out of the
+      // strip (no halo is that wide): its frames keep their own grids and whole offsets.
+      p.registration.alignWholePixels = false;
       if (!isReference) {
         const Prepared& ref = out.reference;
         p.skyRate = ref.skyRate;

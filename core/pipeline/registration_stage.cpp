@@ -24,8 +24,9 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
     if (framesMoved) *framesMoved = moved;
     if (moved > 0) {
       out.notes.push_back("registration: " + std::to_string(moved) +
-                          " frame(s) moved by whole pixels onto the first frame's pixel grid (the pixels they "
-                          "uncover masked); their sub-pixel remainders are kept as offsets");
+                          " frame(s) moved by whole pixels onto the first frame's pixel grid for the per-pixel "
+                          "stages (the pixels they uncover masked), and back onto their own after the matched "
+                          "filter");
     }
   }
   detect::applyRegistration(cube, reg);

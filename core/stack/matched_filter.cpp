@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <opencv2/core.hpp>
@@ -134,6 +135,11 @@ Weights makeWeights(const FrameCube& cube, const FilterKernel& kernel, const sta
   for (std::size_t n = 0; n < nf; ++n)
     invS2[n] = 1.0 / (m.frameScale[n] * m.frameScale[n]);
   const bool hasMask = cube.mask().size() == cube.pixels().size();
+  // Frames moved onto frame 0's grid by whole pixels (registration) cover only part of it: each pixel's
+  // weight is averaged over the frames that cover it, so that a frame covering it is filtered to the same
+  // noise as in a cube where all do (the search counts, in N_in, only the frames that saw a track position
+  // once the frames are back on their own grids).
+  const bool coverage = m.framesCovering.size() == np;
   cv::Mat omega(h, w, CV_32F);
   parallelFor(static_cast<std::size_t>(h), 8, [&](std::size_t y0, std::size_t y1) {
     std::vector<double> acc(static_cast<std::size_t>(w));
@@ -146,8 +152,11 @@ Weights makeWeights(const FrameCube& cube, const FilterKernel& kernel, const sta
                         invS2[n], w);
       }
       auto* row = omega.ptr<float>(static_cast<int>(y));
-      for (int x = 0; x < w; ++x)
-        row[x] = static_cast<float>(acc[x] / static_cast<double>(nf) * out.invVar[y * w + x]);
+      const std::uint32_t* covering = coverage ? m.framesCovering.data() + y * w : nullptr;
+      for (int x = 0; x < w; ++x) {
+        const double frames = covering ? std::max<double>(1.0, covering[x]) : static_cast<double>(nf);
+        row[x] = static_cast<float>(acc[x] / frames * out.invVar[y * w + x]);
+      }
     }
   });
   cv::Mat k2(kernel.kernel.height, kernel.kernel.width, CV_32F);

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 
@@ -164,17 +165,20 @@ TEST(Registration, OffsetsSurviveAWrittenCube) {
 
 // Whole-pixel alignment (RegistrationParams::alignWholePixels): a cube dithered by whole pixels plus a
 // sub-pixel part comes back onto frame 0's grid, equal to the undithered cube wherever the dithered frame
-// covered it and masked elsewhere; the sub-pixel remainders stay offsets.
+// covered it and masked elsewhere; the sub-pixel remainders stay offsets; moved back (restoreWholePixels),
+// each frame is its dithered self wherever the aligned frame kept it.
 TEST(Registration, AlignWholePixelsUndoesTheDithers) {
   const FrameCube still = test::noiseCube(23, 17, {0.0, 1.0, 2.0, 3.0}, 1.0, 7);
   const std::vector<std::pair<int, int>> whole{{0, 0}, {3, -2}, {-5, 4}, {22, 0}};
   FrameCube cube = still;
   test::ditherFrames(cube, whole);
+  const FrameCube dithered = cube;
   detect::Registration reg;
   reg.model = detect::Registration::Model::PerFrame;
   reg.offsets = {{0.0, 0.0}, {3.3, -1.6}, {-5.45, 4.2}, {21.7, -0.4}};
   CancelToken c;
   EXPECT_EQ(detect::alignWholePixels(cube, reg, c), 3u);
+  ASSERT_EQ(reg.alignedPx, whole);
   const double remainder[4][2] = {{0.0, 0.0}, {0.3, 0.4}, {-0.45, 0.2}, {-0.3, -0.4}};
   for (std::size_t n = 0; n < 4; ++n) {
     EXPECT_NEAR(reg.offsets[n].x, remainder[n][0], 1e-12) << n;
@@ -189,6 +193,33 @@ TEST(Registration, AlignWholePixelsUndoesTheDithers) {
         ASSERT_EQ(cube.pixels()[i], covered ? still.pixels()[i] : 0.0f) << n << " " << x << " " << y;
       }
   }
+  // The frames covering each pixel of frame 0's grid (the weighted matched filter's normalisation).
+  const std::vector<std::uint32_t> cover = detect::alignedCoverage(reg, 23, 17);
+  ASSERT_EQ(cover.size(), 23u * 17u);
+  for (int y = 0; y < 17; ++y)
+    for (int x = 0; x < 23; ++x) {
+      std::uint32_t expect = 0;
+      for (const auto& [dx, dy] : whole)
+        expect += x + dx >= 0 && y + dy >= 0 && x + dx < 23 && y + dy < 17;
+      ASSERT_EQ(cover[static_cast<std::size_t>(y) * 23 + x], expect) << x << " " << y;
+    }
+  // Back onto each frame's own grid (after the matched filter, so that the search's N_in counts only the
+  // frames that saw a track): the dithered frames wherever the aligned frame held them, the offsets whole.
+  FrameCube back = cube;
+  detect::applyRegistration(back, reg);
+  detect::restoreWholePixels(back, reg, c);
+  for (std::size_t n = 0; n < 4; ++n) {
+    EXPECT_NEAR(back.info()[n].offsetXPx, remainder[n][0] + whole[n].first, 1e-12) << n;
+    EXPECT_NEAR(back.info()[n].offsetYPx, remainder[n][1] + whole[n].second, 1e-12) << n;
+    for (int y = 0; y < 17; ++y)
+      for (int x = 0; x < 23; ++x) {
+        const std::size_t i = n * still.framePixels() + static_cast<std::size_t>(y) * 23 + x;
+        const int ax = x - whole[n].first, ay = y - whole[n].second;  // where the aligned frame held it
+        const bool kept = ax >= 0 && ay >= 0 && ax < 23 && ay < 17;
+        ASSERT_EQ(back.pixels()[i], kept ? dithered.pixels()[i] : 0.0f) << n << " " << x << " " << y;
+        ASSERT_EQ(back.mask()[i], kept ? dithered.mask()[i] : 1) << n << " " << x << " " << y;
+      }
+  }
   // Frame 22 px off in a 23 px frame keeps one column; the linear model moves nothing.
   detect::Registration linear;
   linear.model = detect::Registration::Model::Linear;
@@ -196,6 +227,8 @@ TEST(Registration, AlignWholePixelsUndoesTheDithers) {
   FrameCube same = still;
   EXPECT_EQ(detect::alignWholePixels(same, linear, c), 0u);
   EXPECT_EQ(same.pixels(), still.pixels());
+  EXPECT_TRUE(linear.alignedPx.empty());
+  EXPECT_TRUE(detect::alignedCoverage(linear, 23, 17).empty());
 }
 
 /// The small preset with more (and brighter) stars to register on, no fixed-pattern artefacts (the dither

@@ -6,8 +6,8 @@
 // 2026-11-27 the crop itself was shifted, with masked bands along its edges that real dithers do not have).
 // Pre-processed and searched like the undithered sequence (test_pipeline_real_slow.cpp's grid,
 // +-0.2 deg/day in 1 px steps over the span), the asteroid must be found at the same place (within 1 px), the
-// same velocity relative to the stars (within 3 px over the span) and an SNR not below 92% of the
-// undithered one (the issue's 3% is not met yet: see the SNR check), both taken at the best phase of the
+// same velocity relative to the stars (within 3 px over the span) and an SNR not below 97% of the
+// undithered one (the issue's 3%), both taken at the best phase of the
 // search's pixel lattice (refine_candidate.hpp: the dithered
 // run's offsets count from its first frame, the undithered run's model from t_ref, and the rounding of the
 // shifts then falls differently on the asteroid's sub-pixel track); the registration must report per-frame
@@ -171,11 +171,11 @@ TEST(RegistrationReal, Lowell5945DitheredAndRepointedIsFoundAsUndithered) {
               "phases %.2f / %.2f = %.3f (issue target 0.97-1.03)\n",
               moved.candidate.snr / still.candidate.snr, moved.gridSnr / still.gridSnr, moved.phased.snr,
               still.phased.snr, moved.phased.snr / still.phased.snr);
-  // Not yet the issue's 3%: 0.934 (0.947 with the undithered run's PSF given to both). The dithered filtered
-  // frames are noisier than their noise model says (sigma_F / sigma_ref 1.28 against 1.16 undithered, same
-  // PSF): faint sources below the catalogue move under the detector-pixel background with the dithers and
-  // stay in the frames, and the star template adds its own noise. Held at 0.92 so that a regression shows.
-  EXPECT_GE(moved.phased.snr, 0.92 * still.phased.snr);
+  // The issue's 3%: 0.973 (2026-11-27, dev VM) since the dithered frames are moved by whole pixels onto
+  // the first frame's grid for the per-pixel stages and back after the matched filter
+  // (RegistrationParams::alignWholePixels, on by default; 0.934 without). What is left: the PSF fit picks
+  // 1.29 px on the dithered stack against 1.57 px undithered among the same 9 disagreeing stars.
+  EXPECT_GE(moved.phased.snr, 0.97 * still.phased.snr);
 }
 
 }  // namespace

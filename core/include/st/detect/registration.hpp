@@ -30,8 +30,10 @@
 // too faint to follow one by one) the registration is Unmeasured at once.
 // Cost: two real FFTs of a frame per link, parallel over links; memory: a frame's spectrum per link in flight.
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -47,11 +49,14 @@ struct RegistrationParams {
   /// Per-frame model: move every frame by the whole pixels of its offset onto frame 0's pixel grid
   /// (alignWholePixels), so that the per-pixel background, noise and static-source masks, which work at
   /// fixed pixels, see a still sky as in an undithered sequence; only the sub-pixel remainders stay offsets.
-  /// Off by default (2026-11-27): on the dithered Lowell crop it raises the search SNR from 0.923 to 0.946 of
-  /// the undithered run, but on a 128 px simulated frame with 57 px dithers it costs 7%: the weighted matched
-  /// filter's output scale uses each pixel's coverage averaged over the frames, and aligned frames put the
-  /// object's late track in a band covered by half of them (uniform filter: 0.978).
-  bool alignWholePixels = false;
+  /// Pre-processing moves the filtered (and zero-biased) frames back onto their own grids after the matched
+  /// filter (restoreWholePixels), so that the search's N_in counts only the frames that saw each track
+  /// position, and the filter normalises each pixel by the frames that cover it (NoiseModel::framesCovering).
+  /// On by default since 2026-11-27: 5945 on the dithered Lowell crop at 0.973 of its undithered SNR (0.934
+  /// without; best lattice phases); the 128 px simulated dither test 0.975 (0.997 without, whose
+  /// time-averaged normalisation on detector pixels overrates partly covered pixels; 0.927 aligned before the
+  /// move back and the per-pixel coverage).
+  bool alignWholePixels = true;
 };
 
 struct Registration {
@@ -70,6 +75,9 @@ struct Registration {
   int linksMeasured = 0;                ///< links whose peak was significant
   int significantFrames = 0;            ///< frames whose offset departs from the model beyond 5 sigma of
                                         ///< its measurement (the others keep o_n = 0)
+  /// The whole-pixel shifts alignWholePixels moved frame n by (its content by -alignedPx[n]), cube order;
+  /// empty when no frame was moved (or restoreWholePixels moved them back).
+  std::vector<std::pair<int, int>> alignedPx;
   std::string rateNote;                 ///< how the rate was taken (an axis without significant drift is 0)
   std::string note;                     ///< for the user: which model, with the rms
 };
@@ -88,6 +96,19 @@ void applyRegistration(FrameCube& cube, const Registration& reg);
 /// o_n - round(o_n) (|.| <= 0.5 px) in reg.offsets; reg.position is kept as measured. Returns the number
 /// of frames moved. Throws st::Cancelled.
 std::size_t alignWholePixels(FrameCube& cube, Registration& reg, CancelToken& cancel);
+
+/// Undoes alignWholePixels on a cube derived from the aligned one (the zero-biased or the filtered frames):
+/// moves frame n's content by +reg.alignedPx[n] (the pixels it uncovers 0, and masked when the cube has a
+/// mask), adds the shifts back to reg.offsets and to the frames' offsets (FrameInfo), so the search's shift
+/// round(o_n + v dt) falls on the same pixels. Does not clear reg.alignedPx (several cubes may be restored);
+/// the caller does. Nothing when reg.alignedPx is empty. Throws st::Cancelled and st::InputError when the
+/// frame counts differ.
+void restoreWholePixels(FrameCube& cube, const Registration& reg, CancelToken& cancel);
+
+/// The number of frames whose own pixel grid covers each pixel of frame 0's grid after alignWholePixels
+/// (width x height, row-major): pixel q is covered by frame n when q + alignedPx[n] lies in the frame. Empty
+/// when reg.alignedPx is empty.
+std::vector<std::uint32_t> alignedCoverage(const Registration& reg, int width, int height);
 
 /// The step of the star field from image `b` to image `a` (a star at p in b is at p + step in a), both
 /// width x height, by FFT cross-correlation of their star images (as above); `snr` is the peak's

@@ -54,6 +54,10 @@ struct NoiseModel {
   Image variance;                  ///< v(q), counts^2; 0 where unknown (weight 0)
   std::vector<double> frameScale;  ///< s_n, ~1 (median 1)
   double sigmaRef = 0.0;           ///< sqrt(median v) * median s: the uniform-noise equivalent, counts
+  /// The number of frames whose own pixel grid covers each pixel (frames moved by whole pixels onto frame
+  /// 0's grid: detect::alignedCoverage); empty: every frame covers every pixel. The weighted matched filter
+  /// averages each pixel's weight over these frames only (stack/matched_filter.hpp).
+  std::vector<std::uint32_t> framesCovering;
   [[nodiscard]] bool empty() const noexcept { return variance.empty(); }
   /// A uniform model: variance sigma^2 everywhere, every s_n = 1 (the paper's statistic).
   static NoiseModel uniform(int width, int height, std::size_t frames, double sigma);
