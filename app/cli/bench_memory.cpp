@@ -7,8 +7,10 @@
 // --raw does the same for raw frames whose pre-processing runs out of core (pipeline/preprocess_out_of_core).
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -87,8 +89,9 @@ double bestSnr(const Run& r) {
 }
 
 /// --raw: simulated raw frames (the simulator's small preset at FRAMES x W x H) searched with pre-processing
-/// in memory and out of core (strips of rows) under a budget of half the in-memory pre-processing estimate.
-int benchMemoryRaw(long long frames, int w, int h, const std::optional<std::string>& limitArg) {
+/// in memory and out of core (strips of rows) under a budget of half the in-memory pre-processing estimate,
+/// `rounds` times alternately (a loaded machine's noise: the medians are compared).
+int benchMemoryRaw(long long frames, int w, int h, const std::optional<std::string>& limitArg, int rounds) {
   const double estimate =
       pipeline::estimatePreprocessPeak({w, h, static_cast<std::size_t>(frames)}, false, workerCount()).total();
   const std::string limit =
@@ -104,40 +107,75 @@ int benchMemoryRaw(long long frames, int w, int h, const std::optional<std::stri
   mem.insert(mem.end(), {"--memory-limit", "64G"});
   ooc.insert(ooc.end(), {"--memory-limit", limit});
   runSearch(raw, dir, "warm", mem, false);
-  const Run a = runSearch(raw, dir, "in-memory", mem, false);
-  const Run b = runSearch(raw, dir, "out-of-core", ooc, false);
+  std::vector<Run> a, b;
+  for (int r = 0; r < rounds; ++r) {
+    a.push_back(runSearch(raw, dir, "in-memory", mem, false));
+    b.push_back(runSearch(raw, dir, "out-of-core", ooc, false));
+  }
+  std::string plan;  // the out-of-core plan's line ("pre-processing out of core: N strips ...")
+  {
+    std::ifstream in(dir / "out-of-core.err");
+    for (std::string l; std::getline(in, l);)
+      if (l.find("pre-processing out of core:") != std::string::npos) plan = l;
+  }
   fs::remove_all(dir);
   std::printf("bench memory --raw: %s, %u threads, %s\n", cpuModel().c_str(), workerCount(), utcNow().c_str());
   std::printf("problem: raw frames of the small preset, %lld x %d x %d px (%.0f MB float32), pre-processed and "
               "searched (+-40 deg/day, auto method); in-memory pre-processing estimated at %s\n",
               frames, w, h, 4.0 * w * h * static_cast<double>(frames) / 1048576.0, formatBytes(estimate).c_str());
+  std::printf("%s\n", plan.c_str());
   const auto line = [](const char* name, const Run& r) {
     std::printf("  %-12s wall %7.2f s, CPU %7.2f s, peak resident %s, %zu candidates, best SNR %.2f\n", name,
                 r.wallS, r.cpuS, formatBytes(r.j["memory"]["peak_resident_bytes"].get<double>()).c_str(),
                 r.j["candidates"].size(), bestSnr(r));
   };
-  line("in memory", a);
   std::printf("  (budget %s)\n", limit.c_str());
-  line("out of core", b);
-  std::printf("out of core / in memory: wall %.2fx, CPU %.2fx, peak %.2fx; best SNR %.2f vs %.2f\n",
-              b.wallS / a.wallS, b.cpuS / a.cpuS,
-              b.j["memory"]["peak_resident_bytes"].get<double>() / a.j["memory"]["peak_resident_bytes"].get<double>(),
-              bestSnr(b), bestSnr(a));
+  for (int r = 0; r < rounds; ++r) {
+    line("in memory", a[r]);
+    line("out of core", b[r]);
+  }
+  const auto median = [](const std::vector<Run>& runs, double Run::*field) {
+    std::vector<double> v;
+    for (const auto& r : runs)
+      v.push_back(r.*field);
+    std::sort(v.begin(), v.end());
+    return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  };
+  // The candidates of SNR >= 10 (noise peaks near the threshold of 7 may differ between the strips' and the
+  // whole frame's statistics) at the same cells within 1 px.
+  const auto strong = [](const Run& r) {
+    std::vector<std::pair<int, int>> s;
+    for (const auto& c : r.j["candidates"])
+      if (c["snr"].get<double>() >= 10.0) s.emplace_back(c["x"].get<int>(), c["y"].get<int>());
+    return s;
+  };
+  const auto sa = strong(a.back()), sb = strong(b.back());
+  bool same = sa.size() == sb.size();
+  for (std::size_t i = 0; same && i < sa.size(); ++i)
+    same = std::abs(sa[i].first - sb[i].first) <= 1 && std::abs(sa[i].second - sb[i].second) <= 1;
+  std::printf("out of core / in memory (median of %d): wall %.2fx, CPU %.2fx, peak %.2fx; best SNR %.2f vs %.2f; "
+              "candidates of SNR >= 10 %s (%zu)\n",
+              rounds, median(b, &Run::wallS) / median(a, &Run::wallS), median(b, &Run::cpuS) / median(a, &Run::cpuS),
+              b.back().j["memory"]["peak_resident_bytes"].get<double>() /
+                  a.back().j["memory"]["peak_resident_bytes"].get<double>(),
+              bestSnr(b.back()), bestSnr(a.back()), same ? "at the same cells" : "DIFFER", sa.size());
   return 0;
 }
 
 }  // namespace
 
 int benchMemory(const Args& args) {
-  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method"}, {"help", "raw", "keep"});
+  const CliArgs cli(args, {"frames", "size", "vmax-px-s", "memory-limit", "method", "rounds"},
+                     {"help", "raw", "keep"});
   if (cli.flag("help")) {
     std::printf(
         "usage: synthtrack-cli bench memory [--frames N] [--size WxH] [--vmax-px-s V] [--method exact|tree]\n"
-        "                                   [--memory-limit SIZE] [--raw] [--keep]\n"
+        "                                   [--memory-limit SIZE] [--raw [--rounds N]] [--keep]\n"
         "  in-memory vs out-of-core search of a filtered cube (default 400 x 512x512, 0.1 px/s, exact,\n"
         "  out of core under a third of the cube)\n"
         "  --raw: simulated raw frames (small preset; default 200 x 512x1024) pre-processed and searched in\n"
-        "  memory and out of core (strips of rows) under half the in-memory pre-processing estimate\n"
+        "  memory and out of core (strips of rows) under half the in-memory pre-processing estimate;\n"
+        "  --rounds N: both N times alternately, the ratios of the medians (default 1)\n"
         "  --keep: (not with --raw) the temporary folder (cube, each run's JSON and log) is left in place\n");
     return 0;
   }
@@ -147,7 +185,10 @@ int benchMemory(const Args& args) {
       if (std::sscanf(s->c_str(), "%dx%d", &rw, &rh) != 2 || rw < 32 || rh < 32)
         throw UsageError("--size must be WxH with both >= 32, got '" + *s + "'");
     }
-    return benchMemoryRaw(cli.integer("frames").value_or(200), rw, rh, cli.value("memory-limit"));
+    const long long rounds = cli.integer("rounds").value_or(1);
+    if (rounds < 1 || rounds > 20) throw UsageError("--rounds must be 1-20");
+    return benchMemoryRaw(cli.integer("frames").value_or(200), rw, rh, cli.value("memory-limit"),
+                          static_cast<int>(rounds));
   }
   const long long frames = cli.integer("frames").value_or(400);
   int w = 512, h = 512;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <memory>
 #include <sstream>
@@ -9,6 +10,8 @@
 #include "st/common/error.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/pipeline/prepared_cube.hpp"
+#include "st/psf/moffat.hpp"
+#include "st/stack/matched_filter.hpp"
 
 namespace st::pipeline {
 namespace {
@@ -50,33 +53,76 @@ void appendOnce(std::vector<std::string>& to, const std::vector<std::string>& fr
 
 }  // namespace
 
-int preprocessOverlapPx(const PreprocessParams& params) {
+int PreprocessHalo::overlap() const {
+  return std::max({meshes, staticSources, filter, cosmicRays});
+}
+
+std::string PreprocessHalo::describe() const {
+  std::ostringstream o;
+  o << overlap() << " px (meshes " << meshes << ", static sources " << staticSources << ", filter " << filter
+    << ", cosmic rays " << cosmicRays << ")";
+  return o.str();
+}
+
+PreprocessHalo preprocessHalo(const PreprocessParams& params) {
+  PreprocessHalo h;
+  // SEP's background (mesh cells, a 3-cell median filter, a bicubic spline through the cell centres) and the
+  // residual means (bilinear between cell centres): with half a cell above and below, the owned rows lie
+  // between the strip's cell centres (interpolated, never extrapolated as a frame's outer half-cells are).
+  // Two cells (the reach of the median filter; before 2026-11-27) read 5x the rows under 129 MB (16 strips
+  // of 64 rows for 100 x 256 x 1024) and came no closer to the in-memory candidates than half a cell (bench
+  // memory --raw): SEP's spline runs along whole columns, so no finite overlap gives the frame's mesh anyway.
   const int mesh = std::max(params.frameBackground.enabled ? params.frameBackground.meshPx : 0,
                             params.removeResidualMean ? params.residualMeshPx : 0);
-  return 2 * std::max(mesh, 32);
+  h.meshes = (mesh + 1) / 2;
+  // A star whose centre is outside the strip but whose footprint reaches the owned rows is found in the
+  // sky-rate stack when its core and the local background's cell around it are read.
+  h.staticSources = std::max(params.stars.meshPx,
+                             static_cast<int>(std::ceil(params.stars.dilateFwhm * params.psfFwhmPx)) + 1);
+  // The matched filter's kernel (truncated at kDefaultTruncation of the peak) at twice the assumed FWHM:
+  // the PSF is fitted on the reference strip and may be wider than assumed.
+  h.filter = static_cast<int>(
+      std::ceil(psf::Moffat::fromFwhm(2.0 * params.psfFwhmPx).radiusAtFraction(stack::kDefaultTruncation)));
+  if (!params.matchedFilter) h.filter = 0;
+  // A cosmic-ray seed is judged on its 5 x 5 neighbourhood and grows over 8-neighbours.
+  h.cosmicRays = params.removeCosmicRays ? 3 : 0;
+  return h;
+}
+
+int preprocessOverlapPx(const PreprocessParams& params) {
+  return preprocessHalo(params).overlap();
 }
 
 OutOfCorePreprocessPlan planOutOfCorePreprocess(const CubeShape& shape, std::size_t budgetBytes,
-                                                unsigned threads, int overlapPx, int alignPx) {
+                                                unsigned threads, int overlapPx, int stepPx) {
   OutOfCorePreprocessPlan plan;
   plan.overlapPx = overlapPx;
-  alignPx = std::max(alignPx, 1);
+  stepPx = std::max(stepPx, 1);
   const double budget = static_cast<double>(budgetBytes);
-  const int smallestRead = std::min(shape.height, alignPx + 2 * overlapPx);
+  const int smallestRead = std::min(shape.height, kMinStripRows + 2 * overlapPx);
   plan.smallestStrip = stripPeak(shape, smallestRead, threads);
-  // The tallest owned height (a multiple of the mesh) whose interior strip fits.
-  int best = 0;
-  for (int own = roundUp(shape.height, alignPx); own >= alignPx; own -= alignPx) {
-    const int read = std::min(shape.height, own + 2 * overlapPx);
-    if (stripPeak(shape, read, threads).total() <= budget) {
-      best = own;
+  if (shape.height <= 0 || plan.smallestStrip.total() > budget) return plan;
+  // The tallest owned height whose strips fit (the estimate grows with the tallest strip's rows read: an
+  // interior one reads both overlaps, the two of a 2-strip plan one each).
+  const auto tallestRead = [&](int own) {
+    int tallest = 0;
+    for (const auto& s : cutStrips(shape.width, shape.height, own, overlapPx))
+      tallest = std::max(tallest, s.read.height);
+    return tallest;
+  };
+  const auto fits = [&](int own) { return stripPeak(shape, tallestRead(own), threads).total() <= budget; };
+  const int smallest = std::min(kMinStripRows, shape.height);
+  int best = smallest;
+  for (int own = roundUp(shape.height, stepPx); own > smallest; own -= stepPx) {
+    if (fits(std::min(own, shape.height))) {
+      best = std::min(own, shape.height);
       break;
     }
   }
-  if (best == 0) return plan;
-  // As many strips as that needs, their heights evened out (still on the mesh).
+  // As few strips as that allows, their owned heights evened out on the step.
   const int count = (shape.height + best - 1) / best;
-  const int own = std::min(best, roundUp((shape.height + count - 1) / count, alignPx));
+  int own = std::min(roundUp((shape.height + count - 1) / count, stepPx), shape.height);
+  if (own > best && !fits(own)) own = best;
   plan.strips = cutStrips(shape.width, shape.height, own, overlapPx);
   plan.reference = plan.strips.size() / 2;
   int tallest = 0;

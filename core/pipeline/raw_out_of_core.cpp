@@ -59,19 +59,20 @@ RawOutOfCorePlan planRawOutOfCore(const RawObservationFiles& files, const io::In
   p.params.calib = files.calib;
   p.params.registerFrames = options.registerFrames;
   p.params.keepZeroBiased = false;
-  const int overlap = preprocessOverlapPx(p.params);
-  p.strips = planOutOfCorePreprocess(p.shape, budget.bytes, threads, overlap,
-                                     std::max(p.params.frameBackground.meshPx, p.params.residualMeshPx));
+  const PreprocessHalo halo = preprocessHalo(p.params);
+  const int overlap = halo.overlap();
+  p.strips = planOutOfCorePreprocess(p.shape, budget.bytes, threads, overlap);
   if (p.strips.strips.empty()) {
     throw InputError(overBudgetMessage(
         std::to_string(p.shape.frames) + " frames of " + std::to_string(p.shape.width) + " x " +
             std::to_string(p.shape.height) + " px: pre-processing out of core (the smallest strip of rows, " +
-            std::to_string(std::min(p.shape.height, 64 + 2 * overlap)) + " rows with the overlap)",
+            std::to_string(std::min(p.shape.height, kMinStripRows + 2 * overlap)) + " rows with the overlap)",
         p.strips.smallestStrip, budget));
   }
   p.description = "pre-processing out of core: " + std::to_string(p.strips.strips.size()) + " strips of up to " +
                   std::to_string(p.strips.strips.front().ownRows) + " rows (+" + std::to_string(overlap) +
-                  " rows of overlap each side), estimated peak " + p.strips.perStrip.describe();
+                  " rows of overlap each side: " + halo.describe() + "), estimated peak " +
+                  p.strips.perStrip.describe();
   p.path = scratchPath(files, options);
   p.trim = calib::trimRegion(summary.header, p.shape.width, p.shape.height, summary.files.front(), p.params.calib,
                              p.warnings);

@@ -1,6 +1,7 @@
 // Out-of-core search (issue 20): tiles with the shift overlap give exactly the in-memory candidates, cells
 // above threshold and velocity map, for the exact and the tree method, in strips and in 2-D tiles; the tree
-// search's tile buffers do not grow with the thread count; memory sizes parse.
+// search's tile buffers do not grow with the thread count; memory sizes parse; raw frames' strips are read
+// with the overlap the stages reach and are as tall as the budget allows.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -8,7 +9,9 @@
 #include "search_test_cubes.hpp"
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
+#include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/preprocess.hpp"
+#include "st/pipeline/preprocess_out_of_core.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/search/tiled_search.hpp"
@@ -139,6 +142,59 @@ TEST(OutOfCorePlan, InPlaceFilterGivesTheCopysFrames) {
   EXPECT_EQ(inPlace.filtered.frames.width(), copy.filtered.frames.width());
   EXPECT_TRUE(inPlace.filtered.frames.pixels() == copy.filtered.frames.pixels());
   EXPECT_EQ(inPlace.filtered.frames.timeOffsetsS(), copy.filtered.frames.timeOffsetsS());
+}
+
+// Raw frames out of core (pipeline/preprocess_out_of_core): the overlap is what the stages reach (half a
+// 64 px mesh cell, the static sources' 32 px stack mesh, the filter's radius), not two mesh cells; the
+// strips are as tall as the budget allows, so that the overlap is a small part of the rows read.
+TEST(OutOfCorePreprocessPlan, OverlapIsTheStagesReach) {
+  pipeline::PreprocessParams params;
+  const pipeline::PreprocessHalo h = pipeline::preprocessHalo(params);
+  EXPECT_EQ(h.meshes, 32);
+  EXPECT_EQ(h.staticSources, 32);
+  EXPECT_GE(h.filter, 10);  // a Moffat of twice the assumed 3 px FWHM, truncated at 1e-3 of its peak
+  EXPECT_LE(h.filter, 32);
+  EXPECT_EQ(h.overlap(), 32);
+  EXPECT_EQ(pipeline::preprocessOverlapPx(params), 32);
+  EXPECT_NE(h.describe().find("meshes 32"), std::string::npos) << h.describe();
+  params.frameBackground.meshPx = 128;  // a coarser SEP mesh reaches further
+  EXPECT_EQ(pipeline::preprocessOverlapPx(params), 64);
+  params.psfFwhmPx = 20.0;  // a wide PSF: the filter's radius
+  EXPECT_GT(pipeline::preprocessOverlapPx(params), 64);
+}
+
+TEST(OutOfCorePreprocessPlan, StripsAreAsTallAsTheBudgetAllows) {
+  const pipeline::CubeShape shape{256, 1024, 100};
+  const int overlap = 32;
+  // The estimate of the whole frame read at once, and of a quarter of it with its overlap.
+  const double whole = pipeline::estimatePreprocessPeak(shape, false, 2).total();
+  const double quarter = pipeline::estimatePreprocessPeak({256, 256 + 2 * overlap, 100}, false, 2).total();
+  const auto plan = pipeline::planOutOfCorePreprocess(shape, static_cast<std::size_t>(quarter * 1.05), 2, overlap);
+  ASSERT_EQ(plan.strips.size(), 4u);
+  int owned = 0, read = 0, next = 0;
+  for (const auto& s : plan.strips) {
+    EXPECT_EQ(s.ownY0, next);  // the strips tile the rows
+    next = s.ownY0 + s.ownRows;
+    owned += s.ownRows;
+    read += s.read.height;
+    EXPECT_LE(s.read.y0, std::max(0, s.ownY0 - overlap));
+    EXPECT_GE(s.read.y0 + s.read.height, std::min(1024, s.ownY0 + s.ownRows + overlap));
+  }
+  EXPECT_EQ(owned, 1024);
+  EXPECT_EQ(read, 1024 + 6 * overlap);  // 1.19x the rows
+  EXPECT_LE(plan.perStrip.total(), quarter * 1.05);
+  EXPECT_EQ(plan.reference, 2u);
+  // More room, fewer strips; the whole frame's room, one strip without overlap.
+  const double half = pipeline::estimatePreprocessPeak({256, 512 + overlap, 100}, false, 2).total();
+  EXPECT_EQ(pipeline::planOutOfCorePreprocess(shape, static_cast<std::size_t>(half * 1.01), 2, overlap).strips.size(),
+            2u);
+  const auto one = pipeline::planOutOfCorePreprocess(shape, static_cast<std::size_t>(whole), 2, overlap);
+  ASSERT_EQ(one.strips.size(), 1u);
+  EXPECT_EQ(one.strips[0].read.height, 1024);
+  // Not even the smallest strip (64 rows and the overlaps): none, with the need.
+  const auto none = pipeline::planOutOfCorePreprocess(shape, 1 << 20, 2, overlap);
+  EXPECT_TRUE(none.strips.empty());
+  EXPECT_GT(none.smallestStrip.total(), double(1 << 20));
 }
 
 TEST(MemoryBudget, ParsesSizes) {

@@ -9,10 +9,13 @@
 // the registration (per-frame offsets), the sky rate and the PSF, so that every strip shifts, masks and
 // filters alike. What each strip measures for itself: the frames' SEP backgrounds, hot pixels, cosmic rays,
 // the static sources of its rows, the per-pixel background, the residual means and the noise model (all
-// local). The overlap is two mesh cells of the SEP background and of the residual means (the reach of their
-// 3-cell median filter and interpolation), and strips start on that mesh, so the owned rows see the meshes
-// of the whole frame. Each strip's filtered frames are scaled to the pooled sigma_F (the rms of the strips'
-// sigma_F over their owned rows), so that one SIGMAF holds for the file.
+// local). The overlap is what the stages that look at neighbouring rows need (PreprocessHalo: half a cell of
+// the SEP and residual-mean meshes, so that the owned rows lie between cell centres, interpolated and never
+// extrapolated; a cell of the sky-rate stack's local background for the static sources; the matched filter's
+// radius; a cosmic ray's neighbourhood), 32 px with the defaults; the mesh stages are not exact with any
+// finite overlap (SEP's spline runs along whole columns), so a strip's mesh starts at its first read row.
+// Each strip's filtered frames are scaled to the reference strip's sigma_F, so that one SIGMAF holds for
+// the file.
 //
 // Frames that calibration trims (TRIMSEC/DATASEC, overscan columns): strips are cut from the raw frames and
 // each is trimmed to the part of the frame's trim region it holds (calib::trimRegion gives the frame's), so
@@ -50,14 +53,37 @@ struct OutOfCorePreprocessPlan {
   MemoryEstimate smallestStrip;  ///< the need of the smallest strip (for the message when none fits)
 };
 
-/// Overlap of the strips for `params`: two cells of the larger of the SEP and residual-mean meshes.
+/// The rows above and below its own that a strip is read with, per stage (issue 20). Stages that work on
+/// single pixels or along time need none: calibration (the masters cropped to the strip; the overscan level
+/// from the strip's own rows), hot pixels, the per-pixel background, zeroing, the noise model; nor does the
+/// registration out of core (offsets given to every strip; frames keep their own grids, no whole-pixel
+/// shift). The sky-rate drift of a drifting field (star templates along it) is not counted.
+struct PreprocessHalo {
+  int meshes = 0;         ///< half a cell of the larger of the SEP frame-background and residual-mean meshes
+  int staticSources = 0;  ///< a cell of the sky-rate stack's local background (StaticSourceParams::meshPx)
+  int filter = 0;         ///< the matched filter's kernel radius at twice the assumed PSF FWHM
+  int cosmicRays = 0;     ///< a seed's 5 x 5 neighbourhood and its growth
+  [[nodiscard]] int overlap() const;
+  /// "32 px (meshes 32, static sources 32, filter 13, cosmic rays 3)"
+  [[nodiscard]] std::string describe() const;
+};
+
+/// The halo of `params` (stages turned off need none).
+PreprocessHalo preprocessHalo(const PreprocessParams& params);
+
+/// Overlap of the strips for `params`: preprocessHalo(params).overlap().
 int preprocessOverlapPx(const PreprocessParams& params);
 
-/// Strips of `shape` under `budgetBytes`: owned heights are multiples of `alignPx` (the mesh) but the last,
-/// as equal as that allows, each read with `overlapPx` rows above and below; the smallest strip owns
-/// `alignPx` rows.
+/// The fewest rows a strip owns (the smallest plan; below it the budget is refused).
+inline constexpr int kMinStripRows = 64;
+
+/// Strips of `shape` under `budgetBytes` (the estimate of estimatePreprocessPeak for the tallest strip read
+/// with `threads` workers): as few as fit, their owned heights as equal as multiples of `stepPx` allow (the
+/// last takes the rest), each read with `overlapPx` rows above and below; the smallest strip owns
+/// kMinStripRows rows. Taller strips read fewer overlap rows in all: 1024 rows in 4 strips with 32 px of
+/// overlap read 1216 rows (1.19x), in 16 strips with 128 px 5120 (5x).
 OutOfCorePreprocessPlan planOutOfCorePreprocess(const CubeShape& shape, std::size_t budgetBytes,
-                                                unsigned threads, int overlapPx, int alignPx);
+                                                unsigned threads, int overlapPx, int stepPx = 8);
 
 /// The raw frames of `rect` (image coordinates) and the calibration masters for exactly that region (none
 /// when the observation has no calibration frames).
