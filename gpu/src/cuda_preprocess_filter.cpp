@@ -113,8 +113,13 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     invVarD = toDevice(invVar);
     invS2D = toDevice(invS2f);
     DeviceBuffer<double> invS2d = toDevice(invS2);
+    // Frames moved onto frame 0's grid cover only part of it (registration): each pixel's weight is averaged
+    // over the frames that cover it, as on the CPU (stack::filterCube).
+    DeviceBuffer<std::uint32_t> coveringD;
+    if (noise->framesCovering.size() == np) coveringD = toDevice(noise->framesCovering);
     DeviceBuffer<float> omega(np), phi(np);
-    launchOmega(in.get(), p.mask, invS2d.get(), invVarD.get(), omega.get(), w, h, static_cast<int>(nf), s);
+    launchOmega(in.get(), p.mask, invS2d.get(), invVarD.get(), coveringD.get(), omega.get(), w, h,
+                static_cast<int>(nf), s);
     std::vector<float> k2v(kernel.kernel.pixels.size());
     for (std::size_t i = 0; i < k2v.size(); ++i)
       k2v[i] = kernel.kernel.pixels[i] * kernel.kernel.pixels[i];

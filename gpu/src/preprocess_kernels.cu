@@ -165,7 +165,8 @@ __global__ void filterKernel(FilterLaunch p) {
 }
 
 __global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const double* invS2,
-                            const float* invVar, float* omega, int width, int height, int nf) {
+                            const float* invVar, const std::uint32_t* covering, float* omega, int width,
+                            int height, int nf) {
   const std::size_t np = static_cast<std::size_t>(width) * height;
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i >= np) return;
@@ -175,7 +176,8 @@ __global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const do
     const float f = pix[off];
     if (f != 0.0f && isfinite(f) && !(mask && mask[off])) acc = __dadd_rn(acc, invS2[n]);
   }
-  omega[i] = static_cast<float>(__dmul_rn(acc / static_cast<double>(nf), static_cast<double>(invVar[i])));
+  const double frames = covering ? static_cast<double>(covering[i] > 1u ? covering[i] : 1u) : static_cast<double>(nf);
+  omega[i] = static_cast<float>(__dmul_rn(acc / frames, static_cast<double>(invVar[i])));
 }
 
 __global__ void noiseSamplesKernel(const float* in, const std::uint8_t* mask, const float* filtered,
@@ -258,9 +260,9 @@ void launchFilter(const FilterLaunch& p, cudaStream_t s) {
 }
 
 void launchOmega(const float* pix, const std::uint8_t* mask, const double* invS2, const float* invVar,
-                 float* omega, int width, int height, int nf, cudaStream_t s) {
+                 const std::uint32_t* covering, float* omega, int width, int height, int nf, cudaStream_t s) {
   const std::size_t np = static_cast<std::size_t>(width) * height;
-  omegaKernel<<<blocksFor(np, 256), 256, 0, s>>>(pix, mask, invS2, invVar, omega, width, height, nf);
+  omegaKernel<<<blocksFor(np, 256), 256, 0, s>>>(pix, mask, invS2, invVar, covering, omega, width, height, nf);
   checkLaunch("omegaKernel");
 }
 

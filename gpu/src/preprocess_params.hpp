@@ -60,9 +60,11 @@ struct FilterLaunch {
 void setFilterKernel(const float* kernel, int half, cudaStream_t s);
 void launchFilter(const FilterLaunch& p, cudaStream_t s);
 
-/// omega(q) = invVar(q) x mean over frames of [q used in frame n] / s_n^2 (stack::filterCube's weights).
+/// omega(q) = invVar(q) x mean over frames of [q used in frame n] / s_n^2 (stack::filterCube's weights); the
+/// mean is over covering[q] frames (at least 1) when `covering` is given (NoiseModel::framesCovering), else
+/// over all nf.
 void launchOmega(const float* pix, const std::uint8_t* mask, const double* invS2, const float* invVar,
-                 float* omega, int width, int height, int nf, cudaStream_t s);
+                 const std::uint32_t* covering, float* omega, int width, int height, int nf, cudaStream_t s);
 
 /// sigma_F samples of frame n: the filtered value at every 3rd pixel (x, y >= half, < size - half) or NaN
 /// where an input pixel within +-half is zero, masked or non-finite. out: rows ny x nx.

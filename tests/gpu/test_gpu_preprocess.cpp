@@ -200,6 +200,7 @@ struct FilterCase {
   double fwhm;
   bool weighted;
   bool mask;
+  bool coverage = false;  ///< NoiseModel::framesCovering set (frames aligned by whole pixels, issue 15)
 };
 
 class GpuFilter : public ::testing::TestWithParam<FilterCase> {};
@@ -210,6 +211,13 @@ TEST_P(GpuFilter, MatchesCpu) {
   const FilterCase fc = GetParam();
   stats::NoiseModel model;
   const FrameCube in = zeroBiased(96, 80, 70, 3, fc.mask, model);
+  if (fc.coverage) {
+    // Columns 0-19 seen by 35 of the 70 frames, column 20 by none (normalised by 1), the rest by all.
+    model.framesCovering.assign(in.framePixels(), 70);
+    for (int y = 0; y < 80; ++y)
+      for (int x = 0; x <= 20; ++x)
+        model.framesCovering[static_cast<std::size_t>(y) * 96 + x] = x < 20 ? 35 : 0;
+  }
   const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(fc.fwhm));
   NullProgress progress;
   CancelToken cancel;
@@ -243,7 +251,7 @@ TEST_P(GpuFilter, MatchesCpu) {
 INSTANTIATE_TEST_SUITE_P(Cases, GpuFilter,
                          ::testing::Values(FilterCase{2.0, false, false}, FilterCase{2.0, true, true},
                                            FilterCase{3.5, true, false}, FilterCase{3.5, false, true},
-                                           FilterCase{1.5, true, true}));
+                                           FilterCase{1.5, true, true}, FilterCase{2.0, true, false, true}));
 
 TEST(GpuFilter, KernelTooLargeIsAGpuErrorAndTheCubeIsUntouched) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
