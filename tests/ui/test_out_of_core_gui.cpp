@@ -3,8 +3,9 @@
 // shows the mean of all frames read in strips (equal to the in-memory mean); Search runs core's out-of-core
 // path (planTiledSearch + searchTiled, as `synthtrack-cli search --preprocessed`) as a job, can be
 // cancelled, and finds the same best candidate as the in-memory core search of the same cube; the selected
-// candidate's stack is summed in strips and equals stack::stackIpsa. Raw frames over the budget are refused
-// with what to run instead. Core: stackOutOfCore equals stack::stackIpsa; planOpen's three answers.
+// candidate's stack is summed in strips and equals stack::stackIpsa. Raw frames whose pre-processing is over
+// the budget are pre-processed out of core in the load job's worker (strips of rows) and their filtered cube
+// opened out of core. Core: stackOutOfCore equals stack::stackIpsa; planOpen's three answers.
 //
 // ST_OUT_OF_CORE_SCREENSHOT_DIR, when set, gets a grab of the window in the banner state
 // (out_of_core_banner.png).
@@ -16,6 +17,7 @@
 #include <QSettings>
 #include <QStatusBar>
 #include <chrono>
+#include <filesystem>
 #include <cstdio>
 
 #include "candidate_inspector.hpp"
@@ -25,12 +27,14 @@
 #include "observation.hpp"
 #include "out_of_core_controller.hpp"
 #include "search_panel.hpp"
+#include "st/io/fits_reader.hpp"
 #include "st/io/fits_writer.hpp"
 #include "st/pipeline/out_of_core_cube.hpp"
 #include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/search/method_choice.hpp"
+#include "st/sim/simulator.hpp"
 #include "st/stack/ipsa.hpp"
 #include "test_support.hpp"
 #include "ui_test_support.hpp"
@@ -252,25 +256,108 @@ TEST(OutOfCoreGui, ACubeOverTheBudgetOpensOutOfCoreAndIsSearchedInTiles) {
   EXPECT_LT(elapsedS, 60.0);
 }
 
-TEST(OutOfCoreGui, RawFramesOverTheBudgetAreRefusedWithWhatToDo) {
+// Raw frames whose in-memory pre-processing does not fit are pre-processed out of core in the load job's
+// worker (core's planRawOutOfCore + preprocessRawOutOfCore, strips of rows) into a scratch cube that opens
+// out of core; the search finds the simulated asteroid where the in-memory core pipeline does; the scratch
+// cube goes when another observation is opened. A budget too small for even one strip fails the load with
+// the need and the budget.
+TEST(OutOfCoreGui, RawFramesOverTheBudgetArePreProcessedOutOfCoreInTheWorker) {
   OwnSettings settings;
   test::TempDir dir;
+  NullProgress progress;
+  CancelToken cancel;
+  sim::SimParams sp = sim::preset("small");
+  sim::resize(sp, 128, 512, 100);
+  const sim::SimResult simulated = sim::simulate(sp, 5, progress, cancel);
+  ASSERT_FALSE(simulated.truth.objects.empty());
+  const sim::TruthObject& truth = simulated.truth.objects.front();
   const std::string raw = (dir / "raw.fits").string();
-  io::writeCube(raw, test::movingDotCube(64, 64, 50, {2.0, 1.0}, 30, 30), {});
-  MainWindow w(servicesWithPlanOpen());
+  io::writeCube(raw, simulated.cube, simulated.cube.header);
+  QSettings().setValue("memory/scratch", QString::fromStdString(dir.path().string()));
+  CoreServices services = servicesWithPlanOpen();
+  services.loadFrames = [](const std::vector<std::string>& inputs, ProgressSink& p, CancelToken& c) {
+    return io::loadFrames(inputs, {}, p, c);
+  };
+  MainWindow w(services);
   w.show();
   w.setScripted(true);
   OutOfCoreController* ooc = OutOfCoreController::of(&w);
+  // 128 x 512 x 100 raw frames need ~140 MB to pre-process in memory; strips of 256 rows fit 96 MB.
+  ooc->setMemoryLimit("96M");
+  w.openInputs({QString::fromStdString(raw)});
+  ASSERT_TRUE(w.jobs()->busy());  // the GUI thread only started the job
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 120000));
+  const QString opened = w.statusBar()->currentMessage();
+  ASSERT_TRUE(ooc->active()) << opened.toStdString();
+  EXPECT_TRUE(opened.contains("Opened out of core")) << opened.toStdString();
+  ASSERT_FALSE(ooc->scratchCube().empty());
+  EXPECT_TRUE(std::filesystem::exists(ooc->scratchCube()));
+  EXPECT_EQ(std::filesystem::path(ooc->scratchCube()).parent_path(), dir.path());
+  ASSERT_TRUE(w.observation()->prepared());
+  const std::string summary = w.observation()->prepared()->summary;
+  EXPECT_NE(summary.find("pre-processed out of core just now"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("pre-processing out of core: 2 strips"), std::string::npos) << summary;
+  EXPECT_TRUE(w.findChild<QLabel*>("memory.outOfCoreText")->isVisible());
+
+  const Velocity v{truth.vxPxPerS, truth.vyPxPerS};
+  search::SearchParams params = w.searchPanel()->params();
+  params.method = search::SearchMethod::Exact;
+  w.searchPanel()->setParams(params);
+  w.searchPanel()->setGridPxS(v, 1.0, 0.25);
+  w.runSearch();
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 120000));
+  ASSERT_TRUE(w.observation()->result()) << w.statusBar()->currentMessage().toStdString();
+  const auto& result = *w.observation()->result();
+  ASSERT_FALSE(result.candidates.empty());
+  // The in-memory core pipeline on the same frames and grid.
+  pipeline::PreprocessParams pp;
+  pp.keepZeroBiased = false;
+  const pipeline::Prepared whole = pipeline::preprocess(simulated.cube, pp, progress, cancel);
+  auto backend = search::makeCpuBackend();
+  const search::SearchResult inMemory =
+      search::searchWithMethod(*backend, whole.filtered, w.searchPanel()->grid(), params, progress, cancel);
+  ASSERT_FALSE(inMemory.candidates.empty());
+  const search::Candidate& a = inMemory.candidates[0];
+  const search::Candidate& b = result.candidates[0];
+  std::printf("asteroid at (%.1f, %.1f): in memory (%d, %d) SNR %.2f, out of core (%d, %d) SNR %.2f\n",
+              truth.xRefPx, truth.yRefPx, a.x, a.y, a.snr, b.x, b.y, b.snr);
+  EXPECT_NEAR(a.x, truth.xRefPx, 1.5);
+  EXPECT_NEAR(a.y, truth.yRefPx, 1.5);
+  EXPECT_NEAR(b.x, a.x, 1);
+  EXPECT_NEAR(b.y, a.y, 1);
+  EXPECT_NEAR(b.v.vx, a.v.vx, 0.26);
+  EXPECT_NEAR(b.v.vy, a.v.vy, 0.26);
+  EXPECT_NEAR(b.snr, a.snr, 0.05 * a.snr);
+
+  // The same frames opened again: a new scratch cube, the first removed when the second is applied.
+  const std::string first = ooc->scratchCube();
+  w.openInputs({QString::fromStdString(raw)});
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 120000));
+  ASSERT_TRUE(ooc->active()) << w.statusBar()->currentMessage().toStdString();
+  EXPECT_NE(ooc->scratchCube(), first);
+  EXPECT_FALSE(std::filesystem::exists(first));
+  EXPECT_TRUE(std::filesystem::exists(ooc->scratchCube()));
+
+  // Another observation: the scratch cube is removed.
+  const std::string scratch = ooc->scratchCube();
+  ooc->setMemoryLimit("");
+  const std::string small = (dir / "small.fits").string();
+  io::writeCube(small, test::movingDotCube(32, 32, 8, {1.0, 0.0}, 10, 10), {});
+  w.openInputs({QString::fromStdString(small)});
+  ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 20000));
+  EXPECT_FALSE(ooc->active()) << w.statusBar()->currentMessage().toStdString();
+  ASSERT_TRUE(w.observation()->raw());
+  EXPECT_EQ(w.observation()->raw()->width(), 32);
+  EXPECT_FALSE(std::filesystem::exists(scratch));
+
+  // Not even a strip of rows fits: the load fails naming the need and the budget.
   ooc->setMemoryLimit("50M");
   w.openInputs({QString::fromStdString(raw)});
   ASSERT_TRUE(test::waitFor([&] { return !w.jobs()->busy(); }, 20000));
   const QString status = w.statusBar()->currentMessage();
-  EXPECT_FALSE(w.observation()->raw());
   EXPECT_FALSE(ooc->active());
-  EXPECT_TRUE(status.contains("synthtrack-cli search")) << status.toStdString();
-  EXPECT_TRUE(status.contains("--keep-scratch")) << status.toStdString();
+  EXPECT_TRUE(status.contains("pre-processing out of core (the smallest strip of rows")) << status.toStdString();
   EXPECT_TRUE(status.contains("Run > Memory limit")) << status.toStdString();
-  EXPECT_FALSE(w.findChild<QLabel*>("memory.outOfCoreText")->isVisible());
 }
 
 ST_UI_TEST_MAIN_ISOLATED()

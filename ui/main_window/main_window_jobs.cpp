@@ -47,15 +47,25 @@ void MainWindow::openInputs(const QStringList& paths) {
   const CalibrationOffer offer = offerCalibrationFolders(paths);
   if (!offer.folders.empty()) m_processing->offerFiles(offer.folders, offer.note);
   m_session->prepareNew(inputs, false);
-  // A cube larger than the memory budget opens out of core, raw frames larger than it are refused
-  // (out_of_core_controller.hpp); the decision reads headers, in the worker, through the planOpen service.
+  // A cube larger than the memory budget opens out of core, raw frames whose pre-processing needs more are
+  // pre-processed out of core (with the calibration folders offered beside them) and their filtered cube
+  // opened so (out_of_core_controller.hpp); the decision reads headers, in the worker, through the planOpen
+  // service.
   OutOfCoreController* ooc = OutOfCoreController::of(this);
   const std::size_t budget = ooc->budget().bytes;
   auto planOpen = m_services.planOpen;
-  const bool started = m_jobs->start(JobKind::Load, [this, ooc, planOpen, load, inputs, label, budget](
-                                                         ProgressSink& progress, CancelToken& cancel) {
+  const bool started = m_jobs->start(JobKind::Load, [this, ooc, planOpen, load, inputs, label, budget,
+                                                     calibration = offer.folders](ProgressSink& progress,
+                                                                                  CancelToken& cancel) {
     if (planOpen) {
       const pipeline::OpenPlan plan = planOpen(inputs, budget, cancel);
+      if (plan.mode == pipeline::OpenMode::Refused && !plan.prepared) {
+        try {
+          return ooc->openRaw(inputs, budget, label, calibration, progress, cancel);
+        } catch (const InputError& e) {
+          throw InputError(std::string(e.what()) + "; or raise Run > Memory limit…");
+        }
+      }
       if (plan.mode == pipeline::OpenMode::Refused)
         throw InputError(plan.reason + "; or raise Run > Memory limit…");
       if (plan.mode == pipeline::OpenMode::OutOfCore)

@@ -1,5 +1,6 @@
 #include "out_of_core_controller.hpp"
 
+#include <QDir>
 #include <QElapsedTimer>
 #include <QFrame>
 #include <QHBoxLayout>
@@ -13,6 +14,8 @@
 #include <QStatusBar>
 #include <QVBoxLayout>
 #include <QtConcurrent>
+#include <atomic>
+#include <filesystem>
 
 #include "job_runner.hpp"
 #include "main_window.hpp"
@@ -20,7 +23,10 @@
 #include "search_panel.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/io/fits_reader.hpp"
+#include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/out_of_core_cube.hpp"
+#include "st/pipeline/raw_out_of_core.hpp"
 #include "st/search/default_grid.hpp"
 
 namespace st::ui {
@@ -88,14 +94,41 @@ OutOfCoreController::OutOfCoreController(MainWindow* window) : QObject(window), 
   update();
 }
 
-OutOfCoreController::~OutOfCoreController() { cancelStack(); }
+/// openRaw's filtered cube: removed when dropped unless the controller took it (applied).
+struct OutOfCoreController::ScratchFile {
+  std::string path;
+  bool taken = false;
+  ~ScratchFile() {
+    if (taken || path.empty()) return;
+    std::error_code ec;
+    std::filesystem::remove(path, ec);
+  }
+};
+
+OutOfCoreController::~OutOfCoreController() {
+  cancelStack();
+  removeScratch();
+}
+
+void OutOfCoreController::removeScratch() {
+  if (m_scratch.empty()) return;
+  std::error_code ec;
+  std::filesystem::remove(m_scratch, ec);
+  m_scratch.clear();
+}
+
+QString OutOfCoreController::scratchDir() {
+  const QString set = QSettings().value("memory/scratch").toString().trimmed();
+  return set.isEmpty() ? QDir::tempPath() : set;
+}
 
 void OutOfCoreController::askMemoryLimit() {
   bool ok = false;
   const QString text = QInputDialog::getText(
       m_window, "Memory limit",
       "Memory the GUI may hold (8G, 500M; empty: 70% of the memory available).\nA pre-processed cube larger "
-      "than this opens out of core; raw frames larger than this are refused.\nApplies to the next cube opened "
+      "than this opens out of core; raw frames whose pre-processing needs more are pre-processed out of core "
+      "in strips of rows.\nApplies to the next cube opened "
       "and the next search.",
       QLineEdit::Normal, QSettings().value("memory/limit").toString(), &ok);
   if (!ok) return;
@@ -127,6 +160,7 @@ void OutOfCoreController::setMemoryLimit(const QString& limit) {
 void OutOfCoreController::clear() {
   cancelStack();
   m_cube.reset();
+  removeScratch();
   m_needBytes = 0.0;
   update();
 }
@@ -153,6 +187,64 @@ void OutOfCoreController::update() {
 std::function<void()> OutOfCoreController::open(const std::vector<std::string>& inputs, std::size_t budgetBytes,
                                                 const QString& label, const pipeline::OpenPlan& plan,
                                                 ProgressSink& progress, CancelToken& cancel) {
+  return openCube(inputs, budgetBytes, label, plan.reason, plan.need.total(), {}, nullptr, progress, cancel);
+}
+
+std::function<void()> OutOfCoreController::openRaw(const std::vector<std::string>& inputs, std::size_t budgetBytes,
+                                                   const QString& label,
+                                                   const std::map<std::string, QStringList>& calibration,
+                                                   ProgressSink& progress, CancelToken& cancel) {
+  const auto files = [&](const char* key) {
+    std::vector<std::string> out;
+    if (const auto it = calibration.find(key); it != calibration.end())
+      for (const QString& f : it->second)
+        out.push_back(f.toStdString());
+    return out;
+  };
+  pipeline::RawObservationFiles raw;
+  raw.inputs = inputs;
+  raw.bias = files("bias");
+  raw.dark = files("dark");
+  raw.flat = files("flat");
+  const io::InputSummary summary = io::summarizeInputs(raw.inputs, raw.load);
+  pipeline::RawOutOfCoreOptions options;
+  options.scratchDir = scratchDir().toStdString();
+  const MemoryBudget budget{budgetBytes, "the GUI's memory budget (Run > Memory limit…)"};
+  const unsigned threads = workerCount();
+  pipeline::RawOutOfCorePlan plan = pipeline::planRawOutOfCore(raw, summary, options, budget, threads);
+  // The process's cube name (STEM.synthtrack-filtered.PID.fits) numbered per open: the same frames opened
+  // again never write over, nor have removed, the cube that the observation open now reads.
+  static std::atomic<int> opened{0};
+  const std::string suffix = ".fits";
+  if (plan.path.size() > suffix.size() && plan.path.ends_with(suffix))
+    plan.path.insert(plan.path.size() - suffix.size(), "." + std::to_string(++opened));
+  auto scratch = std::make_shared<ScratchFile>();
+  scratch->path = plan.path;  // removed if anything below throws (the closure is never made)
+  SubProgress sub(progress, 0.0, 0.85);
+  const pipeline::OutOfCorePrepared prepared = pipeline::preprocessRawOutOfCore(raw, summary, plan, sub, cancel);
+  std::vector<std::string> notes{plan.description};
+  if (!raw.bias.empty() || !raw.dark.empty() || !raw.flat.empty())
+    notes.push_back("calibrated with the frames offered beside the science frames: " +
+                    std::to_string(raw.bias.size()) + " bias, " + std::to_string(raw.dark.size()) + " dark, " +
+                    std::to_string(raw.flat.size()) + " flat input(s)");
+  notes.insert(notes.end(), prepared.notes.begin(), prepared.notes.end());
+  for (const auto& w : prepared.warnings)
+    notes.push_back("warning: " + w);
+  const double need = pipeline::estimatePreprocessPeak(plan.shape, true, threads).total();
+  const std::string why = std::to_string(plan.shape.frames) + " raw frames of " + std::to_string(plan.shape.width) +
+                          " x " + std::to_string(plan.shape.height) + " px need " + formatBytes(need) +
+                          " to pre-process in memory, over the budget of " + formatBytes(double(budgetBytes)) +
+                          "; pre-processed out of core in " + std::to_string(plan.strips.strips.size()) +
+                          " strips of rows into " + prepared.path;
+  SubProgress rest(progress, 0.85, 1.0);
+  return openCube({prepared.path}, budgetBytes, label, why, need, notes, scratch, rest, cancel);
+}
+
+std::function<void()> OutOfCoreController::openCube(const std::vector<std::string>& inputs, std::size_t budgetBytes,
+                                                    const QString& label, const std::string& why, double need,
+                                                    const std::vector<std::string>& notes,
+                                                    std::shared_ptr<ScratchFile> scratch, ProgressSink& progress,
+                                                    CancelToken& cancel) {
   SubProgress head(progress, 0.0, 0.05);
   auto ooc = std::make_shared<const pipeline::OutOfCoreCube>(pipeline::openOutOfCore(inputs, {}, head, cancel));
   SubProgress strips(progress, 0.05, 1.0);
@@ -166,19 +258,26 @@ std::function<void()> OutOfCoreController::open(const std::vector<std::string>& 
   g.centre = ooc->meta.skyRate;
   g.model = search::cpuCostModel(workerCount());
   const search::VelocityGrid grid = search::defaultVelocityGrid(g).grid;
-  const std::string why = plan.reason;
-  const double need = plan.need.total();
-  return [this, ooc, display, label, grid, why, need] {
+  return [this, ooc, display, label, grid, why, need, notes, scratch] {
     Observation* obs = m_window->observation();
     obs->setRaw(display, label + " (out of core)");  // leaves an earlier out-of-core observation (clear())
+    removeScratch();
     m_cube = ooc;
     m_needBytes = need;
+    if (scratch) {
+      m_scratch = scratch->path;
+      scratch->taken = true;
+    }
     auto view = std::make_shared<PreparedView>();
     view->filtered = std::make_shared<const search::FilteredCube>(ooc->meta);  // times, sigma_F, sky rate
     view->outOfCore = "opened out of core: " + why;
-    view->summary = "Opened out of core (" + why + "): pre-processed already, not pre-processed "
-                    "again; sigma_F " + std::to_string(ooc->meta.sigmaF) + ", PSF FWHM " +
+    view->summary = "Opened out of core (" + why + "): " +
+                    (scratch ? std::string("pre-processed out of core just now (the strips' filtered cube)")
+                             : std::string("pre-processed already, not pre-processed again")) +
+                    "; sigma_F " + std::to_string(ooc->meta.sigmaF) + ", PSF FWHM " +
                     std::to_string(ooc->meta.psfFwhmPx) + " px from the header";
+    for (const auto& n : notes)
+      view->summary += "\n• " + n;
     for (const auto& n : ooc->notes)
       view->summary += "\n• " + n;
     obs->setPrepared(view);

@@ -8,8 +8,12 @@
 //   worker. A pre-processed cube (synthtrack-cli preprocess, or search --keep-scratch) that does not fit is
 //   opened OUT OF CORE here (open(), still in the worker): pipeline::openOutOfCore reads its header, times
 //   and a corner; the view shows the mean of all frames summed in strips of rows (pipeline::stackOutOfCore,
-//   CFITSIO subset reads); a banner above the image and the status label say so, with the budget. Raw frames
-//   that do not fit are refused by the load job with planOpen's message (what to run instead).
+//   CFITSIO subset reads); a banner above the image and the status label say so, with the budget.
+// - Raw frames whose in-memory pre-processing does not fit (planOpen refuses them) are pre-processed OUT OF
+//   CORE in the load job's worker (openRaw): core's pipeline::planRawOutOfCore + preprocessRawOutOfCore, as
+//   `synthtrack-cli search` does (strips of rows, the calibration folders offered beside the frames), into a
+//   filtered cube in scratchDir() that is then opened out of core as above and removed when another
+//   observation is opened or the window closes. The GUI thread only applies the result.
 // - Search (MainWindow::runSearch -> runSearch()) runs pipeline::searchOutOfCore, the tiled CPU search of
 //   `synthtrack-cli search --preprocessed`, as a JobRunner job: the GUI thread only starts it and applies the
 //   result; progress and cancel are the runner's.
@@ -20,7 +24,9 @@
 #include <QFutureWatcher>
 #include <QObject>
 #include <QString>
+#include <QStringList>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -64,6 +70,19 @@ class OutOfCoreController : public QObject {
   std::function<void()> open(const std::vector<std::string>& inputs, std::size_t budgetBytes,
                              const QString& label, const pipeline::OpenPlan& plan, ProgressSink& progress,
                              CancelToken& cancel);
+  /// In the load job's worker: raw frames `inputs` that planOpen refused (their in-memory pre-processing does
+  /// not fit `budgetBytes`) pre-processed out of core (pipeline::planRawOutOfCore, preprocessRawOutOfCore)
+  /// with the calibration frames `calibration` (bias, dark, flat -> files or folders), into a filtered cube
+  /// in scratchDir(), then opened as open() opens a prepared cube. Throws st::InputError when not even a
+  /// strip fits (naming the need and the budget), what pre-processing throws, st::Cancelled; the scratch cube
+  /// is removed then, and when the returned closure is dropped without being run.
+  std::function<void()> openRaw(const std::vector<std::string>& inputs, std::size_t budgetBytes,
+                                const QString& label, const std::map<std::string, QStringList>& calibration,
+                                ProgressSink& progress, CancelToken& cancel);
+  /// Where openRaw writes its filtered cube: QSettings "memory/scratch" when set, else the temporary folder.
+  [[nodiscard]] static QString scratchDir();
+  /// The scratch cube of the observation open now (openRaw), or empty.
+  [[nodiscard]] const std::string& scratchCube() const noexcept { return m_scratch; }
   /// Run > Memory limit… (and the banner's button): asks for the limit, stores it.
   void askMemoryLimit();
   /// Leaves out-of-core mode (another observation is loaded in memory).
@@ -79,12 +98,21 @@ class OutOfCoreController : public QObject {
   void stackReady(const std::shared_ptr<const st::Image>& sum, st::Velocity v, double elapsedS);
 
  private:
+  struct ScratchFile;
+  /// open() and openRaw(): the prepared cube `inputs` opened out of core; `why` and `need` for the banner,
+  /// `notes` added to the summary, `scratch` (may be null) owned by the controller once applied.
+  std::function<void()> openCube(const std::vector<std::string>& inputs, std::size_t budgetBytes,
+                                 const QString& label, const std::string& why, double need,
+                                 const std::vector<std::string>& notes, std::shared_ptr<ScratchFile> scratch,
+                                 ProgressSink& progress, CancelToken& cancel);
   void update();
   void cancelStack();
+  void removeScratch();
 
   MainWindow* m_window;
   std::shared_ptr<const pipeline::OutOfCoreCube> m_cube;
   double m_needBytes = 0.0;  ///< what holding the cube in memory would need
+  std::string m_scratch;     ///< openRaw's filtered cube, removed by clear() and the destructor
   QLabel* m_label = nullptr;
   QWidget* m_banner = nullptr;
   QLabel* m_bannerText = nullptr;
