@@ -17,6 +17,7 @@
 #include <limits>
 #include <random>
 
+#include "require_gpu_preprocess.hpp"
 #include "st/common/error.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/hot_pixels.hpp"
@@ -27,11 +28,6 @@
 
 namespace st {
 namespace {
-
-#define ST_REQUIRE_GPU_PREPROCESS(var)                    \
-  std::string whyNot_;                                    \
-  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_); \
-  if (!var) GTEST_SKIP() << "no usable CUDA device: " << whyNot_;
 
 /// A calibrated-looking cube: sky ~1000 with a gradient that changes from frame to frame, noise, a few
 /// stars, cosmic rays and NaN samples; with `withMask`, scattered masked samples and a masked block large

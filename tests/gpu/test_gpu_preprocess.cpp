@@ -26,6 +26,7 @@
 #include <thread>
 
 #include "gpu_test_cubes.hpp"
+#include "require_gpu_preprocess.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
@@ -40,11 +41,6 @@
 
 namespace st {
 namespace {
-
-#define ST_REQUIRE_GPU_PREPROCESS(var)                    \
-  std::string whyNot_;                                    \
-  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_); \
-  if (!var) GTEST_SKIP() << "no usable CUDA device: " << whyNot_;
 
 /// A raw-looking cube: sky 100 + a gradient, per-pixel offsets, noise whose sigma varies over the frame,
 /// a few masked and NaN samples, strong outliers (cosmic rays) and a slow star; times sorted with jitter.

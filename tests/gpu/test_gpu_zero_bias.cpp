@@ -22,6 +22,7 @@
 #include <memory>
 #include <random>
 
+#include "require_gpu_preprocess.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess.hpp"
@@ -32,11 +33,6 @@
 
 namespace st {
 namespace {
-
-#define ST_REQUIRE_GPU_PREPROCESS(var)                    \
-  std::string whyNot_;                                    \
-  auto var = gpu::makeCudaPreprocessAccelerator(whyNot_); \
-  if (!var) GTEST_SKIP() << "no usable CUDA device: " << whyNot_;
 
 constexpr Velocity kDrift{0.8, 0.1};  // px/s: 32 px over the 40 s span
 
