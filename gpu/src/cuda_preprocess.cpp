@@ -114,7 +114,7 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   p->maskSize = cube.mask().size();
   p->key = cubeKey(cube);
   const std::uint8_t* maskData = cube.mask().data();
-  // A thread of its own and kPrefetchCopyThreads cores: the host copies into the pinned staging buffers run
+  // A thread of its own, copying on that thread only: the host copies into the pinned staging buffers run
   // beside the CPU stages (static sources, PSF) instead of on every core at the per-pixel background.
   p->thread = std::jthread([this, q = p.get(), maskData, kept = std::move(kept)]() mutable {
     try {
@@ -124,8 +124,8 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       q->keptFrames = kept.size() > 0;
       q->pix = q->keptFrames ? std::move(kept) : DeviceBuffer<float>(q->size);
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
-      if (!q->keptFrames) stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float));
-      if (q->maskSize) stagedUpload(r, q->mask.get(), maskData, q->maskSize);
+      if (!q->keptFrames) stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);
+      if (q->maskSize) stagedUpload(r, q->mask.get(), maskData, q->maskSize, r.copy.get(), false);
       r.copy.sync();
       q->seconds = sw.lap();
       q->ok = true;
@@ -147,30 +147,26 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   });
 }
 
-void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes) {
+void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes,
+                                  cudaStream_t s, bool parallelCopy) {
   for (std::size_t off = 0; off < bytes; off += kStagingBytes) {
     const std::size_t len = std::min(kStagingBytes, bytes - off);
     const int b = r.nextStaging;
     r.nextStaging ^= 1;
     r.stagingFree[b].sync();
-    // On kPrefetchCopyThreads cores (the CPU stages keep the others). 4 copied the paper's cube and mask in
-    // 137 ms instead of one core's 283 (H100 machine, 2026-11-27 14:41) when the prefetch started after the
-    // cosmic rays; started after registration it has the sky rate and the cosmic rays (~0.7 s) to run behind,
-    // and one copy thread slows the sky rate's 16 least (15:22 run: pre-processing 2.47-2.50 s).
     char* stage = static_cast<char*>(r.staging[b].get());
     const char* from = static_cast<const char*>(src) + off;
-    const std::size_t per = (len + kPrefetchCopyThreads - 1) / kPrefetchCopyThreads;
-    {
-      std::vector<std::jthread> helpers;
-      for (std::size_t k = 1; k < kPrefetchCopyThreads; ++k) {
-        const std::size_t a = std::min(len, k * per), e = std::min(len, a + per);
-        if (a < e) helpers.emplace_back([stage, from, a, e] { std::memcpy(stage + a, from + a, e - a); });
-      }
-      std::memcpy(stage, from, std::min(len, per));
-    }  // the helpers joined
-    ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, r.staging[b].get(), len,
-                                  cudaMemcpyHostToDevice, r.copy.get()));
-    r.stagingFree[b].record(r.copy.get());
+    // The prefetch copies on its own thread only: it runs behind the sky rate, whose threads more copy
+    // threads would slow (4 copied the paper's cube and mask in 137 ms instead of one core's 283, H100
+    // machine, 2026-11-27 14:41, but one copy thread slows the sky rate least: 15:22 run, pre-processing
+    // 2.47-2.50 s). A foreground upload copies on every core.
+    if (parallelCopy)
+      parallelFor(len, std::size_t{1} << 21,
+                  [&](std::size_t lo, std::size_t hi) { std::memcpy(stage + lo, from + lo, hi - lo); });
+    else
+      std::memcpy(stage, from, len);
+    ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, stage, len, cudaMemcpyHostToDevice, s));
+    r.stagingFree[b].record(s);
   }
 }
 

@@ -162,11 +162,11 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   /// The prefetch when it is `cube`'s (same buffer and sizes), its upload done and its key still the cube's;
   /// else null (with !waitForUpload, also while the upload runs).
   std::shared_ptr<Prefetch> readyPrefetch(const FrameCube& cube, bool waitForUpload);
-  /// Host -> device through `r`'s pinned staging buffers, the host copies on this thread and
-  /// kPrefetchCopyThreads - 1 helpers (none now: the upload runs behind the sky rate, whose threads it would
-  /// slow; see stagedUpload).
-  static constexpr std::size_t kPrefetchCopyThreads = 1;
-  static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes);
+  /// Host -> device on stream `s` through `r`'s pinned staging buffers (pageable host memory). The host
+  /// copies into the staging buffers on every core with `parallelCopy`, else on this thread only (the
+  /// prefetch, which runs behind the CPU stages).
+  static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes, cudaStream_t s,
+                           bool parallelCopy);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same

@@ -14,23 +14,6 @@ using namespace preprocess_detail;
 
 namespace {
 
-/// Bytes from pageable host memory to the device through `r`'s pinned staging buffers (the host copies on
-/// every core, as Uploader does for frames).
-void uploadBytes(DeviceResources& r, void* dst, const void* src, std::size_t bytes, cudaStream_t s) {
-  for (std::size_t off = 0; off < bytes; off += kStagingBytes) {
-    const std::size_t len = std::min(kStagingBytes, bytes - off);
-    const int b = r.nextStaging;
-    r.nextStaging ^= 1;
-    r.stagingFree[b].sync();
-    char* stage = static_cast<char*>(r.staging[b].get());
-    const char* from = static_cast<const char*>(src) + off;
-    parallelFor(len, std::size_t{1} << 21,
-                [&](std::size_t lo, std::size_t hi) { std::memcpy(stage + lo, from + lo, hi - lo); });
-    ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, stage, len, cudaMemcpyHostToDevice, s));
-    r.stagingFree[b].record(s);
-  }
-}
-
 /// Benchmark knob: ST_GPU_SEP_ON_CPU=1 leaves the frame backgrounds to the CPU (libsep) as before, for
 /// before/after figures from one binary.
 bool sepOnCpu() {
@@ -60,7 +43,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   DeviceBuffer<std::uint8_t> mask(hasMask ? nf * np : 0);
   Uploader up(r, cube.pixels().data(), np);
   up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
-  if (hasMask) uploadBytes(r, mask.get(), cube.mask().data(), nf * np, r.copy.get());
+  if (hasMask) stagedUpload(r, mask.get(), cube.mask().data(), nf * np, r.copy.get(), true);
   r.copy.sync();
   const double upload = sw.lap();
   cancel.throwIfCancelled();
