@@ -216,6 +216,7 @@ TEST(PlateSolveGui, TheSolvedWcsIsSavedInTheSessionAndAttachedOnReopening) {
   EXPECT_TRUE(w2.observation()->prepared()->filtered->frames.wcs);
   EXPECT_TRUE(raw->header.getString("CTYPE1").has_value());
   EXPECT_FALSE(banner(w2)->isVisible());
+  w2.saveScreenshot("ui_screens/plate_solve_reopened.png");
   // Still recorded as solved, so the next save keeps it.
   ASSERT_TRUE(w2.observation()->solvedWcs());
   ASSERT_TRUE(w2.session()->autosaver()->flush());
