@@ -115,19 +115,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator) params.accelerator->framesUnchangedSinceFrameBackgrounds(cube, true);
   out.global = globalBackgroundOn(params.accelerator, cube, params.background.global, out.notes);
   if (params.findHotPixels) {
-    const detect::HotPixelParams hp;
-    std::optional<std::vector<float>> excess;
-    if (params.accelerator) {
-      try {
-        excess = params.accelerator->hotPixelExcess(cube, out.global.mean, hp);
-      } catch (const GpuError& e) {
-        out.notes.push_back("warning: the hot pixels fell back to the CPU (" + params.accelerator->name() +
-                            ": " + e.what() + ")");
-      }
-    }
-    const auto hot = excess ? detect::hotPixelsFromExcess(*excess, cube.width(), cube.height(),
-                                                          cube.frameCount(), out.global.sigma, hp)
-                            : detect::findHotPixels(cube, out.global.mean, out.global.sigma, hp, cancel);
+    const auto hot = findHotPixelsOn(params.accelerator, cube, out.global, {}, cancel, out.notes);
     out.hotPixels = detect::maskPixelsInAllFrames(cube, hot);
   }
   lap("global background");

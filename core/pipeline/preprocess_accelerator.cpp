@@ -58,6 +58,21 @@ double removeResidualMeansOn(PreprocessAccelerator* accel, FrameCube& cube, int 
   return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
 }
 
+std::vector<std::size_t> findHotPixelsOn(PreprocessAccelerator* accel, const FrameCube& cube,
+                                         const stats::ClipStats& global, const detect::HotPixelParams& params,
+                                         CancelToken& cancel, std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      if (const auto excess = accel->hotPixelExcess(cube, global.mean, params))
+        return detect::hotPixelsFromExcess(*excess, cube.width(), cube.height(), cube.frameCount(),
+                                           global.sigma, params);
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "hot pixels", e));
+    }
+  }
+  return detect::findHotPixels(cube, global.mean, global.sigma, params, cancel);
+}
+
 stats::NoiseModel estimateNoiseModelOn(PreprocessAccelerator* accel, const FrameCube& zeroBiased,
                                        const Image& pixelSigma, const std::vector<std::uint8_t>& unmeasured,
                                        const stats::NoiseModelParams& params, CancelToken& cancel,

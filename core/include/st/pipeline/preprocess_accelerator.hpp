@@ -194,6 +194,13 @@ stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCub
                                     const stats::GlobalBackgroundParams& params,
                                     std::vector<std::string>& notes);
 
+/// detect::findHotPixels against the global background `global`; on `accel` when given (its block-mean
+/// excess, then detect::hotPixelsFromExcess's same selection), else (or on st::GpuError, with a warning in
+/// `notes`) on the CPU.
+std::vector<std::size_t> findHotPixelsOn(PreprocessAccelerator* accel, const FrameCube& cube,
+                                         const stats::ClipStats& global, const detect::HotPixelParams& params,
+                                         CancelToken& cancel, std::vector<std::string>& notes);
+
 /// stats::estimateNoiseModel on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU; a device run adds its lastNote().
 stats::NoiseModel estimateNoiseModelOn(PreprocessAccelerator* accel, const FrameCube& zeroBiased,
