@@ -129,22 +129,27 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   const bool distinctTimes = dtS.size() >= 2 && *std::max_element(dtS.begin(), dtS.end()) >
                                                     *std::min_element(dtS.begin(), dtS.end());
   if (!distinctTimes || grid.count() == 0 || !(grid.stepPxS > 0.0) || width <= 0 || height <= 0) return e;
-  // A grid whose 1-row tile does not fit a thread's share is searched in velocity blocks (tree_search.hpp):
-  // priced by its largest block, times the number of blocks.
+  // The CPU tree searches the grid in the velocity blocks of fewest additions that fit (one tree when that
+  // is cheapest, tree_search.hpp): priced as the blocks it will run.
   const std::size_t tileBudget = treeTileBudgetPerThread(threads, bufferBytes);
-  const TreeBlocks blocks = model.treeVelocityBlocks
-                                ? treeVelocityBlocks(dtS, grid, width, treeBlockSplitBytes(bufferBytes))
-                                : TreeBlocks{1, 1, grid.nvx, grid.nvy};
-  const TreePlan plan = buildTreePlan(dtS, VelocityGrid{grid.centre, grid.stepPxS, blocks.blockNvx, blocks.blockNvy});
+  const TreePlan plan = buildTreePlan(dtS, grid);
+  TreeBlocks blocks{1, 1, grid.nvx, grid.nvy};
+  if (model.treeVelocityBlocks) {
+    blocks = treeVelocityBlocks(plan, width, height, treeBlockSplitBytes(bufferBytes), tileBudget);
+  } else {
+    blocks.tileRows = treeTileRows(plan, width, tileBudget);
+    blocks.tileBytes = treeTileBytes(plan, width, blocks.tileRows);
+    blocks.additions = treeAdditions(plan, width, height, blocks.tileRows);
+  }
   e.treeBlocks = blocks.count();
-  e.treeTileRows = treeTileRows(plan, width, tileBudget);
-  e.treeAdditions = blocks.count() * treeAdditions(plan, width, height, e.treeTileRows);
+  e.treeTileRows = blocks.tileRows;
+  e.treeAdditions = blocks.additions;
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
   priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.
   const std::size_t tiles = static_cast<std::size_t>((height + e.treeTileRows - 1) / e.treeTileRows);
   const std::size_t busy = std::min<std::size_t>(std::max(1u, threads), tiles);
-  e.treeTileBytes = treeTileBytes(plan, width, e.treeTileRows);
+  e.treeTileBytes = blocks.tileBytes;
   e.treeBusyThreads = static_cast<unsigned>(busy);
   e.treeWorkingBytes =
       busy * e.treeTileBytes + 12 * grid.count() +

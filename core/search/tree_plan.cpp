@@ -236,6 +236,109 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
   return plan;
 }
 
+namespace {
+
+/// The kept velocities [lo, hi] of a node's axis: those on some root velocity's path (at least one: every
+/// node is on a path).
+std::pair<int, int> usedRange(const TreeAxis& a) {
+  const auto first = std::find(a.used.begin(), a.used.end(), 1);
+  if (first == a.used.end()) return {0, 0};
+  const auto last = std::find(a.used.rbegin(), a.used.rend(), 1);
+  return {static_cast<int>(first - a.used.begin()), static_cast<int>(a.used.rend() - last) - 1};
+}
+
+/// Keeps velocities `keep` = [lo, hi] of axis `a` (its velocity j is `from`'s base + j): values, used flags,
+/// reaches, choices (child indices moved into the kept ranges `left` and `right` of the children) and the
+/// shift pattern rows of `from` over m frames.
+void trimAxis(TreeAxis& a, const TreeAxis& from, int base, std::pair<int, int> keep, int m,
+              std::pair<int, int> left, std::pair<int, int> right) {
+  const auto [lo, hi] = keep;
+  const auto cut = [lo, hi](auto& v) {
+    if (!v.empty()) v.assign(v.begin() + lo, v.begin() + hi + 1);
+  };
+  cut(a.v);
+  cut(a.used);
+  cut(a.reachLo);
+  cut(a.reachHi);
+  cut(a.left);
+  cut(a.right);
+  // A choice of an unused velocity may point outside the child's kept range: never read, clamped.
+  for (auto [choices, range] : {std::pair{&a.left, left}, std::pair{&a.right, right}}) {
+    for (TreeChoice& c : *choices)
+      c.child = std::clamp(c.child - range.first, 0, range.second - range.first);
+  }
+  const auto rows = static_cast<std::size_t>(m);
+  a.pattern.assign(from.pattern.begin() + static_cast<std::ptrdiff_t>((base + lo) * rows),
+                   from.pattern.begin() + static_cast<std::ptrdiff_t>((base + hi + 1) * rows));
+}
+
+}  // namespace
+
+TreePlan treeSubPlan(const TreePlan& whole, int ix0, int nx, int iy0, int ny) {
+  if (whole.nodes.empty()) throw InputError("velocity block of an empty tree plan");
+  const TreeNode& root = whole.nodes.front();
+  const int gx = static_cast<int>(root.x.v.size()), gy = static_cast<int>(root.y.v.size());
+  if (nx <= 0 || ny <= 0 || ix0 < 0 || iy0 < 0 || ix0 + nx > gx || iy0 + ny > gy) {
+    throw InputError("velocity block " + std::to_string(nx) + " x " + std::to_string(ny) + " at (" +
+                     std::to_string(ix0) + ", " + std::to_string(iy0) + ") outside the tree's " +
+                     std::to_string(gx) + " x " + std::to_string(gy) + " grid");
+  }
+  TreePlan sub;
+  sub.frame = whole.frame;
+  sub.dt = whole.dt;
+  sub.ox = whole.ox;
+  sub.oy = whole.oy;
+  sub.preX = whole.preX;
+  sub.preY = whole.preY;
+  sub.depth = whole.depth;
+  sub.maxAbsErrX = whole.maxAbsErrX;
+  sub.maxAbsErrY = whole.maxAbsErrY;
+  // The nodes' velocities and choices (shifts later, only the kept rows), the root's cut to the block; then
+  // the margins of the block's paths alone.
+  sub.nodes.resize(whole.nodes.size());
+  for (std::size_t i = 0; i < whole.nodes.size(); ++i) {
+    const TreeNode& w = whole.nodes[i];
+    TreeNode& n = sub.nodes[i];
+    n.first = w.first;
+    n.last = w.last;
+    n.spanS = w.spanS;
+    n.left = w.left;
+    n.right = w.right;
+    n.depth = w.depth;
+    n.combined = !w.direct();
+    for (const bool isX : {true, false}) {
+      const TreeAxis& wa = isX ? w.x : w.y;
+      TreeAxis& a = isX ? n.x : n.y;
+      const int a0 = i == 0 ? (isX ? ix0 : iy0) : 0;
+      const int an = i == 0 ? (isX ? nx : ny) : static_cast<int>(wa.v.size());
+      a.v.assign(wa.v.begin() + a0, wa.v.begin() + a0 + an);
+      if (!wa.left.empty()) {
+        a.left.assign(wa.left.begin() + a0, wa.left.begin() + a0 + an);
+        a.right.assign(wa.right.begin() + a0, wa.right.begin() + a0 + an);
+      }
+    }
+  }
+  planExtents(sub, 0, std::vector<std::pair<int, int>>(static_cast<std::size_t>(nx), {0, 0}),
+              std::vector<std::pair<int, int>>(static_cast<std::size_t>(ny), {0, 0}));
+  // Each node keeps its used range; a parent's choices move with its children's kept ranges.
+  std::vector<std::pair<int, int>> keepX(sub.nodes.size()), keepY(sub.nodes.size());
+  for (std::size_t i = 0; i < sub.nodes.size(); ++i) {
+    keepX[i] = usedRange(sub.nodes[i].x);
+    keepY[i] = usedRange(sub.nodes[i].y);
+  }
+  for (std::size_t i = 0; i < sub.nodes.size(); ++i) {
+    TreeNode& n = sub.nodes[i];
+    const TreeNode& w = whole.nodes[i];
+    const int m = n.last - n.first;
+    const auto child = [&](int c, const std::vector<std::pair<int, int>>& keep) {
+      return c < 0 ? std::pair{0, 0} : keep[static_cast<std::size_t>(c)];
+    };
+    trimAxis(n.x, w.x, i == 0 ? ix0 : 0, keepX[i], m, child(n.left, keepX), child(n.right, keepX));
+    trimAxis(n.y, w.y, i == 0 ? iy0 : 0, keepY[i], m, child(n.left, keepY), child(n.right, keepY));
+  }
+  return sub;
+}
+
 std::vector<std::pair<int, int>> treeImpliedShifts(const TreePlan& plan, int ix, int iy) {
   const TreeNode& root = plan.nodes.front();
   const std::size_t m = plan.frame.size();

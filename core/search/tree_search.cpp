@@ -379,23 +379,77 @@ std::size_t treeBlockSplitBytes(std::size_t totalBytes) {
   return std::clamp(totalBytes > 0 ? totalBytes : kTreeBuffersBytes, kTreeMinTileBudgetBytes, kTreeTileBudgetBytes);
 }
 
-TreeBlocks treeVelocityBlocks(const std::vector<double>& dtS, const VelocityGrid& grid, int width,
-                              std::size_t tileBudgetBytes, const std::vector<PixelOffset>& offsets) {
-  TreeBlocks b;
-  b.blockNvx = grid.nvx;
-  b.blockNvy = grid.nvy;
-  if (grid.count() == 0 || dtS.size() < 2 || width <= 0) return b;
-  // Split both axes alike until one row of the largest block's partial stacks fits the thread's share.
-  for (int k = 1; k <= std::max(grid.nvx, grid.nvy); ++k) {
-    const int nbx = (grid.nvx + k - 1) / k, nby = (grid.nvy + k - 1) / k;
-    const VelocityGrid block{grid.centre, grid.stepPxS, nbx, nby};
-    b.blocksX = (grid.nvx + nbx - 1) / nbx;
-    b.blocksY = (grid.nvy + nby - 1) / nby;
-    b.blockNvx = nbx;
-    b.blockNvy = nby;
-    if (treeTileBytes(buildTreePlan(dtS, block, offsets), width, 1) <= tileBudgetBytes) break;
+namespace {
+
+/// Block (bx, by) of `blocks` over the root grid of `whole` (gx x gy velocities): its first cell and size.
+struct BlockCells {
+  int ix0 = 0, iy0 = 0, nx = 0, ny = 0;
+};
+
+BlockCells blockCells(const TreeBlocks& b, int gx, int gy, int bx, int by) {
+  const int ix0 = bx * b.blockNvx, iy0 = by * b.blockNvy;
+  return {ix0, iy0, std::min(b.blockNvx, gx - ix0), std::min(b.blockNvy, gy - iy0)};
+}
+
+/// `b` (its split set) priced: additions of all blocks, a full block's rows, the largest tile. False, and
+/// `b` left unpriced, when a block's 1-row tile exceeds splitBytes (unless `anyway`).
+bool priceBlocks(const TreePlan& whole, int width, int height, std::size_t splitBytes, std::size_t tileBudget,
+                 bool anyway, TreeBlocks& b) {
+  const int gx = static_cast<int>(whole.nodes.front().x.v.size());
+  const int gy = static_cast<int>(whole.nodes.front().y.v.size());
+  b.additions = 0.0;
+  b.tileBytes = 0;
+  b.tileRows = 0;
+  // Blocks come in at most 4 sizes (the full one, the last column's, the last row's and the corner's): the
+  // first block of each size is priced for all of them.
+  for (int sy = 0; sy < 2; ++sy) {
+    const int manyY = sy == 0 ? b.blocksY - 1 : 1;
+    for (int sx = 0; sx < 2 && manyY > 0; ++sx) {
+      const int manyX = sx == 0 ? b.blocksX - 1 : 1;
+      if (manyX == 0) continue;
+      const BlockCells c = blockCells(b, gx, gy, sx == 0 ? 0 : b.blocksX - 1, sy == 0 ? 0 : b.blocksY - 1);
+      const TreePlan owned = b.count() == 1 ? TreePlan{} : treeSubPlan(whole, c.ix0, c.nx, c.iy0, c.ny);
+      const TreePlan& plan = b.count() == 1 ? whole : owned;
+      if (!anyway && treeTileBytes(plan, width, 1) > splitBytes) return false;
+      const int rows = treeTileRows(plan, width, tileBudget);
+      if (b.tileRows == 0) b.tileRows = rows;
+      b.tileBytes = std::max(b.tileBytes, treeTileBytes(plan, width, rows));
+      b.additions += static_cast<double>(manyX) * manyY * treeAdditions(plan, width, height, rows);
+    }
   }
-  return b;
+  return true;
+}
+
+}  // namespace
+
+TreeBlocks treeVelocityBlocks(const TreePlan& whole, int width, int height, std::size_t splitBytes,
+                              std::size_t tileBudgetBytes) {
+  TreeBlocks best;
+  if (whole.nodes.empty() || width <= 0 || height <= 0) return best;
+  const int gx = static_cast<int>(whole.nodes.front().x.v.size());
+  const int gy = static_cast<int>(whole.nodes.front().y.v.size());
+  best.blockNvx = gx;
+  best.blockNvy = gy;
+  int tried = 0;  // splits priced since the first that fits
+  bool found = false;
+  int lastNvx = 0, lastNvy = 0;
+  for (int k = 1; k <= std::max(gx, gy) && tried < kTreeBlockSplitsTried; ++k) {
+    TreeBlocks b;
+    b.blockNvx = (gx + k - 1) / k;
+    b.blockNvy = (gy + k - 1) / k;
+    if (b.blockNvx == lastNvx && b.blockNvy == lastNvy) continue;  // the same blocks as k - 1
+    lastNvx = b.blockNvx;
+    lastNvy = b.blockNvy;
+    b.blocksX = (gx + b.blockNvx - 1) / b.blockNvx;
+    b.blocksY = (gy + b.blockNvy - 1) / b.blockNvy;
+    // Nothing fits, not even single velocities: those (as before).
+    const bool last = !found && b.blockNvx == 1 && b.blockNvy == 1;
+    if (!priceBlocks(whole, width, height, splitBytes, tileBudgetBytes, last, b)) continue;
+    if (found) ++tried;
+    if (!found || b.additions < (1.0 - kTreeBlockMinSaving) * best.additions) best = b;
+    found = true;
+  }
+  return best;
 }
 
 VelocityGrid treeBlockGrid(const VelocityGrid& grid, const TreeBlocks& blocks, int bx, int by, int& ix0,
@@ -413,14 +467,14 @@ namespace detail {
 
 namespace {
 
-/// One block of velocities (the whole grid when its partial stacks fit).
-KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
-                             const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
-  const TreePlan plan = buildTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
+/// One block of velocities, `grid`, with its plan (the whole grid's, or a block's cut of it: treeSubPlan).
+KernelOutput treeSearchBlock(const FrameCube& frames, const TreePlan& plan, const VelocityGrid& grid,
+                             const Roi& roi, const TreeRegionParams& p, std::size_t tileBudget,
+                             ProgressSink& progress, CancelToken& cancel) {
   SearchParams params;
   params.maxCandidates = p.maxHits;
   Context cx{frames, plan, params, frames.width(), frames.height(), 0, roi, 0.0f, 1, 0, {}, {}, {}, cancel};
-  cx.tileRows = treeTileRows(plan, cx.width, treeTileBudgetPerThread(workerCount(), p.bufferBytes));
+  cx.tileRows = treeTileRows(plan, cx.width, tileBudget);
   cx.threshold = static_cast<float>(p.snrThreshold);
   cx.minFrames = p.minFrames;
   cx.cap = p.maxHits;
@@ -497,9 +551,13 @@ KernelOutput treeSearchBlock(const FrameCube& frames, const VelocityGrid& grid, 
 
 KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
                               const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
-  const TreeBlocks blocks = treeVelocityBlocks(frames.timeOffsetsS(), grid, frames.width(),
-                                                treeBlockSplitBytes(p.bufferBytes), frames.frameOffsets());
-  if (blocks.count() == 1) return treeSearchBlock(frames, grid, roi, p, progress, cancel);
+  const TreePlan whole = buildTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
+  // Tile rows from the share of every worker, not of p.threads: the blocks and rows (and so the hits kept per
+  // worker) do not depend on how many threads the memory plan allows.
+  const std::size_t tileBudget = treeTileBudgetPerThread(workerCount(), p.bufferBytes);
+  const TreeBlocks blocks =
+      treeVelocityBlocks(whole, frames.width(), roi.height, treeBlockSplitBytes(p.bufferBytes), tileBudget);
+  if (blocks.count() == 1) return treeSearchBlock(frames, whole, grid, roi, p, tileBudget, progress, cancel);
   KernelOutput out;
   out.map = emptyVelocityMap(grid);
   VelocityMap& map = out.map;
@@ -510,7 +568,8 @@ KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid,
       int ix0 = 0, iy0 = 0;
       const VelocityGrid sub = treeBlockGrid(grid, blocks, bx, by, ix0, iy0);
       SubProgress part(progress, static_cast<double>(b) / total, static_cast<double>(b + 1) / total);
-      KernelOutput o = treeSearchBlock(frames, sub, roi, p, part, cancel);
+      const TreePlan plan = treeSubPlan(whole, ix0, sub.nvx, iy0, sub.nvy);
+      KernelOutput o = treeSearchBlock(frames, plan, sub, roi, p, tileBudget, part, cancel);
       for (CellHit& h : o.hits) {
         h.ivx += ix0;
         h.ivy += iy0;

@@ -9,12 +9,14 @@
 #include "search_test_cubes.hpp"
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
+#include "st/common/parallel.hpp"
 #include "st/pipeline/memory_plan.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/pipeline/preprocess_out_of_core.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/search/tiled_search.hpp"
+#include "st/search/tree_plan.hpp"
 #include "st/search/tree_search.hpp"
 
 namespace st {
@@ -110,6 +112,51 @@ TEST_P(OutOfCore, TilesGiveTheInMemoryResult) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Methods, OutOfCore, ::testing::Values("exact", "tree"));
+
+// A small budget's tree buffers split a large grid into velocity blocks chosen by their additions (issue 20:
+// 1-row tiles of one tree cost 1.44x the in-memory CPU time): the blocks run the whole tree's plan cut to
+// their velocities, so the tiles give the in-memory result bit for bit. Before, each block ran its own plan
+// and the values differed.
+TEST(OutOfCoreTree, VelocityBlocksGiveTheInMemoryResult) {
+  const auto times = test::unevenTimes(64, 0.4, 3);
+  FrameCube c = test::noiseCube(128, 128, times, 1.0, 5);
+  const double span = c.timeSpanS();
+  const psf::Moffat psf = psf::Moffat::fromFwhm(2.5, 4.0);
+  test::injectMoffat(c, psf, 8.0, 70.0, 50.0, {37.4 / span, -21.8 / span});
+  test::injectMoffat(c, psf, 8.0, 20.0, 66.0, {-12.0 / span, 40.3 / span});
+  test::matchedFilter(c, psf, 3);
+  search::FilteredCube fc;
+  fc.frames = std::move(c);
+  fc.sigmaF = 1.6;
+  fc.psfFwhmPx = 2.5;
+  const search::VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 121, 121};
+  const search::TreePlan plan = search::buildTreePlan(fc.frames.timeOffsetsS(), grid);
+  search::SearchParams params;
+  params.method = search::SearchMethod::Tree;
+  // In memory: buffers in which one tree over the whole grid is the cheapest plan (the default ones would
+  // split this 128 px image's grid too, in 4 blocks of 64-row tiles).
+  for (const std::size_t mb : {160, 120, 200, 80, 240}) {
+    const std::size_t b = (mb << 20) * workerCount();
+    const std::size_t perThread = search::treeTileBudgetPerThread(workerCount(), b);
+    if (search::treeVelocityBlocks(plan, 128, 128, search::treeBlockSplitBytes(b), perThread).count() == 1) {
+      params.bufferBytes = b;
+      break;
+    }
+  }
+  ASSERT_GT(params.bufferBytes, 0u) << "no buffer size tried gives one tree";
+  NullProgress progress;
+  CancelToken cancel;
+  const search::SearchResult whole = search::makeCpuBackend()->search(fc, grid, params, progress, cancel);
+  ASSERT_GE(whole.candidates.size(), 2u);
+  params.bufferBytes = 1;  // the smallest buffers: one tree's 1-row tile (~43 MB) does not fit
+  ASSERT_GT(search::treeTileBytes(plan, 128, 1), search::treeBlockSplitBytes(params.bufferBytes));
+  const int overlap = search::searchOverlapPx(grid, fc.frames.timeOffsetsS());
+  const auto tiles = search::planSearchTiles(128, 128, overlap, std::size_t{128} * (32 + 2 * overlap));
+  ASSERT_GE(tiles.size(), 2u);
+  const search::TileLoader load = [&](const search::TileRect& r) { return crop(fc, r); };
+  const search::SearchResult tiled = search::searchTiled(load, tiles, 128, 128, grid, params, progress, cancel);
+  expectSame(whole, tiled);
+}
 
 TEST(OutOfCorePlan, NoTileWhenNotEvenASmallOneFits) {
   EXPECT_TRUE(search::planSearchTiles(1000, 1000, 50, 100 * 100).empty());

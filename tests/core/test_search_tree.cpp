@@ -7,11 +7,14 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <tuple>
 
 #include "search_test_cubes.hpp"
 #include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
 #include "st/search/cpu_backend.hpp"
 #include "st/search/ipsa.hpp"
+#include "st/search/method_choice.hpp"
 #include "st/search/tree_plan.hpp"
 #include "st/search/tree_search.hpp"
 
@@ -301,6 +304,85 @@ TEST(SearchTree, VelocityBlocksTileTheGrid) {
   EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<std::ptrdiff_t>(grid.count()));
 }
 
+// A block's plan is the whole tree's cut to its velocities (treeSubPlan): the same implied shifts at every
+// velocity, on uneven registered frames, and no more stacks at any node than the whole tree's.
+TEST(SearchTree, BlockPlanIsTheWholeTreesCut) {
+  const std::vector<double> dt = offsetsOf(test::unevenTimes(53, 0.6, 4, true));
+  std::vector<PixelOffset> offsets;
+  for (std::size_t n = 0; n < dt.size(); ++n)
+    offsets.push_back({0.37 * std::sin(0.3 * static_cast<double>(n)), -0.21 * std::cos(0.2 * static_cast<double>(n))});
+  const double span = *std::max_element(dt.begin(), dt.end()) - *std::min_element(dt.begin(), dt.end());
+  const VelocityGrid grid{{2.0 / span, -1.0 / span}, 1.0 / span, 37, 29};
+  const TreePlan whole = buildTreePlan(dt, grid, offsets);
+  for (const auto& [ix0, nx, iy0, ny] : {std::tuple{0, 37, 0, 29}, std::tuple{0, 10, 0, 8},
+                                          std::tuple{27, 10, 21, 8}, std::tuple{13, 7, 9, 11}, std::tuple{36, 1, 5, 1}}) {
+    const TreePlan sub = treeSubPlan(whole, ix0, nx, iy0, ny);
+    ASSERT_EQ(sub.nodes.size(), whole.nodes.size());
+    EXPECT_EQ(sub.nodes[0].x.v.size(), static_cast<std::size_t>(nx));
+    EXPECT_EQ(sub.nodes[0].y.v.size(), static_cast<std::size_t>(ny));
+    for (std::size_t i = 0; i < sub.nodes.size(); ++i) {
+      EXPECT_LE(sub.nodes[i].velocities(), whole.nodes[i].velocities()) << "node " << i;
+      EXPECT_EQ(sub.nodes[i].direct(), whole.nodes[i].direct()) << "node " << i;
+    }
+    for (int jy = 0; jy < ny; ++jy)
+      for (int jx = 0; jx < nx; ++jx)
+        ASSERT_EQ(treeImpliedShifts(sub, jx, jy), treeImpliedShifts(whole, ix0 + jx, iy0 + jy)) << jx << "," << jy;
+    if (nx * ny < 37 * 29) {
+      EXPECT_LT(treeAdditions(sub, 64, 64, 8), treeAdditions(whole, 64, 64, 8));
+      EXPECT_LT(treeTileBytes(sub, 64, 1), treeTileBytes(whole, 64, 1));
+    }
+  }
+  EXPECT_THROW(treeSubPlan(whole, 30, 8, 0, 1), InputError);
+  EXPECT_THROW(treeSubPlan(whole, 0, 0, 0, 1), InputError);
+}
+
+// The velocity blocks are chosen by their additions (issue 20): `bench memory --raw --frames 100 --size
+// 256x1024` under --memory-limit 200M gave the search 50 MB of tree buffers, in which one tree's 1-row tile
+// of the 111^2 grid fits, so the grid used to stay one tree in 1-row tiles (1.6e10 additions, 1.44x the
+// in-memory CPU time) where blocks with taller tiles add less.
+TEST(SearchTree, VelocityBlocksChosenByTheirAdditions) {
+  std::vector<double> t(100);
+  for (std::size_t n = 0; n < t.size(); ++n)
+    t[n] = 0.6 * static_cast<double>(n);
+  const std::vector<double> dt = offsetsOf(t);
+  const double span = dt.back() - dt.front();
+  const VelocityGrid grid{{0.0, 0.0}, 1.0 / span, 111, 111};
+  const int width = 256, height = 1024;
+  const std::size_t buffers = std::size_t{50} << 20;
+  const TreePlan whole = buildTreePlan(dt, grid);
+  const std::size_t perThread = treeTileBudgetPerThread(2, buffers);
+  // What the grid-size rule ran: one tree (its 1-row tile fits the buffers), as many rows as fit a thread.
+  ASSERT_LE(treeTileBytes(whole, width, 1), treeBlockSplitBytes(buffers)) << "the case no longer fits one tree";
+  const int oneTreeRows = treeTileRows(whole, width, perThread);
+  const double oneTree = treeAdditions(whole, width, height, oneTreeRows);
+  const MethodEstimate e = estimateMethods(width, height, dt, grid, cpuCostModel(2), 2, buffers);
+  std::printf("one tree: %d-row tiles, %.3g additions; chosen: %d blocks, %d-row tiles, %.3g additions, %.1f MB a "
+              "thread\n",
+              oneTreeRows, oneTree, e.treeBlocks, e.treeTileRows, e.treeAdditions, e.treeTileBytes / 1048576.0);
+  EXPECT_GT(e.treeBlocks, 1);
+  EXPECT_GT(e.treeTileRows, oneTreeRows);
+  EXPECT_LT(e.treeAdditions, 0.9 * oneTree);
+  EXPECT_LE(e.treeTileBytes, treeBlockSplitBytes(buffers));
+  // The choice is the cheapest of the splits it prices: no fewer additions with 2 x 2 or 3 x 3 blocks.
+  const TreeBlocks chosen = treeVelocityBlocks(whole, width, height, treeBlockSplitBytes(buffers), perThread);
+  EXPECT_EQ(chosen.count(), e.treeBlocks);
+  EXPECT_EQ(chosen.additions, e.treeAdditions);
+  for (const int k : {2, 3}) {
+    double sum = 0.0;
+    const int n = (111 + k - 1) / k;
+    for (int by = 0; by < k; ++by) {
+      for (int bx = 0; bx < k; ++bx) {
+        const int nx = std::min(n, 111 - bx * n), ny = std::min(n, 111 - by * n);
+        const TreePlan sub = treeSubPlan(whole, bx * n, nx, by * n, ny);
+        sum += treeAdditions(sub, width, height, treeTileRows(sub, width, perThread));
+      }
+    }
+    EXPECT_LE(chosen.additions, 1.02 * sum) << k << " x " << k << " blocks";
+  }
+  // With the default buffers (in memory) one tree in tall tiles stays the cheapest.
+  EXPECT_EQ(estimateMethods(width, height, dt, grid, cpuCostModel(2), 2).treeBlocks, 1);
+}
+
 TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
   // 128 x 128 px, 64 uneven frames, 121^2 velocities: one tree's 1-row tile needs ~33 MB, more than the
   // smallest split size (24 MB, bufferBytes 1 byte), so the grid is split.
@@ -312,8 +394,21 @@ TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
   std::vector<Injected> objects{{o.x, o.y, {37.4 / span, -21.8 / span}}};
   fc = injectedCube(objects, psf, 4, 20.0, 128, 128, 64, 3, grid);
   const std::vector<double> dt = fc.frames.timeOffsetsS();
-  const TreeBlocks blocks = treeVelocityBlocks(dt, grid, 128, treeBlockSplitBytes(1));
+  const TreePlan whole = buildTreePlan(dt, grid);
+  const TreeBlocks blocks =
+      treeVelocityBlocks(whole, 128, 128, treeBlockSplitBytes(1), treeTileBudgetPerThread(workerCount(), 1));
   ASSERT_GT(blocks.count(), 1) << "the test's grid no longer needs blocks";
+  // Buffers in which one tree over the whole grid is the cheapest plan, for the reference run.
+  std::size_t oneTreeBuffers = 0;
+  for (const std::size_t mb : {160, 120, 200, 80, 240}) {
+    const std::size_t b = (mb << 20) * workerCount();
+    if (treeVelocityBlocks(whole, 128, 128, treeBlockSplitBytes(b), treeTileBudgetPerThread(workerCount(), b))
+            .count() == 1) {
+      oneTreeBuffers = b;
+      break;
+    }
+  }
+  ASSERT_GT(oneTreeBuffers, 0u) << "no buffer size tried gives one tree";
   std::printf("%d x %d blocks of %d x %d velocities\n", blocks.blocksX, blocks.blocksY, blocks.blockNvx,
               blocks.blockNvy);
   SearchParams params;
@@ -328,14 +423,13 @@ TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
     for (int bx = 0; bx < blocks.blocksX; ++bx) {
       int ix0 = 0, iy0 = 0;
       const VelocityGrid sub = treeBlockGrid(grid, blocks, bx, by, ix0, iy0);
-      const TreePlan plan = buildTreePlan(dt, sub);
-      // A sample of each block's velocities (corners and a diagonal).
+      // A sample of each block's velocities (corners and a diagonal): the whole tree's sums.
       for (int j = 0; j < std::min(sub.nvx, sub.nvy); j += 7) {
         for (const auto& [jx, jy] : {std::pair{j, j}, std::pair{sub.nvx - 1 - j, j}}) {
           const std::size_t iv = static_cast<std::size_t>(iy0 + jy) * grid.nvx + ix0 + jx;
           const int x = r.map.argX[iv], y = r.map.argY[iv];
           if (x < 0) continue;
-          const double sum = sumAlongShifts(fc.frames, x, y, treeImpliedShifts(plan, jx, jy));
+          const double sum = sumAlongShifts(fc.frames, x, y, treeImpliedShifts(whole, ix0 + jx, iy0 + jy));
           const IpsaCell exact = ipsaReference(fc.frames, dt, x, y, grid.at(ix0 + jx, iy0 + jy));
           ASSERT_NEAR(r.map.maxSnr[iv], sum / (fc.sigmaF * std::sqrt(double(exact.nIn))), 2e-4)
               << "velocity " << ix0 + jx << "," << iy0 + jy;
@@ -352,6 +446,23 @@ TEST(SearchTree, LargeGridSearchedInVelocityBlocks) {
   EXPECT_LE(std::abs(c->v.vy - v.vy), 2.0 * grid.stepPxS);
   EXPECT_EQ(c->v.vx, grid.at(c->ivx, c->ivy).vx);  // indices of the whole grid
   EXPECT_GT(c->snr, 0.85 * 20.0);
+  // One tree over the whole grid gives the same values, cells and candidates, bit for bit (the blocks of
+  // each velocity's own plan, before 2026-11-27, did not: their shifts may differ by 1 px from the whole
+  // tree's).
+  params.bufferBytes = oneTreeBuffers;
+  const SearchResult one = makeCpuBackend()->search(fc, grid, params, progress, cancel);
+  EXPECT_EQ(r.map.maxSnr, one.map.maxSnr);
+  EXPECT_EQ(r.map.argX, one.map.argX);
+  EXPECT_EQ(r.map.argY, one.map.argY);
+  EXPECT_EQ(r.cellsAboveThreshold, one.cellsAboveThreshold);
+  ASSERT_EQ(r.candidates.size(), one.candidates.size());
+  for (std::size_t i = 0; i < r.candidates.size(); ++i) {
+    EXPECT_EQ(r.candidates[i].x, one.candidates[i].x) << i;
+    EXPECT_EQ(r.candidates[i].y, one.candidates[i].y) << i;
+    EXPECT_EQ(r.candidates[i].ivx, one.candidates[i].ivx) << i;
+    EXPECT_EQ(r.candidates[i].ivy, one.candidates[i].ivy) << i;
+    EXPECT_EQ(r.candidates[i].snr, one.candidates[i].snr) << i;
+  }
 }
 
 TEST(SearchTree, RejectsUnknownMethodAndBadInput) {

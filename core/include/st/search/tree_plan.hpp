@@ -58,10 +58,15 @@ struct TreeNode {
   int right = -1;
   int depth = 0;
   TreeAxis x, y;
+  /// A velocity block's node left with one velocity of several (treeSubPlan): still built from its
+  /// children, as the whole tree builds it, so that the block's sums are the whole tree's bit for bit.
+  bool combined = false;
   [[nodiscard]] bool leaf() const noexcept { return left < 0; }
   /// Built directly from its frames (a leaf, or a node with one velocity: its subtree would add the same
   /// samples in about twice the work).
-  [[nodiscard]] bool direct() const noexcept { return leaf() || (x.v.size() == 1 && y.v.size() == 1); }
+  [[nodiscard]] bool direct() const noexcept {
+    return leaf() || (!combined && x.v.size() == 1 && y.v.size() == 1);
+  }
   [[nodiscard]] std::size_t velocities() const noexcept { return x.v.size() * y.v.size(); }
   /// Velocities on some root velocity's path (only those stacks are built).
   [[nodiscard]] std::size_t usedVelocities() const noexcept {
@@ -87,6 +92,14 @@ struct TreePlan {
 /// o_k: the exact shifts the plan approximates are then round(o_k + v dt_k) (ARCHITECTURE.md).
 TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
                        const std::vector<PixelOffset>& offsets = {});
+
+/// The plan of the block of root velocities [ix0, ix0 + nx) x [iy0, iy0 + ny) of `whole` (velocity blocks,
+/// tree_search.hpp): the whole tree's node velocities, choices and shifts, each node keeping only the range
+/// of its velocities on the block's paths, with margins for those alone. Its root velocity (jx, jy) is
+/// `whole`'s (ix0 + jx, iy0 + jy), summed from the same samples in the same order as in the whole tree (the
+/// same values, bit for bit, whatever the blocks). O(frames x axis velocities), no shift is re-planned.
+/// Throws st::InputError for an empty block or one outside the grid.
+TreePlan treeSubPlan(const TreePlan& whole, int ix0, int nx, int iy0, int ny);
 
 /// The tree's implied integer shift (sx, sy) of every frame, in cube frame order, for grid velocity (ix, iy):
 /// the root's stack at pixel (x, y) sums F_n(x + sx_n, y + sy_n) over frames with the sample inside.

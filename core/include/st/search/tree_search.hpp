@@ -43,13 +43,17 @@ std::size_t treeTileBudgetPerThread(unsigned threads, std::size_t totalBytes = 0
 
 /// Velocity blocks (issue 20): the tree's partial stacks grow with the square of the grid's side (a 1-row
 /// tile of 2000 x 1024 px needs 10.1 GB at 801^2 velocities, 152 MB at 101^2), so a grid whose 1-row tile
-/// exceeds treeBlockSplitBytes is searched in blocks of neighbouring velocities, one tree each, the same
-/// additions in all (5.95e12 for 801^2 in one tree, 64 blocks of 101^2 5.7e12). Cells and the velocity map
-/// are merged as one search's; the values are the tree's for the block's own plan (within the tree's 1 px of
-/// the exact shifts, as always), so they may differ slightly from one tree over the whole grid.
+/// exceeds treeBlockSplitBytes is searched in blocks of neighbouring velocities, one tree each, and a grid
+/// whose tiles would be only a few rows tall may be too (taller tiles in smaller blocks read fewer margin
+/// rows: treeVelocityBlocks). Each block runs the whole tree's plan cut to its velocities (treeSubPlan), so
+/// the values, cells and velocity map are those of one tree over the whole grid, bit for bit, whatever the
+/// blocks; the blocks repeat the coarse levels' work that one tree shares.
 struct TreeBlocks {
   int blocksX = 1, blocksY = 1;      ///< blocks along vx and vy
   int blockNvx = 0, blockNvy = 0;    ///< velocities of a full block (the last ones may have fewer)
+  int tileRows = 0;                  ///< a full block's tile rows (treeTileRows of its plan)
+  std::size_t tileBytes = 0;         ///< one thread's partial stacks at those rows, the largest block's
+  double additions = 0.0;            ///< treeAdditions of all blocks together (the estimate they were chosen by)
   [[nodiscard]] int count() const noexcept { return blocksX * blocksY; }
 };
 
@@ -58,9 +62,20 @@ struct TreeBlocks {
 /// problem, ~75 MB a row, stays one tree with the default buffers; a small memory budget splits sooner).
 std::size_t treeBlockSplitBytes(std::size_t totalBytes);
 
-/// The fewest blocks (split alike along both axes) whose 1-row tile fits `tileBudgetBytes`.
-TreeBlocks treeVelocityBlocks(const std::vector<double>& dtS, const VelocityGrid& grid, int width,
-                              std::size_t tileBudgetBytes, const std::vector<PixelOffset>& offsets = {});
+/// How many splits treeVelocityBlocks prices beyond the fewest that fit.
+inline constexpr int kTreeBlockSplitsTried = 6;
+/// More blocks are taken only for at least this fraction fewer additions: each block re-plans, re-reads the
+/// frames and holds taller tiles (more memory), which the additions do not count.
+inline constexpr double kTreeBlockMinSaving = 0.05;
+
+/// The velocity blocks of the cheapest tree search of `whole`'s grid over width x height px: both axes split
+/// alike into k parts, k from the fewest whose largest block's 1-row tile fits `splitBytes` to
+/// kTreeBlockSplitsTried more (distinct block sizes only); each priced by its blocks' treeAdditions at
+/// treeTileRows(block plan, width, tileBudgetBytes) rows (a block of each size, the first one, stands for all
+/// of that size); the fewest additions win, more blocks only by kTreeBlockMinSaving. `whole`: buildTreePlan
+/// of the grid.
+TreeBlocks treeVelocityBlocks(const TreePlan& whole, int width, int height, std::size_t splitBytes,
+                              std::size_t tileBudgetBytes);
 
 /// Block (bx, by)'s grid: its cell j is `grid`'s cell (ix0 + jx, iy0 + jy).
 VelocityGrid treeBlockGrid(const VelocityGrid& grid, const TreeBlocks& blocks, int bx, int by, int& ix0,
