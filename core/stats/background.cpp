@@ -183,20 +183,63 @@ RowClip clipRow(const std::vector<float>& buf, std::size_t nf, int w, double xi)
   return r;
 }
 
-// One frame row of the per-pixel clip's buffer: NaN where the sample is left out (not finite, above
-// `strong`, masked or excluded). strong is the largest float <= the double threshold, so v > strong is the
-// double comparison.
+// One frame row of the per-pixel clip's buffer: NaN where the sample is left out (not finite, masked or
+// excluded); the strong signals are cut after (cutStrongAboveMedian).
 __attribute__((target_clones("avx2", "default"))) void gatherRow(float* __restrict dst,
                                                                  const float* __restrict src,
                                                                  const std::uint8_t* __restrict m,
-                                                                 const std::uint8_t* __restrict excluded, int w,
-                                                                 float strong) {
+                                                                 const std::uint8_t* __restrict excluded,
+                                                                 int w) {
   const float kNaN = std::numeric_limits<float>::quiet_NaN();
   const float kMax = std::numeric_limits<float>::max();
   for (int x = 0; x < w; ++x) {
     const float v = src[x];
-    const bool keep = (std::fabs(v) <= kMax) & (v <= strong) & (m[x] == 0) & (excluded[x] == 0);
+    const bool keep = (std::fabs(v) <= kMax) & (m[x] == 0) & (excluded[x] == 0);
     dst[x] = keep ? v : kNaN;
+  }
+}
+
+// The largest float <= t (+inf for NaN): for a finite float v, v > t (as doubles) is v > floatAtOrBelow(t).
+float floatAtOrBelow(double t) {
+  float f = std::isnan(t) ? std::numeric_limits<float>::infinity() : static_cast<float>(t);
+  if (static_cast<double>(f) > t) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// The strong-signal cut of one row's buffer (nf x w samples, frame-major, NaN where left out), relative to
+// each pixel's own level: the samples of column x above median_x + offset (median_x: the lower median,
+// element (c - 1) / 2 in order, of the column's c samples left in) become NaN. A pixel bright in every frame
+// (a static star's wing just outside its mask) is then background for itself, where a cut at the global
+// level took away the upper part of its own noise and left its background low (a static positive residual
+// that the search found at near-zero velocity); a source covering the pixel in fewer than half of its
+// samples does not move the median past the background samples and is cut as before.
+void cutStrongAboveMedian(float* buf, std::size_t nf, int w, double offset, std::vector<float>& col) {
+  const float kNaN = std::numeric_limits<float>::quiet_NaN();
+  constexpr int kBlock = 16;  // columns gathered together (their samples share cache lines)
+  col.resize(nf * kBlock);
+  for (int xa = 0; xa < w; xa += kBlock) {
+    const int nb = std::min(kBlock, w - xa);
+    std::size_t c[kBlock] = {};
+    for (std::size_t n = 0; n < nf; ++n) {
+      const float* row = buf + n * w + xa;
+      for (int j = 0; j < nb; ++j) {
+        const float v = row[j];
+        if (!std::isnan(v)) col[j * nf + c[j]++] = v;
+      }
+    }
+    float cut[kBlock];
+    for (int j = 0; j < nb; ++j) {
+      cut[j] = std::numeric_limits<float>::infinity();
+      if (c[j] == 0) continue;
+      float* b = col.data() + j * nf;
+      std::nth_element(b, b + (c[j] - 1) / 2, b + c[j]);
+      cut[j] = floatAtOrBelow(static_cast<double>(b[(c[j] - 1) / 2]) + offset);
+    }
+    for (std::size_t n = 0; n < nf; ++n) {
+      float* row = buf + n * w + xa;
+      for (int j = 0; j < nb; ++j)
+        if (row[j] > cut[j]) row[j] = kNaN;
+    }
   }
 }
 
@@ -314,15 +357,13 @@ Background clipRows(const FrameCube& cube, const BackgroundParams& params, const
   out.framesUsed = frames.size();
   out.level = Image(w, h);
   out.sigma = Image(w, h);
-  const double strong = out.global.mean + params.strongSignalXi * out.global.sigma;
+  // Strong signals: samples above the pixel's own median + strongSignalXi x the global sigma
+  // (cutStrongAboveMedian).
+  const double strongOffset = params.strongSignalXi * out.global.sigma;
   const auto& mask = cube.mask();
   std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
-  // The largest float <= strong: for a finite float v, v > strong (as doubles) is v > strongF.
-  float strongF = std::isnan(strong) ? std::numeric_limits<float>::infinity() : static_cast<float>(strong);
-  if (static_cast<double>(strongF) > strong)
-    strongF = std::nextafter(strongF, -std::numeric_limits<float>::infinity());
   parallelFor(static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
-    std::vector<float> buf(frames.size() * static_cast<std::size_t>(w));
+    std::vector<float> buf(frames.size() * static_cast<std::size_t>(w)), col;
     std::vector<std::uint8_t> excluded(static_cast<std::size_t>(w), 0), noMask(static_cast<std::size_t>(w), 0);
     for (std::size_t y = y0; y < y1; ++y) {
       cancel.throwIfCancelled();
@@ -332,8 +373,9 @@ Background clipRows(const FrameCube& cube, const BackgroundParams& params, const
         const float* src = cube.pixels().data() + off;
         const std::uint8_t* m = mask.empty() ? noMask.data() : mask.data() + off;
         if (exclude) exclude->coveredRow(n, static_cast<int>(y), excluded.data());
-        gatherRow(buf.data() + k * w, src, m, excluded.data(), w, strongF);
+        gatherRow(buf.data() + k * w, src, m, excluded.data(), w);
       }
+      cutStrongAboveMedian(buf.data(), frames.size(), w, strongOffset, col);
       const RowClip r = clipRow(buf, frames.size(), w, params.xi);
       for (int x = 0; x < w; ++x) {
         const std::size_t i = y * w + x;

@@ -120,14 +120,18 @@ TEST(Background, PerPixelClipEqualsScalarClipOfEachPixel) {
   BackgroundParams params;
   params.global.frames = 120;
   const Background bg = estimateBackground(cube, params, nullptr, p, c);
-  const double strong = bg.global.mean + 5.0 * bg.global.sigma;
   for (int y = 0; y < cube.height(); ++y) {
     for (int x = 0; x < cube.width(); ++x) {
+      // The strong-signal cut relative to the pixel's own lower median.
+      std::vector<float> all;
+      for (std::size_t n = 0; n < cube.frameCount(); ++n)
+        all.push_back(cube.frame(n)[y * cube.width() + x]);
+      std::vector<float> sorted = all;
+      std::sort(sorted.begin(), sorted.end());
+      const double strong = static_cast<double>(sorted[(sorted.size() - 1) / 2]) + 5.0 * bg.global.sigma;
       std::vector<float> s;
-      for (std::size_t n = 0; n < cube.frameCount(); ++n) {
-        const float v = cube.frame(n)[y * cube.width() + x];
+      for (const float v : all)
         if (v <= strong) s.push_back(v);
-      }
       const ClipStats ref = sigmaClip(s.data(), s.size(), 4.0);
       ASSERT_FLOAT_EQ(bg.level.at(x, y), static_cast<float>(ref.mean)) << x << "," << y;
       ASSERT_FLOAT_EQ(bg.sigma.at(x, y), static_cast<float>(ref.sigma)) << x << "," << y;
@@ -171,6 +175,49 @@ TEST(Background, ExcludedStaticSourceDoesNotBiasLevel) {
   EXPECT_NEAR(without.level.at(16, 16), 500.0 + 8.0 + 4.0 + 25.0, 2.0);
   EXPECT_NEAR(with.level.at(16, 16), with.global.mean, 1e-3);
   EXPECT_EQ(with.pixelsFilled, 1u);
+}
+
+TEST(Background, PixelBrightInEveryFrameIsItsOwnBackground) {
+  // A static star's wing just outside its mask: 5 sigma above the sky in every frame. Its background is its
+  // own mean (before 2026-11-27 the strong-signal cut at the global mean + 5 sigma took away the upper half of
+  // its noise and left the level ~0.8 sigma low: a static residual of 11 sigma of a 200-frame mean).
+  const double sigma = 5.0;
+  FrameCube cube = noisyCube(32, 32, 200, sigma, 8);
+  for (std::size_t n = 0; n < cube.frameCount(); ++n)
+    for (int x = 10; x < 20; ++x)
+      cube.frame(n)[16 * 32 + x] += static_cast<float>(5.0 * sigma);
+  NullProgress p;
+  CancelToken c;
+  const Background bg = estimateBackground(cube, {}, nullptr, p, c);
+  double meanBias = 0.0;
+  for (int x = 10; x < 20; ++x) {
+    double truthMean = 0.0;  // the pixel's own mean over the frames (its noise included, noisyCube's spot not)
+    int frames = 0;
+    for (std::size_t n = 0; n < cube.frameCount(); ++n) {
+      if (static_cast<int>(n * 3) % 32 == x && static_cast<int>(n * 5) % 32 == 16) continue;
+      truthMean += cube.frame(n)[16 * 32 + x];
+      ++frames;
+    }
+    truthMean /= frames;
+    meanBias += (bg.level.at(x, 16) - truthMean) / 10.0;
+    EXPECT_NEAR(bg.level.at(x, 16), truthMean, 0.05 * sigma) << x;
+    EXPECT_NEAR(bg.sigma.at(x, 16), sigma, 0.15 * sigma) << x;
+  }
+  EXPECT_LT(std::abs(meanBias), 0.02 * sigma);
+}
+
+TEST(Background, SourceOnAPixelInFewerThanHalfTheFramesIsStillCut) {
+  // A slow mover on one pixel for 40% of the frames (consecutive), 20 sigma above the sky: the pixel's median
+  // stays a background sample, the cut relative to it leaves the mover out, the level is the sky's.
+  const double sigma = 5.0;
+  FrameCube cube = noisyCube(32, 32, 200, sigma, 9);
+  for (std::size_t n = 50; n < 130; ++n)
+    cube.frame(n)[16 * 32 + 16] += static_cast<float>(20.0 * sigma);
+  NullProgress p;
+  CancelToken c;
+  const Background bg = estimateBackground(cube, {}, nullptr, p, c);
+  EXPECT_NEAR(bg.level.at(16, 16), 500.0 + 8.0 + 4.0, 1.5);  // 3.5 standard errors of 120 samples
+  EXPECT_LT(bg.sigma.at(16, 16), 1.3 * sigma);
 }
 
 TEST(Background, AllMaskedThrowsClearError) {

@@ -28,8 +28,14 @@ struct BackgroundParams {
   GlobalBackgroundParams global;  ///< the pixel-independent first estimate (paper: 50 frames, xi = 5)
   double xi = 4.0;                ///< per-pixel clip threshold (paper §3.1: 4)
   std::size_t maxFrames = 2000;   ///< frames per pixel, evenly spaced when the cube has more (paper: ~2000)
-  double strongSignalXi = 5.0;    ///< samples above global mean + this * global sigma are left out first
-                                  ///< ("eliminate most of the strong signals", paper §4.2)
+  /// Samples above the pixel's own median (the lower median of its samples not masked or excluded) + this
+  /// x the global sigma are left out first ("eliminate most of the strong signals", paper §4.2). Relative
+  /// to the pixel, not to the global mean (before 2026-11-27): a pixel bright in every frame (a static
+  /// star's wing just outside its mask) lost the upper part of its own noise to a global cut, its
+  /// background came out low and the static residual was found by the search at near-zero velocity. A
+  /// source on the pixel in fewer than half of its samples (a mover) is still cut; one on it in more than
+  /// half sets the level (a source that stays put that long is a static source for the masks to handle).
+  double strongSignalXi = 5.0;
   std::size_t minSamples = 10;    ///< pixels with fewer background samples take the global mean
   bool noiseMap = false;          ///< also compute a smooth noise map (box mean of the per-pixel sigma)
   int noiseMapBoxPx = 33;         ///< side of that box, pixels
