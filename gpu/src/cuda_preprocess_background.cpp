@@ -111,7 +111,7 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   p.height = h;
   p.nf = static_cast<int>(nf);
   p.nk = static_cast<int>(nk);
-  p.strong = out.global.mean + params.strongSignalXi * out.global.sigma;
+  p.strongOffset = params.strongSignalXi * out.global.sigma;
   p.xi = params.xi;
   p.minSamples = params.minSamples;
   p.globalMean = out.global.mean;
@@ -123,10 +123,12 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   p.winLo = loD.get();
   p.winHi = hiD.get();
   p.window = window > 0.0 ? 1 : 0;
-  Event k0(true), k1(true), k2(true), k3(true);
+  Event k0(true), k1(true), kc(true), k2(true), k3(true);
   k0.record(s);
   launchBackgroundPrepare(p, s);
   k1.record(s);
+  launchBackgroundStrongCut(p, s);
+  kc.record(s);
   launchBackgroundClip(p, s);
   k2.record(s);
   r.compute.sync();
@@ -170,8 +172,8 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
                              ms(pf->seconds) + " on its thread; waited " + ms(upload) + ")"
                        : ms(upload)) +
            ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
-           " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", clip " +
-           ms(Event::elapsed(k1, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
+           " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", strong cut " +
+           ms(Event::elapsed(k1, kc)) + ", clip " + ms(Event::elapsed(kc, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
            (keep ? std::string("kept on the device") : ms(down)) + ", host " + ms(host);
   if (keep) {
     keep->pix = std::move(pix);

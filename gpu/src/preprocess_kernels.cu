@@ -33,9 +33,52 @@ __global__ void backgroundPrepareKernel(BackgroundLaunch p) {
   const std::size_t off = static_cast<std::size_t>(n) * np + i;
   const float v = p.pix[off];
   const int x = static_cast<int>(i % p.width), y = static_cast<int>(i / p.width);
-  const bool out =
-      !isfinite(v) || static_cast<double>(v) > p.strong || (p.mask && p.mask[off]) || covered(p, n, x, y);
+  const bool out = !isfinite(v) || (p.mask && p.mask[off]) || covered(p, n, x, y);
   p.buf[static_cast<std::size_t>(k) * np + i] = out ? __int_as_float(0x7fc00000) : v;
+}
+
+// Floats in the order of unsigned keys (NaN left out by the callers).
+__device__ __forceinline__ unsigned floatKey(float v) {
+  const unsigned b = __float_as_uint(v);
+  return (b & 0x80000000u) ? ~b : (b | 0x80000000u);
+}
+
+__device__ __forceinline__ float keyFloat(unsigned k) {
+  return __uint_as_float((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k);
+}
+
+// stats/background.cpp cutStrongAboveMedian for one pixel: the lower median (element (c - 1) / 2 in order
+// of the c samples left in, the value std::nth_element gives) by bisection over the float keys (32 passes,
+// each counting the samples at or below the middle key), then the samples above median + strongOffset
+// (in double) become NaN.
+__global__ void backgroundStrongCutKernel(BackgroundLaunch p) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (i >= np) return;
+  float* b = p.buf + i;
+  unsigned c = 0;
+  for (int k = 0; k < p.nk; ++k)
+    c += isnan(b[static_cast<std::size_t>(k) * np]) ? 0u : 1u;
+  if (c == 0) return;
+  const unsigned rank = (c - 1) / 2 + 1;  // the smallest key with at least this many samples at or below it
+  unsigned lo = 0u, hi = 0xffffffffu;
+  while (lo < hi) {
+    const unsigned mid = lo + (hi - lo) / 2;
+    unsigned below = 0;
+    for (int k = 0; k < p.nk; ++k) {
+      const float v = b[static_cast<std::size_t>(k) * np];
+      below += (!isnan(v) && floatKey(v) <= mid) ? 1u : 0u;
+    }
+    if (below >= rank)
+      hi = mid;
+    else
+      lo = mid + 1;
+  }
+  const double cut = __dadd_rn(static_cast<double>(keyFloat(lo)), p.strongOffset);
+  for (int k = 0; k < p.nk; ++k) {
+    float* q = b + static_cast<std::size_t>(k) * np;
+    if (static_cast<double>(*q) > cut) *q = __int_as_float(0x7fc00000);
+  }
 }
 
 // stats/background.cpp clipRow for one pixel.
@@ -222,6 +265,12 @@ void launchBackgroundPrepare(const BackgroundLaunch& p, cudaStream_t s) {
     backgroundPrepareKernel<<<dim3(blocksFor(np, 256), count), 256, 0, s>>>(q);
     checkLaunch("backgroundPrepareKernel");
   }
+}
+
+void launchBackgroundStrongCut(const BackgroundLaunch& p, cudaStream_t s) {
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  backgroundStrongCutKernel<<<blocksFor(np, 128), 128, 0, s>>>(p);
+  checkLaunch("backgroundStrongCutKernel");
 }
 
 void launchBackgroundClip(const BackgroundLaunch& p, cudaStream_t s) {

@@ -24,7 +24,9 @@ struct BackgroundLaunch {
   int canvasX0, canvasY0, canvasW, canvasH;
   int width, height;
   int nf, nk;
-  double strong;  ///< samples above this are left out (global mean + strongSignalXi x global sigma)
+  /// samples above the pixel's own lower median + this are left out (strongSignalXi x global sigma;
+  /// stats/background.cpp cutStrongAboveMedian)
+  double strongOffset;
   double xi;
   std::size_t minSamples;
   double globalMean, globalSigma;
@@ -40,6 +42,7 @@ struct BackgroundLaunch {
 };
 
 void launchBackgroundPrepare(const BackgroundLaunch& p, cudaStream_t s);
+void launchBackgroundStrongCut(const BackgroundLaunch& p, cudaStream_t s);
 void launchBackgroundClip(const BackgroundLaunch& p, cudaStream_t s);
 void launchBackgroundSubtract(const BackgroundLaunch& p, cudaStream_t s);
 
