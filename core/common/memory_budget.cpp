@@ -6,6 +6,7 @@
 #endif
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -159,8 +160,15 @@ void releaseFreeHeapMemory() {
 #endif
 }
 
+namespace {
+// Scopes alive now (pre-processing's and the tiled search's may nest): only the outermost sets the
+// thresholds and sets them back.
+std::atomic<int> g_heapReuseDepth{0};
+}  // namespace
+
 HeapReuseScope::HeapReuseScope() {
 #if defined(__GLIBC__)
+  if (g_heapReuseDepth.fetch_add(1) > 0) return;
   mallopt(M_MMAP_THRESHOLD, 1 << 30);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
@@ -168,6 +176,7 @@ HeapReuseScope::HeapReuseScope() {
 
 HeapReuseScope::~HeapReuseScope() {
 #if defined(__GLIBC__)
+  if (g_heapReuseDepth.fetch_sub(1) > 1) return;
   mallopt(M_MMAP_THRESHOLD, 128 * 1024);
   mallopt(M_TRIM_THRESHOLD, 128 * 1024);
   malloc_trim(0);

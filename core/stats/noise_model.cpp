@@ -1,16 +1,11 @@
 #include "st/stats/noise_model.hpp"
 
-extern "C" {
-#include <sep.h>  // a C header without extern "C" guards
-}
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -21,16 +16,12 @@ extern "C" {
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/stats/background.hpp"
+#include "st/stats/sep_background.hpp"
 
 namespace st::stats {
 namespace {
 
 constexpr double kChi2OneMedian = 0.454936423119572;  // median of chi^2 with one degree of freedom
-
-struct SepBkgDeleter {
-  void operator()(sep_bkg* b) const noexcept { sep_bkg_free(b); }
-};
-using SepBkg = std::unique_ptr<sep_bkg, SepBkgDeleter>;
 
 double medianOf(std::vector<double>& v) {
   if (v.empty()) return 0.0;
@@ -231,32 +222,20 @@ FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const FrameBackgroundPa
   out.level.assign(nf, std::nan(""));
   out.rms.assign(nf, std::nan(""));
   if (!params.enabled || nf == 0) return out;
-  const int mesh = std::max(8, params.meshPx), filter = std::max(1, params.filterCells);
+  // SEP's sep_background and sep_bkg_subarray, pixel for pixel (st/stats/sep_background.hpp: libsep's
+  // backguess walked its histogram on every clip iteration, half of this stage's time).
+  const sep::MeshGrid grid = sep::meshGrid(cube.width(), cube.height(), params.meshPx);
+  const int filter = std::max(1, params.filterCells);
   const bool hasMask = cube.mask().size() == cube.pixels().size();
-  std::vector<SepBkg> bkg(nf);
+  std::vector<sep::FrameModel> models(nf);
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "frame backgrounds");
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t n = b; n < e; ++n) {
       cancel.throwIfCancelled();
-      sep_image im{};
-      im.data = cube.frame(n);
-      im.dtype = SEP_TFLOAT;
-      if (hasMask) {
-        im.mask = cube.mask().data() + n * np;
-        im.mdtype = SEP_TBYTE;
-        im.maskthresh = 0.0;
-      }
-      im.w = cube.width();
-      im.h = cube.height();
-      im.noise_type = SEP_NOISE_NONE;
-      sep_bkg* raw = nullptr;
-      if (sep_background(&im, std::min(mesh, im.w), std::min(mesh, im.h), filter, filter, 0.0, &raw) == 0 &&
-          raw) {
-        bkg[n].reset(raw);
-        out.level[n] = sep_bkg_global(raw);
-        out.rms[n] = sep_bkg_globalrms(raw);
-      }
+      models[n] = sep::model(cube.frame(n), hasMask ? cube.mask().data() + n * np : nullptr, grid, filter);
+      out.level[n] = models[n].global;
+      out.rms[n] = models[n].globalrms;
       const std::size_t d = ++done;
       if (d % 32 == 0) progress.report(0.5 * double(d) / double(nf), "frame backgrounds");
     }
@@ -266,16 +245,14 @@ FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const FrameBackgroundPa
     if (std::isfinite(l)) levels.push_back(l);
   out.restoredLevel = medianOf(levels);
   const float restored = static_cast<float>(out.restoredLevel);
+  const std::vector<sep::SplineRow> rows = sep::rowTable(grid.height, grid.bh, grid.ny);
+  const std::vector<sep::SplineColumn> cols = sep::columnTable(grid.width, grid.bw, grid.nx);
   done = 0;
   parallelFor(nf, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t n = b; n < e; ++n) {
       cancel.throwIfCancelled();
-      if (!bkg[n]) continue;
-      float* f = cube.frame(n);
-      sep_bkg_subarray(bkg[n].get(), f, SEP_TFLOAT);
-      for (std::size_t i = 0; i < np; ++i)
-        f[i] += restored;
-      bkg[n].reset();
+      sep::subtract(cube.frame(n), grid, models[n], rows, cols, restored);
+      models[n] = sep::FrameModel{};
       const std::size_t d = ++done;
       if (d % 32 == 0) progress.report(0.5 + 0.5 * double(d) / double(nf), "frame backgrounds");
     }

@@ -19,11 +19,13 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "st/stats/sep_background.hpp"
+
 namespace st::gpu {
 
 /// SEP's constants (sepcore.h, background.c).
-inline constexpr double kSepBig = 1e+30;
-inline constexpr int kSepMaxLevels = 4096;
+inline constexpr double kSepBig = stats::sep::kBig;
+inline constexpr int kSepMaxLevels = stats::sep::kMaxLevels;
 
 struct SepMeshLaunch {
   const float* pix;          ///< nf frames of width x height
@@ -39,18 +41,9 @@ struct SepMeshLaunch {
 /// SEP's backstat + backhisto + backguess for every (frame, mesh).
 void launchSepMeshes(const SepMeshLaunch& p, cudaStream_t s);
 
-/// The per-row constants of SEP's bkg_line_flt_internal (y interpolation), made on the host.
-struct SepRow {
-  int yl;
-  float dy, cdy, dy3, cdy3;
-};
-
-/// The per-column constants of SEP's x interpolation (node index and dx as its loop steps them), made on the
-/// host; a = cdx^2 - 1, b = dx^2 - 1 in float.
-struct SepColumn {
-  int node;
-  float dx, cdx, a, b;
-};
+/// The per-row and per-column constants of SEP's spline evaluation, made on the host (core's tables).
+using SepRow = stats::sep::SplineRow;
+using SepColumn = stats::sep::SplineColumn;
 
 struct SepSubtractLaunch {
   float* pix;  ///< nf frames of width x height, written in place
