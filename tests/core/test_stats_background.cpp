@@ -248,5 +248,45 @@ TEST(Background, SmoothNoiseMapIsFinite) {
     EXPECT_NEAR(v, 7.0, 1.0);
 }
 
+
+// The strong-signal cut's lower medians by bisection over integer keys (AVX2) against gathering each column
+// and nth_element (the path without AVX2): the same samples cut, bit for bit, on rows with NaN (left-out
+// samples), negative values, +-0, exact ties (quantised counts), a column with no samples, one with one
+// sample, bright sources on part of the frames, and widths that leave columns after the last 16.
+TEST(Background, StrongSignalCutSimdEqualsSelection) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (const auto& [nf, w] : std::vector<std::pair<std::size_t, int>>{{1, 16}, {2, 17}, {7, 33}, {60, 48},
+                                                                       {201, 64}, {1500, 40}}) {
+    for (int variant = 0; variant < 3; ++variant) {
+      std::vector<float> buf(nf * static_cast<std::size_t>(w));
+      for (std::size_t n = 0; n < nf; ++n)
+        for (int x = 0; x < w; ++x) {
+          float v = variant == 0 ? 5.0f * g(rng) : (variant == 1 ? std::round(3.0f * g(rng)) : 1e6f * g(rng));
+          if (x % 5 == 1) v = -std::fabs(v) - 1000.0f;        // all negative
+          if (x % 7 == 3 && u(rng) < 0.3f) v = 50.0f + 10.0f * u(rng);  // a source on ~30% of the frames
+          if (x % 11 == 4) v = (n % 2) ? 0.0f : -0.0f;        // +-0 only
+          if (u(rng) < 0.1f) v = std::nanf("");
+          if (x == 2) v = std::nanf("");                    // no samples at all
+          if (x == 9 && n > 0) v = std::nanf("");           // one sample
+          buf[n * w + x] = v;
+        }
+      std::vector<float> a = buf, b = buf;
+      detail::strongSignalCut(a.data(), nf, w, 2.5, true);
+      detail::strongSignalCut(b.data(), nf, w, 2.5, false);
+      std::size_t cutA = 0, differ = 0;
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        cutA += std::isnan(a[i]) && !std::isnan(buf[i]);
+        differ += std::isnan(a[i]) != std::isnan(b[i]) || (!std::isnan(a[i]) && a[i] != b[i]);
+      }
+      EXPECT_EQ(differ, 0u) << nf << " frames x " << w << ", variant " << variant;
+      if (nf >= 60) {
+        EXPECT_GT(cutA, 0u) << "the rows have sources to cut";
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace st::stats
