@@ -134,8 +134,10 @@ std::size_t zeroMasked(FrameCube& cube, const MovingMask& mask, ProgressSink& pr
 /// pixel or two from frame to frame: covered in most frames, they keep a bright star's halo (broader than
 /// the Moffat wings masked) in the few frames that uncover them; (2) bright static light that the stack's
 /// mesh background absorbed (a saturated star's halo and its islands between mask pieces), above the
-/// background's strong-signal cut in most frames. Either leaves a static residual that the search finds
-/// near the sky rate. Returns the number of pixels zeroed (each counted once).
+/// background's strong-signal cut in most frames (while that cut was the global mean + 5 sigma; since
+/// 2026-11-27 it is relative to each pixel's own median, so static light is its own background and only
+/// case 1 remains). Either leaves a static residual that the search finds near the sky rate. Returns the
+/// number of pixels zeroed (each counted once).
 std::size_t zeroUnmeasured(FrameCube& cube, const std::vector<std::uint8_t>& unmeasured,
                            const MovingMask& keep);
 
