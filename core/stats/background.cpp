@@ -208,14 +208,8 @@ float floatAtOrBelow(double t) {
   return f;
 }
 
-// The strong-signal cut of one row's buffer (nf x w samples, frame-major, NaN where left out), relative to
-// each pixel's own level: the samples of column x above median_x + offset (median_x: the lower median,
-// element (c - 1) / 2 in order, of the column's c samples left in) become NaN. A pixel bright in every frame
-// (a static star's wing just outside its mask) is then background for itself, where a cut at the global
-// level took away the upper part of its own noise and left its background low (a static positive residual
-// that the search found at near-zero velocity); a source covering the pixel in fewer than half of its
-// samples does not move the median past the background samples and is cut as before.
-// The cut of columns [x0, w) with each column gathered and selected in (nth_element): the path without AVX2.
+// cutStrongAboveMedian (below) of columns [x0, w), each column gathered and selected in (nth_element): the
+// path without AVX2 and for the columns after the last 16.
 void cutStrongAboveMedianFrom(float* buf, std::size_t nf, int w, int x0, double offset, std::vector<float>& col) {
   const float kNaN = std::numeric_limits<float>::quiet_NaN();
   constexpr int kBlock = 16;  // columns gathered together (their samples share cache lines)
@@ -324,12 +318,19 @@ __attribute__((target("avx2"))) void lowerMedians16Avx2(const float* buf, std::s
 }
 #endif
 
+// The strong-signal cut of one row's buffer (nf x w samples, frame-major, NaN where left out), relative to
+// each pixel's own level: the samples of column x above median_x + offset (median_x: the lower median,
+// element (c - 1) / 2 in order, of the column's c samples left in) become NaN. A pixel bright in every frame
+// (a static star's wing just outside its mask) is then background for itself, where a cut at the global
+// level took away the upper part of its own noise and left its background low (a static positive residual
+// that the search found at near-zero velocity); a source covering the pixel in fewer than half of its
+// samples does not move the median past the background samples and is cut as before.
 void cutStrongAboveMedian(float* buf, std::size_t nf, int w, double offset, std::vector<float>& col,
                           bool allowSimd = true) {
-  const float kNaN = std::numeric_limits<float>::quiet_NaN();
-  constexpr int kBlock = 16;  // columns gathered together (their samples share cache lines)
 #ifdef ST_BACKGROUND_AVX2
   if (allowSimd && haveAvx2() && nf < (std::size_t(1) << 30)) {
+    const float kNaN = std::numeric_limits<float>::quiet_NaN();
+    constexpr int kBlock = 16;
     thread_local std::vector<std::int32_t> keys;
     for (int xa = 0; xa + kBlock <= w; xa += kBlock) {
       float median[kBlock], cut[kBlock];
@@ -350,8 +351,9 @@ void cutStrongAboveMedian(float* buf, std::size_t nf, int w, double offset, std:
     cutStrongAboveMedianFrom(buf, nf, w, done, offset, col);
     return;
   }
+#else
+  (void)allowSimd;
 #endif
-  (void)kNaN;
   cutStrongAboveMedianFrom(buf, nf, w, 0, offset, col);
 }
 
