@@ -1,9 +1,12 @@
 // synthtrack-cli search INPUT... : the velocity search (paper §4.4) over a grid of trial velocities,
 // candidates above threshold with their false-alarm probabilities (paper Prob_false).
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <nlohmann/json.hpp>
+
+#include <chrono>
 
 #include "backend_factory.hpp"
 #include "observation_pipeline.hpp"
@@ -38,7 +41,10 @@ constexpr const char* kHelp =
     "  --mpi                 under mpirun: split the velocity grid's vy rows over the ranks (exact CPU "
     "search),\n"
     "                        rank 0 gathers; the same candidates as one process\n"
-    "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n";
+    "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n"
+    "  --timings             print on stderr when each step ended, seconds from the start (backend, memory\n"
+    "                        plan, loaded and pre-processed with each stage's seconds, search planned,\n"
+    "                        searched, outputs)\n";
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
 void printEstimate(const PlannedSearch& p) {
@@ -101,7 +107,7 @@ int cmdSearch(const Args& args) {
     valued.insert(n);
   auto flags = calibFlagNames();
   flags.merge(searchFlagNames());
-  flags.insert({"preprocessed", "json", "fit", "mpi", "help"});
+  flags.insert({"preprocessed", "json", "fit", "mpi", "timings", "help"});
   const CliArgs cli(args, valued, flags);
   if (cli.flag("help")) {
     std::printf("%s%s%s%s", kHelp, searchOptionsHelp(), calibOptionsHelp(), loadOptionsHelp());
@@ -119,14 +125,33 @@ int cmdSearch(const Args& args) {
   }
   const SearchOptions o = parseSearchOptions(cli);
   if (cli.flag("mpi")) return searchMpi(input, o, cli.flag("fit"), cli.value("out"), cli.flag("json"));
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool timings = cli.flag("timings");
+  auto mark = [&](const char* what) {
+    if (timings)
+      std::fprintf(stderr, "timings: %-34s %8.3f s\n", what,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  };
   BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method,
                                               parseFramePrecision(o.framePrecision));
+  mark("backend ready");
   TerminalProgress progress;
   ObservationHooks hooks;
   std::size_t memoryLines = 0;
-  hooks.memory = [&](const MemoryPlan& m) { printMemory(m, memoryLines); };
+  hooks.memory = [&](const MemoryPlan& m) {
+    mark("memory plan");
+    printMemory(m, memoryLines);
+  };
+  hooks.prepared = [&](const pipeline::Prepared& prep) {
+    if (!timings) return;
+    progress.finish();
+    for (const auto& [stage, seconds] : prep.stageSeconds)
+      std::fprintf(stderr, "timings:   %-32s %8.3f s\n", stage.c_str(), seconds);
+    mark("loaded and pre-processed");
+  };
   hooks.planned = [&](const PlannedSearch& p) {
     progress.finish();
+    mark("search planned");
     for (const auto& w : p.warnings)
       std::fprintf(stderr, "warning: %s\n", w.c_str());
     for (const auto& n : p.notes)
@@ -138,13 +163,16 @@ int cmdSearch(const Args& args) {
   };
   hooks.searched = [&](const search::SearchResult& r) {
     progress.finish();
+    mark("searched");
     std::fputs(searchNotesText(r).c_str(), stderr);
   };
   const nlohmann::json j =
       runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
   progress.finish();
   std::fprintf(stderr, "memory: peak resident %s\n", formatBytes(static_cast<double>(peakResidentBytes())).c_str());
+  mark("candidates measured");
   writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
+  mark("outputs written");
   return 0;
 }
 

@@ -1,6 +1,7 @@
 #include "observation_pipeline.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <optional>
 
@@ -28,10 +29,12 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
                                       std::vector<std::string>& warnings, bool keepZeroBiased,
                                       pipeline::PreprocessAccelerator* accelerator) {
   FrameCube raw;
+  const auto loadStart = std::chrono::steady_clock::now();
   {
     SubProgress loadProgress(progress, 0.0, 0.2);
     raw = io::loadFrames(in.inputs, in.load, loadProgress, cancel);
   }
+  const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loadStart).count();
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
   // --plate-solve (pipeline/plate_solve_stage.hpp): the first raw frame, else the star catalogue after
@@ -62,6 +65,7 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     params.masters = calib::buildMasters(bias, dark, flat, raw, params.calib, progress, cancel);
   SubProgress prepProgress(progress, 0.2, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(raw), params, prepProgress, cancel);
+  prepared.stageSeconds.insert(prepared.stageSeconds.begin(), {"read the frames", loadSeconds});
   warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());
   if (!solved.empty()) prepared.notes.push_back(solved);
   if (solveCatalogue) {
@@ -223,6 +227,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
       const auto accel = makePreprocessAccelerator(backend, accelMessage);
       prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
+      if (hooks.prepared) hooks.prepared(*prepared);
     } else {
       // Out of core in strips of rows (pipeline/raw_out_of_core.hpp): planned (and shown) before any pixel.
       const pipeline::RawObservationFiles files{in.inputs, in.load, in.bias, in.dark, in.flat, in.calib};

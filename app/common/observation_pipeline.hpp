@@ -61,6 +61,8 @@ struct ObservationHooks {
   /// The memory budget and the estimate of the first stage, before any pixel is read (MemoryPlan::lines so
   /// far); planned() gets the lines added after it.
   std::function<void(const MemoryPlan&)> memory;
+  /// After loading and pre-processing in memory (its stageSeconds begin with "read the frames").
+  std::function<void(const pipeline::Prepared&)> prepared;
   std::function<void(const PlannedSearch&)> planned;          ///< before the search
   std::function<void(const search::SearchResult&)> searched;  ///< after it, before the fits
   /// Replaces backend.search (search --mpi: the grid split over ranks). Gets the grid and the parameters

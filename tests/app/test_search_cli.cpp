@@ -5,6 +5,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
 #include <nlohmann/json.hpp>
 
 #include "../core/search_test_cubes.hpp"
@@ -67,6 +71,36 @@ TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
   std::getline(in, row);
   EXPECT_EQ(header.rfind("x,y,vx_px_s,vy_px_s,snr,n_frames,fap", 0), 0u);
   EXPECT_FALSE(row.empty());
+}
+
+// --timings on raw frames: the steps in order on stderr, each pre-processing stage with its seconds, the
+// frames' reading first (issue 16: where FITS-to-candidates time goes), and nothing of it without the flag.
+TEST(SearchCli, TimingsListEveryStepInOrder) {
+  const auto cli = cliPath();
+  if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  test::TempDir dir;
+  const auto raw = dir / "raw.fits";
+  ASSERT_EQ(runCli(cli, "simulate --preset small --seed 3 -o " + quoted(raw) + " > /dev/null 2>&1"), 0);
+  const auto err = dir / "err.txt";
+  ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu --timings > /dev/null 2> " +
+                            quoted(err)),
+            0);
+  std::ifstream in(err);
+  std::vector<std::string> steps;
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("timings: ", 0) == 0) steps.push_back(line);
+  const std::vector<std::string> order = {"backend ready", "memory plan", "read the frames", "matched filter",
+                                          "loaded and pre-processed", "search planned", "searched",
+                                          "outputs written"};
+  std::size_t at = 0;
+  for (const auto& s : steps)
+    if (at < order.size() && s.find(order[at]) != std::string::npos) ++at;
+  EXPECT_EQ(at, order.size()) << "steps seen: " << steps.size();
+  ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu > /dev/null 2> " + quoted(err)),
+            0);
+  std::ifstream again(err);
+  const std::string all((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(all.find("timings:"), std::string::npos);
 }
 
 TEST(SearchCli, BadInputIsAClearError) {
