@@ -210,11 +210,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // On a device, from the cube prefetch() is uploading (issue 16); a device failure: a note, the CPU stacks.
   if (params.accelerator)
     skyStacks.setProvider([&out, accel = params.accelerator, failed = false](
-                              const FrameCube& c, Velocity rate, double subtract, std::size_t first,
-                              std::size_t last) mutable -> std::optional<detect::SkyStack> {
+                              const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
+                              std::size_t endFrame) mutable -> std::optional<detect::SkyStack> {
       if (failed) return std::nullopt;
       try {
-        return accel->skyStack(c, rate, subtract, first, last);
+        return accel->skyStack(c, rate, subtract, firstFrame, endFrame);
       } catch (const GpuError& e) {
         failed = true;
         out.notes.push_back("warning: the stacks at the sky rate fell back to the CPU (" + accel->name() +

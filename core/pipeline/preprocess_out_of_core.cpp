@@ -144,8 +144,9 @@ OutOfCorePrepared preprocessOutOfCore(const RawRegionLoader& load, const CubeSha
   std::unique_ptr<io::CubeRegionWriter> writer;
   FrameCube framesInfo;  // the frames' times, origins and offsets for the FRAMES table
   // The strips in the order they are processed: the reference first.
-  // The image written: the raw frames' rows [ty0, ty0 + outH) and columns [tx0, tx0 + outW).
-  const int tx0 = trim ? trim->x0 : 0, ty0 = trim ? trim->y0 : 0;
+  // The image written: the raw frames' rows [ty0, ty0 + outH) and columns [trim->x0, trim->x0 + outW) (0 on
+  // without a trim).
+  const int ty0 = trim ? trim->y0 : 0;
   const int outW = trim ? trim->width : shape.width, outH = trim ? trim->height : shape.height;
   const auto keptRows = [&](const PreprocessStrip& st) {
     return std::pair{std::max(st.ownY0, ty0), std::min(st.ownY0 + st.ownRows, ty0 + outH)};
