@@ -20,6 +20,7 @@
 #include "st/stack/matched_filter.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/search_report.hpp"
+#include "st/search/default_grid.hpp"
 #include "st/search/velocity_grid.hpp"
 
 namespace st::app {
@@ -175,6 +176,31 @@ nlohmann::json resultJson(const search::FilteredCube& fc, const search::SearchRe
 
 }  // namespace
 
+namespace {
+
+// The search's grid: the options' (+-12 deg/day by default), or with --grid-auto the data-derived default of
+// search/default_grid.hpp for this cube and backend (a note says which bound set it).
+search::VelocityGrid observationGrid(const SearchOptions& o, const search::FilteredCube& fc,
+                                     const search::SearchBackend& backend, int width, int height,
+                                     std::vector<std::string>& notes) {
+  if (!o.autoGrid) return search::makeVelocityGrid(o.request.grid, fc);
+  search::DefaultGridInput in;
+  in.width = width;
+  in.height = height;
+  in.frames = fc.frames.frameCount();
+  in.timeSpanS = fc.frames.timeSpanS();
+  in.plateScaleArcsecPerPx = fc.frames.plateScaleArcsecPerPx;
+  in.centre = o.request.grid.centre.value_or(fc.skyRate);
+  in.model = search::costModelFor(backend);
+  in.minFrameFraction = o.request.params.minFrameFraction;
+  in.stepPx = o.request.grid.stepPx;
+  const search::DefaultGrid d = search::defaultVelocityGrid(in);
+  notes.push_back("grid (--grid-auto): " + search::describeDefaultGrid(d, in.plateScaleArcsecPerPx));
+  return d.grid;
+}
+
+}  // namespace
+
 nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& optionsIn, bool fit,
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks) {
@@ -246,7 +272,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   if (!prepared) {
     // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
     OutOfCoreInput m = outOfCoreMeta(*src, o, shape.width, shape.height, cancel);
-    const search::VelocityGrid grid0 = search::makeVelocityGrid(o.request.grid, m.meta);
+    std::vector<std::string> unused;
+    const search::VelocityGrid grid0 = observationGrid(o, m.meta, backend, shape.width, shape.height, unused);
     const search::MethodEstimate e0 =
         search::estimateMethods(shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0,
                                 search::costModelFor(backend), threads, o.request.params.bufferBytes);
@@ -277,7 +304,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   if (ooc) fcp = &ooc->meta;
   search::FilteredCube& fc = *fcp;
   const int width = shape.width, height = shape.height;
-  const search::VelocityGrid grid = search::makeVelocityGrid(o.request.grid, fc);
+  const search::VelocityGrid grid = observationGrid(o, fc, backend, width, height, notes);
   search::MethodEstimate e =
       search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),
                               threads, o.request.params.bufferBytes);

@@ -22,7 +22,7 @@ Velocity parsePair(const std::string& text, const std::string& name) {
 }  // namespace
 
 std::set<std::string> searchFlagNames() {
-  std::set<std::string> flags = {"grid-step-fwhm", "no-register", "plate-solve", "keep-scratch"};
+  std::set<std::string> flags = {"grid-step-fwhm", "grid-auto", "no-register", "plate-solve", "keep-scratch"};
   flags.merge(plateSolveFlagNames());
   return flags;
 }
@@ -41,6 +41,8 @@ const char* searchOptionsHelp() {
          "                        half-width of the grid around its centre (default: 12 deg/day, the "
          "paper's,\n"
          "                        when the plate scale is known)\n"
+         "  --grid-auto           half-width from the data, as the GUI's default: the smallest of 12 deg/day,\n"
+         "                        what stays in the frame, and about a minute of exact search on this backend\n"
          "  --centre-px-s VX,VY   grid centre (default: the sky rate)\n"
          "  --grid-step-px P      grid step = P px of motion over the time span (default 1, the paper's "
          "rule)\n"
@@ -90,6 +92,9 @@ SearchOptions parseSearchOptions(const CliArgs& cli) {
   search::GridSpec& g = o.request.grid;
   const int ranges = cli.has("vmax-px-s") + cli.has("vmax-arcsec-min") + cli.has("vmax-deg-day");
   if (ranges > 1) throw UsageError("give one of --vmax-px-s, --vmax-arcsec-min, --vmax-deg-day");
+  o.autoGrid = cli.flag("grid-auto");
+  if (o.autoGrid && ranges > 0) throw UsageError("give --grid-auto or a --vmax-* half-width, not both");
+  if (o.autoGrid && cli.flag("grid-step-fwhm")) throw UsageError("--grid-auto takes --grid-step-px, not --grid-step-fwhm");
   g.unit = search::VelocityUnit::DegPerDay;
   g.halfRange = 12.0;
   if (auto v = cli.number("vmax-px-s")) g = {*v, search::VelocityUnit::PxPerS};

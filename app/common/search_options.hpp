@@ -16,6 +16,9 @@ struct SearchOptions {
   std::optional<double> sigmaF;  ///< override of the filtered frames' noise
   std::optional<double> fwhm;    ///< override of the PSF FWHM (px)
   bool registerFrames = true;    ///< per-frame registration in pre-processing (--no-register turns it off)
+  /// --grid-auto: the GUI's data-derived default grid (search/default_grid.hpp: at most +-12 deg/day, what
+  /// stays in the frame, and about a minute of exact search on this backend) instead of +-12 deg/day.
+  bool autoGrid = false;
   /// --plate-solve: raw frames without a WCS get one from astrometry.net before pre-processing
   /// (pipeline::plateSolveRawCube), with these settings (plate_solve_args.hpp).
   bool plateSolve = false;

@@ -103,6 +103,32 @@ TEST(SearchCli, TimingsListEveryStepInOrder) {
   EXPECT_EQ(all.find("timings:"), std::string::npos);
 }
 
+// --grid-auto: the GUI's data-derived grid from the command line. On the small preset (64 frames of 128 px)
+// the paper's +-12 deg/day bounds it (the frame allows more, and it takes well under a minute): the grid and
+// its note say so, the search runs on it; with a --vmax-* half-width it is a usage error.
+TEST(SearchCli, GridAutoTakesTheDataDerivedDefault) {
+  const auto cli = cliPath();
+  if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  test::TempDir dir;
+  const auto raw = dir / "raw.fits";
+  ASSERT_EQ(runCli(cli, "simulate --preset small --seed 4 -o " + quoted(raw) + " > /dev/null 2>&1"), 0);
+  const auto json = dir / "out.json", err = dir / "err.txt";
+  ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --grid-auto --backend cpu --json > " + quoted(json) + " 2> " +
+                            quoted(err)),
+            0);
+  std::ifstream in(err);
+  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(all.find("grid (--grid-auto): "), std::string::npos) << all;
+  EXPECT_NE(all.find("the paper's range"), std::string::npos) << all;
+  nlohmann::json j;
+  std::ifstream(json) >> j;
+  const int nvx = j["trials"]["nvx"].get<int>();
+  EXPECT_EQ(nvx, j["trials"]["nvy"].get<int>());
+  EXPECT_GE(nvx, 3);
+  EXPECT_EQ(nvx % 2, 1);
+  EXPECT_EQ(runCli(cli, "search " + quoted(raw) + " --grid-auto --vmax-deg-day 5 > /dev/null 2>&1"), 2);
+}
+
 TEST(SearchCli, BadInputIsAClearError) {
   const auto cli = cliPath();
   if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
