@@ -12,6 +12,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/stats/background.hpp"
 #include "st/stats/sigma_clip.hpp"
+#include "st/stats/strong_signal_cut.hpp"
 
 namespace st::stats {
 namespace {
@@ -273,8 +274,9 @@ TEST(Background, StrongSignalCutSimdEqualsSelection) {
           buf[n * w + x] = v;
         }
       std::vector<float> a = buf, b = buf;
-      detail::strongSignalCut(a.data(), nf, w, 2.5, true);
-      detail::strongSignalCut(b.data(), nf, w, 2.5, false);
+      std::vector<float> scratch;
+      cutStrongAboveMedian(a.data(), nf, w, 2.5, scratch, true);
+      cutStrongAboveMedian(b.data(), nf, w, 2.5, scratch, false);
       std::size_t cutA = 0, differ = 0;
       for (std::size_t i = 0; i < a.size(); ++i) {
         cutA += std::isnan(a[i]) && !std::isnan(buf[i]);

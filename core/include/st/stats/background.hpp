@@ -80,11 +80,4 @@ void subtractBackground(FrameCube& cube, const Image& level, ProgressSink& progr
 /// Box mean (side `box`, odd) of `image` over pixels where `valid` is non-zero (all when empty).
 Image boxSmooth(const Image& image, int box, const std::vector<std::uint8_t>& valid = {});
 
-namespace detail {
-/// The per-pixel clip's strong-signal cut of one row buffer (nf x w samples, frame-major, NaN where left
-/// out): each column's samples above its lower median + offset become NaN. allowSimd false: the
-/// gather-and-select path that machines without AVX2 take (tests compare the two).
-void strongSignalCut(float* buf, std::size_t nf, int w, double offset, bool allowSimd);
-}  // namespace detail
-
 }  // namespace st::stats
