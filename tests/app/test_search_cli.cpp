@@ -5,7 +5,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
@@ -21,7 +20,14 @@ namespace {
 
 using test::cliPath;
 using test::quoted;
+using test::readText;
 using test::runCli;
+
+// Simulates the small preset's raw frames (64 frames of 128 px) into `raw`; the CLI's exit status.
+int simulateSmall(const std::filesystem::path& cli, const std::filesystem::path& raw, int seed) {
+  return runCli(cli, "simulate --preset small --seed " + std::to_string(seed) + " -o " + quoted(raw) +
+                         " > /dev/null 2>&1");
+}
 
 TEST(SearchCli, FindsInjectedSourceAndWritesJsonAndCsv) {
   const auto cli = cliPath();
@@ -80,7 +86,7 @@ TEST(SearchCli, TimingsListEveryStepInOrder) {
   if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
   test::TempDir dir;
   const auto raw = dir / "raw.fits";
-  ASSERT_EQ(runCli(cli, "simulate --preset small --seed 3 -o " + quoted(raw) + " > /dev/null 2>&1"), 0);
+  ASSERT_EQ(simulateSmall(cli, raw, 3), 0);
   const auto err = dir / "err.txt";
   ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu --timings > /dev/null 2> " +
                             quoted(err)),
@@ -98,9 +104,7 @@ TEST(SearchCli, TimingsListEveryStepInOrder) {
   EXPECT_EQ(at, order.size()) << "steps seen: " << steps.size();
   ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu > /dev/null 2> " + quoted(err)),
             0);
-  std::ifstream again(err);
-  const std::string all((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
-  EXPECT_EQ(all.find("timings:"), std::string::npos);
+  EXPECT_EQ(readText(err).find("timings:"), std::string::npos);
 }
 
 // --grid-auto: the GUI's data-derived grid from the command line. On the small preset (64 frames of 128 px)
@@ -111,13 +115,12 @@ TEST(SearchCli, GridAutoTakesTheDataDerivedDefault) {
   if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
   test::TempDir dir;
   const auto raw = dir / "raw.fits";
-  ASSERT_EQ(runCli(cli, "simulate --preset small --seed 4 -o " + quoted(raw) + " > /dev/null 2>&1"), 0);
+  ASSERT_EQ(simulateSmall(cli, raw, 4), 0);
   const auto json = dir / "out.json", err = dir / "err.txt";
   ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --grid-auto --backend cpu --json > " + quoted(json) + " 2> " +
                             quoted(err)),
             0);
-  std::ifstream in(err);
-  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string all = readText(err);
   EXPECT_NE(all.find("grid (--grid-auto): "), std::string::npos) << all;
   EXPECT_NE(all.find("the paper's range"), std::string::npos) << all;
   nlohmann::json j;
