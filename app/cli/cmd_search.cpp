@@ -169,7 +169,8 @@ int cmdSearch(const Args& args) {
   const nlohmann::json j =
       runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
   progress.finish();
-  std::fprintf(stderr, "memory: peak resident %s\n", formatBytes(static_cast<double>(peakResidentBytes())).c_str());
+  std::fprintf(stderr, "memory: peak resident %s\n",
+               formatBytes(static_cast<double>(peakResidentBytes())).c_str());
   mark("candidates measured");
   writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
   mark("outputs written");

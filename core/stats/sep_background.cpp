@@ -94,8 +94,9 @@ void backguess(const MeshStat& m, const Histogram& h, float& back, float& sigma)
     }
     if (hihigh >= 0) {
       const int hl = h.at(hilow), hh = h.at(hihigh);
-      med = (static_cast<double>(hihigh) + 0.5) +
-            (static_cast<double>(highsum) - static_cast<double>(lowsum)) / (2.0 * static_cast<double>(hl > hh ? hl : hh));
+      med =
+          (static_cast<double>(hihigh) + 0.5) + (static_cast<double>(highsum) - static_cast<double>(lowsum)) /
+                                                    (2.0 * static_cast<double>(hl > hh ? hl : hh));
     } else {
       med = 0.0;
     }
@@ -116,7 +117,8 @@ void backguess(const MeshStat& m, const Histogram& h, float& back, float& sigma)
   const double qzero = m.qzero, qscale = m.qscale;
   double mode;
   if (std::fabs(sig) > 0.0)
-    mode = std::fabs((mea - med) / sig) < 0.3 ? qzero + (2.5 * med - 1.5 * mea) * qscale : qzero + med * qscale;
+    mode =
+        std::fabs((mea - med) / sig) < 0.3 ? qzero + (2.5 * med - 1.5 * mea) * qscale : qzero + med * qscale;
   else
     mode = qzero + mea * qscale;
   back = static_cast<float>(mode);
@@ -125,7 +127,9 @@ void backguess(const MeshStat& m, const Histogram& h, float& back, float& sigma)
 
 }  // namespace
 
-double histogramStep() { return std::sqrt(2 / kPi) * 5 / 4; }
+double histogramStep() {
+  return std::sqrt(2 / kPi) * 5 / 4;
+}
 
 MeshGrid meshGrid(int width, int height, int meshPx) {
   MeshGrid g;
@@ -223,7 +227,8 @@ void meshStatistics(const float* frame, const std::uint8_t* mask, const MeshGrid
         for (int x = 0; x < mw; ++x) {
           const float b = f[x] / qscale + cste;
           // (int)b in [0, nlevels) exactly when -1 < b < nlevels (truncation toward 0); NaN fails both.
-          if (b > -1.0f && b < top && (!mk || mk[x] == 0)) ++h.hist[static_cast<std::size_t>(static_cast<int>(b))];
+          if (b > -1.0f && b < top && (!mk || mk[x] == 0))
+            ++h.hist[static_cast<std::size_t>(static_cast<int>(b))];
         }
       }
       h.nlevels = nlevels;

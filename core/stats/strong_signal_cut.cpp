@@ -30,7 +30,8 @@ float floatAtOrBelow(double t) {
 
 // cutStrongAboveMedian of columns [x0, w), each column gathered and selected in (nth_element): the path
 // without AVX2 and for the columns after the last 16.
-void cutStrongAboveMedianFrom(float* buf, std::size_t nf, int w, int x0, double offset, std::vector<float>& col) {
+void cutStrongAboveMedianFrom(float* buf, std::size_t nf, int w, int x0, double offset,
+                              std::vector<float>& col) {
   const float kNaN = std::numeric_limits<float>::quiet_NaN();
   constexpr int kBlock = 16;  // columns gathered together (their samples share cache lines)
   col.resize(nf * kBlock);
@@ -109,8 +110,8 @@ __attribute__((target("avx2"))) void lowerMedians16Avx2(const float* buf, std::s
     }
     const std::int32_t* k = keys.data();
     for (std::size_t n = 0; n < nf; ++n, k += 16) {
-      above[0] = _mm256_sub_epi32(above[0],
-                                  _mm256_cmpgt_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(k)), mid[0]));
+      above[0] = _mm256_sub_epi32(
+          above[0], _mm256_cmpgt_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(k)), mid[0]));
       above[1] = _mm256_sub_epi32(
           above[1], _mm256_cmpgt_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(k + 8)), mid[1]));
     }

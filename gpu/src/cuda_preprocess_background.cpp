@@ -173,7 +173,8 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
                        : ms(upload)) +
            ", global background " + ms(global) + " (" + std::to_string(out.global.iterations) +
            " passes), kernels " + ms(kernels) + " (prepare " + ms(Event::elapsed(k0, k1)) + ", strong cut " +
-           ms(Event::elapsed(k1, kc)) + ", clip " + ms(Event::elapsed(kc, k2)) + ", subtract " + ms(Event::elapsed(k2, k3)) + "), download " +
+           ms(Event::elapsed(k1, kc)) + ", clip " + ms(Event::elapsed(kc, k2)) + ", subtract " +
+           ms(Event::elapsed(k2, k3)) + "), download " +
            (keep ? std::string("kept on the device") : ms(down)) + ", host " + ms(host);
   if (keep) {
     keep->pix = std::move(pix);

@@ -47,10 +47,10 @@ __device__ __forceinline__ float keyFloat(unsigned k) {
   return __uint_as_float((k & 0x80000000u) ? (k & 0x7fffffffu) : ~k);
 }
 
-// stats/background.cpp cutStrongAboveMedian for one pixel: the lower median (element (c - 1) / 2 in order
-// of the c samples left in, the value std::nth_element gives) by bisection over the float keys (32 passes,
-// each counting the samples at or below the middle key), then the samples above median + strongOffset
-// (in double) become NaN.
+// stats/strong_signal_cut.cpp cutStrongAboveMedian for one pixel: the lower median (element (c - 1) / 2 in
+// order of the c samples left in, the value std::nth_element gives) by bisection over the float keys (32
+// passes, each counting the samples at or below the middle key), then the samples above median +
+// strongOffset (in double) become NaN.
 __global__ void backgroundStrongCutKernel(BackgroundLaunch p) {
   const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;

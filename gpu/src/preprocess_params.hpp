@@ -25,7 +25,7 @@ struct BackgroundLaunch {
   int width, height;
   int nf, nk;
   /// samples above the pixel's own lower median + this are left out (strongSignalXi x global sigma;
-  /// stats/background.cpp cutStrongAboveMedian)
+  /// stats/strong_signal_cut.cpp cutStrongAboveMedian)
   double strongOffset;
   double xi;
   std::size_t minSamples;

@@ -116,12 +116,14 @@ Result withOurs(const Frame& f, int mesh, int filter, float restored) {
   const sep::FrameModel m = sep::model(r.pix.data(), f.mask.empty() ? nullptr : f.mask.data(), g, filter);
   r.global = m.global;
   r.rms = m.globalrms;
-  sep::subtract(r.pix.data(), g, m, sep::rowTable(g.height, g.bh, g.ny), sep::columnTable(g.width, g.bw, g.nx),
-                restored);
+  sep::subtract(r.pix.data(), g, m, sep::rowTable(g.height, g.bh, g.ny),
+                sep::columnTable(g.width, g.bw, g.nx), restored);
   return r;
 }
 
-bool sameFloat(float a, float b) { return (std::isnan(a) && std::isnan(b)) || std::memcmp(&a, &b, sizeof a) == 0; }
+bool sameFloat(float a, float b) {
+  return (std::isnan(a) && std::isnan(b)) || std::memcmp(&a, &b, sizeof a) == 0;
+}
 
 void expectIdentical(const Frame& f, int mesh, int filter, const std::string& what) {
   SCOPED_TRACE(what);
@@ -143,8 +145,8 @@ TEST(SepBackground, EqualsLibsepPixelForPixel) {
   for (Noise noise : {Noise::Gaussian, Noise::Quantised, Noise::Skewed})
     for (bool masked : {false, true})
       for (bool nans : {false, true}) {
-        const std::string tag = "noise " + std::to_string(int(noise)) + (masked ? " masked" : "") +
-                                (nans ? " nans" : "");
+        const std::string tag =
+            "noise " + std::to_string(int(noise)) + (masked ? " masked" : "") + (nans ? " nans" : "");
         expectIdentical(makeFrame(512, 512, seed++, noise, masked, nans), 64, 3, "512^2 " + tag);
         expectIdentical(makeFrame(300, 217, seed++, noise, masked, nans), 64, 3, "300x217 " + tag);
       }

@@ -15,8 +15,8 @@
 
 namespace st::stats::sep {
 
-inline constexpr double kBig = 1e+30;       ///< SEP's BIG (sepcore.h)
-inline constexpr int kMaxLevels = 4096;     ///< QUANTIF_NMAXLEVELS
+inline constexpr double kBig = 1e+30;           ///< SEP's BIG (sepcore.h)
+inline constexpr int kMaxLevels = 4096;         ///< QUANTIF_NMAXLEVELS
 inline constexpr double kPi = 3.1415926535898;  ///< SEP's PI
 
 /// SEP's histogram step sqrt(2 / PI) * QUANTIF_NSIGMA / QUANTIF_AMIN.
