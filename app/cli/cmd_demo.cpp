@@ -24,6 +24,7 @@
 #include "st/search/velocity_grid.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/stack/ipsa.hpp"
+#include "step_timings.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -33,7 +34,7 @@ constexpr const char* kHelp =
     "usage: synthtrack-cli demo [--out DIR] [--preset NAME] [--seed N] [--frames N]\n"
     "                           [--vmax-deg-day D] [--grid-step-px P] [--snr S] [--fits K]\n"
     "                           [--backend auto|cpu|cuda] [--method auto|exact|tree]\n"
-    "                           [--frame-precision fp32|fp16]\n"
+    "                           [--frame-precision fp32|fp16] [--timings]\n"
     "Simulates the demo observation (default paper-neo: the paper's V~23 asteroid at 5.97 deg/day, 500\n"
     "frames of 512x512 at 16.7 Hz, sky drifting 5\"/s; also known-pair and small), pre-processes it,\n"
     "searches +-D deg/day around the sky rate (default: the preset's, 8 for paper-neo, 1.5 for known-pair,\n"
@@ -41,7 +42,8 @@ constexpr const char* kHelp =
     "paper's +-12 deg/day and 1 px that 'synthtrack-cli search' uses), with --method (default auto: exact\n"
     "or tree, whichever is estimated to win), fits the K best candidates (default 40) and writes\n"
     "everything to DIR (default ./demo-output). --frame-precision fp16: the CUDA exact search on float16\n"
-    "frames (faster; its SNR cost is printed with the backend).\n";
+    "frames (faster; its SNR cost is printed with the backend). --timings: when each step ended on stderr,\n"
+    "and the seconds after the simulation (the demo's own work: pre-processing to outputs).\n";
 
 struct DemoOptions {
   std::filesystem::path out = "demo-output";
@@ -55,6 +57,7 @@ struct DemoOptions {
   BackendChoice backend = BackendChoice::Auto;
   FramePrecisionChoice precision = FramePrecisionChoice::Fp32;
   search::SearchMethod method = pipeline::demoSearchParams().method;
+  bool timings = false;
 };
 
 DemoOptions parseDemo(const Args& args) {
@@ -62,10 +65,11 @@ DemoOptions parseDemo(const Args& args) {
       args,
       {"out", "preset", "seed", "frames", "vmax-deg-day", "grid-step-px", "snr", "fits", "backend", "method",
        "frame-precision"},
-      {"help"});
+      {"help", "timings"});
   if (!cli.positionals().empty()) throw UsageError("unexpected argument '" + cli.positionals()[0] + "'");
   DemoOptions o;
   if (auto v = cli.value("out")) o.out = *v;
+  o.timings = cli.flag("timings");
   if (auto v = cli.value("preset")) o.preset = *v;
   if (auto v = cli.integer("seed")) o.seed = static_cast<std::uint64_t>(*v);
   if (auto v = cli.integer("frames")) o.frames = static_cast<int>(*v);
@@ -143,6 +147,9 @@ int cmdDemo(const Args& args) {
   TerminalProgress progress;
   CancelToken& cancel = processCancelToken();
   const auto path = [&](const char* name) { return (o.out / name).string(); };
+  const StepTimings timings(o.timings);
+  // The backend (a CUDA context takes ~0.25 s) is made while the observation is simulated.
+  BackendInTheMaking backendMade(o.backend, o.method, o.precision);
 
   // 1. The observation.
   sim::SimParams params = sim::preset(o.preset);
@@ -151,17 +158,24 @@ int cmdDemo(const Args& args) {
   sim::SimResult sim = sim::simulate(params, o.seed, simProgress, cancel);
   io::writeCube(path("observation.fits"), sim.cube, io::provenanceCards("simulate " + o.preset));
   sim::writeTruth(path("observation.truth.json"), sim.truth);
+  progress.finish();
+  timings.mark("simulated and written");
+  const double simulatedAt = timings.elapsed();
   const double gain = sim.cube.header.getDouble("GAIN").value_or(1.0);
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
   // On the search's device when it is a GPU (per-pixel background and matched filter, issue 16).
-  BackendSelection backend = makeBackendForMethod(o.backend, o.method, o.precision);
+  BackendSelection& backend = backendMade.get();
+  timings.mark("backend ready");
   std::string accelMessage;
   const auto accel = makePreprocessAccelerator(*backend.backend, accelMessage);
   pipeline::PreprocessParams prepParams;
   prepParams.accelerator = accel.get();
   SubProgress prepProgress(progress, 0.25, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(sim.cube), prepParams, prepProgress, cancel);
+  progress.finish();
+  timings.stages(prepared.stageSeconds);
+  timings.mark("pre-processed");
   pipeline::writePreparedSidecar(path("prepared.json"), prepared);
   for (const auto& note : prepared.notes)
     if (note.rfind("warning:", 0) == 0) std::fprintf(stderr, "%s\n", note.c_str());
@@ -169,6 +183,8 @@ int cmdDemo(const Args& args) {
   // 3. The velocity search, +-vmax deg/day around the sky rate.
   SubProgress searchProgress(progress, 0.5, 0.9);
   const search::SearchResult result = demoSearch(o, prepared, *backend.backend, searchProgress, cancel);
+  progress.finish();
+  timings.mark("searched");
   std::fputs(searchNotesText(result).c_str(), stderr);
   nlohmann::json report = report::searchResultToJson(prepared.filtered, result, {path("observation.fits")});
 
@@ -181,6 +197,7 @@ int cmdDemo(const Args& args) {
     report["candidates"][i]["fit"] = report::toFlatJson(*fits[i]);
   }
   progress.finish();
+  timings.mark("candidates fitted");
   report::writeJsonFile(path("candidates.json"), report);
   report::writeCandidatesCsv(path("candidates.csv"), report);
   writeStack(o.out / "stack_sky.fits", prepared.frames, prepared.skyRate, "tracking the sky");
@@ -188,6 +205,8 @@ int cmdDemo(const Args& args) {
     writeStack(o.out / "stack_candidate1.fits", prepared.frames, result.candidates.front().v,
                "tracking candidate 1");
   }
+  timings.mark("outputs written");
+  timings.line("after the simulation", timings.elapsed() - simulatedAt);
 
   // 5. What was found, against the truth.
   std::printf("synthtrack demo: %s, %zu frames of %dx%d, seed %llu\n", o.preset.c_str(),

@@ -1,12 +1,9 @@
 // synthtrack-cli search INPUT... : the velocity search (paper §4.4) over a grid of trial velocities,
 // candidates above threshold with their false-alarm probabilities (paper Prob_false).
-#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
 #include <nlohmann/json.hpp>
-
-#include <chrono>
 
 #include "backend_factory.hpp"
 #include "observation_pipeline.hpp"
@@ -18,6 +15,7 @@
 #include "load_args.hpp"
 #include "st/search/method_choice.hpp"
 #include "st/search/sky_motion.hpp"
+#include "step_timings.hpp"
 #include "terminal_progress.hpp"
 
 namespace st::app {
@@ -125,16 +123,19 @@ int cmdSearch(const Args& args) {
   }
   const SearchOptions o = parseSearchOptions(cli);
   if (cli.flag("mpi")) return searchMpi(input, o, cli.flag("fit"), cli.value("out"), cli.flag("json"));
-  const auto t0 = std::chrono::steady_clock::now();
-  const bool timings = cli.flag("timings");
-  auto mark = [&](const char* what) {
-    if (timings)
-      std::fprintf(stderr, "timings: %-34s %8.3f s\n", what,
-                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  const StepTimings timings(cli.flag("timings"));
+  auto mark = [&](const char* what) { timings.mark(what); };
+  // Made on another thread while the frames are read (issue 16: a CUDA context takes ~0.2 s).
+  BackendInTheMaking backendMade(parseBackendChoice(o.backend), o.request.params.method,
+                                 parseFramePrecision(o.framePrecision));
+  BackendSelection* selMade = nullptr;
+  auto backend = [&]() -> search::SearchBackend& {
+    if (!selMade) {
+      selMade = &backendMade.get();
+      mark("backend ready");
+    }
+    return *selMade->backend;
   };
-  BackendSelection sel = makeBackendForMethod(parseBackendChoice(o.backend), o.request.params.method,
-                                              parseFramePrecision(o.framePrecision));
-  mark("backend ready");
   TerminalProgress progress;
   ObservationHooks hooks;
   std::size_t memoryLines = 0;
@@ -143,10 +144,9 @@ int cmdSearch(const Args& args) {
     printMemory(m, memoryLines);
   };
   hooks.prepared = [&](const pipeline::Prepared& prep) {
-    if (!timings) return;
+    if (!timings.on()) return;
     progress.finish();
-    for (const auto& [stage, seconds] : prep.stageSeconds)
-      std::fprintf(stderr, "timings:   %-32s %8.3f s\n", stage.c_str(), seconds);
+    timings.stages(prep.stageSeconds);
     mark("loaded and pre-processed");
   };
   hooks.planned = [&](const PlannedSearch& p) {
@@ -157,7 +157,7 @@ int cmdSearch(const Args& args) {
     for (const auto& n : p.notes)
       std::fprintf(stderr, "note: %s\n", n.c_str());
     std::fprintf(stderr, "note: %s\n", search::staticRateLimitNote(p.cube.frames, p.cube.psfFwhmPx).c_str());
-    std::fprintf(stderr, "%s\n", sel.message.c_str());
+    std::fprintf(stderr, "%s\n", backendMade.get().message.c_str());
     printEstimate(p);
     printMemory(p.memory, memoryLines);
   };
@@ -167,7 +167,7 @@ int cmdSearch(const Args& args) {
     std::fputs(searchNotesText(r).c_str(), stderr);
   };
   const nlohmann::json j =
-      runObservation(input, o, cli.flag("fit"), *sel.backend, progress, processCancelToken(), hooks);
+      runObservation(input, o, cli.flag("fit"), backend, progress, processCancelToken(), hooks);
   progress.finish();
   std::fprintf(stderr, "memory: peak resident %s\n",
                formatBytes(static_cast<double>(peakResidentBytes())).c_str());

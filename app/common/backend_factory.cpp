@@ -105,6 +105,16 @@ BackendSelection makeBackendForMethod(BackendChoice choice, search::SearchMethod
   return sel;
 }
 
+BackendInTheMaking::BackendInTheMaking(BackendChoice choice, search::SearchMethod method,
+                                       FramePrecisionChoice precision)
+    : m_future(std::async(std::launch::async,
+                          [=] { return makeBackendForMethod(choice, method, precision); })) {}
+
+BackendSelection& BackendInTheMaking::get() {
+  if (!m_made) m_made = m_future.get();
+  return *m_made;
+}
+
 std::string chooseRankResources(int localIndex, int localWorkers) {
   localWorkers = std::max(1, localWorkers);
   std::vector<std::string> devices;

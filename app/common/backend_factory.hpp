@@ -1,6 +1,9 @@
 #pragma once
 // The one place a search backend is chosen (ARCHITECTURE.md): the GUI and the CLI both call this.
+#include <functional>
+#include <future>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,6 +45,19 @@ BackendSelection makeBackend(BackendChoice choice,
 /// named.
 BackendSelection makeBackendForMethod(BackendChoice choice, search::SearchMethod method,
                                       FramePrecisionChoice precision = FramePrecisionChoice::Fp32);
+
+/// makeBackendForMethod on another thread (a CUDA context takes ~0.2 s: issue 16 makes it while the frames
+/// are read or simulated); get() waits for it once and rethrows what the making threw.
+class BackendInTheMaking {
+ public:
+  BackendInTheMaking(BackendChoice choice, search::SearchMethod method,
+                     FramePrecisionChoice precision = FramePrecisionChoice::Fp32);
+  BackendSelection& get();
+
+ private:
+  std::future<BackendSelection> m_future;
+  std::optional<BackendSelection> m_made;
+};
 
 /// For one of `localWorkers` worker processes on a node (batch under MPI), index `localIndex`: each gets
 /// its own GPU when the node has several (CUDA_VISIBLE_DEVICES set to one of the visible ones, round robin;

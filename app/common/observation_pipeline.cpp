@@ -28,7 +28,7 @@ namespace st::app {
 pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOptions& o,
                                       ProgressSink& progress, CancelToken& cancel,
                                       std::vector<std::string>& warnings, bool keepZeroBiased,
-                                      pipeline::PreprocessAccelerator* accelerator) {
+                                      const std::function<pipeline::PreprocessAccelerator*()>& accelerator) {
   FrameCube raw;
   const auto loadStart = std::chrono::steady_clock::now();
   {
@@ -53,7 +53,6 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     }
   }
   pipeline::PreprocessParams params;
-  params.accelerator = accelerator;
   params.calib = in.calib;
   params.keepZeroBiased = keepZeroBiased;
   params.registerFrames = o.registerFrames;
@@ -64,6 +63,7 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
   if (!bias.empty() || !dark.empty() || !flat.empty())
     params.masters = calib::buildMasters(bias, dark, flat, raw, params.calib, progress, cancel);
+  if (accelerator) params.accelerator = accelerator();
   SubProgress prepProgress(progress, 0.2, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(raw), params, prepProgress, cancel);
   prepared.stageSeconds.insert(prepared.stageSeconds.begin(), {"read the frames", loadSeconds});
@@ -201,9 +201,16 @@ search::VelocityGrid observationGrid(const SearchOptions& o, const search::Filte
 
 }  // namespace
 
-nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& optionsIn, bool fit,
+nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& options, bool fit,
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks) {
+  return runObservation(in, options, fit, [&backend]() -> search::SearchBackend& { return backend; }, progress,
+                        cancel, hooks);
+}
+
+nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& optionsIn, bool fit,
+                              const std::function<search::SearchBackend&()>& backendSource,
+                              ProgressSink& progress, CancelToken& cancel, const ObservationHooks& hooks) {
   if (fit && in.preprocessed)
     throw InputError(
         "the co-moving fit needs the unfiltered frames: give the raw input, not a pre-processed one");
@@ -250,9 +257,13 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     }
     if (fits) {
       if (hooks.memory) hooks.memory(memory);
-      std::string accelMessage;  // the per-pixel background and matched filter on the search's GPU, if any
-      const auto accel = makePreprocessAccelerator(backend, accelMessage);
-      prepared = prepareObservation(in, o, progress, cancel, warnings, fit, accel.get());
+      // The pre-processing on the search's GPU, if any; the backend is waited for after the frames are read.
+      std::unique_ptr<pipeline::PreprocessAccelerator> accel;
+      prepared = prepareObservation(in, o, progress, cancel, warnings, fit, [&] {
+        std::string accelMessage;
+        accel = makePreprocessAccelerator(backendSource(), accelMessage);
+        return accel.get();
+      });
       if (hooks.prepared) hooks.prepared(*prepared);
     } else {
       // Out of core in strips of rows (pipeline/raw_out_of_core.hpp): planned (and shown) before any pixel.
@@ -271,6 +282,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   }
   if (!prepared) {
     // A pre-processed cube: searched in memory when cube + search fit, else in tiles.
+    search::SearchBackend& backend = backendSource();
     OutOfCoreInput m = outOfCoreMeta(*src, o, shape.width, shape.height, cancel);
     std::vector<std::string> unused;
     const search::VelocityGrid grid0 = observationGrid(o, m.meta, backend, shape.width, shape.height, unused);
@@ -304,6 +316,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   if (ooc) fcp = &ooc->meta;
   search::FilteredCube& fc = *fcp;
   const int width = shape.width, height = shape.height;
+  search::SearchBackend& backend = backendSource();
   const search::VelocityGrid grid = observationGrid(o, fc, backend, width, height, notes);
   search::MethodEstimate e =
       search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),

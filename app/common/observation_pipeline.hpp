@@ -75,11 +75,13 @@ struct ObservationHooks {
 /// Loads and pre-processes a raw observation as runObservation does (the loader's and calibration's
 /// warnings in `warnings`); --fwhm / --sigma-f of `options` applied. Used by batch to re-measure a track
 /// over several cubes. Without keepZeroBiased the matched filter runs in place (no zero-biased frames kept,
-/// so no co-moving fit afterwards).
+/// so no co-moving fit afterwards). `accelerator`, when given, is asked once, after the frames and the
+/// calibration frames are read, for the device that pre-processes (null: the CPU).
 pipeline::Prepared prepareObservation(const ObservationInput& input, const SearchOptions& options,
                                       ProgressSink& progress, CancelToken& cancel,
                                       std::vector<std::string>& warnings, bool keepZeroBiased = true,
-                                      pipeline::PreprocessAccelerator* accelerator = nullptr);
+                                      const std::function<pipeline::PreprocessAccelerator*()>& accelerator = {});
+
 
 /// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
 /// or the default; raw input whose in-memory pre-processing does not fit is pre-processed out of core in
@@ -96,5 +98,11 @@ pipeline::Prepared prepareObservation(const ObservationInput& input, const Searc
 nlohmann::json runObservation(const ObservationInput& input, const SearchOptions& options, bool fit,
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks = {});
+
+/// The same with the backend asked of `backend` where first needed: after raw frames are read (a backend
+/// made on another thread meanwhile, BackendInTheMaking, costs the read nothing), before anything else.
+nlohmann::json runObservation(const ObservationInput& input, const SearchOptions& options, bool fit,
+                              const std::function<search::SearchBackend&()>& backend, ProgressSink& progress,
+                              CancelToken& cancel, const ObservationHooks& hooks = {});
 
 }  // namespace st::app

@@ -1,0 +1,54 @@
+// `synthtrack-cli demo --timings`: when each step ended, the pre-processing stages, and the seconds after
+// the simulation (issue 16's demo target counts those), in order on stderr; nothing of it without the flag.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "cli_runner.hpp"
+#include "test_support.hpp"
+
+namespace st {
+namespace {
+
+using test::cliPath;
+using test::quoted;
+using test::readText;
+using test::runCli;
+
+TEST(DemoCli, TimingsListEveryStepAndTheSecondsAfterTheSimulation) {
+  const auto cli = cliPath();
+  if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
+  test::TempDir dir;
+  const auto err = dir / "err.txt";
+  const std::string demo =
+      "demo --preset small --vmax-deg-day 40 --backend cpu --fits 1 --out " + quoted(dir / "out");
+  // Exit 0: the small preset's objects found (as cli.demo_small asks of the full preset).
+  ASSERT_EQ(runCli(cli, demo + " --timings > /dev/null 2> " + quoted(err)), 0) << readText(err);
+  std::ifstream in(err);
+  std::vector<std::string> steps;
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("timings: ", 0) == 0) steps.push_back(line);
+  const std::vector<std::string> order = {"simulated and written", "backend ready",   "frame backgrounds",
+                                          "matched filter",        "pre-processed",   "searched",
+                                          "candidates fitted",     "outputs written", "after the simulation"};
+  std::size_t at = 0;
+  for (const auto& s : steps)
+    if (at < order.size() && s.find(order[at]) != std::string::npos) ++at;
+  EXPECT_EQ(at, order.size()) << readText(err);
+  // The seconds after the simulation are the last mark's less the simulation's.
+  auto seconds = [&](const std::string& what) {
+    for (const auto& s : steps)
+      if (s.find(what) != std::string::npos) return std::stod(s.substr(s.rfind(' ', s.size() - 3)));
+    return -1.0;
+  };
+  const double after = seconds("after the simulation");
+  EXPECT_GT(after, 0.0);
+  EXPECT_NEAR(after, seconds("outputs written") - seconds("simulated and written"), 0.002);
+  ASSERT_EQ(runCli(cli, demo + " > /dev/null 2> " + quoted(err)), 0);
+  EXPECT_EQ(readText(err).find("timings:"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace st
