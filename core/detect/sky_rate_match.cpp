@@ -5,6 +5,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "st/common/fftw_plans.hpp"
+
 namespace st::detect::detail {
 
 double minPeakCompressed() {
@@ -192,7 +194,70 @@ bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vecto
 }
 
 cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response) {
-  return cv::phaseCorrelate(a.clone(), b.clone(), window, response);
+  CV_Assert(a.type() == CV_64FC1 && b.type() == CV_64FC1 && a.size() == b.size());
+  CV_Assert(window.empty() || (window.type() == CV_64FC1 && window.size() == a.size()));
+  // OpenCV's padding: zeros to its optimal DFT size, the window applied before (it is padded with zeros).
+  const int w = a.cols, h = a.rows;
+  const int nx = cv::getOptimalDFTSize(w), ny = cv::getOptimalDFTSize(h);
+  const std::size_t nr = static_cast<std::size_t>(nx) * ny, nc = static_cast<std::size_t>(nx / 2 + 1) * ny;
+  const fftw::PlanPair plans = fftw::plans2d(nx, ny, false);
+  fftw::RealBuf in = fftw::allocReal(nr, "sky rate");
+  fftw::CplxBuf fa = fftw::allocCplx(nc, "sky rate");
+  fftw::CplxBuf fb = fftw::allocCplx(nc, "sky rate");
+  auto transform = [&](const cv::Mat& m, fftwf_complex* out) {
+    std::fill(in.get(), in.get() + nr, 0.0f);
+    for (int y = 0; y < h; ++y) {
+      const double* row = m.ptr<double>(y);
+      const double* win = window.empty() ? nullptr : window.ptr<double>(y);
+      float* dst = in.get() + static_cast<std::size_t>(y) * nx;
+      for (int x = 0; x < w; ++x)
+        dst[x] = static_cast<float>(win ? win[x] * row[x] : row[x]);
+    }
+    fftwf_execute_dft_r2c(plans.forward, in.get(), out);
+  };
+  transform(a, fa.get());
+  transform(b, fb.get());
+  // The normalised cross-power spectrum A conj(B) / |A conj(B)| (0 where it vanishes), transformed back
+  // without scaling: a peak of up to nx * ny at the offset.
+  for (std::size_t i = 0; i < nc; ++i) {
+    const double re = static_cast<double>(fa[i][0]) * fb[i][0] + static_cast<double>(fa[i][1]) * fb[i][1];
+    const double im = static_cast<double>(fa[i][1]) * fb[i][0] - static_cast<double>(fa[i][0]) * fb[i][1];
+    const double m = std::hypot(re, im);
+    fa[i][0] = m > 0.0 ? static_cast<float>(re / m) : 0.0f;
+    fa[i][1] = m > 0.0 ? static_cast<float>(im / m) : 0.0f;
+  }
+  fftwf_execute_dft_c2r(plans.inverse, fa.get(), in.get());
+  // OpenCV's quadrant swap (numpy's fftshift: shifted x is x - nx / 2 modulo nx), its first maximum in row
+  // order and the centroid of the 5 x 5 px around it (cut at the edges): the offset from the centre, and
+  // the summed peak / (nx * ny) as the response.
+  const int xFrom = nx - nx / 2, yFrom = ny - ny / 2;
+  auto at = [&](int x, int y) {
+    const int sx = (x + xFrom) % nx, sy = (y + yFrom) % ny;
+    return static_cast<double>(in[static_cast<std::size_t>(sy) * nx + sx]);
+  };
+  // The maximum over the unshifted surface; of equal values, the first in the shifted row order.
+  const int xMid = nx / 2, yMid = ny / 2;
+  auto shiftedIndex = [&](std::size_t i) {
+    const int x = static_cast<int>(i % static_cast<std::size_t>(nx)), y = static_cast<int>(i / nx);
+    return static_cast<std::size_t>((y + yMid) % ny) * nx + static_cast<std::size_t>((x + xMid) % nx);
+  };
+  const float* c = in.get();
+  std::size_t bestAt = 0, bestShifted = shiftedIndex(0);
+  for (std::size_t i = 1; i < nr; ++i) {
+    if (c[i] < c[bestAt]) continue;
+    if (c[i] > c[bestAt] || shiftedIndex(i) < bestShifted) bestAt = i, bestShifted = shiftedIndex(i);
+  }
+  const int px = static_cast<int>(bestShifted % static_cast<std::size_t>(nx));
+  const int py = static_cast<int>(bestShifted / static_cast<std::size_t>(nx));
+  double sx = 0.0, sy = 0.0, sum = 0.0;
+  for (int y = std::max(0, py - 2); y <= std::min(ny - 1, py + 2); ++y)
+    for (int x = std::max(0, px - 2); x <= std::min(nx - 1, px + 2); ++x) {
+      const double v = at(x, y);
+      sx += x * v, sy += y * v, sum += v;
+    }
+  if (response) *response = sum / static_cast<double>(nr);
+  sum += 2.220446049250313e-16;  // OpenCV's DBL_EPSILON against a zero sum
+  return {0.5 * nx - sx / sum, 0.5 * ny - sy / sum};
 }
 
 }  // namespace st::detect::detail

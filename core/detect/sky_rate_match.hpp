@@ -55,8 +55,11 @@ bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vecto
 /// weighs more for being brighter. False with fewer than 3 pairs.
 bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak, cv::Point2d* d);
 
-/// cv::phaseCorrelate(a, b) (offset of b relative to a, px) on copies: when the images already have an
-/// optimal DFT size (128 x 128, say), OpenCV multiplies them by the window in place.
+/// cv::phaseCorrelate(a, b, window) (offset of b relative to a, px, and the response), computed as OpenCV
+/// does (zero padding to its optimal DFT size, the normalised cross-power spectrum, its quadrant swap, the
+/// 5 x 5 centroid) but with single-precision FFTW transforms: 1.5x-3x faster than OpenCV's double DFTs on the
+/// sky rate's 54 links of 512^2 images (issue 16), within ~1e-3 px and ~1e-4 in response of OpenCV
+/// (tests/core/test_sky_rate_phase_shift.cpp). The inputs are not changed.
 cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response);
 
 }  // namespace st::detect::detail
