@@ -29,6 +29,9 @@ constexpr double kCudaExactAdditionsPerS = 9.5e12;
 constexpr double kCudaExactFixedS = 0.05;
 constexpr double kCudaTreeAdditionsPerS = 1.22e10 / 0.085;
 constexpr double kCudaTreeFixedS = 0.12;
+// The device tree's tiles are 128-512 rows on the paper's problem (tree_device_plan.cpp): priced at 128,
+// where the paper's problem has 1.15e10 additions (1.13e10 at 256; 1.22e10 in the fit above).
+constexpr int kCudaTreePricedTileRows = 128;
 
 std::string formatSeconds(double s) {
   char text[32];
@@ -95,6 +98,8 @@ MethodCostModel cudaCostModel() {
   m.treeOpsWeight = kCudaExactAdditionsPerS / kCudaTreeAdditionsPerS;
   m.treeFixedS = kCudaTreeFixedS;
   m.treeVelocityBlocks = false;
+  m.treePricedTileRows = kCudaTreePricedTileRows;
+  m.autoTreeMinSavingS = kCudaAutoTreeMinSavingS;
   return m;
 }
 
@@ -109,6 +114,7 @@ void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
     const double w = static_cast<double>(e.width);
     efficiency = std::min(1.0, (512.0 + model.exactWidthPx) / 512.0 * w / (w + model.exactWidthPx));
   }
+  e.autoTreeMinSavingS = model.autoTreeMinSavingS;
   e.exactSeconds = model.exactFixedS + e.exactAdditions / (model.exactAdditionsPerS * efficiency);
   e.treeSeconds = e.treeAdditions > 0.0
                       ? model.treeFixedS + model.treeOpsWeight * e.treeAdditions / model.exactAdditionsPerS
@@ -132,7 +138,8 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   // The CPU tree searches the grid in the velocity blocks of fewest additions that fit (one tree when that
   // is cheapest, tree_search.hpp): priced as the blocks it will run.
   const std::size_t tileBudget = treeTileBudgetPerThread(threads, bufferBytes);
-  const TreePlan plan = buildTreePlan(dtS, grid);
+  const std::shared_ptr<const TreePlan> shared = sharedTreePlan(dtS, grid);
+  const TreePlan& plan = *shared;
   TreeBlocks blocks{1, 1, grid.nvx, grid.nvy};
   if (model.treeVelocityBlocks) {
     blocks = treeVelocityBlocks(plan, width, height, treeBlockSplitBytes(bufferBytes), tileBudget);
@@ -143,7 +150,8 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   }
   e.treeBlocks = blocks.count();
   e.treeTileRows = blocks.tileRows;
-  e.treeAdditions = blocks.additions;
+  e.treeAdditions = model.treePricedTileRows > 0 ? treeAdditions(plan, width, height, model.treePricedTileRows)
+                                                 : blocks.additions;
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
   priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.
@@ -177,7 +185,7 @@ MethodChoice chooseMethod(SearchMethod requested, const MethodEstimate& estimate
   if (!std::isfinite(e.treeSeconds)) return {kExact, "auto: exact, no tree plan for these frames"};
   if (e.exactSeconds < kAutoTreeMinSpeedup * e.treeSeconds)
     return {kExact, autoReason("exact, the tree would not be clearly faster", e)};
-  if (e.exactSeconds - e.treeSeconds < kAutoTreeMinSavingS)
+  if (e.exactSeconds - e.treeSeconds < e.autoTreeMinSavingS)
     return {kExact, autoReason("exact, too small for the tree's SNR loss to pay", e)};
   if (e.psfFwhmPx > 0.0 && e.treeSnrLoss > kAutoTreeMaxSnrLoss) {
     char text[160];

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numeric>
 
 #include "st/common/error.hpp"
@@ -233,6 +235,39 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
   plan.maxAbsErrY = planAxis(plan, 0, false);
   planExtents(plan, 0, std::vector<std::pair<int, int>>(static_cast<std::size_t>(grid.nvx), {0, 0}),
               std::vector<std::pair<int, int>>(static_cast<std::size_t>(grid.nvy), {0, 0}));
+  return plan;
+}
+
+std::shared_ptr<const TreePlan> sharedTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
+                                               const std::vector<PixelOffset>& offsets) {
+  struct Kept {
+    std::vector<double> dt;
+    std::vector<PixelOffset> offsets;  // empty when all are 0
+    VelocityGrid grid;
+    std::shared_ptr<const TreePlan> plan;
+  };
+  static std::mutex mutex;
+  static Kept kept;
+  if (!offsets.empty() && offsets.size() != dtS.size())
+    return std::make_shared<const TreePlan>(buildTreePlan(dtS, grid, offsets));  // throws, naming the counts
+  const bool zero = std::all_of(offsets.begin(), offsets.end(),
+                                [](const PixelOffset& o) { return o.x == 0.0 && o.y == 0.0; });
+  const std::vector<PixelOffset> key = zero ? std::vector<PixelOffset>{} : offsets;
+  auto sameOffsets = [&](const std::vector<PixelOffset>& a) {
+    return a.size() == key.size() &&
+           std::equal(a.begin(), a.end(), key.begin(),
+                      [](const auto& p, const auto& q) { return p.x == q.x && p.y == q.y; });
+  };
+  {
+    const std::lock_guard lock(mutex);
+    if (kept.plan && kept.dt == dtS && sameOffsets(kept.offsets) && kept.grid.nvx == grid.nvx &&
+        kept.grid.nvy == grid.nvy && kept.grid.stepPxS == grid.stepPxS &&
+        kept.grid.centre.vx == grid.centre.vx && kept.grid.centre.vy == grid.centre.vy)
+      return kept.plan;
+  }
+  auto plan = std::make_shared<const TreePlan>(buildTreePlan(dtS, grid, key));
+  const std::lock_guard lock(mutex);
+  kept = {dtS, key, grid, plan};
   return plan;
 }
 

@@ -463,7 +463,9 @@ KernelOutput treeSearchBlock(const FrameCube& frames, const TreePlan& plan, cons
 
 KernelOutput treeSearchRegion(const FrameCube& frames, const VelocityGrid& grid, const Roi& roi,
                               const TreeRegionParams& p, ProgressSink& progress, CancelToken& cancel) {
-  const TreePlan whole = buildTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
+  const std::shared_ptr<const TreePlan> shared =
+      sharedTreePlan(frames.timeOffsetsS(), grid, frames.frameOffsets());
+  const TreePlan& whole = *shared;
   // Tile rows from the share of every worker, not of p.threads: the blocks and rows (and so the hits kept per
   // worker) do not depend on how many threads the memory plan allows.
   const std::size_t tileBudget = treeTileBudgetPerThread(workerCount(), p.bufferBytes);

@@ -124,8 +124,9 @@ class CudaBackend final : public CudaSearchBackend {
     const std::uint64_t key = treePlanKey(cube, grid, cut);
     if (key == 0 || key != m_treeKey || !m_treePlan) {
       releaseTreeWorkspaces();
-      const search::TreePlan tree =
-          search::buildTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());
+      const std::shared_ptr<const search::TreePlan> shared =
+          search::sharedTreePlan(cube.frames.timeOffsetsS(), grid, cube.frames.frameOffsets());
+      const search::TreePlan& tree = *shared;
       m_treePlan = std::make_shared<const TreeDevicePlan>(chooseTreeTiles(tree, plan, cube, capacity, cut));
       m_treeKey = key;
       wall.mark("tree plan");

@@ -1,5 +1,6 @@
 #include "tree_search_device.hpp"
 
+#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <mutex>
@@ -53,6 +54,15 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     (slot ? slot->cube : ownCube) = DeviceBuffer<float>(cubeFloats);
   }
   DeviceBuffer<float>& cube = slot ? slot->cube : ownCube;
+  // Wall time of the host-side steps, for the note (the first search of a plan makes its workspace).
+  using Clock = std::chrono::steady_clock;
+  auto lapFrom = Clock::now();
+  auto lap = [&lapFrom] {
+    const auto now = Clock::now();
+    const double s = std::chrono::duration<double>(now - lapFrom).count();
+    lapFrom = now;
+    return s;
+  };
   // The arenas, the plan's tables and the cell buffer: kept from the last search of this plan, else made.
   TreeWorkspace local;
   TreeWorkspace& ws = job.treeWorkspace ? *job.treeWorkspace : local;
@@ -87,6 +97,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   DeviceBuffer<unsigned long long> mapKeys(nv), count(1);
   ST_CUDA_CHECK(cudaMemsetAsync(mapKeys.get(), 0, nv * 8, compute.get()));
   ST_CUDA_CHECK(cudaMemsetAsync(count.get(), 0, 8, compute.get()));
+  const double workspaceS = lap();
 
   Event up0(true), up1(true), k0(true), k1(true);
   up0.record(copy.get());
@@ -143,7 +154,9 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   rt.cellCount = count.get();
   rt.cellCapacity = job.cellCapacity;
 
+  lap();
   loadTreeKernels();  // the module's loading is not kernel time (it stays in search()'s wall time)
+  const double moduleS = lap();
   std::vector<Event> marks;
   const bool profile = job.profile && tileBegin < tileEnd;
   if (profile) {
@@ -175,6 +188,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   }
   k1.record(compute.get());
   compute.sync();
+  const double kernelsWallS = lap();
 
   DeviceOutcome out;
   out.kernelSeconds = elapsedSeconds(k0, k1);
@@ -189,6 +203,11 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     ST_CUDA_CHECK(cudaMemcpy(out.cells.data(), cells.get(), out.cells.size() * sizeof(DeviceCell),
                              cudaMemcpyDeviceToHost));
   }
+  const double readBackS = lap();
+  char wall[160];
+  std::snprintf(wall, sizeof wall,
+                "; wall: workspace %.1f ms, kernel module %.1f ms, kernels %.1f ms, read-back %.1f ms",
+                1e3 * workspaceS, 1e3 * moduleS, 1e3 * kernelsWallS, 1e3 * readBackS);
   std::string levels;
   if (profile) {
     levels = "; first tile, ms per level (depth):";
@@ -210,7 +229,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
              (kept              ? "kept from the last search"
               : job.treePlanKey ? "made, kept for the next"
                                 : "made") +
-             "), top " + std::to_string(tree.cut) + " levels in registers" + levels;
+             "), top " + std::to_string(tree.cut) + " levels in registers" + wall + levels;
   return out;
 }
 

@@ -336,6 +336,37 @@ TEST(SearchTree, BlockPlanIsTheWholeTreesCut) {
   EXPECT_THROW(treeSubPlan(whole, 0, 0, 0, 1), InputError);
 }
 
+// The shared plan (issue 16: the estimate and the search of a cube build it once): the same object for the
+// same times, grid and offsets (none and all-zero alike), buildTreePlan's plan, and a new one when any of
+// them changes; offsets of the wrong count still throw.
+TEST(SearchTree, SharedPlanIsBuiltOncePerTimesGridAndOffsets) {
+  const std::vector<double> dt = offsetsOf(test::unevenTimes(41, 0.5, 3, true));
+  const double span = *std::max_element(dt.begin(), dt.end()) - *std::min_element(dt.begin(), dt.end());
+  const VelocityGrid grid{{1.0 / span, 0.5 / span}, 1.0 / span, 21, 17};
+  const auto a = sharedTreePlan(dt, grid);
+  EXPECT_EQ(sharedTreePlan(dt, grid).get(), a.get());
+  EXPECT_EQ(sharedTreePlan(dt, grid, std::vector<PixelOffset>(dt.size())).get(), a.get());
+  const TreePlan built = buildTreePlan(dt, grid);
+  ASSERT_EQ(a->nodes.size(), built.nodes.size());
+  for (int jy = 0; jy < grid.nvy; jy += 4)
+    for (int jx = 0; jx < grid.nvx; jx += 4)
+      ASSERT_EQ(treeImpliedShifts(*a, jx, jy), treeImpliedShifts(built, jx, jy));
+  VelocityGrid wider = grid;
+  wider.nvx += 2;
+  const auto b = sharedTreePlan(dt, wider);
+  EXPECT_NE(b.get(), a.get());
+  EXPECT_EQ(b->nodes[0].x.v.size(), static_cast<std::size_t>(wider.nvx));
+  std::vector<PixelOffset> offsets(dt.size());
+  offsets[3] = {0.4, -0.2};
+  const auto c = sharedTreePlan(dt, wider, offsets);
+  EXPECT_NE(c.get(), b.get());
+  EXPECT_DOUBLE_EQ(c->ox[std::find(c->frame.begin(), c->frame.end(), 3) - c->frame.begin()], 0.4);
+  std::vector<double> later = dt;
+  later.back() += 0.25;
+  EXPECT_NE(sharedTreePlan(later, wider, offsets).get(), c.get());
+  EXPECT_THROW(sharedTreePlan(dt, grid, std::vector<PixelOffset>(3)), InputError);
+}
+
 // The velocity blocks are chosen by their additions (issue 20): `bench memory --raw --frames 100 --size
 // 256x1024` under --memory-limit 200M gave the search 50 MB of tree buffers, in which one tree's 1-row tile
 // of the 111^2 grid fits, so the grid used to stay one tree in 1-row tiles (1.6e10 additions, 1.44x the
