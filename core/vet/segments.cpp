@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
 #include "st/stack/ipsa.hpp"
 
 namespace st::vet {
@@ -211,15 +212,22 @@ SegmentReport checkSegments(const FrameCube& cube, const fit::FitResult& fit,
     t.push_back(all[n]);
   const auto parts = splitEqualTime(t, options.segments);
   SegmentReport rep;
+  rep.segments.resize(parts.size());
   for (std::size_t k = 0; k < parts.size(); ++k) {
-    cancel.throwIfCancelled();
-    SegmentMeasurement m;
+    SegmentMeasurement& m = rep.segments[k];
     m.index = static_cast<int>(k);
     for (std::size_t i : parts[k])
       m.frames.push_back(frames[i]);
-    if (!m.frames.empty()) measureSegment(cube, fit, fitOptions, m);
-    rep.segments.push_back(std::move(m));
   }
+  // The segments are independent: measured at once (each fit's own sums are chunked alike whatever the
+  // threads, so the values are the sequential loop's; the demo's 4 segments of 500 frames took ~0.2 s one
+  // after another on 16 threads, issue 16).
+  parallelFor(rep.segments.size(), 1, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k) {
+      cancel.throwIfCancelled();
+      if (!rep.segments[k].frames.empty()) measureSegment(cube, fit, fitOptions, rep.segments[k]);
+    }
+  });
   judge(options, rep);
   return rep;
 }
