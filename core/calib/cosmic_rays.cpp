@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <cstdint>
 #include <mutex>
 #include <vector>
@@ -178,18 +179,32 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
   const int w = cube.width();
   const auto& mask = cube.mask();
   const std::size_t frames = std::min<std::size_t>(nf, 8);
-  std::vector<float> d;
-  d.reserve(frames * np);
-  for (std::size_t k = 0; k < frames; ++k) {
-    const std::size_t n = (nf - 1) * k / std::max<std::size_t>(1, frames - 1);
-    const float* f = cube.frame(n);
-    for (std::size_t i = 0; i < np; ++i) {
-      const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
-      float mx = 0.0f, mean = 0.0f;
-      if (!mask.empty() && mask[n * np + i]) continue;
-      if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
-      d.push_back(f[i] - mx);
+  // The sampled frames' excesses, each frame's on its own thread, then joined in frame order (the samples and
+  // so the quantiles are the serial loop's).
+  std::vector<std::vector<float>> perFrame(frames);
+  parallelFor(frames, 1, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k) {
+      const std::size_t n = (nf - 1) * k / std::max<std::size_t>(1, frames - 1);
+      const float* f = cube.frame(n);
+      std::vector<float>& out = perFrame[k];
+      out.reserve(np);
+      for (std::size_t i = 0; i < np; ++i) {
+        const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
+        float mx = 0.0f, mean = 0.0f;
+        if (!mask.empty() && mask[n * np + i]) continue;
+        if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
+        out.push_back(f[i] - mx);
+      }
     }
+  });
+  std::vector<float> d;
+  std::size_t total = 0;
+  for (const auto& v : perFrame)
+    total += v.size();
+  d.reserve(total);
+  for (auto& v : perFrame) {
+    d.insert(d.end(), v.begin(), v.end());
+    std::vector<float>().swap(v);
   }
   t.samples = d.size();
   if (d.size() < TailModel::kMinSamples) return t;
@@ -202,20 +217,25 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
 double noiseFromFrameDifferences(const FrameCube& cube) {
   const std::size_t nf = cube.frameCount();
   if (nf < 2) return 0.0;
-  std::vector<double> sig;
   const auto& mask = cube.mask();
   const std::size_t np = cube.framePixels();
-  for (std::size_t k = 0; k < 3; ++k) {
-    const std::size_t a = (nf - 1) * k / 3, b = a + 1;
-    std::vector<float> d;
-    d.reserve(np);
-    for (std::size_t i = 0; i < np; ++i) {
-      if (!mask.empty() && (mask[a * np + i] || mask[b * np + i])) continue;
-      d.push_back(cube.frame(b)[i] - cube.frame(a)[i]);
+  // Three frame pairs, one per thread; NaN marks a pair without samples.
+  std::vector<double> each(3, std::numeric_limits<double>::quiet_NaN());
+  parallelFor(each.size(), 1, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k) {
+      const std::size_t a = (nf - 1) * k / 3, b = a + 1;
+      std::vector<float> d;
+      d.reserve(np);
+      for (std::size_t i = 0; i < np; ++i) {
+        if (!mask.empty() && (mask[a * np + i] || mask[b * np + i])) continue;
+        d.push_back(cube.frame(b)[i] - cube.frame(a)[i]);
+      }
+      if (d.size() > 1) each[k] = stats::sigmaClipSymmetric(d.data(), d.size(), 5.0).sigma / std::sqrt(2.0);
     }
-    if (d.size() > 1)
-      sig.push_back(stats::sigmaClipSymmetric(d.data(), d.size(), 5.0).sigma / std::sqrt(2.0));
-  }
+  });
+  std::vector<double> sig;
+  for (const double v : each)
+    if (!std::isnan(v)) sig.push_back(v);
   if (sig.empty()) return 0.0;
   std::sort(sig.begin(), sig.end());
   return sig[sig.size() / 2];
