@@ -107,8 +107,14 @@ BackendSelection makeBackendForMethod(BackendChoice choice, search::SearchMethod
 
 BackendInTheMaking::BackendInTheMaking(BackendChoice choice, search::SearchMethod method,
                                        FramePrecisionChoice precision)
-    : m_future(std::async(std::launch::async,
-                          [=] { return makeBackendForMethod(choice, method, precision); })) {}
+    : m_future(
+          std::async(std::launch::async, [=] { return makeBackendForMethod(choice, method, precision); })) {
+  // What needs no driver is said at once (the rest when the backend is first asked for).
+  if (choice == BackendChoice::Cuda && !cudaCompiledIn()) {
+    m_future.wait();
+    m_made = m_future.get();  // throws makeBackend's GpuError
+  }
+}
 
 BackendSelection& BackendInTheMaking::get() {
   if (!m_made) m_made = m_future.get();

@@ -35,9 +35,13 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     SubProgress loadProgress(progress, 0.0, 0.2);
     raw = io::loadFrames(in.inputs, in.load, loadProgress, cancel);
   }
-  const double loadSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loadStart).count();
+  const double loadSeconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - loadStart).count();
   pipeline::checkNotPrepared(raw, "search it with --preprocessed");
   warnings = raw.warnings;
+  // The device (made while the frames were read) is asked for now, before plate solving and the calibration
+  // frames: a backend that cannot be had stops the job before that work, not after it.
+  pipeline::PreprocessAccelerator* const device = accelerator ? accelerator() : nullptr;
   // --plate-solve (pipeline/plate_solve_stage.hpp): the first raw frame, else the star catalogue after
   // pre-processing; a search without a WCS is still a search, so a failure is a warning.
   std::string solved;
@@ -53,6 +57,7 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     }
   }
   pipeline::PreprocessParams params;
+  params.accelerator = device;
   params.calib = in.calib;
   params.keepZeroBiased = keepZeroBiased;
   params.registerFrames = o.registerFrames;
@@ -63,7 +68,6 @@ pipeline::Prepared prepareObservation(const ObservationInput& in, const SearchOp
     warnings.insert(warnings.end(), c->warnings.begin(), c->warnings.end());
   if (!bias.empty() || !dark.empty() || !flat.empty())
     params.masters = calib::buildMasters(bias, dark, flat, raw, params.calib, progress, cancel);
-  if (accelerator) params.accelerator = accelerator();
   SubProgress prepProgress(progress, 0.2, 0.5);
   pipeline::Prepared prepared = pipeline::preprocess(std::move(raw), params, prepProgress, cancel);
   prepared.stageSeconds.insert(prepared.stageSeconds.begin(), {"read the frames", loadSeconds});
@@ -204,8 +208,8 @@ search::VelocityGrid observationGrid(const SearchOptions& o, const search::Filte
 nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& options, bool fit,
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks) {
-  return runObservation(in, options, fit, [&backend]() -> search::SearchBackend& { return backend; }, progress,
-                        cancel, hooks);
+  return runObservation(
+      in, options, fit, [&backend]() -> search::SearchBackend& { return backend; }, progress, cancel, hooks);
 }
 
 nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& optionsIn, bool fit,
@@ -267,6 +271,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       if (hooks.prepared) hooks.prepared(*prepared);
     } else {
       // Out of core in strips of rows (pipeline/raw_out_of_core.hpp): planned (and shown) before any pixel.
+      // The backend first: one that cannot be had (--backend cuda without a device) stops the job before the
+      // strips are pre-processed, not after.
+      (void)backendSource();
       const pipeline::RawObservationFiles files{in.inputs, in.load, in.bias, in.dark, in.flat, in.calib};
       const pipeline::RawOutOfCorePlan plan = pipeline::planRawOutOfCore(
           files, summary, {o.registerFrames, o.scratchDir, o.keepScratch}, memory.budget, threads);
@@ -308,7 +315,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   if (prepOoc) {
     warnings.insert(warnings.begin(), prepOoc->warnings.begin(), prepOoc->warnings.end());
     notes.insert(notes.begin(), prepOoc->notes.begin(), prepOoc->notes.end());
-    if (o.plateSolve) warnings.push_back("--plate-solve is not done out of core: the frames' own WCS is used");
+    if (o.plateSolve)
+      warnings.push_back("--plate-solve is not done out of core: the frames' own WCS is used");
   }
   search::FilteredCube* fcp = nullptr;
   if (prepared) fcp = &prepared->filtered;
@@ -318,9 +326,10 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   const int width = shape.width, height = shape.height;
   search::SearchBackend& backend = backendSource();
   const search::VelocityGrid grid = observationGrid(o, fc, backend, width, height, notes);
-  search::MethodEstimate e =
-      search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, search::costModelFor(backend),
-                              threads, o.request.params.bufferBytes);
+  // Out of core the tiles are searched on the CPU (tiled_search.hpp), whatever the backend: priced so.
+  const search::MethodCostModel model = ooc ? search::cpuCostModel(threads) : search::costModelFor(backend);
+  search::MethodEstimate e = search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, model,
+                                                     threads, o.request.params.bufferBytes);
   search::setPsf(e, fc.psfFwhmPx);  // auto's SNR rule for the tree (issue 16)
   search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supports(kTree), backend.name());
@@ -332,14 +341,14 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     int overlap = search::searchOverlapPx(grid, fc.frames.timeOffsetsS());
     const bool filterTiles = ooc->header.state == pipeline::PreparedState::ZeroBiased;
     if (filterTiles) {
-      const psf::Moffat psf = o.fwhm ? psf::Moffat::fromFwhm(*o.fwhm, ooc->header.psf ? ooc->header.psf->beta
-                                                                                      : pipeline::kDefaultPsfBeta)
-                                     : *ooc->header.psf;
+      const psf::Moffat psf =
+          o.fwhm ? psf::Moffat::fromFwhm(*o.fwhm,
+                                         ooc->header.psf ? ooc->header.psf->beta : pipeline::kDefaultPsfBeta)
+                 : *ooc->header.psf;
       overlap += stack::makeFilterKernel(psf).halfSize;
     }
-    pipeline::TiledSearchPlan plan =
-        pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, std::string(method.method.name()),
-                                  threads);
+    pipeline::TiledSearchPlan plan = pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e,
+                                                               std::string(method.method.name()), threads);
     if (plan.tiles.empty() && method.method == kTree && o.request.params.method == kAuto) {
       // The tree's partial stacks do not fit beside a tile: the exact kernel's scratch is small.
       plan = pipeline::planTiledSearch(shape, overlap, memory.budget.bytes, e, "exact", threads);
@@ -360,7 +369,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     memory.overlapPx = overlap;
     memory.perTile = plan.perTile;
     if (!(fc.sigmaF > 0.0)) {
-      const int side = std::max(64, static_cast<int>(std::sqrt(static_cast<double>(tiles.front().read.pixels()))));
+      const int side =
+          std::max(64, static_cast<int>(std::sqrt(static_cast<double>(tiles.front().read.pixels()))));
       fc.sigmaF = centralSigmaF(*src, o, width, height, std::min(side, 1024), ooc->notes, cancel);
     }
     notes.insert(notes.end(), ooc->notes.begin(), ooc->notes.end());
@@ -396,8 +406,8 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     const bool filterTiles = ooc->header.state == pipeline::PreparedState::ZeroBiased;
     const search::TileLoader load = [&](const search::TileRect& t) {
       NullProgress quiet;
-      pipeline::PreparedSearchInput p =
-          pipeline::searchInputFromPrepared(loadRegion(*src, t, cancel), {o.fwhm, meta.sigmaF}, quiet, cancel);
+      pipeline::PreparedSearchInput p = pipeline::searchInputFromPrepared(
+          loadRegion(*src, t, cancel), {o.fwhm, meta.sigmaF}, quiet, cancel);
       (void)filterTiles;
       return std::move(p.cube);
     };

@@ -122,8 +122,8 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
 }
 
 // The pixels i (in order) that pass isHit's pre-test: not f - max(fa, fb) <= thr (NaN passes).
-void preTestScalar(const float* f, const float* fa, const float* fb, std::size_t i0, std::size_t np, float thr,
-                   std::vector<std::uint32_t>& out) {
+void preTestScalar(const float* f, const float* fa, const float* fb, std::size_t i0, std::size_t np,
+                   float thr, std::vector<std::uint32_t>& out) {
   for (std::size_t i = i0; i < np; ++i)
     if (!(f[i] - std::max(fa[i], fb[i]) <= thr)) out.push_back(static_cast<std::uint32_t>(i));
 }
@@ -179,33 +179,32 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
   const int w = cube.width();
   const auto& mask = cube.mask();
   const std::size_t frames = std::min<std::size_t>(nf, 8);
-  // The sampled frames' excesses, each frame's on its own thread, then joined in frame order (the samples and
-  // so the quantiles are the serial loop's).
-  std::vector<std::vector<float>> perFrame(frames);
+  // The sampled frames' excesses, each frame's on its own thread into its own part of one buffer (the serial
+  // loop's memory), then moved together in frame order: the samples, so the quantiles, are the serial loop's.
+  std::vector<float> d(frames * np);
+  std::vector<std::size_t> count(frames, 0);
   parallelFor(frames, 1, [&](std::size_t k0, std::size_t k1) {
     for (std::size_t k = k0; k < k1; ++k) {
       const std::size_t n = (nf - 1) * k / std::max<std::size_t>(1, frames - 1);
       const float* f = cube.frame(n);
-      std::vector<float>& out = perFrame[k];
-      out.reserve(np);
+      float* out = d.data() + k * np;
       for (std::size_t i = 0; i < np; ++i) {
         const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
         float mx = 0.0f, mean = 0.0f;
         if (!mask.empty() && mask[n * np + i]) continue;
         if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
-        out.push_back(f[i] - mx);
+        out[count[k]++] = f[i] - mx;
       }
     }
   });
-  std::vector<float> d;
-  std::size_t total = 0;
-  for (const auto& v : perFrame)
-    total += v.size();
-  d.reserve(total);
-  for (auto& v : perFrame) {
-    d.insert(d.end(), v.begin(), v.end());
-    std::vector<float>().swap(v);
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < frames; ++k) {
+    std::copy(d.begin() + static_cast<std::ptrdiff_t>(k * np),
+              d.begin() + static_cast<std::ptrdiff_t>(k * np + count[k]),
+              d.begin() + static_cast<std::ptrdiff_t>(kept));
+    kept += count[k];
   }
+  d.resize(kept);
   t.samples = d.size();
   if (d.size() < TailModel::kMinSamples) return t;
   t.at1e2 = upperQuantile(d, 1e-2);
@@ -277,7 +276,8 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
       const float sat = static_cast<float>(params.bleedFraction * *params.saturationLevel);
       for (int dy = -params.bleedReachPx; dy <= params.bleedReachPx; ++dy) {
         const int qy = y + dy;
-        if (dy != 0 && qy >= 0 && qy < h && px[n * np + static_cast<std::size_t>(qy) * w + x] >= sat) return false;
+        if (dy != 0 && qy >= 0 && qy < h && px[n * np + static_cast<std::size_t>(qy) * w + x] >= sat)
+          return false;
       }
     }
     return !prot.mask.covers(n, x, y) || ex > params.protectedExcess * prot.signalAt(n, x, y);

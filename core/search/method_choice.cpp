@@ -150,8 +150,10 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   }
   e.treeBlocks = blocks.count();
   e.treeTileRows = blocks.tileRows;
-  e.treeAdditions = model.treePricedTileRows > 0 ? treeAdditions(plan, width, height, model.treePricedTileRows)
-                                                 : blocks.additions;
+  // The device's tiles are never taller than the image.
+  e.treeAdditions = model.treePricedTileRows > 0
+                        ? treeAdditions(plan, width, height, std::min(model.treePricedTileRows, height))
+                        : blocks.additions;
   e.treeMaxShiftErrorPx = std::max(plan.maxAbsErrX, plan.maxAbsErrY);
   priceMethods(e, model);
   // Every thread holds one tile's partial stacks; there are no more busy threads than tiles.

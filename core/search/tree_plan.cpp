@@ -240,34 +240,41 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
 
 std::shared_ptr<const TreePlan> sharedTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
                                                const std::vector<PixelOffset>& offsets) {
+  if (!offsets.empty() && offsets.size() != dtS.size()) {
+    return std::make_shared<const TreePlan>(buildTreePlan(dtS, grid, offsets));  // throws, naming the counts
+  }
   struct Kept {
     std::vector<double> dt;
     std::vector<PixelOffset> offsets;  // empty when all are 0
     VelocityGrid grid;
     std::shared_ptr<const TreePlan> plan;
   };
+  // Two plans, the last used first: a registered cube's estimate asks without offsets and its search with
+  // them, and the two must not push each other out.
   static std::mutex mutex;
-  static Kept kept;
-  if (!offsets.empty() && offsets.size() != dtS.size())
-    return std::make_shared<const TreePlan>(buildTreePlan(dtS, grid, offsets));  // throws, naming the counts
+  static Kept kept[2];
   const bool zero = std::all_of(offsets.begin(), offsets.end(),
                                 [](const PixelOffset& o) { return o.x == 0.0 && o.y == 0.0; });
   const std::vector<PixelOffset> key = zero ? std::vector<PixelOffset>{} : offsets;
-  auto sameOffsets = [&](const std::vector<PixelOffset>& a) {
-    return a.size() == key.size() &&
-           std::equal(a.begin(), a.end(), key.begin(),
-                      [](const auto& p, const auto& q) { return p.x == q.x && p.y == q.y; });
+  auto same = [&](const Kept& k) {
+    return k.plan && k.dt == dtS && k.grid.nvx == grid.nvx && k.grid.nvy == grid.nvy &&
+           k.grid.stepPxS == grid.stepPxS && k.grid.centre.vx == grid.centre.vx &&
+           k.grid.centre.vy == grid.centre.vy && k.offsets.size() == key.size() &&
+           std::equal(k.offsets.begin(), k.offsets.end(), key.begin(),
+                      [](const PixelOffset& p, const PixelOffset& q) { return p.x == q.x && p.y == q.y; });
   };
   {
     const std::lock_guard lock(mutex);
-    if (kept.plan && kept.dt == dtS && sameOffsets(kept.offsets) && kept.grid.nvx == grid.nvx &&
-        kept.grid.nvy == grid.nvy && kept.grid.stepPxS == grid.stepPxS &&
-        kept.grid.centre.vx == grid.centre.vx && kept.grid.centre.vy == grid.centre.vy)
-      return kept.plan;
+    for (int i = 0; i < 2; ++i) {
+      if (!same(kept[i])) continue;
+      if (i == 1) std::swap(kept[0], kept[1]);
+      return kept[0].plan;
+    }
   }
   auto plan = std::make_shared<const TreePlan>(buildTreePlan(dtS, grid, key));
   const std::lock_guard lock(mutex);
-  kept = {dtS, key, grid, plan};
+  kept[1] = std::move(kept[0]);
+  kept[0] = {dtS, key, grid, plan};
   return plan;
 }
 

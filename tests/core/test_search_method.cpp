@@ -194,6 +194,10 @@ TEST(SearchMethod, CostModelFollowsTheBackendAndTheMeasuredRate) {
   // whichever, its least saving is the CPU's second.
   EXPECT_DOUBLE_EQ(estimateMethods(512, 512, paper.dt, paper.grid, cpuCostModel(16), 16).autoTreeMinSavingS,
                    kAutoTreeMinSavingS);
+  // The device's tiles are never taller than the image: a 64-row image is priced as one 64-row tile.
+  const MethodEstimate low = estimateMethods(512, 64, paper.dt, paper.grid, cudaCostModel(), 16);
+  EXPECT_DOUBLE_EQ(low.treeAdditions,
+                   treeAdditions(*sharedTreePlan(paper.dt, paper.grid), 512, 64, 64));
   // A small GPU problem keeps the exact search: the demo's 500 x 512^2 x 45^2 (78 ms exact).
   const Problem demo = evenProblem(500, 16.7, 45);
   MethodEstimate d = estimateMethods(512, 512, demo.dt, demo.grid, cudaCostModel(), 16);

@@ -355,6 +355,9 @@ TEST(SearchTree, SharedPlanIsBuiltOncePerTimesGridAndOffsets) {
   wider.nvx += 2;
   const auto b = sharedTreePlan(dt, wider);
   EXPECT_NE(b.get(), a.get());
+  // Two plans are kept (a registered cube's estimate asks without offsets, its search with them).
+  EXPECT_EQ(sharedTreePlan(dt, grid).get(), a.get());
+  EXPECT_EQ(sharedTreePlan(dt, wider).get(), b.get());
   EXPECT_EQ(b->nodes[0].x.v.size(), static_cast<std::size_t>(wider.nvx));
   std::vector<PixelOffset> offsets(dt.size());
   offsets[3] = {0.4, -0.2};

@@ -97,7 +97,8 @@ TreePlan buildTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
 /// buildTreePlan's plan, kept for the next call with the same frame times, offsets (empty and all-zero
 /// alike) and grid, which gets the same plan: the method estimate and the search of one cube, and each
 /// re-search, share one plan instead of building it each time (40-100 ms for 1500 frames and 297^2
-/// velocities; issue 16). One plan is kept, process-wide; thread-safe.
+/// velocities; issue 16). The last two plans are kept, process-wide (tens of MB for the paper's problem);
+/// thread-safe.
 std::shared_ptr<const TreePlan> sharedTreePlan(const std::vector<double>& dtS, const VelocityGrid& grid,
                                                const std::vector<PixelOffset>& offsets = {});
 
