@@ -222,7 +222,7 @@ cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window
   for (std::size_t i = 0; i < nc; ++i) {
     const double re = static_cast<double>(fa[i][0]) * fb[i][0] + static_cast<double>(fa[i][1]) * fb[i][1];
     const double im = static_cast<double>(fa[i][1]) * fb[i][0] - static_cast<double>(fa[i][0]) * fb[i][1];
-    const double m = std::hypot(re, im);
+    const double m = std::sqrt(re * re + im * im);  // OpenCV's magnitude (std::hypot: 2.6% of the CPU time)
     fa[i][0] = m > 0.0 ? static_cast<float>(re / m) : 0.0f;
     fa[i][1] = m > 0.0 ? static_cast<float>(im / m) : 0.0f;
   }
