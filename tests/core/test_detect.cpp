@@ -50,6 +50,36 @@ TEST(MovingMask, FollowsTheSkyRate) {
   EXPECT_EQ(m.count(), 25u);
 }
 
+// dilate() equals the brute-force disc (every canvas pixel within `radius`, di^2 + dj^2 <= radius^2, of a set
+// one) on random masks from sparse to dense, at radii 1-9, near and at the canvas edges: the oracle for any
+// faster dilation.
+TEST(MovingMask, DilateEqualsTheBruteForceDisc) {
+  const std::vector<double> dt = {-30.0, 0.0, 25.0};
+  std::uint32_t state = 12345;
+  auto next = [&state] { return state = state * 1664525u + 1013904223u; };
+  for (const double density : {0.002, 0.03, 0.3}) {
+    for (int radius = 1; radius <= 9; radius += 2) {
+      MovingMask m(61, 29, dt, {0.7, -0.2});
+      for (int j = 0; j < m.canvasHeight(); ++j)
+        for (int i = 0; i < m.canvasWidth(); ++i)
+          if (static_cast<double>(next() % 100000) / 100000.0 < density) m.set(m.x0() + i, m.y0() + j);
+      const std::vector<std::uint8_t> before = m.canvas();
+      const int cw = m.canvasWidth(), ch = m.canvasHeight();
+      std::vector<std::uint8_t> expected(before.size(), 0);
+      for (int j = 0; j < ch; ++j)
+        for (int i = 0; i < cw; ++i) {
+          if (!before[static_cast<std::size_t>(j) * cw + i]) continue;
+          for (int dj = -radius; dj <= radius; ++dj)
+            for (int di = -radius; di <= radius; ++di)
+              if (di * di + dj * dj <= radius * radius && i + di >= 0 && i + di < cw && j + dj >= 0 && j + dj < ch)
+                expected[static_cast<std::size_t>(j + dj) * cw + (i + di)] = 1;
+        }
+      m.dilate(radius);
+      ASSERT_EQ(m.canvas(), expected) << "density " << density << " radius " << radius;
+    }
+  }
+}
+
 // coveredRow is covers() for a whole row: every frame, every row (in and off the canvas), registration
 // offsets included.
 TEST(MovingMask, CoveredRowEqualsCoversPixelByPixel) {
