@@ -124,7 +124,6 @@ int cmdSearch(const Args& args) {
   const SearchOptions o = parseSearchOptions(cli);
   if (cli.flag("mpi")) return searchMpi(input, o, cli.flag("fit"), cli.value("out"), cli.flag("json"));
   const StepTimings timings(cli.flag("timings"));
-  auto mark = [&](const char* what) { timings.mark(what); };
   // Made on another thread while the frames are read (issue 16: a CUDA context takes ~0.2 s).
   BackendInTheMaking backendMade(parseBackendChoice(o.backend), o.request.params.method,
                                  parseFramePrecision(o.framePrecision));
@@ -132,7 +131,7 @@ int cmdSearch(const Args& args) {
   auto backend = [&]() -> search::SearchBackend& {
     if (!selMade) {
       selMade = &backendMade.get();
-      mark("backend ready");
+      timings.mark("backend ready");
     }
     return *selMade->backend;
   };
@@ -140,18 +139,18 @@ int cmdSearch(const Args& args) {
   ObservationHooks hooks;
   std::size_t memoryLines = 0;
   hooks.memory = [&](const MemoryPlan& m) {
-    mark("memory plan");
+    timings.mark("memory plan");
     printMemory(m, memoryLines);
   };
   hooks.prepared = [&](const pipeline::Prepared& prep) {
     if (!timings.on()) return;
     progress.finish();
     timings.stages(prep.stageSeconds);
-    mark("loaded and pre-processed");
+    timings.mark("loaded and pre-processed");
   };
   hooks.planned = [&](const PlannedSearch& p) {
     progress.finish();
-    mark("search planned");
+    timings.mark("search planned");
     for (const auto& w : p.warnings)
       std::fprintf(stderr, "warning: %s\n", w.c_str());
     for (const auto& n : p.notes)
@@ -163,7 +162,7 @@ int cmdSearch(const Args& args) {
   };
   hooks.searched = [&](const search::SearchResult& r) {
     progress.finish();
-    mark("searched");
+    timings.mark("searched");
     std::fputs(searchNotesText(r).c_str(), stderr);
   };
   const nlohmann::json j =
@@ -171,9 +170,9 @@ int cmdSearch(const Args& args) {
   progress.finish();
   std::fprintf(stderr, "memory: peak resident %s\n",
                formatBytes(static_cast<double>(peakResidentBytes())).c_str());
-  mark("candidates measured");
+  timings.mark("candidates measured");
   writeSearchOutputs(j, cli.value("out"), cli.flag("json"));
-  mark("outputs written");
+  timings.mark("outputs written");
   return 0;
 }
 

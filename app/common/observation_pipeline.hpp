@@ -75,13 +75,12 @@ struct ObservationHooks {
 /// Loads and pre-processes a raw observation as runObservation does (the loader's and calibration's
 /// warnings in `warnings`); --fwhm / --sigma-f of `options` applied. Used by batch to re-measure a track
 /// over several cubes. Without keepZeroBiased the matched filter runs in place (no zero-biased frames kept,
-/// so no co-moving fit afterwards). `accelerator`, when given, is asked once, after the frames and the
-/// calibration frames are read, for the device that pre-processes (null: the CPU).
+/// so no co-moving fit afterwards). `accelerator`, when given, is asked once, right after the raw frames are
+/// read (before plate solving and the calibration frames), for the device that pre-processes (null: the CPU).
 pipeline::Prepared prepareObservation(const ObservationInput& input, const SearchOptions& options,
                                       ProgressSink& progress, CancelToken& cancel,
                                       std::vector<std::string>& warnings, bool keepZeroBiased = true,
                                       const std::function<pipeline::PreprocessAccelerator*()>& accelerator = {});
-
 
 /// Runs the observation and returns the result JSON. Memory (issue 20): the budget is options.memoryLimit
 /// or the default; raw input whose in-memory pre-processing does not fit is pre-processed out of core in
@@ -99,8 +98,9 @@ nlohmann::json runObservation(const ObservationInput& input, const SearchOptions
                               search::SearchBackend& backend, ProgressSink& progress, CancelToken& cancel,
                               const ObservationHooks& hooks = {});
 
-/// The same with the backend asked of `backend` where first needed: after raw frames are read (a backend
-/// made on another thread meanwhile, BackendInTheMaking, costs the read nothing), before anything else.
+/// The same with the backend asked of `backend` where first needed: right after raw frames held in memory are
+/// read (a backend made on another thread meanwhile, BackendInTheMaking, costs the read nothing); on every
+/// other path before any pixel is processed.
 nlohmann::json runObservation(const ObservationInput& input, const SearchOptions& options, bool fit,
                               const std::function<search::SearchBackend&()>& backend, ProgressSink& progress,
                               CancelToken& cancel, const ObservationHooks& hooks = {});

@@ -1,6 +1,5 @@
 #include "tree_search_device.hpp"
 
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <mutex>
@@ -9,6 +8,7 @@
 #include "cuda_check.hpp"
 #include "resident_cube.hpp"
 #include "uploader.hpp"
+#include "wall_phases.hpp"
 
 namespace st::gpu {
 namespace {
@@ -55,14 +55,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   }
   DeviceBuffer<float>& cube = slot ? slot->cube : ownCube;
   // Wall time of the host-side steps, for the note (the first search of a plan makes its workspace).
-  using Clock = std::chrono::steady_clock;
-  auto lapFrom = Clock::now();
-  auto lap = [&lapFrom] {
-    const auto now = Clock::now();
-    const double s = std::chrono::duration<double>(now - lapFrom).count();
-    lapFrom = now;
-    return s;
-  };
+  WallPhases wall;
   // The arenas, the plan's tables and the cell buffer: kept from the last search of this plan, else made.
   TreeWorkspace local;
   TreeWorkspace& ws = job.treeWorkspace ? *job.treeWorkspace : local;
@@ -97,7 +90,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   DeviceBuffer<unsigned long long> mapKeys(nv), count(1);
   ST_CUDA_CHECK(cudaMemsetAsync(mapKeys.get(), 0, nv * 8, compute.get()));
   ST_CUDA_CHECK(cudaMemsetAsync(count.get(), 0, 8, compute.get()));
-  const double workspaceS = lap();
+  wall.mark("workspace");
 
   Event up0(true), up1(true), k0(true), k1(true);
   up0.record(copy.get());
@@ -154,9 +147,9 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   rt.cellCount = count.get();
   rt.cellCapacity = job.cellCapacity;
 
-  lap();
+  wall.mark("upload and set-up");
   loadTreeKernels();  // the module's loading is not kernel time (it stays in search()'s wall time)
-  const double moduleS = lap();
+  wall.mark("kernel module");
   std::vector<Event> marks;
   const bool profile = job.profile && tileBegin < tileEnd;
   if (profile) {
@@ -188,7 +181,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
   }
   k1.record(compute.get());
   compute.sync();
-  const double kernelsWallS = lap();
+  wall.mark("kernels");
 
   DeviceOutcome out;
   out.kernelSeconds = elapsedSeconds(k0, k1);
@@ -203,11 +196,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
     ST_CUDA_CHECK(cudaMemcpy(out.cells.data(), cells.get(), out.cells.size() * sizeof(DeviceCell),
                              cudaMemcpyDeviceToHost));
   }
-  const double readBackS = lap();
-  char wall[160];
-  std::snprintf(wall, sizeof wall,
-                "; wall: workspace %.1f ms, kernel module %.1f ms, kernels %.1f ms, read-back %.1f ms",
-                1e3 * workspaceS, 1e3 * moduleS, 1e3 * kernelsWallS, 1e3 * readBackS);
+  wall.mark("read-back");
   std::string levels;
   if (profile) {
     levels = "; first tile, ms per level (depth):";
@@ -229,7 +218,7 @@ DeviceOutcome runTreeOnDevice(const TreeDevicePlan& tree, const HostPlan& plan, 
              (kept              ? "kept from the last search"
               : job.treePlanKey ? "made, kept for the next"
                                 : "made") +
-             "), top " + std::to_string(tree.cut) + " levels in registers" + wall + levels;
+             "), top " + std::to_string(tree.cut) + " levels in registers; wall: " + wall.str() + levels;
   return out;
 }
 

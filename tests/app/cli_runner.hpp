@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace st::test {
 
@@ -41,6 +42,24 @@ inline std::string readText(const std::filesystem::path& p) {
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
+}
+
+/// The "timings: " lines of a --timings run's stderr, saved in `p`, in order.
+inline std::vector<std::string> timingLines(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("timings: ", 0) == 0) lines.push_back(line);
+  return lines;
+}
+
+/// How many of `order` the lines name in that order (each in a line after the previous one's).
+inline std::size_t stepsInOrder(const std::vector<std::string>& lines,
+                                const std::vector<std::string>& order) {
+  std::size_t at = 0;
+  for (const auto& s : lines)
+    if (at < order.size() && s.find(order[at]) != std::string::npos) ++at;
+  return at;
 }
 
 }  // namespace st::test

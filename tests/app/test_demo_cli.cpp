@@ -2,7 +2,6 @@
 // the simulation (issue 16's demo target counts those), in order on stderr; nothing of it without the flag.
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -26,17 +25,11 @@ TEST(DemoCli, TimingsListEveryStepAndTheSecondsAfterTheSimulation) {
       "demo --preset small --vmax-deg-day 40 --backend cpu --fits 1 --out " + quoted(dir / "out");
   // Exit 0: the small preset's objects found (as cli.demo_small asks of the full preset).
   ASSERT_EQ(runCli(cli, demo + " --timings > /dev/null 2> " + quoted(err)), 0) << readText(err);
-  std::ifstream in(err);
-  std::vector<std::string> steps;
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("timings: ", 0) == 0) steps.push_back(line);
+  const std::vector<std::string> steps = test::timingLines(err);
   const std::vector<std::string> order = {"simulated and written", "backend ready",   "frame backgrounds",
                                           "matched filter",        "pre-processed",   "searched",
                                           "candidates fitted",     "outputs written", "after the simulation"};
-  std::size_t at = 0;
-  for (const auto& s : steps)
-    if (at < order.size() && s.find(order[at]) != std::string::npos) ++at;
-  EXPECT_EQ(at, order.size()) << readText(err);
+  EXPECT_EQ(test::stepsInOrder(steps, order), order.size()) << readText(err);
   // The seconds after the simulation are the last mark's less the simulation's.
   auto seconds = [&](const std::string& what) {
     for (const auto& s : steps)

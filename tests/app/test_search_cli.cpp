@@ -91,18 +91,12 @@ TEST(SearchCli, TimingsListEveryStepInOrder) {
   ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu --timings > /dev/null 2> " +
                             quoted(err)),
             0);
-  std::ifstream in(err);
-  std::vector<std::string> steps;
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("timings: ", 0) == 0) steps.push_back(line);
+  const std::vector<std::string> steps = test::timingLines(err);
   // The backend is made while the frames are read, and ready when the pre-processing asks for it.
   const std::vector<std::string> order = {"memory plan", "backend ready", "read the frames", "matched filter",
                                           "loaded and pre-processed", "search planned", "searched",
                                           "outputs written"};
-  std::size_t at = 0;
-  for (const auto& s : steps)
-    if (at < order.size() && s.find(order[at]) != std::string::npos) ++at;
-  EXPECT_EQ(at, order.size()) << "steps seen: " << steps.size();
+  EXPECT_EQ(test::stepsInOrder(steps, order), order.size()) << "steps seen: " << steps.size();
   ASSERT_EQ(runCli(cli, "search " + quoted(raw) + " --vmax-deg-day 20 --backend cpu > /dev/null 2> " + quoted(err)),
             0);
   EXPECT_EQ(readText(err).find("timings:"), std::string::npos);
