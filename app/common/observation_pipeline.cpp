@@ -293,9 +293,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     OutOfCoreInput m = outOfCoreMeta(*src, o, shape.width, shape.height, cancel);
     std::vector<std::string> unused;
     const search::VelocityGrid grid0 = observationGrid(o, m.meta, backend, shape.width, shape.height, unused);
-    const search::MethodEstimate e0 =
-        search::estimateMethods(shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0,
-                                search::costModelFor(backend), threads, o.request.params.bufferBytes);
+    const search::MethodEstimate e0 = search::estimateMethods(
+        shape.width, shape.height, m.meta.frames.timeOffsetsS(), grid0, search::costModelFor(backend),
+        threads, o.request.params.bufferBytes, m.meta.frames.frameOffsets());
     const search::MethodChoice c0 =
         search::chooseMethod(o.request.params.method, e0, backend.supports(kTree), backend.name());
     memory.inMemory = pipeline::estimateSearchPeak(shape, e0, c0.method);
@@ -328,8 +328,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
   const search::VelocityGrid grid = observationGrid(o, fc, backend, width, height, notes);
   // Out of core the tiles are searched on the CPU (tiled_search.hpp), whatever the backend: priced so.
   const search::MethodCostModel model = ooc ? search::cpuCostModel(threads) : search::costModelFor(backend);
-  search::MethodEstimate e = search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, model,
-                                                     threads, o.request.params.bufferBytes);
+  search::MethodEstimate e =
+      search::estimateMethods(width, height, fc.frames.timeOffsetsS(), grid, model, threads,
+                              o.request.params.bufferBytes, fc.frames.frameOffsets());
   search::setPsf(e, fc.psfFwhmPx);  // auto's SNR rule for the tree (issue 16)
   search::MethodChoice method =
       search::chooseMethod(o.request.params.method, e, backend.supports(kTree), backend.name());

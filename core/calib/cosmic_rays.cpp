@@ -15,6 +15,7 @@
 #include "st/common/parallel.hpp"
 #include "st/detect/moving_mask.hpp"
 #include "st/detect/sky_stack.hpp"
+#include "st/stats/order_statistic.hpp"
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::calib {
@@ -159,11 +160,10 @@ void preTest(const float* f, const float* fa, const float* fb, std::size_t np, f
   preTestScalar(f, fa, fb, i0, np, thr, out);
 }
 
-// Value exceeded by a fraction `q` of `v` (v is reordered).
-float upperQuantile(std::vector<float>& v, double q) {
-  const auto k = static_cast<std::ptrdiff_t>(std::floor((1.0 - q) * static_cast<double>(v.size() - 1)));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[static_cast<std::size_t>(k)];
+// Value exceeded by a fraction `q` of `v`.
+float upperQuantile(const std::vector<float>& v, double q) {
+  const auto k = static_cast<std::size_t>(std::floor((1.0 - q) * static_cast<double>(v.size() - 1)));
+  return stats::kthSmallest(v.data(), v.size(), k);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/stats/order_statistic.hpp"
 
 namespace st::psf {
 namespace {
@@ -24,10 +25,8 @@ std::string where(const StarCandidate& c) {
   return "star at (" + fmt(c.x) + ", " + fmt(c.y) + ")";
 }
 
-double medianOf(std::vector<float>& v) {
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+double medianOf(const std::vector<float>& v) {
+  return stats::kthSmallest(v.data(), v.size(), v.size() / 2);
 }
 
 /// Median and robust sigma of the non-zero finite pixels (subsampled to at most ~2^20).

@@ -123,7 +123,7 @@ void priceMethods(MethodEstimate& e, const MethodCostModel& model) {
 
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads,
-                               std::size_t bufferBytes) {
+                               std::size_t bufferBytes, const std::vector<PixelOffset>& offsets) {
   MethodEstimate e;
   const SearchEstimate exact =
       estimateSearch(width, height, dtS.size(), grid, std::max(1u, threads), model.exactAdditionsPerS);
@@ -138,7 +138,7 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   // The CPU tree searches the grid in the velocity blocks of fewest additions that fit (one tree when that
   // is cheapest, tree_search.hpp): priced as the blocks it will run.
   const std::size_t tileBudget = treeTileBudgetPerThread(threads, bufferBytes);
-  const std::shared_ptr<const TreePlan> shared = sharedTreePlan(dtS, grid);
+  const std::shared_ptr<const TreePlan> shared = sharedTreePlan(dtS, grid, offsets);
   const TreePlan& plan = *shared;
   TreeBlocks blocks{1, 1, grid.nvx, grid.nvy};
   if (model.treeVelocityBlocks) {
@@ -191,7 +191,8 @@ MethodChoice chooseMethod(SearchMethod requested, const MethodEstimate& estimate
     return {kExact, autoReason("exact, too small for the tree's SNR loss to pay", e)};
   if (e.psfFwhmPx > 0.0 && e.treeSnrLoss > kAutoTreeMaxSnrLoss) {
     char text[160];
-    std::snprintf(text, sizeof text, "exact, the tree would lose ~%.1f%% of the SNR at PSF FWHM %.2f px (> %.0f%%)",
+    std::snprintf(text, sizeof text,
+                  "exact, the tree would lose ~%.1f%% of the SNR at PSF FWHM %.2f px (> %.0f%%)",
                   100.0 * e.treeSnrLoss, e.psfFwhmPx, 100.0 * kAutoTreeMaxSnrLoss);
     return {kExact, autoReason(text, e)};
   }

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
 #include "st/search/sidelobes.hpp"
 #include "st/search/sky_motion.hpp"
 #include "st/stats/false_alarm.hpp"
@@ -65,7 +66,8 @@ int maxFramesInside(const std::vector<double>& timesS, int width, int height, Ve
   if (!(window < t.back() - t.front())) return n;
   int best = 1;
   for (int a = 0, b = 0; a < n; ++a) {
-    while (b < n && t[b] - t[a] <= window) ++b;
+    while (b < n && t[b] - t[a] <= window)
+      ++b;
     best = std::max(best, b - a);
   }
   return best;
@@ -118,7 +120,7 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
                      hits.end(), before);
     hits.resize(params.maxCandidates);
   }
-  std::sort(hits.begin(), hits.end(), before);
+  parallelSort(hits, before);
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
       mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold, offsets));

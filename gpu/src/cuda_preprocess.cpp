@@ -25,8 +25,8 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   Event ready[2];
   auto enqueue = [&](std::size_t p) {
     const std::size_t off = p * piece, len = std::min(piece, bytes - off);
-    ST_CUDA_CHECK(cudaMemcpyAsync(r.staging[p & 1].get(), static_cast<const char*>(dev) + off, len,
-                                  cudaMemcpyDeviceToHost, s));
+    ST_CUDA_CHECK(cudaMemcpyAsync(r.staging(static_cast<int>(p & 1)), static_cast<const char*>(dev) + off,
+                                  len, cudaMemcpyDeviceToHost, s));
     ready[p & 1].record(s);
   };
   if (pieces > 0) enqueue(0);
@@ -35,7 +35,7 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     ready[p & 1].sync();
     const std::size_t off = p * piece, len = std::min(piece, bytes - off);
     char* dst = static_cast<char*>(host) + off;
-    const char* src = static_cast<const char*>(r.staging[p & 1].get());
+    const char* src = static_cast<const char*>(r.staging(static_cast<int>(p & 1)));
     parallelFor(len, std::size_t{1} << 21,
                 [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); });
   }
@@ -79,8 +79,8 @@ std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube
   launchHotPixelExcess(kept, m_sepMask.size() ? m_sepMask.get() : nullptr, np, static_cast<int>(nf), blocks,
                        background, excess.get(), r.compute.get());
   std::vector<float> out(np);
-  ST_CUDA_CHECK(cudaMemcpyAsync(out.data(), excess.get(), np * sizeof(float), cudaMemcpyDeviceToHost,
-                                r.compute.get()));
+  ST_CUDA_CHECK(
+      cudaMemcpyAsync(out.data(), excess.get(), np * sizeof(float), cudaMemcpyDeviceToHost, r.compute.get()));
   r.compute.sync();
   m_sepMask = DeviceBuffer<std::uint8_t>();  // the pipeline masks the hot pixels next: the kept mask is stale
   m_note = "hot pixels' block means on " + name() + " from the frame backgrounds' frames: " + ms(sw.lap());
@@ -124,7 +124,8 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       q->keptFrames = kept.size() > 0;
       q->pix = q->keptFrames ? std::move(kept) : DeviceBuffer<float>(q->size);
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
-      if (!q->keptFrames) stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);
+      if (!q->keptFrames)
+        stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);
       if (q->maskSize) stagedUpload(r, q->mask.get(), maskData, q->maskSize, r.copy.get(), false);
       r.copy.sync();
       q->seconds = sw.lap();
@@ -154,7 +155,7 @@ void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src
     const int b = r.nextStaging;
     r.nextStaging ^= 1;
     r.stagingFree[b].sync();
-    char* stage = static_cast<char*>(r.staging[b].get());
+    char* stage = static_cast<char*>(r.staging(b));
     const char* from = static_cast<const char*>(src) + off;
     // The prefetch copies on its own thread only: it runs behind the sky rate, whose threads more copy
     // threads would slow (4 copied the paper's cube and mask in 137 ms instead of one core's 283, H100

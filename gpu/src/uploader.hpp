@@ -21,9 +21,18 @@ inline constexpr std::size_t kStagingBytes = std::size_t{32} << 20;
 struct DeviceResources {
   Stream compute;
   Stream copy;
-  PinnedBuffer staging[2] = {PinnedBuffer(kStagingBytes), PinnedBuffer(kStagingBytes)};
   Event stagingFree[2];
   int nextStaging = 0;
+  /// Staging buffer b (0 or 1), pinned on first use: a search of a resident cube uploads nothing, and
+  /// cudaMallocHost of 64 MiB took 29-73 ms (probe on H100 hosts, 2026-11-28; the tree search's whole wall
+  /// on the paper's problem is ~0.12 s).
+  void* staging(int b) {
+    if (!m_staging[b].get()) m_staging[b] = PinnedBuffer(kStagingBytes);
+    return m_staging[b].get();
+  }
+
+ private:
+  PinnedBuffer m_staging[2];
 };
 
 /// The resources in `slot`, made now (with their device current) when it is empty.
@@ -49,13 +58,12 @@ class Uploader {
       m_r.nextStaging ^= 1;
       m_r.stagingFree[b].sync();
       // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
-      float* dst0 = static_cast<float*>(m_r.staging[b].get());
+      float* dst0 = static_cast<float*>(m_r.staging(b));
       const float* src0 = src + off;
       parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
         std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
       });
-      ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, m_r.staging[b].get(), piece * sizeof(float),
-                                    cudaMemcpyHostToDevice, stream));
+      ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, dst0, piece * sizeof(float), cudaMemcpyHostToDevice, stream));
       m_r.stagingFree[b].record(stream);
     }
   }

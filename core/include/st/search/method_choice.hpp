@@ -20,8 +20,9 @@
 // Decision for "auto": tree when the backend supports it (SearchBackend::supportsMethod), it is estimated at
 // least kAutoTreeMinSpeedup times faster than exact AND it saves at least the model's autoTreeMinSavingS
 // seconds (the CPU's kAutoTreeMinSavingS; the GPU's kCudaAutoTreeMinSavingS, issue 16) AND its SNR loss for
-// the cube's PSF is at most kAutoTreeMaxSnrLoss; otherwise exact. The tree's samples stay within 1 px of the exact shifts and lose some SNR (median ~1%,
-// worst ~5% on injected objects, README): exact is kept wherever the time saved does not pay for that.
+// the cube's PSF is at most kAutoTreeMaxSnrLoss; otherwise exact. The tree's samples stay within 1 px of the
+// exact shifts and lose some SNR (median ~1%, worst ~5% on injected objects, README): exact is kept wherever
+// the time saved does not pay for that.
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -104,9 +105,11 @@ struct MethodEstimate {
 /// `threads` workers. The tree is priced only when a plan can be built (at least 2 distinct times, a
 /// non-empty grid); otherwise treeSeconds is infinite. Never throws for such input.
 /// `bufferBytes`: the tree's partial stacks of all threads together (SearchParams::bufferBytes; 0 = default).
+/// `offsets`: the frames' registration offsets (FrameCube::frameOffsets()), those the search will use: the
+/// tree is priced on the plan the search then takes from sharedTreePlan instead of building another.
 MethodEstimate estimateMethods(int width, int height, const std::vector<double>& dtS,
                                const VelocityGrid& grid, const MethodCostModel& model, unsigned threads,
-                               std::size_t bufferBytes = 0);
+                               std::size_t bufferBytes = 0, const std::vector<PixelOffset>& offsets = {});
 
 /// Records the cube's PSF FWHM in `estimate` (psfFwhmPx, treeSnrLoss) for chooseMethod's SNR rule; a
 /// non-positive FWHM leaves it unknown (the rule off).
