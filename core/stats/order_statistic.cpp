@@ -50,7 +50,7 @@ std::uint32_t binOfRank(const std::vector<std::uint64_t>& total, std::size_t* k)
 
 }  // namespace
 
-float kthSmallest(const float* v, std::size_t n, std::size_t k) {
+float kthSmallest(const float* v, std::size_t n, std::size_t k, unsigned maxThreads) {
   if (k >= n)
     throw InputError("kthSmallest: rank " + std::to_string(k) + " of " + std::to_string(n) +
                      " values (it must be below the count)");
@@ -61,7 +61,8 @@ float kthSmallest(const float* v, std::size_t n, std::size_t k) {
   }
   // One contiguous slice and one histogram per worker thread: the counts are integers, so their sum is the
   // same whichever thread ran which slice and in what order.
-  std::size_t tasks = std::min<std::size_t>(workerCount(), n / kSerialBelow);
+  const unsigned threads = maxThreads > 0 ? std::min(maxThreads, workerCount()) : workerCount();
+  std::size_t tasks = std::min<std::size_t>(threads, n / kSerialBelow);
   tasks = std::max(tasks, (n + kMaxTaskElements - 1) / kMaxTaskElements);
   const std::size_t slice = (n + tasks - 1) / tasks;
   std::vector<std::uint32_t> hist(tasks * kBins);
@@ -79,14 +80,17 @@ float kthSmallest(const float* v, std::size_t n, std::size_t k) {
         }
       }
     });
-    parallelFor(kBins, kBins / 16, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b < b1; ++b) {
-        std::uint64_t s = 0;
-        for (std::size_t t = 0; t < tasks; ++t)
-          s += hist[t * kBins + b];
-        total[b] = s;
-      }
-    });
+    parallelFor(
+        kBins, kBins / 16,
+        [&](std::size_t b0, std::size_t b1) {
+          for (std::size_t b = b0; b < b1; ++b) {
+            std::uint64_t s = 0;
+            for (std::size_t t = 0; t < tasks; ++t)
+              s += hist[t * kBins + b];
+            total[b] = s;
+          }
+        },
+        threads);
   };
   std::size_t rank = k;
   count([](std::uint32_t) { return true; }, [](std::uint32_t key) { return key >> kDigitBits; });

@@ -220,6 +220,11 @@ TEST(OrderStatistic, SameResultOnAnyNumberOfThreads) {
       EXPECT_EQ(kthSmallest(v.data(), v.size(), ks[i]), expected[i])
           << "ST_THREADS=" << threads << ", k " << ks[i];
   }
+  // Capped by the caller (maxThreads: 1 = one slice on the calling thread).
+  for (const unsigned cap : {1u, 2u, 5u})
+    for (std::size_t i = 0; i < ks.size(); ++i)
+      EXPECT_EQ(kthSmallest(v.data(), v.size(), ks[i], cap), expected[i])
+          << "maxThreads " << cap << ", k " << ks[i];
 }
 
 TEST(OrderStatistic, RankOutOfRangeThrows) {

@@ -12,7 +12,9 @@ namespace st::stats {
 /// -0 and +0 compare equal as in nth_element: when the k-th value is a zero, +0 is returned. Infinities and
 /// denormals are ordered as by operator<. Precondition: no NaN in v (nth_element's order is undefined with
 /// them; here a NaN is sorted by its bits, below -inf or above +inf, and the result is some value of v).
-/// Throws InputError when k >= n.
-float kthSmallest(const float* v, std::size_t n, std::size_t k);
+/// Throws InputError when k >= n. `maxThreads` caps the threads (0: workerCount()); 1 selects on the calling
+/// thread alone (still a radix select: ~5x nth_element's speed at 2^18 values), for callers that run many
+/// selections in parallel themselves.
+float kthSmallest(const float* v, std::size_t n, std::size_t k, unsigned maxThreads = 0);
 
 }  // namespace st::stats
