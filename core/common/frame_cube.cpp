@@ -10,15 +10,34 @@
 
 namespace st {
 
-FrameCube::FrameCube(int width, int height, std::size_t frames) : m_width(width), m_height(height) {
+namespace {
+
+void checkFrameSize(int width, int height) {
   if (width <= 0 || height <= 0) {
     throw InputError("frame size must be positive, got " + std::to_string(width) + "x" +
                      std::to_string(height));
   }
-  // A large cube's pages are faulted in on every core first (st/common/prefault.hpp), then zeroed: the
-  // loader's 1.5 GB cube took ~0.4 s of single-threaded page faults before the parallel reads (issue 16).
+}
+
+}  // namespace
+
+FrameCube::FrameCube(int width, int height, std::size_t frames) : m_width(width), m_height(height) {
+  checkFrameSize(width, height);
+  // A large cube's pages are faulted in and zeroed on every core (st/common/prefault.hpp): the loader's
+  // 1.5 GB cube took ~0.4 s of single-threaded page faults before the parallel reads (issue 16).
   m_pixels = prefaultedZeros(framePixels() * frames, 0.0f);
   m_info.resize(frames);
+}
+
+FrameCube::FrameCube(int width, int height, std::size_t frames, Unwritten)
+    : m_width(width), m_height(height) {
+  checkFrameSize(width, height);
+  m_pixels = prefaultedPixels(framePixels() * frames);
+  m_info.resize(frames);
+}
+
+FrameCube FrameCube::forOverwrite(int width, int height, std::size_t frames) {
+  return FrameCube(width, height, frames, Unwritten{});
 }
 
 Image FrameCube::frameImage(std::size_t n) const {

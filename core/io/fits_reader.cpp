@@ -262,7 +262,8 @@ FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& 
   SubProgress scanProgress(progress, 0.0, kScanShare);
   LoadPlan plan = detail::planLoad(inputs, options, scanProgress, cancel);
   checkMemory(plan);
-  FrameCube cube(plan.region.width, plan.region.height, plan.frames.size());
+  // Every pixel of every frame is read below (or the load throws): no zero fill first.
+  FrameCube cube = FrameCube::forOverwrite(plan.region.width, plan.region.height, plan.frames.size());
   readPixels(plan, cube, progress, cancel);
   for (std::size_t n = 0; n < plan.frames.size(); ++n) {
     const PlaneRef& p = plan.frames[n];

@@ -9,6 +9,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
+#include "st/common/prefault.hpp"
 #include "st/detect/hot_pixels.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
@@ -129,10 +130,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // here, after the hot-pixel mask's own allocation: the device stages from the per-pixel background on take
   // only ~0.3 s); the device then downloads into it (issue 16). Without one, the CPU filter's copy allocates
   // it as before.
-  std::future<std::vector<float>> filteredBuffer;
+  std::future<PixelVector> filteredBuffer;
   if (params.accelerator && params.matchedFilter && params.keepZeroBiased)
-    filteredBuffer =
-        std::async(std::launch::async, [n = cube.pixels().size()] { return std::vector<float>(n); });
+    filteredBuffer = std::async(std::launch::async, [n = cube.pixels().size()] {
+      return prefaultedPixels(n, 1);  // its pages on this thread alone: the stages meanwhile use every core
+    });
   bool rateFromRegistration = false;
   std::size_t framesMoved = 0;
   {
@@ -387,7 +389,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // noise, noise model) stay on frame 0's grid.
   if (!out.registration.alignedPx.empty()) {
     if (!out.frames.empty()) detect::restoreWholePixels(out.frames, out.registration, cancel);
-    if (!out.filtered.frames.empty()) detect::restoreWholePixels(out.filtered.frames, out.registration, cancel);
+    if (!out.filtered.frames.empty())
+      detect::restoreWholePixels(out.filtered.frames, out.registration, cancel);
     for (std::size_t n = 0; n < out.registration.offsets.size(); ++n) {
       out.registration.offsets[n].x += out.registration.alignedPx[n].first;
       out.registration.offsets[n].y += out.registration.alignedPx[n].second;

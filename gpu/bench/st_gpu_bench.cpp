@@ -38,7 +38,7 @@ FilteredCube makeCube(int n, int size, st::Velocity src, float peak = 0.4f) {
   c.revision = st::search::nextCubeRevision();  // kept on the device between searches
   for (int k = 0; k < n; ++k)
     c.frames.info()[k].mjdMid = 60000.0 + (k / 16.7) / st::kSecondsPerDay;
-  std::vector<float>& px = c.frames.pixels();
+  st::PixelVector& px = c.frames.pixels();
   const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
   std::vector<std::thread> pool;
   for (unsigned t = 0; t < threads; ++t) {

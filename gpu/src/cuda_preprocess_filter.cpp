@@ -7,9 +7,9 @@
 #include <thread>
 
 #include "cuda_preprocess.hpp"
-#include "host_buffer.hpp"
 #include "preprocess_params.hpp"
 #include "resident_cube.hpp"
+#include "st/common/prefault.hpp"
 #include "st/common/error.hpp"
 
 namespace st::gpu {
@@ -59,13 +59,13 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   cudaStream_t s = r.compute.get();
   progress.report(0.0, "matched filter (GPU)");
   // The destination's pages are faulted in on other cores while the device uploads and filters.
-  std::vector<float> destPixels;
+  PixelVector destPixels;
   std::jthread allocate;
   std::exception_ptr allocError;
   if (freshDest) {
     allocate = std::jthread([&destPixels, &allocError, n = nf * np] {
       try {
-        destPixels = prefaultedFloats(n);
+        destPixels = prefaultedPixels(n);  // every value is downloaded into it
       } catch (...) {
         allocError = std::current_exception();  // rethrown on this thread after the join
       }

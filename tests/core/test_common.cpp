@@ -2,10 +2,13 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
+#include <memory>
 
 #include "st/common/error.hpp"
 #include "st/common/fits_header.hpp"
 #include "st/common/frame_cube.hpp"
+#include "st/common/memory_budget.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/units.hpp"
 #include "st/psf/moffat.hpp"
@@ -21,6 +24,33 @@ TEST(Units, RoundTripsAndKnownValues) {
   // 5"/s sky drift = 300"/min.
   EXPECT_NEAR(pxPerSecToArcsecPerMin(5.0 / 0.305, 0.305), 300.0, 1e-9);
   EXPECT_NEAR(arcsecPerMinToPxPerSec(300.0, 0.305), 5.0 / 0.305, 1e-12);
+}
+
+TEST(FrameCube, ConstructedZeroedEvenOnReusedMemory) {
+  // The pixels' vector no longer zero-fills by itself (PixelVector): the constructor must, also where the
+  // allocator hands back memory just freed (HeapReuseScope keeps large blocks in the heap) and above the
+  // 64 MiB from which the pages are populated and zeroed on every core.
+  const HeapReuseScope reuse;
+  constexpr int kW = 4200, kH = 4200;  // 70.6 MB
+  for (int round = 0; round < 2; ++round) {
+    {
+      auto dirty = std::make_unique<float[]>(static_cast<std::size_t>(kW) * kH + 1024);
+      std::memset(dirty.get(), 0xff, (static_cast<std::size_t>(kW) * kH + 1024) * sizeof(float));
+    }
+    const FrameCube cube(kW, kH, 1);
+    ASSERT_EQ(cube.pixels().size(), static_cast<std::size_t>(kW) * kH);
+    std::size_t nonZero = 0;
+    for (const float v : cube.pixels())
+      nonZero += v != 0.0f;
+    EXPECT_EQ(nonZero, 0u) << "round " << round;
+  }
+  const FrameCube small(3, 2, 2);
+  for (const float v : small.pixels())
+    EXPECT_EQ(v, 0.0f);
+  const FrameCube over = FrameCube::forOverwrite(5, 4, 3);
+  EXPECT_EQ(over.pixels().size(), 60u);
+  EXPECT_EQ(over.frameCount(), 3u);
+  EXPECT_THROW(FrameCube::forOverwrite(0, 4, 1), InputError);
 }
 
 TEST(FrameCube, ReferenceEpochIsMeanOfMidTimes) {

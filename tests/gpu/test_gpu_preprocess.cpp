@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <span>
 #include <thread>
 
 #include "gpu_test_cubes.hpp"
@@ -82,7 +83,7 @@ FrameCube rawCube(int w, int h, int n, unsigned seed, bool withMask) {
   return c;
 }
 
-void expectNear(const std::vector<float>& a, const std::vector<float>& b, double tol, const char* what) {
+void expectNear(std::span<const float> a, std::span<const float> b, double tol, const char* what) {
   ASSERT_EQ(a.size(), b.size()) << what;
   std::size_t bad = 0, first = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {

@@ -21,6 +21,7 @@
 #include <cmath>
 #include <memory>
 #include <random>
+#include <span>
 
 #include "require_gpu_preprocess.hpp"
 #include "st/common/error.hpp"
@@ -85,8 +86,7 @@ void disc(MovingMask& m, double cx, double cy, int r) {
       if ((x - cx) * (x - cx) + (y - cy) * (y - cy) <= r * r) m.set(x, y);
 }
 
-std::size_t mismatches(const std::vector<float>& a, const std::vector<float>& b, double tol,
-                       std::size_t* first) {
+std::size_t mismatches(std::span<const float> a, std::span<const float> b, double tol, std::size_t* first) {
   std::size_t bad = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
     const double d = std::fabs(double(a[i]) - double(b[i]));

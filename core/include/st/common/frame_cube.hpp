@@ -11,6 +11,7 @@
 
 #include "st/common/fits_header.hpp"
 #include "st/common/image.hpp"
+#include "st/common/pixel_vector.hpp"
 
 namespace st {
 
@@ -40,6 +41,9 @@ class FrameCube {
   FrameCube() = default;
   /// Allocates `frames` zeroed frames of width x height. Throws st::InputError for non-positive sizes.
   FrameCube(int width, int height, std::size_t frames);
+  /// As the constructor, but the pixels' values are unspecified: for a caller that writes every pixel before
+  /// any is read (the FITS loader), which then pays no zero fill.
+  static FrameCube forOverwrite(int width, int height, std::size_t frames);
 
   [[nodiscard]] int width() const noexcept { return m_width; }
   [[nodiscard]] int height() const noexcept { return m_height; }
@@ -56,8 +60,8 @@ class FrameCube {
   /// A copy of frame n as an Image.
   [[nodiscard]] Image frameImage(std::size_t n) const;
 
-  std::vector<float>& pixels() noexcept { return m_pixels; }
-  [[nodiscard]] const std::vector<float>& pixels() const noexcept { return m_pixels; }
+  PixelVector& pixels() noexcept { return m_pixels; }
+  [[nodiscard]] const PixelVector& pixels() const noexcept { return m_pixels; }
 
   /// Per-pixel mask, same layout as pixels(); 1 = masked (BLANK, NaN, bad pixel). Empty = nothing masked.
   std::vector<std::uint8_t>& mask() noexcept { return m_mask; }
@@ -91,9 +95,12 @@ class FrameCube {
   std::vector<std::string> warnings;
 
  private:
+  struct Unwritten {};
+  FrameCube(int width, int height, std::size_t frames, Unwritten);
+
   int m_width = 0;
   int m_height = 0;
-  std::vector<float> m_pixels;
+  PixelVector m_pixels;
   std::vector<std::uint8_t> m_mask;
   std::vector<FrameInfo> m_info;
 };

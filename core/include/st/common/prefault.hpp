@@ -1,17 +1,25 @@
 #pragma once
-// A zeroed vector for a whole cube (or its mask), allocated without paying its page faults on one core.
+// Large buffers (a whole cube, or its mask) allocated without paying their page faults on one core.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
+#include "st/common/pixel_vector.hpp"
+
 namespace st {
 
-/// n zeros (std::vector's value-initialisation). On Linux the pages of a large buffer (> 64 MiB) are first
-/// populated by the kernel on parallelFor's threads (madvise MADV_POPULATE_WRITE, huge pages where allowed),
-/// so the vector's single-threaded zero fill runs at memory speed instead of one page fault per 4 KiB;
-/// elsewhere, or on a kernel without it (< 5.14), a plain vector. The contents are those of
-/// std::vector<T>(n).
-std::vector<float> prefaultedZeros(std::size_t n, float);
+/// n floats whose values are unspecified (to be overwritten), their pages already in memory: on Linux the
+/// pages of a large buffer (> 64 MiB) are populated by the kernel on parallelFor's threads (madvise
+/// MADV_POPULATE_WRITE, huge pages where allowed) instead of one page fault per 4 KiB as they are first
+/// written; elsewhere, or on a kernel without it (< 5.14), just allocated. `maxThreads` caps the threads
+/// (0: workerCount(); 1: this thread only, for an allocation made behind other work).
+PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads = 0);
+
+/// n zeros, written on every core (after prefaultedPixels).
+PixelVector prefaultedZeros(std::size_t n, float);
+
+/// n zeros (std::vector's value-initialisation), the pages populated first as above so that the vector's
+/// single-threaded zero fill runs at memory speed.
 std::vector<std::uint8_t> prefaultedZeros(std::size_t n, std::uint8_t);
 
 }  // namespace st
