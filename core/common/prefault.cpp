@@ -49,19 +49,27 @@ PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads) {
   return v;
 }
 
+// Zeros written on every core over vector v's populated pages.
+template <class Vector>
+void zeroInParallel(Vector& v) {
+  using T = typename Vector::value_type;
+  const std::size_t chunk = (std::size_t{16} << 20) / sizeof(T);  // 16 MiB
+  parallelFor(v.size(), chunk,
+              [&](std::size_t b, std::size_t e) { std::memset(v.data() + b, 0, (e - b) * sizeof(T)); });
+}
+
 PixelVector prefaultedZeros(std::size_t n, float) {
   PixelVector v = prefaultedPixels(n);
-  constexpr std::size_t kChunk = std::size_t{1} << 22;  // 16 MiB of floats
-  parallelFor(n, kChunk,
-              [&](std::size_t b, std::size_t e) { std::memset(v.data() + b, 0, (e - b) * sizeof(float)); });
+  zeroInParallel(v);
   return v;
 }
 
-std::vector<std::uint8_t> prefaultedZeros(std::size_t n, std::uint8_t) {
-  std::vector<std::uint8_t> v;
-  v.reserve(n);
+MaskVector prefaultedZeros(std::size_t n, std::uint8_t) {
+  MaskVector v;
+  v.reserve(n);  // allocated, not touched
   populate(v.data(), n, 0);
-  v.resize(n);
+  v.resize(n);  // no write (DefaultInitAllocator)
+  zeroInParallel(v);
   return v;
 }
 

@@ -69,8 +69,8 @@ class DeviceBuffer {
 
 /// `host` copied into a new device buffer (at least one element, so that an empty vector still gives a
 /// valid pointer).
-template <class T>
-DeviceBuffer<T> toDevice(const std::vector<T>& host) {
+template <class T, class Allocator>
+DeviceBuffer<T> toDevice(const std::vector<T, Allocator>& host) {
   DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
   if (!host.empty())
     ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));

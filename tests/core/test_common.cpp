@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -10,6 +11,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/memory_budget.hpp"
 #include "st/common/parallel.hpp"
+#include "st/common/prefault.hpp"
 #include "st/common/units.hpp"
 #include "st/psf/moffat.hpp"
 
@@ -43,6 +45,17 @@ TEST(FrameCube, ConstructedZeroedEvenOnReusedMemory) {
     for (const float v : cube.pixels())
       nonZero += v != 0.0f;
     EXPECT_EQ(nonZero, 0u) << "round " << round;
+  }
+  // The mask's zeros (the hot-pixel stage's prefaultedZeros) likewise.
+  for (int round = 0; round < 2; ++round) {
+    {
+      auto dirty = std::make_unique<std::uint8_t[]>(std::size_t{70} << 20);
+      std::memset(dirty.get(), 0xff, std::size_t{70} << 20);
+    }
+    const MaskVector mask = prefaultedZeros((std::size_t{70} << 20) - 3, std::uint8_t{0});
+    ASSERT_EQ(mask.size(), (std::size_t{70} << 20) - 3);
+    EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(mask.size()))
+        << "round " << round;
   }
   const FrameCube small(3, 2, 2);
   for (const float v : small.pixels())

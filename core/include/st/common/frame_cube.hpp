@@ -64,8 +64,8 @@ class FrameCube {
   [[nodiscard]] const PixelVector& pixels() const noexcept { return m_pixels; }
 
   /// Per-pixel mask, same layout as pixels(); 1 = masked (BLANK, NaN, bad pixel). Empty = nothing masked.
-  std::vector<std::uint8_t>& mask() noexcept { return m_mask; }
-  [[nodiscard]] const std::vector<std::uint8_t>& mask() const noexcept { return m_mask; }
+  MaskVector& mask() noexcept { return m_mask; }
+  [[nodiscard]] const MaskVector& mask() const noexcept { return m_mask; }
   [[nodiscard]] bool isMasked(std::size_t n, int x, int y) const noexcept {
     return !m_mask.empty() && m_mask[n * framePixels() + static_cast<std::size_t>(y) * m_width + x] != 0;
   }
@@ -101,7 +101,7 @@ class FrameCube {
   int m_width = 0;
   int m_height = 0;
   PixelVector m_pixels;
-  std::vector<std::uint8_t> m_mask;
+  MaskVector m_mask;
   std::vector<FrameInfo> m_info;
 };
 

@@ -18,8 +18,7 @@ PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads = 0);
 /// n zeros, written on every core (after prefaultedPixels).
 PixelVector prefaultedZeros(std::size_t n, float);
 
-/// n zeros (std::vector's value-initialisation), the pages populated first as above so that the vector's
-/// single-threaded zero fill runs at memory speed.
-std::vector<std::uint8_t> prefaultedZeros(std::size_t n, std::uint8_t);
+/// n zeros (a cube's mask), written on every core after the pages are populated as above.
+MaskVector prefaultedZeros(std::size_t n, std::uint8_t);
 
 }  // namespace st
