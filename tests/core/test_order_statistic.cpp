@@ -11,13 +11,13 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "st/common/error.hpp"
 #include "st/stats/order_statistic.hpp"
+#include "test_support.hpp"
 
 namespace st::stats {
 namespace {
@@ -187,24 +187,6 @@ TEST(OrderStatistic, SortedAndReverseSorted) {
   }
 }
 
-// Sets ST_THREADS for one scope, then restores it.
-class ThreadCount {
- public:
-  explicit ThreadCount(const std::string& n) {
-    if (const char* old = std::getenv("ST_THREADS")) old_ = old;
-    ::setenv("ST_THREADS", n.c_str(), 1);
-  }
-  ~ThreadCount() {
-    if (old_)
-      ::setenv("ST_THREADS", old_->c_str(), 1);
-    else
-      ::unsetenv("ST_THREADS");
-  }
-
- private:
-  std::optional<std::string> old_;
-};
-
 TEST(OrderStatistic, SameResultOnAnyNumberOfThreads) {
   // The slices (one a thread) and their histograms' merge are this machine's worker count otherwise; 3 and 7
   // slices leave a shorter last slice at 3'000'001.
@@ -215,7 +197,7 @@ TEST(OrderStatistic, SameResultOnAnyNumberOfThreads) {
   for (std::size_t k : ks)
     expected.push_back(nthElement(v, k));
   for (const char* threads : {"1", "3", "7", "16"}) {
-    const ThreadCount scope(threads);
+    const test::ScopedThreads scope(threads);
     for (std::size_t i = 0; i < ks.size(); ++i)
       EXPECT_EQ(kthSmallest(v.data(), v.size(), ks[i]), expected[i])
           << "ST_THREADS=" << threads << ", k " << ks[i];

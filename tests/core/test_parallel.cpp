@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <mutex>
-#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -16,29 +15,10 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "test_support.hpp"
 
 namespace st {
 namespace {
-
-// ST_THREADS set for one test, restored after.
-class ThreadsOverride {
- public:
-  explicit ThreadsOverride(const char* value) {
-    if (const char* old = std::getenv("ST_THREADS")) m_old = old;
-    setenv("ST_THREADS", value, 1);
-  }
-  ~ThreadsOverride() {
-    if (m_old)
-      setenv("ST_THREADS", m_old->c_str(), 1);
-    else
-      unsetenv("ST_THREADS");
-  }
-  ThreadsOverride(const ThreadsOverride&) = delete;
-  ThreadsOverride& operator=(const ThreadsOverride&) = delete;
-
- private:
-  std::optional<std::string> m_old;
-};
 
 // A number of the running thread, never given to another thread (std::thread::id is not enough: glibc
 // reuses the descriptor of a finished thread for the next one, so a new thread may have an old one's id).
@@ -62,7 +42,7 @@ std::set<int> helpersOfOneCall(std::size_t chunks, std::chrono::milliseconds sle
 }
 
 TEST(Parallel, NestedCallsCoverEveryIndexOnce) {
-  const ThreadsOverride threads("4");
+  const test::ScopedThreads threads("4");
   std::vector<std::atomic<int>> hits(64 * 100);
   parallelFor(64, 1, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i)
@@ -76,7 +56,7 @@ TEST(Parallel, NestedCallsCoverEveryIndexOnce) {
 }
 
 TEST(Parallel, ConcurrentCallersEachCoverTheirRange) {
-  const ThreadsOverride threads("3");
+  const test::ScopedThreads threads("3");
   constexpr int kCallers = 4, kCalls = 200, kN = 257;
   std::vector<std::vector<std::atomic<int>>> hits(kCallers);
   for (auto& h : hits)
@@ -98,7 +78,7 @@ TEST(Parallel, ConcurrentCallersEachCoverTheirRange) {
 }
 
 TEST(Parallel, ErrorsPropagateFromNestedCallsAndThePoolGoesOn) {
-  const ThreadsOverride threads("4");
+  const test::ScopedThreads threads("4");
   EXPECT_THROW(parallelFor(8, 1,
                            [](std::size_t b, std::size_t) {
                              parallelFor(50, 1, [&](std::size_t b2, std::size_t) {
@@ -125,7 +105,7 @@ std::size_t processThreads() {
 }
 
 TEST(Parallel, PoolThreadsRunChunksAndAreReusedBetweenCalls) {
-  const ThreadsOverride threads("4");
+  const test::ScopedThreads threads("4");
   // 8 chunks of 20 ms on 4 threads: helpers join within the first chunks' time.
   const auto helpers = helpersOfOneCall(8, std::chrono::milliseconds(20));
   EXPECT_GE(helpers.size(), 1u) << "no pool thread ran a chunk";
@@ -139,7 +119,7 @@ TEST(Parallel, PoolThreadsRunChunksAndAreReusedBetweenCalls) {
 }
 
 TEST(Parallel, OneThreadRunsInOrderOnTheCaller) {
-  const ThreadsOverride threads("1");
+  const test::ScopedThreads threads("1");
   std::vector<std::size_t> order;
   const std::thread::id caller = std::this_thread::get_id();
   parallelFor(10, 3, [&](std::size_t b, std::size_t e) {
@@ -151,7 +131,7 @@ TEST(Parallel, OneThreadRunsInOrderOnTheCaller) {
 }
 
 TEST(Parallel, SortEqualsStdSortForATotalOrder) {
-  const ThreadsOverride threads("8");
+  const test::ScopedThreads threads("8");
   std::mt19937 rng(7);
   // Pairs (key, index): a total order whatever the keys' duplicates, as setCandidates' cell order.
   for (const std::size_t n : {0u, 1u, 4095u, 8192u, 8193u, 100000u, 130001u}) {

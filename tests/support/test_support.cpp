@@ -88,4 +88,16 @@ Lowell5945 loadLowell5945() {
   return out;
 }
 
+ScopedThreads::ScopedThreads(const std::string& threads) {
+  if (const char* old = std::getenv("ST_THREADS")) m_old = old;
+  ::setenv("ST_THREADS", threads.c_str(), 1);
+}
+
+ScopedThreads::~ScopedThreads() {
+  if (m_old)
+    ::setenv("ST_THREADS", m_old->c_str(), 1);
+  else
+    ::unsetenv("ST_THREADS");
+}
+
 }  // namespace st::test

@@ -1,6 +1,7 @@
 #pragma once
 // Helpers shared by the test suites: temporary folders, the real-data location, a simple TAN WCS.
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -48,5 +49,17 @@ Lowell5945 loadLowell5945();
 /// Writes a TAN WCS into `h`: (raDeg, decDeg) at the 1-based pixel (crpix1, crpix2), north up, east left,
 /// `arcsecPerPx` (CD matrix diagonal, no rotation).
 void setTanWcs(FitsHeader& h, double raDeg, double decDeg, double crpix1, double crpix2, double arcsecPerPx);
+
+/// ST_THREADS (parallelFor's worker count) set for one scope, then restored (or unset, as it was).
+class ScopedThreads {
+ public:
+  explicit ScopedThreads(const std::string& threads);
+  ~ScopedThreads();
+  ScopedThreads(const ScopedThreads&) = delete;
+  ScopedThreads& operator=(const ScopedThreads&) = delete;
+
+ private:
+  std::optional<std::string> m_old;
+};
 
 }  // namespace st::test
