@@ -81,8 +81,9 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
   getrusage(RUSAGE_SELF, &u);
   const double rssMb = static_cast<double>(u.ru_maxrss) / 1024.0;
   // What `--method auto` would choose here (method_choice.hpp), to compare with the measured winner.
-  const search::MethodEstimate est = search::estimateMethods(w, h, cube.frames.timeOffsetsS(), grid,
-                                                             search::costModelFor(*backend), workerCount());
+  const search::MethodEstimate est =
+      search::estimateMethods(w, h, cube.frames.timeOffsetsS(), grid, search::costModelFor(*backend),
+                              workerCount(), 0, cube.frames.frameOffsets());
   const search::MethodChoice autoChoice =
       search::chooseMethod(search::SearchMethod::Auto, est, true, backend->name());
   const std::string autoMethod(autoChoice.method.name());
@@ -100,8 +101,8 @@ int benchTree(const search::FilteredCube& cube, const search::VelocityGrid& grid
         workerCount(), frames, w, h, grid.nvx, grid.nvy, treeOps, tree.seconds, tree.cpuSeconds,
         tree.result.candidates.size(), std::max(plan.maxAbsErrX, plan.maxAbsErrY), tileRows, tileMb, exactOps,
         runExact ? exact.seconds : -1.0, runExact ? exact.result.candidates.size() : std::size_t{0},
-        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb, autoMethod.c_str(),
-        est.exactSeconds, est.treeSeconds);
+        paperTreeOps, paperTreeS, paperExactOps, paperTileMb, rssMb, autoMethod.c_str(), est.exactSeconds,
+        est.treeSeconds);
     return 0;
   }
   std::printf("search tree vs exact  %s  %.0f frames x %d x %d px x %d x %d velocities\n",

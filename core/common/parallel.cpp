@@ -5,12 +5,17 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdlib>
+#include <cerrno>
 #include <deque>
+#include <map>
 #include <exception>
 #include <mutex>
-#include <system_error>
 #include <thread>
 #include <vector>
+
+#ifdef __linux__
+#include <sys/resource.h>
+#endif
 
 namespace st {
 namespace {
@@ -79,8 +84,8 @@ class Pool {
     for (unsigned i = 0; i < count && m_threads < most; ++i) {
       try {
         std::thread([this] { work(); }).detach();
-      } catch (const std::system_error&) {
-        return;  // no more threads to be had: the callers run their chunks themselves
+      } catch (...) {  // std::system_error, std::bad_alloc: the job is queued, so nothing may escape here
+        return;        // no more threads to be had: the callers run their chunks themselves
       }
       ++m_threads;
       ++m_idle;  // counted idle from now on: it takes a job as soon as it runs
@@ -114,9 +119,28 @@ class Pool {
   unsigned m_idle = 0;       ///< of which waiting for a job (or about to)
 };
 
-// Never destroyed: detached pool threads may still wait on its condition variable while the process exits.
-Pool& pool() {
-  static Pool* const p = new Pool;
+// The calling thread's nice value (Linux: per thread; 0 elsewhere).
+int callerNice() {
+#ifdef __linux__
+  errno = 0;
+  const int nice = getpriority(PRIO_PROCESS, 0);  // who = 0: this thread on Linux
+  return errno == 0 ? nice : 0;
+#else
+  return 0;
+#endif
+}
+
+// One pool per nice value of its callers: a new thread inherits its creator's nice value and an unprivileged
+// thread cannot lower it again, so a job's helpers come from threads started by callers of its own priority
+// (the GUI's job thread runs at nice +5, its scrubbing and the GUI thread at 0: they must not lend each other
+// threads). Never destroyed: detached pool threads may still wait on their condition variables while the
+// process exits.
+Pool& poolFor(int nice) {
+  static std::mutex mutex;
+  static auto* const pools = new std::map<int, Pool*>;
+  const std::lock_guard lock(mutex);
+  Pool*& p = (*pools)[nice];
+  if (!p) p = new Pool;
   return *p;
 }
 
@@ -152,7 +176,7 @@ void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std:
   job.n = n;
   job.chunk = chunk;
   job.chunks = chunks;
-  pool().run(job, threads - 1);
+  poolFor(callerNice()).run(job, threads - 1);
   if (job.error) std::rethrow_exception(job.error);
 }
 

@@ -25,8 +25,8 @@ MemoryEstimate estimateOpenPeak(const CubeShape& shape, bool prepared, bool zero
   return e;
 }
 
-OpenPlan planOpen(const std::vector<std::string>& inputs, const io::LoadOptions& load, std::size_t budgetBytes,
-                  unsigned threads, CancelToken& cancel) {
+OpenPlan planOpen(const std::vector<std::string>& inputs, const io::LoadOptions& load,
+                  std::size_t budgetBytes, unsigned threads, CancelToken& cancel) {
   OpenPlan plan;
   const io::InputSummary summary = io::summarizeInputs(inputs, load);
   plan.shape = {summary.width, summary.height, summary.frames};
@@ -38,8 +38,9 @@ OpenPlan planOpen(const std::vector<std::string>& inputs, const io::LoadOptions&
   corner.crop = io::CropRegion{bx, by, std::min(plan.shape.width, 16), std::min(plan.shape.height, 16)};
   NullProgress quiet;
   const FrameCube c = io::loadFrames(inputs, corner, quiet, cancel);
-  const std::string size = std::to_string(plan.shape.frames) + " frames of " + std::to_string(plan.shape.width) +
-                           " x " + std::to_string(plan.shape.height) + " px";
+  const std::string size = std::to_string(plan.shape.frames) + " frames of " +
+                           std::to_string(plan.shape.width) + " x " + std::to_string(plan.shape.height) +
+                           " px";
   const std::string over = ", over the memory budget of " + formatBytes(budget);
   if (const auto header = recognisePreparedHeader(c.header, cubeSource(c))) {
     plan.prepared = true;
@@ -52,12 +53,12 @@ OpenPlan planOpen(const std::vector<std::string>& inputs, const io::LoadOptions&
   plan.need = estimatePreprocessPeak(plan.shape, true, std::max(1u, threads));
   if (plan.need.total() <= budget) return plan;
   plan.mode = OpenMode::Refused;
-  plan.reason = size + " of raw frames need " + formatBytes(plan.need.total()) +
-                " to pre-process in memory" + over +
-                ". Pre-process them out of core first: `synthtrack-cli search FILES... --keep-scratch --scratch "
-                "DIR/` (add --bias/--flat/--dark as needed) pre-processes them in strips of rows under its "
-                "--memory-limit and keeps the filtered cube in DIR; open that cube here (a pre-processed cube "
-                "over the budget opens out of core)";
+  plan.reason =
+      size + " of raw frames need " + formatBytes(plan.need.total()) + " to pre-process in memory" + over +
+      ". Pre-process them out of core first: `synthtrack-cli search FILES... --keep-scratch --scratch "
+      "DIR/` (add --bias/--flat/--dark as needed) pre-processes them in strips of rows under its "
+      "--memory-limit and keeps the filtered cube in DIR; open that cube here (a pre-processed cube "
+      "over the budget opens out of core)";
   return plan;
 }
 
@@ -77,14 +78,15 @@ OutOfCoreCube openOutOfCore(const std::vector<std::string>& inputs, const io::Lo
   progress.report(0.0, "reading the headers");
   const io::InputSummary summary = io::summarizeInputs(inputs, load);
   c.shape = {summary.width, summary.height, summary.frames};
-  FrameCube corner = loadOutOfCoreRegion(c, {0, 0, std::min(c.shape.width, 16), std::min(c.shape.height, 16)},
-                                         cancel);
+  FrameCube corner =
+      loadOutOfCoreRegion(c, {0, 0, std::min(c.shape.width, 16), std::min(c.shape.height, 16)}, cancel);
   const std::string source = cubeSource(corner);
   c.header = readPreparedHeader(corner.header, source);
   c.meta.skyRate = c.header.skyRate;
   if (!c.header.psf) throw InputError(source + ": no PSFFWHM in the header (the matched filter's PSF)");
   c.meta.psfFwhmPx = c.header.psf->fwhm();
-  if (c.header.state == PreparedState::ZeroBiased) c.filterHalfSize = stack::makeFilterKernel(*c.header.psf).halfSize;
+  if (c.header.state == PreparedState::ZeroBiased)
+    c.filterHalfSize = stack::makeFilterKernel(*c.header.psf).halfSize;
   if (c.header.state == PreparedState::Filtered && c.header.sigmaF) {
     c.meta.sigmaF = *c.header.sigmaF;
   } else {
@@ -135,8 +137,9 @@ OutOfCoreSearch searchOutOfCore(const OutOfCoreCube& cube, const search::Velocit
   const unsigned threads = workerCount();
   params.bufferBytes = searchBufferBytes(budgetBytes);
   const auto dt = cube.meta.frames.timeOffsetsS();
-  search::MethodEstimate e = search::estimateMethods(cube.shape.width, cube.shape.height, dt, grid,
-                                                     search::cpuCostModel(threads), threads, params.bufferBytes);
+  search::MethodEstimate e =
+      search::estimateMethods(cube.shape.width, cube.shape.height, dt, grid, search::cpuCostModel(threads),
+                              threads, params.bufferBytes, cube.meta.frames.frameOffsets());
   search::setPsf(e, cube.meta.psfFwhmPx);
   search::MethodChoice method = search::chooseMethod(params.method, e, true, "cpu");
   const int overlap = search::searchOverlapPx(grid, dt) + cube.filterHalfSize;
@@ -161,13 +164,13 @@ OutOfCoreSearch searchOutOfCore(const OutOfCoreCube& cube, const search::Velocit
   const double sigmaF = cube.meta.sigmaF;
   const search::TileLoader load = [&](const search::TileRect& t) {
     NullProgress quiet;
-    PreparedSearchInput p = searchInputFromPrepared(loadOutOfCoreRegion(cube, t, cancel), {std::nullopt, sigmaF},
-                                                    quiet, cancel);
+    PreparedSearchInput p =
+        searchInputFromPrepared(loadOutOfCoreRegion(cube, t, cancel), {std::nullopt, sigmaF}, quiet, cancel);
     return std::move(p.cube);
   };
   OutOfCoreSearch out;
-  out.result = search::searchTiled(load, plan.tiles, cube.shape.width, cube.shape.height, grid, params, progress,
-                                   cancel);
+  out.result = search::searchTiled(load, plan.tiles, cube.shape.width, cube.shape.height, grid, params,
+                                   progress, cancel);
   out.result.methodReason = method.reason;
   out.result.backendNote += ", " + std::to_string(overlap) + " px overlap";
   out.tiles = plan.tiles.size();

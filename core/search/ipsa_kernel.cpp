@@ -5,8 +5,10 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <numeric>
+#include <vector>
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
@@ -356,13 +358,27 @@ KernelOutput runIpsaKernel(const FrameCube& cube, const VelocityGrid& grid, cons
   const std::size_t items = static_cast<std::size_t>(sh.rowTiles) * sh.velBlocks;
   std::atomic<std::size_t> done{0};
   progress.report(0.0, "velocity search");
+  // Scratch buffers reused from item to item and freed with the call (parallelFor's threads outlive it: a
+  // thread_local scratch would stay allocated in each of them, outside the search's memory estimate).
+  std::mutex scratchMutex;
+  std::vector<std::unique_ptr<Scratch>> scratches;
   parallelFor(items, 1, [&](std::size_t b, std::size_t e) {
-    thread_local Scratch scratch;
+    std::unique_ptr<Scratch> scratch;
+    {
+      const std::lock_guard lock(scratchMutex);
+      if (!scratches.empty()) {
+        scratch = std::move(scratches.back());
+        scratches.pop_back();
+      }
+    }
+    if (!scratch) scratch = std::make_unique<Scratch>();
     for (std::size_t i = b; i < e; ++i) {
-      runItem(sh, scratch, i, cancel);
+      runItem(sh, *scratch, i, cancel);
       const std::size_t d = done.fetch_add(1) + 1;
       progress.report(static_cast<double>(d) / static_cast<double>(items), "velocity search");
     }
+    const std::lock_guard lock(scratchMutex);
+    scratches.push_back(std::move(scratch));
   });
   for (auto& m : sh.out.map.maxSnr) {
     if (!std::isfinite(m)) m = 0.0f;  // velocities where every cell had too few frames

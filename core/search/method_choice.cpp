@@ -212,7 +212,7 @@ MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cub
   // Only Auto needs the estimate (a tree plan: milliseconds even for the paper problem).
   if (requested == SearchMethod::Auto && treeSupported) {
     e = estimateMethods(cube.frames.width(), cube.frames.height(), cube.frames.timeOffsetsS(), grid,
-                        costModelFor(backend), workerCount());
+                        costModelFor(backend), workerCount(), 0, cube.frames.frameOffsets());
   }
   setPsf(e, cube.psfFwhmPx);
   if (estimate) *estimate = e;

@@ -60,8 +60,8 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   progress.report(0.0, "matched filter (GPU)");
   // The destination's pages are faulted in on other cores while the device uploads and filters.
   PixelVector destPixels;
+  std::exception_ptr allocError;  // before the thread: the thread may write it until its join
   std::jthread allocate;
-  std::exception_ptr allocError;
   if (freshDest) {
     allocate = std::jthread([&destPixels, &allocError, n = nf * np] {
       try {

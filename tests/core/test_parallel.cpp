@@ -13,6 +13,12 @@
 #include <thread>
 #include <vector>
 
+#ifdef __linux__
+#include <sys/resource.h>
+
+#include <cerrno>
+#endif
+
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "test_support.hpp"
@@ -117,6 +123,37 @@ TEST(Parallel, PoolThreadsRunChunksAndAreReusedBetweenCalls) {
   (void)helpersOfOneCall(8, std::chrono::milliseconds(5));
   EXPECT_LE(processThreads(), after) << "the second call started threads of its own";
 }
+
+#ifdef __linux__
+// The nice values of the threads that ran the chunks of one call (each chunk sleeps so that helpers join).
+std::set<int> niceOfChunks() {
+  std::mutex m;
+  std::set<int> nice;
+  parallelFor(8, 1, [&](std::size_t, std::size_t) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    errno = 0;
+    const int n = getpriority(PRIO_PROCESS, 0);
+    const std::lock_guard lock(m);
+    nice.insert(errno == 0 ? n : -100);
+  });
+  return nice;
+}
+
+TEST(Parallel, HelpersRunAtTheCallersPriority) {
+  // The GUI's job thread runs at nice +5 and must not lend its threads to the GUI's own calls, nor borrow
+  // theirs (an unprivileged thread cannot lower its nice value again).
+  const test::ScopedThreads threads("4");
+  const int own = getpriority(PRIO_PROCESS, 0);
+  (void)niceOfChunks();  // pool threads at this thread's priority exist now
+  std::set<int> lowered;
+  std::thread([&] {
+    ASSERT_EQ(setpriority(PRIO_PROCESS, 0, own + 5), 0);
+    lowered = niceOfChunks();
+  }).join();
+  EXPECT_EQ(lowered, std::set<int>{own + 5});
+  EXPECT_EQ(niceOfChunks(), std::set<int>{own});
+}
+#endif
 
 TEST(Parallel, OneThreadRunsInOrderOnTheCaller) {
   const test::ScopedThreads threads("1");

@@ -154,9 +154,9 @@ QGroupBox* SearchPanel::makeRunBox(const std::vector<std::string>& gpuNames) {
   auto* run = new QFormLayout(runBox);
   m_method = new QComboBox(runBox);
   // Item data: the method's stable name, as sessions and the command line carry it.
-  for (const auto& [text, method] : {std::pair{"Auto", search::SearchMethod::Auto},
-                                     std::pair{"Exact", search::SearchMethod::Exact},
-                                     std::pair{"Tree", search::SearchMethod::Tree}})
+  for (const auto& [text, method] :
+       {std::pair{"Auto", search::SearchMethod::Auto}, std::pair{"Exact", search::SearchMethod::Exact},
+        std::pair{"Tree", search::SearchMethod::Tree}})
     m_method->addItem(text, QString::fromUtf8(search::searchMethodName(method)));
   m_method->setToolTip(kMethodHelp);
   m_backend = new QComboBox(runBox);
@@ -422,9 +422,8 @@ QString SearchPanel::methodEstimateText(const FrameCube& raw, const search::Velo
   const bool tree = c.method == search::SearchMethod::Tree;
   if (tree && !(e.treeAdditions > 0.0))
     return "tree: no tree plan for these frames (they need 2 distinct times)";
-  QString text =
-      method() == search::SearchMethod::Auto ? "Auto → " + QString::fromUtf8(c.method.name())
-                                             : QString::fromUtf8(c.method.name());
+  QString text = method() == search::SearchMethod::Auto ? "Auto → " + QString::fromUtf8(c.method.name())
+                                                        : QString::fromUtf8(c.method.name());
   text += QString(": %1 additions · %2 (+%3 cube) · ~%4")
               .arg(tree ? e.treeAdditions : e.exactAdditions, 0, 'e', 2)
               .arg(humanBytes(static_cast<double>(tree ? e.treeWorkingBytes : e.exactWorkingBytes)))
@@ -447,10 +446,12 @@ void SearchPanel::startEstimate(const FrameCube& raw, const search::VelocityGrid
   if (m_estimateWatcher.isRunning()) return;  // onEstimateFinished refreshes, which starts the latest
   // The worker gets copies (frame times, grid, sizes): the cube may be replaced while it runs; the key
   // then no longer matches and the result is only cached, never shown for the new cube.
-  m_estimateWatcher.setFuture(QtConcurrent::run(
-      [key, g, width = raw.width(), height = raw.height(), dt = raw.timeOffsetsS()]() -> KeyedEstimate {
+  m_estimateWatcher.setFuture(
+      QtConcurrent::run([key, g, width = raw.width(), height = raw.height(), dt = raw.timeOffsetsS(),
+                         offsets = raw.frameOffsets()]() -> KeyedEstimate {
         const unsigned threads = workerCount();
-        return {key, search::estimateMethods(width, height, dt, g, search::cpuCostModel(threads), threads)};
+        return {key, search::estimateMethods(width, height, dt, g, search::cpuCostModel(threads), threads, 0,
+                                             offsets)};
       }));
 }
 
