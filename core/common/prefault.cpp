@@ -26,25 +26,23 @@ void populate(void* data, std::size_t bytes, unsigned maxThreads) {
     const std::size_t pages = (hi - lo) / kPage;
     madvise(base, hi - lo, MADV_HUGEPAGE);      // a hint: ignored where transparent huge pages are off
     constexpr std::size_t kChunkPages = 16384;  // 64 MiB
-    parallelFor(
-        pages, kChunkPages,
-        [&](std::size_t p0, std::size_t p1) {
-          madvise(base + p0 * kPage, (p1 - p0) * kPage,
-                  MADV_POPULATE_WRITE);  // failure: faulted when written
-        },
-        maxThreads);
+    // A failed populate is harmless: the pages are then faulted when first written.
+    const auto body = [&](std::size_t p0, std::size_t p1) {
+      madvise(base + p0 * kPage, (p1 - p0) * kPage, MADV_POPULATE_WRITE);
+    };
+    parallelFor(pages, kChunkPages, body, maxThreads);
   }
 #else
   (void)data, (void)bytes, (void)maxThreads;
 #endif
 }
 
-}  // namespace
-
-PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads) {
-  PixelVector v;
+// n elements of a default-initialising vector (PixelVector, MaskVector), unwritten, their pages populated.
+template <class Vector>
+Vector populated(std::size_t n, unsigned maxThreads) {
+  Vector v;
   v.reserve(n);  // allocated, not touched
-  populate(v.data(), n * sizeof(float), maxThreads);
+  populate(v.data(), n * sizeof(typename Vector::value_type), maxThreads);
   v.resize(n);  // no write (DefaultInitAllocator)
   return v;
 }
@@ -58,17 +56,20 @@ void zeroInParallel(Vector& v) {
               [&](std::size_t b, std::size_t e) { std::memset(v.data() + b, 0, (e - b) * sizeof(T)); });
 }
 
+}  // namespace
+
+PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads) {
+  return populated<PixelVector>(n, maxThreads);
+}
+
 PixelVector prefaultedZeros(std::size_t n, float) {
-  PixelVector v = prefaultedPixels(n);
+  PixelVector v = populated<PixelVector>(n, 0);
   zeroInParallel(v);
   return v;
 }
 
 MaskVector prefaultedZeros(std::size_t n, std::uint8_t) {
-  MaskVector v;
-  v.reserve(n);  // allocated, not touched
-  populate(v.data(), n, 0);
-  v.resize(n);  // no write (DefaultInitAllocator)
+  MaskVector v = populated<MaskVector>(n, 0);
   zeroInParallel(v);
   return v;
 }

@@ -249,8 +249,8 @@ std::shared_ptr<const TreePlan> sharedTreePlan(const std::vector<double>& dtS, c
     VelocityGrid grid;
     std::shared_ptr<const TreePlan> plan;
   };
-  // Two plans, the last used first: a registered cube's estimate asks without offsets and its search with
-  // them, and the two must not push each other out.
+  // Two plans, the last used first: a re-search on another grid (the GUI's) and a return to the first one
+  // do not rebuild either. (The estimate and the search of one cube ask with the same offsets.)
   static std::mutex mutex;
   static Kept kept[2];
   const bool zero = std::all_of(offsets.begin(), offsets.end(),
