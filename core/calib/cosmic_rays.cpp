@@ -6,6 +6,7 @@
 #include <functional>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -81,7 +82,8 @@ struct Protection {
 };
 
 Protection protection(const FrameCube& cube, const CosmicRayParams& params, double sigma,
-                      ProgressSink& progress, CancelToken& cancel) {
+                      ProgressSink& progress, CancelToken& cancel,
+                      const detect::SkyStackCache::Provider* stacks) {
   detect::MovingMask mask(cube, params.skyRate);
   const std::size_t nf = cube.frameCount();
   const int blocks = static_cast<int>(std::clamp<std::size_t>(params.protectBlocks, 1, nf));
@@ -92,7 +94,10 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
     const std::size_t f0 = nf * b / blocks, f1 = nf * (b + 1) / blocks;
-    const detect::SkyStack s = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, f0, f1);
+    std::optional<detect::SkyStack> made;
+    if (stacks && *stacks) made = (*stacks)(cube, params.skyRate, 0.0, f0, f1);
+    if (!made) made = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, f0, f1);
+    const detect::SkyStack& s = *made;
     const Image local = detect::meshBackground(s.mean, s.count, 32);
     const float minCount = std::max(3.0f, 0.1f * static_cast<float>(f1 - f0));
     if (minSnr.empty()) {
@@ -241,14 +246,14 @@ double noiseFromFrameDifferences(const FrameCube& cube) {
 }
 
 CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params, ProgressSink& progress,
-                                 CancelToken& cancel) {
+                                 CancelToken& cancel, const detect::SkyStackCache::Provider* stacks) {
   CosmicRayResult out;
   const std::size_t nf = cube.frameCount();
   out.perFrame.assign(nf, 0);
   if (nf < 3) return out;
   out.sigma = noiseFromFrameDifferences(cube);
   if (!(out.sigma > 0.0)) return out;
-  const Protection prot = protection(cube, params, out.sigma, progress, cancel);
+  const Protection prot = protection(cube, params, out.sigma, progress, cancel, stacks);
   out.protectedPixels = prot.mask.count();
   const TimeReference ref(cube, prot.mask);
   const int w = cube.width(), h = cube.height();

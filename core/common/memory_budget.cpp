@@ -10,10 +10,12 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
 #include "st/common/error.hpp"
+#include "st/common/parallel.hpp"
 
 namespace st {
 namespace {
@@ -171,6 +173,23 @@ HeapReuseScope::HeapReuseScope() {
   if (g_heapReuseDepth.fetch_add(1) > 0) return;
   mallopt(M_MMAP_THRESHOLD, 1 << 30);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
+void HeapReuseScope::warmCallerHeap(std::size_t bytes) {
+#if defined(__GLIBC__)
+  constexpr std::size_t kPage = 4096;
+  if (g_heapReuseDepth.load() == 0 || bytes < (std::size_t{1} << 20)) return;
+  char* block = static_cast<char*>(std::malloc(bytes));
+  if (!block) return;
+  parallelFor(bytes / kPage, 4096, [block](std::size_t p0, std::size_t p1) {
+    volatile char* page = block;
+    for (std::size_t p = p0; p < p1; ++p)
+      page[p * kPage] = 0;
+  });
+  std::free(block);
+#else
+  (void)bytes;
 #endif
 }
 

@@ -5,6 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "../common/opencv_threads.hpp"
 #include "st/common/fftw_plans.hpp"
 
 namespace st::detect::detail {
@@ -15,6 +16,7 @@ double minPeakCompressed() {
 
 std::vector<Source> sourcesOf(const cv::Mat& image, double minPeak) {
   constexpr int kMinSourcePixels = 4;
+  st::detail::useOpenCvSequentially();  // called on parallelFor's threads
   cv::Mat labels;
   const cv::Mat on = image > 0.0;
   const int n = cv::connectedComponents(on, labels, 8, CV_32S);

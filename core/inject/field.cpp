@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 
+#include "../common/opencv_threads.hpp"
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
@@ -160,6 +161,7 @@ Field measureField(const FrameCube& cube, const FieldParams& params, ProgressSin
     if (residual.pixels[i] > threshold) f.mask[i] = 1;
   f.maskedPixels = static_cast<std::size_t>(std::count(f.mask.begin(), f.mask.end(), 1));
   // Distance of every pixel to the nearest masked one (OpenCV: distance to the nearest zero).
+  st::detail::useOpenCvSequentially();
   cv::Mat unmasked(f.height, f.width, CV_8U);
   for (std::size_t i = 0; i < f.mask.size(); ++i)
     unmasked.data[i] = f.mask[i] ? 0 : 1;

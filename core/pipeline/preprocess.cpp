@@ -9,6 +9,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
+#include "st/common/moving_mask.hpp"
 #include "st/common/prefault.hpp"
 #include "st/detect/hot_pixels.hpp"
 #include "st/detect/sky_stack.hpp"
@@ -184,9 +185,35 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                           std::to_string(sumsAsked) + " iterations on " + params.accelerator->name());
   }
   lap("sky rate");
+  {
+    // The cosmic rays, static sources and PSF make a few dozen canvas-sized images on this thread (the stacks
+    // at the sky rate and their analyses): their pages faulted on every core now, not one by one there.
+    const MovingMask canvas(cube, out.skyRate);
+    const std::size_t canvasBytes =
+        static_cast<std::size_t>(canvas.canvasWidth()) * canvas.canvasHeight() * sizeof(float);
+    HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
+  }
   detect::StaticSourceParams sp = params.stars;
   sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;
   if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
+  // Stacks at the sky rate on a device, from the cube prefetch() is uploading (issue 16): the cosmic rays'
+  // protection, then the static sources and the PSF. A device failure: a note, the CPU stacks from then on.
+  detect::SkyStackCache::Provider deviceStacks;
+  bool deviceStacksFailed = false;
+  if (params.accelerator)
+    deviceStacks = [&out, &deviceStacksFailed, accel = params.accelerator](
+                       const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
+                       std::size_t endFrame) -> std::optional<detect::SkyStack> {
+      if (deviceStacksFailed) return std::nullopt;
+      try {
+        return accel->skyStack(c, rate, subtract, firstFrame, endFrame);
+      } catch (const GpuError& e) {
+        deviceStacksFailed = true;
+        out.notes.push_back("warning: the stacks at the sky rate fell back to the CPU (" + accel->name() +
+                            ": " + e.what() + ")");
+        return std::nullopt;
+      }
+    };
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);
@@ -194,7 +221,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cp.skyRate = out.skyRate;
     if (!cp.saturationLevel) cp.saturationLevel = sp.saturationLevel;
     cp.fill = calib::CosmicRayParams::Fill::TimeNeighbours;  // zeroed after background subtraction
-    cr = calib::removeCosmicRays(cube, cp, sub, cancel);
+    cr = calib::removeCosmicRays(cube, cp, sub, cancel, &deviceStacks);
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
     if (params.accelerator) params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
@@ -209,21 +236,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // The stacks at the sky rate, made once for both static-source searches and the PSF (the cube does not
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;
-  // On a device, from the cube prefetch() is uploading (issue 16); a device failure: a note, the CPU stacks.
-  if (params.accelerator)
-    skyStacks.setProvider([&out, accel = params.accelerator, failed = false](
-                              const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
-                              std::size_t endFrame) mutable -> std::optional<detect::SkyStack> {
-      if (failed) return std::nullopt;
-      try {
-        return accel->skyStack(c, rate, subtract, firstFrame, endFrame);
-      } catch (const GpuError& e) {
-        failed = true;
-        out.notes.push_back("warning: the stacks at the sky rate fell back to the CPU (" + accel->name() +
-                            ": " + e.what() + ")");
-        return std::nullopt;
-      }
-    });
+  if (deviceStacks) skyStacks.setProvider(deviceStacks);
   {
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);

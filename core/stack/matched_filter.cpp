@@ -16,6 +16,7 @@
 #include <immintrin.h>
 #endif
 
+#include "../common/opencv_threads.hpp"
 #include "st/common/error.hpp"
 #include "st/common/fftw_plans.hpp"
 #include "st/common/parallel.hpp"
@@ -50,6 +51,7 @@ std::vector<std::size_t> spreadFrames(std::size_t n, std::size_t maxFrames) {
 /// 1 where the input pixel is zero, masked or non-finite (after zeroing it), grown by `half` px, and along
 /// the frame edges.
 cv::Mat excludedPixels(float* frame, const std::uint8_t* mask, int width, int height, int half) {
+  st::detail::useOpenCvSequentially();  // called on parallelFor's threads
   cv::Mat bad(height, width, CV_8U, cv::Scalar(0));
   for (int y = 0; y < height; ++y) {
     auto* row = bad.ptr<std::uint8_t>(y);

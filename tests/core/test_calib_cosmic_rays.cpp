@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "st/calib/cosmic_rays.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "synthetic_frames.hpp"
 
 namespace st::calib {
@@ -71,6 +72,54 @@ void checkRemoval(bool drifting) {
       }
     }
   }
+}
+
+// The protection's stacks from a provider (a device, issue 16) are used as given: stacks equal to the CPU's
+// give the same hits; a provider that makes none leaves the CPU to stack; one whose stacks differ changes the
+// protection (so the provider's stacks are really the ones used).
+TEST(CosmicRays, ProtectionStacksFromAProvider) {
+  test::SynthScene sc;
+  sc.frames = 60;
+  sc.skyRate = {0.25, 0.15};
+  sc.stars = {{30.0, 25.0, 400.0}, {55.0, 15.0, 60.0}, {15.2, 30.7, 3000.0}};
+  sc.hits = 200;
+  const FrameCube raw = sc.make();
+  CosmicRayParams params;
+  params.skyRate = sc.skyRate;
+  NullProgress p;
+  CancelToken c;
+  FrameCube reference = raw;
+  const CosmicRayResult want = removeCosmicRays(reference, params, p, c);
+  ASSERT_GT(want.protectedPixels, 0u);
+  int asked = 0;
+  const detect::SkyStackCache::Provider same = [&](const FrameCube& cube, Velocity rate, double subtract,
+                                                   std::size_t first, std::size_t last) {
+    ++asked;
+    EXPECT_GT(last, first);
+    return std::optional<detect::SkyStack>(detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last));
+  };
+  const detect::SkyStackCache::Provider none = [&](const FrameCube&, Velocity, double, std::size_t,
+                                                   std::size_t) -> std::optional<detect::SkyStack> {
+    ++asked;
+    return std::nullopt;
+  };
+  const detect::SkyStackCache::Provider flat = [&](const FrameCube& cube, Velocity rate, double subtract,
+                                                   std::size_t first, std::size_t last) {
+    detect::SkyStack s = detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last);
+    std::fill(s.mean.pixels.begin(), s.mean.pixels.end(), 0.0f);  // no star anywhere
+    return std::optional<detect::SkyStack>(std::move(s));
+  };
+  for (const auto* provider : {&same, &none}) {
+    asked = 0;
+    FrameCube cube = raw;
+    const CosmicRayResult r = removeCosmicRays(cube, params, p, c, provider);
+    EXPECT_EQ(asked, params.protectBlocks);
+    EXPECT_EQ(r.protectedPixels, want.protectedPixels);
+    EXPECT_EQ(r.pixels, want.pixels);
+    EXPECT_EQ(cube.pixels(), reference.pixels());
+  }
+  FrameCube cube = raw;
+  EXPECT_EQ(removeCosmicRays(cube, params, p, c, &flat).protectedPixels, 0u);
 }
 
 TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsTracked) {

@@ -28,6 +28,7 @@
 
 #include "gpu_test_cubes.hpp"
 #include "require_gpu_preprocess.hpp"
+#include "st/calib/cosmic_rays.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
@@ -496,6 +497,42 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
     expectSameBits(stack->mean, cpu.mean, "mean");
     expectSameBits(stack->count, cpu.count, "count");
     expectSameBits(stack->max, cpu.max, "max");
+  }
+}
+
+TEST(GpuSkyStack, CosmicRayProtectionFromTheDeviceEqualsTheCpu) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool withMask : {false, true}) {
+    SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
+    FrameCube c = rawCube(64, 48, 40, 17, withMask);  // ~0.2% of the pixels hit, a moving star
+    for (float& v : c.pixels())  // no NaN samples: the frame-difference noise would be NaN, nothing flagged
+      if (std::isnan(v)) v = 100.0f;
+    FrameCube cpu = c;
+    const std::shared_ptr<void> guard = accel->prefetch(c);
+    calib::CosmicRayParams params;
+    params.skyRate = {0.4, 0.0};  // px/s: the star's 0.2 px per frame
+    params.fill = calib::CosmicRayParams::Fill::TimeNeighbours;
+    int asked = 0, made = 0;
+    const detect::SkyStackCache::Provider device = [&](const FrameCube& cube, Velocity rate, double subtract,
+                                                       std::size_t first, std::size_t last) {
+      ++asked;
+      std::optional<detect::SkyStack> s =
+          whenUploaded([&] { return accel->skyStack(cube, rate, subtract, first, last); });
+      made += s ? 1 : 0;
+      return s;
+    };
+    NullProgress progress;
+    CancelToken cancel;
+    const calib::CosmicRayResult d = calib::removeCosmicRays(c, params, progress, cancel, &device);
+    const calib::CosmicRayResult h = calib::removeCosmicRays(cpu, params, progress, cancel);
+    EXPECT_EQ(asked, params.protectBlocks);
+    EXPECT_EQ(made, params.protectBlocks);
+    EXPECT_GT(h.total, 20u);
+    EXPECT_GT(h.protectedPixels, 0u);
+    EXPECT_EQ(d.protectedPixels, h.protectedPixels);
+    EXPECT_EQ(d.pixels, h.pixels);
+    EXPECT_EQ(d.total, h.total);
+    EXPECT_EQ(std::memcmp(c.pixels().data(), cpu.pixels().data(), c.pixels().size() * sizeof(float)), 0);
   }
 }
 

@@ -29,6 +29,7 @@
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
+#include "st/detect/sky_stack.hpp"
 
 namespace st::calib {
 
@@ -104,9 +105,12 @@ struct CosmicRayResult {
 };
 
 /// Finds and removes cosmic-ray hits in place. Needs >= 3 frames (fewer: nothing is done, total 0).
-/// Masked pixels are never flagged. Throws st::Cancelled.
+/// Masked pixels are never flagged. The protection's stacks at the sky rate come from `stacks` when given
+/// and it makes them (a device holding the cube, issue 16: the same sums), else from the CPU. Throws
+/// st::Cancelled.
 CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params, ProgressSink& progress,
-                                 CancelToken& cancel);
+                                 CancelToken& cancel,
+                                 const detect::SkyStackCache::Provider* stacks = nullptr);
 
 /// Sets the listed pixels (flat cube indices) to 0.
 void zeroPixels(FrameCube& cube, const std::vector<std::uint64_t>& pixels);
