@@ -184,30 +184,38 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
   const int w = cube.width();
   const auto& mask = cube.mask();
   const std::size_t frames = std::min<std::size_t>(nf, 8);
-  // The sampled frames' excesses, each frame's on its own thread into its own part of one buffer (the serial
-  // loop's memory), then moved together in frame order: the samples, so the quantiles, are the serial loop's.
+  // The sampled frames' excesses, in tasks of one frame's band of rows (one task per frame left half of 16
+  // threads idle), each into its own part of one buffer (the serial loop's memory), then moved together in
+  // frame and band order: the samples, so the quantiles, are the serial loop's.
+  const int h = cube.height();
+  const std::size_t bands = static_cast<std::size_t>(std::clamp(h / 32, 1, 8));
   std::vector<float> d(frames * np);
-  std::vector<std::size_t> count(frames, 0);
-  parallelFor(frames, 1, [&](std::size_t k0, std::size_t k1) {
-    for (std::size_t k = k0; k < k1; ++k) {
+  std::vector<std::size_t> count(frames * bands, 0);
+  parallelFor(frames * bands, 1, [&](std::size_t t0, std::size_t t1) {
+    for (std::size_t task = t0; task < t1; ++task) {
+      const std::size_t k = task / bands, band = task % bands;
       const std::size_t n = (nf - 1) * k / std::max<std::size_t>(1, frames - 1);
       const float* f = cube.frame(n);
-      float* out = d.data() + k * np;
-      for (std::size_t i = 0; i < np; ++i) {
+      const std::size_t i0 = static_cast<std::size_t>(h) * band / bands * w;
+      const std::size_t i1 = static_cast<std::size_t>(h) * (band + 1) / bands * w;
+      float* out = d.data() + k * np + i0;
+      for (std::size_t i = i0; i < i1; ++i) {
         const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
         float mx = 0.0f, mean = 0.0f;
         if (!mask.empty() && mask[n * np + i]) continue;
         if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
-        out[count[k]++] = f[i] - mx;
+        out[count[task]++] = f[i] - mx;
       }
     }
   });
   std::size_t kept = 0;
-  for (std::size_t k = 0; k < frames; ++k) {
-    std::copy(d.begin() + static_cast<std::ptrdiff_t>(k * np),
-              d.begin() + static_cast<std::ptrdiff_t>(k * np + count[k]),
+  for (std::size_t task = 0; task < frames * bands; ++task) {
+    const std::size_t k = task / bands, band = task % bands;
+    const auto from =
+        d.begin() + static_cast<std::ptrdiff_t>(k * np + static_cast<std::size_t>(h) * band / bands * w);
+    std::copy(from, from + static_cast<std::ptrdiff_t>(count[task]),
               d.begin() + static_cast<std::ptrdiff_t>(kept));
-    kept += count[k];
+    kept += count[task];
   }
   d.resize(kept);
   t.samples = d.size();

@@ -500,13 +500,41 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
   }
 }
 
+/// 64 x 48 x 40 frames of noise (sigma 3 on 100) with a star moving 0.2 px per frame and 30 cosmic rays: few
+/// enough (2.4e-4 of the pixels) not to lift the measured excess tail (cosmic_rays.hpp).
+FrameCube cosmicRayCube(bool withMask) {
+  constexpr int w = 64, h = 48, n = 40;
+  FrameCube c(w, h, n);
+  std::mt19937 rng(23);
+  std::normal_distribution<float> g(0.0f, 3.0f);
+  for (int k = 0; k < n; ++k) {
+    c.info()[k].mjdMid = 60000.0 + 0.5 * k / kSecondsPerDay;
+    float* f = c.frame(k);
+    for (int i = 0; i < w * h; ++i)
+      f[i] = 100.0f + g(rng);
+    const double sx = 10.0 + 0.2 * k, sy = 24.3;
+    for (int y = 18; y <= 30; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double r2 = (x - sx) * (x - sx) + (y - sy) * (y - sy);
+        f[y * w + x] += static_cast<float>(400.0 * std::exp(-r2 / (2.0 * 1.5 * 1.5)));
+      }
+  }
+  std::uniform_int_distribution<std::size_t> any(0, c.pixels().size() - 1);
+  for (int hit = 0; hit < 30; ++hit)
+    c.pixels()[any(rng)] += 600.0f;
+  if (withMask) {
+    c.mask().assign(c.pixels().size(), 0);
+    for (std::size_t i = 0; i < c.mask().size(); i += 97)
+      c.mask()[i] = 1;
+  }
+  return c;
+}
+
 TEST(GpuSkyStack, CosmicRayProtectionFromTheDeviceEqualsTheCpu) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   for (const bool withMask : {false, true}) {
     SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
-    FrameCube c = rawCube(64, 48, 40, 17, withMask);  // ~0.2% of the pixels hit, a moving star
-    for (float& v : c.pixels())  // no NaN samples: the frame-difference noise would be NaN, nothing flagged
-      if (std::isnan(v)) v = 100.0f;
+    FrameCube c = cosmicRayCube(withMask);
     FrameCube cpu = c;
     const std::shared_ptr<void> guard = accel->prefetch(c);
     calib::CosmicRayParams params;
@@ -527,7 +555,7 @@ TEST(GpuSkyStack, CosmicRayProtectionFromTheDeviceEqualsTheCpu) {
     const calib::CosmicRayResult h = calib::removeCosmicRays(cpu, params, progress, cancel);
     EXPECT_EQ(asked, params.protectBlocks);
     EXPECT_EQ(made, params.protectBlocks);
-    EXPECT_GT(h.total, 20u);
+    EXPECT_GE(h.total, 20u);
     EXPECT_GT(h.protectedPixels, 0u);
     EXPECT_EQ(d.protectedPixels, h.protectedPixels);
     EXPECT_EQ(d.pixels, h.pixels);
