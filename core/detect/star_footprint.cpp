@@ -83,8 +83,10 @@ std::vector<float> filteredSnr(const Image& resid, const Image& count, double si
     for (int i = -r; i <= r; ++i)
       k[static_cast<std::size_t>(j + r) * kw + (i + r)] = m(i, j);
   std::vector<float> rc(resid.size());
-  for (std::size_t i = 0; i < rc.size(); ++i)
-    rc[i] = resid.pixels[i] * count.pixels[i];
+  parallelFor(rc.size(), std::size_t{1} << 16, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i)
+      rc[i] = resid.pixels[i] * count.pixels[i];
+  });
   parallelFor(static_cast<std::size_t>(h), 16, [&](std::size_t y0, std::size_t y1) {
     for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y) {
       auto pixel = [&](int x) {
@@ -126,8 +128,10 @@ HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background
     const SkyStack& h = k == 0 ? stacks.stack(cube, skyRate, background, none, cancel, 0, half)
                                : stacks.stack(cube, skyRate, background, none, cancel, half, 0);
     Image resid(h.mean.width, h.mean.height);
-    for (std::size_t i = 0; i < resid.size(); ++i)
-      resid.pixels[i] = h.count.pixels[i] > 0 ? h.mean.pixels[i] - local.pixels[i] : 0.0f;
+    parallelFor(resid.size(), std::size_t{1} << 16, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i)
+        resid.pixels[i] = h.count.pixels[i] > 0 ? h.mean.pixels[i] - local.pixels[i] : 0.0f;
+    });
     (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx);
     (k == 0 ? out.countFirst : out.countSecond) = h.count;
   }
@@ -157,20 +161,25 @@ bool HalfStacks::isStatic(int peak, int cw, double fwhmPx, double maxShiftPx) co
 Image excludeSources(const Image& count, const std::vector<float>& snr, const std::vector<float>& snrF,
                      double level, int growPx) {
   const int w = count.width, h = count.height;
-  std::vector<std::uint8_t> src(count.size()), rows(count.size(), 0);
-  for (std::size_t i = 0; i < src.size(); ++i)
-    src[i] = snr[i] >= level || snrF[i] >= level;
-  for (int y = 0; y < h; ++y)  // grow along rows, then along columns
-    for (int x = 0; x < w; ++x)
-      if (src[static_cast<std::size_t>(y) * w + x])
-        for (int i = std::max(0, x - growPx); i <= std::min(w - 1, x + growPx); ++i)
-          rows[static_cast<std::size_t>(y) * w + i] = 1;
+  std::vector<std::uint8_t> rows(count.size(), 0);
+  // Grown along rows (a task writes only its rows), then along columns (only its columns).
+  parallelFor(static_cast<std::size_t>(h), 16, [&](std::size_t y0, std::size_t y1) {
+    for (std::size_t y = y0; y < y1; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::size_t i = y * w + x;
+        if (snr[i] >= level || snrF[i] >= level)
+          for (int k = std::max(0, x - growPx); k <= std::min(w - 1, x + growPx); ++k)
+            rows[y * w + k] = 1;
+      }
+  });
   Image out = count;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      if (rows[static_cast<std::size_t>(y) * w + x])
-        for (int j = std::max(0, y - growPx); j <= std::min(h - 1, y + growPx); ++j)
-          out.pixels[static_cast<std::size_t>(j) * w + x] = 0.0f;
+  parallelFor(static_cast<std::size_t>(w), 64, [&](std::size_t x0, std::size_t x1) {
+    for (int y = 0; y < h; ++y)
+      for (std::size_t x = x0; x < x1; ++x)
+        if (rows[static_cast<std::size_t>(y) * w + x])
+          for (int j = std::max(0, y - growPx); j <= std::min(h - 1, y + growPx); ++j)
+            out.pixels[static_cast<std::size_t>(j) * w + x] = 0.0f;
+  });
   return out;
 }
 

@@ -52,6 +52,32 @@ std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
   return out;
 }
 
+// Pixels per task of the element-wise loops below (a canvas is ~1M pixels: ~16 tasks).
+constexpr std::size_t kPixelChunk = std::size_t{1} << 16;
+
+// value(i) of the pixels i < n with keep(i), in pixel order (the serial loop's vector), on every core.
+template <class Keep, class Value>
+std::vector<float> gatherInOrder(std::size_t n, const Keep& keep, const Value& value) {
+  const std::size_t chunks = (n + kPixelChunk - 1) / kPixelChunk;
+  std::vector<std::size_t> start(chunks + 1, 0);
+  parallelFor(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+    for (std::size_t c = c0; c < c1; ++c)
+      for (std::size_t i = c * kPixelChunk; i < std::min(n, (c + 1) * kPixelChunk); ++i)
+        start[c + 1] += keep(i) ? 1 : 0;
+  });
+  for (std::size_t c = 0; c < chunks; ++c)
+    start[c + 1] += start[c];
+  std::vector<float> out(start.back());
+  parallelFor(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+    for (std::size_t c = c0; c < c1; ++c) {
+      std::size_t k = start[c];
+      for (std::size_t i = c * kPixelChunk; i < std::min(n, (c + 1) * kPixelChunk); ++i)
+        if (keep(i)) out[k++] = value(i);
+    }
+  });
+  return out;
+}
+
 /// True when, in the frame nearest t_ref, the footprint `comp` (canvas indices of the sky-rate stack `s`,
 /// placed in that frame by the stack's own integer shift) has a flat top: >= 5 pixels within 3% of its
 /// highest value, far above the background: a full well that bled (the bleed column, in the footprint, is
@@ -148,15 +174,21 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
   Image weight = s.count;
   for (int pass = 0; pass < 2; ++pass) {
     a.local = meshBackground(s.mean, weight, params.meshPx);
-    std::vector<float> scaled;  // R sqrt(count): the single-frame noise scale everywhere
-    for (std::size_t i = 0; i < a.resid.size(); ++i) {
-      a.resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - a.local.pixels[i] : 0.0f;
-      if (s.count.pixels[i] > 0) scaled.push_back(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]));
-    }
+    const std::size_t np = a.resid.size();
+    parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i)
+        a.resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - a.local.pixels[i] : 0.0f;
+    });
+    // R sqrt(count): the single-frame noise scale everywhere
+    const std::vector<float> scaled = gatherInOrder(
+        np, [&](std::size_t i) { return s.count.pixels[i] > 0; },
+        [&](std::size_t i) { return a.resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
     a.noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
     if (a.noise.sigma > 0) {
-      for (std::size_t i = 0; i < a.resid.size(); ++i)
-        a.snr[i] = static_cast<float>(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]) / a.noise.sigma);
+      parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
+        for (std::size_t i = i0; i < i1; ++i)
+          a.snr[i] = static_cast<float>(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]) / a.noise.sigma);
+      });
     }
     cancel.throwIfCancelled();
     // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
@@ -235,10 +267,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   // the filter (SNR >= weakSnr there, grown over the filtered blob, outside the first ones: the filtered
   // blobs of neighbouring stars merge, the per-pixel footprints do not).
   std::vector<std::uint8_t> seeds(resid.size()), grows(resid.size()), taken(resid.size(), 0);
-  for (std::size_t i = 0; i < resid.size(); ++i) {
-    seeds[i] = snr[i] >= params.snrThreshold;
-    grows[i] = snr[i] >= params.growSnr;
-  }
+  parallelFor(resid.size(), kPixelChunk, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i) {
+      seeds[i] = snr[i] >= params.snrThreshold;
+      grows[i] = snr[i] >= params.growSnr;
+    }
+  });
   auto comps = components(seeds, grows, cw, ch);
   const std::size_t nPerPixel = comps.size();
   if (params.filteredDetection) {
@@ -252,10 +286,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
             if (x >= 0 && y >= 0 && x < cw && y < ch && dx * dx + dy * dy <= r * r)
               taken[static_cast<std::size_t>(y) * cw + x] = 1;
           }
-    for (std::size_t i = 0; i < resid.size(); ++i) {
-      grows[i] = !taken[i] && snrF[i] >= params.weakSnr;
-      seeds[i] = grows[i];
-    }
+    parallelFor(resid.size(), kPixelChunk, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i) {
+        grows[i] = !taken[i] && snrF[i] >= params.weakSnr;
+        seeds[i] = grows[i];
+      }
+    });
     auto more = components(seeds, grows, cw, ch);
     comps.insert(comps.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
   }
