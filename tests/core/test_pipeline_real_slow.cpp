@@ -85,9 +85,9 @@ TEST(PipelineReal, Lowell5945SlowAsteroidIsNotMaskedAndIsFound) {
     const Velocity rel{cd.v.vx - out.skyRate.vx, cd.v.vy - out.skyRate.vy};
     EXPECT_GE(std::hypot(rel.vx, rel.vy) * span, 2.0)
         << "candidate (" << cd.x << ", " << cd.y << ") SNR " << cd.snr << " is (nearly) static";
-    for (const auto* half : {&first, &second}) {
-      const Image s = vet::stackStamp(out.filtered.frames, *half, cd.x, cd.y, cd.v, 0.0, 0);
-      const double snrHalf = s.at(0, 0) / (out.filtered.sigmaF * std::sqrt(double(half->size())));
+    for (const auto* frames : {&first, &second}) {
+      const Image s = vet::stackStamp(out.filtered.frames, *frames, cd.x, cd.y, cd.v, 0.0, 0);
+      const double snrHalf = s.at(0, 0) / (out.filtered.sigmaF * std::sqrt(double(frames->size())));
       EXPECT_GE(snrHalf, cd.snr / std::sqrt(2.0) / 3.0) << "candidate (" << cd.x << ", " << cd.y << ") SNR "
                                                         << cd.snr << ": SNR " << snrHalf << " in a half";
     }
