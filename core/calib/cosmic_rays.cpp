@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <mutex>
@@ -74,6 +75,7 @@ class TimeReference {
 struct Protection {
   detect::MovingMask mask;
   std::vector<float> signal;  // on the mask's canvas
+  int stacks = 0, provided = 0;  // stacks at the sky rate used, and made by the provider
   [[nodiscard]] float signalAt(std::size_t n, int x, int y) const {
     const int i = x - mask.shiftX(n) - mask.x0(), j = y - mask.shiftY(n) - mask.y0();
     if (i < 0 || j < 0 || i >= mask.canvasWidth() || j >= mask.canvasHeight()) return 0.0f;
@@ -91,11 +93,16 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   // part of the night only); blocks that do not observe it neither protect nor veto.
   std::vector<float> minSnr, minMean;
   std::vector<std::uint8_t> observed;
+  int provided = 0;
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
     const std::size_t f0 = nf * b / blocks, f1 = nf * (b + 1) / blocks;
     std::optional<detect::SkyStack> made;
-    if (stacks && *stacks) made = (*stacks)(cube, params.skyRate, 0.0, f0, f1);
+    if (stacks && *stacks) {
+      made = (*stacks)(cube, params.skyRate, 0.0, f0, f1);
+      cancel.throwIfCancelled();
+      provided += made ? 1 : 0;
+    }
     if (!made) made = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, f0, f1);
     const detect::SkyStack& s = *made;
     const Image local = detect::meshBackground(s.mean, s.count, 32);
@@ -121,7 +128,7 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
       if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
     }
   mask.dilate(params.protectDilatePx);
-  Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f)};
+  Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f), blocks, provided};
   for (std::size_t i = 0; i < minMean.size(); ++i)
     if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
   return p;
@@ -199,22 +206,23 @@ TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
       const std::size_t i0 = static_cast<std::size_t>(h) * band / bands * w;
       const std::size_t i1 = static_cast<std::size_t>(h) * (band + 1) / bands * w;
       float* out = d.data() + k * np + i0;
+      std::size_t kept = 0;  // a local count: neighbouring tasks' counters share a cache line
       for (std::size_t i = i0; i < i1; ++i) {
         const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
         float mx = 0.0f, mean = 0.0f;
         if (!mask.empty() && mask[n * np + i]) continue;
         if ((skip && skip(n, x, y)) || !ref.at(n, x, y, &mx, &mean)) continue;
-        out[count[task]++] = f[i] - mx;
+        out[kept++] = f[i] - mx;
       }
+      count[task] = kept;
     }
   });
   std::size_t kept = 0;
   for (std::size_t task = 0; task < frames * bands; ++task) {
     const std::size_t k = task / bands, band = task % bands;
-    const auto from =
-        d.begin() + static_cast<std::ptrdiff_t>(k * np + static_cast<std::size_t>(h) * band / bands * w);
-    std::copy(from, from + static_cast<std::ptrdiff_t>(count[task]),
-              d.begin() + static_cast<std::ptrdiff_t>(kept));
+    const std::size_t from = k * np + static_cast<std::size_t>(h) * band / bands * w;
+    // Moved down (kept <= from): memmove, since the ranges overlap or coincide.
+    if (from != kept) std::memmove(d.data() + kept, d.data() + from, count[task] * sizeof(float));
     kept += count[task];
   }
   d.resize(kept);
@@ -263,6 +271,8 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   if (!(out.sigma > 0.0)) return out;
   const Protection prot = protection(cube, params, out.sigma, progress, cancel, stacks);
   out.protectedPixels = prot.mask.count();
+  out.protectionStacks = prot.stacks;
+  out.protectionStacksProvided = prot.provided;
   const TimeReference ref(cube, prot.mask);
   const int w = cube.width(), h = cube.height();
   const std::size_t np = cube.framePixels();

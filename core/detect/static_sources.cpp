@@ -61,9 +61,12 @@ std::vector<float> gatherInOrder(std::size_t n, const Keep& keep, const Value& v
   const std::size_t chunks = (n + kPixelChunk - 1) / kPixelChunk;
   std::vector<std::size_t> start(chunks + 1, 0);
   parallelFor(chunks, 1, [&](std::size_t c0, std::size_t c1) {
-    for (std::size_t c = c0; c < c1; ++c)
+    for (std::size_t c = c0; c < c1; ++c) {
+      std::size_t kept = 0;
       for (std::size_t i = c * kPixelChunk; i < std::min(n, (c + 1) * kPixelChunk); ++i)
-        start[c + 1] += keep(i) ? 1 : 0;
+        kept += keep(i) ? 1 : 0;
+      start[c + 1] = kept;
+    }
   });
   for (std::size_t c = 0; c < chunks; ++c)
     start[c + 1] += start[c];

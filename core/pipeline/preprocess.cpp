@@ -7,6 +7,7 @@
 #include <optional>
 #include <sstream>
 
+#include "../common/opencv_threads.hpp"
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
 #include "st/common/moving_mask.hpp"
@@ -91,6 +92,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // given back, they are not faulted and zeroed again by the kernel each time (issue 15: 1500 x 512^2 on the
   // 2-core VM faulted 1.58 M pages, ~1.7 CPU-s of system time, about half of them such reuse).
   const HeapReuseScope heapReuse;
+  st::detail::useOpenCvSequentially();
   const auto start = std::chrono::steady_clock::now();
   auto last = start;
   Prepared out;
@@ -224,7 +226,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cr = calib::removeCosmicRays(cube, cp, sub, cancel, &deviceStacks);
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
-    if (params.accelerator) params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
+    if (params.accelerator) {
+      params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
+      out.notes.push_back("cosmic rays: " + std::to_string(cr.protectionStacksProvided) + " of " +
+                          std::to_string(cr.protectionStacks) + " protection stacks at the sky rate on " +
+                          params.accelerator->name());
+    }
     if (cr.sourceSeeds > 0)
       out.notes.push_back(std::to_string(cr.sourceSeeds) +
                           " pixel(s) that stood above their time neighbours like cosmic-ray hits were kept: "

@@ -75,13 +75,15 @@ void checkRemoval(bool drifting) {
 }
 
 // The protection's stacks from a provider (a device, issue 16) are used as given: stacks equal to the CPU's
-// give the same hits; a provider that makes none leaves the CPU to stack; one whose stacks differ changes the
-// protection (so the provider's stacks are really the ones used).
+// give the same hits; a provider that makes none leaves the CPU to stack; a provider whose stack of any one
+// block shows no star removes most of the protection (so every block's stack from it is really used). The
+// provider is asked for the sky rate, nothing subtracted, and each third of the frames.
 TEST(CosmicRays, ProtectionStacksFromAProvider) {
   test::SynthScene sc;
   sc.frames = 60;
+  sc.height = 100;  // 3 uneven bands of rows for the excess tail's samples
   sc.skyRate = {0.25, 0.15};
-  sc.stars = {{30.0, 25.0, 400.0}, {55.0, 15.0, 60.0}, {15.2, 30.7, 3000.0}};
+  sc.stars = {{30.0, 25.0, 400.0}, {55.0, 65.0, 60.0}, {15.2, 80.7, 3000.0}};
   sc.hits = 200;
   const FrameCube raw = sc.make();
   CosmicRayParams params;
@@ -91,35 +93,46 @@ TEST(CosmicRays, ProtectionStacksFromAProvider) {
   FrameCube reference = raw;
   const CosmicRayResult want = removeCosmicRays(reference, params, p, c);
   ASSERT_GT(want.protectedPixels, 0u);
-  int asked = 0;
+  EXPECT_EQ(want.protectionStacks, params.protectBlocks);
+  EXPECT_EQ(want.protectionStacksProvided, 0);
+  std::vector<std::pair<std::size_t, std::size_t>> asked;
   const detect::SkyStackCache::Provider same = [&](const FrameCube& cube, Velocity rate, double subtract,
                                                    std::size_t first, std::size_t last) {
-    ++asked;
-    EXPECT_GT(last, first);
+    EXPECT_EQ(rate.vx, sc.skyRate.vx);
+    EXPECT_EQ(rate.vy, sc.skyRate.vy);
+    EXPECT_EQ(subtract, 0.0);
+    asked.emplace_back(first, last);
     return std::optional<detect::SkyStack>(detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last));
   };
-  const detect::SkyStackCache::Provider none = [&](const FrameCube&, Velocity, double, std::size_t,
-                                                   std::size_t) -> std::optional<detect::SkyStack> {
-    ++asked;
+  const detect::SkyStackCache::Provider none = [&](const FrameCube&, Velocity, double, std::size_t first,
+                                                   std::size_t last) -> std::optional<detect::SkyStack> {
+    asked.emplace_back(first, last);
     return std::nullopt;
   };
-  const detect::SkyStackCache::Provider flat = [&](const FrameCube& cube, Velocity rate, double subtract,
-                                                   std::size_t first, std::size_t last) {
-    detect::SkyStack s = detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last);
-    std::fill(s.mean.pixels.begin(), s.mean.pixels.end(), 0.0f);  // no star anywhere
-    return std::optional<detect::SkyStack>(std::move(s));
-  };
+  const std::vector<std::pair<std::size_t, std::size_t>> thirds = {{0, 20}, {20, 40}, {40, 60}};
   for (const auto* provider : {&same, &none}) {
-    asked = 0;
+    asked.clear();
     FrameCube cube = raw;
     const CosmicRayResult r = removeCosmicRays(cube, params, p, c, provider);
-    EXPECT_EQ(asked, params.protectBlocks);
+    EXPECT_EQ(asked, thirds);
+    EXPECT_EQ(r.protectionStacksProvided, provider == &same ? params.protectBlocks : 0);
     EXPECT_EQ(r.protectedPixels, want.protectedPixels);
     EXPECT_EQ(r.pixels, want.pixels);
     EXPECT_EQ(cube.pixels(), reference.pixels());
   }
-  FrameCube cube = raw;
-  EXPECT_EQ(removeCosmicRays(cube, params, p, c, &flat).protectedPixels, 0u);
+  for (std::size_t flat = 0; flat < thirds.size(); ++flat) {
+    SCOPED_TRACE("block " + std::to_string(flat) + " without stars");
+    const detect::SkyStackCache::Provider oneFlat = [&](const FrameCube& cube, Velocity rate, double subtract,
+                                                        std::size_t first, std::size_t last) {
+      detect::SkyStack s = detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last);
+      if (first == thirds[flat].first) std::fill(s.mean.pixels.begin(), s.mean.pixels.end(), 0.0f);
+      return std::optional<detect::SkyStack>(std::move(s));
+    };
+    FrameCube cube = raw;
+    // Unprotected wherever that block observes the canvas (a drifting field's edges it does not observe
+    // keep theirs): fewer protected pixels than with every block's stars.
+    EXPECT_LT(removeCosmicRays(cube, params, p, c, &oneFlat).protectedPixels, want.protectedPixels / 2);
+  }
 }
 
 TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsTracked) {

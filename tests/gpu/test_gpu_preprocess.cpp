@@ -25,6 +25,7 @@
 #include <random>
 #include <span>
 #include <thread>
+#include <tuple>
 
 #include "gpu_test_cubes.hpp"
 #include "require_gpu_preprocess.hpp"
@@ -410,18 +411,22 @@ TEST(GpuSkyStack, EqualsTheCpuStacksFromThePrefetchedCube) {
     const FrameCube c = rawCube(64, 48, 40, 11, withMask);
     const Velocity rate{1.3, -0.45};  // px/s: ~26 x 9 px over the 20 s of frames, a canvas wider than a frame
     const std::shared_ptr<void> guard = accel->prefetch(c);
-    const std::pair<std::size_t, std::size_t> ranges[] = {{0, 40},  {0, 13}, {13, 27},
-                                                          {27, 40}, {0, 20}, {20, 40}};
-    for (const auto& [first, last] : ranges) {
-      SCOPED_TRACE("frames " + std::to_string(first) + " to " + std::to_string(last));
+    // The static sources' (the global background subtracted: whole, thirds, halves) and the cosmic rays'
+    // protection's (nothing subtracted, thirds).
+    const std::tuple<double, std::size_t, std::size_t> ranges[] = {
+        {100.0, 0, 40},  {100.0, 0, 13}, {100.0, 13, 27}, {100.0, 27, 40}, {100.0, 0, 20},
+        {100.0, 20, 40}, {0.0, 0, 13},   {0.0, 13, 26},   {0.0, 26, 40}};
+    for (const auto& [subtract, first, last] : ranges) {
+      SCOPED_TRACE("frames " + std::to_string(first) + " to " + std::to_string(last) + ", less " +
+                   std::to_string(subtract));
       // None until the prefetch's upload is done (the CPU stacks meanwhile): asked again until then.
       std::optional<detect::SkyStack> dev;
       for (int tries = 0; tries < 1000 && !dev; ++tries) {
-        dev = accel->skyStack(c, rate, 100.0, first, last);
+        dev = accel->skyStack(c, rate, subtract, first, last);
         if (!dev) std::this_thread::sleep_for(std::chrono::milliseconds(10));
       }
       ASSERT_TRUE(dev.has_value());
-      const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, 100.0, progress, cancel, first, last);
+      const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, subtract, progress, cancel, first, last);
       EXPECT_EQ(dev->x0, cpu.x0);
       EXPECT_EQ(dev->y0, cpu.y0);
       expectSameBits(dev->mean, cpu.mean, "mean");

@@ -18,6 +18,8 @@
 // Every test skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <memory>
 #include <random>
@@ -259,6 +261,12 @@ TEST(GpuZeroBias, PipelineWithTheDeviceMatchesTheCpu) {
   EXPECT_EQ(gpu.unmeasuredPixelsZeroed, cpu.unmeasuredPixelsZeroed);
   EXPECT_EQ(gpu.singleFrame.zeroedPerFrame, cpu.singleFrame.zeroedPerFrame);
   EXPECT_EQ(gpu.cosmicRays, cpu.cosmicRays);
+  // The cosmic rays' protection asked the device for its stacks (made there once the prefetch is uploaded).
+  const bool crStacksNoted = std::any_of(gpu.notes.begin(), gpu.notes.end(), [](const std::string& n) {
+    return n.find("cosmic rays: ") == 0 &&
+           n.find(" of 3 protection stacks at the sky rate on cuda") != std::string::npos;
+  });
+  EXPECT_TRUE(crStacksNoted);
   EXPECT_NEAR(gpu.sigmaN, cpu.sigmaN, 1e-9 * cpu.sigmaN);
   EXPECT_NEAR(gpu.residualMeanRms, cpu.residualMeanRms, 1e-6 * std::max(1e-3, cpu.residualMeanRms));
   EXPECT_NEAR(gpu.filtered.sigmaF, cpu.filtered.sigmaF, 1e-4 * cpu.filtered.sigmaF);

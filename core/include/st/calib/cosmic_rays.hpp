@@ -98,6 +98,8 @@ struct CosmicRayResult {
   std::vector<std::uint64_t> pixels;  ///< flat indices n * width * height + y * width + x, sorted
   std::size_t sourceSeeds = 0;        ///< seeds set aside as resolved sources (CosmicRayParams::sourceMedianLow)
   std::size_t protectedPixels = 0;    ///< reference positions protected as stars
+  int protectionStacks = 0;           ///< stacks at the sky rate the protection used (protectBlocks)
+  int protectionStacksProvided = 0;   ///< of them, made by removeCosmicRays' provider (a device)
   double sigma = 0.0;                 ///< single-frame noise from frame differences, counts
   TailModel tail;                     ///< the measured tail of the excess
   double seedThreshold = 0.0;         ///< excess a seed had to exceed, counts
