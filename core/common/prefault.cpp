@@ -1,6 +1,5 @@
 #include "st/common/prefault.hpp"
 
-#include <algorithm>
 #include <cstring>
 
 #include "st/common/parallel.hpp"

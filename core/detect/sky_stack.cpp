@@ -203,4 +203,13 @@ Image meshBackground(const Image& image, const Image& weight, int mesh) {
   return out;
 }
 
+Image residualWhereCounted(const Image& mean, const Image& count, const Image& local) {
+  Image out(mean.width, mean.height);
+  parallelFor(out.size(), std::size_t{1} << 16, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i)
+      out.pixels[i] = count.pixels[i] > 0 ? mean.pixels[i] - local.pixels[i] : 0.0f;
+  });
+  return out;
+}
+
 }  // namespace st::detect

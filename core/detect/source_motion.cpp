@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-#include "st/common/parallel.hpp"
 #include "st/detect/sky_stack.hpp"
 
 namespace st::detect::detail {
@@ -29,12 +28,7 @@ ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double backgrou
   for (int k = 0; k < 3; ++k) {
     const SkyStack& s = stacks.stack(cube, skyRate, background, none, cancel, bounds[k], bounds[k + 1]);
     const Image local = meshBackground(s.mean, s.count, meshPx);
-    Image resid(s.mean.width, s.mean.height);
-    parallelFor(resid.size(), std::size_t{1} << 16, [&](std::size_t i0, std::size_t i1) {
-      for (std::size_t i = i0; i < i1; ++i)
-        resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - local.pixels[i] : 0.0f;
-    });
-    out.resid[k] = std::move(resid);
+    out.resid[k] = residualWhereCounted(s.mean, s.count, local);
     out.count[k] = s.count;
     out.frames[k] = static_cast<int>(bounds[k + 1] - bounds[k]);
     const double nk = out.frames[k];

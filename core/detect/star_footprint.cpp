@@ -127,11 +127,7 @@ HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background
   for (int k = 0; k < 2; ++k) {
     const SkyStack& h = k == 0 ? stacks.stack(cube, skyRate, background, none, cancel, 0, half)
                                : stacks.stack(cube, skyRate, background, none, cancel, half, 0);
-    Image resid(h.mean.width, h.mean.height);
-    parallelFor(resid.size(), std::size_t{1} << 16, [&](std::size_t i0, std::size_t i1) {
-      for (std::size_t i = i0; i < i1; ++i)
-        resid.pixels[i] = h.count.pixels[i] > 0 ? h.mean.pixels[i] - local.pixels[i] : 0.0f;
-    });
+    const Image resid = residualWhereCounted(h.mean, h.count, local);
     (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx);
     (k == 0 ? out.countFirst : out.countSecond) = h.count;
   }

@@ -171,17 +171,13 @@ struct StackSnr {
 
 StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel) {
   StackSnr a;
-  a.resid = Image(s.mean.width, s.mean.height);
-  a.snr.assign(a.resid.size(), 0.0f);
-  a.snrF.assign(a.resid.size(), 0.0f);
+  a.snr.assign(s.mean.size(), 0.0f);
+  a.snrF.assign(s.mean.size(), 0.0f);
   Image weight = s.count;
   for (int pass = 0; pass < 2; ++pass) {
     a.local = meshBackground(s.mean, weight, params.meshPx);
+    a.resid = residualWhereCounted(s.mean, s.count, a.local);
     const std::size_t np = a.resid.size();
-    parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
-      for (std::size_t i = i0; i < i1; ++i)
-        a.resid.pixels[i] = s.count.pixels[i] > 0 ? s.mean.pixels[i] - a.local.pixels[i] : 0.0f;
-    });
     // R sqrt(count): the single-frame noise scale everywhere
     const std::vector<float> scaled = gatherInOrder(
         np, [&](std::size_t i) { return s.count.pixels[i] > 0; },

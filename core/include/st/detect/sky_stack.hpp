@@ -64,4 +64,7 @@ class SkyStackCache {
 /// with weight > 0, bilinearly interpolated between cell centres (the SExtractor scheme).
 Image meshBackground(const Image& image, const Image& weight, int mesh);
 
+/// `mean` less `local` where `count` > 0, else 0 (a stack less its mesh background), on every core.
+Image residualWhereCounted(const Image& mean, const Image& count, const Image& local);
+
 }  // namespace st::detect
