@@ -1,8 +1,8 @@
 """`synthtrack-cli batch` in one process (issue 17): over 4 small simulated observations and a corrupt one,
 the merged catalogue holds exactly the candidates (and fits) of separate `search --fit` runs; the corrupt
 input lands in the catalogue's errors without stopping the rest; a rerun skips everything complete; a
-deleted output is redone and the catalogue comes out the same; a manifest's per-observation option is
-used."""
+deleted output is redone and the catalogue comes out the same; a SIGTERM mid-run names, at once, what is
+not done; a manifest's per-observation option is used."""
 import os
 import sys
 import tempfile
@@ -78,6 +78,44 @@ def main(cli):
         narrow = load(os.path.join(out2, "observations", "narrow", "candidates.json"))
         check(narrow["grid"]["nvx"] < wide["grid"]["nvx"], "the manifest's vmax-deg-day is used: %d vs %d" %
               (narrow["grid"]["nvx"], wide["grid"]["nvx"]))
+        # SIGTERM mid-run (what mpirun sends every rank when one dies): the handler names what is not done,
+        # the running observation among them, on stderr at once (test_batch_mpi.py checks it under mpirun
+        # only where mpirun forwards it).
+        import signal
+        import subprocess
+        import time
+        term = os.path.join(tmp, "term")
+        p = subprocess.Popen([cli, "batch"] + obs + ["--out", term] + SEARCH, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+        names = [os.path.basename(o)[:-5] for o in obs]
+        running, pending = None, []
+        deadline = time.time() + 60
+        while running is None and time.time() < deadline and p.poll() is None:
+            logs = os.path.join(term, "logs")
+            started = {}
+            for f in sorted(os.listdir(logs)) if os.path.isdir(logs) else []:
+                try:
+                    log = load(os.path.join(logs, f))
+                except (ValueError, OSError):
+                    continue
+                started[log["observation"]] = log.get("status")
+                if log.get("status") == "running":
+                    running = log["observation"]
+            # Not started yet: not done when the signal lands a few ms later (each takes ~1 s).
+            pending = [n for n in names if n not in started]
+            if running is None:
+                time.sleep(0.02)
+        check(running is not None and pending, "an observation was seen running, others not started: %s %s" %
+              (running, pending))
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=120)
+        i = err.find("batch: stopped by SIGTERM")
+        check(i >= 0, "SIGTERM is reported: %s" % err[-400:])
+        handler = err[i:].split("\n")
+        check(len(handler) > 1 and handler[1].startswith("batch: NOT DONE: ") and
+              all(n in handler[1] for n in pending),
+              "the handler's next line names %s as not done: %s" % (pending, handler[:2]))
+        check(p.returncode != 0, "a batch stopped by SIGTERM exits non-zero, got %s" % p.returncode)
         # Usage errors.
         check(run_cli(cli, ["batch", obs[0]]).returncode == 2, "--out is required")
         check(run_cli(cli, ["batch", obs[0], "--out", out2, "--overlap", "3"]).returncode == 2,
