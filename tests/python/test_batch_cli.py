@@ -78,9 +78,9 @@ def main(cli):
         narrow = load(os.path.join(out2, "observations", "narrow", "candidates.json"))
         check(narrow["grid"]["nvx"] < wide["grid"]["nvx"], "the manifest's vmax-deg-day is used: %d vs %d" %
               (narrow["grid"]["nvx"], wide["grid"]["nvx"]))
-        # SIGTERM mid-run (what mpirun sends every rank when one dies): the handler names what is not done,
-        # the running observation among them, on stderr at once (test_batch_mpi.py checks it under mpirun
-        # only where mpirun forwards it).
+        # SIGTERM mid-run (what mpirun sends every rank when one dies): the handler names what is not done on
+        # stderr at once, every observation not yet started among them (test_batch_mpi.py checks it under
+        # mpirun only where mpirun forwards it).
         import signal
         import subprocess
         import time
