@@ -15,7 +15,7 @@
 #include <sstream>
 
 #include "st/common/error.hpp"
-#include "st/common/parallel.hpp"
+#include "st/common/prefault.hpp"
 
 namespace st {
 namespace {
@@ -178,15 +178,10 @@ HeapReuseScope::HeapReuseScope() {
 
 void HeapReuseScope::warmCallerHeap(std::size_t bytes) {
 #if defined(__GLIBC__)
-  constexpr std::size_t kPage = 4096;
   if (g_heapReuseDepth.load() == 0 || bytes < (std::size_t{1} << 20)) return;
-  char* block = static_cast<char*>(std::malloc(bytes));
+  void* block = std::malloc(bytes);
   if (!block) return;
-  parallelFor(bytes / kPage, 4096, [block](std::size_t p0, std::size_t p1) {
-    volatile char* page = block;
-    for (std::size_t p = p0; p < p1; ++p)
-      page[p * kPage] = 0;
-  });
+  touchPages(block, bytes);
   std::free(block);
 #else
   (void)bytes;

@@ -19,25 +19,9 @@ void populate(void* data, std::size_t bytes, unsigned maxThreads) {
   const std::uintptr_t lo = (begin + kPage - 1) & ~(kPage - 1);
   const std::uintptr_t hi = (begin + bytes) & ~(kPage - 1);
   if (hi > lo + (std::size_t{64} << 20)) {  // only worth it for large buffers
-    auto* base = reinterpret_cast<char*>(lo);
-    const std::size_t pages = (hi - lo) / kPage;
-    madvise(base, hi - lo, MADV_HUGEPAGE);      // a hint: ignored where transparent huge pages are off
-    constexpr std::size_t kChunkPages = 16384;  // 64 MiB per task
-    // Each page is faulted by a write to its first byte, not with madvise(MADV_POPULATE_WRITE): a populate
-    // call holds the process's mmap lock for its whole range, and every mmap, munmap, mprotect or brk of
-    // another thread (malloc's arenas growing, FFTW's planner) waits for it. The matched filter's buffer,
-    // populated on one thread while the stages run, stalled registration's threads for ~180 ms on the device
-    // machine in 64 MiB calls and still for ~40 ms in 2 MiB ones (perf, H100, 2026-11-28). A page fault
-    // takes only its own VMA's lock (Linux >= 6.4; the mmap lock for one fault before). Dev VM, 1.5 GB on
-    // one thread: 0.18 s, with another thread's mmap + munmap waiting at most 0.5 ms (populate calls of
-    // 64 MiB: 0.16 s, waits up to 113 ms). The zeros written change nothing the callers read: they zero or
-    // overwrite every element.
-    const auto body = [&](std::size_t p0, std::size_t p1) {
-      volatile char* page = base;
-      for (std::size_t p = p0; p < p1; ++p)
-        page[p * kPage] = 0;
-    };
-    parallelFor(pages, kChunkPages, body, maxThreads);
+    // A hint (on the whole pages): ignored where transparent huge pages are off.
+    madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+    touchPages(data, bytes, maxThreads);
   }
 #else
   (void)data, (void)bytes, (void)maxThreads;
@@ -64,6 +48,29 @@ void zeroInParallel(Vector& v) {
 }
 
 }  // namespace
+
+void touchPages(void* data, std::size_t bytes, unsigned maxThreads) {
+  constexpr std::uintptr_t kPage = 4096;
+  const auto begin = reinterpret_cast<std::uintptr_t>(data);
+  const std::uintptr_t lo = (begin + kPage - 1) & ~(kPage - 1);
+  const std::uintptr_t hi = (begin + bytes) & ~(kPage - 1);
+  if (hi <= lo) return;
+  // A page fault takes only its own VMA's lock (Linux >= 6.4; the mmap lock for one fault before), where a
+  // populate call holds the mmap lock for its whole range: the matched filter's buffer, populated on one
+  // thread while the stages run, stalled registration's threads ~180 ms on the device machine in 64 MiB
+  // calls and still ~40 ms in 2 MiB ones (perf, H100, 2026-11-28). Dev VM, 1.5 GB on one thread: 0.18 s,
+  // another thread's mmap + munmap waiting at most 0.5 ms (populate calls of 64 MiB: 0.16 s, waits up to
+  // 113 ms). The zeros written change nothing the callers read: they zero or overwrite every element.
+  auto* base = reinterpret_cast<char*>(lo);
+  constexpr std::size_t kChunkPages = 4096;  // 16 MiB per task
+  parallelFor((hi - lo) / kPage, kChunkPages,
+              [base](std::size_t p0, std::size_t p1) {
+                volatile char* page = base;
+                for (std::size_t p = p0; p < p1; ++p)
+                  page[p * kPage] = 0;
+              },
+              maxThreads);
+}
 
 PixelVector prefaultedPixels(std::size_t n, unsigned maxThreads) {
   return populated<PixelVector>(n, maxThreads);
