@@ -28,8 +28,8 @@
 #include <tuple>
 
 #include "gpu_test_cubes.hpp"
+#include "prefetch_wait.hpp"
 #include "require_gpu_preprocess.hpp"
-#include "st/calib/cosmic_rays.hpp"
 #include "st/common/error.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
@@ -44,6 +44,8 @@
 
 namespace st {
 namespace {
+
+using test::whenUploaded;
 
 /// A raw-looking cube: sky 100 + a gradient, per-pixel offsets, noise whose sigma varies over the frame,
 /// a few masked and NaN samples, strong outliers (cosmic rays) and a slow star; times sorted with jitter.
@@ -439,17 +441,6 @@ TEST(GpuSkyStack, EqualsTheCpuStacksFromThePrefetchedCube) {
   }
 }
 
-/// Asks until the prefetch's upload is done (none before: the CPU makes it meanwhile).
-template <class F>
-auto whenUploaded(F f) -> decltype(f()) {
-  decltype(f()) r;
-  for (int tries = 0; tries < 1000 && !r; ++tries) {
-    r = f();
-    if (!r) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return r;
-}
-
 void expectSameSums(const std::vector<detect::ShiftedSums>& a, const std::vector<detect::ShiftedSums>& b) {
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t k = 0; k < a.size(); ++k) {
@@ -502,70 +493,6 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
     expectSameBits(stack->mean, cpu.mean, "mean");
     expectSameBits(stack->count, cpu.count, "count");
     expectSameBits(stack->max, cpu.max, "max");
-  }
-}
-
-/// 64 x 48 x 40 frames of noise (sigma 3 on 100) with a star moving 0.2 px per frame and 30 cosmic rays: few
-/// enough (2.4e-4 of the pixels) not to lift the measured excess tail (cosmic_rays.hpp).
-FrameCube cosmicRayCube(bool withMask) {
-  constexpr int w = 64, h = 48, n = 40;
-  FrameCube c(w, h, n);
-  std::mt19937 rng(23);
-  std::normal_distribution<float> g(0.0f, 3.0f);
-  for (int k = 0; k < n; ++k) {
-    c.info()[k].mjdMid = 60000.0 + 0.5 * k / kSecondsPerDay;
-    float* f = c.frame(k);
-    for (int i = 0; i < w * h; ++i)
-      f[i] = 100.0f + g(rng);
-    const double sx = 10.0 + 0.2 * k, sy = 24.3;
-    for (int y = 18; y <= 30; ++y)
-      for (int x = 0; x < w; ++x) {
-        const double r2 = (x - sx) * (x - sx) + (y - sy) * (y - sy);
-        f[y * w + x] += static_cast<float>(400.0 * std::exp(-r2 / (2.0 * 1.5 * 1.5)));
-      }
-  }
-  std::uniform_int_distribution<std::size_t> any(0, c.pixels().size() - 1);
-  for (int hit = 0; hit < 30; ++hit)
-    c.pixels()[any(rng)] += 600.0f;
-  if (withMask) {
-    c.mask().assign(c.pixels().size(), 0);
-    for (std::size_t i = 0; i < c.mask().size(); i += 97)
-      c.mask()[i] = 1;
-  }
-  return c;
-}
-
-TEST(GpuSkyStack, CosmicRayProtectionFromTheDeviceEqualsTheCpu) {
-  ST_REQUIRE_GPU_PREPROCESS(accel);
-  for (const bool withMask : {false, true}) {
-    SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
-    FrameCube c = cosmicRayCube(withMask);
-    FrameCube cpu = c;
-    const std::shared_ptr<void> guard = accel->prefetch(c);
-    calib::CosmicRayParams params;
-    params.skyRate = {0.4, 0.0};  // px/s: the star's 0.2 px per frame
-    params.fill = calib::CosmicRayParams::Fill::TimeNeighbours;
-    int asked = 0, made = 0;
-    const detect::SkyStackCache::Provider device = [&](const FrameCube& cube, Velocity rate, double subtract,
-                                                       std::size_t first, std::size_t last) {
-      ++asked;
-      std::optional<detect::SkyStack> s =
-          whenUploaded([&] { return accel->skyStack(cube, rate, subtract, first, last); });
-      made += s ? 1 : 0;
-      return s;
-    };
-    NullProgress progress;
-    CancelToken cancel;
-    const calib::CosmicRayResult d = calib::removeCosmicRays(c, params, progress, cancel, &device);
-    const calib::CosmicRayResult h = calib::removeCosmicRays(cpu, params, progress, cancel);
-    EXPECT_EQ(asked, params.protectBlocks);
-    EXPECT_EQ(made, params.protectBlocks);
-    EXPECT_GE(h.total, 20u);
-    EXPECT_GT(h.protectedPixels, 0u);
-    EXPECT_EQ(d.protectedPixels, h.protectedPixels);
-    EXPECT_EQ(d.pixels, h.pixels);
-    EXPECT_EQ(d.total, h.total);
-    EXPECT_EQ(std::memcmp(c.pixels().data(), cpu.pixels().data(), c.pixels().size() * sizeof(float)), 0);
   }
 }
 
