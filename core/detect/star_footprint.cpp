@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
@@ -71,7 +72,8 @@ __attribute__((target("avx2"))) int filteredSnrInteriorAvx2(const float* rc, con
 
 }  // namespace
 
-std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx) {
+std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx,
+                               const SkyStackCache::SnrProvider* device) {
   const int w = resid.width, h = resid.height;
   std::vector<float> out(resid.size(), 0.0f);
   if (sigma <= 0 || w == 0) return out;
@@ -87,6 +89,11 @@ std::vector<float> filteredSnr(const Image& resid, const Image& count, double si
     for (std::size_t i = i0; i < i1; ++i)
       rc[i] = resid.pixels[i] * count.pixels[i];
   });
+  if (device) {
+    const FilteredSnrInputs in{rc.data(), count.pixels.data(), w, h, k.data(), r, sigma};
+    if (std::optional<std::vector<float>> made = (*device)(in); made && made->size() == out.size())
+      return std::move(*made);
+  }
   parallelFor(static_cast<std::size_t>(h), 16, [&](std::size_t y0, std::size_t y1) {
     for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y) {
       auto pixel = [&](int x) {
@@ -128,7 +135,7 @@ HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background
     const SkyStack& h = k == 0 ? stacks.stack(cube, skyRate, background, none, cancel, 0, half)
                                : stacks.stack(cube, skyRate, background, none, cancel, half, 0);
     const Image resid = residualWhereCounted(h.mean, h.count, local);
-    (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx);
+    (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx, stacks.snrProvider());
     (k == 0 ? out.countFirst : out.countSecond) = h.count;
   }
   return out;

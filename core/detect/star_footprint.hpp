@@ -17,7 +17,9 @@ namespace st::detect::detail {
 /// SNR of the stack filtered by a Moffat kernel (FWHM fwhmPx, beta 4): sum K r c / (sigma sqrt(sum K^2 c)),
 /// with r the background-subtracted stack mean, c the count of contributing frames and sigma the single-frame
 /// noise. This is the matched-filter SNR of a point source seen in c frames (partial N_in at the edges).
-std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx);
+/// `device`, when given, makes it from FilteredSnrInputs (the same values) unless it declines.
+std::vector<float> filteredSnr(const Image& resid, const Image& count, double sigma, double fwhmPx,
+                               const SkyStackCache::SnrProvider* device = nullptr);
 
 /// Filtered SNR maps of the sky-rate stacks of the first and second halves of the frames (same canvas).
 struct HalfStacks {

@@ -169,7 +169,8 @@ struct StackSnr {
   stats::ClipStats noise;
 };
 
-StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel) {
+StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel,
+                      const SkyStackCache::SnrProvider* device) {
   StackSnr a;
   a.snr.assign(s.mean.size(), 0.0f);
   a.snrF.assign(s.mean.size(), 0.0f);
@@ -193,7 +194,7 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
     // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
     // after the matched filter.
     if (params.filteredDetection)
-      a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx);
+      a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx, device);
     if (pass == 0)
       weight = detail::excludeSources(s.count, a.snr, a.snrF, params.growSnr + 1.0,
                                       static_cast<int>(std::ceil(params.psfFwhmPx)));
@@ -255,7 +256,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack& s = cache.stack(cube, skyRate, background, sub, cancel);
   const int cw = s.mean.width, ch = s.mean.height;
-  const StackSnr an = analyseStack(s, params, cancel);
+  const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider());
   const Image& resid = an.resid;
   const std::vector<float>& snr = an.snr;
   const std::vector<float>& snrF = an.snrF;

@@ -244,6 +244,25 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;
   if (deviceStacks) skyStacks.setProvider(deviceStacks);
+  // Their matched-filtered SNR maps (4 per static-source search) on the device too: the same values.
+  int snrAsked = 0, snrMade = 0;
+  if (params.accelerator)
+    skyStacks.setSnrProvider(
+        [&out, &snrAsked, &snrMade, accel = params.accelerator,
+         failed = false](const detect::FilteredSnrInputs& in) mutable -> std::optional<std::vector<float>> {
+          ++snrAsked;
+          if (failed) return std::nullopt;
+          try {
+            std::optional<std::vector<float>> made = accel->filteredSnr(in);
+            snrMade += made ? 1 : 0;
+            return made;
+          } catch (const GpuError& e) {
+            failed = true;
+            out.notes.push_back("warning: the static sources' filtered SNR fell back to the CPU (" +
+                                accel->name() + ": " + e.what() + ")");
+            return std::nullopt;
+          }
+        });
   {
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
@@ -272,7 +291,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator) {
     std::ostringstream note;
     note << "stacks at the sky rate: " << skyStacks.made() << " made (" << skyStacks.provided() << " on "
-         << params.accelerator->name() << ") in " << skyStacks.seconds() << " s";
+         << params.accelerator->name() << ") in " << skyStacks.seconds()
+         << " s; their filtered SNR maps: " << snrAsked << " (" << snrMade << " on the device)";
     out.notes.push_back(note.str());
   }
   skyStacks = detect::SkyStackCache();  // its memory (several canvases) is not needed any more
@@ -310,6 +330,21 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
+  // A device may still be writing the zero-biased host cube when zeroBias returns (its download behind the
+  // noise model and the matched filter, which read the device's copy; issue 16): waited for below before
+  // this function reads the cube or returns, and by this guard before an exception frees it.
+  zin.hostCubeMayLag = params.accelerator != nullptr;
+  struct HostWritesGuard {
+    PreprocessAccelerator* accel;
+    ~HostWritesGuard() {
+      if (!accel) return;
+      try {
+        accel->finishHostWrites();
+      } catch (...) {
+        // Already unwinding (the normal path waits below and reports a failure there).
+      }
+    }
+  } hostWritesGuard{params.accelerator};
   ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));
@@ -401,8 +436,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();
+    if (params.accelerator) params.accelerator->finishHostWrites();  // timed with the filter it overlapped
     lap("matched filter");
   }
+  if (params.accelerator) params.accelerator->finishHostWrites();  // (without a matched filter)
   // Frames moved onto frame 0's grid by whole pixels (registration) go back onto their own grids, their
   // offsets whole again: the search's N_in then counts only the frames that saw each track position (on
   // frame 0's grid, the pixels a frame does not cover are 0 but inside it). The per-pixel maps (background,

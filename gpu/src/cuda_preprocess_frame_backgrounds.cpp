@@ -27,6 +27,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
                                                                const stats::FrameBackgroundParams& params,
                                                                ProgressSink& progress, CancelToken& cancel) {
   m_note.clear();
+  finishHostWrites();
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;

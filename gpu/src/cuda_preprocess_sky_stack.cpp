@@ -172,4 +172,25 @@ std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, 
   return out;
 }
 
+std::optional<std::vector<float>> CudaPreprocess::filteredSnr(const detect::FilteredSnrInputs& in) {
+  const std::size_t np = static_cast<std::size_t>(std::max(0, in.width)) * std::max(0, in.height);
+  if (np == 0 || in.r < 0 || !in.rc || !in.count || !in.k) return std::nullopt;
+  Stopwatch sw;
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = ensureResources(m_res);
+  cudaStream_t s = r.compute.get();
+  const std::size_t taps = static_cast<std::size_t>(2 * in.r + 1) * (2 * in.r + 1);
+  DeviceBuffer<float> rc(np), count(np), out(np);
+  DeviceBuffer<double> k(taps);
+  ST_CUDA_CHECK(cudaMemcpyAsync(rc.get(), in.rc, np * sizeof(float), cudaMemcpyHostToDevice, s));
+  ST_CUDA_CHECK(cudaMemcpyAsync(count.get(), in.count, np * sizeof(float), cudaMemcpyHostToDevice, s));
+  ST_CUDA_CHECK(cudaMemcpyAsync(k.get(), in.k, taps * sizeof(double), cudaMemcpyHostToDevice, s));
+  launchFilteredSnr(rc.get(), count.get(), k.get(), in.width, in.height, in.r, in.sigma, out.get(), s);
+  std::vector<float> host(np);
+  ST_CUDA_CHECK(cudaMemcpyAsync(host.data(), out.get(), np * sizeof(float), cudaMemcpyDeviceToHost, s));
+  r.compute.sync();
+  m_note = "filtered SNR on " + name() + ": " + ms(sw.lap());
+  return host;
+}
+
 }  // namespace st::gpu

@@ -57,9 +57,42 @@ __global__ void shiftedSumsKernel(ShiftedSumsLaunch p) {
   p.count[o] = cnt;
 }
 
-__global__ void scatterKernel(float* pix, const std::uint64_t* index, const float* value, std::size_t n) {
+// detect::detail::filteredSnr (core/detect/star_footprint.cpp): the taps inside the image, rows then columns
+// ascending, each product rounded before its sum (no fused multiply-add), so the CPU's values bit for bit.
+__global__ void filteredSnrKernel(const float* rc, const float* cnt, const double* k, int w, int h, int r,
+                                  double sigma, float* out) {
+  const int x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  const int y = static_cast<int>(blockIdx.y);
+  if (x >= w || y >= h) return;
+  const int kw = 2 * r + 1;
+  const int j0 = max(-r, -y), j1 = min(r, h - 1 - y), i0 = max(-r, -x), i1 = min(r, w - 1 - x);
+  double num = 0.0, den = 0.0;
+  for (int j = j0; j <= j1; ++j) {
+    const std::size_t row = static_cast<std::size_t>(y + j) * w + x;
+    const double* kr = k + static_cast<std::size_t>(j + r) * kw + r;
+    for (int i = i0; i <= i1; ++i) {
+      const double kv = __ldg(kr + i);
+      num = __dadd_rn(num, __dmul_rn(kv, static_cast<double>(__ldg(rc + row + i))));
+      den = __dadd_rn(den, __dmul_rn(__dmul_rn(kv, kv), static_cast<double>(__ldg(cnt + row + i))));
+    }
+  }
+  out[static_cast<std::size_t>(y) * w + x] =
+      den > 0.0 ? __double2float_rn(__ddiv_rn(num, __dmul_rn(sigma, __dsqrt_rn(den)))) : 0.0f;
+}
+
+template <class T>
+__global__ void scatterKernel(T* pix, const std::uint64_t* index, const T* value, std::size_t n) {
   const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (k < n) pix[index[k]] = value[k];
+}
+
+template <class T>
+void scatter(T* pix, const std::uint64_t* index, const T* value, std::size_t n, cudaStream_t s) {
+  if (n == 0) return;
+  constexpr int kThreads = 256;
+  scatterKernel<T>
+      <<<static_cast<unsigned>((n + kThreads - 1) / kThreads), kThreads, 0, s>>>(pix, index, value, n);
+  checkLaunch("scatterKernel");
 }
 
 }  // namespace
@@ -75,11 +108,21 @@ void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s) {
 
 void launchScatter(float* pix, const std::uint64_t* index, const float* value, std::size_t n,
                    cudaStream_t s) {
-  if (n == 0) return;
-  constexpr int kThreads = 256;
-  scatterKernel<<<static_cast<unsigned>((n + kThreads - 1) / kThreads), kThreads, 0, s>>>(pix, index, value,
-                                                                                          n);
-  checkLaunch("scatterKernel");
+  scatter(pix, index, value, n, s);
+}
+
+void launchScatter(std::uint8_t* mask, const std::uint64_t* index, const std::uint8_t* value, std::size_t n,
+                   cudaStream_t s) {
+  scatter(mask, index, value, n, s);
+}
+
+void launchFilteredSnr(const float* rc, const float* count, const double* k, int width, int height, int r,
+                       double sigma, float* out, cudaStream_t s) {
+  if (width <= 0 || height <= 0) return;
+  constexpr int kThreads = 128;
+  const dim3 grid(static_cast<unsigned>((width + kThreads - 1) / kThreads), static_cast<unsigned>(height));
+  filteredSnrKernel<<<grid, kThreads, 0, s>>>(rc, count, k, width, height, r, sigma, out);
+  checkLaunch("filteredSnrKernel");
 }
 
 void launchSkyStack(const SkyStackLaunch& p, cudaStream_t s) {

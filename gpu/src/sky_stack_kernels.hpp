@@ -44,7 +44,14 @@ struct ShiftedSumsLaunch {
 };
 void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s);
 
+/// detect::FilteredSnrInputs's SNR map (width x height) into `out`, the CPU's values bit for bit.
+void launchFilteredSnr(const float* rc, const float* count, const double* k, int width, int height, int r,
+                       double sigma, float* out, cudaStream_t s);
+
 /// pix[index[k]] = value[k] for k < n (the cosmic-ray fills patched into a prefetched cube).
 void launchScatter(float* pix, const std::uint64_t* index, const float* value, std::size_t n, cudaStream_t s);
+/// mask[index[k]] = value[k] for k < n (a sparse mask uploaded: its non-zero bytes into a zeroed buffer).
+void launchScatter(std::uint8_t* mask, const std::uint64_t* index, const std::uint8_t* value, std::size_t n,
+                   cudaStream_t s);
 
 }  // namespace st::gpu

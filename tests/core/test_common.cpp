@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <random>
 
 #include "st/common/error.hpp"
 #include "st/common/fits_header.hpp"
@@ -12,6 +13,7 @@
 #include "st/common/memory_budget.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/prefault.hpp"
+#include "st/common/sparse_bytes.hpp"
 #include "st/common/units.hpp"
 #include "st/psf/moffat.hpp"
 
@@ -109,6 +111,36 @@ TEST(Parallel, CoversRangeOnceAndPropagatesErrors) {
                              if (b == 50) throw InputError("boom");
                            }),
                InputError);
+}
+
+// sparseBytes against a byte-by-byte scan: non-zero bytes at the ends of pieces (1 MiB) and of lines (64
+// bytes), in a tail shorter than a line, every value 1..255; none above the limit, exactly at it found.
+TEST(SparseBytes, EveryNonZeroByteInOrderAndNoneOverTheLimit) {
+  const std::size_t n = (std::size_t{3} << 20) + 37;  // three pieces and a tail of 37 bytes
+  std::vector<std::uint8_t> data(n, 0);
+  std::mt19937_64 rng(7);
+  for (std::size_t i : {std::size_t{0}, std::size_t{63}, std::size_t{64}, (std::size_t{1} << 20) - 1,
+                        std::size_t{1} << 20, n - 37, n - 1})
+    data[i] = 1;
+  for (int k = 0; k < 3000; ++k)
+    data[rng() % n] = static_cast<std::uint8_t>(1 + rng() % 255);
+  std::vector<std::uint64_t> index;
+  std::vector<std::uint8_t> value;
+  for (std::size_t i = 0; i < n; ++i)
+    if (data[i]) {
+      index.push_back(i);
+      value.push_back(data[i]);
+    }
+  const std::optional<SparseBytes> all = sparseBytes(data, index.size());
+  ASSERT_TRUE(all.has_value());
+  EXPECT_EQ(all->index, index);
+  EXPECT_EQ(all->value, value);
+  EXPECT_FALSE(sparseBytes(data, index.size() - 1).has_value());
+  const std::vector<std::uint8_t> zeros(1000, 0);
+  const std::optional<SparseBytes> none = sparseBytes(zeros, 0);
+  ASSERT_TRUE(none.has_value());
+  EXPECT_TRUE(none->index.empty());
+  EXPECT_TRUE(sparseBytes({}, 0).has_value());
 }
 
 TEST(Moffat, FwhmAndIntegralsMatchClosedForms) {

@@ -378,6 +378,8 @@ TEST(GpuFilter, FromSourceEqualsFilterOfACopy) {
   const auto d = accel->filterCubeFrom(src, sized, kernel, progress, cancel, &model, 0);
   accel->setKeepResident(true);
   EXPECT_EQ(accel->lastNote().find("for the host buffer"), std::string::npos) << accel->lastNote();
+  EXPECT_NE(accel->lastNote().find("piece by piece behind the kernels"), std::string::npos)
+      << accel->lastNote();
   EXPECT_EQ(sized.pixels().data(), buffer);
   EXPECT_EQ(std::memcmp(sized.pixels().data(), copy.pixels().data(), copy.pixels().size() * 4), 0);
   EXPECT_EQ(d.sigmaF, a.sigmaF);

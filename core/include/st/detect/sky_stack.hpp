@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <tuple>
+#include <vector>
 
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
@@ -30,6 +31,20 @@ struct SkyStack {
 SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, ProgressSink& progress,
                         CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
 
+/// What the static sources' matched-filtered SNR of a stack is made from (issue 16: a device may make it):
+/// rc = the residual stack times its count (float), `count`, and the Moffat kernel's (2r+1)^2 taps `k` (row
+/// by row). Pixel (x, y) of the result is float(num / (sigma sqrt(den))) where den > 0, else 0, with
+/// num = sum k(i, j) rc(x + i, y + j) and den = sum (k(i, j) k(i, j)) count(x + i, y + j) over the taps
+/// inside the image, in double, rows j then columns i ascending, each product rounded before its sum.
+struct FilteredSnrInputs {
+  const float* rc = nullptr;
+  const float* count = nullptr;
+  int width = 0, height = 0;
+  const double* k = nullptr;
+  int r = 0;
+  double sigma = 0.0;
+};
+
 /// Stacks of one cube at one rate, made once and handed out again: pre-processing asks for the same stacks
 /// several times (the static-source search, again at the fitted FWHM, and the PSF; each search stacks the
 /// whole cube, its thirds and its halves), one full pass over the cube each. The cube must not change while
@@ -47,6 +62,13 @@ class SkyStackCache {
                         CancelToken& cancel, std::size_t first = 0, std::size_t last = 0);
 
   void setProvider(Provider provider) { m_provider = std::move(provider); }
+
+  /// Makes the filtered SNR of FilteredSnrInputs elsewhere (a device, issue 16), the same values; none: not
+  /// made there, the CPU makes it.
+  using SnrProvider = std::function<std::optional<std::vector<float>>(const FilteredSnrInputs& in)>;
+  void setSnrProvider(SnrProvider provider) { m_snrProvider = std::move(provider); }
+  /// The SNR provider, or null.
+  [[nodiscard]] const SnrProvider* snrProvider() const { return m_snrProvider ? &m_snrProvider : nullptr; }
   /// Stacks made so far, those of them the provider made, and the wall time spent making them (s).
   [[nodiscard]] int made() const { return m_made; }
   [[nodiscard]] int provided() const { return m_provided; }
@@ -56,6 +78,7 @@ class SkyStackCache {
   using Key = std::tuple<const void*, double, double, double, std::size_t, std::size_t>;
   std::map<Key, SkyStack> m_stacks;
   Provider m_provider;
+  SnrProvider m_snrProvider;
   int m_made = 0, m_provided = 0;
   double m_seconds = 0.0;
 };
