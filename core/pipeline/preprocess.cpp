@@ -330,21 +330,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
-  // A device may still be writing the zero-biased host cube when zeroBias returns (its download behind the
-  // noise model and the matched filter, which read the device's copy; issue 16): waited for below before
-  // this function reads the cube or returns, and by this guard before an exception frees it.
-  zin.hostCubeMayLag = params.accelerator != nullptr;
-  struct HostWritesGuard {
-    PreprocessAccelerator* accel;
-    ~HostWritesGuard() {
-      if (!accel) return;
-      try {
-        accel->finishHostWrites();
-      } catch (...) {
-        // Already unwinding (the normal path waits below and reports a failure there).
-      }
-    }
-  } hostWritesGuard{params.accelerator};
   ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));
@@ -436,10 +421,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.sigmaF = mf.sigmaF;
     out.filtered.skyRate = out.skyRate;
     out.filtered.psfFwhmPx = out.psf.fwhm();
-    if (params.accelerator) params.accelerator->finishHostWrites();  // timed with the filter it overlapped
     lap("matched filter");
   }
-  if (params.accelerator) params.accelerator->finishHostWrites();  // (without a matched filter)
   // Frames moved onto frame 0's grid by whole pixels (registration) go back onto their own grids, their
   // offsets whole again: the search's N_in then counts only the frames that saw each track position (on
   // frame 0's grid, the pixels a frame does not cover are 0 but inside it). The per-pixel maps (background,

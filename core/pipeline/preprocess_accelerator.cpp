@@ -85,7 +85,6 @@ stats::NoiseModel estimateNoiseModelOn(PreprocessAccelerator* accel, const Frame
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "noise model", e));
     }
-    accel->finishHostWrites();  // the CPU reads the host cube
   }
   return stats::estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
 }
@@ -118,7 +117,6 @@ stack::MatchedFilterResult filterCubeOn(PreprocessAccelerator* accel, FrameCube&
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "matched filter", e));
     }
-    accel->finishHostWrites();  // the CPU reads the host cube
   }
   return stack::filterCube(cube, kernel, progress, cancel, noise);
 }
@@ -137,7 +135,6 @@ stack::MatchedFilterResult filterCubeFromOn(PreprocessAccelerator* accel, const 
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "matched filter", e));
     }
-    accel->finishHostWrites();  // the CPU reads the host cube
   }
   filtered.pixels() = source.pixels();
   filtered.mask().clear();

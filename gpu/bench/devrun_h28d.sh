@@ -21,11 +21,11 @@ for t in st_gpu_test_gpu_zero_bias st_gpu_test_gpu_preprocess; do
   timeout 280 compute-sanitizer --tool memcheck --leak-check full $W/pkg/$t --gtest_filter=-*LongCube* > $O/memcheck_$t.log 2>&1; echo "memcheck $t rc=$?"; grep -E "ERROR SUMMARY|LEAK SUMMARY" $O/memcheck_$t.log | head -2; done
 fi
 [ "$MODE" = tests ] && exit 0
-for r in 1 2 3 4; do for v in old new; do X=$B; [ $v = old ] && X=$OLD
+for r in 1 2 3 4 5 6; do for v in old new; do X=$B; [ $v = old ] && X=$OLD
   $X bench preprocess --frames 1500 --backend cuda >$O/$v$r.log 2>&1; echo "$v $(grep -E '^preprocess:' $O/$v$r.log | cut -c1-40)"; done; done
-grep -E "^(sigma_n|stars|cosmic-ray pixels|sky rate)" $O/old4.log $O/new4.log | cut -c1-120
-grep -E "^  [a-z]" $O/new4.log | tr -s ' ' | tr '\n' '|'; echo; grep -E "^  [a-z]" $O/old4.log | tr -s ' ' | tr '\n' '|'; echo
-grep -E "^note: (sky rate: the block|matched filter on|per-pixel background to)" $O/new4.log | cut -c1-400
+grep -E "^(sigma_n|stars|cosmic-ray pixels|sky rate)" $O/old6.log $O/new6.log | cut -c1-120
+grep -E "^  [a-z]" $O/new6.log | tr -s ' ' | tr '\n' '|'; echo; grep -E "^  [a-z]" $O/old6.log | tr -s ' ' | tr '\n' '|'; echo
+grep -E "^note: (sky rate: the block|matched filter on|per-pixel background to)" $O/new6.log | cut -c1-400
 F=/tmp/d1500/observation.fits; [ -f $F ] || $B demo --frames 1500 --backend cuda --fits 0 --out /tmp/d1500 >/dev/null 2>&1; cat $F >/dev/null
 A="--vmax-px-s 0.5565 --centre-px-s 15.8,0.3"
 for r in 1 2 3 4 5; do for v in old new; do X=$B; [ $v = old ] && X=$OLD

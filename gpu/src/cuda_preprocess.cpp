@@ -6,15 +6,14 @@
 #include <exception>
 #include <memory>
 #include <thread>
-#include <utility>
 
 #include "cuda_preprocess.hpp"
 #include "frame_backgrounds.hpp"
 #include "global_background_host.hpp"
 #include "resident_cube.hpp"
 #include "sky_stack_kernels.hpp"
-#include "st/common/sparse_bytes.hpp"
 #include "st/common/parallel.hpp"
+#include "st/common/sparse_bytes.hpp"
 
 namespace st::gpu {
 
@@ -44,30 +43,6 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   }
 }
 
-void CudaPreprocess::finishHostWrites() {
-  if (!m_hostWrite.target) return;
-  joinHostWrite();
-  const float* target = std::exchange(m_hostWrite.target, nullptr);
-  if (std::exception_ptr error = std::exchange(m_hostWrite.error, nullptr)) {
-    // The host cube is partly written: nothing may take it for m_kept's frames.
-    m_kept = DeviceBuffer<float>();
-    m_keptData = nullptr;
-    try {
-      std::rethrow_exception(error);
-    } catch (const std::exception& e) {
-      throw GpuError(std::string("the zero-biased cube's download from ") + name() + " failed: " + e.what());
-    }
-  }
-  if (m_keptData == target) m_keptKey = m_hostWrite.key;
-}
-
-bool CudaPreprocess::keptFor(const FrameCube& cube) const {
-  if (!m_keptData || m_kept.size() != cube.pixels().size() || m_keptData != cube.pixels().data())
-    return false;
-  if (m_hostWrite.target == m_keptData) return true;  // being written from m_kept, and by nothing else
-  return m_keptKey == cubeKey(cube);
-}
-
 std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std::size_t wanted) {
   std::vector<std::size_t> idx;
   if (total == 0) return idx;
@@ -79,7 +54,6 @@ std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std:
 
 stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
-  finishHostWrites();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = ensureResources(m_res);
   m_note.clear();
@@ -95,7 +69,6 @@ stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
 
 std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube& cube, double background,
                                                                  const detect::HotPixelParams& params) {
-  finishHostWrites();
   const float* kept = keptFrames(cube);
   if (!kept) return std::nullopt;
   Stopwatch sw;
@@ -126,7 +99,6 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
-  finishHostWrites();
   // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here.
   DeviceBuffer<float> kept;
   if (m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
@@ -156,7 +128,7 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
       if (!q->keptFrames)
         stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);
-      if (q->maskSize) uploadMask(r, q->mask.get(), maskData, q->maskSize, r.copy.get());
+      if (q->maskSize) uploadMask(r, q->mask.get(), maskData, q->maskSize, r.copy.get(), false);
       r.copy.sync();
       q->seconds = sw.lap();
       q->ok = true;
@@ -179,14 +151,14 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
 }
 
 void CudaPreprocess::uploadMask(DeviceResources& r, std::uint8_t* dst, const std::uint8_t* src,
-                                std::size_t bytes, cudaStream_t s) {
+                                std::size_t bytes, cudaStream_t s, bool parallelCopy) {
   // A cube's mask is mostly zeros (hot pixels in every frame, saturated cores): its non-zero bytes, found on
   // every core in a few ms, scattered into a zeroed buffer. The whole mask through the staging buffers on
-  // this thread took ~110 ms for 1500 x 512^2 (H100 machine, 2026-11-28), and the sky rate's first block sums
-  // then ran on the CPU. Copied whole when over 1/64 of it is set (9 bytes an entry against 1).
+  // the prefetch's thread took ~110 ms for 1500 x 512^2 (H100 machine, 2026-11-28), and the sky rate's first
+  // block sums then ran on the CPU. Copied whole when over 1/64 of it is set (9 bytes an entry against 1).
   const std::optional<SparseBytes> sparse = sparseBytes({src, bytes}, bytes / 64);
   if (!sparse) {
-    stagedUpload(r, dst, src, bytes, s, false);
+    stagedUpload(r, dst, src, bytes, s, parallelCopy);
     return;
   }
   ST_CUDA_CHECK(cudaMemsetAsync(dst, 0, bytes, s));

@@ -19,7 +19,6 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstdio>
-#include <exception>
 #include <memory>
 #include <optional>
 #include <string>
@@ -28,7 +27,6 @@
 
 #include "cuda_check.hpp"
 #include "device_info.hpp"
-#include "resident_cube.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "uploader.hpp"
 
@@ -120,7 +118,6 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                             const stack::FilterKernel& kernel, ProgressSink& progress,
                                             CancelToken& cancel, const stats::NoiseModel* noise,
                                             std::uint64_t revision) override;
-  void finishHostWrites() override;
 
  private:
   /// The device buffers the per-pixel background leaves for zeroBias's next stages.
@@ -171,10 +168,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   /// prefetch, which runs behind the CPU stages).
   static void stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes, cudaStream_t s,
                            bool parallelCopy);
-  /// The prefetch's mask: its non-zero bytes scattered into a zeroed device buffer when few (on stream `s`,
-  /// done on return), else stagedUpload on this thread.
+  /// A cube's mask: its non-zero bytes (found on every core) scattered into a zeroed device buffer when few
+  /// (on stream `s`, done on return), else stagedUpload (`parallelCopy` as there).
   static void uploadMask(DeviceResources& r, std::uint8_t* dst, const std::uint8_t* src, std::size_t bytes,
-                         cudaStream_t s);
+                         cudaStream_t s, bool parallelCopy);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
@@ -199,25 +196,6 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   DeviceBuffer<float> m_kept;
   const float* m_keptData = nullptr;
   std::uint64_t m_keptKey = 0;
-  /// m_kept is `cube`'s frames: the same host buffer and size, and its key (or m_kept is being downloaded
-  /// into it now: nothing else writes it until finishHostWrites).
-  bool keptFor(const FrameCube& cube) const;
-  /// zeroBias's download of m_kept into the host cube on a thread of its own, behind the noise model and the
-  /// matched filter (ZeroBiasInputs::hostCubeMayLag).
-  struct HostWrite {
-    std::jthread thread;
-    float* target = nullptr;   ///< the host pixels being written; null: nothing pending
-    CubeKeyShape shape;        ///< of the host cube, for its key once written
-    std::uint64_t key = 0;     ///< written by the thread: cubeKey(shape) after the download
-    double seconds = 0.0;      ///< written by the thread: the download's
-    std::exception_ptr error;  ///< written by the thread
-  };
-  /// Joins the pending host write without throwing (its error stays for finishHostWrites).
-  void joinHostWrite() {
-    if (m_hostWrite.thread.joinable()) m_hostWrite.thread.join();
-  }
-  std::unique_ptr<DeviceResources> m_downloadRes;  // the host write's streams and staging
-  HostWrite m_hostWrite;  // after m_kept and m_downloadRes: its thread is joined before they are freed
 };
 
 }  // namespace st::gpu

@@ -18,7 +18,6 @@ stats::Background CudaPreprocess::subtractPixelBackground(FrameCube& cube,
                                                           const stats::BackgroundParams& params,
                                                           const detect::MovingMask* exclude,
                                                           ProgressSink& progress, CancelToken& cancel) {
-  finishHostWrites();
   return pixelBackground(cube, params, exclude, progress, cancel, nullptr);
 }
 

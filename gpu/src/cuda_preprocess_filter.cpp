@@ -71,17 +71,11 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
       }
     });
   }
-  // The frames removeResidualMeans or zeroBias left on the device, when this is that cube unchanged: no
-  // upload. zeroBias's download of them into the host cube may still run (hostCubeMayLag): joined before
-  // they are freed, whatever happens here.
-  const bool kept = !hasMask && keptFor(cube);
-  if (!kept) finishHostWrites();  // the upload reads the host cube
+  // The frames removeResidualMeans left on the device, when this is that cube unchanged: no upload.
   DeviceBuffer<float> in = std::move(m_kept);
+  const bool kept =
+      !hasMask && in.size() == nf * np && m_keptData == cube.pixels().data() && m_keptKey == cubeKey(cube);
   m_keptData = nullptr;
-  struct JoinBeforeFree {
-    CudaPreprocess* self;
-    ~JoinBeforeFree() { self->joinHostWrite(); }
-  } joinBeforeFree{this};
   if (!kept) {
     in = DeviceBuffer<float>();  // another cube's: freed first
     in = DeviceBuffer<float>(nf * np);
@@ -157,21 +151,16 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   k1.record(s);
   setFilterKernel(kernel.kernel.data(), half, s);
   p.out = out.get();
-  // Into a destination that is not the source, each piece of frames is downloaded while the next ones are
-  // filtered (the copy stream waits for its piece's kernels): a failure leaves the source as it was, and the
-  // CPU fallback rewrites every pixel of the destination. Into the source, or a buffer still being
-  // allocated, after every kernel as before.
-  const bool streamDown = !freshDest && &dest != &cube && dest.pixels().size() == nf * np;
   constexpr int kFramesPerLaunch = 128;
-  const std::size_t pieces = (nf + kFramesPerLaunch - 1) / kFramesPerLaunch;
-  std::vector<Event> pieceDone;
-  pieceDone.reserve(pieces);
-  for (std::size_t k = 0; k < pieces; ++k) {
-    p.f0 = static_cast<int>(k * kFramesPerLaunch);
-    p.f1 = static_cast<int>(std::min(nf, (k + 1) * kFramesPerLaunch));
+  for (std::size_t f0 = 0; f0 < nf; f0 += kFramesPerLaunch) {
+    p.f0 = static_cast<int>(f0);
+    p.f1 = static_cast<int>(std::min(nf, f0 + kFramesPerLaunch));
     launchFilter(p, s);
-    pieceDone.emplace_back();
-    pieceDone.back().record(s);
+    if (f0 % (4 * kFramesPerLaunch) == 0) {
+      r.compute.sync();
+      cancel.throwIfCancelled();
+      progress.report(0.1 + 0.7 * static_cast<double>(p.f1) / nf, "matched filter (GPU)");
+    }
   }
   k2.record(s);
   // sigma_F from the samples of up to 64 frames (stack::filterCube).
@@ -184,26 +173,12 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     for (std::size_t k = 0; k < sampleFrames.size(); ++k)
       launchNoiseSamples(in.get(), p.mask, out.get(), w, h, static_cast<int>(sampleFrames[k]), half,
                          samplesD.get() + k * perFrame, nx, ny, s);
-  double streamed = 0.0;
-  for (std::size_t k = 0; k < pieces; ++k) {
-    const std::size_t f0 = k * kFramesPerLaunch, f1 = std::min(nf, f0 + kFramesPerLaunch);
-    if (streamDown) {
-      ST_CUDA_CHECK(cudaStreamWaitEvent(r.copy.get(), pieceDone[k].get(), 0));
-      download(r, dest.pixels().data() + f0 * np, out.get() + f0 * np, (f1 - f0) * np * sizeof(float),
-               r.copy.get());
-    } else {
-      pieceDone[k].sync();
-    }
-    cancel.throwIfCancelled();
-    progress.report(0.1 + 0.7 * static_cast<double>(f1) / nf, "matched filter (GPU)");
-  }
-  if (streamDown) streamed = sw.lap();
   std::vector<float> samplesH(perFrame * sampleFrames.size());
   if (!samplesH.empty())
     ST_CUDA_CHECK(
         cudaMemcpyAsync(samplesH.data(), samplesD.get(), samplesH.size() * 4, cudaMemcpyDeviceToHost, s));
   r.compute.sync();
-  const double kernels = Event::elapsed(k0, k2);
+  const double kernels = sw.lap();
   std::vector<std::vector<float>> samples(sampleFrames.size());
   for (std::size_t k = 0; k < sampleFrames.size(); ++k)
     for (std::size_t i = 0; i < perFrame; ++i) {
@@ -212,13 +187,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     }
   stack::MatchedFilterResult result = stack::filterNoiseFromSamples(samples, kernel);
   cancel.throwIfCancelled();
-  // zeroBias's download of the frames about to be freed (and, in place, overwritten).
-  Stopwatch joined;
-  const bool hadHostWrite = m_hostWrite.target != nullptr;
-  finishHostWrites();
-  const double waitedHostWrite = joined.lap();
   in = DeviceBuffer<float>();
-  sw.lap();
   double waitAlloc = 0.0;
   if (freshDest) {
     allocate.join();
@@ -226,7 +195,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     waitAlloc = sw.lap();
     download(r, destPixels.data(), out.get(), nf * np * sizeof(float), s);
     dest.pixels() = std::move(destPixels);
-  } else if (!streamDown) {
+  } else {
     download(r, dest.pixels().data(), out.get(), nf * np * sizeof(float), s);
   }
   const double down = sw.lap();
@@ -245,13 +214,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
            ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
            ms(Event::elapsed(k1, k2)) + ")" +
            (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
-           (streamDown ? ", downloaded piece by piece behind the kernels (weights, filter and download " +
-                             ms(streamed) + ")"
-                       : ", download " + ms(down)) +
-           (hadHostWrite ? "; beside them the zero-biased cube's download, " + ms(m_hostWrite.seconds) +
-                               " (waited " + ms(waitedHostWrite) + " for its end)"
-                         : std::string()) +
-           "; filtered cube " + resident;
+           ", download " + ms(down) + "; filtered cube " + resident;
   progress.report(1.0, "matched filter (GPU)");
   return result;
 }

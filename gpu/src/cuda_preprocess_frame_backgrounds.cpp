@@ -27,7 +27,6 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
                                                                const stats::FrameBackgroundParams& params,
                                                                ProgressSink& progress, CancelToken& cancel) {
   m_note.clear();
-  finishHostWrites();
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;
@@ -44,7 +43,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   DeviceBuffer<std::uint8_t> mask(hasMask ? nf * np : 0);
   Uploader up(r, cube.pixels().data(), np);
   up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
-  if (hasMask) stagedUpload(r, mask.get(), cube.mask().data(), nf * np, r.copy.get(), true);
+  if (hasMask) uploadMask(r, mask.get(), cube.mask().data(), nf * np, r.copy.get(), true);
   r.copy.sync();
   const double upload = sw.lap();
   cancel.throwIfCancelled();

@@ -14,7 +14,6 @@ using namespace preprocess_detail;
 
 double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma,
                                            ProgressSink& progress, CancelToken& cancel) {
-  finishHostWrites();
   Stopwatch sw;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
@@ -64,11 +63,11 @@ stats::NoiseModel CudaPreprocess::estimateNoiseModel(const FrameCube& zeroBiased
   DeviceResources& r = ensureResources(m_res);
   cudaStream_t s = r.compute.get();
   // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged.
-  const bool kept = keptFor(zeroBiased);
+  const bool kept = m_kept.size() == nf * np && m_keptData == zeroBiased.pixels().data() &&
+                    m_keptKey == cubeKey(zeroBiased);
   DeviceBuffer<float> uploaded;
   const float* pix = m_kept.get();
   if (!kept) {
-    finishHostWrites();  // another cube's pixels may still be arriving
     uploaded = DeviceBuffer<float>(std::max<std::size_t>(1, nf * np));
     Uploader up(r, zeroBiased.pixels().data(), np);
     up.upload(uploaded.get(), 0, static_cast<int>(nf), r.copy.get());

@@ -11,7 +11,6 @@ using namespace preprocess_detail;
 
 bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in,
                               pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
-  finishHostWrites();
   if (stagewise()) return false;
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
@@ -65,36 +64,14 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   ST_CUDA_CHECK(cudaStreamSynchronize(s));
   const double rmKernels = rm.lap();
   cancel.throwIfCancelled();
-  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter. With
-  // hostCubeMayLag the download runs on a thread of its own while the noise model and the matched filter
-  // read the device's copy (~40 ms of 1500 x 512^2 behind them, issue 16); finishHostWrites waits for it.
+  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter.
   m_kept = DeviceBuffer<float>();
   m_keptData = nullptr;
-  double down = 0.0;
-  if (in.hostCubeMayLag) {
-    DeviceResources& dr = ensureResources(m_downloadRes);
-    m_hostWrite.target = cube.pixels().data();
-    m_hostWrite.shape = cubeKeyShape(cube);
-    m_hostWrite.error = nullptr;
-    m_hostWrite.thread = std::jthread([this, &dr, src = kc.pix.get(), bytes = nf * np * sizeof(float)] {
-      HostWrite& hw = m_hostWrite;
-      try {
-        Stopwatch t;
-        ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-        download(dr, hw.target, src, bytes, dr.copy.get());
-        hw.seconds = t.lap();
-        hw.key = cubeKey(hw.shape);
-      } catch (...) {
-        hw.error = std::current_exception();
-      }
-    });
-  } else {
-    download(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s);
-    down = rm.lap();
-    m_keptKey = cubeKey(cube);
-  }
+  download(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s);
+  const double down = rm.lap();
   m_kept = std::move(kc.pix);
   m_keptData = cube.pixels().data();
+  m_keptKey = cubeKey(cube);
   progress.report(0.83, "residual means (GPU)");
   lap("residual means");
   std::string stages;
@@ -102,9 +79,7 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
     stages += (stages.empty() ? "" : ", ") + stage + " " + ms(sec);
   m_note = "per-pixel background to residual means on " + name() +
            ", the cube kept on the device: " + stages + " (residual means kernels " + ms(rmKernels) +
-           (in.hostCubeMayLag ? std::string(", download behind the noise model and the matched filter")
-                              : ", download " + ms(down)) +
-           "; frames kept for the matched filter); star subtraction: " +
+           ", download " + ms(down) + "; frames kept for the matched filter); star subtraction: " +
            (starTiming.empty() ? "none" : starTiming) + "; " + bgNote;
   return true;
 }

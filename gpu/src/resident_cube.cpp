@@ -21,34 +21,23 @@ ResidentSlot& residentSlot(int ordinal) {
   return slots[static_cast<std::size_t>(ordinal)];
 }
 
-CubeKeyShape cubeKeyShape(const FrameCube& f) {
-  CubeKeyShape k{f.pixels().data(), f.pixels().size(), f.width(), f.height(), {}};
-  k.mjdMid.reserve(f.info().size());
-  for (const auto& info : f.info())
-    k.mjdMid.push_back(info.mjdMid);
-  return k;
-}
-
-std::uint64_t cubeKey(const CubeKeyShape& k) {
-  std::uint64_t h = mix(0, reinterpret_cast<std::uintptr_t>(k.pixels));
-  h = mix(h, k.size);
-  h = mix(h, static_cast<std::uint64_t>(k.width) << 32 | static_cast<std::uint32_t>(k.height));
-  for (double mjd : k.mjdMid) {
+std::uint64_t cubeKey(const FrameCube& f) {
+  std::uint64_t h = mix(0, reinterpret_cast<std::uintptr_t>(f.pixels().data()));
+  h = mix(h, f.pixels().size());
+  h = mix(h, static_cast<std::uint64_t>(f.width()) << 32 | static_cast<std::uint32_t>(f.height()));
+  for (const auto& info : f.info()) {
     std::uint64_t bits = 0;
-    std::memcpy(&bits, &mjd, sizeof(bits));
+    std::memcpy(&bits, &info.mjdMid, sizeof(bits));
     h = mix(h, bits);
   }
-  const std::size_t step = std::max<std::size_t>(1, k.size / 4096);
-  for (std::size_t i = 0; i < k.size; i += step) {
+  const std::size_t n = f.pixels().size();
+  const std::size_t step = std::max<std::size_t>(1, n / 4096);
+  for (std::size_t i = 0; i < n; i += step) {
     std::uint32_t bits = 0;
-    std::memcpy(&bits, &k.pixels[i], sizeof(bits));
+    std::memcpy(&bits, &f.pixels()[i], sizeof(bits));
     h = mix(h, bits);
   }
   return h == 0 ? 1 : h;
-}
-
-std::uint64_t cubeKey(const FrameCube& f) {
-  return cubeKey(cubeKeyShape(f));
 }
 
 std::uint64_t residentKey(const FrameCube& frames, std::uint64_t revision) {

@@ -6,7 +6,6 @@
 // pre-processing) for the whole use.
 #include <cstdint>
 #include <mutex>
-#include <vector>
 
 #include "cuda_check.hpp"
 #include "st/common/frame_cube.hpp"
@@ -39,18 +38,6 @@ ResidentSlot& residentSlot(int ordinal);
 /// 4096 sampled pixels. Not proof of equal pixels on its own (a new cube of the same noise in a reused
 /// buffer can match it), hence residentKey.
 std::uint64_t cubeKey(const FrameCube& frames);
-
-/// What cubeKey reads of a cube, copied, so that the key of a host cube still being written can be taken
-/// once it is (CudaPreprocess's zero-biased download, on a thread of its own).
-struct CubeKeyShape {
-  const float* pixels = nullptr;
-  std::size_t size = 0;
-  int width = 0, height = 0;
-  std::vector<double> mjdMid;
-};
-CubeKeyShape cubeKeyShape(const FrameCube& frames);
-/// cubeKey of the cube `shape` was taken from, from its pixels now.
-std::uint64_t cubeKey(const CubeKeyShape& shape);
 
 /// The key under which a search keeps and finds `cube` on a device: cubeKey mixed with
 /// FilteredCube::revision; 0 (never resident) when the cube has no revision.

@@ -13,9 +13,6 @@
 //  - the noise model (stats::estimateNoiseModel) on the device, from the kept frames and from an upload:
 //    frame scales, variance map and reference sigma equal to the CPU's (same order statistic); in the
 //    pipeline within 1e-5 relative (its input cube differs by the stages' rounding).
-//  - the zero-biased host cube downloaded behind the noise model and the matched filter
-//    (ZeroBiasInputs::hostCubeMayLag), the filtered cube piece by piece behind its kernels: bit for bit
-//    what the downloads before return give, also after a cancel in the filter;
 //  - prefetch(): the cube uploaded behind the CPU stages is used by the next per-pixel background (note),
 //    and not when that is another buffer or the same one changed meanwhile (results still the CPU's).
 // Every test skips when no CUDA device is usable.
@@ -24,7 +21,6 @@
 #include <algorithm>
 
 #include <cmath>
-#include <cstring>
 #include <memory>
 #include <random>
 #include <span>
@@ -37,8 +33,6 @@
 #include "st/sim/simulator.hpp"
 #include "st/stats/background.hpp"
 #include "st/stats/noise_model.hpp"
-#include "st/stack/matched_filter.hpp"
-#include "st/psf/moffat.hpp"
 
 namespace st {
 namespace {
@@ -202,85 +196,6 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
   EXPECT_EQ(devUp.sigmaRef, cpuUp.sigmaRef);
 }
 
-// ZeroBiasInputs::hostCubeMayLag: the zero-biased host cube downloaded on a thread of its own while the noise
-// model and the matched filter read the device's copy, the filtered cube downloaded piece by piece behind
-// its kernels (issue 16). The host cube after finishHostWrites, the noise model and the filtered cube equal,
-// bit for bit, those of the same stages with the download done before zeroBias returns; a cancel in the
-// filter leaves the download to finish, and the host cube whole.
-TEST(GpuZeroBias, HostCubeDownloadedBehindTheFilterEqualsTheDirectOne) {
-  ST_REQUIRE_GPU_PREPROCESS(accel);
-  const FrameCube raw = driftingCube(96, 64, 300, 5);  // 300 frames: three pieces of the filter
-  MovingMask exclude(raw, kDrift);
-  for (const StarAt& s : kStars)
-    disc(exclude, s.x, s.y, 6);
-  NullProgress p;
-  CancelToken c;
-  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(2.5));
-  struct Run {
-    FrameCube cube, filtered;
-    stats::NoiseModel model;
-    double sigmaF = 0.0;
-  };
-  auto run = [&](bool lag) {
-    Run out{raw, FrameCube(raw.width(), raw.height(), 0), {}, 0.0};
-    pipeline::ZeroBiasInputs in;
-    in.exclude = &exclude;
-    in.residualMeshPx = 32;
-    in.hostCubeMayLag = lag;
-    pipeline::ZeroBiasResult zb;
-    EXPECT_TRUE(accel->zeroBias(out.cube, in, zb, p, c));
-    EXPECT_EQ(accel->lastNote().find("download behind the noise model") != std::string::npos, lag)
-        << accel->lastNote();
-    out.model = accel->estimateNoiseModel(out.cube, zb.background.sigma, zb.background.filled, {}, c);
-    EXPECT_NE(accel->lastNote().find("frames already on the device"), std::string::npos) << accel->lastNote();
-    out.filtered.pixels().assign(raw.pixels().size(), 0.0f);
-    out.filtered.info() = raw.info();
-    out.sigmaF = accel->filterCubeFrom(out.cube, out.filtered, kernel, p, c, &out.model, 0).sigmaF;
-    EXPECT_NE(accel->lastNote().find("the residual means' frames on the device"), std::string::npos)
-        << accel->lastNote();
-    EXPECT_NE(accel->lastNote().find("piece by piece behind the kernels"), std::string::npos)
-        << accel->lastNote();
-    EXPECT_EQ(accel->lastNote().find("zero-biased cube's download") != std::string::npos, lag)
-        << accel->lastNote();
-    accel->finishHostWrites();
-    return out;
-  };
-  accel->setKeepResident(false);
-  const Run direct = run(false), lagged = run(true);
-  ASSERT_EQ(lagged.cube.pixels().size(), direct.cube.pixels().size());
-  EXPECT_EQ(std::memcmp(lagged.cube.pixels().data(), direct.cube.pixels().data(),
-                        direct.cube.pixels().size() * sizeof(float)),
-            0);
-  EXPECT_EQ(lagged.model.frameScale, direct.model.frameScale);
-  EXPECT_EQ(lagged.sigmaF, direct.sigmaF);
-  EXPECT_EQ(std::memcmp(lagged.filtered.pixels().data(), direct.filtered.pixels().data(),
-                        direct.filtered.pixels().size() * sizeof(float)),
-            0);
-  // The filtered cube against the filter of a copy (downloaded after every kernel, in place).
-  FrameCube copy = direct.cube;
-  copy.mask().clear();
-  EXPECT_EQ(accel->filterCube(copy, kernel, p, c, &direct.model, 0).sigmaF, direct.sigmaF);
-  EXPECT_NE(accel->lastNote().find(", download "), std::string::npos) << accel->lastNote();
-  EXPECT_EQ(std::memcmp(copy.pixels().data(), direct.filtered.pixels().data(), copy.pixels().size() * 4), 0);
-
-  // Cancelled in the filter: the exception comes out, the download still completes the host cube.
-  FrameCube cube = raw;
-  pipeline::ZeroBiasInputs in;
-  in.exclude = &exclude;
-  in.residualMeshPx = 32;
-  in.hostCubeMayLag = true;
-  pipeline::ZeroBiasResult zb;
-  ASSERT_TRUE(accel->zeroBias(cube, in, zb, p, c));
-  FrameCube filtered(raw.width(), raw.height(), 0);
-  filtered.pixels().assign(raw.pixels().size(), 0.0f);
-  CancelToken cancelled;
-  cancelled.cancel();
-  EXPECT_THROW(accel->filterCubeFrom(cube, filtered, kernel, p, cancelled, &direct.model, 0), Cancelled);
-  accel->finishHostWrites();
-  EXPECT_EQ(std::memcmp(cube.pixels().data(), direct.cube.pixels().data(), cube.pixels().size() * 4), 0);
-  accel->setKeepResident(true);
-}
-
 TEST(GpuZeroBias, PrefetchOfAnotherCubeIsNotUsed) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   const FrameCube raw = driftingCube(64, 48, 40, 5);
@@ -355,16 +270,6 @@ TEST(GpuZeroBias, PipelineWithTheDeviceMatchesTheCpu) {
   EXPECT_NEAR(gpu.sigmaN, cpu.sigmaN, 1e-9 * cpu.sigmaN);
   EXPECT_NEAR(gpu.residualMeanRms, cpu.residualMeanRms, 1e-6 * std::max(1e-3, cpu.residualMeanRms));
   EXPECT_NEAR(gpu.filtered.sigmaF, cpu.filtered.sigmaF, 1e-4 * cpu.filtered.sigmaF);
-  // The zero-biased cube's download ran behind the noise model and the matched filter (hostCubeMayLag),
-  // whose 250 frames came down in two pieces behind the kernels.
-  const auto noted2 = [&](const char* a, const char* b) {
-    return std::any_of(gpu.notes.begin(), gpu.notes.end(), [&](const std::string& n) {
-      return n.find(a) != std::string::npos && n.find(b) != std::string::npos;
-    });
-  };
-  EXPECT_TRUE(noted2("per-pixel background to residual means on", "download behind the noise model"));
-  EXPECT_TRUE(noted2("matched filter on", "piece by piece behind the kernels"));
-  EXPECT_TRUE(noted2("matched filter on", "the zero-biased cube's download"));
   bool noiseNoted = false;
   for (const auto& n : gpu.notes)
     noiseNoted |= n.find("noise model on") != std::string::npos;

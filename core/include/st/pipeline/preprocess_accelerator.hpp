@@ -41,10 +41,6 @@ struct ZeroBiasInputs {
   bool removeResidualMean = true;
   int residualMeshPx = 64;
   double residualClipSigma = 5.0;
-  /// The caller calls PreprocessAccelerator::finishHostWrites() before it reads or frees `cube` itself: a
-  /// device may then still be writing the zero-biased host cube when zeroBias returns (its download behind
-  /// the noise model and the matched filter, which read the device's copy). False: written on return.
-  bool hostCubeMayLag = false;
 };
 
 /// Their results; stageSeconds: "per-pixel background", "star subtraction" (when attempted), "zeroing",
@@ -178,11 +174,6 @@ class PreprocessAccelerator {
     (void)cube, (void)in, (void)out, (void)progress, (void)cancel;
     return false;
   }
-  /// Waits until the host pixels a stage left to be written behind later work (zeroBias with
-  /// ZeroBiasInputs::hostCubeMayLag) are written; throws st::GpuError when that failed (the host cube is
-  /// then unspecified: no CPU fallback can use it). The accelerator's own stages wait where they need to;
-  /// the caller calls this before it reads or frees such a cube. The default has nothing to wait for.
-  virtual void finishHostWrites() {}
 };
 
 /// The stages from the per-pixel background to the residual means one after the other (pipeline::preprocess
