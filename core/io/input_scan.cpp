@@ -78,10 +78,10 @@ bool timesFromFramesTable(const FitsFile& f, ScannedFile& s) {
   }
   // Registration offsets (written when the frames were registered), optional.
   std::vector<double> regX(static_cast<std::size_t>(rows), 0.0), regY(static_cast<std::size_t>(rows), 0.0);
-  for (auto [name, out] : {std::pair{"REGX_PX", &regX}, std::pair{"REGY_PX", &regY}}) {
+  for (auto [column, out] : {std::pair{"REGX_PX", &regX}, std::pair{"REGY_PX", &regY}}) {
     int col = 0;
     char colName[16];
-    std::snprintf(colName, sizeof colName, "%s", name);
+    std::snprintf(colName, sizeof colName, "%s", column);
     fits_get_colnum(f.get(), CASEINSEN, colName, &col, &status);
     if (status != 0) {
       fits_clear_errmsg();

@@ -244,7 +244,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;
   if (deviceStacks) skyStacks.setProvider(deviceStacks);
-  // Their matched-filtered SNR maps (4 per static-source search) on the device too: the same values.
+  // Their matched-filtered SNR maps (2 per static-source search, 4 when it looks at the halves of the frames)
+  // on the device too: the same values.
   int snrAsked = 0, snrMade = 0;
   if (params.accelerator)
     skyStacks.setSnrProvider(

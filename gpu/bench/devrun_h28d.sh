@@ -10,7 +10,8 @@ D=$(cd "$(dirname "$0")" && pwd)
 W=/tmp/w; mkdir -p $W && [ -x $W/pkg/synthtrack-cli ] || tar -xJf "$D/pkg.tar.xz" -C $W
 [ -f "$D/perf.tar.xz" ] && { [ -x $W/perf/perf ] || tar -xJf "$D/perf.tar.xz" -C $W; }
 export LD_LIBRARY_PATH=$W/pkg/lib
-B=$W/pkg/synthtrack-cli; OLD=$W/pkg/synthtrack-cli-old
+B=$W/pkg/synthtrack-cli; OLD=$W/pkg/synthtrack-cli-old; MID=$W/pkg/synthtrack-cli-mid
+VS="old new"; [ -x $MID ] && VS="old mid new"  # a third binary (an earlier commit of this stop) when packed
 O=/tmp/o; mkdir -p $O; trap 'tar -czf ${OUT:-/tmp}/logs.tar.gz -C /tmp o' EXIT
 date -u; nvidia-smi --query-gpu=name --format=csv,noheader; lscpu | grep "Model name"
 MODE=${1:-all}
@@ -21,14 +22,14 @@ for t in st_gpu_test_gpu_zero_bias st_gpu_test_gpu_preprocess; do
   timeout 280 compute-sanitizer --tool memcheck --leak-check full $W/pkg/$t --gtest_filter=-*LongCube* > $O/memcheck_$t.log 2>&1; echo "memcheck $t rc=$?"; grep -E "ERROR SUMMARY|LEAK SUMMARY" $O/memcheck_$t.log | head -2; done
 fi
 [ "$MODE" = tests ] && exit 0
-for r in 1 2 3 4 5 6; do for v in old new; do X=$B; [ $v = old ] && X=$OLD
+for r in 1 2 3 4 5 6; do for v in $VS; do X=$B; [ $v = old ] && X=$OLD; [ $v = mid ] && X=$MID
   $X bench preprocess --frames 1500 --backend cuda >$O/$v$r.log 2>&1; echo "$v $(grep -E '^preprocess:' $O/$v$r.log | cut -c1-40)"; done; done
 grep -E "^(sigma_n|stars|cosmic-ray pixels|sky rate)" $O/old6.log $O/new6.log | cut -c1-120
 grep -E "^  [a-z]" $O/new6.log | tr -s ' ' | tr '\n' '|'; echo; grep -E "^  [a-z]" $O/old6.log | tr -s ' ' | tr '\n' '|'; echo
 grep -E "^note: (sky rate: the block|matched filter on|per-pixel background to)" $O/new6.log | cut -c1-400
 F=/tmp/d1500/observation.fits; [ -f $F ] || $B demo --frames 1500 --backend cuda --fits 0 --out /tmp/d1500 >/dev/null 2>&1; cat $F >/dev/null
 A="--vmax-px-s 0.5565 --centre-px-s 15.8,0.3"
-for r in 1 2 3 4 5; do for v in old new; do X=$B; [ $v = old ] && X=$OLD
+for r in 1 2 3 4 5; do for v in $VS; do X=$B; [ $v = old ] && X=$OLD; [ $v = mid ] && X=$MID
   /usr/bin/time -f "$v wall %e s" $X search $F --backend cuda --timings $A --out /tmp/$v$r.csv >$O/s$v$r.log 2>$O/s$v$r.err
   tr '\r' '\n' < $O/s$v$r.err | grep -E "wall|timings: (loaded)" | sed 's/timings: //; s/  */ /g' | tr '\n' '|'; echo; done; done
 head -2 /tmp/new5.csv | cut -c1-70; head -2 /tmp/old5.csv | cut -c1-70

@@ -72,8 +72,12 @@ class DeviceBuffer {
 template <class T, class Allocator>
 DeviceBuffer<T> toDevice(const std::vector<T, Allocator>& host) {
   DeviceBuffer<T> d(std::max<std::size_t>(host.size(), 1));
-  if (!host.empty())
+  if (!host.empty()) {
     ST_CUDA_CHECK(cudaMemcpy(d.get(), host.data(), host.size() * sizeof(T), cudaMemcpyHostToDevice));
+    // From pageable memory cudaMemcpy may return before the DMA has reached the device; the kernels that
+    // read the buffer run on non-blocking streams, which do not wait for the default stream.
+    ST_CUDA_CHECK(cudaStreamSynchronize(nullptr));
+  }
   return d;
 }
 

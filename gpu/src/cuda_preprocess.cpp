@@ -153,7 +153,8 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
 void CudaPreprocess::uploadMask(DeviceResources& r, std::uint8_t* dst, const std::uint8_t* src,
                                 std::size_t bytes, cudaStream_t s, bool parallelCopy) {
   // A cube's mask is mostly zeros (hot pixels in every frame, saturated cores): its non-zero bytes, found on
-  // every core in a few ms, scattered into a zeroed buffer. The whole mask through the staging buffers on
+  // every core in a few ms (also for the prefetch, whose copies stay on one thread: the scan is short),
+  // scattered into a zeroed buffer. The whole mask through the staging buffers on
   // the prefetch's thread took ~110 ms for 1500 x 512^2 (H100 machine, 2026-11-28), and the sky rate's first
   // block sums then ran on the CPU. Copied whole when over 1/64 of it is set (9 bytes an entry against 1).
   const std::optional<SparseBytes> sparse = sparseBytes({src, bytes}, bytes / 64);
@@ -162,11 +163,10 @@ void CudaPreprocess::uploadMask(DeviceResources& r, std::uint8_t* dst, const std
     return;
   }
   ST_CUDA_CHECK(cudaMemsetAsync(dst, 0, bytes, s));
-  if (sparse->index.empty()) return;
-  DeviceBuffer<std::uint64_t> index = toDevice(sparse->index);
-  DeviceBuffer<std::uint8_t> value = toDevice(sparse->value);
+  const DeviceBuffer<std::uint64_t> index = toDevice(sparse->index);
+  const DeviceBuffer<std::uint8_t> value = toDevice(sparse->value);
   launchScatter(dst, index.get(), value.get(), sparse->index.size(), s);
-  ST_CUDA_CHECK(cudaStreamSynchronize(s));  // before the entries are freed
+  ST_CUDA_CHECK(cudaStreamSynchronize(s));  // done on return, and before the entries are freed
 }
 
 void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src, std::size_t bytes,

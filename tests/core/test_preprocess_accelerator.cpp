@@ -4,9 +4,13 @@
 // device's detect::SkyStackCache::Provider) is used when it makes a stack, the CPU stacks when it makes none.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <optional>
 #include <random>
 
 #include "st/common/error.hpp"
+#include "st/pipeline/preprocess.hpp"
+#include "st/sim/simulator.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/psf/moffat.hpp"
@@ -46,6 +50,11 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
+  std::optional<std::vector<float>> filteredSnr(const detect::FilteredSnrInputs&) override {
+    ++snrCalls;
+    act();
+    return std::nullopt;  // a working device that declines: the CPU makes the map
+  }
   bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult&, ProgressSink&,
                 CancelToken&) override {
     ++calls;
@@ -54,7 +63,7 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return false;  // not supported: the stages one by one
   }
-  int calls = 0;
+  int calls = 0, snrCalls = 0;
 
  private:
   void act() const {
@@ -201,6 +210,43 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
       << notes.front();
   EXPECT_EQ(fail.calls, 3);  // zeroBias, then the per-pixel background and residual means (both failing)
   EXPECT_EQ(b.stageSeconds.size(), 3u);  // no star subtraction without a region
+}
+
+// The static sources' filtered SNR maps (PreprocessAccelerator::filteredSnr) in pipeline::preprocess: a
+// device that fails is asked once, warned about once and then left alone; one that declines is asked for
+// every map; either way the stars are the CPU's.
+TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
+  NullProgress p;
+  CancelToken c;
+  const sim::SimResult sim = sim::simulate(sim::preset("small"), 3, p, c);
+  pipeline::PreprocessParams params;
+  params.masters = sim::exactMasters(sim);
+  const pipeline::Prepared cpu = pipeline::preprocess(sim.cube, params, p, c);
+  FakeAccelerator fail(FakeAccelerator::Mode::Fail), decline(FakeAccelerator::Mode::Work);
+  for (FakeAccelerator* accel : {&fail, &decline}) {
+    SCOPED_TRACE(accel == &fail ? "failing" : "declining");
+    params.accelerator = accel;
+    const pipeline::Prepared dev = pipeline::preprocess(sim.cube, params, p, c);
+    ASSERT_EQ(dev.stars.size(), cpu.stars.size());
+    for (std::size_t i = 0; i < cpu.stars.size(); ++i) {
+      EXPECT_EQ(dev.stars[i].x, cpu.stars[i].x) << i;
+      EXPECT_EQ(dev.stars[i].filteredSnr, cpu.stars[i].filteredSnr) << i;
+    }
+    const auto count = [&](const char* text) {
+      return std::count_if(dev.notes.begin(), dev.notes.end(),
+                           [&](const std::string& n) { return n.find(text) != std::string::npos; });
+    };
+    EXPECT_EQ(count("warning: the static sources' filtered SNR fell back to the CPU (fake device: "),
+              accel == &fail ? 1 : 0);
+    EXPECT_EQ(count("(0 on the device)"), 1);
+    // Failing: asked once, then left alone. Declining: asked for every map (the stack's two analyses at
+    // least).
+    if (accel == &fail) {
+      EXPECT_EQ(accel->snrCalls, 1);
+    } else {
+      EXPECT_GE(accel->snrCalls, 2);
+    }
+  }
 }
 
 TEST(SkyStackCache, ProviderStacksAreUsedAndNoneFallsBackToTheCpu) {

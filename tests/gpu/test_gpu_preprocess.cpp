@@ -31,6 +31,7 @@
 #include "prefetch_wait.hpp"
 #include "require_gpu_preprocess.hpp"
 #include "st/common/error.hpp"
+#include "st/common/sparse_bytes.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/detect/sky_rate.hpp"
@@ -417,6 +418,10 @@ TEST(GpuSkyStack, EqualsTheCpuStacksFromThePrefetchedCube) {
       c.mask().assign(c.pixels().size(), 0);
       for (std::size_t i = 5; i < c.mask().size(); i += 997)
         c.mask()[i] = static_cast<std::uint8_t>(1 + i % 3);
+    }
+    // The path each mask takes (CudaPreprocess::uploadMask: sparse up to 1/64 of the bytes set).
+    if (!c.mask().empty()) {
+      ASSERT_EQ(sparseBytes(c.mask(), c.mask().size() / 64).has_value(), std::string(maskKind) == "sparse");
     }
     const Velocity rate{1.3, -0.45};  // px/s: ~26 x 9 px over the 20 s of frames, a canvas wider than a frame
     const std::shared_ptr<void> guard = accel->prefetch(c);
