@@ -127,6 +127,8 @@ ShiftedBlock blockShifts(std::size_t first, std::size_t last, Velocity rate, con
   return s;
 }
 
+}  // namespace
+
 // shiftedSums of one block into rows [y0, y1) of sum and cnt (frame-sized, zeroed there). Each pixel takes
 // the block's frames in order, whatever the rows: bands of rows made apart are the whole frame's sums.
 void addShifted(const FrameCube& cube, const ShiftedBlock& blk, double background, double* sum, double* cnt,
@@ -149,6 +151,8 @@ void addShifted(const FrameCube& cube, const ShiftedBlock& blk, double backgroun
     }
   }
 }
+
+namespace {
 
 // The block's stack from its sums: only where (nearly) every frame of the block contributed: where only the
 // frames of one end of the block do, a star sits at their mean residual of the whole-pixel shifts, not the

@@ -18,6 +18,11 @@ struct ChainResult {
   std::string why;    ///< why it failed, when !ok
 };
 
+/// detect::shiftedSums of one block into rows [y0, y1) of `sum` and `cnt` (frame-sized, zeroed there; each
+/// pixel takes the block's frames in order, AVX2 where the CPU has it).
+void addShifted(const FrameCube& cube, const ShiftedBlock& blk, double background, double* sum, double* cnt,
+                int y0, int y1);
+
 /// Chains blocks of `cube` starting from `start` (px/s): see measureSkyRate. Not ok (with `why`) when
 /// the cube is too short for two blocks or the blocks cannot all be linked.
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
