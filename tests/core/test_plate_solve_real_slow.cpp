@@ -75,7 +75,8 @@ TEST(PlateSolveReal, LowellFrameWithoutWcsAgreesWithItsHeaderWcs) {
   for (const auto& [x, y] : {std::pair{0.0, 0.0}, {w, 0.0}, {0.0, h}, {w, h}}) {
     const double d = separationArcsec(truth->pixelToSky(x, y), s.wcs->pixelToSky(x, y));
     worstCorner = std::max(worstCorner, d);
-    corners += " " + std::to_string(d);
+    corners += ' ';  // not " " + std::to_string(d): GCC 12 warns (-Wrestrict) on that wrongly
+    corners += std::to_string(d);
   }
   std::printf(
       "plate solve of %s: %zu sources, %s, %.1f s; header WCS vs solution: centre %.3f arcsec, corners%s "
