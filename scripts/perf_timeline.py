@@ -3,7 +3,10 @@
 `perf record -g` run of `synthtrack-cli bench preprocess` (gpu/bench/devrun_h28c.sh). Steps where few of the
 machine's threads ran, and what the main thread ran then, are the serial work to look at (issue 16).
 
-Usage: perf_timeline.py DUMP [STEP_S]. The timeline starts where the simulation's last sample is; the main
+Usage: perf_timeline.py DUMP [STEP_S], or perf_timeline.py --inclusive DUMP [TOP]: each of our functions' (st::,
+cv::, fftw) samples with it anywhere on the stack, on the main thread and on all threads, in ms of CPU
+at perf's 2999 Hz (complete only for a build with -DST_FRAME_POINTERS=ON, recorded with --call-graph fp).
+The timeline starts where the simulation's last sample is; the main
 thread is the lowest thread id. Each line: time from there, samples of every thread (n) and of the main thread
 (m), the main thread's two commonest user functions (kernel frames skipped) and everyone's three.
 """
@@ -55,7 +58,29 @@ def user(stack):
     return '?'
 
 
+def inclusive(path, top):
+    samples = load(path)
+    start = max(t for _, t, st in samples if st and 'st::sim::' in ' '.join(st[:3]))
+    main_tid = min(tid for tid, _, _ in samples)
+    mine, every = collections.Counter(), collections.Counter()
+    for tid, t, st in samples:
+        if t < start:
+            continue
+        names = {short(s) for s in st}
+        names = {n for n in names if n.startswith(('st::', 'cv::', 'fftw'))}
+        every.update(names)
+        if tid == main_tid:
+            mine.update(names)
+    for title, counts in (('main thread', mine), ('all threads', every)):
+        print(f'--- {title}, inclusive CPU ms')
+        for name, n in counts.most_common(top):
+            print(f'{n / 2.999:8.1f}  {name}')
+
+
 def main():
+    if sys.argv[1] == '--inclusive':
+        inclusive(sys.argv[2], int(sys.argv[3]) if len(sys.argv) > 3 else 40)
+        return
     samples = load(sys.argv[1])
     step = float(sys.argv[2]) if len(sys.argv) > 2 else 0.02
     start = max(t for _, t, st in samples if st and 'st::sim::' in ' '.join(st[:3]))
