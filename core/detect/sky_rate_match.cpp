@@ -94,7 +94,7 @@ bool windowedCentroid(const LinearImage& im, double x0, double y0, double sw, Ce
         const double w = std::exp(-(dx * dx + dy * dy) / (2.0 * sw * sw));
         wAll += w;
         if (!rowIn || i < 0 || i >= im.value.cols || !im.valid.at<unsigned char>(j, i)) continue;
-        const double v = im.value.at<double>(j, i), n = im.noise.at<double>(j, i);
+        const double v = im.value.at<float>(j, i), n = im.noise.at<float>(j, i);
         wValid += w;
         sum += w * v, sx += w * v * dx, sy += w * v * dy;
         vx += w * w * dx * dx * n * n, vy += w * w * dy * dy * n * n;
@@ -119,7 +119,7 @@ double windowSigma(const LinearImage& im, double x, double y) {
   for (int j = std::max(0, cy - 3); j <= std::min(im.value.rows - 1, cy + 3); ++j)
     for (int i = std::max(0, cx - 3); i <= std::min(im.value.cols - 1, cx + 3); ++i) {
       const double d2 = (i - x) * (i - x) + (j - y) * (j - y);
-      const double v = im.value.at<double>(j, i);
+      const double v = im.value.at<float>(j, i);
       if (d2 > 2.5 * 2.5 || v <= 0.0) continue;
       sum += v, m2 += v * d2;
     }
@@ -137,16 +137,16 @@ bool flatTopped(const LinearImage& im, double x, double y) {
   int px = cx, py = cy;  // the brightest pixel next to the centroid
   for (int j = cy - 1; j <= cy + 1; ++j)
     for (int i = cx - 1; i <= cx + 1; ++i)
-      if (im.value.at<double>(j, i) > im.value.at<double>(py, px)) px = i, py = j;
-  const double peak = im.value.at<double>(py, px);
-  if (!(peak > 20.0 * im.noise.at<double>(py, px))) return false;
+      if (im.value.at<float>(j, i) > im.value.at<float>(py, px)) px = i, py = j;
+  const double peak = im.value.at<float>(py, px);
+  if (!(peak > 20.0 * im.noise.at<float>(py, px))) return false;
   double ring1 = 0.0, ring2 = 0.0;
   int n1 = 0, n2 = 0;
   for (int j = -2; j <= 2; ++j)
     for (int i = -2; i <= 2; ++i) {
       const int r = std::max(std::abs(i), std::abs(j));
       if (r == 0) continue;
-      const double v = im.value.at<double>(py + j, px + i);
+      const double v = im.value.at<float>(py + j, px + i);
       if (r == 1) ring1 += v, ++n1;
       if (r == 2) ring2 += v, ++n2;
     }

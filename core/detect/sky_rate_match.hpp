@@ -33,8 +33,8 @@ std::vector<SourcePair> pairSources(const cv::Mat& a, const cv::Mat& b, cv::Poin
 /// A linear image (background removed) with its per-pixel noise and where it is valid, for the windowed
 /// centroids of `windowedOffset`.
 struct LinearImage {
-  cv::Mat value;  ///< CV_64F, counts
-  cv::Mat noise;  ///< CV_64F, 1-sigma of each pixel, counts
+  cv::Mat value;  ///< CV_32F, counts (read into doubles)
+  cv::Mat noise;  ///< CV_32F, 1-sigma of each pixel, counts
   cv::Mat valid;  ///< CV_8U, 255 where value is defined
 };
 
