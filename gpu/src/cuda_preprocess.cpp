@@ -154,9 +154,9 @@ void CudaPreprocess::uploadMask(DeviceResources& r, std::uint8_t* dst, const std
                                 std::size_t bytes, cudaStream_t s, bool parallelCopy) {
   // A cube's mask is mostly zeros (hot pixels in every frame, saturated cores): its non-zero bytes, found on
   // every core in a few ms (also for the prefetch, whose copies stay on one thread: the scan is short),
-  // scattered into a zeroed buffer. The whole mask through the staging buffers on
-  // the prefetch's thread took ~110 ms for 1500 x 512^2 (H100 machine, 2026-11-28), and the sky rate's first
-  // block sums then ran on the CPU. Copied whole when over 1/64 of it is set (9 bytes an entry against 1).
+  // scattered into a zeroed buffer. The whole mask through the staging buffers on the prefetch's thread took
+  // ~110 ms for 1500 x 512^2 (H100 machine, 2026-11-28), and the sky rate's first block sums then ran on the
+  // CPU. Copied whole when over 1/64 of it is set (9 bytes an entry against 1).
   const std::optional<SparseBytes> sparse = sparseBytes({src, bytes}, bytes / 64);
   if (!sparse) {
     stagedUpload(r, dst, src, bytes, s, parallelCopy);
