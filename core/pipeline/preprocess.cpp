@@ -23,6 +23,40 @@
 namespace st::pipeline {
 namespace {
 
+// A step a device may make for pre-processing (issue 16: the sky rate's block sums, the stacks at the sky
+// rate, their filtered SNR maps): asked and made counted; after the device's first st::GpuError a warning in
+// the notes ("warning: WHAT fell back to the CPU (device: message)") and none from then on: the CPU makes
+// them.
+class DeviceStep {
+ public:
+  DeviceStep(const PreprocessAccelerator* accel, std::string what, std::vector<std::string>& notes)
+      : m_accel(accel), m_what(std::move(what)), m_notes(notes) {}
+  /// call() is the device's (an optional: none when it declines); none here when it failed before or fails
+  /// now.
+  template <class Call>
+  auto operator()(const Call& call) -> decltype(call()) {
+    ++asked;
+    if (m_failed) return std::nullopt;
+    try {
+      auto result = call();
+      made += result ? 1 : 0;
+      return result;
+    } catch (const GpuError& e) {
+      m_failed = true;
+      m_notes.push_back("warning: " + m_what + " fell back to the CPU (" + m_accel->name() + ": " + e.what() +
+                        ")");
+      return std::nullopt;
+    }
+  }
+  int asked = 0, made = 0;
+
+ private:
+  const PreprocessAccelerator* m_accel;
+  std::string m_what;
+  std::vector<std::string>& m_notes;
+  bool m_failed = false;
+};
+
 // The PSF from the sky-rate stack `s` of the frames before the per-pixel background (which, where the stars
 // do not drift, takes the wings of every star just outside its mask into the background and leaves a
 // narrow, steep-winged profile: FWHM 2.0 px, beta 7.95 on Lowell frames whose stars measure 2.35-2.56 px),
@@ -153,24 +187,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // meanwhile and make the sky rate's and the static sources' stacks from it (issue 16). The guard,
   // destroyed before `out`, waits for that.
   const std::shared_ptr<void> prefetched = params.accelerator ? params.accelerator->prefetch(cube) : nullptr;
+  DeviceStep sumsStep(params.accelerator, "the sky rate's block stacks", out.notes);
   detect::ShiftedSumsProvider deviceSums;
-  int sumsAsked = 0, sumsMade = 0;
   if (params.accelerator)
-    deviceSums = [&out, &sumsAsked, &sumsMade, accel = params.accelerator, failed = false](
-                     const FrameCube& c, const std::vector<detect::ShiftedBlock>& blocks,
-                     double background) mutable -> std::optional<std::vector<detect::ShiftedSums>> {
-      ++sumsAsked;
-      if (failed) return std::nullopt;
-      try {
-        std::optional<std::vector<detect::ShiftedSums>> made = accel->shiftedSums(c, blocks, background);
-        sumsMade += made ? 1 : 0;
-        return made;
-      } catch (const GpuError& e) {
-        failed = true;
-        out.notes.push_back("warning: the sky rate's block stacks fell back to the CPU (" + accel->name() +
-                            ": " + e.what() + ")");
-        return std::nullopt;
-      }
+    deviceSums = [&sumsStep, accel = params.accelerator](
+                     const FrameCube& c, const std::vector<detect::ShiftedBlock>& blocks, double background) {
+      return sumsStep([&] { return accel->shiftedSums(c, blocks, background); });
     };
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
@@ -182,9 +204,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     std::ostringstream note;
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
-    if (params.accelerator && sumsAsked > 0)
-      out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsMade) + " of " +
-                          std::to_string(sumsAsked) + " iterations on " + params.accelerator->name());
+    if (params.accelerator && sumsStep.asked > 0)
+      out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +
+                          std::to_string(sumsStep.asked) + " iterations on " + params.accelerator->name());
   }
   lap("sky rate");
   {
@@ -200,21 +222,13 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
   // Stacks at the sky rate on a device, from the cube prefetch() is uploading (issue 16): the cosmic rays'
   // protection, then the static sources and the PSF. A device failure: a note, the CPU stacks from then on.
+  DeviceStep stacksStep(params.accelerator, "the stacks at the sky rate", out.notes);
   detect::SkyStackCache::Provider deviceStacks;
-  bool deviceStacksFailed = false;
   if (params.accelerator)
-    deviceStacks = [&out, &deviceStacksFailed, accel = params.accelerator](
-                       const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
-                       std::size_t endFrame) -> std::optional<detect::SkyStack> {
-      if (deviceStacksFailed) return std::nullopt;
-      try {
-        return accel->skyStack(c, rate, subtract, firstFrame, endFrame);
-      } catch (const GpuError& e) {
-        deviceStacksFailed = true;
-        out.notes.push_back("warning: the stacks at the sky rate fell back to the CPU (" + accel->name() +
-                            ": " + e.what() + ")");
-        return std::nullopt;
-      }
+    deviceStacks = [&stacksStep, accel = params.accelerator](const FrameCube& c, Velocity rate,
+                                                             double subtract, std::size_t firstFrame,
+                                                             std::size_t endFrame) {
+      return stacksStep([&] { return accel->skyStack(c, rate, subtract, firstFrame, endFrame); });
     };
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
@@ -246,24 +260,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (deviceStacks) skyStacks.setProvider(deviceStacks);
   // Their matched-filtered SNR maps (2 per static-source search, 4 when it looks at the halves of the frames)
   // on the device too: the same values.
-  int snrAsked = 0, snrMade = 0;
+  DeviceStep snrStep(params.accelerator, "the static sources' filtered SNR", out.notes);
   if (params.accelerator)
-    skyStacks.setSnrProvider(
-        [&out, &snrAsked, &snrMade, accel = params.accelerator,
-         failed = false](const detect::FilteredSnrInputs& in) mutable -> std::optional<std::vector<float>> {
-          ++snrAsked;
-          if (failed) return std::nullopt;
-          try {
-            std::optional<std::vector<float>> made = accel->filteredSnr(in);
-            snrMade += made ? 1 : 0;
-            return made;
-          } catch (const GpuError& e) {
-            failed = true;
-            out.notes.push_back("warning: the static sources' filtered SNR fell back to the CPU (" +
-                                accel->name() + ": " + e.what() + ")");
-            return std::nullopt;
-          }
-        });
+    skyStacks.setSnrProvider([&snrStep, accel = params.accelerator](const detect::FilteredSnrInputs& in) {
+      return snrStep([&] { return accel->filteredSnr(in); });
+    });
   {
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
@@ -293,7 +294,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     std::ostringstream note;
     note << "stacks at the sky rate: " << skyStacks.made() << " made (" << skyStacks.provided() << " on "
          << params.accelerator->name() << ") in " << skyStacks.seconds()
-         << " s; their filtered SNR maps: " << snrAsked << " (" << snrMade << " on the device)";
+         << " s; their filtered SNR maps: " << snrStep.asked << " (" << snrStep.made << " on the device)";
     out.notes.push_back(note.str());
   }
   skyStacks = detect::SkyStackCache();  // its memory (several canvases) is not needed any more

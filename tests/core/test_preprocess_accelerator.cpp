@@ -50,6 +50,12 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
+  std::optional<detect::SkyStack> skyStack(const FrameCube&, Velocity, double, std::size_t,
+                                           std::size_t) override {
+    ++stackCalls;
+    act();
+    return std::nullopt;  // a working device that declines: the CPU stacks
+  }
   std::optional<std::vector<float>> filteredSnr(const detect::FilteredSnrInputs&) override {
     ++snrCalls;
     act();
@@ -63,7 +69,7 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return false;  // not supported: the stages one by one
   }
-  int calls = 0, snrCalls = 0;
+  int calls = 0, snrCalls = 0, stackCalls = 0;
 
  private:
   void act() const {
@@ -212,9 +218,9 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
   EXPECT_EQ(b.stageSeconds.size(), 3u);  // no star subtraction without a region
 }
 
-// The static sources' filtered SNR maps (PreprocessAccelerator::filteredSnr) in pipeline::preprocess: a
-// device that fails is asked once, warned about once and then left alone; one that declines is asked for
-// every map; either way the stars are the CPU's.
+// The static sources' filtered SNR maps (PreprocessAccelerator::filteredSnr) and the stacks at the sky rate
+// (skyStack) in pipeline::preprocess: a device that fails is asked once, warned about once and then left
+// alone; one that declines is asked for every map and stack; either way the stars are the CPU's.
 TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
   NullProgress p;
   CancelToken c;
@@ -239,6 +245,14 @@ TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
     EXPECT_EQ(count("warning: the static sources' filtered SNR fell back to the CPU (fake device: "),
               accel == &fail ? 1 : 0);
     EXPECT_EQ(count("(0 on the device)"), 1);
+    // The stacks at the sky rate (the cosmic rays' protection, the static sources, the PSF) likewise.
+    EXPECT_EQ(count("warning: the stacks at the sky rate fell back to the CPU (fake device: "),
+              accel == &fail ? 1 : 0);
+    if (accel == &fail) {
+      EXPECT_EQ(accel->stackCalls, 1);
+    } else {
+      EXPECT_GE(accel->stackCalls, 3);  // the cosmic rays' three protection stacks at least
+    }
     // Failing: asked once, then left alone. Declining: asked for every map (the stack's two analyses at
     // least).
     if (accel == &fail) {
