@@ -51,24 +51,27 @@ constexpr const char* kHelp =
     "  Search options (as for 'synthtrack-cli search'):\n";
 
 std::atomic<bool> g_stop{false};
-// What is not done yet, as the line a SIGTERM prints (mpirun sends it to every rank when one dies, and
+constexpr char kStoppedBySigterm[] =
+    "batch: stopped by SIGTERM (mpirun ends the whole job when one rank dies)\n";
+// What is not done yet, as the text a SIGTERM prints (mpirun sends it to every rank when one dies, and
 // SIGKILL a second later: too soon to rely on writing files). Two buffers, the atomic index names the
-// complete one, so the handler only reads finished text (async-signal-safe: write(2) and atomics).
+// complete one, so the handler only reads finished text (async-signal-safe: write(2) and atomics). The
+// "stopped" line and the names go out in one write(2): mpirun forwarded the first of two writes and lost
+// the second in a CI run (2026-11-28), and one write of at most PIPE_BUF bytes reaches the pipe whole.
 char g_notDoneText[2][16384];
 std::atomic<int> g_notDoneCurrent{-1};
 
 void setNotDoneText(const std::string& text) {
   const int next = g_notDoneCurrent.load() == 0 ? 1 : 0;
-  std::snprintf(g_notDoneText[next], sizeof g_notDoneText[next], "%s", text.c_str());
+  std::snprintf(g_notDoneText[next], sizeof g_notDoneText[next], "%s%s", kStoppedBySigterm, text.c_str());
   g_notDoneCurrent.store(next);
 }
 
 void onTerm(int) {
   g_stop.store(true);
-  static const char kMsg[] = "batch: stopped by SIGTERM (mpirun ends the whole job when one rank dies)\n";
-  [[maybe_unused]] auto n = ::write(2, kMsg, sizeof kMsg - 1);
   const int cur = g_notDoneCurrent.load();
-  if (cur >= 0) n = ::write(2, g_notDoneText[cur], std::strlen(g_notDoneText[cur]));
+  const char* text = cur >= 0 ? g_notDoneText[cur] : kStoppedBySigterm;
+  [[maybe_unused]] auto n = ::write(2, text, std::strlen(text));
 }
 
 std::map<std::string, std::string> batchOptions(const CliArgs& cli) {

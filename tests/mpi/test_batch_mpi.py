@@ -76,11 +76,12 @@ def main(cli, mpiexec):
             _, err = p.communicate()
             check(False, "the job hung after a worker was killed")
         check(p.returncode != 0, "the killed job exits non-zero, got %s" % p.returncode)
-        # Rank 0 names what was not done from its SIGTERM handler, in one go with "stopped by SIGTERM". mpirun
-        # (Open MPI 4.1) sometimes takes the job down without forwarding that last output: 2 of 7 full test runs
-        # on 2026-11-28 had mpirun's own lines and rank 0's earlier progress but neither line of the handler.
-        # Where the handler's output arrived it must name the victim; where none of it did, the catalogue
-        # (checked below, written before any kill) is the record.
+        # Rank 0 names what was not done from its SIGTERM handler, in one write(2) with "stopped by SIGTERM".
+        # mpirun (Open MPI 4.1) sometimes takes the job down without forwarding that output: 2 of 7 full test
+        # runs on 2026-11-28 had mpirun's own lines and rank 0's earlier progress but none of the handler's.
+        # (When it wrote the two in two calls, a CI run got the first and not the second.) Where the
+        # handler's output arrived it must name the victim; where none did, the catalogue (checked below,
+        # written before any kill) is the record.
         if "stopped by SIGTERM" in err or "NOT DONE" in err:
             check("NOT DONE" in err and victim in err, "the message names %s as not done: %s" % (victim, err[-600:]))
         else:
