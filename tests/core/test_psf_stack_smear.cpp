@@ -4,10 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 #include "st/common/error.hpp"
 #include "st/psf/moffat_fit.hpp"
+#include "st/psf/psf_star.hpp"
 #include "st/psf/stack_smear.hpp"
+#include "test_support.hpp"
 
 namespace st::psf {
 namespace {
@@ -78,6 +82,85 @@ TEST(MoffatFitSmear, ModelledSmearReturnsThePsfItself) {
   // Ignoring the smear (what the pipeline did) returns a PSF > 2% too wide: the defect this guards against.
   const MoffatFit plain = fitMoffat(img, 20.0, 20.0, {});
   EXPECT_GT(plain.fwhm(), 1.02 * truth.fwhm());
+}
+
+// Deterministic noise (a fixed linear congruential sequence, uniform, rms ~ `amplitude` / sqrt(3)).
+void addNoise(Image& img, double amplitude, std::uint64_t seed) {
+  for (float& v : img.pixels) {
+    seed = seed * 6364136223846793005ull + 1442695040888963407ull;
+    v += static_cast<float>(amplitude * (2.0 * static_cast<double>(seed >> 11) / 9007199254740992.0 - 1.0));
+  }
+}
+
+void expectSameFit(const MoffatFit& a, const MoffatFit& b) {
+  EXPECT_EQ(a.x0, b.x0);
+  EXPECT_EQ(a.y0, b.y0);
+  EXPECT_EQ(a.model.radius, b.model.radius);
+  EXPECT_EQ(a.model.beta, b.model.beta);
+  EXPECT_EQ(a.amplitude, b.amplitude);
+  EXPECT_EQ(a.background, b.background);
+  EXPECT_EQ(a.residualRms, b.residualRms);
+  EXPECT_EQ(a.sigmaFwhm, b.sigmaFwhm);
+  EXPECT_EQ(a.iterations, b.iterations);
+}
+
+// The fit computes its pixels' models on every core and sums them in pixel order (issue 16): the same fit,
+// bit for bit, on one thread as on several (3 and 4: chunks of uneven and even split).
+TEST(MoffatFitSmear, SameFitBitForBitOnOneThreadAndOnSeveral) {
+  const SmearKernel k = stackSmear(paperNeoCadence(500), Velocity{16.39, 4.0});
+  Image img = smearedStar(Moffat{3.0, 2.5}, k, 20.3, 19.8);
+  addNoise(img, 20.0, 7);
+  MoffatFitOptions o;
+  o.smear = k;
+  MoffatFit one;
+  {
+    const test::ScopedThreads threads("1");
+    one = fitMoffat(img, 20.0, 20.0, o);
+  }
+  ASSERT_TRUE(one.converged()) << toString(one.convergence);
+  EXPECT_GT(one.iterations, 3);
+  for (const char* n : {"3", "4"}) {
+    const test::ScopedThreads threads(n);
+    expectSameFit(fitMoffat(img, 20.0, 20.0, o), one);
+  }
+}
+
+// measurePsf fits the candidates one at a time, brightest first, until maxAccepted are accepted: the same PSF
+// and the same rejections on one thread as on four.
+TEST(MoffatFitSmear, MeasurePsfIsTheSameOnOneThreadAndOnFour) {
+  const SmearKernel k = stackSmear(paperNeoCadence(200), Velocity{16.39, 0.0});
+  Image img(200, 120, 10.0f);
+  std::vector<StarCandidate> stars;
+  const Moffat m{3.2, 3.0};
+  for (int i = 0; i < 6; ++i) {
+    const double x0 = 30.0 + 28.0 * i + 0.1 * i, y0 = 40.0 + 9.0 * (i % 3) + 0.17 * i;
+    const double flux = 4000.0 - 500.0 * i;
+    for (int y = 0; y < img.height; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        double v = 0.0;
+        for (std::size_t j = 0; j < k.weight.size(); ++j)
+          v += k.weight[j] * m.pixelMean(x - x0 - k.dx[j], y - y0 - k.dy[j], 3);
+        img.at(x, y) += static_cast<float>(flux * v);
+      }
+    stars.push_back({std::round(x0), std::round(y0), flux, false});
+  }
+  addNoise(img, 6.0, 11);
+  PsfStarOptions o;
+  o.fit.smear = k;
+  o.maxAccepted = 4;
+  PsfMeasurement one;
+  {
+    const test::ScopedThreads threads("1");
+    one = measurePsf(img, stars, o);
+  }
+  const test::ScopedThreads threads("4");
+  const PsfMeasurement four = measurePsf(img, stars, o);
+  expectSameFit(four.fit, one.fit);
+  EXPECT_EQ(four.candidatesConsidered, one.candidatesConsidered);
+  EXPECT_EQ(four.rejected, one.rejected);
+  EXPECT_EQ(four.acceptedFwhm, one.acceptedFwhm);
+  EXPECT_EQ(one.acceptedFwhm.size(), 4u);
+  EXPECT_NEAR(one.fit.fwhm(), m.fwhm(), 0.05 * m.fwhm());
 }
 
 TEST(MoffatFitSmear, MismatchedKernelThrows) {
