@@ -70,7 +70,7 @@ int flatTopPixels(const Image& image, const MoffatFit& fit) {
 std::string judgeFit(const Image& image, const MoffatFit& fit, const StarCandidate& c, double noise,
                      const PsfStarOptions& o) {
   if (!fit.converged()) return where(c) + ": " + toString(fit.convergence);
-  if (fit.model.beta <= kFitMinBeta * 1.01 || fit.model.beta >= kFitMaxBeta * 0.99)
+  if (betaAtFitBound(fit.model.beta))
     return where(c) + ": beta " + fmt(fit.model.beta, 2) + " at the fit's bound (not a Moffat profile)";
   const double w = fit.fwhm();
   const int flat = flatTopPixels(image, fit);

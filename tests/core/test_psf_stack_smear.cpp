@@ -163,6 +163,25 @@ TEST(MoffatFitSmear, MeasurePsfIsTheSameOnOneThreadAndOnFour) {
   EXPECT_NEAR(one.fit.fwhm(), m.fwhm(), 0.05 * m.fwhm());
 }
 
+// A flat disc (a saturated core, a bright blend) pins the plain fit's beta at its upper bound: no star's
+// profile, so the smeared model does not refine it (that ran to the iteration limit on the widest stamps):
+// the fit is the plain one, bit for bit.
+TEST(MoffatFitSmear, PlainFitPinnedAtTheBetaBoundIsNotRefined) {
+  Image img(61, 61, 10.0f);
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      if (std::hypot(x - 30.2, y - 29.7) <= 7.0) img.at(x, y) += 5000.0f;
+  addNoise(img, 3.0, 5);
+  MoffatFitOptions plainOptions;
+  const MoffatFit plain = fitMoffat(img, 30.0, 30.0, plainOptions);
+  ASSERT_TRUE(plain.converged()) << toString(plain.convergence);
+  ASSERT_TRUE(betaAtFitBound(plain.model.beta)) << plain.model.beta;
+  MoffatFitOptions o;
+  o.smear = stackSmear(paperNeoCadence(500), Velocity{16.39, 4.0});
+  ASSERT_FALSE(o.smear.empty());
+  expectSameFit(fitMoffat(img, 30.0, 30.0, o), plain);
+}
+
 TEST(MoffatFitSmear, MismatchedKernelThrows) {
   MoffatFitOptions o;
   o.smear.dx = {0.0, 0.1};

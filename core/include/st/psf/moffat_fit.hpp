@@ -19,6 +19,11 @@ namespace st::psf {
 inline constexpr double kFitMinBeta = 1.05;
 inline constexpr double kFitMaxBeta = 50.0;
 
+/// True when a fitted beta ends on (within 1% of) one of those bounds.
+[[nodiscard]] inline bool betaAtFitBound(double beta) noexcept {
+  return beta <= kFitMinBeta * 1.01 || beta >= kFitMaxBeta * 0.99;
+}
+
 /// Options of fitMoffat. Defaults suit stars of FWHM 2-15 px.
 struct MoffatFitOptions {
   int halfSize = 0;         ///< stamp half-size, px; 0 = chosen from the star (4 FWHM, clamped to 6..30)
@@ -29,7 +34,8 @@ struct MoffatFitOptions {
   bool ignoreZeros = true;  ///< skip pixels that are exactly 0 (zeroed by earlier stages, masked)
   /// The blur of the image beyond the PSF (e.g. stackSmear of a sky-rate stack: trails and shift rounding).
   /// When given, the model is A * sum_k w_k <P(x - x0 - dx_k, y - y0 - dy_k)>_pixel + B, and R, beta are
-  /// those of the PSF itself. Empty = the image is the PSF.
+  /// those of the PSF itself. Empty = the image is the PSF. The smeared model refines the plain one's fit;
+  /// a plain fit whose beta ends on a bound (no star's profile) is returned as it is.
   SmearKernel smear;
 };
 
