@@ -10,15 +10,45 @@
 
 namespace st::app {
 
+namespace {
+// Seconds between the plain lines written when stderr is not a terminal: ST_PROGRESS_LINE_S when a
+// positive number (the tests' short jobs), else 30.
+double lineIntervalS() {
+  if (const char* env = std::getenv("ST_PROGRESS_LINE_S")) {
+    char* end = nullptr;
+    const double v = std::strtod(env, &end);
+    if (end != env && v > 0.0) return v;
+  }
+  return 30.0;
+}
+}  // namespace
+
 TerminalProgress::TerminalProgress()
-    : m_enabled(isatty(STDERR_FILENO) != 0), m_start(std::chrono::steady_clock::now()) {}
+    : m_enabled(isatty(STDERR_FILENO) != 0),
+      m_start(std::chrono::steady_clock::now()),
+      m_lineIntervalS(lineIntervalS()) {}
 
 TerminalProgress::~TerminalProgress() {
   finish();
 }
 
 void TerminalProgress::report(double fraction, std::string_view stage) {
-  if (!m_enabled) return;
+  if (!m_enabled) {
+    // A log's reader sees that a long job is alive and how far it is, without a line per step.
+    std::lock_guard lock(m_mutex);
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+    if (elapsed - m_lastLineS < m_lineIntervalS) return;
+    m_lastLineS = elapsed;
+    const double f = std::clamp(fraction, 0.0, 1.0);
+    if (f >= 0.02 && f < 1.0)
+      std::fprintf(stderr, "progress: %.1f%% after %.0f s (about %.0f s left): %.*s\n", 100.0 * f, elapsed,
+                   elapsed * (1.0 - f) / f, static_cast<int>(stage.size()), stage.data());
+    else
+      std::fprintf(stderr, "progress: %.1f%% after %.0f s: %.*s\n", 100.0 * f, elapsed,
+                   static_cast<int>(stage.size()), stage.data());
+    std::fflush(stderr);
+    return;
+  }
   std::lock_guard lock(m_mutex);
   const int permille = static_cast<int>(fraction * 1000.0);
   if (permille == m_lastPermille && stage == m_lastStage) return;

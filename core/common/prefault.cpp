@@ -88,4 +88,25 @@ MaskVector prefaultedZeros(std::size_t n, std::uint8_t) {
   return v;
 }
 
+MaskVector sparseZeros(std::size_t n) {
+#ifdef __linux__
+  constexpr std::uintptr_t kPage = 4096;
+  if (n * sizeof(std::uint8_t) > (std::size_t{64} << 20)) {
+    MaskVector v;
+    v.reserve(n);  // from the heap or a fresh mapping: private anonymous memory either way
+    v.resize(n);   // no write (DefaultInitAllocator)
+    const auto begin = reinterpret_cast<std::uintptr_t>(v.data());
+    const std::uintptr_t lo = (begin + kPage - 1) & ~(kPage - 1);
+    const std::uintptr_t hi = (begin + n) & ~(kPage - 1);
+    // The allocator's own headers lie outside [lo, hi): before the buffer and after its end.
+    if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED) == 0) {
+      std::memset(v.data(), 0, lo - begin);
+      std::memset(reinterpret_cast<void*>(hi), 0, begin + n - hi);
+      return v;
+    }
+  }
+#endif
+  return prefaultedZeros(n, std::uint8_t{0});
+}
+
 }  // namespace st

@@ -59,6 +59,26 @@ TEST(FrameCube, ConstructedZeroedEvenOnReusedMemory) {
     EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(mask.size()))
         << "round " << round;
   }
+  // The hot pixels' sparse mask (sparseZeros: whole pages given back to the kernel, the ends zeroed here),
+  // on memory just freed dirty, at sizes that leave both ends off a page boundary; then written where set.
+  for (int round = 0; round < 3; ++round) {
+    const std::size_t n = (std::size_t{70} << 20) - 4093 + static_cast<std::size_t>(round) * 1001;
+    {
+      auto dirty = std::make_unique<std::uint8_t[]>(n + 8192);
+      std::memset(dirty.get(), 0xff, n + 8192);
+    }
+    MaskVector mask = sparseZeros(n);
+    ASSERT_EQ(mask.size(), n);
+    EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(n))
+        << "round " << round;
+    for (std::size_t i = 0; i < n; i += 99991)
+      mask[i] = 1;
+    EXPECT_EQ(static_cast<std::size_t>(std::count(mask.begin(), mask.end(), std::uint8_t{1})),
+              (n + 99990) / 99991);
+  }
+  const MaskVector few = sparseZeros(4099);  // below 64 MiB: written whole
+  ASSERT_EQ(few.size(), 4099u);
+  EXPECT_EQ(std::count(few.begin(), few.end(), std::uint8_t{0}), 4099);
   const FrameCube small(3, 2, 2);
   for (const float v : small.pixels())
     EXPECT_EQ(v, 0.0f);
