@@ -68,6 +68,8 @@ void printEstimate(const PlannedSearch& p) {
         e.treeSeconds);
   }
   std::fprintf(stderr, "method: %s (%s)\n", std::string(choice.method.name()).c_str(), choice.reason.c_str());
+  if (const std::string w = search::longSearchWarning(e, choice, grid); !w.empty())
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
 }
 
 /// Memory plan lines from `from` on.

@@ -167,6 +167,25 @@ MethodEstimate estimateMethods(int width, int height, const std::vector<double>&
   return e;
 }
 
+std::string longSearchWarning(const MethodEstimate& estimate, const MethodChoice& choice,
+                              const VelocityGrid& grid, double thresholdS) {
+  const double s = choice.method == SearchMethod::Tree ? estimate.treeSeconds : estimate.exactSeconds;
+  if (!(s > thresholdS) || !std::isfinite(s)) return {};
+  char when[64];
+  if (s >= 5400.0)
+    std::snprintf(when, sizeof when, "%.1f h", s / 3600.0);
+  else
+    std::snprintf(when, sizeof when, "%.0f min", s / 60.0);
+  char buf[512];
+  std::snprintf(
+      buf, sizeof buf,
+      "the %s search is estimated at %s here (%d x %d velocities, %.3g px/s apart): the velocities grow as "
+      "the square of the largest rate searched, so a smaller one (--vmax-deg-day, --vmax-px-s) or a GPU "
+      "(--backend cuda) shortens it; Ctrl-C cancels",
+      std::string(choice.method.name()).c_str(), when, grid.nvx, grid.nvy, grid.stepPxS);
+  return buf;
+}
+
 MethodChoice chooseMethod(SearchMethod requested, const MethodEstimate& estimate, bool treeSupported,
                           const std::string& backendName) {
   constexpr SearchMethod kExact = SearchMethod::Exact;

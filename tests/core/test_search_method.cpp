@@ -137,6 +137,30 @@ TEST(SearchMethod, PaperProblemResolvesToTree) {
   EXPECT_EQ(e.cubeBytes, std::size_t{1500} * 512 * 512 * 4);
 }
 
+// Searches estimated over 10 minutes say so before they run, with the grid and what shortens it; shorter ones
+// say nothing. The chosen method's estimate counts (a long exact search that auto sends to a quick tree is
+// not announced).
+TEST(SearchMethod, LongSearchesAreAnnouncedWithWhatShortensThem) {
+  // The paper's cube over 200 x 200 velocities (twice its rates): exact ~11 min on 2 threads, the tree ~1.
+  MethodEstimate paper;
+  const MethodChoice tree = autoOnCpu(512, 1500, 200, &paper);
+  ASSERT_EQ(tree.method, st::search::SearchMethod::Tree);
+  ASSERT_GT(paper.exactSeconds, kLongSearchS);
+  ASSERT_LT(paper.treeSeconds, kLongSearchS);
+  const Problem p = evenProblem(1500, 16.7, 200);
+  EXPECT_EQ(longSearchWarning(paper, tree, p.grid), "");
+  MethodChoice exact;
+  exact.method = st::search::SearchMethod::Exact;
+  const std::string w = longSearchWarning(paper, exact, p.grid);
+  EXPECT_NE(w.find("exact search is estimated at "), std::string::npos) << w;
+  EXPECT_NE(w.find(" min here (200 x 200 velocities"), std::string::npos) << w;
+  EXPECT_NE(w.find("--vmax-deg-day"), std::string::npos) << w;
+  MethodEstimate hours = paper;
+  hours.exactSeconds = 18700.0;  // the Lowell cube's default grid on 2 cores
+  EXPECT_NE(longSearchWarning(hours, exact, p.grid).find("estimated at 5.2 h"), std::string::npos);
+  EXPECT_EQ(longSearchWarning(hours, exact, p.grid, 20000.0), "");
+}
+
 TEST(SearchMethod, MidSizedProblemsFollowTheMeasuredCrossover) {
   // Measured on the 2-core VM (README): 500 x 512^2 x 15^2 exact 2.6 s, tree 0.45 s -> the tree pays;
   // 200 x 256^2 x 11^2 exact 0.24 s, tree 0.09 s -> under a second saved, exact keeps the full SNR.

@@ -125,6 +125,16 @@ struct MethodChoice {
   std::string reason;  ///< one line for people: "requested", or "auto: ..." with the estimates behind it
 };
 
+/// Searches estimated to take longer than this (s) are announced with longSearchWarning.
+inline constexpr double kLongSearchS = 600.0;
+
+/// "" when the chosen method's estimate is at most `thresholdS`; else one line for people: the estimated
+/// minutes (or hours), the velocity grid, and what shortens it (the velocities grow as the square of the
+/// largest rate searched; a GPU backend). A 15-frame Lowell cube spanning 72 min with the default rates is a
+/// 3909 x 3909 grid, 5.2 h on 2 CPU cores.
+std::string longSearchWarning(const MethodEstimate& estimate, const MethodChoice& choice,
+                              const VelocityGrid& grid, double thresholdS = kLongSearchS);
+
 /// Resolves `requested` (Auto, Exact or Tree) for a backend that does (or does not) support the tree, from
 /// `estimate` (see the decision rule above). Exact and Tree are returned as requested (reason "requested"); a
 /// requested tree on a backend without it throws st::InputError naming the backend; SearchMethod::Unknown
