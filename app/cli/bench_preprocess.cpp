@@ -8,11 +8,13 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "cli_args.hpp"
 #include "backend_factory.hpp"
@@ -98,17 +100,16 @@ Score score(const sim::SimResult& sim, const pipeline::Prepared& p) {
   return s;
 }
 
-// FNV-1a of each frame's pixel bytes (frames on every core), then of those hashes in frame order: equal
-// cubes, bit for bit, give equal values whatever the thread count.
-std::uint64_t cubeHash(const FrameCube& cube) {
+// FNV-1a of each of `n` blocks of `bytes` bytes (on every core), then of those hashes in order: equal data,
+// bit for bit, give equal values whatever the thread count.
+std::uint64_t blockHash(const unsigned char* data, std::size_t n, std::size_t bytes) {
   constexpr std::uint64_t kBasis = 1469598103934665603ull, kPrime = 1099511628211ull;
-  const std::size_t n = cube.frameCount(), np = cube.framePixels();
   std::vector<std::uint64_t> frameHash(n, kBasis);
   parallelFor(n, 1, [&](std::size_t f0, std::size_t f1) {
     for (std::size_t f = f0; f < f1; ++f) {
-      const auto* b = reinterpret_cast<const unsigned char*>(cube.pixels().data() + f * np);
+      const unsigned char* b = data + f * bytes;
       std::uint64_t h = kBasis;
-      for (std::size_t i = 0; i < np * sizeof(float); ++i)
+      for (std::size_t i = 0; i < bytes; ++i)
         h = (h ^ b[i]) * kPrime;
       frameHash[f] = h;
     }
@@ -117,6 +118,18 @@ std::uint64_t cubeHash(const FrameCube& cube) {
   for (std::uint64_t fh : frameHash)
     h = (h ^ fh) * kPrime;
   return h;
+}
+
+// A cube's pixels, frame by frame (blockHash).
+std::uint64_t cubeHash(const FrameCube& cube) {
+  return blockHash(reinterpret_cast<const unsigned char*>(cube.pixels().data()), cube.frameCount(),
+                   cube.framePixels() * sizeof(float));
+}
+
+// Its mask likewise; 0 when it has none.
+std::uint64_t maskHash(const FrameCube& cube) {
+  if (cube.mask().empty()) return 0;
+  return blockHash(cube.mask().data(), cube.frameCount(), cube.framePixels());
 }
 
 }  // namespace
@@ -201,9 +214,11 @@ int benchPreprocess(const Args& args) {
   if (a.flag("fingerprint")) {
     std::printf(
         "fingerprint: sigma_n %.17g, sky rate (%.17g, %.17g), cosmic-ray pixels %zu, stars %zu, PSF R %.17g "
-        "beta %.17g, sigma_F %.17g, zero-biased cube %016llx, filtered cube %016llx\n",
-        out.sigmaN, out.skyRate.vx, out.skyRate.vy, out.cosmicRayPixels.size(), out.stars.size(), out.psf.radius,
-        out.psf.beta, out.filtered.sigmaF, static_cast<unsigned long long>(cubeHash(out.frames)),
+        "beta %.17g, sigma_F %.17g, zero-biased cube %016llx (mask %016llx), filtered cube %016llx\n",
+        out.sigmaN, out.skyRate.vx, out.skyRate.vy, out.cosmicRayPixels.size(), out.stars.size(),
+        out.psf.radius, out.psf.beta, out.filtered.sigmaF,
+        static_cast<unsigned long long>(cubeHash(out.frames)),
+        static_cast<unsigned long long>(maskHash(out.frames)),
         static_cast<unsigned long long>(cubeHash(out.filtered.frames)));
   }
   return 0;

@@ -4,11 +4,15 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
+#include <climits>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "batch_dispatch.hpp"
 #include "cli_args.hpp"
@@ -55,10 +59,10 @@ constexpr char kStoppedBySigterm[] =
     "batch: stopped by SIGTERM (mpirun ends the whole job when one rank dies)\n";
 // What is not done yet, as the text a SIGTERM prints (mpirun sends it to every rank when one dies, and
 // SIGKILL a second later: too soon to rely on writing files). Two buffers, the atomic index names the
-// complete one, so the handler only reads finished text (async-signal-safe: write(2) and atomics). The
-// "stopped" line and the names go out in one write(2): mpirun forwarded the first of two writes and lost
-// the second in a CI run (2026-11-28), and one write of at most PIPE_BUF bytes reaches the pipe whole.
-char g_notDoneText[2][16384];
+// complete one, so the handler only reads finished text (async-signal-safe: write(2), errno and atomics). The
+// "stopped" line and the names go out in one write(2) of at most PIPE_BUF bytes, which a pipe takes whole:
+// mpirun forwarded the first of two writes and lost the second in a CI run (2026-11-28).
+char g_notDoneText[2][PIPE_BUF + 1];
 std::atomic<int> g_notDoneCurrent{-1};
 
 void setNotDoneText(const std::string& text) {
@@ -68,10 +72,19 @@ void setNotDoneText(const std::string& text) {
 }
 
 void onTerm(int) {
+  const int savedErrno = errno;
   g_stop.store(true);
   const int cur = g_notDoneCurrent.load();
   const char* text = cur >= 0 ? g_notDoneText[cur] : kStoppedBySigterm;
-  [[maybe_unused]] auto n = ::write(2, text, std::strlen(text));
+  std::size_t left = std::strlen(text);
+  while (left > 0) {
+    const ssize_t n = ::write(2, text, left);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    text += n;
+    left -= static_cast<std::size_t>(n);
+  }
+  errno = savedErrno;
 }
 
 std::map<std::string, std::string> batchOptions(const CliArgs& cli) {
@@ -184,12 +197,10 @@ int cmdBatch(const Args& args) {
                        {}});
   auto lastWrite = std::chrono::steady_clock::now();
   const auto updateState = [&](bool force) {
-    std::string names;
+    std::vector<std::string> names;
     for (const auto& o : current)
-      if (o.status == batch::Outcome::Status::NotDone) names += (names.empty() ? "" : ", ") + o.name;
-    setNotDoneText(names.empty()
-                       ? std::string("batch: every observation had finished\n")
-                       : "batch: NOT DONE: " + names + ". Rerun the same command to finish them.\n");
+      if (o.status == batch::Outcome::Status::NotDone) names.push_back(o.name);
+    setNotDoneText(notDoneLine(names, PIPE_BUF - (sizeof kStoppedBySigterm - 1)));
     if (!force && current.size() > 50 &&
         std::chrono::steady_clock::now() - lastWrite < std::chrono::seconds(2))
       return;

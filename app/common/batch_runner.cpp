@@ -181,4 +181,25 @@ RunOutcome runBatchObservation(const batch::Observation& obs, const BatchSetting
   return out;
 }
 
+std::string notDoneLine(const std::vector<std::string>& names, std::size_t budget) {
+  if (names.empty()) return "batch: every observation had finished\n";
+  const std::string head = "batch: NOT DONE: ", tail = ". Rerun the same command to finish them.\n";
+  // Room for the names and, when some are left out, their count.
+  const std::string more = " and 18446744073709551615 more (the catalogue lists every one)";
+  const std::size_t room =
+      budget > head.size() + tail.size() + more.size() ? budget - head.size() - tail.size() - more.size() : 0;
+  std::string list;
+  std::size_t i = 0;
+  for (; i < names.size(); ++i) {
+    const std::string next = (list.empty() ? "" : ", ") + names[i];
+    if (list.size() + next.size() > room) break;
+    list += next;
+  }
+  if (i < names.size() && list.empty())
+    list = std::to_string(names.size()) + " observations (the catalogue lists every one)";
+  else if (i < names.size())
+    list += " and " + std::to_string(names.size() - i) + " more (the catalogue lists every one)";
+  return head + list + tail;
+}
+
 }  // namespace st::app

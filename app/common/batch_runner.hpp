@@ -72,4 +72,9 @@ bool completedEarlier(const batch::Observation& obs, const BatchSettings& settin
 batch::Outcome outcomeFromDisk(const batch::Observation& obs, const BatchSettings& settings,
                                const std::string& reason);
 
+/// The line a stopped batch prints naming the observations not done, "batch: NOT DONE: a, b. Rerun ...", at
+/// most `budget` bytes: the names that do not fit are counted ("... and N more (the catalogue lists every
+/// one)"); "batch: every observation had finished" when there are none.
+std::string notDoneLine(const std::vector<std::string>& names, std::size_t budget);
+
 }  // namespace st::app

@@ -26,7 +26,8 @@ double lineIntervalS() {
 TerminalProgress::TerminalProgress()
     : m_enabled(isatty(STDERR_FILENO) != 0),
       m_start(std::chrono::steady_clock::now()),
-      m_lineIntervalS(lineIntervalS()) {}
+      m_lineIntervalS(lineIntervalS()),
+      m_nextLineS(m_lineIntervalS) {}
 
 TerminalProgress::~TerminalProgress() {
   finish();
@@ -34,11 +35,13 @@ TerminalProgress::~TerminalProgress() {
 
 void TerminalProgress::report(double fraction, std::string_view stage) {
   if (!m_enabled) {
-    // A log's reader sees that a long job is alive and how far it is, without a line per step.
-    std::lock_guard lock(m_mutex);
+    // A log's reader sees that a long job is alive and how far it is, without a line per step. The threads
+    // that report meanwhile only read the clock and an atomic.
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
-    if (elapsed - m_lastLineS < m_lineIntervalS) return;
-    m_lastLineS = elapsed;
+    if (elapsed < m_nextLineS.load(std::memory_order_relaxed)) return;
+    std::lock_guard lock(m_mutex);
+    if (elapsed < m_nextLineS.load(std::memory_order_relaxed)) return;
+    m_nextLineS.store(elapsed + m_lineIntervalS, std::memory_order_relaxed);
     const double f = std::clamp(fraction, 0.0, 1.0);
     if (f >= 0.02 && f < 1.0)
       std::fprintf(stderr, "progress: %.1f%% after %.0f s (about %.0f s left): %.*s\n", 100.0 * f, elapsed,

@@ -2,6 +2,7 @@
 // A ProgressSink that draws a one-line bar on stderr when stderr is a terminal, and otherwise (a log file, a
 // pipe, a batch job) writes a plain line at most every 30 s (ST_PROGRESS_LINE_S) once a job has run that
 // long; and the SIGINT handling that turns Ctrl-C into a cancel of the running job.
+#include <atomic>
 #include <chrono>
 #include <mutex>
 #include <string>
@@ -25,8 +26,8 @@ class TerminalProgress final : public ProgressSink {
   int m_lastPermille = -1;
   std::string m_lastStage;
   std::chrono::steady_clock::time_point m_start;
-  double m_lineIntervalS;    ///< seconds between plain lines (not a terminal)
-  double m_lastLineS = 0.0;  ///< when the last plain line was written
+  double m_lineIntervalS;           ///< seconds between plain lines (not a terminal)
+  std::atomic<double> m_nextLineS;  ///< seconds from the start before which no plain line is written
 };
 
 /// The token cancelled by Ctrl-C (SIGINT) once installSigintCancel() has run. A second Ctrl-C exits at once.

@@ -6,6 +6,7 @@
 
 #ifdef __linux__
 #include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 namespace st {
@@ -88,25 +89,35 @@ MaskVector prefaultedZeros(std::size_t n, std::uint8_t) {
   return v;
 }
 
-MaskVector sparseZeros(std::size_t n) {
+void zeroSparse(std::uint8_t* data, std::size_t n) {
 #ifdef __linux__
-  constexpr std::uintptr_t kPage = 4096;
-  if (n * sizeof(std::uint8_t) > (std::size_t{64} << 20)) {
-    MaskVector v;
-    v.reserve(n);  // from the heap or a fresh mapping: private anonymous memory either way
-    v.resize(n);   // no write (DefaultInitAllocator)
-    const auto begin = reinterpret_cast<std::uintptr_t>(v.data());
-    const std::uintptr_t lo = (begin + kPage - 1) & ~(kPage - 1);
-    const std::uintptr_t hi = (begin + n) & ~(kPage - 1);
-    // The allocator's own headers lie outside [lo, hi): before the buffer and after its end.
-    if (hi > lo && madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED) == 0) {
-      std::memset(v.data(), 0, lo - begin);
+  const long pageSize = sysconf(_SC_PAGESIZE);  // 4 KiB on x86-64; 16 or 64 KiB on some arm64 kernels
+  const std::uintptr_t page = pageSize > 0 ? static_cast<std::uintptr_t>(pageSize) : 4096;
+  const auto begin = reinterpret_cast<std::uintptr_t>(data);
+  const std::uintptr_t lo = (begin + page - 1) & ~(page - 1);
+  const std::uintptr_t hi = (begin + n) & ~(page - 1);
+  // Whole pages of [data, data + n) only: whatever shares a page with its ends (an allocator's headers, a
+  // neighbour) is not touched. No huge pages there: a few bytes written in each 2 MiB would fault and clear
+  // the whole of it (transparent huge pages "always").
+  if (n >= std::size_t{1} << 20 && hi > lo) {
+    madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_NOHUGEPAGE);
+    if (madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED) == 0) {
+      std::memset(data, 0, lo - begin);
       std::memset(reinterpret_cast<void*>(hi), 0, begin + n - hi);
-      return v;
+      return;
     }
   }
 #endif
-  return prefaultedZeros(n, std::uint8_t{0});
+  std::memset(data, 0, n);
+}
+
+MaskVector sparseZeros(std::size_t n) {
+  if (n <= (std::size_t{64} << 20)) return prefaultedZeros(n, std::uint8_t{0});
+  MaskVector v;
+  v.reserve(n);  // from the heap or a fresh mapping: private anonymous memory either way
+  v.resize(n);   // no write (DefaultInitAllocator)
+  zeroSparse(v.data(), n);
+  return v;
 }
 
 }  // namespace st

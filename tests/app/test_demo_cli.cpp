@@ -2,6 +2,7 @@
 // the simulation (issue 16's demo target counts those), in order on stderr; nothing of it without the flag.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -45,8 +46,8 @@ TEST(DemoCli, TimingsListEveryStepAndTheSecondsAfterTheSimulation) {
 }
 
 // With stderr not a terminal (a log, a pipe) the progress is a plain line at most every 30 s once a job has
-// run that long (ST_PROGRESS_LINE_S shortens it here): the small demo, ~2 s, writes none by default and
-// several at 0.05 s, each with its percentage, the seconds so far and the stage.
+// run that long (ST_PROGRESS_LINE_S sets the interval): none at 1000 s, and with an interval of 1e-9 s one
+// per report after the first, each "progress: P% after S s[ (about L s left)]: stage" with 0 <= P <= 100.
 TEST(DemoCli, ProgressLinesInALogOnlyForLongJobs) {
   const auto cli = cliPath();
   if (cli.empty()) GTEST_SKIP() << "synthtrack-cli not built";
@@ -54,20 +55,27 @@ TEST(DemoCli, ProgressLinesInALogOnlyForLongJobs) {
   const auto err = dir / "err.txt";
   const std::string demo =
       "demo --preset small --vmax-deg-day 40 --backend cpu --fits 0 --out " + quoted(dir / "out");
-  ASSERT_EQ(runCli(cli, demo + " > /dev/null 2> " + quoted(err)), 0) << readText(err);
+  auto run = [&](const char* interval) {
+    ::setenv("ST_PROGRESS_LINE_S", interval, 1);
+    const int rc = runCli(cli, demo + " > /dev/null 2> " + quoted(err));
+    ::unsetenv("ST_PROGRESS_LINE_S");
+    return rc;
+  };
+  ASSERT_EQ(run("1000"), 0) << readText(err);
   EXPECT_EQ(readText(err).find("progress: "), std::string::npos) << readText(err);
-  ::setenv("ST_PROGRESS_LINE_S", "0.05", 1);
-  const int rc = runCli(cli, demo + " > /dev/null 2> " + quoted(err));
-  ::unsetenv("ST_PROGRESS_LINE_S");
-  ASSERT_EQ(rc, 0) << readText(err);
+  ASSERT_EQ(run("1e-9"), 0) << readText(err);
   const std::string text = readText(err);
   std::size_t lines = 0;
   for (std::size_t at = text.find("progress: "); at != std::string::npos;
        at = text.find("progress: ", at + 1)) {
     ++lines;
     const std::string line = text.substr(at, text.find('\n', at) - at);
-    EXPECT_NE(line.find("% after "), std::string::npos) << line;
-    EXPECT_NE(line.find(" s"), std::string::npos) << line;
+    double percent = -1.0, seconds = -1.0;
+    ASSERT_EQ(std::sscanf(line.c_str(), "progress: %lf%% after %lf s", &percent, &seconds), 2) << line;
+    EXPECT_GE(percent, 0.0) << line;
+    EXPECT_LE(percent, 100.0) << line;
+    EXPECT_GE(seconds, 0.0) << line;
+    EXPECT_NE(line.find(": ", line.find(" s")), std::string::npos) << line;  // the stage follows
   }
   EXPECT_GE(lines, 3u) << text;
 }

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 #include <random>
+#include <vector>
 
 #include "st/common/error.hpp"
 #include "st/common/fits_header.hpp"
@@ -59,26 +60,32 @@ TEST(FrameCube, ConstructedZeroedEvenOnReusedMemory) {
     EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(mask.size()))
         << "round " << round;
   }
-  // The hot pixels' sparse mask (sparseZeros: whole pages given back to the kernel, the ends zeroed here),
-  // on memory just freed dirty, at sizes that leave both ends off a page boundary; then written where set.
+  // The hot pixels' sparse mask: zeroSparse on a range of dirty memory that starts and ends off a page
+  // boundary (its whole pages given back to the kernel, its partial end pages written): zeros inside, the
+  // bytes around it untouched; then written where set. And sparseZeros, large and small.
   for (int round = 0; round < 3; ++round) {
-    const std::size_t n = (std::size_t{70} << 20) - 4093 + static_cast<std::size_t>(round) * 1001;
-    {
-      auto dirty = std::make_unique<std::uint8_t[]>(n + 8192);
-      std::memset(dirty.get(), 0xff, n + 8192);
-    }
-    MaskVector mask = sparseZeros(n);
-    ASSERT_EQ(mask.size(), n);
-    EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(n))
+    const std::size_t n = (std::size_t{5} << 20) + 1234 + static_cast<std::size_t>(round) * 4099;
+    const std::size_t at = 3 + static_cast<std::size_t>(round) * 1001;
+    std::vector<std::uint8_t> buf(n + at + 8192, 0xff);
+    zeroSparse(buf.data() + at, n);
+    EXPECT_EQ(std::count(buf.begin() + static_cast<std::ptrdiff_t>(at),
+                         buf.begin() + static_cast<std::ptrdiff_t>(at + n), std::uint8_t{0}),
+              static_cast<std::ptrdiff_t>(n))
         << "round " << round;
-    for (std::size_t i = 0; i < n; i += 99991)
-      mask[i] = 1;
-    EXPECT_EQ(static_cast<std::size_t>(std::count(mask.begin(), mask.end(), std::uint8_t{1})),
+    EXPECT_EQ(std::count(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(at), std::uint8_t{0xff}),
+              static_cast<std::ptrdiff_t>(at));
+    EXPECT_EQ(std::count(buf.begin() + static_cast<std::ptrdiff_t>(at + n), buf.end(), std::uint8_t{0xff}),
+              static_cast<std::ptrdiff_t>(buf.size() - at - n));
+    for (std::size_t i = at; i < at + n; i += 99991)
+      buf[i] = 1;
+    EXPECT_EQ(static_cast<std::size_t>(std::count(buf.begin(), buf.end(), std::uint8_t{1})),
               (n + 99990) / 99991);
   }
-  const MaskVector few = sparseZeros(4099);  // below 64 MiB: written whole
-  ASSERT_EQ(few.size(), 4099u);
-  EXPECT_EQ(std::count(few.begin(), few.end(), std::uint8_t{0}), 4099);
+  for (const std::size_t n : {std::size_t{4099}, (std::size_t{70} << 20) - 3}) {
+    const MaskVector mask = sparseZeros(n);
+    ASSERT_EQ(mask.size(), n);
+    EXPECT_EQ(std::count(mask.begin(), mask.end(), std::uint8_t{0}), static_cast<std::ptrdiff_t>(n));
+  }
   const FrameCube small(3, 2, 2);
   for (const float v : small.pixels())
     EXPECT_EQ(v, 0.0f);

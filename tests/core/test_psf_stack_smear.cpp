@@ -163,23 +163,50 @@ TEST(MoffatFitSmear, MeasurePsfIsTheSameOnOneThreadAndOnFour) {
   EXPECT_NEAR(one.fit.fwhm(), m.fwhm(), 0.05 * m.fwhm());
 }
 
-// A flat disc (a saturated core, a bright blend) pins the plain fit's beta at its upper bound: no star's
-// profile, so the smeared model does not refine it (that ran to the iteration limit on the widest stamps):
-// the fit is the plain one, bit for bit.
-TEST(MoffatFitSmear, PlainFitPinnedAtTheBetaBoundIsNotRefined) {
-  Image img(61, 61, 10.0f);
-  for (int y = 0; y < img.height; ++y)
-    for (int x = 0; x < img.width; ++x)
-      if (std::hypot(x - 30.2, y - 29.7) <= 7.0) img.at(x, y) += 5000.0f;
-  addNoise(img, 3.0, 5);
-  MoffatFitOptions plainOptions;
-  const MoffatFit plain = fitMoffat(img, 30.0, 30.0, plainOptions);
-  ASSERT_TRUE(plain.converged()) << toString(plain.convergence);
-  ASSERT_TRUE(betaAtFitBound(plain.model.beta)) << plain.model.beta;
+// A plain fit pinned at the beta bound is refined with the smear when it stays at its star (a trail the
+// plain model cannot follow may pin beta), and returned as it is when it also strayed from it (a faint star
+// beside a bright flat-topped blob: the fit runs to the blob; refining that ran to the iteration limit on the
+// widest stamps, for a fit rejected all the same).
+TEST(MoffatFitSmear, PinnedPlainFitIsRefinedOnlyWhereItStaysAtItsStar) {
   MoffatFitOptions o;
   o.smear = stackSmear(paperNeoCadence(500), Velocity{16.39, 4.0});
   ASSERT_FALSE(o.smear.empty());
-  expectSameFit(fitMoffat(img, 30.0, 30.0, o), plain);
+  o.halfSize = 8;  // 17 x 17 pixels: the refinement of a flat disc may run to the iteration limit
+  MoffatFitOptions plainOptions;
+  plainOptions.halfSize = o.halfSize;
+  Image disc(61, 61, 10.0f);
+  for (int y = 0; y < disc.height; ++y)
+    for (int x = 0; x < disc.width; ++x)
+      if (std::hypot(x - 30.2, y - 29.7) <= 5.0) disc.at(x, y) += 5000.0f;
+  addNoise(disc, 3.0, 5);
+  const MoffatFit plainAtStar = fitMoffat(disc, 30.0, 30.0, plainOptions);
+  ASSERT_TRUE(plainAtStar.converged()) << toString(plainAtStar.convergence);
+  ASSERT_TRUE(betaAtFitBound(plainAtStar.model.beta)) << plainAtStar.model.beta;
+  const MoffatFit refined = fitMoffat(disc, 30.0, 30.0, o);
+  EXPECT_NE(refined.model.radius, plainAtStar.model.radius);
+  EXPECT_GT(refined.iterations, plainAtStar.iterations);
+
+  // A faint star at the guess, and 28 px off a broad Gaussian glow (beta -> infinity: pinned at the bound).
+  Image blob(61, 61, 10.0f);
+  const Moffat faint{2.0, 3.0};
+  for (int y = 0; y < blob.height; ++y)
+    for (int x = 0; x < blob.width; ++x) {
+      const double r2 = (x - 40.0) * (x - 40.0) + (y - 30.0) * (y - 30.0);
+      blob.at(x, y) += static_cast<float>(40.0 * faint.pixelMean(x - 12.0, y - 30.0, 3) +
+                                          2000.0 * std::exp(-0.5 * r2 / 36.0));
+    }
+  addNoise(blob, 3.0, 9);
+  MoffatFitOptions wide = o, wideOptions = plainOptions;
+  wide.halfSize = wideOptions.halfSize = 30;
+  const MoffatFit plainStrayed = fitMoffat(blob, 12.0, 30.0, wideOptions);
+  ASSERT_TRUE(plainStrayed.converged()) << toString(plainStrayed.convergence);
+  ASSERT_TRUE(betaAtFitBound(plainStrayed.model.beta))
+      << plainStrayed.model.beta << " R " << plainStrayed.model.radius << " at " << plainStrayed.x0 << ", "
+      << plainStrayed.y0;
+  ASSERT_GT(std::hypot(plainStrayed.x0 - 12.0, plainStrayed.y0 - 30.0),
+            std::max(3.0, plainStrayed.fwhm()) + 2.0)
+      << plainStrayed.x0 << ", " << plainStrayed.y0 << " FWHM " << plainStrayed.fwhm();
+  expectSameFit(fitMoffat(blob, 12.0, 30.0, wide), plainStrayed);
 }
 
 TEST(MoffatFitSmear, MismatchedKernelThrows) {

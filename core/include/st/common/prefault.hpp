@@ -25,11 +25,15 @@ PixelVector prefaultedZeros(std::size_t n, float);
 /// n zeros (a cube's mask), written on every core after the pages are populated as above.
 MaskVector prefaultedZeros(std::size_t n, std::uint8_t);
 
-/// n zeros (a sparse cube mask: a few pixels set in every frame) without writing them: on Linux the whole
-/// pages of a large buffer are given back to the kernel (madvise MADV_DONTNEED), which reads them as zeros
-/// and gives each its own zeroed page only where it is first written; the rest is zeroed here. The hot
-/// pixels' mask of 1500 x 512^2 (393 MB for 20 pixels a frame) took 1.1 CPU-s of the kernel's page clearing
-/// written whole on the 2-core dev VM. Elsewhere, or for small buffers, prefaultedZeros.
+/// Zeros [data, data + n) for a buffer that will be written only here and there (a sparse mask): on Linux,
+/// for n >= 1 MiB, its whole pages are given back to the kernel (madvise MADV_DONTNEED on private anonymous
+/// memory: read as zeros, each given its own zeroed page only where it is first written) and the partial
+/// pages at its ends are written with zeros; bytes outside the range are never touched. Elsewhere, memset.
+void zeroSparse(std::uint8_t* data, std::size_t n);
+
+/// n zeros (a sparse cube mask: a few pixels set in every frame) by zeroSparse for more than 64 MiB (else
+/// prefaultedZeros). The hot pixels' mask of 1500 x 512^2 (393 MB for 20 pixels a frame) took 1.1 CPU-s of
+/// the kernel's page clearing when written whole on the 2-core dev VM.
 MaskVector sparseZeros(std::size_t n);
 
 }  // namespace st
