@@ -20,6 +20,7 @@
 #include "backend_factory.hpp"
 #include "bench_util.hpp"
 #include "commands.hpp"
+#include "st/common/fnv1a.hpp"
 #include "st/common/parallel.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/sim/simulator.hpp"
@@ -100,23 +101,18 @@ Score score(const sim::SimResult& sim, const pipeline::Prepared& p) {
   return s;
 }
 
-// FNV-1a of each of `n` blocks of `bytes` bytes (on every core), then of those hashes in order: equal data,
-// bit for bit, give equal values whatever the thread count.
+// FNV-1a of each of `n` blocks of `bytes` bytes (on every core), then those hashes folded in order, each as
+// one 64-bit step: equal data, bit for bit, give equal values whatever the thread count.
 std::uint64_t blockHash(const unsigned char* data, std::size_t n, std::size_t bytes) {
-  constexpr std::uint64_t kBasis = 1469598103934665603ull, kPrime = 1099511628211ull;
-  std::vector<std::uint64_t> frameHash(n, kBasis);
+  constexpr std::uint64_t kPrime = 1099511628211ull;
+  std::vector<std::uint64_t> blockHashes(n);
   parallelFor(n, 1, [&](std::size_t f0, std::size_t f1) {
-    for (std::size_t f = f0; f < f1; ++f) {
-      const unsigned char* b = data + f * bytes;
-      std::uint64_t h = kBasis;
-      for (std::size_t i = 0; i < bytes; ++i)
-        h = (h ^ b[i]) * kPrime;
-      frameHash[f] = h;
-    }
+    for (std::size_t f = f0; f < f1; ++f)
+      blockHashes[f] = fnv1a(data + f * bytes, bytes);
   });
-  std::uint64_t h = kBasis;
-  for (std::uint64_t fh : frameHash)
-    h = (h ^ fh) * kPrime;
+  std::uint64_t h = kFnv1aBasis;
+  for (std::uint64_t b : blockHashes)
+    h = (h ^ b) * kPrime;
   return h;
 }
 

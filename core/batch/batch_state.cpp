@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "st/common/error.hpp"
+#include "st/common/fnv1a.hpp"
 
 namespace st::batch {
 
@@ -15,14 +16,11 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Fnv1a {
-  std::uint64_t h = 1469598103934665603ull;
+  std::uint64_t h = kFnv1aBasis;
   void add(const std::string& s) {
-    for (const unsigned char c : s) {
-      h ^= c;
-      h *= 1099511628211ull;
-    }
-    h ^= 0xff;  // separator: ("ab", "c") differs from ("a", "bc")
-    h *= 1099511628211ull;
+    h = fnv1a(s.data(), s.size(), h);
+    constexpr unsigned char kSeparator = 0xff;  // ("ab", "c") differs from ("a", "bc")
+    h = fnv1a(&kSeparator, 1, h);
   }
 };
 

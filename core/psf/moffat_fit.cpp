@@ -268,7 +268,7 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
 
   // Without a smear kernel first (cheap), then from there with it: the smeared model costs K times more per
   // pixel and only moves R and beta by a few per cent, and the centre by a fraction of a pixel. A plain fit
-  // pinned at a beta bound whose centre also left its star (farther than 2 px beyond max(3 px, its FWHM),
+  // pinned at a beta bound whose centre also left its star (farther than 2 px beyond fitWanderLimitPx,
   // measurePsf's limit) is no star's profile: a bright blend, a saturated core (R 113 px, beta 50, 35 px from
   // its guess on paper-neo's 300-frame stack). Refining it ran to the iteration limit on the widest stamp,
   // 200 x 3721 pixels x K x 16 exp and log, 3-7 s of the 2-core machine's pre-processing, for a fit rejected
@@ -278,7 +278,7 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   LmState lm = runLevenbergMarquardt(pixels, p, s, none, o.maxIterations);
   const double plainFwhm = Moffat{lm.p[kR], lm.p[kBeta]}.fwhm();
   const bool strayed = betaAtFitBound(lm.p[kBeta]) && !(std::hypot(lm.p[kX0] - xGuess, lm.p[kY0] - yGuess) <=
-                                                        std::max(3.0, plainFwhm) + 2.0);
+                                                        fitWanderLimitPx(plainFwhm) + 2.0);
   if (!o.smear.empty() && lm.converged() && !strayed) {
     const int used = lm.iterations;
     lm = runLevenbergMarquardt(pixels, lm.p, s, o.smear, o.maxIterations);

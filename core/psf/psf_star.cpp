@@ -80,7 +80,7 @@ std::string judgeFit(const Image& image, const MoffatFit& fit, const StarCandida
   if (!(w >= o.minFwhmPx && w <= o.maxFwhmPx))
     return where(c) + ": FWHM " + fmt(w, 2) + " px outside [" + fmt(o.minFwhmPx) + ", " + fmt(o.maxFwhmPx) +
            "]";
-  if (std::hypot(fit.x0 - c.x, fit.y0 - c.y) > std::max(3.0, w))
+  if (std::hypot(fit.x0 - c.x, fit.y0 - c.y) > fitWanderLimitPx(w))
     return where(c) + ": fit wandered to (" + fmt(fit.x0) + ", " + fmt(fit.y0) + ")";
   if (noise > 0.0 && fit.amplitude / noise < o.minPeakSnr)
     return where(c) + ": peak SNR " + fmt(fit.amplitude / noise) + " below " + fmt(o.minPeakSnr);

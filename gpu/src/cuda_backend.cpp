@@ -15,6 +15,7 @@
 #include "resident_cube.hpp"
 #include "search_plan.hpp"
 #include "st/common/error.hpp"
+#include "st/common/fnv1a.hpp"
 #include "st/gpu/cuda_backend.hpp"
 #include "st/search/candidates.hpp"
 #include "st/search/search_run.hpp"
@@ -195,12 +196,8 @@ class CudaBackend final : public CudaSearchBackend {
   std::uint64_t treePlanKey(const search::FilteredCube& cube, const search::VelocityGrid& grid,
                             int cut) const {
     if (m_cubeKey == 0) return 0;
-    std::uint64_t h = 1469598103934665603ull;
-    auto mix = [&h](const void* data, std::size_t bytes) {
-      const auto* b = static_cast<const unsigned char*>(data);
-      for (std::size_t i = 0; i < bytes; ++i)
-        h = (h ^ b[i]) * 1099511628211ull;
-    };
+    std::uint64_t h = kFnv1aBasis;
+    auto mix = [&h](const void* data, std::size_t bytes) { h = fnv1a(data, bytes, h); };
     const std::vector<double> t = cube.frames.timeOffsetsS();
     const std::vector<PixelOffset> o = cube.frames.frameOffsets();
     mix(t.data(), t.size() * sizeof(double));

@@ -24,6 +24,13 @@ inline constexpr double kFitMaxBeta = 50.0;
   return beta <= kFitMinBeta * 1.01 || beta >= kFitMaxBeta * 0.99;
 }
 
+/// How far (px) a star's fitted centre may lie from where it was found, for a fit of FWHM `fwhmPx`: farther,
+/// the fit is of something else (measurePsf rejects it; fitMoffat does not refine such a fit pinned at a beta
+/// bound with the smear).
+[[nodiscard]] inline double fitWanderLimitPx(double fwhmPx) noexcept {
+  return fwhmPx > 3.0 ? fwhmPx : 3.0;
+}
+
 /// Options of fitMoffat. Defaults suit stars of FWHM 2-15 px.
 struct MoffatFitOptions {
   int halfSize = 0;         ///< stamp half-size, px; 0 = chosen from the star (4 FWHM, clamped to 6..30)
@@ -35,7 +42,8 @@ struct MoffatFitOptions {
   /// The blur of the image beyond the PSF (e.g. stackSmear of a sky-rate stack: trails and shift rounding).
   /// When given, the model is A * sum_k w_k <P(x - x0 - dx_k, y - y0 - dy_k)>_pixel + B, and R, beta are
   /// those of the PSF itself. Empty = the image is the PSF. The smeared model refines the plain one's fit;
-  /// a plain fit whose beta ends on a bound (no star's profile) is returned as it is.
+  /// a plain fit whose beta ends on a bound and whose centre lies more than fitWanderLimitPx + 2 px from the
+  /// guess (no star's profile) is returned as it is.
   SmearKernel smear;
 };
 
