@@ -43,6 +43,20 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   }
 }
 
+CudaPreprocess::CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {
+  m_warm = std::jthread([this] {
+    try {
+      ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+      auto r = std::make_unique<DeviceResources>();
+      r->staging(0);
+      r->staging(1);
+      m_res = std::move(r);
+    } catch (...) {
+      // Left to resources(): the first stage makes them, and reports what fails.
+    }
+  });
+}
+
 std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std::size_t wanted) {
   std::vector<std::size_t> idx;
   if (total == 0) return idx;
@@ -55,7 +69,7 @@ std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std:
 stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   m_note.clear();
   // The frames the frame backgrounds left on the device, when the pipeline vouched they are this cube's.
   if (const float* kept = keptFrames(cube)) {
@@ -73,7 +87,7 @@ std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube
   if (!kept) return std::nullopt;
   Stopwatch sw;
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   const int blocks = static_cast<int>(
       std::clamp<std::size_t>(static_cast<std::size_t>(params.blocks), 1, std::max<std::size_t>(1, nf)));

@@ -53,7 +53,7 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   }
   const double hostTables = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   // The cube (and its mask) uploaded by prefetch() behind the CPU stages, when it is this one unchanged.
   const std::shared_ptr<Prefetch> pf = std::move(m_prefetch);

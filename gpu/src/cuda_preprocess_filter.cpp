@@ -55,7 +55,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
                      std::to_string(noise->frameScale.size()) + " frames) does not match the cube (" +
                      std::to_string(w) + "x" + std::to_string(h) + ", " + std::to_string(nf) + " frames)");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   progress.report(0.0, "matched filter (GPU)");
   // The destination's pages are faulted in on other cores while the device uploads and filters.

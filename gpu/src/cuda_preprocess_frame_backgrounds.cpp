@@ -37,7 +37,7 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   Stopwatch sw;
   progress.report(0.0, "frame backgrounds (GPU)");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   const bool hasMask = cube.mask().size() == cube.pixels().size();
   DeviceBuffer<float> pix(nf * np);
   DeviceBuffer<std::uint8_t> mask(hasMask ? nf * np : 0);

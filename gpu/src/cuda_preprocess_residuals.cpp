@@ -17,7 +17,7 @@ double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double c
   Stopwatch sw;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   m_kept = DeviceBuffer<float>();
   m_keptData = nullptr;
   DeviceBuffer<float> pix(nf * np);
@@ -60,7 +60,7 @@ stats::NoiseModel CudaPreprocess::estimateNoiseModel(const FrameCube& zeroBiased
   stats::NoiseModel m = stats::estimateNoiseModel(shape, pixelSigma, unmeasured, params, cancel);
   const double hostMap = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged.
   const bool kept = m_kept.size() == nf * np && m_keptData == zeroBiased.pixels().data() &&

@@ -24,7 +24,7 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   const std::string bgNote = m_note;
   lap("per-pixel background");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   const DeviceCubeRef d{kc.pix.get(), kc.hasMask ? kc.mask.get() : nullptr, w, h, static_cast<int>(nf)};
   const float* sigma = out.background.sigma.size() == np ? kc.sigma.get() : nullptr;
