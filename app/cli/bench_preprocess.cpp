@@ -186,7 +186,7 @@ int benchPreprocess(const Args& args) {
   std::printf("preprocess: %.2f s wall, %.2f s CPU (budget 20 s wall); %s\n", out.elapsedS, cpu,
               accelMessage.c_str());
   for (const auto& [stage, t] : out.stageSeconds)
-    std::printf("  %-32s %7.2f s\n", stage.c_str(), t);
+    std::printf("  %-32s %7.3f s\n", stage.c_str(), t);
   std::printf("sigma_n %.5g vs truth %.5g (%+.2f%%); background bias %+.4f sigma\n", out.sigmaN,
               sc.sigmaTruth, 100.0 * (out.sigmaN / sc.sigmaTruth - 1.0), sc.bias / sc.sigmaTruth);
   std::printf("sky rate (%.4g, %.4g) px/s vs truth (%.4g, %.4g)\n", out.skyRate.vx, out.skyRate.vy,

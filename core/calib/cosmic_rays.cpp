@@ -1,6 +1,7 @@
 #include "st/calib/cosmic_rays.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -76,6 +77,7 @@ struct Protection {
   detect::MovingMask mask;
   std::vector<float> signal;  // on the mask's canvas
   int stacks = 0, provided = 0;  // stacks at the sky rate used, and made by the provider
+  double stackSeconds = 0.0;     // making them
   [[nodiscard]] float signalAt(std::size_t n, int x, int y) const {
     const int i = x - mask.shiftX(n) - mask.x0(), j = y - mask.shiftY(n) - mask.y0();
     if (i < 0 || j < 0 || i >= mask.canvasWidth() || j >= mask.canvasHeight()) return 0.0f;
@@ -94,9 +96,11 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   std::vector<float> minSnr, minMean;
   std::vector<std::uint8_t> observed;
   int provided = 0;
+  double stackSeconds = 0.0;
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
     const std::size_t f0 = nf * b / blocks, f1 = nf * (b + 1) / blocks;
+    const auto t0 = std::chrono::steady_clock::now();
     std::optional<detect::SkyStack> made;
     if (stacks && *stacks) {
       made = (*stacks)(cube, params.skyRate, 0.0, f0, f1);
@@ -104,6 +108,7 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
       provided += made ? 1 : 0;
     }
     if (!made) made = detect::stackAtSkyRate(cube, params.skyRate, 0.0, sub, cancel, f0, f1);
+    stackSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const detect::SkyStack& s = *made;
     const Image local = detect::meshBackground(s.mean, s.count, 32);
     const float minCount = std::max(3.0f, 0.1f * static_cast<float>(f1 - f0));
@@ -128,7 +133,7 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
       if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
     }
   mask.dilate(params.protectDilatePx);
-  Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f), blocks, provided};
+  Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f), blocks, provided, stackSeconds};
   for (std::size_t i = 0; i < minMean.size(); ++i)
     if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
   return p;
@@ -172,6 +177,22 @@ void preTest(const float* f, const float* fa, const float* fb, std::size_t np, f
   preTestScalar(f, fa, fb, i0, np, thr, out);
 }
 
+// The pixels i of frame n (in order) whose bit is set in `words` (frame n's flat indices [n np, (n + 1) np)).
+void preTestFromWords(const CosmicRayPreTestWords& words, std::size_t n, std::size_t np,
+                      std::vector<std::uint32_t>& out) {
+  const std::size_t k0 = n * np, k1 = k0 + np;
+  auto it = std::lower_bound(words.index.begin(), words.index.end(), std::uint64_t{k0 / 32});
+  for (auto j = static_cast<std::size_t>(it - words.index.begin());
+       j < words.index.size() && words.index[j] * 32 < k1; ++j) {
+    std::uint32_t b = words.bits[j];
+    while (b) {
+      const std::size_t k = words.index[j] * 32 + static_cast<std::size_t>(__builtin_ctz(b));
+      b &= b - 1;
+      if (k >= k0 && k < k1) out.push_back(static_cast<std::uint32_t>(k - k0));
+    }
+  }
+}
+
 // Value exceeded by a fraction `q` of `v`.
 float upperQuantile(const std::vector<float>& v, double q) {
   const auto k = static_cast<std::size_t>(std::floor((1.0 - q) * static_cast<double>(v.size() - 1)));
@@ -179,6 +200,28 @@ float upperQuantile(const std::vector<float>& v, double q) {
 }
 
 }  // namespace
+
+CosmicRayPreTestWords cosmicRayPreTestWords(const FrameCube& cube, float thr) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  CosmicRayPreTestWords out;
+  if (nf < 3) return out;
+  const float* px = cube.pixels().data();
+  std::vector<std::uint32_t> pass;
+  for (std::size_t n = 0; n < nf; ++n) {
+    const auto [a, b] = neighbours(n, nf);
+    pass.clear();
+    preTest(px + n * np, px + a * np, px + b * np, np, thr, pass);
+    for (const std::uint32_t i : pass) {
+      const std::uint64_t k = n * np + i;
+      if (out.index.empty() || out.index.back() != k / 32) {
+        out.index.push_back(k / 32);
+        out.bits.push_back(0);
+      }
+      out.bits.back() |= std::uint32_t{1} << (k % 32);
+    }
+  }
+  return out;
+}
 
 TailModel fitExcessTail(const FrameCube& cube, Velocity skyRate,
                         const std::function<bool(std::size_t, int, int)>& skip) {
@@ -262,14 +305,25 @@ double noiseFromFrameDifferences(const FrameCube& cube) {
 }
 
 CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params, ProgressSink& progress,
-                                 CancelToken& cancel, const detect::SkyStackCache::Provider* stacks) {
+                                 CancelToken& cancel, const detect::SkyStackCache::Provider* stacks,
+                                 const CosmicRayPreTest* preTestProvider) {
   CosmicRayResult out;
   const std::size_t nf = cube.frameCount();
   out.perFrame.assign(nf, 0);
   if (nf < 3) return out;
+  auto last = std::chrono::steady_clock::now();
+  auto lap = [&last] {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - last).count();
+    last = now;
+    return s;
+  };
   out.sigma = noiseFromFrameDifferences(cube);
+  out.noiseSeconds = lap();
   if (!(out.sigma > 0.0)) return out;
   const Protection prot = protection(cube, params, out.sigma, progress, cancel, stacks);
+  out.protectionSeconds = lap();
+  out.protectionStackSeconds = prot.stackSeconds;
   out.protectedPixels = prot.mask.count();
   out.protectionStacks = prot.stacks;
   out.protectionStacksProvided = prot.provided;
@@ -282,6 +336,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
                            [&](std::size_t n, int x, int y) { return prot.mask.covers(n, x, y); });
   out.seedThreshold = std::max(params.thresholdSigma * out.sigma, out.tail.threshold(params.falseFlagRate));
   out.growThreshold = std::max(params.growSigma * out.sigma, out.tail.threshold(params.growFalseRate));
+  out.tailSeconds = lap();
   // Pixel (x, y) of frame n is a hit when its excess over the registered reference exceeds `thr` and, on a
   // protected star, the star's own signal there (seeing and photon noise make a star pixel vary far more
   // than the sky).
@@ -334,6 +389,15 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   };
   std::mutex m;
   std::size_t sourceSeeds = 0;
+  // The pre-test of every pixel from a device when it makes it (the same pixels pass).
+  std::optional<CosmicRayPreTestWords> preTestWords;
+  if (preTestProvider && *preTestProvider) {
+    preTestWords = (*preTestProvider)(cube, thr);
+    if (preTestWords && (preTestWords->index.size() != preTestWords->bits.size() ||
+                         !std::is_sorted(preTestWords->index.begin(), preTestWords->index.end())))
+      preTestWords.reset();
+    out.preTestProvided = preTestWords.has_value();
+  }
   // Pass 1, read-only: seeds.
   parallelFor(nf, 4, [&](std::size_t n0, std::size_t n1) {
     std::vector<std::uint64_t> local;
@@ -343,9 +407,13 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
       cancel.throwIfCancelled();
       const auto [a, b] = neighbours(n, nf);
       const float *f = px + n * np, *fa = px + a * np, *fb = px + b * np;
-      // The pre-test of isHit, 8 pixels at a time on the AVX2 path; the candidates in order.
+      // The pre-test of isHit, 8 pixels at a time on the AVX2 path (or the device's); the candidates in
+      // order.
       candidates.clear();
-      preTest(f, fa, fb, np, thr, candidates);
+      if (preTestWords)
+        preTestFromWords(*preTestWords, n, np, candidates);
+      else
+        preTest(f, fa, fb, np, thr, candidates);
       for (const std::uint32_t i : candidates) {
         const int x = static_cast<int>(i % w), y = static_cast<int>(i / w);
         if (!isHit(n, x, y, thr)) continue;
@@ -361,6 +429,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     progress.report(0.5 + 0.4 * static_cast<double>(n1) / nf, "cosmic rays");
   });
   out.sourceSeeds = sourceSeeds;
+  out.seedSeconds = lap();
   // Pass 2, read-only: grow by the 8-neighbours above the grow threshold (twice, for short tracks).
   const float grow = static_cast<float>(out.growThreshold);
   std::sort(out.pixels.begin(), out.pixels.end());
@@ -395,6 +464,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     ++out.perFrame[out.pixels[k] / np];
   }
   out.total = out.pixels.size();
+  out.growFillSeconds = lap();
   progress.report(1.0, "cosmic rays");
   return out;
 }

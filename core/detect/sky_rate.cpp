@@ -1,6 +1,7 @@
 #include "st/detect/sky_rate.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -163,7 +164,10 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
     out.note = "sky rate: fewer than two frames or no time span, assumed 0";
     return out;
   }
+  const auto t0 = std::chrono::steady_clock::now();
   const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel);
+  const auto t1 = std::chrono::steady_clock::now();
+  out.pairsSeconds = std::chrono::duration<double>(t1 - t0).count();
   out.response = pairs.responses.empty() ? 0.0 : median(pairs.responses);
   if (pairs.vx.empty() || out.response < params.minResponse) {
     out.note = "sky rate: no reliable star pattern (phase-correlation peak " + std::to_string(out.response) +
@@ -177,6 +181,7 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
       "pairs of short blocks gave (" + fixed(out.rate.vx) + ", " + fixed(out.rate.vy) + ") px/s";
   const detail::ChainResult chain =
       detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
+  out.chainSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   if (!chain.ok) {
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;
     return out;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <future>
 #include <optional>
 #include <sstream>
@@ -204,6 +205,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     std::ostringstream note;
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
+    {
+      char parts[120];
+      std::snprintf(parts, sizeof parts, "sky rate: block pairs %.1f ms, chain %.1f ms", 1e3 * r.pairsSeconds,
+                    1e3 * r.chainSeconds);
+      out.notes.push_back(parts);
+    }
     if (params.accelerator && sumsStep.asked > 0)
       out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +
                           std::to_string(sumsStep.asked) + " iterations on " + params.accelerator->name());
@@ -237,9 +244,27 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     cp.skyRate = out.skyRate;
     if (!cp.saturationLevel) cp.saturationLevel = sp.saturationLevel;
     cp.fill = calib::CosmicRayParams::Fill::TimeNeighbours;  // zeroed after background subtraction
-    cr = calib::removeCosmicRays(cube, cp, sub, cancel, &deviceStacks);
+    DeviceStep preTestStep(params.accelerator, "the cosmic rays' pre-test", out.notes);
+    calib::CosmicRayPreTest devicePreTest;
+    if (params.accelerator)
+      devicePreTest = [&preTestStep, accel = params.accelerator](const FrameCube& c, float thr) {
+        return preTestStep([&] { return accel->cosmicRayPreTest(c, thr); });
+      };
+    cr = calib::removeCosmicRays(cube, cp, sub, cancel, &deviceStacks, &devicePreTest);
+    if (cr.preTestProvided) out.notes.push_back(params.accelerator->lastNote());  // its last device step
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
+    {
+      char parts[240];
+      std::snprintf(
+          parts, sizeof parts,
+          "cosmic rays: noise %.1f ms, protection %.1f ms (its stacks %.1f ms), tail %.1f ms, seeds "
+          "%.1f ms (pre-test %s), growing and filling %.1f ms",
+          1e3 * cr.noiseSeconds, 1e3 * cr.protectionSeconds, 1e3 * cr.protectionStackSeconds,
+          1e3 * cr.tailSeconds, 1e3 * cr.seedSeconds, cr.preTestProvided ? "on the device" : "on the CPU",
+          1e3 * cr.growFillSeconds);
+      out.notes.push_back(parts);
+    }
     if (params.accelerator) {
       params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
       out.notes.push_back("cosmic rays: " + std::to_string(cr.protectionStacksProvided) + " of " +

@@ -3,6 +3,7 @@
 // (detect::shiftedSums), the cosmic-ray fills patched into the device's copy, and the stacks at the sky rate
 // (detect::stackAtSkyRate) that the static-source search and the PSF stage ask for. The sums are the CPU's
 // (sky_stack_kernels.cu), so the results are equal.
+#include <algorithm>
 #include <vector>
 
 #include "cuda_preprocess.hpp"
@@ -41,7 +42,7 @@ void CudaPreprocess::patchPrefetch(const FrameCube& cube, const std::vector<std:
       for (std::size_t k = 0; k < pixels.size(); ++k)
         values[k] = cube.pixels()[pixels[k]];
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-      DeviceResources& r = ensureResources(m_res);
+      DeviceResources& r = resources();
       DeviceBuffer<std::uint64_t> idx = toDevice(pixels);
       DeviceBuffer<float> val = toDevice(values);
       launchScatter(pf->pix.get(), idx.get(), val.get(), pixels.size(), r.compute.get());
@@ -74,7 +75,7 @@ std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
   }
   Stopwatch sw;
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   DeviceBuffer<int> firstD = toDevice(first), startD = toDevice(start);
   DeviceBuffer<int> sxD = toDevice(sx.empty() ? std::vector<int>{0} : sx);
@@ -124,7 +125,7 @@ std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, 
   if (!pf || first >= last) return std::nullopt;
   const double waited = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   const MovingMask geom(cube, rate);
   std::vector<int> sx(nf), sy(nf);
@@ -172,12 +173,53 @@ std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, 
   return out;
 }
 
+std::optional<calib::CosmicRayPreTestWords> CudaPreprocess::cosmicRayPreTest(const FrameCube& cube,
+                                                                             float thr) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  if (nf < 3 || np == 0 || nf * np >= (std::size_t{1} << 37)) return std::nullopt;
+  Stopwatch sw;
+  const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
+  if (!pf) return std::nullopt;
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = resources();
+  cudaStream_t s = r.compute.get();
+  // Room for a non-zero word in 16 (noise passes at ~1e-4 a pixel: a word in ~300); more and the CPU makes
+  // it (a cube of bright, moving structure).
+  const std::size_t words = (nf * np + 31) / 32;
+  const std::size_t capacity = std::max<std::size_t>(1024, words / 16);
+  DeviceBuffer<unsigned long long> found(capacity), count(1);
+  ST_CUDA_CHECK(cudaMemsetAsync(count.get(), 0, sizeof(unsigned long long), s));
+  launchCosmicRayPreTest(pf->pix.get(), nf, np, thr, found.get(), capacity, count.get(), s);
+  unsigned long long n = 0;
+  ST_CUDA_CHECK(cudaMemcpyAsync(&n, count.get(), sizeof n, cudaMemcpyDeviceToHost, s));
+  r.compute.sync();
+  if (n > capacity) return std::nullopt;
+  std::vector<unsigned long long> packed(n);
+  if (n > 0) {
+    ST_CUDA_CHECK(cudaMemcpyAsync(packed.data(), found.get(), n * sizeof(unsigned long long),
+                                  cudaMemcpyDeviceToHost, s));
+    r.compute.sync();
+  }
+  const double kernel = sw.lap();
+  std::sort(packed.begin(), packed.end());  // by word index (the high half), as the CPU lists them
+  calib::CosmicRayPreTestWords out;
+  out.index.resize(n);
+  out.bits.resize(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    out.index[j] = packed[j] >> 32;
+    out.bits[j] = static_cast<std::uint32_t>(packed[j] & 0xffffffffull);
+  }
+  m_note = "cosmic-ray pre-test on " + name() + ": " + std::to_string(n) +
+           " non-zero words, kernel and read-back " + ms(kernel) + ", sorted " + ms(sw.lap());
+  return out;
+}
+
 std::optional<std::vector<float>> CudaPreprocess::filteredSnr(const detect::FilteredSnrInputs& in) {
   const std::size_t np = static_cast<std::size_t>(std::max(0, in.width)) * std::max(0, in.height);
   if (np == 0 || in.r < 0 || !in.rc || !in.count || !in.k) return std::nullopt;
   Stopwatch sw;
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-  DeviceResources& r = ensureResources(m_res);
+  DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
   const std::size_t taps = static_cast<std::size_t>(2 * in.r + 1) * (2 * in.r + 1);
   DeviceBuffer<float> rc(np), count(np), out(np);

@@ -80,6 +80,31 @@ __global__ void filteredSnrKernel(const float* rc, const float* cnt, const doubl
       den > 0.0 ? __double2float_rn(__ddiv_rn(num, __dmul_rn(sigma, __dsqrt_rn(den)))) : 0.0f;
 }
 
+// calib::cosmicRayPreTestWords: frame n's reference frames are its neighbours (1 and 2 for the first, the
+// two before it for the last); !(f - max(fa, fb) <= thr) with max as std::max (fa unless fa < fb) and the
+// subtraction rounded as on the CPU. Lane 0 of each warp appends its warp's word when non-zero (blockDim
+// is a multiple of 32, so a warp's first flat index is a multiple of 32).
+__global__ void cosmicRayPreTestKernel(const float* pix, std::size_t nf, std::size_t np, float thr,
+                                       unsigned long long* out, unsigned long long capacity,
+                                       unsigned long long* count) {
+  const std::size_t total = nf * np;
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  bool pass = false;
+  if (k < total) {
+    const std::size_t n = k / np, i = k - n * np;
+    const std::size_t a = n == 0 ? 1 : (n + 1 == nf ? nf - 2 : n - 1);
+    const std::size_t b = n == 0 ? 2 : (n + 1 == nf ? nf - 3 : n + 1);
+    const float fa = __ldg(pix + a * np + i), fb = __ldg(pix + b * np + i);
+    const float mx = fa < fb ? fb : fa;
+    pass = !(__fsub_rn(__ldg(pix + k), mx) <= thr);
+  }
+  const unsigned word = __ballot_sync(0xffffffffu, pass);
+  if ((threadIdx.x & 31u) == 0 && word != 0) {
+    const unsigned long long slot = atomicAdd(count, 1ull);
+    if (slot < capacity) out[slot] = (static_cast<unsigned long long>(k / 32) << 32) | word;
+  }
+}
+
 template <class T>
 __global__ void scatterKernel(T* pix, const std::uint64_t* index, const T* value, std::size_t n) {
   const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
@@ -114,6 +139,17 @@ void launchScatter(float* pix, const std::uint64_t* index, const float* value, s
 void launchScatter(std::uint8_t* mask, const std::uint64_t* index, const std::uint8_t* value, std::size_t n,
                    cudaStream_t s) {
   scatter(mask, index, value, n, s);
+}
+
+void launchCosmicRayPreTest(const float* pix, std::size_t nf, std::size_t np, float thr,
+                            unsigned long long* out, unsigned long long capacity, unsigned long long* count,
+                            cudaStream_t s) {
+  const std::size_t total = nf * np;
+  if (total == 0 || nf < 3) return;
+  constexpr int kThreads = 256;
+  cosmicRayPreTestKernel<<<static_cast<unsigned>((total + kThreads - 1) / kThreads), kThreads, 0, s>>>(
+      pix, nf, np, thr, out, capacity, count);
+  checkLaunch("cosmicRayPreTestKernel");
 }
 
 void launchFilteredSnr(const float* rc, const float* count, const double* k, int width, int height, int r,

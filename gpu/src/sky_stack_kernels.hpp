@@ -48,6 +48,14 @@ void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s);
 void launchFilteredSnr(const float* rc, const float* count, const double* k, int width, int height, int r,
                        double sigma, float* out, cudaStream_t s);
 
+/// calib::cosmicRayPreTestWords of nf >= 3 frames of np pixels (nf * np < 2^37): one thread a pixel, a
+/// warp's 32 verdicts one word (__ballot_sync), the CPU's float subtraction and std::max. Each non-zero word
+/// w goes to out[slot] = w << 32 | word for a slot taken from *count (in no particular order; written only
+/// while slot < capacity, *count still counts them all). *count must be 0 on entry.
+void launchCosmicRayPreTest(const float* pix, std::size_t nf, std::size_t np, float thr,
+                            unsigned long long* out, unsigned long long capacity, unsigned long long* count,
+                            cudaStream_t s);
+
 /// pix[index[k]] = value[k] for k < n (the cosmic-ray fills patched into a prefetched cube).
 void launchScatter(float* pix, const std::uint64_t* index, const float* value, std::size_t n, cudaStream_t s);
 /// mask[index[k]] = value[k] for k < n (a sparse mask uploaded: its non-zero bytes into a zeroed buffer).

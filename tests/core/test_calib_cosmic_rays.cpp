@@ -135,6 +135,95 @@ TEST(CosmicRays, ProtectionStacksFromAProvider) {
   }
 }
 
+// The seeds' pre-test (cosmicRayPreTestWords) against its definition pixel by pixel, on frames that start
+// inside a word (61 x 47) with a NaN sample; and from a provider (a device, issue 16): the same words give
+// the same hits, words with one hit's bit cleared lose that hit (so the provider's words are what pass 1
+// uses), and words out of order are not used.
+TEST(CosmicRays, PreTestWordsAndTheirProvider) {
+  test::SynthScene sc;
+  sc.width = 61;
+  sc.height = 47;
+  sc.frames = 30;
+  sc.stars = {{30.0, 25.0, 400.0}};
+  sc.hits = 60;
+  FrameCube raw = sc.make();
+  raw.pixels()[4 * raw.framePixels() + 100] = std::nanf("");
+  const std::size_t nf = raw.frameCount(), np = raw.framePixels();
+  const float thr = 20.0f;
+  const CosmicRayPreTestWords words = cosmicRayPreTestWords(raw, thr);
+  std::vector<std::uint32_t> want((nf * np + 31) / 32, 0);
+  for (std::size_t n = 0; n < nf; ++n) {
+    const std::size_t a = n == 0 ? 1 : (n + 1 == nf ? nf - 2 : n - 1);
+    const std::size_t b = n == 0 ? 2 : (n + 1 == nf ? nf - 3 : n + 1);
+    for (std::size_t i = 0; i < np; ++i) {
+      const float f = raw.frame(n)[i], fa = raw.frame(a)[i], fb = raw.frame(b)[i];
+      if (!(f - std::max(fa, fb) <= thr)) want[(n * np + i) / 32] |= std::uint32_t{1} << ((n * np + i) % 32);
+    }
+  }
+  CosmicRayPreTestWords dense;
+  for (std::size_t w = 0; w < want.size(); ++w)
+    if (want[w]) {
+      dense.index.push_back(w);
+      dense.bits.push_back(want[w]);
+    }
+  EXPECT_GE(dense.index.size(), 40u);
+  EXPECT_EQ(words, dense);
+
+  CosmicRayParams params;
+  NullProgress p;
+  CancelToken c;
+  FrameCube reference = raw;
+  const CosmicRayResult plain = removeCosmicRays(reference, params, p, c);
+  ASSERT_GE(plain.total, 40u);
+  EXPECT_FALSE(plain.preTestProvided);
+  float asked = -1.0f;
+  const CosmicRayPreTest same = [&](const FrameCube& cube, float t) {
+    asked = t;
+    return std::optional<CosmicRayPreTestWords>(cosmicRayPreTestWords(cube, t));
+  };
+  FrameCube cube = raw;
+  const CosmicRayResult r = removeCosmicRays(cube, params, p, c, nullptr, &same);
+  EXPECT_EQ(asked, static_cast<float>(plain.seedThreshold));
+  EXPECT_TRUE(r.preTestProvided);
+  EXPECT_EQ(r.pixels, plain.pixels);
+  EXPECT_EQ(cube.pixels(), reference.pixels());
+  // One single-pixel hit's bit cleared (no flagged 8-neighbour to grow back from): that hit is missed.
+  const int w = raw.width();
+  auto isolated = [&](std::uint64_t q) {
+    for (const std::uint64_t o : plain.pixels)
+      if (o != q && o / np == q / np) {
+        const long dx = static_cast<long>(o % np % w) - static_cast<long>(q % np % w);
+        const long dy = static_cast<long>(o % np / w) - static_cast<long>(q % np / w);
+        if (std::abs(dx) <= 1 && std::abs(dy) <= 1) return false;
+      }
+    return true;
+  };
+  const auto single = std::find_if(plain.pixels.begin(), plain.pixels.end(), isolated);
+  ASSERT_NE(single, plain.pixels.end());
+  const std::uint64_t seed = *single;
+  const CosmicRayPreTest missing = [&](const FrameCube& cube2, float t) {
+    CosmicRayPreTestWords w = cosmicRayPreTestWords(cube2, t);
+    for (std::size_t j = 0; j < w.index.size(); ++j)
+      if (w.index[j] == seed / 32) w.bits[j] &= ~(std::uint32_t{1} << (seed % 32));
+    return std::optional<CosmicRayPreTestWords>(std::move(w));
+  };
+  cube = raw;
+  const CosmicRayResult m = removeCosmicRays(cube, params, p, c, nullptr, &missing);
+  EXPECT_LT(m.total, plain.total);
+  EXPECT_FALSE(std::binary_search(m.pixels.begin(), m.pixels.end(), seed));
+  // Out of order: not used (the CPU's pre-test finds every hit).
+  const CosmicRayPreTest unsorted = [&](const FrameCube& cube2, float t) {
+    CosmicRayPreTestWords w = cosmicRayPreTestWords(cube2, t);
+    std::reverse(w.index.begin(), w.index.end());
+    std::reverse(w.bits.begin(), w.bits.end());
+    return std::optional<CosmicRayPreTestWords>(std::move(w));
+  };
+  cube = raw;
+  const CosmicRayResult u = removeCosmicRays(cube, params, p, c, nullptr, &unsorted);
+  EXPECT_FALSE(u.preTestProvided);
+  EXPECT_EQ(u.pixels, plain.pixels);
+}
+
 TEST(CosmicRays, RemovesHitsKeepsObjectAndStarsTracked) {
   checkRemoval(false);
 }

@@ -1,6 +1,6 @@
-// The cosmic rays' protection (calib::removeCosmicRays) with its three stacks at the sky rate made on the
-// device from the prefetched cube (issue 16): the same protected pixels, hits and filled cube as with the
-// CPU's stacks, with and without a mask. Skips when no CUDA device is usable.
+// The cosmic rays (calib::removeCosmicRays) with their protection's three stacks at the sky rate and the
+// seeds' pre-test made on the device from the prefetched cube (issue 16): the same protected pixels, hits
+// and filled cube as on the CPU, with and without a mask. Skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -24,8 +24,8 @@ using test::whenUploaded;
 
 /// 64 x 48 x 40 frames of noise (sigma 3 on 100) with a star moving 0.2 px per frame and 30 cosmic rays: few
 /// enough (2.4e-4 of the pixels) not to lift the measured excess tail (cosmic_rays.hpp).
-FrameCube cosmicRayCube(bool withMask) {
-  constexpr int w = 64, h = 48, n = 40;
+FrameCube cosmicRayCube(bool withMask, int w = 64, int h = 48) {
+  constexpr int n = 40;
   FrameCube c(w, h, n);
   std::mt19937 rng(23);
   std::normal_distribution<float> g(0.0f, 3.0f);
@@ -82,6 +82,47 @@ TEST(GpuSkyStack, CosmicRayProtectionFromTheDeviceEqualsTheCpu) {
     EXPECT_EQ(d.protectedPixels, h.protectedPixels);
     EXPECT_EQ(d.pixels, h.pixels);
     EXPECT_EQ(d.total, h.total);
+    EXPECT_EQ(std::memcmp(c.pixels().data(), cpu.pixels().data(), c.pixels().size() * sizeof(float)), 0);
+  }
+}
+
+TEST(GpuCosmicRays, PreTestFromTheDeviceEqualsTheCpu) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool withMask : {false, true}) {
+    SCOPED_TRACE(withMask ? "with a mask" : "without a mask");
+    // 61 x 47 pixels: frames that start inside a word; a NaN sample (it passes, and makes its time
+    // neighbours' maximum NaN).
+    FrameCube c = cosmicRayCube(withMask, 61, 47);
+    c.pixels()[5 * c.framePixels() + 77] = std::nanf("");
+    FrameCube cpu = c;
+    const std::shared_ptr<void> guard = accel->prefetch(c);
+    // Where too many words pass (over one in 16, here at threshold 0) the device declines: the CPU makes it.
+    EXPECT_FALSE(whenUploaded([&] { return accel->cosmicRayPreTest(c, 0.0f); }).has_value());
+    for (const float thr : {9.0f, 15.0f, 25.0f}) {
+      SCOPED_TRACE(thr);
+      const std::optional<calib::CosmicRayPreTestWords> d =
+          whenUploaded([&] { return accel->cosmicRayPreTest(c, thr); });
+      ASSERT_TRUE(d.has_value());
+      const calib::CosmicRayPreTestWords h = calib::cosmicRayPreTestWords(cpu, thr);
+      EXPECT_GT(h.index.size(), 10u);
+      EXPECT_EQ(d->index, h.index);
+      EXPECT_EQ(d->bits, h.bits);
+    }
+    calib::CosmicRayParams params;
+    params.skyRate = {0.4, 0.0};
+    params.fill = calib::CosmicRayParams::Fill::TimeNeighbours;
+    const calib::CosmicRayPreTest device = [&](const FrameCube& cube, float thr) {
+      return whenUploaded([&] { return accel->cosmicRayPreTest(cube, thr); });
+    };
+    NullProgress progress;
+    CancelToken cancel;
+    const calib::CosmicRayResult dr = calib::removeCosmicRays(c, params, progress, cancel, nullptr, &device);
+    const calib::CosmicRayResult hr = calib::removeCosmicRays(cpu, params, progress, cancel);
+    EXPECT_TRUE(dr.preTestProvided);
+    EXPECT_FALSE(hr.preTestProvided);
+    EXPECT_GE(hr.total, 20u);
+    EXPECT_EQ(dr.pixels, hr.pixels);
+    EXPECT_EQ(dr.sourceSeeds, hr.sourceSeeds);
     EXPECT_EQ(std::memcmp(c.pixels().data(), cpu.pixels().data(), c.pixels().size() * sizeof(float)), 0);
   }
 }

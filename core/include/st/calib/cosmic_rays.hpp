@@ -100,19 +100,41 @@ struct CosmicRayResult {
   std::size_t protectedPixels = 0;    ///< reference positions protected as stars
   int protectionStacks = 0;           ///< stacks at the sky rate the protection used (protectBlocks)
   int protectionStacksProvided = 0;   ///< of them, made by removeCosmicRays' provider (a device)
+  bool preTestProvided = false;       ///< the seeds' pre-test came from removeCosmicRays' preTest
   double sigma = 0.0;                 ///< single-frame noise from frame differences, counts
   TailModel tail;                     ///< the measured tail of the excess
   double seedThreshold = 0.0;         ///< excess a seed had to exceed, counts
   double growThreshold = 0.0;         ///< excess a grown neighbour had to exceed, counts
+  /// Wall seconds of the parts, for the notes: the noise from frame differences, the protection (of which
+  /// its stacks at the sky rate), the excess tail, the seeds (pass 1), growing and filling.
+  double noiseSeconds = 0.0, protectionSeconds = 0.0, protectionStackSeconds = 0.0, tailSeconds = 0.0,
+         seedSeconds = 0.0, growFillSeconds = 0.0;
 };
+
+/// The seeds' cheap pre-test of every pixel of a cube of >= 3 frames: bit j of word w is set for flat index
+/// k = 32 w + j (k = n * width * height + y * width + x) where !(f - max(fa, fb) <= thr) in float arithmetic
+/// (NaN passes), f the pixel, fa and fb the same pixel of frame n's two reference frames (its neighbours;
+/// frames 1 and 2 for the first, the two before it for the last), max as std::max(fa, fb). Only the
+/// non-zero words, in ascending w (a few per frame: noise passes at ~1e-4).
+struct CosmicRayPreTestWords {
+  std::vector<std::uint64_t> index;  ///< w
+  std::vector<std::uint32_t> bits;   ///< word w
+  friend bool operator==(const CosmicRayPreTestWords&, const CosmicRayPreTestWords&) = default;
+};
+/// The pre-test made elsewhere (a device holding the cube, issue 16); none: not made there.
+using CosmicRayPreTest =
+    std::function<std::optional<CosmicRayPreTestWords>(const FrameCube& cube, float thr)>;
+
+/// That pre-test on the CPU (the reference the device's is tested against).
+CosmicRayPreTestWords cosmicRayPreTestWords(const FrameCube& cube, float thr);
 
 /// Finds and removes cosmic-ray hits in place. Needs >= 3 frames (fewer: nothing is done, total 0).
 /// Masked pixels are never flagged. The protection's stacks at the sky rate come from `stacks` when given
-/// and it makes them (a device holding the cube, issue 16: the same sums), else from the CPU. Throws
-/// st::Cancelled.
+/// and it makes them (a device holding the cube, issue 16: the same sums), else from the CPU; so does the
+/// seeds' pre-test from `preTest` (the same pixels pass). Throws st::Cancelled.
 CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params, ProgressSink& progress,
-                                 CancelToken& cancel,
-                                 const detect::SkyStackCache::Provider* stacks = nullptr);
+                                 CancelToken& cancel, const detect::SkyStackCache::Provider* stacks = nullptr,
+                                 const CosmicRayPreTest* preTest = nullptr);
 
 /// Sets the listed pixels (flat cube indices) to 0.
 void zeroPixels(FrameCube& cube, const std::vector<std::uint64_t>& pixels);

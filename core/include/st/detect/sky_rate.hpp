@@ -45,6 +45,8 @@ struct SkyRate {
   /// linear motion, for a later per-frame registration (ARCHITECTURE.md's o_n); not used by the search.
   std::vector<SkyRateBlock> blocks;
   double residualRmsPx = 0.0;  ///< rms over blocks of |offsetPx| (both axes), px
+  /// Wall seconds of the block pairs (their means and phase correlations) and of the chain, for the notes.
+  double pairsSeconds = 0.0, chainSeconds = 0.0;
 };
 
 /// A block of frames [first, last) stacked with frame n shifted so that stack pixel (x, y) takes frame pixel

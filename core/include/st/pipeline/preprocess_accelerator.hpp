@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "st/calib/cosmic_rays.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/hot_pixels.hpp"
@@ -120,6 +121,12 @@ class PreprocessAccelerator {
   virtual std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
                                                    std::size_t first, std::size_t last) {
     (void)cube, (void)rate, (void)subtract, (void)first, (void)last;
+    return std::nullopt;
+  }
+  /// calib::cosmicRayPreTestWords(cube, thr) (the seeds' pre-test of removeCosmicRays): the same words; none
+  /// when the device cannot make it without an upload of its own (as skyStack). The default makes none.
+  virtual std::optional<calib::CosmicRayPreTestWords> cosmicRayPreTest(const FrameCube& cube, float thr) {
+    (void)cube, (void)thr;
     return std::nullopt;
   }
   /// The static sources' matched-filtered SNR of a stack at the sky rate (detect::FilteredSnrInputs): the
