@@ -8,6 +8,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/common/prefault.hpp"
 #include "st/io/wcs.hpp"
 #include "st/stats/sigma_clip.hpp"
 
@@ -353,9 +354,10 @@ MasterCalibration cropMasters(const MasterCalibration& m, const Section& region)
   return c;
 }
 
-CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
-                                   const CalibParams& params, ProgressSink& progress, CancelToken& cancel) {
-  CalibrationReport rep;
+CalibrationPlan planCalibration(const FrameCube& cube, const MasterCalibration& masters,
+                                const CalibParams& params) {
+  CalibrationPlan plan;
+  CalibrationReport& rep = plan.report;
   if (cube.empty()) throw InputError("calibration: the frame cube has no frames");
   const int w = cube.width(), h = cube.height();
   if (!masters.bias.empty() && (masters.width != w || masters.height != h)) {
@@ -368,48 +370,92 @@ CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& mas
     if (params.subtractOverscan) biasSec = sectionFrom(params.biasSec, cube, "BIASSEC", params, rep.warnings);
     trimSec = trimFrom(cube, params, rep.warnings);
   }
+  const std::size_t nf = cube.frameCount();
+  plan.overscan.assign(nf, 0.0f);
+  plan.darkSeconds.resize(nf);
+  for (std::size_t n = 0; n < nf; ++n)
+    plan.darkSeconds[n] = static_cast<float>(cube.info()[n].exposureS);
+  if (biasSec) {
+    parallelFor(nf, 16, [&](std::size_t n0, std::size_t n1) {
+      for (std::size_t n = n0; n < n1; ++n)
+        plan.overscan[n] = overscanLevel(cube.frame(n), w, *biasSec);
+    });
+    rep.overscanLevel = plan.overscan;
+  }
+  if (!masters.bias.empty()) plan.bias = &masters.bias;
+  if (!masters.darkPerS.empty()) plan.darkPerS = &masters.darkPerS;
+  if (!masters.flat.empty()) plan.flat = &masters.flat;
+  if (params.trim) plan.trimSec = trimSec;
+  return plan;
+}
+
+void applyPixelCalibration(FrameCube& cube, const CalibrationPlan& plan, ProgressSink& progress,
+                           CancelToken& cancel) {
   const std::size_t np = cube.framePixels();
-  if (biasSec) rep.overscanLevel.assign(cube.frameCount(), 0.0f);
   parallelFor(cube.frameCount(), 4, [&](std::size_t n0, std::size_t n1) {
     for (std::size_t n = n0; n < n1; ++n) {
       cancel.throwIfCancelled();
       float* f = cube.frame(n);
-      const float os = biasSec ? overscanLevel(f, w, *biasSec) : 0.0f;
-      if (biasSec) rep.overscanLevel[n] = os;
-      const float darkS = static_cast<float>(cube.info()[n].exposureS);
+      const float os = plan.overscan[n];
+      const float darkS = plan.darkSeconds[n];
       for (std::size_t i = 0; i < np; ++i) {
         float v = f[i] - os;
-        if (!masters.bias.empty()) v -= masters.bias.pixels[i];
-        if (!masters.darkPerS.empty()) v -= masters.darkPerS.pixels[i] * darkS;
-        if (!masters.flat.empty()) v /= masters.flat.pixels[i];
+        if (plan.bias) v -= plan.bias->pixels[i];
+        if (plan.darkPerS) v -= plan.darkPerS->pixels[i] * darkS;
+        if (plan.flat) v /= plan.flat->pixels[i];
         f[i] = v;
       }
     }
     progress.report(static_cast<double>(n1) / cube.frameCount(), "calibrate");
   });
+}
+
+CalibrationReport finishCalibration(FrameCube& cube, const MasterCalibration& masters,
+                                    CalibrationPlan& plan) {
+  CalibrationReport rep = std::move(plan.report);
+  const int w = cube.width(), h = cube.height();
+  const std::size_t np = cube.framePixels();
   if (!masters.bad.empty()) {
-    const std::size_t nBad = static_cast<std::size_t>(std::count(masters.bad.begin(), masters.bad.end(), 1));
-    if (nBad > 0) {
+    // The bad pixels listed once, then set in every frame on every core; a new mask is the kernel's zero
+    // pages but where written (sparseZeros): a few pixels a frame in 393 MB for 1500 x 512^2, which were
+    // zeroed whole and then scanned pixel by pixel in every frame on one thread.
+    std::vector<std::size_t> bad;
+    for (std::size_t i = 0; i < np; ++i)
+      if (masters.bad[i] != 0) bad.push_back(i);
+    if (!bad.empty()) {
       auto& mask = cube.mask();
-      if (mask.empty()) mask.assign(cube.pixels().size(), 0);
-      for (std::size_t n = 0; n < cube.frameCount(); ++n)
-        for (std::size_t i = 0; i < np; ++i)
-          if (masters.bad[i]) mask[n * np + i] = 1;
+      if (mask.empty()) mask = sparseZeros(cube.pixels().size());
+      parallelFor(cube.frameCount(), 8, [&](std::size_t n0, std::size_t n1) {
+        for (std::size_t n = n0; n < n1; ++n)
+          for (const std::size_t i : bad)
+            mask[n * np + i] = 1;
+      });
     }
   }
-  if (trimSec && params.trim &&
-      !(trimSec->x0 == 0 && trimSec->y0 == 0 && trimSec->width == w && trimSec->height == h)) {
+  const std::optional<Section>& trimSec = plan.trimSec;
+  if (trimSec && !(trimSec->x0 == 0 && trimSec->y0 == 0 && trimSec->width == w && trimSec->height == h))
     trimInPlace(cube, *trimSec);
-  }
   rep.trimmedWidth = cube.width();
   rep.trimmedHeight = cube.height();
   if (!masters.bad.empty()) {
-    const Section r = trimSec && params.trim ? *trimSec : Section{0, 0, w, h};
+    const Section r = trimSec ? *trimSec : Section{0, 0, w, h};
     for (int y = r.y0; y < r.y0 + r.height; ++y)
       for (int x = r.x0; x < r.x0 + r.width; ++x)
         rep.badPixels += masters.bad[static_cast<std::size_t>(y) * w + x];
   }
   return rep;
+}
+
+bool trims(const FrameCube& cube, const CalibrationPlan& plan) {
+  const std::optional<Section>& t = plan.trimSec;
+  return t && !(t->x0 == 0 && t->y0 == 0 && t->width == cube.width() && t->height == cube.height());
+}
+
+CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
+                                   const CalibParams& params, ProgressSink& progress, CancelToken& cancel) {
+  CalibrationPlan plan = planCalibration(cube, masters, params);
+  applyPixelCalibration(cube, plan, progress, cancel);
+  return finishCalibration(cube, masters, plan);
 }
 
 }  // namespace st::calib

@@ -31,6 +31,28 @@ stats::FrameBackgrounds removeFrameBackgroundsOn(PreprocessAccelerator* accel, F
   return stats::removeFrameBackgrounds(cube, params, progress, cancel);
 }
 
+stats::FrameBackgrounds calibrateAndRemoveFrameBackgroundsOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                                             const calib::CalibrationPlan& plan,
+                                                             const stats::FrameBackgroundParams& params,
+                                                             ProgressSink& progress, CancelToken& cancel,
+                                                             std::vector<std::string>& notes) {
+  if (accel) {
+    try {
+      std::optional<stats::FrameBackgrounds> out =
+          accel->calibrateAndRemoveFrameBackgrounds(cube, plan, params, progress, cancel);
+      if (out) {
+        if (!accel->lastNote().empty()) notes.push_back(accel->lastNote());
+        return std::move(*out);
+      }
+    } catch (const GpuError& e) {
+      notes.push_back(fallbackNote(*accel, "calibration and frame backgrounds", e));
+      accel = nullptr;  // the backgrounds on the CPU too
+    }
+  }
+  calib::applyPixelCalibration(cube, plan, progress, cancel);
+  return removeFrameBackgroundsOn(accel, cube, params, progress, cancel, notes);
+}
+
 stats::ClipStats globalBackgroundOn(PreprocessAccelerator* accel, const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params,
                                     std::vector<std::string>& notes) {

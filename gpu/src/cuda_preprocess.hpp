@@ -91,6 +91,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
 
   stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
                                                  ProgressSink& progress, CancelToken& cancel) override;
+  std::optional<stats::FrameBackgrounds> calibrateAndRemoveFrameBackgrounds(
+      FrameCube& cube, const calib::CalibrationPlan& plan, const stats::FrameBackgroundParams& params,
+      ProgressSink& progress, CancelToken& cancel) override;
   stats::ClipStats globalBackground(const FrameCube& cube,
                                     const stats::GlobalBackgroundParams& params) override;
   void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) override;
@@ -124,6 +127,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                             std::uint64_t revision) override;
 
  private:
+  /// removeFrameBackgrounds, with `plan`'s pixel calibration applied on the device after the upload first
+  /// when given.
+  stats::FrameBackgrounds frameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
+                                           ProgressSink& progress, CancelToken& cancel,
+                                           const calib::CalibrationPlan* plan);
+
   /// The device buffers the per-pixel background leaves for zeroBias's next stages.
   struct KeptCube {
     DeviceBuffer<float> pix, sigma;

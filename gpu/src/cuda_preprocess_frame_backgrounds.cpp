@@ -1,6 +1,8 @@
 // CudaPreprocess: the frame backgrounds (stats::removeFrameBackgrounds, SEP per frame) on the device: the
-// calibrated cube (and its mask) uploaded, SEP's mesh statistics and spline on the device with the
-// per-frame filter and spline derivatives on the host (frame_backgrounds.*), the frames downloaded.
+// calibrated cube (and its mask) uploaded, or the raw one calibrated on the device after its upload
+// (calibrateAndRemoveFrameBackgrounds: calib::applyPixelCalibration's float steps), SEP's mesh statistics
+// and spline on the device with the per-frame filter and spline derivatives on the host
+// (frame_backgrounds.*), the frames downloaded.
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -21,19 +23,46 @@ bool sepOnCpu() {
   return e && *e && *e != '0';
 }
 
+/// Benchmark knob: ST_GPU_CALIBRATE_ON_CPU=1 calibrates the pixels on the CPU before the frame backgrounds'
+/// upload, as before 2026-12-01.
+bool calibrateOnCpu() {
+  const char* e = std::getenv("ST_GPU_CALIBRATE_ON_CPU");
+  return e && *e && *e != '0';
+}
+
 }  // namespace
 
 stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
                                                                const stats::FrameBackgroundParams& params,
                                                                ProgressSink& progress, CancelToken& cancel) {
+  return frameBackgrounds(cube, params, progress, cancel, nullptr);
+}
+
+std::optional<stats::FrameBackgrounds> CudaPreprocess::calibrateAndRemoveFrameBackgrounds(
+    FrameCube& cube, const calib::CalibrationPlan& plan, const stats::FrameBackgroundParams& params,
+    ProgressSink& progress, CancelToken& cancel) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  auto fits = [np](const Image* m) { return !m || m->pixels.size() == np; };
+  if (!params.enabled || nf == 0 || sepOnCpu() || calibrateOnCpu() || plan.overscan.size() != nf ||
+      plan.darkSeconds.size() != nf || !fits(plan.bias) || !fits(plan.darkPerS) || !fits(plan.flat))
+    return std::nullopt;
+  return frameBackgrounds(cube, params, progress, cancel, &plan);
+}
+
+stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
+                                                         const stats::FrameBackgroundParams& params,
+                                                         ProgressSink& progress, CancelToken& cancel,
+                                                         const calib::CalibrationPlan* plan) {
   m_note.clear();
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;
   m_sepFramesValid = false;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
-  if (!params.enabled || nf == 0 || sepOnCpu())
+  if (!params.enabled || nf == 0 || sepOnCpu()) {
+    if (plan) calib::applyPixelCalibration(cube, *plan, progress, cancel);
     return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  }
   Stopwatch sw;
   progress.report(0.0, "frame backgrounds (GPU)");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
@@ -47,6 +76,24 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   r.copy.sync();
   const double upload = sw.lap();
   cancel.throwIfCancelled();
+  double calibrate = 0.0;
+  if (plan) {
+    auto masterOnDevice = [](const Image* m) { return m ? toDevice(m->pixels) : DeviceBuffer<float>(); };
+    DeviceBuffer<float> bias = masterOnDevice(plan->bias), dark = masterOnDevice(plan->darkPerS),
+                        flat = masterOnDevice(plan->flat);
+    DeviceBuffer<float> overscan = toDevice(plan->overscan), darkSeconds = toDevice(plan->darkSeconds);
+    PixelCalibrationLaunch pc{pix.get(),
+                              nf,
+                              np,
+                              overscan.get(),
+                              darkSeconds.get(),
+                              plan->bias ? bias.get() : nullptr,
+                              plan->darkPerS ? dark.get() : nullptr,
+                              plan->flat ? flat.get() : nullptr};
+    launchPixelCalibration(pc, r.compute.get());
+    r.compute.sync();
+    calibrate = sw.lap();
+  }
   progress.report(0.3, "frame backgrounds (GPU)");
   const SepFrameBackgrounds sep = removeFrameBackgroundsOnDevice(
       pix.get(), hasMask ? mask.get() : nullptr, cube.width(), cube.height(), static_cast<int>(nf),
@@ -69,9 +116,10 @@ stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
   for (const double l : out.level)
     finite += std::isfinite(l) ? 1 : 0;
   out.framesSkipped = nf - finite;
-  m_note = "frame backgrounds on " + name() + ": upload " + ms(upload) + ", meshes " + ms(sep.meshSeconds) +
-           ", filter and splines on the host " + ms(sep.hostSeconds) + ", subtraction " +
-           ms(sep.subtractSeconds) + ", download " + ms(down) +
+  m_note = std::string(plan ? "calibration and frame backgrounds on " : "frame backgrounds on ") + name() +
+           ": upload " + ms(upload) + (plan ? ", calibration " + ms(calibrate) : std::string()) +
+           ", meshes " + ms(sep.meshSeconds) + ", filter and splines on the host " + ms(sep.hostSeconds) +
+           ", subtraction " + ms(sep.subtractSeconds) + ", download " + ms(down) +
            "; frames kept on the device for the global background, hot pixels and prefetch";
   progress.report(1.0, "frame backgrounds (GPU)");
   return out;

@@ -41,6 +41,20 @@ struct SepMeshLaunch {
 /// SEP's backstat + backhisto + backguess for every (frame, mesh).
 void launchSepMeshes(const SepMeshLaunch& p, cudaStream_t s);
 
+/// calib::applyPixelCalibration in place on nf frames of np pixels: v = f - overscan[n], then - bias[i],
+/// - darkPerS[i] * darkSeconds[n], / flat[i] where given (not null), each step rounded to float as on the
+/// CPU (no fused multiply-add).
+struct PixelCalibrationLaunch {
+  float* pix;
+  std::size_t nf, np;
+  const float* overscan;     ///< per frame
+  const float* darkSeconds;  ///< per frame
+  const float* bias;         ///< np, or null
+  const float* darkPerS;     ///< np, or null
+  const float* flat;         ///< np, or null
+};
+void launchPixelCalibration(const PixelCalibrationLaunch& p, cudaStream_t s);
+
 /// The per-row and per-column constants of SEP's spline evaluation, made on the host (core's tables).
 using SepRow = stats::sep::SplineRow;
 using SepColumn = stats::sep::SplineColumn;

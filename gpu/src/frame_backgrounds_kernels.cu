@@ -373,6 +373,29 @@ void launchHotPixelExcess(const float* pix, const std::uint8_t* mask, std::size_
   checkLaunch("hotPixelExcessKernel");
 }
 
+namespace {
+
+__global__ void pixelCalibrationKernel(PixelCalibrationLaunch p) {
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (k >= p.nf * p.np) return;
+  const std::size_t n = k / p.np, i = k - n * p.np;
+  float v = __fsub_rn(p.pix[k], __ldg(p.overscan + n));
+  if (p.bias) v = __fsub_rn(v, __ldg(p.bias + i));
+  if (p.darkPerS) v = __fsub_rn(v, __fmul_rn(__ldg(p.darkPerS + i), __ldg(p.darkSeconds + n)));
+  if (p.flat) v = __fdiv_rn(v, __ldg(p.flat + i));
+  p.pix[k] = v;
+}
+
+}  // namespace
+
+void launchPixelCalibration(const PixelCalibrationLaunch& p, cudaStream_t s) {
+  const std::size_t total = p.nf * p.np;
+  if (total == 0) return;
+  constexpr int kThreads = 256;
+  pixelCalibrationKernel<<<static_cast<unsigned>((total + kThreads - 1) / kThreads), kThreads, 0, s>>>(p);
+  checkLaunch("pixelCalibrationKernel");
+}
+
 void launchSepMeshes(const SepMeshLaunch& p, cudaStream_t s) {
   const long long blocks = static_cast<long long>(p.nf) * p.nx * p.ny;
   if (blocks == 0) return;

@@ -8,6 +8,7 @@
 #include <optional>
 #include <random>
 
+#include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/sim/simulator.hpp"
@@ -69,7 +70,19 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return false;  // not supported: the stages one by one
   }
-  int calls = 0, snrCalls = 0, stackCalls = 0;
+  /// Fail and InputFault as every stage; Work: the CPU's pixel calibration, then SEP, after
+  /// `declineCalibration` none (not supported).
+  std::optional<stats::FrameBackgrounds> calibrateAndRemoveFrameBackgrounds(
+      FrameCube& cube, const calib::CalibrationPlan& plan, const stats::FrameBackgroundParams& params,
+      ProgressSink& progress, CancelToken& cancel) override {
+    ++calibrationCalls;
+    act();
+    if (declineCalibration) return std::nullopt;
+    calib::applyPixelCalibration(cube, plan, progress, cancel);
+    return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  }
+  int calls = 0, snrCalls = 0, stackCalls = 0, calibrationCalls = 0;
+  bool declineCalibration = false;
 
  private:
   void act() const {
@@ -130,6 +143,60 @@ TEST(PreprocessAccelerator, DeviceFailureFallsBackToTheCpuWithAWarning) {
   EXPECT_NE(notes[3].find("frame backgrounds on fake device failed"), std::string::npos) << notes[3];
   EXPECT_EQ(sa.pixels(), sb.pixels());
   EXPECT_EQ(la.level, lb.level);
+}
+
+// The pixel calibration with the frame backgrounds (calibrateAndRemoveFrameBackgroundsOn): a device that
+// fails leaves the cube raw, and the CPU calibrates it and removes the backgrounds, with a warning; one that
+// declines or works gives the same cube; either way the cube equals applyCalibration's followed by the CPU's
+// frame backgrounds.
+TEST(PreprocessAccelerator, CalibrationWithTheFrameBackgroundsFallsBackToTheCpu) {
+  const FrameCube raw = noiseCube(48, 40, 12);
+  calib::MasterCalibration m;
+  m.width = 48;
+  m.height = 40;
+  m.bias = Image(48, 40, 20.0f);
+  m.flat = Image(48, 40, 0.95f);
+  m.flat.pixels[7] = 1.1f;
+  NullProgress progress;
+  CancelToken cancel;
+  FrameCube want = raw;
+  calib::applyCalibration(want, m, {}, progress, cancel);
+  stats::removeFrameBackgrounds(want, {}, progress, cancel);
+  ASSERT_NE(want.pixels(), raw.pixels());
+  for (const auto mode : {FakeAccelerator::Mode::Fail, FakeAccelerator::Mode::Work}) {
+    for (const bool decline : {false, true}) {
+      FakeAccelerator accel(mode);
+      accel.declineCalibration = decline;
+      FrameCube cube = raw;
+      calib::CalibrationPlan plan = calib::planCalibration(cube, m, {});
+      std::vector<std::string> notes;
+      pipeline::calibrateAndRemoveFrameBackgroundsOn(&accel, cube, plan, {}, progress, cancel, notes);
+      EXPECT_EQ(accel.calibrationCalls, 1);
+      EXPECT_EQ(cube.pixels(), want.pixels());
+      if (mode == FakeAccelerator::Mode::Fail) {
+        ASSERT_EQ(notes.size(), 1u);
+        EXPECT_NE(notes[0].find("calibration and frame backgrounds on fake device failed"), std::string::npos)
+            << notes[0];
+        EXPECT_EQ(accel.calls, 0);  // the backgrounds not asked of the failed device again
+      } else {
+        EXPECT_TRUE(notes.empty());
+        EXPECT_EQ(accel.calls, decline ? 1 : 0);  // declined: the device's own frame backgrounds
+      }
+    }
+  }
+  // finishCalibration before the pixels (the device's order when nothing is trimmed): the same cube and mask.
+  m.bad.assign(48 * 40, 0);
+  m.bad[100] = 1;
+  FrameCube a = raw, b = raw;
+  calib::applyCalibration(a, m, {}, progress, cancel);
+  calib::CalibrationPlan plan = calib::planCalibration(b, m, {});
+  EXPECT_FALSE(calib::trims(b, plan));
+  const calib::CalibrationReport rep = calib::finishCalibration(b, m, plan);
+  calib::applyPixelCalibration(b, plan, progress, cancel);
+  EXPECT_EQ(a.pixels(), b.pixels());
+  EXPECT_EQ(a.mask(), b.mask());
+  EXPECT_EQ(rep.badPixels, 1u);
+  EXPECT_EQ(b.mask()[5 * 48 * 40 + 100], 1);
 }
 
 TEST(PreprocessAccelerator, WorkingDeviceIsUsedAndInputErrorsPropagate) {

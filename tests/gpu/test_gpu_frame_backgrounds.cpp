@@ -15,9 +15,11 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <random>
 
 #include "require_gpu_preprocess.hpp"
+#include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/hot_pixels.hpp"
@@ -174,6 +176,65 @@ TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
     accel->globalBackground(cube, {});
     EXPECT_EQ(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
   }
+}
+
+// The raw frames calibrated on the device after the frame backgrounds' upload
+// (calibrateAndRemoveFrameBackgrounds): the same cube and levels, bit for bit, as the CPU's pixel
+// calibration followed by the device's frame backgrounds, with an overscan, bias, dark and flat; with the
+// bias alone; and not done (none, the cube untouched) when a master does not fit the frames.
+TEST(GpuFrameBackgrounds, CalibratedOnTheDeviceEqualsTheCpusCalibration) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  const int w = 150, h = 110, n = 12;
+  FrameCube raw = skyCube(w, h, n, 31, true);
+  for (int k = 0; k < n; ++k)
+    raw.info()[k].exposureS = 0.5 + 0.01 * k;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  Image bias(w, h), dark(w, h), flat(w, h);
+  for (std::size_t i = 0; i < bias.pixels.size(); ++i) {
+    bias.pixels[i] = 300.0f + 7.0f * u(rng);
+    dark.pixels[i] = 0.3f * u(rng);
+    flat.pixels[i] = 0.9f + 0.2f * u(rng);
+  }
+  for (const bool all : {true, false}) {
+    SCOPED_TRACE(all ? "overscan, bias, dark, flat" : "bias only");
+    calib::CalibrationPlan plan;
+    plan.overscan.assign(n, 0.0f);
+    plan.darkSeconds.resize(n);
+    for (int k = 0; k < n; ++k) {
+      plan.darkSeconds[k] = static_cast<float>(raw.info()[k].exposureS);
+      if (all) plan.overscan[k] = 10.0f + 0.37f * k;
+    }
+    plan.bias = &bias;
+    if (all) {
+      plan.darkPerS = &dark;
+      plan.flat = &flat;
+    }
+    NullProgress progress;
+    CancelToken cancel;
+    FrameCube cpu = raw, dev = raw;
+    calib::applyPixelCalibration(cpu, plan, progress, cancel);
+    const stats::FrameBackgrounds a = accel->removeFrameBackgrounds(cpu, {}, progress, cancel);
+    const std::optional<stats::FrameBackgrounds> b =
+        accel->calibrateAndRemoveFrameBackgrounds(dev, plan, {}, progress, cancel);
+    ASSERT_TRUE(b.has_value());
+    EXPECT_NE(accel->lastNote().find("calibration and frame backgrounds"), std::string::npos)
+        << accel->lastNote();
+    EXPECT_EQ(std::memcmp(cpu.pixels().data(), dev.pixels().data(), cpu.pixels().size() * sizeof(float)), 0);
+    EXPECT_EQ(a.level, b->level);
+    EXPECT_EQ(a.rms, b->rms);
+  }
+  Image small(w - 1, h);
+  calib::CalibrationPlan wrong;
+  wrong.overscan.assign(n, 0.0f);
+  wrong.darkSeconds.assign(n, 1.0f);
+  wrong.bias = &small;
+  FrameCube untouched = raw;
+  NullProgress progress;
+  CancelToken cancel;
+  EXPECT_FALSE(accel->calibrateAndRemoveFrameBackgrounds(untouched, wrong, {}, progress, cancel).has_value());
+  EXPECT_EQ(std::memcmp(untouched.pixels().data(), raw.pixels().data(), raw.pixels().size() * sizeof(float)),
+            0);
 }
 
 }  // namespace

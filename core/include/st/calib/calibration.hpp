@@ -73,6 +73,29 @@ struct CalibrationReport {
 CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
                                    const CalibParams& params, ProgressSink& progress, CancelToken& cancel);
 
+/// applyCalibration in three steps, so that a device may make the pixel arithmetic part of its upload
+/// (issue 16): plan (inputs checked, the overscan levels measured), the pixels, then finish (bad pixels
+/// masked, the trim). The bad pixels do not depend on the pixel values: where no trim follows, finish may
+/// run before the pixels.
+struct CalibrationPlan {
+  /// Frame n's pixels become ((((f - overscan[n]) - bias) - darkPerS * darkSeconds[n]) / flat) in float,
+  /// each master's step only where it is given (not null).
+  std::vector<float> overscan, darkSeconds;  ///< per frame
+  const Image* bias = nullptr;
+  const Image* darkPerS = nullptr;
+  const Image* flat = nullptr;
+  std::optional<Section> trimSec;  ///< the trim finish applies (none, or the whole frame: no trim)
+  CalibrationReport report;        ///< overscan levels and warnings so far
+};
+/// Throws as applyCalibration does. `masters` must outlive the plan.
+CalibrationPlan planCalibration(const FrameCube& cube, const MasterCalibration& masters,
+                                const CalibParams& params);
+void applyPixelCalibration(FrameCube& cube, const CalibrationPlan& plan, ProgressSink& progress,
+                           CancelToken& cancel);
+CalibrationReport finishCalibration(FrameCube& cube, const MasterCalibration& masters, CalibrationPlan& plan);
+/// True when finishCalibration will trim `cube` (then the pixels must come first).
+bool trims(const FrameCube& cube, const CalibrationPlan& plan);
+
 /// The region (0-based) that applyCalibration trims frames of `width` x `height` px with `header` to
 /// (params.trimSec, else TRIMSEC, else DATASEC; clipped or ignored as it does, with its warnings); none when
 /// it keeps the whole frame. Out-of-core pre-processing maps its strips onto the trimmed image with it.

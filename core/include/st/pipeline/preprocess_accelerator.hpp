@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "st/calib/calibration.hpp"
 #include "st/calib/cosmic_rays.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
@@ -70,6 +71,16 @@ class PreprocessAccelerator {
                                                          const stats::FrameBackgroundParams& params,
                                                          ProgressSink& progress, CancelToken& cancel) {
     return stats::removeFrameBackgrounds(cube, params, progress, cancel);
+  }
+  /// calib::applyPixelCalibration(cube, plan) and then removeFrameBackgrounds(cube, params) in one (issue
+  /// 16: a device applies the plan to the frames it uploads for the backgrounds, the same floats, instead of
+  /// a pass of its own over the host cube). None when not supported, `cube` untouched (the caller does the
+  /// two in turn); on st::GpuError `cube` is as it was. The default supports none.
+  virtual std::optional<stats::FrameBackgrounds> calibrateAndRemoveFrameBackgrounds(
+      FrameCube& cube, const calib::CalibrationPlan& plan, const stats::FrameBackgroundParams& params,
+      ProgressSink& progress, CancelToken& cancel) {
+    (void)cube, (void)plan, (void)params, (void)progress, (void)cancel;
+    return std::nullopt;
   }
   /// Same contract as stats::globalBackground, mean and sigma within the rounding of its double sums (the
   /// same samples, count and passes). The default is the CPU's.
@@ -200,6 +211,15 @@ stats::FrameBackgrounds removeFrameBackgroundsOn(PreprocessAccelerator* accel, F
                                                  const stats::FrameBackgroundParams& params,
                                                  ProgressSink& progress, CancelToken& cancel,
                                                  std::vector<std::string>& notes);
+
+/// calib::applyPixelCalibration and then stats::removeFrameBackgrounds: on `accel` in one when it supports
+/// that (adding its lastNote()); else (or on st::GpuError, with a warning in `notes`, the cube as it was)
+/// the pixels on the CPU, then removeFrameBackgroundsOn.
+stats::FrameBackgrounds calibrateAndRemoveFrameBackgroundsOn(PreprocessAccelerator* accel, FrameCube& cube,
+                                                             const calib::CalibrationPlan& plan,
+                                                             const stats::FrameBackgroundParams& params,
+                                                             ProgressSink& progress, CancelToken& cancel,
+                                                             std::vector<std::string>& notes);
 
 /// stats::globalBackground on `accel` when given, else (or on st::GpuError, with a warning in `notes`) on
 /// the CPU.
