@@ -72,6 +72,9 @@ BackendSelection makeBackend(BackendChoice choice, FramePrecisionChoice precisio
     gpu::CudaOptions options;
     options.precision = half ? gpu::FramePrecision::Float16 : gpu::FramePrecision::Float32;
     out.backend = gpu::makeCudaSearchBackend(whyNot, options);
+    // The staging buffers of pre-processing's first upload pinned now (beside the frames' read when the
+    // backend is made behind it, BackendInTheMaking): its upload then does not wait for them.
+    if (out.backend) gpu::warmPreprocessStaging();
 #else
     whyNot = "this build has no CUDA backend (built without nvcc)";
 #endif

@@ -1,6 +1,7 @@
 #include "st/detect/static_sources.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <iterator>
@@ -251,12 +252,20 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SkyStackCache own;
   SkyStackCache& cache = stacks ? *stacks : own;
   StaticSources out;
+  auto last = std::chrono::steady_clock::now();
+  auto lap = [&](const char* part) {
+    const auto now = std::chrono::steady_clock::now();
+    out.partSeconds.emplace_back(part, std::chrono::duration<double>(now - last).count());
+    last = now;
+  };
   out.mask = MovingMask(cube, skyRate);
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack& s = cache.stack(cube, skyRate, background, sub, cancel);
+  lap("stack");
   const int cw = s.mean.width, ch = s.mean.height;
   const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider());
+  lap("analysis");
   const Image& resid = an.resid;
   const std::vector<float>& snr = an.snr;
   const std::vector<float>& snrF = an.snrF;
@@ -295,6 +304,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     auto more = components(seeds, grows, cw, ch);
     comps.insert(comps.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
   }
+  lap("components");
   double frames = 0.0;
   for (float c : s.count.pixels)
     frames = std::max<double>(frames, c);
@@ -328,8 +338,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   std::vector<Star> described(comps.size());
   for (std::size_t k = 0; k < comps.size(); ++k)
     described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
+  lap("describing");
   const Motion motion = measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw,
                                        noise.sigma, params, cache, cancel);
+  lap("motions");
   detail::HalfStacks halves;
   for (std::size_t k = 0; k < comps.size(); ++k) {
     const auto& comp = comps[k];
@@ -400,6 +412,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   out.subtractRegion.dilate(base);
   out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
+  lap("footprints");
   progress.report(1.0, "static sources");
   return out;
 }

@@ -16,6 +16,10 @@ run() { local k=$1; shift; if [ "$k" = old ]; then $W/pkg/synthtrack-cli-old "$@
 if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
 for t in $W/pkg/st_gpu_test_*; do timeout 300 $t > $O/$(basename $t).log 2>&1; echo "$(basename $t) rc=$? $(grep -E '^\[  (PASSED|FAILED) ' $O/$(basename $t).log | tr '\n' ' ')"; done
 grep -h "FAILED\|Failure" $O/st_gpu_test_*.log | head -20
+# This stop's kernels under memcheck: the cosmic rays' pre-test, the calibration with the frame backgrounds.
+for t in "st_gpu_test_gpu_cosmic_rays" "st_gpu_test_gpu_frame_backgrounds --gtest_filter=*Calibrated*"; do
+  timeout 200 compute-sanitizer --tool memcheck --leak-check full $W/pkg/$t > $O/memcheck_${t%% *}.log 2>&1
+  echo "memcheck ${t} rc=$? $(grep -E 'ERROR SUMMARY|LEAK SUMMARY' $O/memcheck_${t%% *}.log | tr '\n' ' ')"; done
 fi
 [ "$MODE" = tests ] && exit 0
 for r in 1 2 3 4 5 6; do for k in "${KNOBS[@]}"; do FP=; [ $r = 5 ] && FP=--fingerprint

@@ -16,6 +16,13 @@ namespace st::gpu {
 /// 117-130 ms instead of 43-51 ms; parallelFor starts its threads for every piece).
 inline constexpr std::size_t kStagingBytes = std::size_t{32} << 20;
 
+/// Pins `count` staging buffers (kStagingBytes each) into a process-wide pool, for the next DeviceResources
+/// to take: the CUDA backend's creation does it beside the frames' read, so that pre-processing's first
+/// upload does not wait for cudaMallocHost (pinned host memory serves every device).
+void warmPinnedStaging(int count);
+/// A staging buffer from that pool, else a new one.
+PinnedBuffer takePinnedStaging();
+
 /// Streams and staging buffers of one device, created with that device current and used by one host thread
 /// at a time (the device's search thread). A search that fails drops them (the owner resets the pointer).
 struct DeviceResources {
@@ -27,7 +34,7 @@ struct DeviceResources {
   /// cudaMallocHost of 64 MiB took 29-73 ms (probe on H100 hosts, 2026-11-28; the tree search's whole wall
   /// on the paper's problem is ~0.12 s).
   void* staging(int b) {
-    if (!m_staging[b].get()) m_staging[b] = PinnedBuffer(kStagingBytes);
+    if (!m_staging[b].get()) m_staging[b] = takePinnedStaging();
     return m_staging[b].get();
   }
 

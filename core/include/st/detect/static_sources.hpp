@@ -101,6 +101,9 @@ struct StaticSources {
   /// sub-pixel motion) where their template is subtracted; empty otherwise.
   MovingMask subtractRegion;
   double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
+  /// Wall seconds of the search's parts, for the notes: the stack, its analysis (mesh backgrounds, SNR
+  /// maps), the components, describing them, their motions (the stacks of the thirds), the footprints.
+  std::vector<std::pair<const char*, double>> partSeconds;
 };
 
 /// Finds static sources in the stack of `cube` at `skyRate` (px/s) with `background` (a scalar, e.g. the
