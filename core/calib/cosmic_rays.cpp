@@ -394,7 +394,8 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   if (preTestProvider && *preTestProvider) {
     preTestWords = (*preTestProvider)(cube, thr);
     if (preTestWords && (preTestWords->index.size() != preTestWords->bits.size() ||
-                         !std::is_sorted(preTestWords->index.begin(), preTestWords->index.end())))
+                         std::adjacent_find(preTestWords->index.begin(), preTestWords->index.end(),
+                                            std::greater_equal<>()) != preTestWords->index.end()))
       preTestWords.reset();
     out.preTestProvided = preTestWords.has_value();
   }

@@ -7,6 +7,8 @@
 #include <memory>
 #include <thread>
 
+#include <system_error>
+
 #include "cuda_preprocess.hpp"
 #include "frame_backgrounds.hpp"
 #include "global_background_host.hpp"
@@ -44,17 +46,21 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
 }
 
 CudaPreprocess::CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {
-  m_warm = std::jthread([this] {
-    try {
-      ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
-      auto r = std::make_unique<DeviceResources>();
-      r->staging(0);
-      r->staging(1);
-      m_res = std::move(r);
-    } catch (...) {
-      // Left to resources(): the first stage makes them, and reports what fails.
-    }
-  });
+  try {
+    m_warm = std::jthread([this] {
+      try {
+        ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+        auto r = std::make_unique<DeviceResources>();
+        r->staging(0);
+        r->staging(1);
+        m_res = std::move(r);
+      } catch (...) {
+        // Left to resources(): the first stage makes them, and reports what fails.
+      }
+    });
+  } catch (const std::system_error&) {
+    // No thread: resources() makes them on first use.
+  }
 }
 
 std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std::size_t wanted) {

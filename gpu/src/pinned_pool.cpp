@@ -1,4 +1,5 @@
 // Pinned staging buffers made ahead (uploader.hpp: warmPinnedStaging, takePinnedStaging).
+#include <algorithm>
 #include <mutex>
 #include <vector>
 
@@ -23,7 +24,14 @@ Pool& pool() {
 }  // namespace
 
 void warmPinnedStaging(int count) {
-  for (int k = 0; k < count; ++k) {
+  // Topped up to `count`, not added to: a GUI makes a backend for every job.
+  std::size_t missing = 0;
+  {
+    const std::lock_guard lock(pool().mutex);
+    const std::size_t want = static_cast<std::size_t>(std::max(0, count));
+    missing = want > pool().buffers.size() ? want - pool().buffers.size() : 0;
+  }
+  for (std::size_t k = 0; k < missing; ++k) {
     PinnedBuffer b(kStagingBytes);  // outside the lock: ~15-35 ms each
     const std::lock_guard lock(pool().mutex);
     pool().buffers.push_back(std::move(b));

@@ -51,14 +51,14 @@ TEST(MovingMask, FollowsTheSkyRate) {
 }
 
 // dilate() equals the brute-force disc (every canvas pixel within `radius`, di^2 + dj^2 <= radius^2, of a set
-// one) on random masks from sparse to dense, at radii 1-9, near and at the canvas edges: the oracle for any
-// faster dilation.
+// one) on random masks from sparse to dense, at every radius 1-9, near and at the canvas edges: the oracle
+// for any faster dilation.
 TEST(MovingMask, DilateEqualsTheBruteForceDisc) {
   const std::vector<double> dt = {-30.0, 0.0, 25.0};
   std::uint32_t state = 12345;
   auto next = [&state] { return state = state * 1664525u + 1013904223u; };
   for (const double density : {0.002, 0.03, 0.3}) {
-    for (int radius = 1; radius <= 9; radius += 2) {
+    for (int radius = 1; radius <= 9; ++radius) {
       MovingMask m(61, 29, dt, {0.7, -0.2});
       for (int j = 0; j < m.canvasHeight(); ++j)
         for (int i = 0; i < m.canvasWidth(); ++i)

@@ -115,7 +115,8 @@ struct CosmicRayResult {
 /// k = 32 w + j (k = n * width * height + y * width + x) where !(f - max(fa, fb) <= thr) in float arithmetic
 /// (NaN passes), f the pixel, fa and fb the same pixel of frame n's two reference frames (its neighbours;
 /// frames 1 and 2 for the first, the two before it for the last), max as std::max(fa, fb). Only the
-/// non-zero words, in ascending w (a few per frame: noise passes at ~1e-4).
+/// non-zero words, in strictly ascending w (a few per frame: noise passes at ~1e-4); words out of order or
+/// repeated are not used.
 struct CosmicRayPreTestWords {
   std::vector<std::uint64_t> index;  ///< w
   std::vector<std::uint32_t> bits;   ///< word w
