@@ -410,6 +410,11 @@ void applyPixelCalibration(FrameCube& cube, const CalibrationPlan& plan, Progres
   });
 }
 
+bool trims(const FrameCube& cube, const CalibrationPlan& plan) {
+  const std::optional<Section>& t = plan.trimSec;
+  return t && !(t->x0 == 0 && t->y0 == 0 && t->width == cube.width() && t->height == cube.height());
+}
+
 CalibrationReport finishCalibration(FrameCube& cube, const MasterCalibration& masters,
                                     CalibrationPlan& plan) {
   CalibrationReport rep = std::move(plan.report);
@@ -433,8 +438,7 @@ CalibrationReport finishCalibration(FrameCube& cube, const MasterCalibration& ma
     }
   }
   const std::optional<Section>& trimSec = plan.trimSec;
-  if (trimSec && !(trimSec->x0 == 0 && trimSec->y0 == 0 && trimSec->width == w && trimSec->height == h))
-    trimInPlace(cube, *trimSec);
+  if (trims(cube, plan)) trimInPlace(cube, *trimSec);
   rep.trimmedWidth = cube.width();
   rep.trimmedHeight = cube.height();
   if (!masters.bad.empty()) {
@@ -444,11 +448,6 @@ CalibrationReport finishCalibration(FrameCube& cube, const MasterCalibration& ma
         rep.badPixels += masters.bad[static_cast<std::size_t>(y) * w + x];
   }
   return rep;
-}
-
-bool trims(const FrameCube& cube, const CalibrationPlan& plan) {
-  const std::optional<Section>& t = plan.trimSec;
-  return t && !(t->x0 == 0 && t->y0 == 0 && t->width == cube.width() && t->height == cube.height());
 }
 
 CalibrationReport applyCalibration(FrameCube& cube, const MasterCalibration& masters,
