@@ -1,6 +1,8 @@
 #include "sky_rate_chain.hpp"
 
 #include <algorithm>
+#include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -265,8 +267,20 @@ cv::Mat compressed(const LinearImage& l, double detectSigma) {
 // correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
 // for both, so that a window cut by it is cut alike in both). False when they share no reliable star
 // pattern.
+// Seconds since `t`, and `t` moved to now.
+double lapSeconds(std::chrono::steady_clock::time_point& t) {
+  const auto now = std::chrono::steady_clock::now();
+  const double s = std::chrono::duration<double>(now - t).count();
+  t = now;
+  return s;
+}
+
+// A link's thread seconds in its parts: the images, the phase correlation, the paired stars.
+using LinkParts = std::array<double, 3>;
+
 bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 const SkyRateParams& params, Link* link) {
+                 const SkyRateParams& params, Link* link, LinkParts* parts) {
+  auto t = std::chrono::steady_clock::now();
   const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
   const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
   const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
@@ -275,11 +289,14 @@ bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const 
   const LinearImage la = linearImage(a.value, a.noise, both);
   const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
   const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);
+  (*parts)[0] += lapSeconds(t);
   double r = 0.0;
   cv::Point2d d = phaseShift(ia, ib, window, &r);
+  (*parts)[1] += lapSeconds(t);
   if (!(r >= params.minResponse)) return false;
   cv::Point2d c;
   link->byStars = windowedOffset(la, lb, pairSources(ia, ib, d, kPairPeak), &c, &link->var);
+  (*parts)[2] += lapSeconds(t);
   if (link->byStars) {
     d = c;
   } else {
@@ -358,7 +375,8 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
 // The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
 // between them (neighbours always), measured in parallel; failed comparisons are left out.
 std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
-                               const SkyRateParams& params, int width, int height, CancelToken& cancel) {
+                               const SkyRateParams& params, int width, int height, CancelToken& cancel,
+                               LinkParts* partsSum) {
   const std::size_t k = stacks.size();
   std::vector<Link> tried;
   for (std::size_t i = 0; i < k; ++i)
@@ -370,12 +388,16 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
       tried.push_back({i, j, {}, {}, 0.0, false});
     }
   std::vector<char> ok(tried.size(), 0);
+  std::vector<LinkParts> parts(tried.size(), LinkParts{});
   parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
     for (std::size_t l = l0; l < l1; ++l) {
       cancel.throwIfCancelled();
-      ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l]);
+      ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
     }
   });
+  for (const LinkParts& p : parts)
+    for (std::size_t q = 0; q < p.size(); ++q)
+      (*partsSum)[q] += p[q];
   std::vector<Link> links;
   for (std::size_t l = 0; l < tried.size(); ++l)
     if (ok[l]) links.push_back(tried[l]);
@@ -402,11 +424,17 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   cv::Mat window;
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
   Velocity rate = start;
+  LinkParts parts{};
   for (int it = 0; it < 4; ++it) {
+    auto t = std::chrono::steady_clock::now();
     const std::vector<BlockStack> stacks =
         stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel);
+    out.stacksSeconds += lapSeconds(t);
     const std::vector<Link> links =
-        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel);
+        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, &parts);
+    out.linksSeconds += lapSeconds(t);
+    out.iterations = it + 1;
+    out.imagesThreadSeconds = parts[0], out.phaseThreadSeconds = parts[1], out.starsThreadSeconds = parts[2];
     if (!connected(k, links)) {
       // A later iteration that loses the chain keeps the earlier one's result.
       if (!out.ok)

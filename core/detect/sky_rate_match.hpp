@@ -2,6 +2,7 @@
 // Internal to the sky-rate measurement (sky_rate.cpp, sky_rate_chain.cpp): the offset of the star field
 // between two images of it. Sources are found and paired on thresholded, compressed images (0 where faint,
 // log1p(value / threshold) elsewhere); the chain then measures them on the linear images.
+#include <cstddef>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -61,5 +62,14 @@ bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, dou
 /// sky rate's 54 links of 512^2 images (issue 16), within ~1e-3 px and ~1e-4 in response of OpenCV
 /// (tests/core/test_sky_rate_phase_shift.cpp). The inputs are not changed.
 cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response);
+
+/// phaseShift's normalised cross-power spectrum, in place of `fa` (n complexes of FFTW's layout): A conj(B)
+/// / |A conj(B)| in double, each rounded to float, 0 where it vanishes. `vectorised`: AVX2 where the CPU has
+/// it (the same floats as the scalar loop; false for the tests' reference).
+void normaliseCrossPower(float (*fa)[2], const float (*fb)[2], std::size_t n, bool vectorised = true);
+
+/// phaseShift's peak: the index, in the quadrant-swapped surface (x - nx / 2 and y - ny / 2 modulo the
+/// size), of c's largest value (row-major nx x ny); of equal values, the first in that swapped row order.
+std::size_t firstLargestShifted(const float* c, int nx, int ny);
 
 }  // namespace st::detect::detail

@@ -232,7 +232,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       char parts[120];
       std::snprintf(parts, sizeof parts, "sky rate: block pairs %.1f ms, chain %.1f ms", 1e3 * r.pairsSeconds,
                     1e3 * r.chainSeconds);
-      out.notes.push_back(parts);
+      out.notes.push_back(parts + (r.chainParts.empty() ? std::string() : " (" + r.chainParts + ")"));
     }
     if (params.accelerator && sumsStep.asked > 0)
       out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +

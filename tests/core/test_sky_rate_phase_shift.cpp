@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -94,6 +97,78 @@ TEST(SkyRatePhaseShift, UnrelatedImagesGiveALowResponseAsOpenCvs) {
   const cv::Point2d d = detect::detail::phaseShift(z, z, cv::Mat(), &rz);
   EXPECT_EQ(rz, 0.0);
   EXPECT_TRUE(std::isfinite(d.x) && std::isfinite(d.y));
+}
+
+// The cross-power spectrum's vectorised normalisation (AVX2 where the CPU has it) against the scalar loop,
+// bit for bit: random spectra with vanishing products (a zero bin in either), signed zeros, tiny and huge
+// values, at lengths that leave a scalar tail.
+TEST(SkyRatePhaseShift, VectorisedNormalisationEqualsTheScalarLoopBitForBit) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::uniform_int_distribution<int> kind(0, 9), e(-30, 30);
+  for (const std::size_t n :
+       {std::size_t{1}, std::size_t{4}, std::size_t{7}, std::size_t{131}, std::size_t{257 * 512}}) {
+    std::vector<float> fa(2 * n), fb(2 * n);
+    for (std::size_t i = 0; i < 2 * n; ++i) {
+      const int k = kind(rng);
+      fa[i] = k == 0 ? 0.0f : k == 1 ? -0.0f : std::ldexp(u(rng), e(rng));
+      fb[i] = k == 2 ? 0.0f : std::ldexp(u(rng), e(rng));
+    }
+    for (std::size_t i = 0; i < n; i += 5)  // whole bins of zeros in one spectrum or the other
+      (i % 2 ? fa : fb)[2 * i] = 0.0f, (i % 2 ? fa : fb)[2 * i + 1] = 0.0f;
+    std::vector<float> scalar = fa, vectorised = fa;
+    detect::detail::normaliseCrossPower(reinterpret_cast<float(*)[2]>(scalar.data()),
+                                        reinterpret_cast<const float(*)[2]>(fb.data()), n, false);
+    detect::detail::normaliseCrossPower(reinterpret_cast<float(*)[2]>(vectorised.data()),
+                                        reinterpret_cast<const float(*)[2]>(fb.data()), n, true);
+    EXPECT_EQ(std::memcmp(scalar.data(), vectorised.data(), scalar.size() * sizeof(float)), 0) << "n " << n;
+    // Unit magnitude where the product does not vanish, 0 where it does.
+    for (std::size_t i = 0; i < n; ++i) {
+      const double m = std::hypot(scalar[2 * i], scalar[2 * i + 1]);
+      EXPECT_TRUE(m == 0.0 || std::fabs(m - 1.0) < 1e-6) << i << ": " << m;
+    }
+  }
+}
+
+// The row-order scan phaseShift used to find its peak: the first maximum in row order, of equal values the
+// one first in the quadrant-swapped order.
+std::size_t rowOrderScan(const std::vector<float>& c, int nx, int ny) {
+  auto shiftedIndex = [&](std::size_t i) {
+    const int x = static_cast<int>(i % static_cast<std::size_t>(nx)), y = static_cast<int>(i / nx);
+    return static_cast<std::size_t>((y + ny / 2) % ny) * nx + static_cast<std::size_t>((x + nx / 2) % nx);
+  };
+  std::size_t bestAt = 0, bestShifted = shiftedIndex(0);
+  for (std::size_t i = 1; i < c.size(); ++i) {
+    if (c[i] < c[bestAt]) continue;
+    if (c[i] > c[bestAt] || shiftedIndex(i) < bestShifted) bestAt = i, bestShifted = shiftedIndex(i);
+  }
+  return bestShifted;
+}
+
+// The peak search (largest value, then the first of its ties in the swapped order) against that scan: one
+// peak, many ties (values on a coarse grid), signed zeros only, at even and odd sizes; and with NaN or
+// infinite values, where it falls back to the scan itself.
+TEST(SkyRatePhaseShift, PeakSearchEqualsTheRowOrderScan) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::uniform_int_distribution<int> coarse(-3, 3);
+  const int sizes[][2] = {{512, 512}, {9, 7}, {64, 33}, {1, 5}, {6, 1}};
+  for (const auto& sz : sizes) {
+    const int nx = sz[0], ny = sz[1];
+    const std::size_t n = static_cast<std::size_t>(nx) * ny;
+    for (int variant = 0; variant < 5; ++variant) {
+      std::vector<float> c(n);
+      for (std::size_t i = 0; i < n; ++i)
+        c[i] = variant == 0   ? u(rng)
+               : variant == 1 ? static_cast<float>(coarse(rng))
+               : variant == 2 ? ((i % 3) ? 0.0f : -0.0f)
+                              : u(rng);
+      if (variant == 3) c[n / 2] = std::numeric_limits<float>::quiet_NaN();
+      if (variant == 4) c[n / 3] = std::numeric_limits<float>::infinity();
+      SCOPED_TRACE(std::to_string(nx) + " x " + std::to_string(ny) + " variant " + std::to_string(variant));
+      EXPECT_EQ(detect::detail::firstLargestShifted(c.data(), nx, ny), rowOrderScan(c, nx, ny));
+    }
+  }
 }
 
 }  // namespace

@@ -47,6 +47,8 @@ struct SkyRate {
   double residualRmsPx = 0.0;  ///< rms over blocks of |offsetPx| (both axes), px
   /// Wall seconds of the block pairs (their means and phase correlations) and of the chain, for the notes.
   double pairsSeconds = 0.0, chainSeconds = 0.0;
+  /// The chain's parts: see detail::ChainResult (a note).
+  std::string chainParts;
 };
 
 /// A block of frames [first, last) stacked with frame n shifted so that stack pixel (x, y) takes frame pixel
