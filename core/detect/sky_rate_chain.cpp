@@ -248,7 +248,7 @@ LinearImage linearImage(const cv::Mat& value, const cv::Mat& noise, const cv::Ma
 // The thresholded, compressed image that finds and pairs the sources: log1p(v / t) where v > t =
 // detectSigma * noise, else 0 (and 0 where not valid).
 cv::Mat compressed(const LinearImage& l, double detectSigma) {
-  cv::Mat out = cv::Mat::zeros(l.value.size(), CV_64F);
+  cv::Mat out(l.value.size(), CV_64F);  // every pixel written below
   for (int y = 0; y < out.rows; ++y) {
     const float* v = l.value.ptr<float>(y);
     const float* n = l.noise.ptr<float>(y);
@@ -256,9 +256,35 @@ cv::Mat compressed(const LinearImage& l, double detectSigma) {
     double* o = out.ptr<double>(y);
     for (int x = 0; x < out.cols; ++x) {
       const double t = detectSigma * n[x];
-      if (ok[x] && t > 0.0 && v[x] > t) o[x] = std::log1p(v[x] / t);
+      o[x] = ok[x] && t > 0.0 && v[x] > t ? std::log1p(v[x] / t) : 0.0;
     }
   }
+  return out;
+}
+
+// a & translated(b, gx, gy) for 0/255 masks, in one pass; `count` gets its non-zero pixels.
+cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* count) {
+  cv::Mat out(a.size(), CV_8U);
+  const int w = a.cols, h = a.rows;
+  const int x0 = std::max(0, -gx), x1 = std::min(w, w - gx);
+  int n = 0;
+  for (int y = 0; y < h; ++y) {
+    unsigned char* o = out.ptr<unsigned char>(y);
+    const int by = y + gy;
+    if (by < 0 || by >= h || x1 <= x0) {
+      std::memset(o, 0, static_cast<std::size_t>(w));
+      continue;
+    }
+    const unsigned char* pa = a.ptr<unsigned char>(y);
+    const unsigned char* pb = b.ptr<unsigned char>(by) + gx;
+    std::memset(o, 0, static_cast<std::size_t>(x0));
+    for (int x = x0; x < x1; ++x) {
+      o[x] = pa[x] & pb[x];
+      n += o[x] != 0;
+    }
+    std::memset(o + x1, 0, static_cast<std::size_t>(w - x1));
+  }
+  *count = n;
   return out;
 }
 
@@ -284,8 +310,9 @@ bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const 
   const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
   const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
   const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
-  const cv::Mat both = a.covered & translated(b.covered, gx, gy);
-  if (cv::countNonZero(both) == 0) return false;
+  int covered = 0;
+  const cv::Mat both = bothCovered(a.covered, b.covered, gx, gy, &covered);
+  if (covered == 0) return false;
   const LinearImage la = linearImage(a.value, a.noise, both);
   const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
   const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);

@@ -171,5 +171,76 @@ TEST(SkyRatePhaseShift, PeakSearchEqualsTheRowOrderScan) {
   }
 }
 
+// sourcesOf as it was, on OpenCV's labels: the oracle for the sparse union-find, order included (what is
+// summed over the sources later is summed in their order).
+std::vector<detect::detail::Source> sourcesByLabels(const cv::Mat& image, double minPeak) {
+  cv::Mat labels;
+  const int n = cv::connectedComponents(image > 0.0, labels, 8, CV_32S);
+  std::vector<detect::detail::Source> acc(static_cast<std::size_t>(std::max(0, n)));
+  std::vector<double> sw(acc.size(), 0.0);
+  std::vector<int> pixels(acc.size(), 0);
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const int l = labels.at<int>(y, x);
+      if (l <= 0) continue;
+      const double v = image.at<double>(y, x);
+      auto& s = acc[static_cast<std::size_t>(l)];
+      s.x += v * x, s.y += v * y, s.peak = std::max(s.peak, v);
+      sw[static_cast<std::size_t>(l)] += v;
+      ++pixels[static_cast<std::size_t>(l)];
+    }
+  std::vector<detect::detail::Source> out;
+  for (std::size_t k = 1; k < acc.size(); ++k)
+    if (pixels[k] >= 4 && acc[k].peak >= minPeak && sw[k] > 0)
+      out.push_back({acc[k].x / sw[k], acc[k].y / sw[k], acc[k].peak});
+  return out;
+}
+
+// The sources of thresholded images equal those of OpenCV's labels bit for bit and in the same order: star
+// fields, random blobs of every shape (diagonal touches, U shapes that merge late, single pixels, the
+// edges), at even and odd sizes, and an empty image.
+TEST(SkyRatePhaseShift, SourcesEqualOpenCvsLabelsInTheirOrder) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<cv::Mat> images;
+  images.push_back(starField(512, 512, 90, 0.0, 0.0, 3));
+  images.push_back(starField(257, 131, 40, 1.5, -2.0, 4));
+  for (const cv::Size size :
+       {cv::Size(64, 64), cv::Size(63, 47), cv::Size(1, 9), cv::Size(9, 1), cv::Size(200, 3)})
+    for (const double fill : {0.05, 0.3, 0.55}) {
+      cv::Mat m = cv::Mat::zeros(size, CV_64F);
+      for (int y = 0; y < m.rows; ++y)
+        for (int x = 0; x < m.cols; ++x)
+          if (u(rng) < fill) m.at<double>(y, x) = 0.1 + 3.0 * u(rng);
+      images.push_back(m);
+    }
+  cv::Mat shapes = cv::Mat::zeros(16, 16, CV_64F);  // a U that joins at its bottom, a diagonal chain
+  for (int y = 1; y < 8; ++y)
+    shapes.at<double>(y, 2) = shapes.at<double>(y, 6) = 1.0 + y;
+  for (int x = 2; x <= 6; ++x)
+    shapes.at<double>(8, x) = 2.0;
+  for (int k = 0; k < 6; ++k)
+    shapes.at<double>(9 + k % 6, 9 + k) = 3.0;
+  shapes.at<double>(0, 15) = shapes.at<double>(1, 14) = shapes.at<double>(0, 13) = shapes.at<double>(1, 12) =
+      5.0;
+  images.push_back(shapes);
+  images.push_back(cv::Mat::zeros(32, 32, CV_64F));
+  int compared = 0;
+  for (std::size_t i = 0; i < images.size(); ++i)
+    for (const double minPeak : {0.0, detect::detail::minPeakCompressed()}) {
+      SCOPED_TRACE("image " + std::to_string(i) + " min peak " + std::to_string(minPeak));
+      const auto ours = detect::detail::sourcesOf(images[i], minPeak);
+      const auto ref = sourcesByLabels(images[i], minPeak);
+      ASSERT_EQ(ours.size(), ref.size());
+      for (std::size_t k = 0; k < ours.size(); ++k) {
+        EXPECT_EQ(ours[k].x, ref[k].x) << k;
+        EXPECT_EQ(ours[k].y, ref[k].y) << k;
+        EXPECT_EQ(ours[k].peak, ref[k].peak) << k;
+      }
+      compared += static_cast<int>(ref.size());
+    }
+  EXPECT_GT(compared, 200);  // the test saw many sources
+}
+
 }  // namespace
 }  // namespace st
