@@ -45,6 +45,16 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   }
 }
 
+void preprocess_detail::downloadInPlace(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
+                                        cudaStream_t s, const std::string& what, const std::string& device) {
+  try {
+    download(r, host, dev, bytes, s);
+  } catch (const GpuError& e) {
+    throw Error(what + "'s download from " + device +
+                " failed part way, leaving the frames half written: " + e.what());
+  }
+}
+
 CudaPreprocess::CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {
   try {
     m_warm = std::jthread([this] {

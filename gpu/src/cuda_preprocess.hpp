@@ -73,6 +73,12 @@ inline bool stagewise() {
 /// core while the next piece's DMA runs).
 void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s);
 
+/// download() into the pipeline's own cube, in place: a failure part way leaves it half written, so it is
+/// not a GpuError (whose contract is a cube as it was, for the CPU to process again) but an Error that
+/// stops the run, naming `what` and `device`.
+void downloadInPlace(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
+                     const std::string& what, const std::string& device);
+
 /// stats/background.cpp evenlySpaced.
 std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted);
 

@@ -195,8 +195,12 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     waitAlloc = sw.lap();
     download(r, destPixels.data(), out.get(), nf * np * sizeof(float), s);
     dest.pixels() = std::move(destPixels);
+  } else if (&dest == &cube) {
+    // Filtered in place: the frames half written would be filtered again by the CPU.
+    downloadInPlace(r, dest.pixels().data(), out.get(), nf * np * sizeof(float), s, "the matched filter",
+                    name());
   } else {
-    download(r, dest.pixels().data(), out.get(), nf * np * sizeof(float), s);
+    download(r, dest.pixels().data(), out.get(), nf * np * sizeof(float), s);  // the CPU writes it anew
   }
   const double down = sw.lap();
   std::string resident = "not kept on the device";

@@ -102,14 +102,10 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   sw.lap();
   cancel.throwIfCancelled();
   progress.report(0.7, "frame backgrounds (GPU)");
-  // Every kernel succeeded: the host cube is written now. A failure part way leaves some frames written:
-  // not a GpuError, whose contract is a cube as it was (the CPU would calibrate or subtract them again).
-  try {
-    download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get());
-  } catch (const GpuError& e) {
-    throw Error(std::string("the frame backgrounds' download from ") + name() +
-                " failed part way, leaving the frames half written: " + e.what());
-  }
+  // Every kernel succeeded: the host cube is written now (a failure part way stops the run: the CPU would
+  // calibrate or subtract the frames written again).
+  downloadInPlace(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get(),
+                  "the frame backgrounds", name());
   const double down = sw.lap();
   // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise).
   m_sepFrames = std::move(pix);

@@ -32,7 +32,8 @@ double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double c
   const double kernels = sw.lap();
   cancel.throwIfCancelled();
   // Every kernel succeeded: the host cube is written now.
-  download(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get());
+  downloadInPlace(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get(),
+                  "the residual means", name());
   const double down = sw.lap();
   m_kept = std::move(pix);
   m_keptData = cube.pixels().data();

@@ -67,7 +67,8 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter.
   m_kept = DeviceBuffer<float>();
   m_keptData = nullptr;
-  download(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s);
+  downloadInPlace(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, "the zero-biased cube",
+                  name());
   const double down = rm.lap();
   m_kept = std::move(kc.pix);
   m_keptData = cube.pixels().data();
