@@ -6,6 +6,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -185,8 +186,15 @@ int benchPreprocess(const Args& args) {
   std::printf("simulated %s (%zu x %d x %d) in %.1f s\n", presetName.c_str(), frames, w, h, simS);
   std::printf("preprocess: %.2f s wall, %.2f s CPU (budget 20 s wall); %s\n", out.elapsedS, cpu,
               accelMessage.c_str());
-  for (const auto& [stage, t] : out.stageSeconds)
-    std::printf("  %-32s %7.3f s\n", stage.c_str(), t);
+  for (const auto& [stage, t] : out.stageSeconds) {
+    const auto cpuOf = std::find_if(out.stageCpuSeconds.begin(), out.stageCpuSeconds.end(),
+                                    [&stage](const auto& s) { return s.first == stage; });
+    if (cpuOf == out.stageCpuSeconds.end())
+      std::printf("  %-34s %7.3f s\n", stage.c_str(), t);
+    else
+      std::printf("  %-34s %7.3f s  (CPU %.3f s: %.1f cores)\n", stage.c_str(), t, cpuOf->second,
+                  t > 0.0 ? cpuOf->second / t : 0.0);
+  }
   std::printf("sigma_n %.5g vs truth %.5g (%+.2f%%); background bias %+.4f sigma\n", out.sigmaN,
               sc.sigmaTruth, 100.0 * (out.sigmaN / sc.sigmaTruth - 1.0), sc.bias / sc.sigmaTruth);
   std::printf("sky rate (%.4g, %.4g) px/s vs truth (%.4g, %.4g)\n", out.skyRate.vx, out.skyRate.vy,

@@ -3,13 +3,13 @@
 // on a shared machine apart from slow code.
 #include <string>
 
+#include "st/common/cpu_time.hpp"  // processCpuSeconds
+
 namespace st::app {
 
 /// The CPU model from /proc/cpuinfo, or "unknown CPU".
 std::string cpuModel();
 /// The current UTC time as "YYYY-MM-DDThh:mm:ssZ".
 std::string utcNow();
-/// CPU time of this process so far (all threads, user + system), seconds.
-double processCpuSeconds();
 
 }  // namespace st::app

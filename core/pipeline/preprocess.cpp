@@ -17,6 +17,7 @@
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
+#include "st/common/cpu_time.hpp"
 #include "st/pipeline/registration_stage.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -141,11 +142,15 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   st::detail::useOpenCvSequentially();
   const auto start = std::chrono::steady_clock::now();
   auto last = start;
+  double lastCpu = processCpuSeconds();
   Prepared out;
   auto lap = [&](const char* stage) {
     const auto now = std::chrono::steady_clock::now();
+    const double cpu = processCpuSeconds();
     out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - last).count());
+    out.stageCpuSeconds.emplace_back(stage, cpu - lastCpu);
     last = now;
+    lastCpu = cpu;
   };
   if (raw.empty()) throw InputError("pre-processing: no frames");
   out.frames = std::move(raw);
@@ -386,6 +391,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));
   last = std::chrono::steady_clock::now();
+  lastCpu = processCpuSeconds();
   {
     stats::Background& bg = zb.background;
     out.sigmaN = bg.sigmaN;

@@ -122,6 +122,9 @@ struct Prepared {
   double residualMeanRms = 0.0;                ///< rms of the residual local means removed, counts
   stats::NoiseModel noiseModel;  ///< variance s_n^2 v(q) used by the weighted filter (empty when off)
   std::vector<std::pair<std::string, double>> stageSeconds;  ///< wall time of each stage
+  /// The process's CPU seconds in each stage up to the per-pixel background (the host's stages; their
+  /// ratio to the wall time tells how many cores a stage kept busy), by stage name.
+  std::vector<std::pair<std::string, double>> stageCpuSeconds;
   double elapsedS = 0.0;
 };
 
