@@ -311,19 +311,13 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   const std::size_t nf = cube.frameCount();
   out.perFrame.assign(nf, 0);
   if (nf < 3) return out;
-  auto last = std::chrono::steady_clock::now();
-  auto lap = [&last] {
-    const auto now = std::chrono::steady_clock::now();
-    const double s = std::chrono::duration<double>(now - last).count();
-    last = now;
-    return s;
-  };
+  PartTimer timer(out.parts);
   out.sigma = noiseFromFrameDifferences(cube);
-  out.noiseSeconds = lap();
+  timer.lap("noise");
   if (!(out.sigma > 0.0)) return out;
   const Protection prot = protection(cube, params, out.sigma, progress, cancel, stacks);
-  out.protectionSeconds = lap();
-  out.protectionStackSeconds = prot.stackSeconds;
+  timer.lap("protection");
+  out.parts.add("of which its stacks", prot.stackSeconds);
   out.protectedPixels = prot.mask.count();
   out.protectionStacks = prot.stacks;
   out.protectionStacksProvided = prot.provided;
@@ -336,7 +330,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
                            [&](std::size_t n, int x, int y) { return prot.mask.covers(n, x, y); });
   out.seedThreshold = std::max(params.thresholdSigma * out.sigma, out.tail.threshold(params.falseFlagRate));
   out.growThreshold = std::max(params.growSigma * out.sigma, out.tail.threshold(params.growFalseRate));
-  out.tailSeconds = lap();
+  timer.lap("tail");
   // Pixel (x, y) of frame n is a hit when its excess over the registered reference exceeds `thr` and, on a
   // protected star, the star's own signal there (seeing and photon noise make a star pixel vary far more
   // than the sky).
@@ -430,7 +424,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     progress.report(0.5 + 0.4 * static_cast<double>(n1) / nf, "cosmic rays");
   });
   out.sourceSeeds = sourceSeeds;
-  out.seedSeconds = lap();
+  timer.lap("seeds");
   // Pass 2, read-only: grow by the 8-neighbours above the grow threshold (twice, for short tracks).
   const float grow = static_cast<float>(out.growThreshold);
   std::sort(out.pixels.begin(), out.pixels.end());
@@ -465,7 +459,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
     ++out.perFrame[out.pixels[k] / np];
   }
   out.total = out.pixels.size();
-  out.growFillSeconds = lap();
+  timer.lap("growing and filling");
   progress.report(1.0, "cosmic rays");
   return out;
 }

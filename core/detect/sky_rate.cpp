@@ -1,7 +1,6 @@
 #include "st/detect/sky_rate.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -164,10 +163,9 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
     out.note = "sky rate: fewer than two frames or no time span, assumed 0";
     return out;
   }
-  const auto t0 = std::chrono::steady_clock::now();
+  PartTimer timer(out.parts);
   const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel);
-  const auto t1 = std::chrono::steady_clock::now();
-  out.pairsSeconds = std::chrono::duration<double>(t1 - t0).count();
+  timer.lap("block pairs");
   out.response = pairs.responses.empty() ? 0.0 : median(pairs.responses);
   if (pairs.vx.empty() || out.response < params.minResponse) {
     out.note = "sky rate: no reliable star pattern (phase-correlation peak " + std::to_string(out.response) +
@@ -181,25 +179,18 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
       "pairs of short blocks gave (" + fixed(out.rate.vx) + ", " + fixed(out.rate.vy) + ") px/s";
   const detail::ChainResult chain =
       detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
-  out.chainSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-  {
-    char parts[200];
-    std::snprintf(parts, sizeof parts,
-                  "%d iteration(s): stacks %.1f ms, links %.1f ms (thread time: images %.1f ms, phase "
-                  "correlations %.1f ms, paired stars %.1f ms)",
-                  chain.iterations, 1e3 * chain.stacksSeconds, 1e3 * chain.linksSeconds,
-                  1e3 * chain.imagesThreadSeconds, 1e3 * chain.phaseThreadSeconds,
-                  1e3 * chain.starsThreadSeconds);
-    out.chainParts = parts;
-  }
+  timer.lap("chain");
+  for (const TimedPart& p : chain.parts.parts)
+    out.parts.add(p.name.find("thread time") != std::string::npos ? p.name : "chain's " + p.name, p.seconds);
   if (!chain.ok) {
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;
     return out;
   }
   const std::string chainText = "chained over " + std::to_string(chain.blocks.size()) + " blocks (" +
                                 std::to_string(chain.links) + " links, " + std::to_string(chain.starLinks) +
-                                " by paired stars) gave (" + fixed(chain.rate.vx) + ", " +
-                                fixed(chain.rate.vy) + ") px/s";
+                                " by paired stars, " + std::to_string(chain.iterations) +
+                                (chain.iterations == 1 ? " iteration" : " iterations") + ") gave (" +
+                                fixed(chain.rate.vx) + ", " + fixed(chain.rate.vy) + ") px/s";
   Velocity tol;
   if (!agrees(pairs, out.rate, chain.rate, &tol)) {
     out.note = "sky rate: " + pairText + ", kept; " + chainText + ", which disagrees (tolerance " +

@@ -451,17 +451,16 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   cv::Mat window;
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
   Velocity rate = start;
-  LinkParts parts{};
+  LinkParts threadTime{};
+  PartTimer timer(out.parts);
   for (int it = 0; it < 4; ++it) {
-    auto t = std::chrono::steady_clock::now();
     const std::vector<BlockStack> stacks =
         stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel);
-    out.stacksSeconds += lapSeconds(t);
+    timer.lap("stacks");
     const std::vector<Link> links =
-        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, &parts);
-    out.linksSeconds += lapSeconds(t);
+        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, &threadTime);
+    timer.lap("links");
     out.iterations = it + 1;
-    out.imagesThreadSeconds = parts[0], out.phaseThreadSeconds = parts[1], out.starsThreadSeconds = parts[2];
     if (!connected(k, links)) {
       // A later iteration that loses the chain keeps the earlier one's result.
       if (!out.ok)
@@ -489,6 +488,9 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     rate = next;
     if (stable) break;
   }
+  out.parts.add("links' images (thread time)", threadTime[0]);
+  out.parts.add("phase correlations (thread time)", threadTime[1]);
+  out.parts.add("paired stars (thread time)", threadTime[2]);
   if (!out.ok) return out;
   double ss = 0.0;
   for (const SkyRateBlock& b : out.blocks)

@@ -17,10 +17,9 @@ struct ChainResult {
   int starLinks = 0;  ///< ... of which by the paired stars' windowed centroids (the others: phase peak)
   std::string why;    ///< why it failed, when !ok
   int iterations = 0;  ///< stacks-and-links rounds run
-  /// Wall seconds of the blocks' stacks and of the links over all iterations; the links' thread seconds
-  /// in their parts (images, phase correlation, paired stars), for the notes.
-  double stacksSeconds = 0.0, linksSeconds = 0.0;
-  double imagesThreadSeconds = 0.0, phaseThreadSeconds = 0.0, starsThreadSeconds = 0.0;
+  /// Over all iterations: the wall time of the blocks' stacks and of the links, and the links' thread time
+  /// in their images, phase correlations and paired stars (SkyRate::parts).
+  TimedParts parts;
 };
 
 /// detect::shiftedSums of one block into rows [y0, y1) of `sum` and `cnt` (frame-sized, zeroed there; each

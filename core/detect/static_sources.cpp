@@ -1,7 +1,6 @@
 #include "st/detect/static_sources.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <iterator>
@@ -252,12 +251,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SkyStackCache own;
   SkyStackCache& cache = stacks ? *stacks : own;
   StaticSources out;
-  auto last = std::chrono::steady_clock::now();
-  auto lap = [&](const char* part) {
-    const auto now = std::chrono::steady_clock::now();
-    out.partSeconds.emplace_back(part, std::chrono::duration<double>(now - last).count());
-    last = now;
-  };
+  PartTimer timer(out.parts);
+  auto lap = [&timer](const char* part) { timer.lap(part); };
   out.mask = MovingMask(cube, skyRate);
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);

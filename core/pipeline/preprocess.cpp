@@ -95,22 +95,6 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
   }
 }
 
-// "WHAT: part 1.2 ms, part 3.4 ms, ..." from a stage's timed parts.
-std::string partsNote(const std::string& what, const std::vector<std::pair<const char*, double>>& parts) {
-  std::string note = what + ":";
-  char ms[32];
-  for (std::size_t k = 0; k < parts.size(); ++k) {
-    std::snprintf(ms, sizeof ms, " %.1f ms", 1e3 * parts[k].second);
-    note += (k ? ", " : " ") + std::string(parts[k].first) + ms;
-  }
-  return note;
-}
-
-// The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
-// BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master
-// bias), in calibrated counts, with a 5% margin for the flat and the bias pattern; none when the header says
-// neither. Without it, stars clipped in a few frames show no flat top in the stack and are taken for the PSF
-// (Lowell: FWHM +11%), and the tips of bleed columns are taken for cosmic rays.
 std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessParams& params,
                                        const calib::CalibrationReport& calibration) {
   std::optional<double> fullScale = cube.header.getDouble("SATURATE");
@@ -233,12 +217,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     std::ostringstream note;
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
-    {
-      char parts[120];
-      std::snprintf(parts, sizeof parts, "sky rate: block pairs %.1f ms, chain %.1f ms", 1e3 * r.pairsSeconds,
-                    1e3 * r.chainSeconds);
-      out.notes.push_back(parts + (r.chainParts.empty() ? std::string() : " (" + r.chainParts + ")"));
-    }
+    out.notes.push_back("sky rate: " + r.parts.text());
     if (params.accelerator && sumsStep.asked > 0)
       out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +
                           std::to_string(sumsStep.asked) + " iterations on " + params.accelerator->name());
@@ -282,17 +261,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     if (cr.preTestProvided) out.notes.push_back(params.accelerator->lastNote());  // its last device step
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
-    {
-      char parts[240];
-      std::snprintf(
-          parts, sizeof parts,
-          "cosmic rays: noise %.1f ms, protection %.1f ms (its stacks %.1f ms), tail %.1f ms, seeds "
-          "%.1f ms (pre-test %s), growing and filling %.1f ms",
-          1e3 * cr.noiseSeconds, 1e3 * cr.protectionSeconds, 1e3 * cr.protectionStackSeconds,
-          1e3 * cr.tailSeconds, 1e3 * cr.seedSeconds, cr.preTestProvided ? "on the device" : "on the CPU",
-          1e3 * cr.growFillSeconds);
-      out.notes.push_back(parts);
-    }
+    out.notes.push_back("cosmic rays: " + cr.parts.text() + "; the seeds' pre-test " +
+                        (cr.preTestProvided ? "on the device" : "on the CPU"));
     if (params.accelerator) {
       params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
       out.notes.push_back("cosmic rays: " + std::to_string(cr.protectionStacksProvided) + " of " +
@@ -322,7 +292,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
   }
-  out.notes.push_back(partsNote("static sources", stars.partSeconds));
+  out.notes.push_back("static sources: " + stars.parts.text());
   lap("static sources");
   if (params.givenPsf) {
     out.stars = stars.stars;
@@ -342,7 +312,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     sp.psfFwhmPx = out.psf.fwhm();
     SubProgress sub(progress, 0.38, 0.4);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
-    out.notes.push_back(partsNote("static sources at the fitted FWHM", stars.partSeconds));
+    out.notes.push_back("static sources at the fitted FWHM: " + stars.parts.text());
     lap("static sources at the fitted FWHM");
   }
   if (params.accelerator) {

@@ -26,6 +26,7 @@
 #include <optional>
 #include <vector>
 
+#include "st/common/timed_parts.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
@@ -105,10 +106,9 @@ struct CosmicRayResult {
   TailModel tail;                     ///< the measured tail of the excess
   double seedThreshold = 0.0;         ///< excess a seed had to exceed, counts
   double growThreshold = 0.0;         ///< excess a grown neighbour had to exceed, counts
-  /// Wall seconds of the parts, for the notes: the noise from frame differences, the protection (of which
-  /// its stacks at the sky rate), the excess tail, the seeds (pass 1), growing and filling.
-  double noiseSeconds = 0.0, protectionSeconds = 0.0, protectionStackSeconds = 0.0, tailSeconds = 0.0,
-         seedSeconds = 0.0, growFillSeconds = 0.0;
+  /// Wall time of the parts, for the notes: the noise from frame differences, the protection (and of it, its
+  /// stacks at the sky rate), the excess tail, the seeds (pass 1), growing and filling.
+  TimedParts parts;
 };
 
 /// The seeds' cheap pre-test of every pixel of a cube of >= 3 frames: bit j of word w is set for flat index

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "st/common/timed_parts.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/progress.hpp"
 #include "st/common/units.hpp"
@@ -45,10 +46,10 @@ struct SkyRate {
   /// linear motion, for a later per-frame registration (ARCHITECTURE.md's o_n); not used by the search.
   std::vector<SkyRateBlock> blocks;
   double residualRmsPx = 0.0;  ///< rms over blocks of |offsetPx| (both axes), px
-  /// Wall seconds of the block pairs (their means and phase correlations) and of the chain, for the notes.
-  double pairsSeconds = 0.0, chainSeconds = 0.0;
-  /// The chain's parts: see detail::ChainResult (a note).
-  std::string chainParts;
+  /// Wall time of the parts, for the notes: the block pairs (their means and phase correlations), the chain
+  /// and of it the blocks' stacks and the links; and the links' thread time (summed over the threads) in
+  /// their images, phase correlations and paired stars.
+  TimedParts parts;
 };
 
 /// A block of frames [first, last) stacked with frame n shifted so that stack pixel (x, y) takes frame pixel

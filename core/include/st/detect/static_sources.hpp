@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "st/common/timed_parts.hpp"
 #include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/progress.hpp"
@@ -101,9 +102,9 @@ struct StaticSources {
   /// sub-pixel motion) where their template is subtracted; empty otherwise.
   MovingMask subtractRegion;
   double stackNoise = 0.0;  ///< single-frame noise implied by the stack: SNR = R sqrt(count) / stackNoise
-  /// Wall seconds of the search's parts, for the notes: the stack, its analysis (mesh backgrounds, SNR
+  /// Wall time of the search's parts, for the notes: the stack, its analysis (mesh backgrounds, SNR
   /// maps), the components, describing them, their motions (the stacks of the thirds), the footprints.
-  std::vector<std::pair<const char*, double>> partSeconds;
+  TimedParts parts;
 };
 
 /// Finds static sources in the stack of `cube` at `skyRate` (px/s) with `background` (a scalar, e.g. the
