@@ -3,14 +3,18 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "st/common/cpu_time.hpp"
+
 namespace st {
 
-void TimedParts::add(const std::string& name, double seconds) {
+void TimedParts::add(const std::string& name, double seconds, double cpuSeconds) {
   const auto it = std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
-  if (it != parts.end())
+  if (it != parts.end()) {
     it->seconds += seconds;
-  else
-    parts.push_back({name, seconds});
+    it->cpuSeconds += cpuSeconds;
+  } else {
+    parts.push_back({name, seconds, cpuSeconds});
+  }
 }
 
 double TimedParts::seconds(const std::string& name) const {
@@ -21,18 +25,26 @@ double TimedParts::seconds(const std::string& name) const {
 std::string TimedParts::text() const {
   std::string out;
   for (const TimedPart& p : parts) {
-    char ms[32];
-    std::snprintf(ms, sizeof ms, " %.1f ms", 1e3 * p.seconds);
+    char ms[48];
+    if (p.cpuSeconds > 0.0 && p.seconds > 0.0)
+      std::snprintf(ms, sizeof ms, " %.1f ms (%.1f cores)", 1e3 * p.seconds, p.cpuSeconds / p.seconds);
+    else
+      std::snprintf(ms, sizeof ms, " %.1f ms", 1e3 * p.seconds);
     out += (out.empty() ? "" : ", ") + p.name + ms;
   }
   return out;
 }
 
+PartTimer::PartTimer(TimedParts& out)
+    : m_out(out), m_last(std::chrono::steady_clock::now()), m_lastCpu(processCpuSeconds()) {}
+
 double PartTimer::lap(const std::string& name) {
   const auto now = std::chrono::steady_clock::now();
+  const double cpu = processCpuSeconds();
   const double s = std::chrono::duration<double>(now - m_last).count();
+  m_out.add(name, s, cpu - m_lastCpu);
   m_last = now;
-  m_out.add(name, s);
+  m_lastCpu = cpu;
   return s;
 }
 

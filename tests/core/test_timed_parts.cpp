@@ -23,6 +23,8 @@ TEST(TimedParts, AddsUpByNameInFirstOrderAndFormatsMilliseconds) {
   EXPECT_DOUBLE_EQ(t.seconds("stacks"), 0.0375);
   EXPECT_DOUBLE_EQ(t.seconds("links"), 0.5);
   EXPECT_EQ(t.text(), "stacks 37.5 ms, links 500.0 ms");
+  t.add("busy", 0.010, 0.025);  // CPU time given: the cores it kept busy
+  EXPECT_EQ(t.text(), "stacks 37.5 ms, links 500.0 ms, busy 10.0 ms (2.5 cores)");
 }
 
 TEST(TimedParts, TimerLapsEachPartFromThePreviousLap) {
@@ -43,6 +45,8 @@ TEST(TimedParts, TimerLapsEachPartFromThePreviousLap) {
   EXPECT_LE(first + second + third, outer);
   ASSERT_EQ(t.parts.size(), 2u);
   EXPECT_EQ(t.parts[1].name, "second");
+  // Sleeping keeps no core busy: far less CPU than wall time.
+  EXPECT_LT(t.parts[0].cpuSeconds, 0.5 * t.parts[0].seconds);
 }
 
 }  // namespace
