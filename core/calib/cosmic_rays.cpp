@@ -85,6 +85,9 @@ struct Protection {
   }
 };
 
+// Canvas pixels per task of the element-wise loops (a canvas is ~1M pixels: ~16 tasks).
+constexpr std::size_t kCanvasChunk = std::size_t{1} << 16;
+
 Protection protection(const FrameCube& cube, const CosmicRayParams& params, double sigma,
                       ProgressSink& progress, CancelToken& cancel,
                       const detect::SkyStackCache::Provider* stacks) {
@@ -117,25 +120,32 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
       minMean.assign(s.mean.size(), 1e30f);
       observed.assign(s.mean.size(), 0);
     }
-    for (std::size_t i = 0; i < s.mean.size(); ++i) {
-      if (s.count.pixels[i] < minCount) continue;
-      const float excess = s.mean.pixels[i] - local.pixels[i];
-      minSnr[i] = std::min(minSnr[i], static_cast<float>(excess * std::sqrt(s.count.pixels[i]) / sigma));
-      minMean[i] = std::min(minMean[i], excess);
-      ++observed[i];
-    }
+    parallelFor(s.mean.size(), kCanvasChunk, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i) {
+        if (s.count.pixels[i] < minCount) continue;
+        const float excess = s.mean.pixels[i] - local.pixels[i];
+        minSnr[i] = std::min(minSnr[i], static_cast<float>(excess * std::sqrt(s.count.pixels[i]) / sigma));
+        minMean[i] = std::min(minMean[i], excess);
+        ++observed[i];
+      }
+    });
   }
   // A hit that protects itself (the only observing block) is still flagged: its block mean, the signal it
   // must exceed, is its own amplitude divided by the block's frames covering it (>= 3).
-  for (int j = 0; j < mask.canvasHeight(); ++j)
-    for (int i = 0; i < mask.canvasWidth(); ++i) {
-      const std::size_t k = static_cast<std::size_t>(j) * mask.canvasWidth() + i;
-      if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
-    }
+  const int cw = mask.canvasWidth();
+  parallelFor(static_cast<std::size_t>(mask.canvasHeight()), 16, [&](std::size_t j0, std::size_t j1) {
+    for (int j = static_cast<int>(j0); j < static_cast<int>(j1); ++j)
+      for (int i = 0; i < cw; ++i) {
+        const std::size_t k = static_cast<std::size_t>(j) * cw + i;
+        if (observed[k] > 0 && minSnr[k] >= params.protectSnr) mask.set(mask.x0() + i, mask.y0() + j);
+      }
+  });
   mask.dilate(params.protectDilatePx);
   Protection p{std::move(mask), std::vector<float>(minMean.size(), 0.0f), blocks, provided, stackSeconds};
-  for (std::size_t i = 0; i < minMean.size(); ++i)
-    if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
+  parallelFor(minMean.size(), kCanvasChunk, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i)
+      if (p.mask.canvas()[i] && observed[i] > 0) p.signal[i] = std::max(0.0f, minMean[i]);
+  });
   return p;
 }
 

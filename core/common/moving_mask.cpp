@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numeric>
 
+#include "st/common/parallel.hpp"
+
 namespace st {
 
 MovingMask::MovingMask(const FrameCube& cube, Velocity rate)
@@ -67,20 +69,30 @@ void MovingMask::dilate(int radius) {
   if (radius <= 0 || m_canvas.empty()) return;
   std::vector<std::uint8_t> out(m_canvas);
   const int r2 = radius * radius;
-  for (int j = 0; j < m_ch; ++j) {
-    for (int i = 0; i < m_cw; ++i) {
-      if (!m_canvas[static_cast<std::size_t>(j) * m_cw + i]) continue;
-      for (int dj = -radius; dj <= radius; ++dj) {
-        const int jj = j + dj;
-        if (jj < 0 || jj >= m_ch) continue;
-        for (int di = -radius; di <= radius; ++di) {
-          const int ii = i + di;
-          if (ii < 0 || ii >= m_cw || di * di + dj * dj > r2) continue;
-          out[static_cast<std::size_t>(jj) * m_cw + ii] = 1;
+  // By bands of output rows on every core: a band takes the discs of the set pixels within `radius` rows of
+  // it and writes only its own rows (the same pixels set as one pass over the canvas).
+  constexpr int kBandRows = 16;
+  const std::size_t bands = static_cast<std::size_t>((m_ch + kBandRows - 1) / kBandRows);
+  parallelFor(bands, 1, [&](std::size_t b0, std::size_t b1) {
+    for (std::size_t b = b0; b < b1; ++b) {
+      const int y0 = static_cast<int>(b) * kBandRows, y1 = std::min(m_ch, y0 + kBandRows);
+      for (int j = std::max(0, y0 - radius); j < std::min(m_ch, y1 + radius); ++j) {
+        const std::uint8_t* row = m_canvas.data() + static_cast<std::size_t>(j) * m_cw;
+        for (int i = 0; i < m_cw; ++i) {
+          if (!row[i]) continue;
+          for (int jj = std::max(y0, j - radius); jj < std::min(y1, j + radius + 1); ++jj) {
+            const int dj = jj - j;
+            std::uint8_t* o = out.data() + static_cast<std::size_t>(jj) * m_cw;
+            for (int di = -radius; di <= radius; ++di) {
+              const int ii = i + di;
+              if (ii < 0 || ii >= m_cw || di * di + dj * dj > r2) continue;
+              o[ii] = 1;
+            }
+          }
         }
       }
     }
-  }
+  });
   m_canvas.swap(out);
 }
 

@@ -220,8 +220,10 @@ Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background
   if (!params.keepMovers) return m;
   m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel);
   if (!m.thirds.valid()) return m;
-  for (std::size_t k = 0; k < nPerPixel; ++k)
-    if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+  parallelFor(nPerPixel, 4, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k)
+      if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+  });
   m.common = detail::commonShift(m.shifts);
   return m;
 }
@@ -281,15 +283,26 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const std::size_t nPerPixel = comps.size();
   if (params.filteredDetection) {
     // The filtered blob of a star reaches a kernel radius beyond its per-pixel footprint: not a new source.
+    // By bands of rows on every core: a band paints the discs of the pixels within r rows of it, in its own
+    // rows only.
     const int r = static_cast<int>(std::ceil(1.5 * params.psfFwhmPx)) + 1;
-    for (const auto& comp : comps)
-      for (int p : comp)
-        for (int dy = -r; dy <= r; ++dy)
-          for (int dx = -r; dx <= r; ++dx) {
-            const int x = p % cw + dx, y = p / cw + dy;
-            if (x >= 0 && y >= 0 && x < cw && y < ch && dx * dx + dy * dy <= r * r)
-              taken[static_cast<std::size_t>(y) * cw + x] = 1;
-          }
+    constexpr int kBandRows = 16;
+    parallelFor(static_cast<std::size_t>((ch + kBandRows - 1) / kBandRows), 1,
+                [&](std::size_t b0, std::size_t b1) {
+                  for (std::size_t b = b0; b < b1; ++b) {
+                    const int y0 = static_cast<int>(b) * kBandRows, y1 = std::min(ch, y0 + kBandRows);
+                    for (const auto& comp : comps)
+                      for (int p : comp) {
+                        const int px = p % cw, py = p / cw;
+                        for (int y = std::max(y0, py - r); y < std::min(y1, py + r + 1); ++y)
+                          for (int dx = -r; dx <= r; ++dx) {
+                            const int x = px + dx, dy = y - py;
+                            if (x >= 0 && x < cw && dx * dx + dy * dy <= r * r)
+                              taken[static_cast<std::size_t>(y) * cw + x] = 1;
+                          }
+                      }
+                  }
+                });
     parallelFor(resid.size(), kPixelChunk, [&](std::size_t i0, std::size_t i1) {
       for (std::size_t i = i0; i < i1; ++i) {
         grows[i] = !taken[i] && snrF[i] >= params.weakSnr;
@@ -331,8 +344,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   if (subtracted) out.subtractRegion = out.mask;
   const int armHalf = static_cast<int>(std::ceil(0.5 * params.psfFwhmPx));
   std::vector<Star> described(comps.size());
-  for (std::size_t k = 0; k < comps.size(); ++k)
-    described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
+  parallelFor(comps.size(), 4, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k)
+      described[k] = describe(comps[k], resid, snr, snrF, s, params, background, cube, skyRate);
+  });
   lap("describing");
   const Motion motion = measureMotions(cube, skyRate, background, comps, nPerPixel, described, cw,
                                        noise.sigma, params, cache, cancel);
@@ -344,9 +359,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     // Seen only after the filter: a static source only if it stays put between the stacks of the first and
     // second halves of the frames (a slow moving object is a streak there, and its halves shift).
     if (k >= nPerPixel) {
-      if (halves.empty())
+      if (halves.empty()) {
+        lap("footprints");
         halves = detail::halfStacks(cube, skyRate, background, local, noise.sigma, params.psfFwhmPx, cache,
                                     cancel);
+        lap("halves' stacks and SNR");
+      }
       int peak = comp.front();
       for (int p : comp)
         if (snrF[p] > snrF[peak]) peak = p;
@@ -401,13 +419,14 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     }
     out.stars.push_back(std::move(st));
   }
+  lap("footprints");
   // The dilation covers the stars' sub-pixel motion under the sky rate's integer shifts; a static field has
   // none, so one pixel there.
   out.mask.dilate(narrow ? 1 : base);
   out.subtractRegion.dilate(base);
   out.moverMask.dilate(base);
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
-  lap("footprints");
+  lap("dilation");
   progress.report(1.0, "static sources");
   return out;
 }
