@@ -40,7 +40,10 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     const std::size_t off = p * piece, len = std::min(piece, bytes - off);
     char* dst = static_cast<char*>(host) + off;
     const char* src = static_cast<const char*>(r.staging(static_cast<int>(p & 1)));
-    parallelFor(len, std::size_t{1} << 21,
+    // 2 MiB a task for the cubes' pieces; a stack's few MB spread over the threads too.
+    const std::size_t chunk =
+        std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21);
+    parallelFor(len, chunk,
                 [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); });
   }
 }
@@ -213,7 +216,8 @@ void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src
     // machine, 2026-11-27 14:41, but one copy thread slows the sky rate least: 15:22 run, pre-processing
     // 2.47-2.50 s). A foreground upload copies on every core.
     if (parallelCopy)
-      parallelFor(len, std::size_t{1} << 21,
+      parallelFor(len,
+                  std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21),
                   [&](std::size_t lo, std::size_t hi) { std::memcpy(stage + lo, from + lo, hi - lo); });
     else
       std::memcpy(stage, from, len);
