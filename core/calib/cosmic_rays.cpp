@@ -327,7 +327,7 @@ CosmicRayResult removeCosmicRays(FrameCube& cube, const CosmicRayParams& params,
   if (!(out.sigma > 0.0)) return out;
   const Protection prot = protection(cube, params, out.sigma, progress, cancel, stacks);
   timer.lap("protection");
-  out.parts.add("of which its stacks", prot.stackSeconds);
+  out.parts.add("protection: its stacks", prot.stackSeconds);
   out.protectedPixels = prot.mask.count();
   out.protectionStacks = prot.stacks;
   out.protectionStacksProvided = prot.provided;

@@ -181,7 +181,7 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
       detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
   timer.lap("chain");
   for (const TimedPart& p : chain.parts.parts)
-    out.parts.add(p.name.find("thread time") != std::string::npos ? p.name : "chain's " + p.name, p.seconds,
+    out.parts.add(p.name.find("thread time") != std::string::npos ? p.name : "chain: " + p.name, p.seconds,
                   p.cpuSeconds);
   if (!chain.ok) {
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;

@@ -276,10 +276,10 @@ cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* cou
       continue;
     }
     const unsigned char* pa = a.ptr<unsigned char>(y);
-    const unsigned char* pb = b.ptr<unsigned char>(by) + gx;
+    const unsigned char* pb = b.ptr<unsigned char>(by);
     std::memset(o, 0, static_cast<std::size_t>(x0));
     for (int x = x0; x < x1; ++x) {
-      o[x] = pa[x] & pb[x];
+      o[x] = pa[x] & pb[x + gx];
       n += o[x] != 0;
     }
     std::memset(o + x1, 0, static_cast<std::size_t>(w - x1));
@@ -288,11 +288,6 @@ cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* cou
   return out;
 }
 
-// Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
-// are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
-// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
-// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
-// pattern.
 // Seconds since `t`, and `t` moved to now.
 double lapSeconds(std::chrono::steady_clock::time_point& t) {
   const auto now = std::chrono::steady_clock::now();
@@ -304,6 +299,11 @@ double lapSeconds(std::chrono::steady_clock::time_point& t) {
 // A link's thread seconds in its parts: the images, the phase correlation, the paired stars.
 using LinkParts = std::array<double, 3>;
 
+// Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
+// are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
+// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
+// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
+// pattern.
 bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
                  const SkyRateParams& params, Link* link, LinkParts* parts) {
   auto t = std::chrono::steady_clock::now();

@@ -283,24 +283,26 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const std::size_t nPerPixel = comps.size();
   if (params.filteredDetection) {
     // The filtered blob of a star reaches a kernel radius beyond its per-pixel footprint: not a new source.
-    // By bands of rows on every core: a band paints the discs of the pixels within r rows of it, in its own
-    // rows only.
+    // By bands of rows on every core: a band paints the discs of the pixels within r rows of it (listed by
+    // row), in its own rows only.
     const int r = static_cast<int>(std::ceil(1.5 * params.psfFwhmPx)) + 1;
+    std::vector<std::vector<int>> byRow(static_cast<std::size_t>(ch));
+    for (const auto& comp : comps)
+      for (int p : comp)
+        byRow[static_cast<std::size_t>(p / cw)].push_back(p % cw);
     constexpr int kBandRows = 16;
     parallelFor(static_cast<std::size_t>((ch + kBandRows - 1) / kBandRows), 1,
                 [&](std::size_t b0, std::size_t b1) {
                   for (std::size_t b = b0; b < b1; ++b) {
                     const int y0 = static_cast<int>(b) * kBandRows, y1 = std::min(ch, y0 + kBandRows);
-                    for (const auto& comp : comps)
-                      for (int p : comp) {
-                        const int px = p % cw, py = p / cw;
+                    for (int py = std::max(0, y0 - r); py < std::min(ch, y1 + r); ++py)
+                      for (int px : byRow[static_cast<std::size_t>(py)])
                         for (int y = std::max(y0, py - r); y < std::min(y1, py + r + 1); ++y)
                           for (int dx = -r; dx <= r; ++dx) {
                             const int x = px + dx, dy = y - py;
                             if (x >= 0 && x < cw && dx * dx + dy * dy <= r * r)
                               taken[static_cast<std::size_t>(y) * cw + x] = 1;
                           }
-                      }
                   }
                 });
     parallelFor(resid.size(), kPixelChunk, [&](std::size_t i0, std::size_t i1) {

@@ -95,6 +95,11 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
   }
 }
 
+// The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
+// BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master
+// bias), in calibrated counts, with a 5% margin for the flat and the bias pattern; none when the header says
+// neither. Without it, stars clipped in a few frames show no flat top in the stack and are taken for the PSF
+// (Lowell: FWHM +11%), and the tips of bleed columns are taken for cosmic rays.
 std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessParams& params,
                                        const calib::CalibrationReport& calibration) {
   std::optional<double> fullScale = cube.header.getDouble("SATURATE");
@@ -217,7 +222,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     std::ostringstream note;
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
-    out.notes.push_back("sky rate: " + r.parts.text());
+    if (!r.parts.parts.empty()) out.notes.push_back("sky rate: " + r.parts.text());
     if (params.accelerator && sumsStep.asked > 0)
       out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +
                           std::to_string(sumsStep.asked) + " iterations on " + params.accelerator->name());
@@ -261,8 +266,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     if (cr.preTestProvided) out.notes.push_back(params.accelerator->lastNote());  // its last device step
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
-    out.notes.push_back("cosmic rays: " + cr.parts.text() + "; the seeds' pre-test " +
-                        (cr.preTestProvided ? "on the device" : "on the CPU"));
+    if (!cr.parts.parts.empty())
+      out.notes.push_back("cosmic rays: " + cr.parts.text() + "; the seeds' pre-test " +
+                          (cr.preTestProvided ? "on the device" : "on the CPU"));
     if (params.accelerator) {
       params.accelerator->patchPrefetch(cube, cr.pixels);  // the fills, on the device
       out.notes.push_back("cosmic rays: " + std::to_string(cr.protectionStacksProvided) + " of " +
