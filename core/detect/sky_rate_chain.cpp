@@ -1,8 +1,6 @@
 #include "sky_rate_chain.hpp"
 
 #include <algorithm>
-#include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -288,25 +286,14 @@ cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* cou
   return out;
 }
 
-// Seconds since `t`, and `t` moved to now.
-double lapSeconds(std::chrono::steady_clock::time_point& t) {
-  const auto now = std::chrono::steady_clock::now();
-  const double s = std::chrono::duration<double>(now - t).count();
-  t = now;
-  return s;
-}
-
-// A link's thread seconds in its parts: the images, the phase correlation, the paired stars.
-using LinkParts = std::array<double, 3>;
-
 // Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
 // are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
 // correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
 // for both, so that a window cut by it is cut alike in both). False when they share no reliable star
 // pattern.
 bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 const SkyRateParams& params, Link* link, LinkParts* parts) {
-  auto t = std::chrono::steady_clock::now();
+                 const SkyRateParams& params, Link* link, TimedParts* parts) {
+  PartTimer timer(*parts);  // its seconds are this thread's; its CPU time is not used
   const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
   const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
   const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
@@ -316,14 +303,14 @@ bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const 
   const LinearImage la = linearImage(a.value, a.noise, both);
   const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
   const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);
-  (*parts)[0] += lapSeconds(t);
+  timer.lap("links' images (thread time)");
   double r = 0.0;
   cv::Point2d d = phaseShift(ia, ib, window, &r);
-  (*parts)[1] += lapSeconds(t);
+  timer.lap("phase correlations (thread time)");
   if (!(r >= params.minResponse)) return false;
   cv::Point2d c;
   link->byStars = windowedOffset(la, lb, pairSources(ia, ib, d, kPairPeak), &c, &link->var);
-  (*parts)[2] += lapSeconds(t);
+  timer.lap("paired stars (thread time)");
   if (link->byStars) {
     d = c;
   } else {
@@ -403,7 +390,7 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
 // between them (neighbours always), measured in parallel; failed comparisons are left out.
 std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
                                const SkyRateParams& params, int width, int height, CancelToken& cancel,
-                               LinkParts* partsSum) {
+                               TimedParts* threadTime) {
   const std::size_t k = stacks.size();
   std::vector<Link> tried;
   for (std::size_t i = 0; i < k; ++i)
@@ -415,16 +402,16 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
       tried.push_back({i, j, {}, {}, 0.0, false});
     }
   std::vector<char> ok(tried.size(), 0);
-  std::vector<LinkParts> parts(tried.size(), LinkParts{});
+  std::vector<TimedParts> parts(tried.size());
   parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
     for (std::size_t l = l0; l < l1; ++l) {
       cancel.throwIfCancelled();
       ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
     }
   });
-  for (const LinkParts& p : parts)
-    for (std::size_t q = 0; q < p.size(); ++q)
-      (*partsSum)[q] += p[q];
+  for (const TimedParts& p : parts)
+    for (const TimedPart& q : p.parts)
+      threadTime->add(q.name, q.seconds);  // summed over the threads: no wall or CPU meaning of its own
   std::vector<Link> links;
   for (std::size_t l = 0; l < tried.size(); ++l)
     if (ok[l]) links.push_back(tried[l]);
@@ -451,7 +438,7 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   cv::Mat window;
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
   Velocity rate = start;
-  LinkParts threadTime{};
+  TimedParts threadTime;
   PartTimer timer(out.parts);
   for (int it = 0; it < 4; ++it) {
     const std::vector<BlockStack> stacks =
@@ -488,9 +475,8 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     rate = next;
     if (stable) break;
   }
-  out.parts.add("links' images (thread time)", threadTime[0]);
-  out.parts.add("phase correlations (thread time)", threadTime[1]);
-  out.parts.add("paired stars (thread time)", threadTime[2]);
+  for (const TimedPart& p : threadTime.parts)
+    out.parts.add(p.name, p.seconds);
   if (!out.ok) return out;
   double ss = 0.0;
   for (const SkyRateBlock& b : out.blocks)
