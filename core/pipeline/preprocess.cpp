@@ -18,6 +18,7 @@
 #include "st/detect/star_subtraction.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/common/cpu_time.hpp"
+#include "st/common/timed_parts.hpp"
 #include "st/pipeline/registration_stage.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -68,13 +69,22 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
   std::vector<psf::StarCandidate> candidates;
   for (const auto& st : out.stars)
     candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
+  TimedParts parts;
+  PartTimer timer(parts);
   psf::PsfStarOptions opt;
   opt.fit.noiseSigma = 0.0;
   opt.fit.smear = psf::stackSmear(out.frames, out.skyRate);  // the stack's trails and shift rounding
+  timer.lap("smear");
   try {
     const psf::PsfMeasurement m = params.psfStar ? psf::measurePsfAt(s.mean, params.psfStar->first - s.x0,
                                                                      params.psfStar->second - s.y0, opt)
                                                  : psf::measurePsf(s.mean, candidates, opt);
+    timer.lap("fits");
+    std::ostringstream note;
+    note << "PSF: " << m.candidatesConsidered << " star(s) fitted, " << m.acceptedFwhm.size() << " accepted";
+    if (!m.rejected.empty()) note << " (first rejected: " << m.rejected.front() << ")";
+    note << "; " << parts.text();
+    out.notes.push_back(note.str());
     out.psf = m.fit.model;
     out.psfFitted = true;
     out.psfStarAt = std::make_pair(m.fit.x0 + s.x0, m.fit.y0 + s.y0);
@@ -364,6 +374,18 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
   ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
+  // The device may still be downloading the zero-biased cube into `cube` (behind the noise model and the
+  // matched filter): waited for below, and before `out` is freed when a stage throws.
+  const struct HostCopiesGuard {
+    PreprocessAccelerator* accel;
+    ~HostCopiesGuard() {
+      if (!accel) return;
+      try {
+        accel->finishHostCopies();
+      } catch (...) {  // the stage's own exception is on its way out
+      }
+    }
+  } hostCopies{params.accelerator};
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));
   last = std::chrono::steady_clock::now();
@@ -457,6 +479,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.filtered.psfFwhmPx = out.psf.fwhm();
     lap("matched filter");
   }
+  if (params.accelerator) params.accelerator->finishHostCopies();  // the frames are the host's from here
   // Frames moved onto frame 0's grid by whole pixels (registration) go back onto their own grids, their
   // offsets whole again: the search's N_in then counts only the frames that saw each track position (on
   // frame 0's grid, the pixels a frame does not cover are 0 but inside it). The per-pixel maps (background,

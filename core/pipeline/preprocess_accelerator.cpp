@@ -8,7 +8,10 @@
 namespace st::pipeline {
 namespace {
 
-std::string fallbackNote(const PreprocessAccelerator& accel, const char* stage, const GpuError& e) {
+// The warning for a stage the device failed, once the device's downloads into the host cubes are done (the
+// CPU then does the stage on them).
+std::string fallbackNote(PreprocessAccelerator& accel, const char* stage, const GpuError& e) {
+  accel.finishHostCopies();
   return std::string("warning: the ") + stage + " on " + accel.name() + " failed (" + e.what() +
          "); the CPU did it instead";
 }

@@ -17,7 +17,9 @@ if [ "$MODE" = all ] || [ "$MODE" = tests ]; then
 for t in $W/pkg/st_gpu_test_*; do timeout 300 $t > $O/$(basename $t).log 2>&1; echo "$(basename $t) rc=$? $(grep -E '^\[  (PASSED|FAILED) ' $O/$(basename $t).log | tr '\n' ' ')"; done
 grep -h "FAILED\|Failure" $O/st_gpu_test_*.log | head -20
 # This stop's kernels under memcheck: the cosmic rays' pre-test, the calibration with the frame backgrounds.
-for t in "st_gpu_test_gpu_cosmic_rays" "st_gpu_test_gpu_frame_backgrounds --gtest_filter=*Calibrated*"; do
+# MEMCHECK (words separated by ';') overrides the list, e.g. MEMCHECK="st_gpu_test_gpu_zero_bias --gtest_filter=*Failed*".
+IFS=';' read -ra MC <<< "${MEMCHECK:-st_gpu_test_gpu_cosmic_rays;st_gpu_test_gpu_frame_backgrounds --gtest_filter=*Calibrated*}"
+for t in "${MC[@]}"; do
   timeout 200 compute-sanitizer --tool memcheck --leak-check full $W/pkg/$t > $O/memcheck_${t%% *}.log 2>&1
   echo "memcheck ${t} rc=$? $(grep -E 'ERROR SUMMARY|LEAK SUMMARY' $O/memcheck_${t%% *}.log | tr '\n' ' ')"; done
 fi

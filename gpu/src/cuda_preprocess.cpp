@@ -58,8 +58,16 @@ void preprocess_detail::downloadInPlace(DeviceResources& r, void* host, const vo
   }
 }
 
-CudaPreprocess::CudaPreprocess(DeviceInfo device) : m_device(std::move(device)) {
+CudaPreprocess::CudaPreprocess(DeviceInfo device)
+    : m_device(std::move(device)), m_copies(m_device.ordinal, "cuda: " + m_device.name) {
   try {
+    m_warmCopies = std::jthread([this] {
+      try {
+        m_copies.warm();
+      } catch (...) {
+        // The first download makes them, and reports what fails.
+      }
+    });
     m_warm = std::jthread([this] {
       try {
         ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
@@ -87,6 +95,7 @@ std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std:
 
 stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
+  finishHostCopies();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   m_note.clear();
@@ -132,6 +141,7 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
+  finishHostCopies();
   // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here.
   DeviceBuffer<float> kept;
   if (m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&

@@ -10,6 +10,7 @@
 //   cuda_preprocess_zero_bias.cpp  zeroBias: the per-pixel background to the residual means on one upload
 //   cuda_preprocess_residuals.cpp  removeResidualMeans and estimateNoiseModel
 //   cuda_preprocess_filter.cpp     the matched filter (filterCube, filterCubeFrom)
+//   host_copies.*                  the downloads that run behind the stages after them
 // Host side: the CPU's tables (frames used, windows, weights) are made exactly as core makes them, the
 // kernels (preprocess_kernels.cu, zero_bias_kernels.cu, ...) do the per-pixel and per-frame work, and the
 // host cube is written only after every kernel has succeeded, so a st::GpuError leaves it as it was (the
@@ -19,6 +20,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstdio>
+#include <exception>
 #include <memory>
 #include <optional>
 #include <string>
@@ -27,6 +29,8 @@
 
 #include "cuda_check.hpp"
 #include "device_info.hpp"
+#include "host_copies.hpp"
+#include "resident_cube.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "uploader.hpp"
 
@@ -69,6 +73,13 @@ inline bool stagewise() {
   return e && *e && *e != '0';
 }
 
+/// Benchmark knob: ST_GPU_SYNC_DOWNLOADS=1 downloads the zero-biased and the filtered cubes with the device
+/// idle, as before 2026-12-02 (HostCopies), for before/after figures from one binary.
+inline bool syncDownloads() {
+  const char* e = std::getenv("ST_GPU_SYNC_DOWNLOADS");
+  return e && *e && *e != '0';
+}
+
 /// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
 /// core while the next piece's DMA runs).
 void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s);
@@ -94,6 +105,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string name() const override { return "cuda: " + m_device.name; }
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
+  void finishHostCopies() override {
+    if (std::exception_ptr e = m_copies.wait()) std::rethrow_exception(e);
+  }
 
   stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
                                                  ProgressSink& progress, CancelToken& cancel) override;
@@ -160,6 +174,30 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                     CancelToken& cancel, const stats::NoiseModel* noise,
                                     std::uint64_t revision);
 
+  /// The device part of estimateNoiseModel.
+  stats::NoiseModel noiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                               const std::vector<std::uint8_t>& unmeasured,
+                               const stats::NoiseModelParams& params, CancelToken& cancel);
+  /// f(); when it throws, the downloads running behind it finish first (a CPU fallback then has the host
+  /// cubes to itself), and a download's own failure is thrown instead (st::Error: the run stops on half
+  /// written frames).
+  template <class F>
+  auto finishingCopiesOnError(F&& f) {
+    try {
+      return f();
+    } catch (...) {
+      if (std::exception_ptr e = m_copies.wait()) std::rethrow_exception(e);
+      throw;
+    }
+  }
+  /// m_kept holds `cube`'s frames: the same buffer and size, and either zeroBias queued (or finished) their
+  /// download into it, or its sampled pixels give the key m_kept was left with (resident_cube.hpp cubeKey).
+  bool keptIs(const FrameCube& cube) const {
+    if (m_kept.size() == 0 || m_kept.size() != cube.pixels().size() || m_keptData != cube.pixels().data())
+      return false;
+    return m_keptCopiedThere || m_keptKey == cubeKey(cube);
+  }
+
   /// m_res, once the constructor's thread has made it (made here if that thread failed).
   DeviceResources& resources() {
     if (m_warm.joinable()) m_warm.join();
@@ -221,7 +259,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   DeviceBuffer<float> m_kept;
   const float* m_keptData = nullptr;
   std::uint64_t m_keptKey = 0;
-  std::jthread m_warm;  // last: joined before the members it writes are destroyed
+  bool m_keptCopiedThere = false;  ///< zeroBias queued m_kept's download into m_keptData
+  /// Downloads behind the stages after them: zeroBias's zero-biased cube, the matched filter's frames.
+  /// After m_kept and the cubes' buffers they read: finished before those are freed.
+  HostCopies m_copies;
+  std::jthread m_warm;        // joined before the members it writes are destroyed
+  std::jthread m_warmCopies;  // pins m_copies' staging buffers
 };
 
 }  // namespace st::gpu

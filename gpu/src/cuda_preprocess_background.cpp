@@ -24,6 +24,7 @@ stats::Background CudaPreprocess::subtractPixelBackground(FrameCube& cube,
 stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::BackgroundParams& params,
                                                   const detect::MovingMask* exclude, ProgressSink& progress,
                                                   CancelToken& cancel, KeptCube* keep) {
+  finishHostCopies();
   Stopwatch sw;
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();

@@ -21,7 +21,8 @@ stack::MatchedFilterResult CudaPreprocess::filterCube(FrameCube& cube, const sta
                                                       const stats::NoiseModel* noise,
                                                       std::uint64_t revision) {
   const bool hasMask = cube.mask().size() == cube.pixels().size();
-  return filter(cube, hasMask, cube, false, kernel, progress, cancel, noise, revision);
+  return finishingCopiesOnError(
+      [&] { return filter(cube, hasMask, cube, false, kernel, progress, cancel, noise, revision); });
 }
 
 stack::MatchedFilterResult CudaPreprocess::filterCubeFrom(const FrameCube& source, FrameCube& filtered,
@@ -33,7 +34,8 @@ stack::MatchedFilterResult CudaPreprocess::filterCubeFrom(const FrameCube& sourc
   // A destination of the right size (the pipeline allocates it while the stages before run) is used as it
   // is; else it is allocated here, on another thread while the device works.
   const bool allocate = filtered.pixels().size() != source.pixels().size();
-  return filter(source, false, filtered, allocate, kernel, progress, cancel, noise, revision);
+  return finishingCopiesOnError(
+      [&] { return filter(source, false, filtered, allocate, kernel, progress, cancel, noise, revision); });
 }
 
 stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool hasMask, FrameCube& dest,
@@ -71,11 +73,13 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
       }
     });
   }
-  // The frames removeResidualMeans left on the device, when this is that cube unchanged: no upload.
+  // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged (its
+  // host copy may still be downloading): no upload.
+  const bool kept = !hasMask && keptIs(cube);
+  if (!kept) finishHostCopies();  // the host frames are read, and the kept ones freed
   DeviceBuffer<float> in = std::move(m_kept);
-  const bool kept =
-      !hasMask && in.size() == nf * np && m_keptData == cube.pixels().data() && m_keptKey == cubeKey(cube);
   m_keptData = nullptr;
+  m_keptCopiedThere = false;
   if (!kept) {
     in = DeviceBuffer<float>();  // another cube's: freed first
     in = DeviceBuffer<float>(nf * np);
@@ -151,11 +155,19 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   k1.record(s);
   setFilterKernel(kernel.kernel.data(), half, s);
   p.out = out.get();
+  // Into a host buffer of its own (not the source's, not one still to be allocated), each launch's frames
+  // are downloaded behind the next launches.
+  const bool behind = !freshDest && &dest != &cube && !syncDownloads();
+  const double copiedBefore = m_copies.copySeconds();
   constexpr int kFramesPerLaunch = 128;
   for (std::size_t f0 = 0; f0 < nf; f0 += kFramesPerLaunch) {
     p.f0 = static_cast<int>(f0);
     p.f1 = static_cast<int>(std::min(nf, f0 + kFramesPerLaunch));
     launchFilter(p, s);
+    if (behind)
+      m_copies.enqueue(dest.pixels().data() + f0 * np, out.get() + f0 * np,
+                       static_cast<std::size_t>(p.f1 - p.f0) * np * sizeof(float), s, false,
+                       "the matched filter");
     if (f0 % (4 * kFramesPerLaunch) == 0) {
       r.compute.sync();
       cancel.throwIfCancelled();
@@ -187,9 +199,14 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     }
   stack::MatchedFilterResult result = stack::filterNoiseFromSamples(samples, kernel);
   cancel.throwIfCancelled();
+  // The zero-biased cube's download (zeroBias) reads `in`, and the filtered frames' go into `dest`.
+  finishHostCopies();
+  const double waitCopies = sw.lap();
   in = DeviceBuffer<float>();
   double waitAlloc = 0.0;
-  if (freshDest) {
+  if (behind) {
+    // downloaded
+  } else if (freshDest) {
     allocate.join();
     if (allocError) std::rethrow_exception(allocError);
     waitAlloc = sw.lap();
@@ -212,13 +229,18 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     slot.key = residentKey(dest, revision);
     resident = "kept on the device for the search";
   }
-  m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
-           (weighted ? ", weighted" : "") + "): " +
-           (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
-           ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
-           ms(Event::elapsed(k1, k2)) + ")" +
-           (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
-           ", download " + ms(down) + "; filtered cube " + resident;
+  m_note =
+      "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
+      (weighted ? ", weighted" : "") + "): " +
+      (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
+      ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
+      ms(Event::elapsed(k1, k2)) + ")" +
+      (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
+      (behind ? ", download behind the launches (" + ms(m_copies.copySeconds() - copiedBefore) +
+                    " of copies since the filter began, with the zero-biased cube's), waited " +
+                    ms(waitCopies) + " after the kernels"
+              : ", waited " + ms(waitCopies) + " for the zero-biased cube's download, download " + ms(down)) +
+      "; filtered cube " + resident;
   progress.report(1.0, "matched filter (GPU)");
   return result;
 }

@@ -54,6 +54,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
                                                          const stats::FrameBackgroundParams& params,
                                                          ProgressSink& progress, CancelToken& cancel,
                                                          const calib::CalibrationPlan* plan) {
+  finishHostCopies();
   m_note.clear();
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();

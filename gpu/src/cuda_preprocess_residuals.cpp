@@ -14,12 +14,14 @@ using namespace preprocess_detail;
 
 double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma,
                                            ProgressSink& progress, CancelToken& cancel) {
+  finishHostCopies();
   Stopwatch sw;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   m_kept = DeviceBuffer<float>();
   m_keptData = nullptr;
+  m_keptCopiedThere = false;
   DeviceBuffer<float> pix(nf * np);
   Uploader up(r, cube.pixels().data(), np);
   up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
@@ -49,9 +51,17 @@ stats::NoiseModel CudaPreprocess::estimateNoiseModel(const FrameCube& zeroBiased
                                                      const stats::NoiseModelParams& params,
                                                      CancelToken& cancel) {
   if (stagewise()) {
+    finishHostCopies();
     m_note.clear();
     return stats::estimateNoiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel);
   }
+  return finishingCopiesOnError(
+      [&] { return noiseModel(zeroBiased, pixelSigma, unmeasured, params, cancel); });
+}
+
+stats::NoiseModel CudaPreprocess::noiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
+                                             const std::vector<std::uint8_t>& unmeasured,
+                                             const stats::NoiseModelParams& params, CancelToken& cancel) {
   Stopwatch sw;
   const int w = zeroBiased.width(), h = zeroBiased.height();
   const std::size_t nf = zeroBiased.frameCount(), np = zeroBiased.framePixels();
@@ -63,12 +73,13 @@ stats::NoiseModel CudaPreprocess::estimateNoiseModel(const FrameCube& zeroBiased
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
-  // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged.
-  const bool kept = m_kept.size() == nf * np && m_keptData == zeroBiased.pixels().data() &&
-                    m_keptKey == cubeKey(zeroBiased);
+  // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged (its
+  // host copy may still be downloading).
+  const bool kept = keptIs(zeroBiased);
   DeviceBuffer<float> uploaded;
   const float* pix = m_kept.get();
   if (!kept) {
+    finishHostCopies();  // the host frames are read
     uploaded = DeviceBuffer<float>(std::max<std::size_t>(1, nf * np));
     Uploader up(r, zeroBiased.pixels().data(), np);
     up.upload(uploaded.get(), 0, static_cast<int>(nf), r.copy.get());

@@ -12,6 +12,7 @@ using namespace preprocess_detail;
 bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in,
                               pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
   if (stagewise()) return false;
+  finishHostCopies();
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   Stopwatch sw;
@@ -64,15 +65,22 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   ST_CUDA_CHECK(cudaStreamSynchronize(s));
   const double rmKernels = rm.lap();
   cancel.throwIfCancelled();
-  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter.
+  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter. The
+  // download runs behind the noise model and the filter (HostCopies; finishHostCopies() waits for it).
   m_kept = DeviceBuffer<float>();
   m_keptData = nullptr;
-  downloadInPlace(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, "the zero-biased cube",
-                  name());
+  const bool behind = !syncDownloads();
+  if (behind)
+    m_copies.enqueue(cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, true,
+                     "the zero-biased cube");
+  else
+    downloadInPlace(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, "the zero-biased cube",
+                    name());
   const double down = rm.lap();
   m_kept = std::move(kc.pix);
   m_keptData = cube.pixels().data();
-  m_keptKey = cubeKey(cube);
+  m_keptCopiedThere = behind;
+  m_keptKey = behind ? 0 : cubeKey(cube);
   progress.report(0.83, "residual means (GPU)");
   lap("residual means");
   std::string stages;
@@ -80,7 +88,8 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
     stages += (stages.empty() ? "" : ", ") + stage + " " + ms(sec);
   m_note = "per-pixel background to residual means on " + name() +
            ", the cube kept on the device: " + stages + " (residual means kernels " + ms(rmKernels) +
-           ", download " + ms(down) + "; frames kept for the matched filter); star subtraction: " +
+           (behind ? ", download queued behind the next stages" : ", download " + ms(down)) +
+           "; frames kept for the matched filter); star subtraction: " +
            (starTiming.empty() ? "none" : starTiming) + "; " + bgNote;
   return true;
 }

@@ -21,6 +21,7 @@
 #include <algorithm>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <random>
 #include <span>
@@ -31,6 +32,8 @@
 #include "st/pipeline/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/sim/simulator.hpp"
+#include "st/stack/matched_filter.hpp"
+#include "st/psf/moffat.hpp"
 #include "st/stats/background.hpp"
 #include "st/stats/noise_model.hpp"
 
@@ -140,6 +143,10 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
     const std::shared_ptr<void> guard = accel->prefetch(gpu);  // uploaded behind "the CPU stages"
     ASSERT_TRUE(accel->zeroBias(gpu, in, b, p, c));
   }
+  EXPECT_NE(accel->lastNote().find("download queued behind the next stages"), std::string::npos)
+      << accel->lastNote();
+  // The host cube's download may still run: waited for before the cube is read.
+  accel->finishHostCopies();
   EXPECT_NE(accel->lastNote().find("kept on the device"), std::string::npos) << accel->lastNote();
   EXPECT_NE(accel->lastNote().find("prefetched behind the CPU stages"), std::string::npos)
       << accel->lastNote();
@@ -194,6 +201,32 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
   EXPECT_NE(accel->lastNote().find("upload"), std::string::npos) << accel->lastNote();
   EXPECT_EQ(devUp.frameScale, cpuUp.frameScale);
   EXPECT_EQ(devUp.sigmaRef, cpuUp.sigmaRef);
+}
+
+// zeroBias leaves the host cube's download running behind the stages after it. A matched filter that fails
+// (a kernel too large for the device: a GpuError before any launch) waits for it before the error leaves, so
+// the CPU fallback reads whole frames: the cube equals one whose download was waited for, with no
+// finishHostCopies() in between (100 MB: its download is not over by the time the filter fails).
+TEST(GpuZeroBias, FailedFilterWaitsForTheDownloadBehindIt) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  const FrameCube raw = driftingCube(512, 256, 200, 9);
+  pipeline::ZeroBiasInputs in;
+  in.residualMeshPx = 64;
+  NullProgress p;
+  CancelToken c;
+  FrameCube waited = raw, failed = raw;
+  pipeline::ZeroBiasResult a, b;
+  ASSERT_TRUE(accel->zeroBias(waited, in, a, p, c));
+  accel->finishHostCopies();
+  ASSERT_TRUE(accel->zeroBias(failed, in, b, p, c));
+  const stack::FilterKernel tooLarge = stack::makeFilterKernel(psf::Moffat::fromFwhm(10.5));
+  FrameCube dest(failed.width(), failed.height(), 0);
+  dest.pixels().resize(failed.pixels().size());
+  EXPECT_THROW(accel->filterCubeFrom(failed, dest, tooLarge, p, c, nullptr, 0), GpuError);
+  ASSERT_EQ(failed.pixels().size(), waited.pixels().size());
+  EXPECT_EQ(
+      std::memcmp(failed.pixels().data(), waited.pixels().data(), failed.pixels().size() * sizeof(float)), 0);
+  EXPECT_NE(waited.pixels(), raw.pixels());
 }
 
 TEST(GpuZeroBias, PrefetchOfAnotherCubeIsNotUsed) {
@@ -274,6 +307,16 @@ TEST(GpuZeroBias, PipelineWithTheDeviceMatchesTheCpu) {
   for (const auto& n : gpu.notes)
     noiseNoted |= n.find("noise model on") != std::string::npos;
   EXPECT_TRUE(noiseNoted);
+  // Both downloads ran behind the stages after them (the cubes are compared below).
+  auto notedBoth = [&gpu](const char* a, const char* b) {
+    return std::any_of(gpu.notes.begin(), gpu.notes.end(), [&](const std::string& n) {
+      return n.find(a) != std::string::npos && n.find(b) != std::string::npos;
+    });
+  };
+  EXPECT_TRUE(
+      notedBoth("per-pixel background to residual means on", "download queued behind the next stages"));
+  EXPECT_TRUE(notedBoth("noise model on", "frames already on the device"));
+  EXPECT_TRUE(notedBoth("matched filter on", "download behind the launches"));
   ASSERT_EQ(gpu.noiseModel.frameScale.size(), cpu.noiseModel.frameScale.size());
   for (std::size_t n = 0; n < cpu.noiseModel.frameScale.size(); ++n)
     EXPECT_NEAR(gpu.noiseModel.frameScale[n], cpu.noiseModel.frameScale[n],

@@ -64,6 +64,12 @@ class PreprocessAccelerator {
   [[nodiscard]] virtual std::string name() const = 0;
   /// How the last stage ran on the device (times of upload, kernels, download), for the notes; may be empty.
   [[nodiscard]] virtual std::string lastNote() const { return {}; }
+  /// Waits for the downloads into the pipeline's cubes that a stage left running behind the stages after
+  /// it (zeroBias's zero-biased cube, downloaded beside the noise model and the matched filter); the host
+  /// cube may not be read or written before. Throws st::Error when one failed part way (the frames are half
+  /// written). The pipeline calls it before the CPU does a stage the device failed, and before it returns;
+  /// the device's own stages wait where they need the host copy. The default has none to wait for.
+  virtual void finishHostCopies() {}
   /// Same contract as stats::removeFrameBackgrounds (SEP's background per frame): the same levels and rms
   /// (within the rounding of SEP's double sums), the frames within float rounding of the CPU's. The default
   /// is the CPU's.
@@ -186,7 +192,8 @@ class PreprocessAccelerator {
   /// The stages of zeroBiasStages (per-pixel background, star subtraction, the zeroing stages, residual
   /// means) with the cube kept on the device from one upload to one download; same results within the
   /// per-stage tolerances. False: not supported (the caller runs zeroBiasStages). On st::GpuError the host
-  /// cube is as it was (the caller restores *in.starMask and runs zeroBiasStages).
+  /// cube is as it was (the caller restores *in.starMask and runs zeroBiasStages). On return the host cube's
+  /// download may still run: finishHostCopies() waits for it.
   virtual bool zeroBias(FrameCube& cube, const ZeroBiasInputs& in, ZeroBiasResult& out,
                         ProgressSink& progress, CancelToken& cancel) {
     (void)cube, (void)in, (void)out, (void)progress, (void)cancel;

@@ -1,0 +1,93 @@
+// HostCopies (host_copies.hpp): device -> host copies on a thread of their own, behind the stages after them.
+#include "host_copies.hpp"
+
+#include <chrono>
+#include <utility>
+
+#include "cuda_preprocess.hpp"
+#include "st/common/error.hpp"
+
+namespace st::gpu {
+
+HostCopies::HostCopies(int device, std::string name) : m_device(device), m_name(std::move(name)) {}
+
+HostCopies::~HostCopies() {
+  (void)wait();
+  // m_thread (last) is stopped and joined first.
+}
+
+DeviceResources& HostCopies::resources() {
+  std::call_once(m_made, [this] {
+    ST_CUDA_CHECK(cudaSetDevice(m_device));
+    auto r = std::make_unique<DeviceResources>();
+    r->staging(0);
+    r->staging(1);
+    m_res = std::move(r);
+  });
+  return *m_res;
+}
+
+void HostCopies::warm() { (void)resources(); }
+
+void HostCopies::enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
+                         std::string what) {
+  if (bytes == 0) return;
+  Piece p{host, dev, bytes, Event(), inPlace, std::move(what)};
+  p.ready.record(writer);
+  {
+    const std::lock_guard lock(m_mutex);
+    m_queue.push_back(std::move(p));
+    if (!m_thread.joinable()) m_thread = std::jthread([this](std::stop_token stop) { run(stop); });
+  }
+  m_changed.notify_all();
+}
+
+std::exception_ptr HostCopies::wait() {
+  std::unique_lock lock(m_mutex);
+  m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
+  return std::exchange(m_error, nullptr);
+}
+
+bool HostCopies::busy() const {
+  const std::lock_guard lock(m_mutex);
+  return !m_queue.empty() || m_running;
+}
+
+double HostCopies::copySeconds() const {
+  const std::lock_guard lock(m_mutex);
+  return m_seconds;
+}
+
+void HostCopies::run(std::stop_token stop) {
+  std::unique_lock lock(m_mutex);
+  for (;;) {
+    if (!m_changed.wait(lock, stop, [this] { return !m_queue.empty(); })) return;  // stopped, nothing queued
+    Piece p = std::move(m_queue.front());
+    m_queue.pop_front();
+    m_running = true;
+    lock.unlock();
+    const auto t0 = std::chrono::steady_clock::now();
+    std::exception_ptr error;
+    try {
+      DeviceResources& r = resources();
+      ST_CUDA_CHECK(cudaSetDevice(m_device));
+      ST_CUDA_CHECK(cudaStreamWaitEvent(r.copy.get(), p.ready.get(), 0));
+      preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get());
+    } catch (const GpuError& e) {
+      error = p.inPlace ? std::make_exception_ptr(Error(p.what + "'s download from " + m_name +
+                                                        " failed part way, leaving the frames half written: " +
+                                                        e.what()))
+                        : std::current_exception();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    lock.lock();
+    m_seconds += seconds;
+    if (error && !m_error) m_error = error;
+    m_running = false;
+    m_changed.notify_all();
+  }
+}
+
+}  // namespace st::gpu

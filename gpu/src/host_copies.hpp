@@ -1,0 +1,76 @@
+#pragma once
+// Device -> host copies that run behind the stages after them (issue 16): the zero-biased cube's download
+// beside the noise model and the matched filter's kernels, and the filtered frames' download launch by launch
+// beside the filter's later launches. The downloads were ~80 ms of the paper's pre-processing (1500 x
+// 512^2, H200, 2026-12-02) with the device idle.
+#include <condition_variable>
+#include <cstddef>
+#include <deque>
+#include <exception>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "uploader.hpp"
+
+namespace st::gpu {
+
+/// One thread copies the queued pieces in their order, through its own stream and two pinned staging
+/// buffers (a DeviceResources of its own: no contention with the stages' staging buffers), each piece once
+/// the work queued before it on the stream that writes its source is done. The host copy out of the
+/// staging buffers runs on every core (parallelFor beside the caller's own loops).
+class HostCopies {
+ public:
+  /// `device`: the ordinal the copies run on; `name`: the device's, for messages.
+  HostCopies(int device, std::string name);
+  /// Waits for the queued copies (their errors are dropped: the owner waited already where they mattered).
+  ~HostCopies();
+  HostCopies(const HostCopies&) = delete;
+  HostCopies& operator=(const HostCopies&) = delete;
+
+  /// Pins the staging buffers now (cudaMallocHost of 64 MiB took 29-73 ms on H100 hosts), on the calling
+  /// thread; enqueue() does it otherwise.
+  void warm();
+
+  /// Queues a copy of `bytes` from device memory `dev` to `host` after the work queued on `writer` so far.
+  /// `inPlace`: `host` is the pipeline's own cube, which a failure part way leaves half written: wait()
+  /// then throws st::Error (the run stops) instead of the GpuError (a CPU fallback writes a fresh
+  /// destination anew). `what` names the data in messages. The caller keeps `dev` and `host` alive and
+  /// unwritten until wait() returns.
+  void enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
+               std::string what);
+  /// Blocks until every queued copy is done; the first failure since the last wait() is returned (and
+  /// forgotten), null when none.
+  [[nodiscard]] std::exception_ptr wait();
+  /// True while a copy is queued or running.
+  [[nodiscard]] bool busy() const;
+  /// Seconds spent copying since construction (for the stages' notes: the difference over a stage).
+  [[nodiscard]] double copySeconds() const;
+
+ private:
+  struct Piece {
+    void* host;
+    const void* dev;
+    std::size_t bytes;
+    Event ready;
+    bool inPlace;
+    std::string what;
+  };
+  void run(std::stop_token stop);
+  DeviceResources& resources();
+
+  int m_device;
+  std::string m_name;
+  std::once_flag m_made;
+  std::unique_ptr<DeviceResources> m_res;  // made once (warm() or the first copy), with m_device current
+  mutable std::mutex m_mutex;
+  std::condition_variable_any m_changed;
+  std::deque<Piece> m_queue;
+  bool m_running = false;  ///< the thread is copying a piece taken off the queue
+  std::exception_ptr m_error;
+  double m_seconds = 0.0;
+  std::jthread m_thread;  // last: stopped and joined before the members it reads are destroyed
+};
+
+}  // namespace st::gpu
