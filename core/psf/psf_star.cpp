@@ -180,15 +180,19 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
     eligible.push_back(&c);
   }
   // Fitted one at a time, brightest first, each fit's model on every core (fitMoffat: the pixels in
-  // parallel, summed in order), until maxAccepted are accepted. Batches of 16 whole fits in parallel (issue 16)
-  // fitted up to 7 stars past the stop and waited for the slowest of the 16 (~100 ms on the paper's stack
+  // parallel, summed in order), until maxAccepted are accepted. Batches of 16 whole fits in parallel (issue
+  // 16) fitted up to 7 stars past the stop and waited for the slowest of the 16 (~100 ms on the paper's stack
   // with 16 threads); the fits and the choice are the same either way.
+  // A fit far below minPeakSnr is not refined with the smear (MoffatFitOptions::rejectBelowAmplitude): it is
+  // rejected all the same.
+  MoffatFitOptions fitOptions = o.fit;
+  if (noise > 0.0 && o.minPeakSnr > 0.0) fitOptions.rejectBelowAmplitude = o.minPeakSnr * noise;
   for (const StarCandidate* cp : eligible) {
     const StarCandidate& c = *cp;
     ++m.candidatesConsidered;
     MoffatFit fit;
     try {
-      fit = fitMoffat(image, c.x, c.y, o.fit);
+      fit = fitMoffat(image, c.x, c.y, fitOptions);
     } catch (const InputError& e) {
       m.rejected.push_back(where(c) + ": " + e.what());
       continue;

@@ -45,6 +45,11 @@ struct MoffatFitOptions {
   /// a plain fit whose beta ends on a bound and whose centre lies more than fitWanderLimitPx + 2 px from the
   /// guess (no star's profile) is returned as it is.
   SmearKernel smear;
+  /// The amplitude below which the caller rejects the fit (measurePsf: minPeakSnr x the image noise); 0 =
+  /// none. A plain fit whose amplitude stays below half of it even with the smear's loss of peak put back
+  /// (divided by sum_k w_k P(dx_k, dy_k) / P(0, 0) of the plain fit's profile) is not refined with the
+  /// smear: it is returned as it is, to be rejected.
+  double rejectBelowAmplitude = 0.0;
 };
 
 /// Why the LM iterations stopped.
