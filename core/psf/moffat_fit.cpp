@@ -169,9 +169,9 @@ LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& star
                               const SmearKernel& smear, int maxIterations) {
   LmState st;
   Vec6 p = start;
-  Mat6 jtj;
-  Vec6 jtr;
-  Workspace ws;
+  Mat6 jtj, trialJtj;
+  Vec6 jtr, trialJtr;
+  Workspace ws, trialWs;
   double ssr = evaluate(pixels, p, s, smear, &jtj, &jtr, ws);
   double lambda = 1e-3;
   int it = 0;
@@ -187,12 +187,18 @@ LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& star
       a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
       Vec6 trial = p + a.ldlt().solve(jtr);
       clampParams(trial);
-      const double trialSsr = evaluate(pixels, trial, s, smear, nullptr, nullptr, ws);
+      // With its normal equations: modelAt computes the gradient's sums with the value either way, so they
+      // cost a rank update per pixel, and an accepted trial is not evaluated again (half the exp and log of
+      // a fit; the same sums bit for bit, as modelAt's value does not depend on whether the gradient is
+      // kept).
+      const double trialSsr = evaluate(pixels, trial, s, smear, &trialJtj, &trialJtr, trialWs);
       if (std::isfinite(trialSsr) && trialSsr < ssr) {
         const double step = ((trial - p).cwiseAbs().array() / (p.cwiseAbs().array() + 1e-12)).maxCoeff();
         const double reduction = (ssr - trialSsr) / std::max(ssr, 1e-300);
         p = trial;
-        ssr = evaluate(pixels, p, s, smear, &jtj, &jtr, ws);
+        ssr = trialSsr;
+        jtj = trialJtj;
+        jtr = trialJtr;
         lambda = std::max(lambda * 0.1, 1e-12);
         accepted = true;
         if (reduction < 1e-10) conv = FitConvergence::RelativeReduction;
