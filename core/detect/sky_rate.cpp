@@ -87,7 +87,8 @@ struct PairRates {
 };
 
 PairRates blockPairRates(const FrameCube& cube, std::size_t len, double background, double sigma,
-                         const SkyRateParams& params, CancelToken& cancel) {
+                         const SkyRateParams& params, CancelToken& cancel, TimedParts& parts) {
+  PartTimer timer(parts);
   const std::size_t nf = cube.frameCount();
   const int pairs = std::max(1, params.blocks);
   const auto dt = cube.timeOffsetsS();
@@ -111,6 +112,7 @@ PairRates blockPairRates(const FrameCube& cube, std::size_t len, double backgrou
       blocks[j] = blockMean(cube, first, first + len, background, sigma, params.detectSigma, dt);
     }
   });
+  timer.lap("block pairs: means");
   parallelFor(each.size(), 1, [&](std::size_t k0, std::size_t k1) {
     for (std::size_t k = k0; k < k1; ++k) {
       cancel.throwIfCancelled();
@@ -125,6 +127,7 @@ PairRates blockPairRates(const FrameCube& cube, std::size_t len, double backgrou
       each[k] = {true, d.x / span, d.y / span, response, span};
     }
   });
+  timer.lap("block pairs: correlations");
   PairRates out;
   for (const One& e : each) {
     if (!e.ok) continue;
@@ -164,8 +167,11 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
     return out;
   }
   PartTimer timer(out.parts);
-  const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel);
+  TimedParts pairParts;
+  const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel, pairParts);
   timer.lap("block pairs");
+  for (const TimedPart& p : pairParts.parts)
+    out.parts.add(p.name, p.seconds, p.cpuSeconds);
   out.response = pairs.responses.empty() ? 0.0 : median(pairs.responses);
   if (pairs.vx.empty() || out.response < params.minResponse) {
     out.note = "sky rate: no reliable star pattern (phase-correlation peak " + std::to_string(out.response) +

@@ -182,7 +182,9 @@ void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums
 // over the blocks).
 std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout, Velocity rate,
                                     double background, double sigma, const std::vector<double>& dt,
-                                    const ShiftedSumsProvider* provider, CancelToken& cancel) {
+                                    const ShiftedSumsProvider* provider, CancelToken& cancel,
+                                    TimedParts& parts) {
+  PartTimer timer(parts);
   const std::size_t k = layout.count();
   const int w = cube.width(), h = cube.height();
   std::vector<BlockStack> stacks(k);
@@ -195,10 +197,12 @@ std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout,
     if (made && made->size() != k) made.reset();
   }
   if (made) {
+    timer.lap("stacks: sums made elsewhere");
     parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
       for (std::size_t b = b0; b < b1; ++b)
         finishBlock(stacks[b], blocks[b], (*made)[b], w, h, sigma);
     });
+    timer.lap("stacks: finished");
     return stacks;
   }
   // On the CPU, as many blocks at a time as there are threads (each block's sums are two frame-sized double
@@ -438,11 +442,11 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   cv::Mat window;
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
   Velocity rate = start;
-  TimedParts threadTime;
+  TimedParts threadTime, stackParts;
   PartTimer timer(out.parts);
   for (int it = 0; it < 4; ++it) {
     const std::vector<BlockStack> stacks =
-        stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel);
+        stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel, stackParts);
     timer.lap("stacks");
     const std::vector<Link> links =
         measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, &threadTime);
@@ -475,6 +479,8 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     rate = next;
     if (stable) break;
   }
+  for (const TimedPart& p : stackParts.parts)
+    out.parts.add(p.name, p.seconds, p.cpuSeconds);
   for (const TimedPart& p : threadTime.parts)
     out.parts.add(p.name, p.seconds);
   if (!out.ok) return out;

@@ -113,7 +113,7 @@ TEST(Pipeline, NoStarFallsBackToGivenFwhmWithANote) {
   EXPECT_NEAR(out.psf.fwhm(), 2.5, 1e-9);
   bool noted = false;
   for (const auto& n : out.notes)
-    noted |= n.find("PSF") != std::string::npos && n.find("2.5") != std::string::npos;
+    noted |= n.rfind("PSF: ", 0) == 0 && n.find("using the given FWHM 2.5 px") != std::string::npos;
   EXPECT_TRUE(noted);
   for (float v : out.filtered.frames.pixels())
     ASSERT_TRUE(std::isfinite(v));
