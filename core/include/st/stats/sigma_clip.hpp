@@ -23,7 +23,9 @@ ClipStats sigmaClip(const float* values, std::size_t n, double xi, int maxIterat
 
 /// A symmetric variant, B = {i | |y_i - mean| <= xi * sigma}, for quantities whose outliers go both ways
 /// (frame differences, where a cosmic ray in either frame gives a positive or a negative outlier). Same
-/// estimators and convergence rule (B unchanged) as sigmaClip.
+/// estimators and convergence rule (B unchanged) as sigmaClip. Its sums are made per chunk of 65536 values
+/// on every core and added in chunk order: the same result on any number of threads (for more values than
+/// one chunk it differs from one sequential sum in the last bits).
 ClipStats sigmaClipSymmetric(const float* values, std::size_t n, double xi, int maxIterations = 100);
 
 }  // namespace st::stats
