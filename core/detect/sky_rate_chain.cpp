@@ -163,6 +163,24 @@ void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums
   b.noise = cv::Mat::zeros(h, w, CV_32F);
   b.covered = cv::Mat::zeros(h, w, CV_8U);
   const double full = kFullCoverage * static_cast<double>(blk.last - blk.first);
+  if (!sums.mean.empty()) {
+    // The device's means and counts: the same values as from the sums below.
+    for (int y = 0; y < h; ++y) {
+      const float* mrow = sums.mean.data() + static_cast<std::size_t>(y) * w;
+      const float* frow = sums.frames.data() + static_cast<std::size_t>(y) * w;
+      float* v = b.value.ptr<float>(y);
+      float* n = b.noise.ptr<float>(y);
+      unsigned char* cov = b.covered.ptr<unsigned char>(y);
+      for (int x = 0; x < w; ++x) {
+        const double c = frow[x];
+        if (c <= 0 || c < full) continue;
+        cov[x] = 255;
+        v[x] = mrow[x];
+        n[x] = static_cast<float>(sigma / std::sqrt(c));
+      }
+    }
+    return;
+  }
   for (int y = 0; y < h; ++y) {
     const double* srow = sums.sum.data() + static_cast<std::size_t>(y) * w;
     const double* crow = sums.count.data() + static_cast<std::size_t>(y) * w;

@@ -180,7 +180,9 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
     const std::vector<float> scaled = gatherInOrder(
         np, [&](std::size_t i) { return s.count.pixels[i] > 0; },
         [&](std::size_t i) { return a.resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
+    timer.lap("analysis: residual");
     a.noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+    timer.lap("analysis: noise clip");
     if (a.noise.sigma > 0) {
       parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
         for (std::size_t i = i0; i < i1; ++i)
@@ -188,7 +190,7 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
       });
     }
     cancel.throwIfCancelled();
-    timer.lap("analysis: residual, noise and SNR");
+    timer.lap("analysis: SNR");
     // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
     // after the matched filter.
     if (params.filteredDetection)

@@ -41,6 +41,10 @@ struct ShiftedSumsLaunch {
   double background = 0.0;
   double* sum = nullptr;  ///< blocks x width x height
   double* count = nullptr;
+  /// Instead of sum and count when not null (detect::ShiftedSums::mean, frames): sum / count rounded to
+  /// float (0 where count is 0), and count as a float.
+  float* mean = nullptr;
+  float* frames = nullptr;
 };
 void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s);
 

@@ -140,6 +140,27 @@ TEST(SkyRateChain, FieldChangesCompletely) {
   ASSERT_EQ(p.blocks.size(), r.blocks.size());
   for (std::size_t b = 0; b < r.blocks.size(); ++b)
     EXPECT_EQ(p.blocks[b].offsetPx, r.blocks[b].offsetPx);
+  // A provider that gives the blocks' means and counts instead (ShiftedSums::mean, frames: what the CUDA
+  // device downloads): the same again.
+  const ShiftedSumsProvider means = [&](const FrameCube& cc, const std::vector<ShiftedBlock>& blocks,
+                                        double background) -> std::optional<std::vector<ShiftedSums>> {
+    std::vector<ShiftedSums> sums = shiftedSums(cc, blocks, background);
+    for (ShiftedSums& b : sums) {
+      for (std::size_t i = 0; i < b.sum.size(); ++i) {
+        b.mean.push_back(b.count[i] > 0 ? static_cast<float>(b.sum[i] / b.count[i]) : 0.0f);
+        b.frames.push_back(static_cast<float>(b.count[i]));
+      }
+      b.sum.clear();
+      b.count.clear();
+    }
+    return sums;
+  };
+  const SkyRate m = measureSkyRate(cube, 0.0, 1.0, {}, c, &means);
+  EXPECT_EQ(m.rate, r.rate);
+  EXPECT_EQ(m.note, r.note);
+  ASSERT_EQ(m.blocks.size(), r.blocks.size());
+  for (std::size_t b = 0; b < r.blocks.size(); ++b)
+    EXPECT_EQ(m.blocks[b].offsetPx, r.blocks[b].offsetPx);
 }
 
 }  // namespace

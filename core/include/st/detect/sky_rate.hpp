@@ -60,9 +60,13 @@ struct ShiftedBlock {
 };
 
 /// Per stack pixel (row-major, the frame's size): the sum of (F_n - background) over the block's unmasked
-/// samples that fall inside their frame, in frame order, and their count.
+/// samples that fall inside their frame, in frame order, and their count. A device may give instead the
+/// block's mean, sum / count rounded to float (0 where the count is 0), and the count as a float (a whole
+/// number of frames: exact), in `mean` and `frames` (sum and count empty): what the block's stack takes from
+/// the sums, in half the bytes (issue 16).
 struct ShiftedSums {
   std::vector<double> sum, count;
+  std::vector<float> mean, frames;
 };
 
 /// shiftedSums on the CPU (the reference).

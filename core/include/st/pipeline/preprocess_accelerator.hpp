@@ -124,8 +124,9 @@ class PreprocessAccelerator {
     (void)cube, (void)pixels;
   }
   /// detect::shiftedSums(cube, blocks, background) (the sky rate's block stacks): the same sums in the same
-  /// order; none when the device cannot make them without an upload of its own (`cube` is not the prefetched
-  /// one, or its upload is not done yet). The default makes none.
+  /// order, or their means and counts (detect::ShiftedSums::mean, frames) made from them; none when the
+  /// device cannot make them without an upload of its own (`cube` is not the prefetched one, or its upload is
+  /// not done yet). The default makes none.
   virtual std::optional<std::vector<detect::ShiftedSums>> shiftedSums(
       const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background) {
     (void)cube, (void)blocks, (void)background;
