@@ -61,13 +61,6 @@ void preprocess_detail::downloadInPlace(DeviceResources& r, void* host, const vo
 CudaPreprocess::CudaPreprocess(DeviceInfo device)
     : m_device(std::move(device)), m_copies(m_device.ordinal, "cuda: " + m_device.name) {
   try {
-    m_warmCopies = std::jthread([this] {
-      try {
-        m_copies.warm();
-      } catch (...) {
-        // The first download makes them, and reports what fails.
-      }
-    });
     m_warm = std::jthread([this] {
       try {
         ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));

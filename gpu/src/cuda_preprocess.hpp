@@ -263,8 +263,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   /// Downloads behind the stages after them: zeroBias's zero-biased cube, the matched filter's frames.
   /// After m_kept and the cubes' buffers they read: finished before those are freed.
   HostCopies m_copies;
-  std::jthread m_warm;        // joined before the members it writes are destroyed
-  std::jthread m_warmCopies;  // pins m_copies' staging buffers
+  std::jthread m_warm;  // last: joined before the members it writes are destroyed
 };
 
 }  // namespace st::gpu

@@ -27,8 +27,6 @@ DeviceResources& HostCopies::resources() {
   return *m_res;
 }
 
-void HostCopies::warm() { (void)resources(); }
-
 void HostCopies::enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
                          std::string what) {
   if (bytes == 0) return;

@@ -17,7 +17,8 @@
 namespace st::gpu {
 
 /// One thread copies the queued pieces in their order, through its own stream and two pinned staging
-/// buffers (a DeviceResources of its own: no contention with the stages' staging buffers), each piece once
+/// buffers (a DeviceResources of its own, made by the first copy: no contention with the stages' staging
+/// buffers; warmPreprocessStaging pins them ahead), each piece once
 /// the work queued before it on the stream that writes its source is done. The host copy out of the
 /// staging buffers runs on every core (parallelFor beside the caller's own loops).
 class HostCopies {
@@ -28,10 +29,6 @@ class HostCopies {
   ~HostCopies();
   HostCopies(const HostCopies&) = delete;
   HostCopies& operator=(const HostCopies&) = delete;
-
-  /// Pins the staging buffers now (cudaMallocHost of 64 MiB took 29-73 ms on H100 hosts), on the calling
-  /// thread; enqueue() does it otherwise.
-  void warm();
 
   /// Queues a copy of `bytes` from device memory `dev` to `host` after the work queued on `writer` so far.
   /// `inPlace`: `host` is the pipeline's own cube, which a failure part way leaves half written: wait()
@@ -63,7 +60,7 @@ class HostCopies {
   int m_device;
   std::string m_name;
   std::once_flag m_made;
-  std::unique_ptr<DeviceResources> m_res;  // made once (warm() or the first copy), with m_device current
+  std::unique_ptr<DeviceResources> m_res;  // made by the first copy, with m_device current
   mutable std::mutex m_mutex;
   std::condition_variable_any m_changed;
   std::deque<Piece> m_queue;

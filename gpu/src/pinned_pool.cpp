@@ -40,7 +40,10 @@ void warmPinnedStaging(int count) {
 
 void warmPreprocessStaging() noexcept {
   try {
-    warmPinnedStaging(2);
+    // Two for the stages' uploads and downloads, two for the downloads behind them (HostCopies). Pinned on
+    // the accelerator's own threads instead, they slowed the frame backgrounds' upload beside them from
+    // 35-56 ms to 64-101 ms (H200, 2026-12-02 06:20 UTC).
+    warmPinnedStaging(4);
   } catch (...) {
     // The accelerator pins its own.
   }

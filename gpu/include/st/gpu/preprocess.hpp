@@ -15,9 +15,10 @@ class CudaPreprocessAccelerator : public pipeline::PreprocessAccelerator {
   virtual void setKeepResident(bool keep) = 0;
 };
 
-/// Pins the two staging buffers that the next accelerator's uploads take (cudaMallocHost of 64 MiB: 29-73 ms
-/// on H100 hosts), ahead of it: the app calls it where it makes the CUDA search backend, beside the frames'
-/// read. Never throws (a failure leaves the accelerator to pin its own).
+/// Pins the four staging buffers that the next accelerator's copies take (its stages' two and the two of the
+/// downloads behind them; cudaMallocHost of 64 MiB: 29-73 ms on H100 hosts), ahead of it: the app calls it
+/// where it makes the CUDA search backend, beside the frames' read. Never throws (a failure leaves the
+/// accelerator to pin its own).
 void warmPreprocessStaging() noexcept;
 
 /// The accelerator on the first device of compute capability 9.0 or newer, or nullptr with `whyNot` set.
