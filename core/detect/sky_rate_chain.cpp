@@ -163,7 +163,7 @@ void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums
   b.noise = cv::Mat::zeros(h, w, CV_32F);
   b.covered = cv::Mat::zeros(h, w, CV_8U);
   const double full = kFullCoverage * static_cast<double>(blk.last - blk.first);
-  if (!sums.mean.empty()) {
+  if (sums.sum.empty()) {
     // The device's means and counts: the same values as from the sums below.
     for (int y = 0; y < h; ++y) {
       const float* mrow = sums.mean.data() + static_cast<std::size_t>(y) * w;
@@ -212,7 +212,12 @@ std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout,
   std::optional<std::vector<ShiftedSums>> made;
   if (provider && *provider) {
     made = (*provider)(cube, blocks, background);
-    if (made && made->size() != k) made.reset();
+    // Each block's sums and counts, or its means and counts, of the frame's size; else the CPU's.
+    const std::size_t np = cube.framePixels();
+    auto whole = [np](const ShiftedSums& b) {
+      return (b.sum.size() == np && b.count.size() == np) || (b.mean.size() == np && b.frames.size() == np);
+    };
+    if (made && (made->size() != k || !std::all_of(made->begin(), made->end(), whole))) made.reset();
   }
   if (made) {
     timer.lap("stacks: sums made elsewhere");

@@ -80,11 +80,15 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
                                                                      params.psfStar->second - s.y0, opt)
                                                  : psf::measurePsf(s.mean, candidates, opt);
     timer.lap("fits");
-    std::ostringstream note;
-    note << "PSF: " << m.candidatesConsidered << " star(s) fitted, " << m.acceptedFwhm.size() << " accepted";
-    if (!m.rejected.empty()) note << " (first rejected: " << m.rejected.front() << ")";
-    note << "; " << parts.text();
-    out.notes.push_back(note.str());
+    std::ostringstream fitted;
+    if (params.psfStar)
+      fitted << "PSF: the given star fitted";
+    else
+      fitted << "PSF: " << m.candidatesConsidered << " star(s) fitted, " << m.acceptedFwhm.size()
+             << " accepted";
+    if (!m.rejected.empty()) fitted << " (first rejected: " << m.rejected.front() << ")";
+    fitted << "; " << parts.text();
+    out.notes.push_back(fitted.str());
     out.psf = m.fit.model;
     out.psfFitted = true;
     out.psfStarAt = std::make_pair(m.fit.x0 + s.x0, m.fit.y0 + s.y0);
@@ -373,9 +377,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
-  ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
-  // The device may still be downloading the zero-biased cube into `cube` (behind the noise model and the
-  // matched filter): waited for below, and before `out` is freed when a stage throws.
+  // From zeroBias on, the device may be downloading the zero-biased cube into `cube` (behind the noise model
+  // and the matched filter): waited for below, and before `out` is freed when a stage throws.
   const struct HostCopiesGuard {
     PreprocessAccelerator* accel;
     ~HostCopiesGuard() {
@@ -386,6 +389,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       }
     }
   } hostCopies{params.accelerator};
+  ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));
   last = std::chrono::steady_clock::now();

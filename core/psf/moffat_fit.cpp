@@ -290,13 +290,30 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   // measurePsf fits 30 candidates for 5 acceptable ones, and the smeared refinements of the 21 with peak SNR
   // 2-12 (against its 20, on stamps up to 61 x 61 px as their plain FWHM is wide) took ~3.5 of the stage's
   // ~4 s on the 2-core machine (2026-12-02).
+  // The PSF under the smear is estimated by second moments: the plain fit's per-axis variance (a Moffat's
+  // R^2 / (2 (beta - 2)), beta > 2) less the smear's mean per-axis variance; with none left (a smear as wide
+  // as the star) or beta <= 2 the fit is refined as before. The plain profile alone, already widened by the
+  // smear, would understate the loss for trails longer than the star.
   bool tooFaint = false;
-  if (o.rejectBelowAmplitude > 0.0 && !o.smear.empty() && lm.converged()) {
-    const Moffat plain{lm.p[kR], lm.p[kBeta]};
-    double peak = 0.0;
-    for (std::size_t k = 0; k < o.smear.weight.size(); ++k)
-      peak += o.smear.weight[k] * plain(o.smear.dx[k], o.smear.dy[k]);
-    tooFaint = peak > 0.0 && lm.p[kAmp] / peak < 0.5 * o.rejectBelowAmplitude;
+  if (o.rejectBelowAmplitude > 0.0 && !o.smear.empty() && lm.converged() && lm.p[kBeta] > 2.0) {
+    const SmearKernel& k = o.smear;
+    double mx = 0.0, my = 0.0;
+    for (std::size_t i = 0; i < k.weight.size(); ++i)
+      mx += k.weight[i] * k.dx[i], my += k.weight[i] * k.dy[i];
+    double vx = 0.0, vy = 0.0;
+    for (std::size_t i = 0; i < k.weight.size(); ++i) {
+      vx += k.weight[i] * (k.dx[i] - mx) * (k.dx[i] - mx);
+      vy += k.weight[i] * (k.dy[i] - my) * (k.dy[i] - my);
+    }
+    const double beta = lm.p[kBeta];
+    const double psfVariance = lm.p[kR] * lm.p[kR] / (2.0 * (beta - 2.0)) - 0.5 * (vx + vy);
+    if (psfVariance > 0.0) {
+      const Moffat psf{std::sqrt(2.0 * (beta - 2.0) * psfVariance), beta};
+      double peak = 0.0;  // the smeared PSF's peak, at the smear's centroid, over the PSF's
+      for (std::size_t i = 0; i < k.weight.size(); ++i)
+        peak += k.weight[i] * psf(k.dx[i] - mx, k.dy[i] - my);
+      tooFaint = peak > 0.0 && lm.p[kAmp] / peak < 0.5 * o.rejectBelowAmplitude;
+    }
   }
   if (!o.smear.empty() && lm.converged() && !strayed && !tooFaint) {
     const int used = lm.iterations;

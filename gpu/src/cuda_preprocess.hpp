@@ -179,23 +179,39 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                const std::vector<std::uint8_t>& unmeasured,
                                const stats::NoiseModelParams& params, CancelToken& cancel);
   /// f(); when it throws, the downloads running behind it finish first (a CPU fallback then has the host
-  /// cubes to itself), and a download's own failure is thrown instead (st::Error: the run stops on half
-  /// written frames).
+  /// cubes to itself). A download's failure into the pipeline's own cube (st::Error: the frames are half
+  /// written) is thrown instead; any other (a fresh destination's, which the CPU writes anew) leaves f's.
   template <class F>
   auto finishingCopiesOnError(F&& f) {
     try {
       return f();
     } catch (...) {
-      if (std::exception_ptr e = m_copies.wait()) std::rethrow_exception(e);
+      if (std::exception_ptr e = m_copies.wait()) {
+        try {
+          std::rethrow_exception(e);
+        } catch (const GpuError&) {  // a fresh destination's: f's exception stands
+        } catch (...) {
+          throw;  // half written frames: the run stops
+        }
+      }
       throw;
     }
+  }
+  /// Drops the kept frames (after their queued download, if any, is waited for).
+  void forgetKept() {
+    m_kept = DeviceBuffer<float>();
+    m_keptData = nullptr;
+    m_keptCopiedThere = false;
+    m_keptShapeKey = 0;
   }
   /// m_kept holds `cube`'s frames: the same buffer and size, and either zeroBias queued (or finished) their
   /// download into it, or its sampled pixels give the key m_kept was left with (resident_cube.hpp cubeKey).
   bool keptIs(const FrameCube& cube) const {
     if (m_kept.size() == 0 || m_kept.size() != cube.pixels().size() || m_keptData != cube.pixels().data())
       return false;
-    return m_keptCopiedThere || m_keptKey == cubeKey(cube);
+    // A queued download's target holds (or will) the kept frames: its pixels are not read (the copy may be
+    // writing them), its shape and frame times are.
+    return m_keptCopiedThere ? m_keptShapeKey == cubeShapeKey(cube) : m_keptKey == cubeKey(cube);
   }
 
   /// m_res, once the constructor's thread has made it (made here if that thread failed).
@@ -255,11 +271,13 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   }
   std::string m_note;
   bool m_keepResident = true;
-  // The frames removeResidualMeans wrote, kept for the matched filter of the same host cube.
+  // The frames zeroBias or removeResidualMeans wrote, kept for the noise model and the matched filter of the
+  // same host cube.
   DeviceBuffer<float> m_kept;
   const float* m_keptData = nullptr;
   std::uint64_t m_keptKey = 0;
-  bool m_keptCopiedThere = false;  ///< zeroBias queued m_kept's download into m_keptData
+  bool m_keptCopiedThere = false;    ///< zeroBias queued m_kept's download into m_keptData
+  std::uint64_t m_keptShapeKey = 0;  ///< then: cubeShapeKey of that cube
   /// Downloads behind the stages after them: zeroBias's zero-biased cube, the matched filter's frames.
   /// After m_kept and the cubes' buffers they read: finished before those are freed.
   HostCopies m_copies;

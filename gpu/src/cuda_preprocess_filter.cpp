@@ -76,25 +76,28 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   // The frames zeroBias or removeResidualMeans left on the device, when this is that cube unchanged (its
   // host copy may still be downloading): no upload.
   const bool kept = !hasMask && keptIs(cube);
-  if (!kept) finishHostCopies();  // the host frames are read, and the kept ones freed
-  DeviceBuffer<float> in = std::move(m_kept);
-  m_keptData = nullptr;
-  m_keptCopiedThere = false;
+  DeviceBuffer<float> uploaded;
   if (!kept) {
-    in = DeviceBuffer<float>();  // another cube's: freed first
-    in = DeviceBuffer<float>(nf * np);
+    finishHostCopies();  // the host frames are read, and the kept ones (another cube's) freed first
+    forgetKept();
+    uploaded = DeviceBuffer<float>(nf * np);
   }
+  // The kept frames stay in m_kept until the copies are waited for below: the zero-biased cube's download
+  // may still read them, also while an exception leaves this function.
+  const float* in = kept ? m_kept.get() : uploaded.get();
   DeviceBuffer<float> out(nf * np);
+  // Destroyed before `out` (and `uploaded`): on an exception the copies queued from them finish first.
+  const HostCopies::DrainOnExit drain(m_copies);
   DeviceBuffer<std::uint8_t> mask;
   if (hasMask) mask = toDevice(cube.mask());
   if (!kept) {
     Uploader up(r, cube.pixels().data(), np);
-    up.upload(in.get(), 0, static_cast<int>(nf), r.copy.get());
+    up.upload(uploaded.get(), 0, static_cast<int>(nf), r.copy.get());
     r.copy.sync();
   }
   const double upload = sw.lap();
   FilterLaunch p{};
-  p.in = in.get();
+  p.in = in;
   p.mask = hasMask ? mask.get() : nullptr;
   p.width = w;
   p.height = h;
@@ -122,7 +125,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     DeviceBuffer<std::uint32_t> coveringD;
     if (noise->framesCovering.size() == np) coveringD = toDevice(noise->framesCovering);
     DeviceBuffer<float> omega(np), phi(np);
-    launchOmega(in.get(), p.mask, invS2d.get(), invVarD.get(), coveringD.get(), omega.get(), w, h,
+    launchOmega(in, p.mask, invS2d.get(), invVarD.get(), coveringD.get(), omega.get(), w, h,
                 static_cast<int>(nf), s);
     std::vector<float> k2v(kernel.kernel.pixels.size());
     for (std::size_t i = 0; i < k2v.size(); ++i)
@@ -183,7 +186,7 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
   DeviceBuffer<float> samplesD(std::max<std::size_t>(1, perFrame * sampleFrames.size()));
   if (perFrame > 0)
     for (std::size_t k = 0; k < sampleFrames.size(); ++k)
-      launchNoiseSamples(in.get(), p.mask, out.get(), w, h, static_cast<int>(sampleFrames[k]), half,
+      launchNoiseSamples(in, p.mask, out.get(), w, h, static_cast<int>(sampleFrames[k]), half,
                          samplesD.get() + k * perFrame, nx, ny, s);
   std::vector<float> samplesH(perFrame * sampleFrames.size());
   if (!samplesH.empty())
@@ -199,10 +202,13 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     }
   stack::MatchedFilterResult result = stack::filterNoiseFromSamples(samples, kernel);
   cancel.throwIfCancelled();
-  // The zero-biased cube's download (zeroBias) reads `in`, and the filtered frames' go into `dest`.
+  // The zero-biased cube's download (zeroBias) reads the kept frames, and the filtered frames' go into
+  // `dest`.
+  const bool queued = m_copies.busy();
   finishHostCopies();
   const double waitCopies = sw.lap();
-  in = DeviceBuffer<float>();
+  forgetKept();
+  uploaded = DeviceBuffer<float>();
   double waitAlloc = 0.0;
   if (behind) {
     // downloaded
@@ -229,18 +235,19 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
     slot.key = residentKey(dest, revision);
     resident = "kept on the device for the search";
   }
-  m_note =
-      "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
-      (weighted ? ", weighted" : "") + "): " +
-      (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
-      ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
-      ms(Event::elapsed(k1, k2)) + ")" +
-      (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
-      (behind ? ", download behind the launches (" + ms(m_copies.copySeconds() - copiedBefore) +
-                    " of copies since the filter began, with the zero-biased cube's), waited " +
-                    ms(waitCopies) + " after the kernels"
-              : ", waited " + ms(waitCopies) + " for the zero-biased cube's download, download " + ms(down)) +
-      "; filtered cube " + resident;
+  m_note = "matched filter on " + name() + " (" + std::to_string(2 * half + 1) + "^2 kernel" +
+           (weighted ? ", weighted" : "") + "): " +
+           (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
+           ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
+           ms(Event::elapsed(k1, k2)) + ")" +
+           (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
+           (behind ? ", download behind the launches (" + ms(m_copies.copySeconds() - copiedBefore) +
+                         " of copies since the filter began, with the zero-biased cube's), waited " +
+                         ms(waitCopies) + " after the kernels"
+                   : (queued ? ", waited " + ms(waitCopies) + " for the zero-biased cube's download"
+                             : std::string()) +
+                         ", download " + ms(down)) +
+           "; filtered cube " + resident;
   progress.report(1.0, "matched filter (GPU)");
   return result;
 }

@@ -55,6 +55,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
                                                          ProgressSink& progress, CancelToken& cancel,
                                                          const calib::CalibrationPlan* plan) {
   finishHostCopies();
+  forgetKept();  // a new cube: the last one's zero-biased frames are not wanted
   m_note.clear();
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();

@@ -19,9 +19,7 @@ double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double c
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
-  m_kept = DeviceBuffer<float>();
-  m_keptData = nullptr;
-  m_keptCopiedThere = false;
+  forgetKept();
   DeviceBuffer<float> pix(nf * np);
   Uploader up(r, cube.pixels().data(), np);
   up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());

@@ -13,6 +13,7 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
                               pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
   if (stagewise()) return false;
   finishHostCopies();
+  forgetKept();  // a run before this one's (a failure below leaves none to be taken for this cube's)
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   Stopwatch sw;
@@ -67,8 +68,6 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   cancel.throwIfCancelled();
   // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter. The
   // download runs behind the noise model and the filter (HostCopies; finishHostCopies() waits for it).
-  m_kept = DeviceBuffer<float>();
-  m_keptData = nullptr;
   const bool behind = !syncDownloads();
   if (behind)
     m_copies.enqueue(cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, true,
@@ -80,6 +79,7 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   m_kept = std::move(kc.pix);
   m_keptData = cube.pixels().data();
   m_keptCopiedThere = behind;
+  m_keptShapeKey = behind ? cubeShapeKey(cube) : 0;
   m_keptKey = behind ? 0 : cubeKey(cube);
   progress.report(0.83, "residual means (GPU)");
   lap("residual means");

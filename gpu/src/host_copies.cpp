@@ -12,7 +12,7 @@ namespace st::gpu {
 HostCopies::HostCopies(int device, std::string name) : m_device(device), m_name(std::move(name)) {}
 
 HostCopies::~HostCopies() {
-  (void)wait();
+  drain();
   // m_thread (last) is stopped and joined first.
 }
 
@@ -34,8 +34,9 @@ void HostCopies::enqueue(void* host, const void* dev, std::size_t bytes, cudaStr
   p.ready.record(writer);
   {
     const std::lock_guard lock(m_mutex);
-    m_queue.push_back(std::move(p));
+    // The thread first: a piece is never queued without one to copy it (wait() would block for ever).
     if (!m_thread.joinable()) m_thread = std::jthread([this](std::stop_token stop) { run(stop); });
+    m_queue.push_back(std::move(p));
   }
   m_changed.notify_all();
 }
@@ -44,6 +45,11 @@ std::exception_ptr HostCopies::wait() {
   std::unique_lock lock(m_mutex);
   m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
   return std::exchange(m_error, nullptr);
+}
+
+void HostCopies::drain() noexcept {
+  std::unique_lock lock(m_mutex);
+  m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
 }
 
 bool HostCopies::busy() const {
@@ -72,10 +78,16 @@ void HostCopies::run(std::stop_token stop) {
       ST_CUDA_CHECK(cudaStreamWaitEvent(r.copy.get(), p.ready.get(), 0));
       preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get());
     } catch (const GpuError& e) {
-      error = p.inPlace ? std::make_exception_ptr(Error(p.what + "'s download from " + m_name +
-                                                        " failed part way, leaving the frames half written: " +
-                                                        e.what()))
-                        : std::current_exception();
+      error = std::current_exception();
+      if (p.inPlace) {
+        try {
+          error = std::make_exception_ptr(
+              Error(p.what + "'s download from " + m_name +
+                    " failed part way, leaving the frames half written: " + e.what()));
+        } catch (...) {  // no memory for the message: that (std::bad_alloc) stops the run as well
+          error = std::current_exception();
+        }
+      }
     } catch (...) {
       error = std::current_exception();
     }

@@ -34,14 +34,29 @@ class HostCopies {
   /// `inPlace`: `host` is the pipeline's own cube, which a failure part way leaves half written: wait()
   /// then throws st::Error (the run stops) instead of the GpuError (a CPU fallback writes a fresh
   /// destination anew). `what` names the data in messages. The caller keeps `dev` and `host` alive and
-  /// unwritten until wait() returns.
+  /// unwritten until wait() or drain() returns (DrainOnExit for the exceptions on the way).
   void enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
                std::string what);
   /// Blocks until every queued copy is done; the first failure since the last wait() is returned (and
   /// forgotten), null when none.
   [[nodiscard]] std::exception_ptr wait();
+  /// Blocks until every queued copy is done, keeping a failure for the next wait(). Never throws.
+  void drain() noexcept;
   /// True while a copy is queued or running.
   [[nodiscard]] bool busy() const;
+
+  /// drain() when it goes out of scope: declared after the buffers the copies read or write, it keeps them
+  /// alive until the copies are done, also while an exception unwinds the scope.
+  class DrainOnExit {
+   public:
+    explicit DrainOnExit(HostCopies& copies) noexcept : m_copies(copies) {}
+    ~DrainOnExit() { m_copies.drain(); }
+    DrainOnExit(const DrainOnExit&) = delete;
+    DrainOnExit& operator=(const DrainOnExit&) = delete;
+
+   private:
+    HostCopies& m_copies;
+  };
   /// Seconds spent copying since construction (for the stages' notes: the difference over a stage).
   [[nodiscard]] double copySeconds() const;
 

@@ -21,7 +21,10 @@ ResidentSlot& residentSlot(int ordinal) {
   return slots[static_cast<std::size_t>(ordinal)];
 }
 
-std::uint64_t cubeKey(const FrameCube& f) {
+namespace {
+
+// cubeKey's part before the pixels (unclamped).
+std::uint64_t shapeMix(const FrameCube& f) {
   std::uint64_t h = mix(0, reinterpret_cast<std::uintptr_t>(f.pixels().data()));
   h = mix(h, f.pixels().size());
   h = mix(h, static_cast<std::uint64_t>(f.width()) << 32 | static_cast<std::uint32_t>(f.height()));
@@ -30,6 +33,18 @@ std::uint64_t cubeKey(const FrameCube& f) {
     std::memcpy(&bits, &info.mjdMid, sizeof(bits));
     h = mix(h, bits);
   }
+  return h;
+}
+
+}  // namespace
+
+std::uint64_t cubeShapeKey(const FrameCube& f) {
+  const std::uint64_t h = shapeMix(f);
+  return h == 0 ? 1 : h;
+}
+
+std::uint64_t cubeKey(const FrameCube& f) {
+  std::uint64_t h = shapeMix(f);
   const std::size_t n = f.pixels().size();
   const std::size_t step = std::max<std::size_t>(1, n / 4096);
   for (std::size_t i = 0; i < n; i += step) {

@@ -38,6 +38,9 @@ ResidentSlot& residentSlot(int ordinal);
 /// 4096 sampled pixels. Not proof of equal pixels on its own (a new cube of the same noise in a reused
 /// buffer can match it), hence residentKey.
 std::uint64_t cubeKey(const FrameCube& frames);
+/// cubeKey without the pixels (buffer address, sizes, frame times): for a cube whose pixels a download may be
+/// writing.
+std::uint64_t cubeShapeKey(const FrameCube& frames);
 
 /// The key under which a search keeps and finds `cube` on a device: cubeKey mixed with
 /// FilteredCube::revision; 0 (never resident) when the cube has no revision.

@@ -229,6 +229,32 @@ TEST(GpuZeroBias, FailedFilterWaitsForTheDownloadBehindIt) {
   EXPECT_NE(waited.pixels(), raw.pixels());
 }
 
+// The same with a filter that is cancelled after its first launch: its buffers (the kept frames the
+// zero-biased cube's download reads, the filtered frames it queued) are freed only once the copies are done,
+// so the cancel comes out as such and the host cube is whole.
+TEST(GpuZeroBias, CancelledFilterWaitsForTheDownloadBehindIt) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  const FrameCube raw = driftingCube(512, 256, 200, 10);
+  pipeline::ZeroBiasInputs in;
+  NullProgress p;
+  CancelToken c;
+  FrameCube waited = raw, cancelled = raw;
+  pipeline::ZeroBiasResult a, b;
+  ASSERT_TRUE(accel->zeroBias(waited, in, a, p, c));
+  accel->finishHostCopies();
+  ASSERT_TRUE(accel->zeroBias(cancelled, in, b, p, c));
+  FrameCube dest(cancelled.width(), cancelled.height(), 0);
+  dest.pixels().resize(cancelled.pixels().size());
+  CancelToken stop;
+  stop.cancel();
+  const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(3.0));
+  EXPECT_THROW(accel->filterCubeFrom(cancelled, dest, kernel, p, stop, nullptr, 0), Cancelled);
+  EXPECT_EQ(std::memcmp(cancelled.pixels().data(), waited.pixels().data(),
+                        cancelled.pixels().size() * sizeof(float)),
+            0);
+  accel->finishHostCopies();  // nothing left to fail
+}
+
 TEST(GpuZeroBias, PrefetchOfAnotherCubeIsNotUsed) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   const FrameCube raw = driftingCube(64, 48, 40, 5);

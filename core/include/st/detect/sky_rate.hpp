@@ -73,8 +73,8 @@ struct ShiftedSums {
 std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<ShiftedBlock>& blocks,
                                      double background);
 
-/// Makes every block's sums elsewhere (a device, issue 16) with shiftedSums' result; none: not made there,
-/// the CPU makes them.
+/// Makes every block's sums elsewhere (a device, issue 16): shiftedSums' result, or the blocks' means and
+/// counts (ShiftedSums::mean, frames) made from it; none: not made there, the CPU makes them.
 using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>>(
     const FrameCube& cube, const std::vector<ShiftedBlock>& blocks, double background)>;
 

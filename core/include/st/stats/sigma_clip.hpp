@@ -25,7 +25,7 @@ ClipStats sigmaClip(const float* values, std::size_t n, double xi, int maxIterat
 /// (frame differences, where a cosmic ray in either frame gives a positive or a negative outlier). Same
 /// estimators and convergence rule (B unchanged) as sigmaClip. Its sums are made per chunk of 65536 values
 /// on every core and added in chunk order: the same result on any number of threads (for more values than
-/// one chunk it differs from one sequential sum in the last bits).
+/// one chunk it differs from one pass of 8-lane sums over them, as before 2026-12-02, in the last bits).
 ClipStats sigmaClipSymmetric(const float* values, std::size_t n, double xi, int maxIterations = 100);
 
 }  // namespace st::stats
