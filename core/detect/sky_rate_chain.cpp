@@ -163,37 +163,27 @@ void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums
   b.noise = cv::Mat::zeros(h, w, CV_32F);
   b.covered = cv::Mat::zeros(h, w, CV_8U);
   const double full = kFullCoverage * static_cast<double>(blk.last - blk.first);
-  if (sums.sum.empty()) {
-    // The device's means and counts: the same values as from the sums below.
+  // mean(i) and count(i) of pixel i: from the sums, or the device's means and counts (the same values).
+  auto fill = [&](const auto& mean, const auto& count) {
     for (int y = 0; y < h; ++y) {
-      const float* mrow = sums.mean.data() + static_cast<std::size_t>(y) * w;
-      const float* frow = sums.frames.data() + static_cast<std::size_t>(y) * w;
       float* v = b.value.ptr<float>(y);
       float* n = b.noise.ptr<float>(y);
       unsigned char* cov = b.covered.ptr<unsigned char>(y);
       for (int x = 0; x < w; ++x) {
-        const double c = frow[x];
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        const double c = count(i);
         if (c <= 0 || c < full) continue;
         cov[x] = 255;
-        v[x] = mrow[x];
+        v[x] = mean(i);
         n[x] = static_cast<float>(sigma / std::sqrt(c));
       }
     }
-    return;
-  }
-  for (int y = 0; y < h; ++y) {
-    const double* srow = sums.sum.data() + static_cast<std::size_t>(y) * w;
-    const double* crow = sums.count.data() + static_cast<std::size_t>(y) * w;
-    float* v = b.value.ptr<float>(y);
-    float* n = b.noise.ptr<float>(y);
-    unsigned char* cov = b.covered.ptr<unsigned char>(y);
-    for (int x = 0; x < w; ++x) {
-      if (crow[x] <= 0 || crow[x] < full) continue;
-      cov[x] = 255;
-      v[x] = static_cast<float>(srow[x] / crow[x]);
-      n[x] = static_cast<float>(sigma / std::sqrt(crow[x]));
-    }
-  }
+  };
+  if (sums.sum.empty())
+    fill([&](std::size_t i) { return sums.mean[i]; }, [&](std::size_t i) { return double{sums.frames[i]}; });
+  else
+    fill([&](std::size_t i) { return static_cast<float>(sums.sum[i] / sums.count[i]); },
+         [&](std::size_t i) { return sums.count[i]; });
 }
 
 // The blocks' stacks at `rate`: their sums from `provider` when it makes them, else on the CPU (in parallel

@@ -203,30 +203,46 @@ TEST(GpuZeroBias, StagesOnTheDeviceMatchTheCpuStages) {
   EXPECT_EQ(devUp.sigmaRef, cpuUp.sigmaRef);
 }
 
-// zeroBias leaves the host cube's download running behind the stages after it. A matched filter that fails
-// (a kernel too large for the device: a GpuError before any launch) waits for it before the error leaves, so
-// the CPU fallback reads whole frames: the cube equals one whose download was waited for, with no
-// finishHostCopies() in between (100 MB: its download is not over by the time the filter fails).
-TEST(GpuZeroBias, FailedFilterWaitsForTheDownloadBehindIt) {
-  ST_REQUIRE_GPU_PREPROCESS(accel);
-  const FrameCube raw = driftingCube(512, 256, 200, 9);
-  pipeline::ZeroBiasInputs in;
-  in.residualMeshPx = 64;
+// The same 100 MB cube zero-biased twice on the device: once with its download waited for, once with it
+// still running behind (its download is not over by the time a filter called next fails), and a destination
+// of the right size for the filtered frames (the pipeline's case: downloaded launch by launch).
+struct ZeroBiasedTwice {
+  FrameCube raw, waited, behind, dest;
+};
+ZeroBiasedTwice zeroBiasTwice(pipeline::PreprocessAccelerator& accel, unsigned seed) {
+  ZeroBiasedTwice t;
+  t.raw = driftingCube(512, 256, 200, seed);
+  t.waited = t.raw;
+  t.behind = t.raw;
+  const pipeline::ZeroBiasInputs in;
   NullProgress p;
   CancelToken c;
-  FrameCube waited = raw, failed = raw;
   pipeline::ZeroBiasResult a, b;
-  ASSERT_TRUE(accel->zeroBias(waited, in, a, p, c));
-  accel->finishHostCopies();
-  ASSERT_TRUE(accel->zeroBias(failed, in, b, p, c));
+  EXPECT_TRUE(accel.zeroBias(t.waited, in, a, p, c));
+  accel.finishHostCopies();
+  EXPECT_TRUE(accel.zeroBias(t.behind, in, b, p, c));
+  t.dest = FrameCube(t.raw.width(), t.raw.height(), 0);
+  t.dest.pixels().resize(t.raw.pixels().size());
+  return t;
+}
+
+bool sameBits(const FrameCube& a, const FrameCube& b) {
+  return a.pixels().size() == b.pixels().size() &&
+         std::memcmp(a.pixels().data(), b.pixels().data(), a.pixels().size() * sizeof(float)) == 0;
+}
+
+// A matched filter that fails (a kernel too large for the device: a GpuError before any launch) waits for the
+// download behind it before the error leaves, so the CPU fallback reads whole frames: the cube equals the
+// waited one, with no finishHostCopies() in between.
+TEST(GpuZeroBias, FailedFilterWaitsForTheDownloadBehindIt) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  ZeroBiasedTwice t = zeroBiasTwice(*accel, 9);
+  NullProgress p;
+  CancelToken c;
   const stack::FilterKernel tooLarge = stack::makeFilterKernel(psf::Moffat::fromFwhm(10.5));
-  FrameCube dest(failed.width(), failed.height(), 0);
-  dest.pixels().resize(failed.pixels().size());
-  EXPECT_THROW(accel->filterCubeFrom(failed, dest, tooLarge, p, c, nullptr, 0), GpuError);
-  ASSERT_EQ(failed.pixels().size(), waited.pixels().size());
-  EXPECT_EQ(
-      std::memcmp(failed.pixels().data(), waited.pixels().data(), failed.pixels().size() * sizeof(float)), 0);
-  EXPECT_NE(waited.pixels(), raw.pixels());
+  EXPECT_THROW(accel->filterCubeFrom(t.behind, t.dest, tooLarge, p, c, nullptr, 0), GpuError);
+  EXPECT_TRUE(sameBits(t.behind, t.waited));
+  EXPECT_FALSE(sameBits(t.waited, t.raw));
 }
 
 // The same with a filter that is cancelled after its first launch: its buffers (the kept frames the
@@ -234,24 +250,13 @@ TEST(GpuZeroBias, FailedFilterWaitsForTheDownloadBehindIt) {
 // so the cancel comes out as such and the host cube is whole.
 TEST(GpuZeroBias, CancelledFilterWaitsForTheDownloadBehindIt) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
-  const FrameCube raw = driftingCube(512, 256, 200, 10);
-  pipeline::ZeroBiasInputs in;
+  ZeroBiasedTwice t = zeroBiasTwice(*accel, 10);
   NullProgress p;
-  CancelToken c;
-  FrameCube waited = raw, cancelled = raw;
-  pipeline::ZeroBiasResult a, b;
-  ASSERT_TRUE(accel->zeroBias(waited, in, a, p, c));
-  accel->finishHostCopies();
-  ASSERT_TRUE(accel->zeroBias(cancelled, in, b, p, c));
-  FrameCube dest(cancelled.width(), cancelled.height(), 0);
-  dest.pixels().resize(cancelled.pixels().size());
   CancelToken stop;
   stop.cancel();
   const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(3.0));
-  EXPECT_THROW(accel->filterCubeFrom(cancelled, dest, kernel, p, stop, nullptr, 0), Cancelled);
-  EXPECT_EQ(std::memcmp(cancelled.pixels().data(), waited.pixels().data(),
-                        cancelled.pixels().size() * sizeof(float)),
-            0);
+  EXPECT_THROW(accel->filterCubeFrom(t.behind, t.dest, kernel, p, stop, nullptr, 0), Cancelled);
+  EXPECT_TRUE(sameBits(t.behind, t.waited));
   accel->finishHostCopies();  // nothing left to fail
 }
 
