@@ -554,4 +554,32 @@ TEST(Session, NewAnalysesGoToTheSessionsFolderNeverOverwriteAndOldSessionsBeside
   EXPECT_EQ(besideFrames, 1) << "only the old session is in the data folder";
 }
 
+// Two windows or processes starting a session of the same observation at once (two test processes opening
+// the demo under ctest -j2 did, in CI on 2026-12-02) both saw the same free name; the one that did not get
+// its lock opened that fresh file read-only and saved nothing. A name whose lock file is there is taken.
+TEST(Session, AFreshNameLockedByAnotherWindowIsPassedOverNotOpenedReadOnly) {
+  test::TempDir dir;
+  const QString folder = QString::fromStdString(dir.path().string());
+  const QString first = folder + "/demo.synthtrack-session.json";
+  const QString second = folder + "/demo.synthtrack-session-2.json";
+  SessionLock other;  // another window has locked the fresh name and not yet written it
+  ASSERT_TRUE(other.acquire(first));
+  ASSERT_FALSE(QFileInfo::exists(first));
+  EXPECT_EQ(freeSessionPath(first), second);
+
+  Observation obs;
+  SessionController controller(&obs, {});
+  QString failed;
+  QObject::connect(&controller, &SessionController::saveFailed, [&](const QString& m) { failed = m; });
+  controller.prepareNew({}, true, first);
+  obs.setRaw(std::make_shared<const FrameCube>(test::movingDotCube(8, 8, 2, {}, 1, 1)), "demo");
+  EXPECT_EQ(controller.path(), second);
+  EXPECT_FALSE(controller.readOnly().has_value());
+  EXPECT_TRUE(failed.isEmpty()) << failed.toStdString();
+  ASSERT_TRUE(controller.autosaver()->flush());
+  EXPECT_TRUE(QFileInfo::exists(second));
+  EXPECT_FALSE(QFileInfo::exists(first));  // the other window's name, still its own
+  EXPECT_EQ(SessionLock::holder(second)->describe(), SessionLock::self().describe());
+}
+
 ST_UI_TEST_MAIN_ISOLATED()

@@ -2,7 +2,12 @@
 // Small fakes for the GUI tests: a synthetic cube with one moving dot, and a brute-force IPSA backend
 // (sum of integer-shifted frames, out-of-frame samples skipped) that polls the CancelToken. They exercise
 // the GUI's threading and wiring, not the science (the core's own tests check that).
+#include <gtest/gtest.h>
+
 #include <QApplication>
+#include <QDir>
+#include <QFile>
+#include <QSettings>
 #include <QEventLoop>
 #include <QStandardPaths>
 #include <QTimer>
@@ -147,24 +152,37 @@ inline bool waitFor(const std::function<bool()>& done, int timeoutMs = 20000) {
 
 }  // namespace st::test
 
-/// gtest main with an offscreen QApplication (tests never need a display).
-#define ST_UI_TEST_MAIN()                                      \
-  int main(int argc, char** argv) {                            \
-    qputenv("QT_QPA_PLATFORM", "offscreen");                   \
-    QCoreApplication::setOrganizationName("synthtrack-tests"); \
-    QApplication app(argc, argv);                              \
-    ::testing::InitGoogleTest(&argc, argv);                    \
-    return RUN_ALL_TESTS();                                    \
+/// Runs the tests in an offscreen QApplication (tests never need a display). The application's name has the
+/// process id appended: ctest runs each test in its own process, two at a time, and processes of one test
+/// binary that shared a sessions folder raced (a demo autosave pruned by another process's demo start before
+/// the test reopened it, issue 16's CI run of 2026-12-02). That folder is removed at the end. `isolated`:
+/// QStandardPaths' test mode as well (AppDataLocation and settings under ~/.qttest, never the user's).
+namespace st::test {
+
+inline int runUiTests(int argc, char** argv, bool isolated) {
+  qputenv("QT_QPA_PLATFORM", "offscreen");
+  QCoreApplication::setOrganizationName("synthtrack-tests");
+  if (isolated) QStandardPaths::setTestModeEnabled(true);
+  QApplication app(argc, argv);
+  QCoreApplication::setApplicationName(QCoreApplication::applicationName() + "-" +
+                                       QString::number(QCoreApplication::applicationPid()));
+  ::testing::InitGoogleTest(&argc, argv);
+  const int rc = RUN_ALL_TESTS();
+  QDir(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)).removeRecursively();
+  QFile::remove(QSettings().fileName());
+  return rc;
+}
+
+}  // namespace st::test
+
+#define ST_UI_TEST_MAIN()                               \
+  int main(int argc, char** argv) {                     \
+    return ::st::test::runUiTests(argc, argv, false); \
   }
 
 /// ST_UI_TEST_MAIN with QStandardPaths' test mode: AppDataLocation and settings under ~/.qttest, so tests
 /// that save sessions or settings never touch the user's.
-#define ST_UI_TEST_MAIN_ISOLATED()                             \
-  int main(int argc, char** argv) {                            \
-    qputenv("QT_QPA_PLATFORM", "offscreen");                   \
-    QCoreApplication::setOrganizationName("synthtrack-tests"); \
-    QStandardPaths::setTestModeEnabled(true);                  \
-    QApplication app(argc, argv);                              \
-    ::testing::InitGoogleTest(&argc, argv);                    \
-    return RUN_ALL_TESTS();                                    \
+#define ST_UI_TEST_MAIN_ISOLATED()                     \
+  int main(int argc, char** argv) {                    \
+    return ::st::test::runUiTests(argc, argv, true); \
   }

@@ -52,13 +52,16 @@ QString legacySessionPath(const std::vector<std::string>& inputs) {
 }
 
 QString freeSessionPath(const QString& path) {
-  if (!QFileInfo::exists(path)) return path;
+  const auto taken = [](const QString& p) {
+    return QFileInfo::exists(p) || QFileInfo::exists(SessionLock::lockPath(p));
+  };
+  if (!taken(path)) return path;
   QString stem = path;
   QString ext = ".json";
   if (stem.endsWith(ext)) stem.chop(ext.size());
   for (int i = 2;; ++i) {
     const QString candidate = QString("%1-%2%3").arg(stem).arg(i).arg(ext);
-    if (!QFileInfo::exists(candidate)) return candidate;
+    if (!taken(candidate)) return candidate;
   }
 }
 
@@ -175,7 +178,7 @@ void SessionController::startNext() {
   m_inputs = next.inputs;
   m_demo = next.demo;
   const QString preferred = next.path.isEmpty() ? defaultSessionPath(m_inputs, m_demo) : next.path;
-  const QString path = freeSessionPath(preferred);
+  const QString path = lockFreshPath(preferred);
   // A session of these inputs from before sessions moved out of the data folder is still offered.
   const QString legacy = next.path.isEmpty() && !m_demo ? legacySessionPath(m_inputs) : QString();
   if (path != preferred)
@@ -199,13 +202,21 @@ void SessionController::startNext() {
                     .arg(QFileInfo(path).absolutePath()));
 }
 
+QString SessionController::lockFreshPath(const QString& preferred) {
+  QString path = freeSessionPath(preferred);
+  // A failed lock leaves its holder's lock file, so the next freeSessionPath() passes that name.
+  for (int tries = 0; tries < 64 && !m_lock.acquire(path); ++tries)
+    path = freeSessionPath(preferred);
+  return path;  // setPath() keeps this lock (or says read-only, should all 64 names be taken meanwhile)
+}
+
 void SessionController::forkFile() {
   const QString kept = m_path;
   QString base = kept;
   // obs.synthtrack-session-3.json -> obs.synthtrack-session.json, then the first free name from there.
   static const QRegularExpression numbered("-\\d+\\.json$");
   base.replace(numbered, ".json");
-  if (!setPath(freeSessionPath(base), 0)) return;
+  if (!setPath(lockFreshPath(base), 0)) return;
   emit notice("The vetted candidates were replaced by a new result; their session is kept in " + kept +
               ", this analysis goes on in " + m_path);
 }

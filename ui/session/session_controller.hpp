@@ -35,7 +35,9 @@ namespace st::ui {
 /// first input ("" without inputs). A file there is still offered when the inputs are opened again, and
 /// opens like any session.
 [[nodiscard]] QString legacySessionPath(const std::vector<std::string>& inputs);
-/// `path` when no file is there, else the first of NAME-2.EXT, NAME-3.EXT, ... that is free.
+/// `path` when it is free, else the first of NAME-2.EXT, NAME-3.EXT, ... that is. A name is taken when its
+/// session file or its lock file is there: a window that has just locked a fresh name, and not yet written
+/// it, holds it.
 [[nodiscard]] QString freeSessionPath(const QString& path);
 
 /// Demo autosaves kept in the application's folder, the one being written included.
@@ -115,6 +117,10 @@ class SessionController : public QObject {
   /// Changes go to `path` from now on, counting on from `changes`; false (and no file) when another window
   /// or process holds the file's lock (saveFailed() says so).
   bool setPath(const QString& path, std::int64_t changes);
+  /// Locks the first free name from `preferred` on (freeSessionPath()) and returns it: two windows or
+  /// processes starting a session of the same observation at once can see the same free name, and the one
+  /// that does not get its lock takes the next, not that file read-only.
+  QString lockFreshPath(const QString& preferred);
   /// Leaves the current file as it is and continues in the next free name.
   void forkFile();
   void onSaved(const QString& path, qint64 changes, double ms);
