@@ -17,6 +17,11 @@ void TimedParts::add(const std::string& name, double seconds, double cpuSeconds)
   }
 }
 
+void TimedParts::add(const TimedParts& other, const std::string& prefix) {
+  for (const TimedPart& p : other.parts)
+    add(prefix + p.name, p.seconds, p.cpuSeconds);
+}
+
 double TimedParts::seconds(const std::string& name) const {
   const auto it = std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
   return it != parts.end() ? it->seconds : 0.0;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,49 +25,65 @@ struct Block {
   double tS = 0.0;
 };
 
-// Mean of frames [first, last) minus the background; unmasked samples only (0 where none): the chain's block
-// sums with no shift (each pixel's frames in order, AVX2 where the CPU has it; the same values as the scalar
-// loop it replaced, issue 16).
-cv::Mat meanOf(const FrameCube& cube, std::size_t first, std::size_t last, double background) {
-  const int w = cube.width(), h = cube.height();
-  const std::size_t np = cube.framePixels();
-  std::vector<double> sum(np, 0.0), cnt(np, 0.0);
-  const ShiftedBlock still{first, last, std::vector<int>(last - first, 0), std::vector<int>(last - first, 0)};
-  detail::addShifted(cube, still, background, sum.data(), cnt.data(), 0, h);
-  cv::Mat image(h, w, CV_64F);
-  for (int y = 0; y < h; ++y) {
-    double* row = image.ptr<double>(y);
-    for (int x = 0; x < w; ++x) {
-      const std::size_t i = static_cast<std::size_t>(y) * w + x;
-      row[x] = cnt[i] > 0 ? sum[i] / cnt[i] : 0.0;
-    }
-  }
-  return image;
+// The mean of a block with no shifts minus the background; unmasked samples only (0 where none): the chain's
+// block sums (each pixel's frames in order, AVX2 where the CPU has it), divided as doubleMeans does.
+std::vector<double> meanOf(const FrameCube& cube, const ShiftedBlock& still, double background) {
+  ShiftedSums s;
+  s.sum.assign(cube.framePixels(), 0.0);
+  s.count.assign(cube.framePixels(), 0.0);
+  detail::addShifted(cube, still, background, s.sum.data(), s.count.data(), 0, cube.height());
+  return doubleMeans(s);
 }
 
-// A block's image: the smaller of the means of its two halves, so that a cosmic ray (in one frame, one half)
-// does not survive while a star (in both) does; then faint pixels zeroed and the rest compressed.
-Block blockMean(const FrameCube& cube, std::size_t first, std::size_t last, double background, double sigma,
-                double detectSigma, const std::vector<double>& dt) {
-  const int w = cube.width(), h = cube.height();
-  Block b;
+// The halves of a block of frames [first, last) (the first alone when it has one frame): a block's image is
+// the smaller of their means, so that a cosmic ray (in one frame, one half) does not survive while a star
+// (in both) does.
+std::vector<ShiftedBlock> halvesOf(std::size_t first, std::size_t last) {
   const std::size_t mid = first + std::max<std::size_t>(1, (last - first) / 2);
-  b.image = mid < last ? cv::min(meanOf(cube, first, mid, background), meanOf(cube, mid, last, background))
-                       : meanOf(cube, first, last, background);
+  auto still = [](std::size_t a, std::size_t b) {
+    return ShiftedBlock{a, b, std::vector<int>(b - a, 0), std::vector<int>(b - a, 0)};
+  };
+  if (mid >= last) return {still(first, last)};
+  return {still(first, mid), still(mid, last)};
+}
+
+// A block's image from the means of its halves: the smaller of them, then faint pixels zeroed and the rest
+// compressed.
+Block blockImage(const std::vector<cv::Mat>& halfMeans, std::size_t first, std::size_t last, double sigma,
+                 double detectSigma, const std::vector<double>& dt) {
+  Block b;
+  b.image = halfMeans.size() == 2 ? cv::min(halfMeans[0], halfMeans[1]) : halfMeans[0];
   for (std::size_t n = first; n < last; ++n)
     b.tS += dt[n];
   b.tS /= static_cast<double>(last - first);
   const double thr =
       detectSigma * sigma / std::sqrt(std::max<double>(1.0, static_cast<double>(last - first) / 2));
-  for (int y = 0; y < h; ++y) {
+  for (int y = 0; y < b.image.rows; ++y) {
     double* row = b.image.ptr<double>(y);
-    for (int x = 0; x < w; ++x) {
+    for (int x = 0; x < b.image.cols; ++x) {
       const double v = row[x];
       // Bright sources only, compressed so that one saturated star does not decide alone.
       row[x] = v > thr ? std::log1p(v / thr) : 0.0;
     }
   }
   return b;
+}
+
+// The halves' means made by `sums` (DoubleMeans: the same sums and division as meanOf's); none when it
+// makes none or not one of the frame's size for every half.
+std::optional<std::vector<ShiftedSums>> halfMeansElsewhere(const FrameCube& cube,
+                                                           const std::vector<ShiftedBlock>& halves,
+                                                           double background,
+                                                           const ShiftedSumsProvider* sums) {
+  if (!sums || !*sums) return std::nullopt;
+  std::optional<std::vector<ShiftedSums>> made =
+      (*sums)(cube, halves, background, ShiftedSumsForm::DoubleMeans);
+  const std::size_t np = cube.framePixels();
+  if (made && (made->size() != halves.size() || !std::all_of(made->begin(), made->end(), [np](const auto& m) {
+                 return m.doubleMean.size() == np;
+               })))
+    made.reset();
+  return made;
 }
 
 std::string fixed(double v) {
@@ -87,29 +104,47 @@ struct PairRates {
 };
 
 PairRates blockPairRates(const FrameCube& cube, std::size_t len, double background, double sigma,
-                         const SkyRateParams& params, CancelToken& cancel, TimedParts& parts) {
+                         const SkyRateParams& params, CancelToken& cancel, const ShiftedSumsProvider* sums,
+                         TimedParts& parts) {
   PartTimer timer(parts);
   const std::size_t nf = cube.frameCount();
   const int pairs = std::max(1, params.blocks);
   const auto dt = cube.timeOffsetsS();
   cv::Mat window;
   cv::createHanningWindow(window, cv::Size(cube.width(), cube.height()), CV_64F);
-  // The pairs are independent: their 2 x `pairs` block means made in parallel, then the pairs' phase
-  // correlations (serial before issue 16; one task per block, not per pair, since 2026-11-28: the 8 pairs
-  // took 0.05-0.06 s on 16 threads), gathered in order as before.
+  // The pairs are independent: their 2 x `pairs` block means made in parallel (or by `sums`: a device's,
+  // issue 16), then the pairs' phase correlations (serial before issue 16; one task per block, not per pair,
+  // since 2026-11-28: the 8 pairs took 0.05-0.06 s on 16 threads), gathered in order as before.
   struct One {
     bool ok = false;
     double vx = 0.0, vy = 0.0, response = 0.0, span = 0.0;
   };
   std::vector<One> each(static_cast<std::size_t>(pairs));
-  std::vector<Block> blocks(2 * each.size());
+  std::vector<std::size_t> firsts(2 * each.size());
+  std::vector<ShiftedBlock> halves;
+  std::vector<std::size_t> halfStart(firsts.size() + 1, 0);
+  for (std::size_t j = 0; j < firsts.size(); ++j) {
+    const std::size_t k = j / 2;
+    const std::size_t start = pairs > 1 ? (nf - 2 * len) * k / static_cast<std::size_t>(pairs - 1) : 0;
+    firsts[j] = start + (j % 2) * len;
+    for (ShiftedBlock& h : halvesOf(firsts[j], firsts[j] + len))
+      halves.push_back(std::move(h));
+    halfStart[j + 1] = halves.size();
+  }
+  std::optional<std::vector<ShiftedSums>> elsewhere = halfMeansElsewhere(cube, halves, background, sums);
+  std::vector<Block> blocks(firsts.size());
   parallelFor(blocks.size(), 1, [&](std::size_t j0, std::size_t j1) {
     for (std::size_t j = j0; j < j1; ++j) {
       cancel.throwIfCancelled();
-      const std::size_t k = j / 2;
-      const std::size_t start = pairs > 1 ? (nf - 2 * len) * k / static_cast<std::size_t>(pairs - 1) : 0;
-      const std::size_t first = start + (j % 2) * len;
-      blocks[j] = blockMean(cube, first, first + len, background, sigma, params.detectSigma, dt);
+      // The means wrapped, not copied (blockImage may write into them).
+      std::vector<std::vector<double>> own(halfStart[j + 1] - halfStart[j]);
+      std::vector<cv::Mat> means;
+      for (std::size_t h = halfStart[j]; h < halfStart[j + 1]; ++h) {
+        std::vector<double>& m = elsewhere ? (*elsewhere)[h].doubleMean
+                                           : (own[h - halfStart[j]] = meanOf(cube, halves[h], background));
+        means.emplace_back(cube.height(), cube.width(), CV_64F, m.data());
+      }
+      blocks[j] = blockImage(means, firsts[j], firsts[j] + len, sigma, params.detectSigma, dt);
     }
   });
   timer.lap("block pairs: means");
@@ -168,10 +203,9 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   }
   PartTimer timer(out.parts);
   TimedParts pairParts;
-  const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel, pairParts);
+  const PairRates pairs = blockPairRates(cube, len, background, sigma, params, cancel, sums, pairParts);
   timer.lap("block pairs");
-  for (const TimedPart& p : pairParts.parts)
-    out.parts.add(p.name, p.seconds, p.cpuSeconds);
+  out.parts.add(pairParts);
   out.response = pairs.responses.empty() ? 0.0 : median(pairs.responses);
   if (pairs.vx.empty() || out.response < params.minResponse) {
     out.note = "sky rate: no reliable star pattern (phase-correlation peak " + std::to_string(out.response) +
@@ -186,9 +220,7 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   const detail::ChainResult chain =
       detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
   timer.lap("chain");
-  for (const TimedPart& p : chain.parts.parts)
-    out.parts.add(p.name.find("thread time") != std::string::npos ? p.name : "chain: " + p.name, p.seconds,
-                  p.cpuSeconds);
+  out.parts.add(chain.parts, "chain: ");
   if (!chain.ok) {
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;
     return out;

@@ -201,7 +201,7 @@ std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout,
     blocks[b] = blockShifts(layout.first[b], layout.first[b + 1], rate, dt, stacks[b]);
   std::optional<std::vector<ShiftedSums>> made;
   if (provider && *provider) {
-    made = (*provider)(cube, blocks, background);
+    made = (*provider)(cube, blocks, background, ShiftedSumsForm::SumsOrMeans);
     // Each block's sums and counts, or its means and counts, of the frame's size; else the CPU's.
     const std::size_t np = cube.framePixels();
     auto whole = [np](const ShiftedSums& b) {
@@ -492,10 +492,8 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     rate = next;
     if (stable) break;
   }
-  for (const TimedPart& p : stackParts.parts)
-    out.parts.add(p.name, p.seconds, p.cpuSeconds);
-  for (const TimedPart& p : threadTime.parts)
-    out.parts.add(p.name, p.seconds);
+  out.parts.add(stackParts);
+  out.parts.add(threadTime);
   if (!out.ok) return out;
   double ss = 0.0;
   for (const SkyRateBlock& b : out.blocks)
@@ -507,6 +505,13 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
 }  // namespace st::detect::detail
 
 namespace st::detect {
+
+std::vector<double> doubleMeans(const ShiftedSums& sums) {
+  std::vector<double> out(sums.sum.size());
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = sums.count[i] > 0 ? sums.sum[i] / sums.count[i] : 0.0;
+  return out;
+}
 
 std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<ShiftedBlock>& blocks,
                                      double background) {

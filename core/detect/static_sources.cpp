@@ -266,8 +266,7 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   TimedParts analysisParts;
   const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts);
   lap("analysis");
-  for (const TimedPart& part : analysisParts.parts)
-    out.parts.add(part.name, part.seconds, part.cpuSeconds);
+  out.parts.add(analysisParts);
   const Image& resid = an.resid;
   const std::vector<float>& snr = an.snr;
   const std::vector<float>& snrF = an.snrF;

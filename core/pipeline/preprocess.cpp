@@ -219,12 +219,13 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // meanwhile and make the sky rate's and the static sources' stacks from it (issue 16). The guard,
   // destroyed before `out`, waits for that.
   const std::shared_ptr<void> prefetched = params.accelerator ? params.accelerator->prefetch(cube) : nullptr;
-  DeviceStep sumsStep(params.accelerator, "the sky rate's block stacks", out.notes);
+  DeviceStep sumsStep(params.accelerator, "the sky rate's block means and stacks", out.notes);
   detect::ShiftedSumsProvider deviceSums;
   if (params.accelerator)
-    deviceSums = [&sumsStep, accel = params.accelerator](
-                     const FrameCube& c, const std::vector<detect::ShiftedBlock>& blocks, double background) {
-      return sumsStep([&] { return accel->shiftedSums(c, blocks, background); });
+    deviceSums = [&sumsStep, accel = params.accelerator](const FrameCube& c,
+                                                          const std::vector<detect::ShiftedBlock>& blocks,
+                                                          double background, detect::ShiftedSumsForm form) {
+      return sumsStep([&] { return accel->shiftedSums(c, blocks, background, form); });
     };
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
@@ -238,8 +239,9 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.notes.push_back(note.str());
     if (!r.parts.parts.empty()) out.notes.push_back("sky rate: " + r.parts.text());
     if (params.accelerator && sumsStep.asked > 0)
-      out.notes.push_back("sky rate: the block stacks of " + std::to_string(sumsStep.made) + " of " +
-                          std::to_string(sumsStep.asked) + " iterations on " + params.accelerator->name());
+      out.notes.push_back("sky rate: the block pairs' means and the chain's block stacks, " +
+                          std::to_string(sumsStep.made) + " of " + std::to_string(sumsStep.asked) +
+                          " sets on " + params.accelerator->name());
   }
   lap("sky rate");
   {

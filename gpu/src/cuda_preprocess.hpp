@@ -125,7 +125,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   void patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) override;
   std::optional<std::vector<detect::ShiftedSums>> shiftedSums(const FrameCube& cube,
                                                               const std::vector<detect::ShiftedBlock>& blocks,
-                                                              double background) override;
+                                                              double background,
+                                                              detect::ShiftedSumsForm form) override;
   std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
                                            std::size_t first, std::size_t last) override;
   std::optional<calib::CosmicRayPreTestWords> cosmicRayPreTest(const FrameCube& cube, float thr) override;

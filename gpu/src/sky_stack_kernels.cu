@@ -53,6 +53,10 @@ __global__ void shiftedSumsKernel(ShiftedSumsLaunch p) {
     cnt = __dadd_rn(cnt, 1.0);
   }
   const std::size_t o = static_cast<std::size_t>(b) * np + static_cast<std::size_t>(y) * p.width + x;
+  if (p.doubleMean) {
+    p.doubleMean[o] = cnt > 0.0 ? __ddiv_rn(sum, cnt) : 0.0;
+    return;
+  }
   if (p.mean) {
     p.mean[o] = cnt > 0.0 ? static_cast<float>(__ddiv_rn(sum, cnt)) : 0.0f;
     p.frames[o] = static_cast<float>(cnt);

@@ -45,6 +45,9 @@ struct ShiftedSumsLaunch {
   /// float (0 where count is 0), and count as a float.
   float* mean = nullptr;
   float* frames = nullptr;
+  /// Instead of all the above when not null (detect::ShiftedSums::doubleMean): sum / count, 0 where count
+  /// is 0.
+  double* doubleMean = nullptr;
 };
 void launchShiftedSums(const ShiftedSumsLaunch& p, cudaStream_t s);
 

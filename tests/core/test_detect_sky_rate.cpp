@@ -11,6 +11,7 @@
 // where its streak merges with the star's halo) and with and without drift.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <ostream>
@@ -127,14 +128,30 @@ TEST(SkyRateChain, FieldChangesCompletely) {
   EXPECT_LT(r.residualRmsPx, 0.1) << r.note;
   // The chain's block stacks made by a provider (a device's, issue 16) with shiftedSums' result: the same
   // rate, blocks and note.
-  int calls = 0;
+  // The block pairs' halves are asked for as double means (DoubleMeans, blocks with no shifts).
+  int calls = 0, pairCalls = 0;
   const ShiftedSumsProvider provider = [&](const FrameCube& cc, const std::vector<ShiftedBlock>& blocks,
-                                           double background) -> std::optional<std::vector<ShiftedSums>> {
-    ++calls;
-    return shiftedSums(cc, blocks, background);
+                                           double background,
+                                           ShiftedSumsForm form) -> std::optional<std::vector<ShiftedSums>> {
+    std::vector<ShiftedSums> sums = shiftedSums(cc, blocks, background);
+    if (form == ShiftedSumsForm::SumsOrMeans) {
+      ++calls;
+      return sums;
+    }
+    ++pairCalls;
+    for (const ShiftedBlock& b : blocks)
+      EXPECT_TRUE(std::all_of(b.sx.begin(), b.sx.end(), [](int v) { return v == 0; }) &&
+                  std::all_of(b.sy.begin(), b.sy.end(), [](int v) { return v == 0; }));
+    for (ShiftedSums& b : sums) {
+      b.doubleMean = doubleMeans(b);
+      b.sum.clear();
+      b.count.clear();
+    }
+    return sums;
   };
   const SkyRate p = measureSkyRate(cube, 0.0, 1.0, {}, c, &provider);
   EXPECT_GE(calls, 1);
+  EXPECT_EQ(pairCalls, 1);
   EXPECT_EQ(p.rate, r.rate);
   EXPECT_EQ(p.note, r.note);
   ASSERT_EQ(p.blocks.size(), r.blocks.size());
@@ -142,8 +159,11 @@ TEST(SkyRateChain, FieldChangesCompletely) {
     EXPECT_EQ(p.blocks[b].offsetPx, r.blocks[b].offsetPx);
   // A provider that gives the blocks' means and counts instead (ShiftedSums::mean, frames: what the CUDA
   // device downloads): the same again.
+  // (Nothing for the block pairs: their means are made on the CPU.)
   const ShiftedSumsProvider means = [&](const FrameCube& cc, const std::vector<ShiftedBlock>& blocks,
-                                        double background) -> std::optional<std::vector<ShiftedSums>> {
+                                        double background,
+                                        ShiftedSumsForm form) -> std::optional<std::vector<ShiftedSums>> {
+    if (form == ShiftedSumsForm::DoubleMeans) return std::nullopt;
     std::vector<ShiftedSums> sums = shiftedSums(cc, blocks, background);
     for (ShiftedSums& b : sums) {
       for (std::size_t i = 0; i < b.sum.size(); ++i) {

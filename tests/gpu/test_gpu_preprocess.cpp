@@ -491,9 +491,24 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
         blocks[b].sy.push_back(static_cast<int>(n % 5) - 2);
       }
     }
-    const auto dev = whenUploaded([&] { return accel->shiftedSums(c, blocks, 100.0); });
+    const auto dev = whenUploaded(
+        [&] { return accel->shiftedSums(c, blocks, 100.0, detect::ShiftedSumsForm::SumsOrMeans); });
     ASSERT_TRUE(dev.has_value());
     expectSameSums(*dev, detect::shiftedSums(c, blocks, 100.0));
+    // The block pairs' form: the means in double, the host's division bit for bit (made only with the knob
+    // on, for now).
+    setenv("ST_GPU_BLOCK_PAIRS_ON_DEVICE", "1", 1);
+    const auto doubles = accel->shiftedSums(c, blocks, 100.0, detect::ShiftedSumsForm::DoubleMeans);
+    ASSERT_TRUE(doubles.has_value());
+    const std::vector<detect::ShiftedSums> cpuSums = detect::shiftedSums(c, blocks, 100.0);
+    ASSERT_EQ(doubles->size(), cpuSums.size());
+    for (std::size_t b = 0; b < cpuSums.size(); ++b) {
+      EXPECT_TRUE((*doubles)[b].mean.empty() && (*doubles)[b].sum.empty());
+      const std::vector<double> cpu = detect::doubleMeans(cpuSums[b]);
+      ASSERT_EQ((*doubles)[b].doubleMean.size(), cpu.size());
+      EXPECT_EQ(std::memcmp((*doubles)[b].doubleMean.data(), cpu.data(), cpu.size() * sizeof(double)), 0)
+          << "block " << b;
+    }
     // Pixels change (as the cosmic-ray fills do) and are patched in: the device's results follow.
     std::vector<std::uint64_t> changed;
     for (std::uint64_t i = 17; i < c.pixels().size(); i += 1013) {
@@ -501,7 +516,7 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
       changed.push_back(i);
     }
     accel->patchPrefetch(c, changed);
-    const auto patched = accel->shiftedSums(c, blocks, 100.0);
+    const auto patched = accel->shiftedSums(c, blocks, 100.0, detect::ShiftedSumsForm::SumsOrMeans);
     ASSERT_TRUE(patched.has_value());
     expectSameSums(*patched, detect::shiftedSums(c, blocks, 100.0));
     NullProgress progress;

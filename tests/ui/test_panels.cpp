@@ -1,10 +1,12 @@
 // Panels on their own: the candidate table sorts by number and filters by SNR, FAP and flags; the
 // processing panel returns the stages as the user set them and resets to the paper's defaults; the search
 // panel's grid follows the units.
+#include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 
 #include <QDoubleSpinBox>
 #include <QGroupBox>
+#include <QMessageBox>
 #include <QTableView>
 
 #include "candidate_table.hpp"
@@ -88,6 +90,15 @@ TEST(SearchPanel, GridInPixelUnitsAndDegPerDayAgree) {
   // The panel shows deg/day for a cube with a plate scale; the grid in px/s is unchanged by the unit.
   EXPECT_EQ(obs.unit(), VelocityUnit::DegPerDay);
   EXPECT_EQ(obs.grid().nvx, 9);
+}
+
+// The test main's watchdog: a modal dialog that no test answers fails its test with its text and is closed,
+// instead of blocking until ctest's timeout.
+TEST(UiTestWatchdog, AModalDialogLeftOpenFailsTheTestAndIsClosed) {
+  test::modalWatchdogSeconds = 2;
+  EXPECT_NONFATAL_FAILURE(QMessageBox::warning(nullptr, "Unexpected", "nobody answers this box"),
+                          "nobody answers this box");
+  test::modalWatchdogSeconds = 30;
 }
 
 ST_UI_TEST_MAIN()

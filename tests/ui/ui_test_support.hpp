@@ -9,6 +9,8 @@
 #include <QFile>
 #include <QSettings>
 #include <QEventLoop>
+#include <QMessageBox>
+#include <QPointer>
 #include <QStandardPaths>
 #include <QTimer>
 #include <chrono>
@@ -159,6 +161,9 @@ inline bool waitFor(const std::function<bool()>& done, int timeoutMs = 20000) {
 /// QStandardPaths' test mode as well (AppDataLocation and settings under ~/.qttest, never the user's).
 namespace st::test {
 
+/// Seconds a modal dialog may stay open before runUiTests' watchdog fails the test and closes it.
+inline int modalWatchdogSeconds = 30;
+
 inline int runUiTests(int argc, char** argv, bool isolated) {
   qputenv("QT_QPA_PLATFORM", "offscreen");
   QCoreApplication::setOrganizationName("synthtrack-tests");
@@ -167,6 +172,28 @@ inline int runUiTests(int argc, char** argv, bool isolated) {
   QCoreApplication::setApplicationName(QCoreApplication::applicationName() + "-" +
                                        QString::number(QCoreApplication::applicationPid()));
   ::testing::InitGoogleTest(&argc, argv);
+  // A modal dialog no test answers (an error box where none was expected) would block its test until
+  // ctest's timeout, saying nothing (PlateSolveGui hung 900 s in a run of 2026-12-02): one left open for
+  // modalWatchdogSeconds fails the test with its text and is closed.
+  QTimer watchdog;
+  QPointer<QWidget> lastModal;
+  int seen = 0;
+  QObject::connect(&watchdog, &QTimer::timeout, [&] {
+    QWidget* modal = QApplication::activeModalWidget();
+    seen = modal && modal == lastModal ? seen + 1 : 0;
+    lastModal = modal;
+    if (seen < modalWatchdogSeconds) return;
+    const auto* box = qobject_cast<QMessageBox*>(modal);
+    ADD_FAILURE() << "a modal dialog was left open for " << seen << " s: \""
+                  << modal->windowTitle().toStdString() << "\" "
+                  << (box ? box->text().toStdString() : std::string());
+    seen = 0;
+    if (auto* dialog = qobject_cast<QDialog*>(modal))
+      dialog->reject();
+    else
+      modal->close();
+  });
+  watchdog.start(1000);
   const int rc = RUN_ALL_TESTS();
   QDir(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)).removeRecursively();
   QFile::remove(QSettings().fileName());

@@ -21,6 +21,9 @@ struct TimedParts {
 
   /// Adds `seconds` (and `cpuSeconds`) to the part `name` (a new part at the end when there is none).
   void add(const std::string& name, double seconds, double cpuSeconds = 0.0);
+  /// Adds each of `other`'s parts as above, its name prefixed with `prefix` (a sub-stage's parts under the
+  /// stage's).
+  void add(const TimedParts& other, const std::string& prefix = {});
   /// The part's seconds; 0 when it was not timed.
   [[nodiscard]] double seconds(const std::string& name) const;
   /// "name 1.2 ms, name 3.4 ms (2.5 cores), ..." (empty when nothing was timed): the cores, CPU time over

@@ -64,19 +64,32 @@ struct ShiftedBlock {
 /// block's mean, sum / count rounded to float (0 where the count is 0), and the count as a float (a whole
 /// number of frames: exact), in `mean` and `frames` (sum and count empty): what the block's stack takes from
 /// the sums, in half the bytes (issue 16).
+/// Asked for with ShiftedSumsForm::DoubleMeans instead: the block's mean in double, sum / count (0 where
+/// the count is 0), the same division of the same sums as the host's (the block pairs' images, issue 16).
 struct ShiftedSums {
   std::vector<double> sum, count;
   std::vector<float> mean, frames;
+  std::vector<double> doubleMean;
 };
+
+/// What a ShiftedSumsProvider is asked to return per block.
+enum class ShiftedSumsForm {
+  SumsOrMeans,  ///< sum and count, or mean and frames (the chain's block stacks take either)
+  DoubleMeans,  ///< doubleMean (the block pairs' means)
+};
+
+/// shiftedSums' means in the form DoubleMeans asks for (sum / count, 0 where the count is 0).
+std::vector<double> doubleMeans(const ShiftedSums& sums);
 
 /// shiftedSums on the CPU (the reference).
 std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<ShiftedBlock>& blocks,
                                      double background);
 
-/// Makes every block's sums elsewhere (a device, issue 16): shiftedSums' result, or the blocks' means and
-/// counts (ShiftedSums::mean, frames) made from it; none: not made there, the CPU makes them.
+/// Makes every block's sums elsewhere (a device, issue 16) in the form asked for: for SumsOrMeans
+/// shiftedSums' result, or the blocks' means and counts (ShiftedSums::mean, frames) made from it; for
+/// DoubleMeans ShiftedSums::doubleMean. None: not made there, the CPU makes them.
 using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>>(
-    const FrameCube& cube, const std::vector<ShiftedBlock>& blocks, double background)>;
+    const FrameCube& cube, const std::vector<ShiftedBlock>& blocks, double background, ShiftedSumsForm form)>;
 
 /// Measures the sky rate from the stars, with the global background `background` removed and faint pixels
 /// (< detectSigma * sigma / sqrt(frames averaged)) zeroed.
@@ -101,7 +114,8 @@ using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>
 /// px/s of the truth, the 1500-frame seed 5 within 0.001 (tests/core/test_detect_sky_rate_slow.cpp); a
 /// synthetic field crossing the frame 3.7 times within 0.01; a magnitude-14 mover among the "small" preset's
 /// stars within 0.02 px/s.
-/// `sums`, when given, makes the chain's block stacks (the same sums: the same result).
+/// `sums`, when given, makes the block pairs' means (DoubleMeans: blocks with no shifts) and the chain's
+/// block stacks (the same sums: the same result).
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
                        CancelToken& cancel, const ShiftedSumsProvider* sums = nullptr);
 

@@ -123,13 +123,14 @@ class PreprocessAccelerator {
   virtual void patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) {
     (void)cube, (void)pixels;
   }
-  /// detect::shiftedSums(cube, blocks, background) (the sky rate's block stacks): the same sums in the same
-  /// order, or their means and counts (detect::ShiftedSums::mean, frames) made from them; none when the
-  /// device cannot make them without an upload of its own (`cube` is not the prefetched one, or its upload is
-  /// not done yet). The default makes none.
+  /// detect::shiftedSums(cube, blocks, background) (the sky rate's block pairs and block stacks) in `form`:
+  /// the same sums in the same order, or what `form` asks for made from them (detect::ShiftedSums); none
+  /// when the device cannot make them without an upload of its own (`cube` is not the prefetched one, or
+  /// its upload is not done yet). The default makes none.
   virtual std::optional<std::vector<detect::ShiftedSums>> shiftedSums(
-      const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background) {
-    (void)cube, (void)blocks, (void)background;
+      const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background,
+      detect::ShiftedSumsForm form) {
+    (void)cube, (void)blocks, (void)background, (void)form;
     return std::nullopt;
   }
   /// detect::stackAtSkyRate(cube, rate, subtract, first, last) (last resolved, never 0): the same sums in
