@@ -52,7 +52,8 @@ std::vector<ShiftedBlock> halvesOf(std::size_t first, std::size_t last) {
 Block blockImage(const std::vector<cv::Mat>& halfMeans, std::size_t first, std::size_t last, double sigma,
                  double detectSigma, const std::vector<double>& dt) {
   Block b;
-  b.image = halfMeans.size() == 2 ? cv::min(halfMeans[0], halfMeans[1]) : halfMeans[0];
+  // (A copy of a single half: the means may be the caller's buffers.)
+  b.image = halfMeans.size() == 2 ? cv::Mat(cv::min(halfMeans[0], halfMeans[1])) : halfMeans[0].clone();
   for (std::size_t n = first; n < last; ++n)
     b.tS += dt[n];
   b.tS /= static_cast<double>(last - first);
