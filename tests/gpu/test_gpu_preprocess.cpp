@@ -497,8 +497,10 @@ TEST(GpuSkyStack, BlockSumsAndPatchedPixelsEqualTheCpu) {
     expectSameSums(*dev, detect::shiftedSums(c, blocks, 100.0));
     // The block pairs' form: the means in double, the host's division bit for bit (made only with the knob
     // on, for now).
+    EXPECT_FALSE(accel->shiftedSums(c, blocks, 100.0, detect::ShiftedSumsForm::DoubleMeans).has_value());
     setenv("ST_GPU_BLOCK_PAIRS_ON_DEVICE", "1", 1);
     const auto doubles = accel->shiftedSums(c, blocks, 100.0, detect::ShiftedSumsForm::DoubleMeans);
+    unsetenv("ST_GPU_BLOCK_PAIRS_ON_DEVICE");  // the later tests run with the default
     ASSERT_TRUE(doubles.has_value());
     const std::vector<detect::ShiftedSums> cpuSums = detect::shiftedSums(c, blocks, 100.0);
     ASSERT_EQ(doubles->size(), cpuSums.size());
