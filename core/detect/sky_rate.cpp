@@ -137,7 +137,7 @@ PairRates blockPairRates(const FrameCube& cube, std::size_t len, double backgrou
   parallelFor(blocks.size(), 1, [&](std::size_t j0, std::size_t j1) {
     for (std::size_t j = j0; j < j1; ++j) {
       cancel.throwIfCancelled();
-      // The means wrapped, not copied (blockImage may write into them).
+      // The means wrapped, not copied (blockImage makes the block's own image from them).
       std::vector<std::vector<double>> own(halfStart[j + 1] - halfStart[j]);
       std::vector<cv::Mat> means;
       for (std::size_t h = halfStart[j]; h < halfStart[j + 1]; ++h) {
