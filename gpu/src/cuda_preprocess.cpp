@@ -127,8 +127,7 @@ std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube
 void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) {
   // Benchmark knob: ST_GPU_SEP_NO_REUSE=1 uploads as before (global background, hot pixels on the CPU, the
   // prefetch's pixels).
-  const char* e = std::getenv("ST_GPU_SEP_NO_REUSE");
-  const bool reuse = !(e && *e && *e != '0');
+  const bool reuse = !envKnob("ST_GPU_SEP_NO_REUSE");
   m_sepFramesValid = unchanged && reuse && m_sepFrames.size() > 0 &&
                      m_sepFramesData == cube.pixels().data() && m_sepFrames.size() == cube.pixels().size();
 }

@@ -64,20 +64,31 @@ inline std::string ms(double s) {
   return text;
 }
 
+/// An environment knob: set and neither empty nor starting with '0'. Read at each call.
+inline bool envKnob(const char* name) {
+  const char* e = std::getenv(name);
+  return e && *e && *e != '0';
+}
+
 /// Benchmark knob: ST_GPU_STAGEWISE=1 runs the pre-processing as before the resident zero-biased cube (the
 /// cube uploaded and downloaded by the per-pixel background and again by the residual means, star
 /// subtraction, zeroing and the noise model on the CPU, no prefetch), for before/after figures from one
 /// binary.
 inline bool stagewise() {
-  const char* e = std::getenv("ST_GPU_STAGEWISE");
-  return e && *e && *e != '0';
+  return envKnob("ST_GPU_STAGEWISE");
 }
 
 /// Benchmark knob: ST_GPU_SYNC_DOWNLOADS=1 downloads the zero-biased and the filtered cubes with the device
 /// idle, as before 2026-12-02 (HostCopies), for before/after figures from one binary.
 inline bool syncDownloads() {
-  const char* e = std::getenv("ST_GPU_SYNC_DOWNLOADS");
-  return e && *e && *e != '0';
+  return envKnob("ST_GPU_SYNC_DOWNLOADS");
+}
+
+/// ST_GPU_BLOCK_PAIRS_ON_DEVICE=1 makes the sky rate's block pairs' means on the device (shiftedSums'
+/// DoubleMeans). Off by default for now: written on 2026-12-02 when no device time was left to run its test
+/// (GpuSkyStack.BlockSumsAndPatchedPixelsEqualTheCpu) and measure it; the CPU makes them meanwhile.
+inline bool blockPairsOnDevice() {
+  return envKnob("ST_GPU_BLOCK_PAIRS_ON_DEVICE");
 }
 
 /// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every

@@ -20,15 +20,13 @@ namespace {
 /// Benchmark knob: ST_GPU_SEP_ON_CPU=1 leaves the frame backgrounds to the CPU (libsep) as before, for
 /// before/after figures from one binary.
 bool sepOnCpu() {
-  const char* e = std::getenv("ST_GPU_SEP_ON_CPU");
-  return e && *e && *e != '0';
+  return envKnob("ST_GPU_SEP_ON_CPU");
 }
 
 /// Benchmark knob: ST_GPU_CALIBRATE_ON_CPU=1 calibrates the pixels on the CPU before the frame backgrounds'
 /// upload, as before 2026-12-01.
 bool calibrateOnCpu() {
-  const char* e = std::getenv("ST_GPU_CALIBRATE_ON_CPU");
-  return e && *e && *e != '0';
+  return envKnob("ST_GPU_CALIBRATE_ON_CPU");
 }
 
 }  // namespace

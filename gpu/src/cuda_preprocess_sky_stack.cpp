@@ -4,7 +4,6 @@
 // (detect::stackAtSkyRate) that the static-source search and the PSF stage ask for. The sums are the CPU's
 // (sky_stack_kernels.cu), so the results are equal.
 #include <algorithm>
-#include <cstdlib>
 #include <vector>
 
 #include "cuda_preprocess.hpp"
@@ -61,12 +60,7 @@ void CudaPreprocess::patchPrefetch(const FrameCube& cube, const std::vector<std:
 std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
     const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background,
     detect::ShiftedSumsForm form) {
-  // The block pairs' means (DoubleMeans) only with ST_GPU_BLOCK_PAIRS_ON_DEVICE=1 for now: written on
-  // 2026-12-02 when no device time was left to run its test
-  // (GpuSkyStack.BlockSumsAndPatchedPixelsEqualTheCpu) and measure it; the CPU makes them meanwhile. The knob
-  // gives before/after figures from one binary.
-  const char* knob = std::getenv("ST_GPU_BLOCK_PAIRS_ON_DEVICE");
-  if (form == detect::ShiftedSumsForm::DoubleMeans && !(knob && *knob && *knob != '0')) return std::nullopt;
+  if (form == detect::ShiftedSumsForm::DoubleMeans && !blockPairsOnDevice()) return std::nullopt;
   const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
   if (!pf || blocks.empty()) return std::nullopt;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels(), k = blocks.size();

@@ -84,13 +84,8 @@ CoreServices servicesWithPlanOpen() {
   return s;
 }
 
-/// Each test process its own settings file (ctest runs the tests of this file as parallel processes), removed
-/// at the end.
+/// The test's settings removed at its end (each test process has its own settings file: runUiTests).
 struct OwnSettings {
-  OwnSettings() {
-    QCoreApplication::setApplicationName(
-        QStringLiteral("synthtrack-out-of-core-gui-%1").arg(QCoreApplication::applicationPid()));
-  }
   ~OwnSettings() {
     const QString file = QSettings().fileName();
     QSettings().clear();

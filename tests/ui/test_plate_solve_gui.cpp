@@ -88,10 +88,8 @@ struct FakeAstrometry {
   QString solveField;
   QString indexDir;
   FakeAstrometry() {
-    // ctest runs this file's tests as parallel processes: each its own settings file, or one test's
-    // solve-field (a 30 s sleep) is read by another (seen on the dev VM at -j2, 2026-11-27).
-    QCoreApplication::setApplicationName(
-        QStringLiteral("synthtrack-plate-solve-gui-%1").arg(QCoreApplication::applicationPid()));
+    // (Each test process has its own settings file, runUiTests: one test's solve-field, a 30 s sleep, was
+    // read by another at -j2 before, 2026-11-27.)
     FitsHeader wcs;
     test::setTanWcs(wcs, 150.0, 2.0, 64.5, 48.5, 1.5);
     const std::string wcsFile = (dir / "truth.wcs").string();

@@ -152,18 +152,15 @@ inline bool waitFor(const std::function<bool()>& done, int timeoutMs = 20000) {
   return done();
 }
 
-}  // namespace st::test
-
-/// Runs the tests in an offscreen QApplication (tests never need a display). The application's name has the
-/// process id appended: ctest runs each test in its own process, two at a time, and processes of one test
-/// binary that shared a sessions folder raced (a demo autosave pruned by another process's demo start before
-/// the test reopened it, issue 16's CI run of 2026-12-02). That folder is removed at the end. `isolated`:
-/// QStandardPaths' test mode as well (AppDataLocation and settings under ~/.qttest, never the user's).
-namespace st::test {
-
 /// Seconds a modal dialog may stay open before runUiTests' watchdog fails the test and closes it.
 inline int modalWatchdogSeconds = 30;
 
+/// Runs the tests in an offscreen QApplication (tests never need a display). The application's name has the
+/// process id appended, so that each test process has its own sessions folder and settings file (removed at
+/// the end): ctest runs each test in its own process, two at a time, and processes of one test binary raced
+/// over one folder (two demo starts on one fresh session name: CI's VettingWalkthrough failure of
+/// 2026-12-02) and one settings file (two plate-solve tests, 2026-11-27). `isolated`: QStandardPaths' test
+/// mode as well (AppDataLocation and settings under ~/.qttest, never the user's).
 inline int runUiTests(int argc, char** argv, bool isolated) {
   qputenv("QT_QPA_PLATFORM", "offscreen");
   QCoreApplication::setOrganizationName("synthtrack-tests");
