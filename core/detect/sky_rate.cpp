@@ -193,7 +193,8 @@ bool agrees(const PairRates& p, Velocity pairRate, Velocity chainRate, Velocity*
 }  // namespace
 
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
-                       CancelToken& cancel, const ShiftedSumsProvider* sums) {
+                       CancelToken& cancel, const ShiftedSumsProvider* sums,
+                       const PhaseCorrelationProvider* correlate) {
   SkyRate out;
   const std::size_t nf = cube.frameCount();
   const std::size_t len =
@@ -219,7 +220,7 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
   const std::string pairText =
       "pairs of short blocks gave (" + fixed(out.rate.vx) + ", " + fixed(out.rate.vy) + ") px/s";
   const detail::ChainResult chain =
-      detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums);
+      detail::chainSkyRate(cube, out.rate, background, sigma, params, cancel, sums, correlate);
   timer.lap("chain");
   out.parts.add(chain.parts, "chain: ");
   if (!chain.ok) {

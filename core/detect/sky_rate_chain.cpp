@@ -6,6 +6,7 @@
 #include <cstring>
 #include <iterator>
 #include <numeric>
+#include <optional>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <immintrin.h>
@@ -303,39 +304,77 @@ cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* cou
   return out;
 }
 
-// Compares blocks i and j: block j's stack is moved by the whole pixels the current rate predicts, both
-// are cut to where both are fully covered, and the residual offset is measured: coarsely by phase
-// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
-// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
-// pattern.
-bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 const SkyRateParams& params, Link* link, TimedParts* parts) {
-  PartTimer timer(*parts);  // its seconds are this thread's; its CPU time is not used
+// A link's images: block j's stack moved by the whole pixels (gx, gy) the current rate predicts, both cut to
+// where both are fully covered; linear (for the windowed centroids) and compressed (for the phase
+// correlation and the pairing, CV_64F).
+struct LinkImages {
+  int gx = 0, gy = 0;
+  LinearImage la, lb;
+  cv::Mat ia, ib;
+};
+
+// Block i's and block j's link images. False when the two share no covered pixel.
+bool linkImages(const BlockStack& a, const BlockStack& b, Velocity rate, const SkyRateParams& params,
+                LinkImages* im) {
   const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
   const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
-  const int gx = static_cast<int>(std::lround(ex)), gy = static_cast<int>(std::lround(ey));
+  im->gx = static_cast<int>(std::lround(ex));
+  im->gy = static_cast<int>(std::lround(ey));
   int covered = 0;
-  const cv::Mat both = bothCovered(a.covered, b.covered, gx, gy, &covered);
+  const cv::Mat both = bothCovered(a.covered, b.covered, im->gx, im->gy, &covered);
   if (covered == 0) return false;
-  const LinearImage la = linearImage(a.value, a.noise, both);
-  const LinearImage lb = linearImage(translated(b.value, gx, gy), translated(b.noise, gx, gy), both);
-  const cv::Mat ia = compressed(la, params.detectSigma), ib = compressed(lb, params.detectSigma);
-  timer.lap("links' images (thread time)");
-  double r = 0.0;
-  cv::Point2d d = phaseShift(ia, ib, window, &r);
-  timer.lap("phase correlations (thread time)");
+  im->la = linearImage(a.value, a.noise, both);
+  im->lb = linearImage(translated(b.value, im->gx, im->gy), translated(b.noise, im->gx, im->gy), both);
+  im->ia = compressed(im->la, params.detectSigma);
+  im->ib = compressed(im->lb, params.detectSigma);
+  return true;
+}
+
+// The rest of a link from its phase correlation (the offset d of the compressed images, the response r):
+// the windowed centroids of the stars paired at that offset on the linear images replace d when there are
+// enough of them. False when the response is too weak.
+bool finishLink(const BlockStack& a, const BlockStack& b, const LinkImages& im, cv::Point2d d, double r,
+                const SkyRateParams& params, Link* link) {
   if (!(r >= params.minResponse)) return false;
   cv::Point2d c;
-  link->byStars = windowedOffset(la, lb, pairSources(ia, ib, d, kPairPeak), &c, &link->var);
-  timer.lap("paired stars (thread time)");
+  link->byStars = windowedOffset(im.la, im.lb, pairSources(im.ia, im.ib, d, kPairPeak), &c, &link->var);
   if (link->byStars) {
     d = c;
   } else {
     link->var = {kPhaseVarPx2, kPhaseVarPx2};
   }
   link->response = r;
-  link->d = {gx + d.x + b.meanShift.x - a.meanShift.x, gy + d.y + b.meanShift.y - a.meanShift.y};
+  link->d = {im.gx + d.x + b.meanShift.x - a.meanShift.x, im.gy + d.y + b.meanShift.y - a.meanShift.y};
   return true;
+}
+
+// Compares blocks i and j on this thread: their link images, the residual offset coarsely by phase
+// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
+// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
+// pattern.
+bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
+                 const SkyRateParams& params, Link* link, TimedParts* parts) {
+  PartTimer timer(*parts);  // its seconds are this thread's; its CPU time is not used
+  LinkImages im;
+  if (!linkImages(a, b, rate, params, &im)) return false;
+  timer.lap("links' images (thread time)");
+  double r = 0.0;
+  const cv::Point2d d = phaseShift(im.ia, im.ib, window, &r);
+  timer.lap("phase correlations (thread time)");
+  const bool ok = finishLink(a, b, im, d, r, params, link);
+  timer.lap("paired stars (thread time)");
+  return ok;
+}
+
+// phaseShift's input on the CPU: the window (or none) times the image, rounded to float, width x height.
+void windowedFloats(const cv::Mat& image, const cv::Mat& window, float* out) {
+  for (int y = 0; y < image.rows; ++y) {
+    const double* row = image.ptr<double>(y);
+    const double* win = window.empty() ? nullptr : window.ptr<double>(y);
+    float* dst = out + static_cast<std::size_t>(y) * image.cols;
+    for (int x = 0; x < image.cols; ++x)
+      dst[x] = static_cast<float>(win ? win[x] * row[x] : row[x]);
+  }
 }
 
 // True when the links connect every block to block 0.
@@ -405,9 +444,73 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
 
 // The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
 // between them (neighbours always), measured in parallel; failed comparisons are left out.
+// measureLinks' comparisons with the phase correlations made elsewhere (a device, issue 16) in one batch of
+// every link: the provider asks for each link's images as it fills its staging (in parallel, beside its own
+// transfers and transforms), then each link's paired stars are measured in parallel. A link the provider
+// did not make (a pair it gave back not ok, a batch it declined) is correlated here. The wall time of the
+// provider's call, the images included, is one part of `threadTime` (no thread's).
+void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
+                                     const SkyRateParams& params, const PhaseCorrelationProvider& correlate,
+                                     CancelToken& cancel, std::vector<Link>& tried, std::vector<char>& ok,
+                                     std::vector<TimedParts>& parts, TimedParts* threadTime) {
+  if (tried.empty()) return;
+  std::vector<LinkImages> images(tried.size());
+  std::vector<char> made(tried.size(), 0);  // images[l] made (ok[l] says whether the blocks overlap)
+  auto makeImages = [&](std::size_t l) {
+    PartTimer timer(parts[l]);
+    ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[l]);
+    made[l] = 1;
+    timer.lap("links' images (thread time)");
+  };
+  PhaseCorrelationBatch batch;
+  batch.width = stacks.front().value.cols;
+  batch.height = stacks.front().value.rows;
+  batch.nx = cv::getOptimalDFTSize(batch.width);
+  batch.ny = cv::getOptimalDFTSize(batch.height);
+  batch.pairs = tried.size();
+  batch.fill = [&](std::size_t l, float* a, float* b) {
+    makeImages(l);
+    if (ok[l]) {
+      windowedFloats(images[l].ia, window, a);
+      windowedFloats(images[l].ib, window, b);
+    } else {  // blocks that share no pixel: correlated as zeros, the result not used
+      std::fill(a, a + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
+      std::fill(b, b + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
+    }
+  };
+  std::optional<std::vector<PhasePeak>> peaks;
+  {
+    PartTimer timer(*threadTime);
+    peaks = correlate(batch);
+    if (peaks && peaks->size() != tried.size()) peaks.reset();
+    timer.lap("links' images and phase correlations elsewhere (wall)");
+  }
+  cancel.throwIfCancelled();
+  parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
+    for (std::size_t l = l0; l < l1; ++l) {
+      cancel.throwIfCancelled();
+      if (!made[l]) makeImages(l);
+      if (!ok[l]) continue;
+      PartTimer timer(parts[l]);
+      double r = 0.0;
+      cv::Point2d d;
+      if (peaks && (*peaks)[l].ok) {
+        d = {(*peaks)[l].dx, (*peaks)[l].dy};
+        r = (*peaks)[l].response;
+      } else {
+        d = phaseShift(images[l].ia, images[l].ib, window, &r);
+        timer.lap("phase correlations (thread time)");
+      }
+      ok[l] = finishLink(stacks[tried[l].i], stacks[tried[l].j], images[l], d, r, params, &tried[l]);
+      images[l] = LinkImages();  // freed on the thread that used it last
+      timer.lap("paired stars (thread time)");
+    }
+  });
+}
+
 std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
                                const SkyRateParams& params, int width, int height, CancelToken& cancel,
-                               TimedParts* threadTime) {
+                               const PhaseCorrelationProvider* correlate, TimedParts* threadTime) {
   const std::size_t k = stacks.size();
   std::vector<Link> tried;
   for (std::size_t i = 0; i < k; ++i)
@@ -420,12 +523,18 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
     }
   std::vector<char> ok(tried.size(), 0);
   std::vector<TimedParts> parts(tried.size());
-  parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
-    for (std::size_t l = l0; l < l1; ++l) {
-      cancel.throwIfCancelled();
-      ok[l] = measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
-    }
-  });
+  if (correlate && *correlate) {
+    measureLinksCorrelatedElsewhere(stacks, rate, window, params, *correlate, cancel, tried, ok, parts,
+                                    threadTime);
+  } else {
+    parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
+      for (std::size_t l = l0; l < l1; ++l) {
+        cancel.throwIfCancelled();
+        ok[l] =
+            measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
+      }
+    });
+  }
   for (const TimedParts& p : parts)
     for (const TimedPart& q : p.parts)
       threadTime->add(q.name, q.seconds);  // summed over the threads: no wall or CPU meaning of its own
@@ -443,7 +552,8 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
 }  // namespace
 
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
-                         const SkyRateParams& params, CancelToken& cancel, const ShiftedSumsProvider* sums) {
+                         const SkyRateParams& params, CancelToken& cancel, const ShiftedSumsProvider* sums,
+                         const PhaseCorrelationProvider* correlate) {
   ChainResult out;
   const Layout layout = layoutBlocks(cube, start, params);
   if (layout.first.size() < 3) {
@@ -462,7 +572,7 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
         stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel, stackParts);
     timer.lap("stacks");
     const std::vector<Link> links =
-        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, &threadTime);
+        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, correlate, &threadTime);
     timer.lap("links");
     out.iterations = it + 1;
     if (!connected(k, links)) {

@@ -31,6 +31,7 @@ void addShifted(const FrameCube& cube, const ShiftedBlock& blk, double backgroun
 /// the cube is too short for two blocks or the blocks cannot all be linked.
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
                          const SkyRateParams& params, CancelToken& cancel,
-                         const ShiftedSumsProvider* sums = nullptr);
+                         const ShiftedSumsProvider* sums = nullptr,
+                         const PhaseCorrelationProvider* correlate = nullptr);
 
 }  // namespace st::detect::detail

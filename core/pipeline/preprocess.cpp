@@ -227,11 +227,18 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                                                           double background, detect::ShiftedSumsForm form) {
       return sumsStep([&] { return accel->shiftedSums(c, blocks, background, form); });
     };
+  DeviceStep correlationStep(params.accelerator, "the sky rate's phase correlations", out.notes);
+  detect::PhaseCorrelationProvider deviceCorrelations;
+  if (params.accelerator)
+    deviceCorrelations = [&correlationStep, accel = params.accelerator](const detect::PhaseCorrelationBatch& b) {
+      return correlationStep([&] { return accel->phaseCorrelations(b); });
+    };
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
   } else if (!rateFromRegistration) {
     const detect::SkyRate r = detect::measureSkyRate(cube, out.global.mean, out.global.sigma,
-                                                     params.skyRateParams, cancel, &deviceSums);
+                                                     params.skyRateParams, cancel, &deviceSums,
+                                                     &deviceCorrelations);
     out.skyRate = r.rate;
     out.skyRateMeasured = r.reliable;
     std::ostringstream note;
@@ -242,6 +249,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       out.notes.push_back("sky rate: the block pairs' means and the chain's block stacks, " +
                           std::to_string(sumsStep.made) + " of " + std::to_string(sumsStep.asked) +
                           " sets on " + params.accelerator->name());
+    if (params.accelerator && correlationStep.asked > 0)
+      out.notes.push_back("sky rate: the chain's phase correlations, " + std::to_string(correlationStep.made) +
+                          " of " + std::to_string(correlationStep.asked) + " batches on " +
+                          params.accelerator->name());
   }
   lap("sky rate");
   {

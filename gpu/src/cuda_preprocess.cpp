@@ -150,6 +150,7 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   p->size = cube.pixels().size();
   p->maskSize = cube.mask().size();
   p->key = cubeKey(cube);
+  p->keptFrames = kept.size() > 0;
   const std::uint8_t* maskData = cube.mask().data();
   // A thread of its own, copying on that thread only: the host copies into the pinned staging buffers run
   // beside the CPU stages (static sources, PSF) instead of on every core at the per-pixel background.
@@ -158,7 +159,6 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       Stopwatch sw;
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
       DeviceResources& r = ensureResources(m_prefetchRes);
-      q->keptFrames = kept.size() > 0;
       q->pix = q->keptFrames ? std::move(kept) : DeviceBuffer<float>(q->size);
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
       if (!q->keptFrames)

@@ -84,11 +84,17 @@ inline bool syncDownloads() {
   return envKnob("ST_GPU_SYNC_DOWNLOADS");
 }
 
-/// ST_GPU_BLOCK_PAIRS_ON_DEVICE=1 makes the sky rate's block pairs' means on the device (shiftedSums'
-/// DoubleMeans). Off by default for now: written on 2026-12-02 when no device time was left to run its test
-/// (GpuSkyStack.BlockSumsAndPatchedPixelsEqualTheCpu) and measure it; the CPU makes them meanwhile.
-inline bool blockPairsOnDevice() {
-  return envKnob("ST_GPU_BLOCK_PAIRS_ON_DEVICE");
+/// Benchmark knob: ST_GPU_BLOCK_PAIRS_ON_HOST=1 makes the sky rate's block pairs' means on the CPU (as before
+/// 2026-12-02's tenth stop) instead of the device (shiftedSums' DoubleMeans, the host's division bit for bit:
+/// GpuSkyStack.BlockSumsAndPatchedPixelsEqualTheCpu), for before/after figures from one binary.
+inline bool blockPairsOnHost() {
+  return envKnob("ST_GPU_BLOCK_PAIRS_ON_HOST");
+}
+
+/// Benchmark knob: ST_GPU_PHASE_CORRELATIONS_ON_HOST=1 leaves the sky rate's chain's phase correlations to
+/// the CPU's FFTW (as before 2026-12-02's tenth stop), for before/after figures from one binary.
+inline bool phaseCorrelationsOnHost() {
+  return envKnob("ST_GPU_PHASE_CORRELATIONS_ON_HOST");
 }
 
 /// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
@@ -138,6 +144,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                                                               const std::vector<detect::ShiftedBlock>& blocks,
                                                               double background,
                                                               detect::ShiftedSumsForm form) override;
+  std::optional<std::vector<detect::PhasePeak>> phaseCorrelations(
+      const detect::PhaseCorrelationBatch& batch) override;
   std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
                                            std::size_t first, std::size_t last) override;
   std::optional<calib::CosmicRayPreTestWords> cosmicRayPreTest(const FrameCube& cube, float thr) override;
@@ -243,7 +251,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     std::size_t size = 0, maskSize = 0;
     std::uint64_t key = 0;
     bool ok = false;
-    bool keptFrames = false;  ///< the pixels came from the frame backgrounds' frames, not an upload
+    /// The pixels came from the frame backgrounds' frames, not an upload: only the mask's few ms of upload are
+    /// in flight (set before the thread starts).
+    bool keptFrames = false;
     std::atomic<bool> finished{false};  ///< the thread is done (ok or not): join() will not wait
     double seconds = 0.0;
     void join() {

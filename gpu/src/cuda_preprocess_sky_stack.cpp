@@ -24,8 +24,9 @@ std::shared_ptr<CudaPreprocess::Prefetch> CudaPreprocess::readyPrefetch(const Fr
       pf->maskSize != cube.mask().size())
     return nullptr;
   // Without waiting: the CPU's stack (~0.1 s for 1500 x 512^2 on 16 threads) is quicker than waiting for an
-  // upload that has just begun.
-  if (!waitForUpload && !pf->finished.load()) return nullptr;
+  // upload that has just begun. Frames kept from the frame backgrounds leave only the mask's sparse upload
+  // (a few ms): that is waited for (the sky rate's block pairs come right after the prefetch starts).
+  if (!waitForUpload && !pf->finished.load() && !pf->keptFrames) return nullptr;
   pf->join();
   if (!pf->ok || pf->key != cubeKey(cube)) return nullptr;
   return pf;
@@ -60,7 +61,7 @@ void CudaPreprocess::patchPrefetch(const FrameCube& cube, const std::vector<std:
 std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
     const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background,
     detect::ShiftedSumsForm form) {
-  if (form == detect::ShiftedSumsForm::DoubleMeans && !blockPairsOnDevice()) return std::nullopt;
+  if (form == detect::ShiftedSumsForm::DoubleMeans && blockPairsOnHost()) return std::nullopt;
   const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
   if (!pf || blocks.empty()) return std::nullopt;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels(), k = blocks.size();

@@ -19,6 +19,9 @@
 #include <random>
 #include <vector>
 
+#include <opencv2/core.hpp>
+
+#include "../../core/detect/sky_rate_match.hpp"  // white-box: the CPU's phaseShift, the provider's oracle
 #include "st/calib/calibration.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/sim/simulator.hpp"
@@ -219,6 +222,63 @@ TEST(SkyRateChain, FieldChangesCompletely) {
   ASSERT_EQ(m.blocks.size(), r.blocks.size());
   for (std::size_t b = 0; b < r.blocks.size(); ++b)
     EXPECT_EQ(m.blocks[b].offsetPx, r.blocks[b].offsetPx);
+
+  // The chain's phase correlations made by a provider (a device's, issue 16) from the batch's windowed
+  // floats with the CPU's own phaseShift (the floats widened exactly, no window: the same FFT input): the
+  // same rate, blocks and note, bit for bit. Every other pair declined (ok false): those made on the CPU,
+  // the same again. Every batch declined: the same.
+  int batches = 0;
+  std::size_t pairsSeen = 0;
+  auto correlateOnCpu = [&](const PhaseCorrelationBatch& batch, bool declineOdd) {
+    ++batches;
+    pairsSeen += batch.pairs;
+    EXPECT_EQ(batch.width, w);
+    EXPECT_EQ(batch.height, h);
+    EXPECT_EQ(batch.nx, cv::getOptimalDFTSize(w));
+    EXPECT_EQ(batch.ny, cv::getOptimalDFTSize(h));
+    std::vector<PhasePeak> out(batch.pairs);
+    std::vector<float> a(static_cast<std::size_t>(w) * h), b(a.size());
+    for (std::size_t k = 0; k < batch.pairs; ++k) {
+      if (declineOdd && k % 2 == 1) continue;
+      batch.fill(k, a.data(), b.data());
+      cv::Mat ma, mb;
+      cv::Mat(h, w, CV_32F, a.data()).convertTo(ma, CV_64F);
+      cv::Mat(h, w, CV_32F, b.data()).convertTo(mb, CV_64F);
+      double response = 0.0;
+      const cv::Point2d d = detail::phaseShift(ma, mb, cv::Mat(), &response);
+      out[k] = {d.x, d.y, response, true};
+    }
+    return std::optional<std::vector<PhasePeak>>(out);
+  };
+  const PhaseCorrelationProvider all = [&](const PhaseCorrelationBatch& batch) {
+    return correlateOnCpu(batch, false);
+  };
+  const PhaseCorrelationProvider someDeclined = [&](const PhaseCorrelationBatch& batch) {
+    return correlateOnCpu(batch, true);
+  };
+  const PhaseCorrelationProvider none = [&](const PhaseCorrelationBatch&) {
+    ++batches;
+    return std::optional<std::vector<PhasePeak>>();
+  };
+  for (const PhaseCorrelationProvider* provider : {&all, &someDeclined, &none}) {
+    batches = 0;
+    pairsSeen = 0;
+    const SkyRate q = measureSkyRate(cube, 0.0, 1.0, {}, c, nullptr, provider);
+    EXPECT_GE(batches, 1);
+    if (provider != &none) EXPECT_GE(pairsSeen, r.blocks.size() - 1);
+    EXPECT_EQ(q.rate, r.rate);
+    EXPECT_EQ(q.note, r.note);
+    ASSERT_EQ(q.blocks.size(), r.blocks.size());
+    for (std::size_t b = 0; b < r.blocks.size(); ++b)
+      EXPECT_EQ(q.blocks[b].offsetPx, r.blocks[b].offsetPx);
+  }
+  // The provider's peaks are used: with every response below the threshold no link is kept, and the chain
+  // is not.
+  const PhaseCorrelationProvider weak = [&](const PhaseCorrelationBatch& batch) {
+    return std::optional<std::vector<PhasePeak>>(std::vector<PhasePeak>(batch.pairs, {0.0, 0.0, 0.0, true}));
+  };
+  const SkyRate q = measureSkyRate(cube, 0.0, 1.0, {}, c, nullptr, &weak);
+  EXPECT_FALSE(q.chained) << q.note;
 }
 
 }  // namespace

@@ -91,6 +91,31 @@ std::vector<ShiftedSums> shiftedSums(const FrameCube& cube, const std::vector<Sh
 using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>>(
     const FrameCube& cube, const std::vector<ShiftedBlock>& blocks, double background, ShiftedSumsForm form)>;
 
+/// The chain's phase correlations of one iteration, for a device (issue 16): `pairs` pairs of images of
+/// width x height, each correlated as the CPU's does (cv::phaseCorrelate's zero padding to nx x ny, the
+/// normalised cross-power spectrum, its first largest value in the quadrant-swapped order and the 5 x 5
+/// centroid around it).
+struct PhaseCorrelationBatch {
+  int width = 0, height = 0;
+  int nx = 0, ny = 0;  ///< the transform sizes (cv::getOptimalDFTSize of width and height)
+  std::size_t pairs = 0;
+  /// Writes pair p's two images, the window applied, as width x height floats (row-major) into a and b: the
+  /// FFT's input on the CPU. Called from several threads at once, once for each p.
+  std::function<void(std::size_t p, float* a, float* b)> fill;
+};
+
+/// One pair's phase correlation: the offset of b relative to a (px) and the response. `ok` false: not made
+/// there (a surface that was not finite, as the CPU's handles apart), the CPU correlates that pair.
+struct PhasePeak {
+  double dx = 0.0, dy = 0.0, response = 0.0;
+  bool ok = false;
+};
+
+/// Correlates a batch elsewhere (a device: the transforms' floats differ from FFTW's by rounding, so the
+/// offsets within ~1e-4 px and the responses within ~1e-5 of the CPU's). None: the CPU does them all.
+using PhaseCorrelationProvider =
+    std::function<std::optional<std::vector<PhasePeak>>(const PhaseCorrelationBatch& batch)>;
+
 /// Measures the sky rate from the stars, with the global background `background` removed and faint pixels
 /// (< detectSigma * sigma / sqrt(frames averaged)) zeroed.
 /// First estimate: phase correlation (OpenCV) of pairs of short adjacent blocks spread over the cube (median
@@ -115,8 +140,11 @@ using ShiftedSumsProvider = std::function<std::optional<std::vector<ShiftedSums>
 /// synthetic field crossing the frame 3.7 times within 0.01; a magnitude-14 mover among the "small" preset's
 /// stars within 0.02 px/s.
 /// `sums`, when given, makes the block pairs' means (DoubleMeans: blocks with no shifts) and the chain's
-/// block stacks (the same sums: the same result).
+/// block stacks (the same sums: the same result). `correlate`, when given, makes the chain's links' phase
+/// correlations (an offset the paired stars' centroids replace on nearly every link; the block pairs' stay on
+/// the CPU, where the correlation's offset is the result whenever the stars' consensus fails).
 SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, const SkyRateParams& params,
-                       CancelToken& cancel, const ShiftedSumsProvider* sums = nullptr);
+                       CancelToken& cancel, const ShiftedSumsProvider* sums = nullptr,
+                       const PhaseCorrelationProvider* correlate = nullptr);
 
 }  // namespace st::detect

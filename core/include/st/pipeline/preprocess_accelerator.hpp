@@ -133,6 +133,14 @@ class PreprocessAccelerator {
     (void)cube, (void)blocks, (void)background, (void)form;
     return std::nullopt;
   }
+  /// The sky rate's chain's phase correlations of one iteration (detect::PhaseCorrelationBatch): each pair's
+  /// offset and response within the transforms' float rounding of the CPU's; none when the device does not
+  /// make them (the CPU does). The default makes none.
+  virtual std::optional<std::vector<detect::PhasePeak>> phaseCorrelations(
+      const detect::PhaseCorrelationBatch& batch) {
+    (void)batch;
+    return std::nullopt;
+  }
   /// detect::stackAtSkyRate(cube, rate, subtract, first, last) (last resolved, never 0): the same sums in
   /// the same order (equal stacks); none when the device cannot make it without a whole upload of its own
   /// (e.g. `cube` is not the one prefetch() took). The cube only needs to be unchanged since prefetch().
