@@ -41,8 +41,9 @@ constexpr const char* kHelp =
     "                        rank 0 gathers; the same candidates as one process\n"
     "  --out FILE.csv        write the candidates as CSV    --json  print JSON on stdout\n"
     "  --timings             print on stderr when each step ended, seconds from the start (backend, memory\n"
-    "                        plan, loaded and pre-processed with each stage's seconds, search planned,\n"
-    "                        searched, outputs)\n";
+    "                        plan, loaded and pre-processed with each stage's seconds and the\n"
+    "                        pre-processing's notes (where each stage ran: CPU or device, and its parts),\n"
+    "                        search planned, searched, outputs)\n";
 
 /// Both methods' estimates, the chosen one marked, and the choice with its reason (stderr, before the run).
 void printEstimate(const PlannedSearch& p) {
@@ -148,6 +149,8 @@ int cmdSearch(const Args& args) {
     if (!timings.on()) return;
     progress.finish();
     timings.stages(prep.stageSeconds);
+    for (const std::string& n : prep.notes)
+      std::fprintf(stderr, "timings:   note: %s\n", n.c_str());
     timings.mark("loaded and pre-processed");
   };
   hooks.planned = [&](const PlannedSearch& p) {

@@ -275,6 +275,17 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                          cudaStream_t s, bool parallelCopy);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
+  /// phaseCorrelations' device buffers, kept between its calls (a few per sky-rate iteration): at most a
+  /// staging buffer's pairs, ~110 MB for 512^2 images.
+  struct PhaseWorkspace {
+    int width = 0, height = 0, nx = 0, ny = 0;
+    std::size_t pairs = 0;  ///< the pairs the buffers hold
+    DeviceBuffer<float2> twiddleX, twiddleY, spectra;
+    DeviceBuffer<float> images, surface, rowMax;
+    DeviceBuffer<int> rowArg;
+    DeviceBuffer<double> peaks;
+  };
+  std::unique_ptr<PhaseWorkspace> m_phase;
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
   // cube once the pipeline has said its pixels did not change since (framesUnchangedSinceFrameBackgrounds).
   // globalBackground and hotPixelExcess read them too, with the mask uploaded with them (freed once the hot

@@ -46,22 +46,36 @@ std::optional<std::vector<detect::PhasePeak>> CudaPreprocess::phaseCorrelations(
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
-  const DeviceBuffer<float2> twx = toDevice(phaseFftTwiddles(batch.nx));
-  const DeviceBuffer<float2> twy = batch.ny == batch.nx ? DeviceBuffer<float2>() : toDevice(phaseFftTwiddles(batch.ny));
-  DeviceBuffer<float> images(chunk * pairFloats), surface(chunk * transform), rowMax(chunk * batch.ny);
-  DeviceBuffer<float2> spectra(chunk * 2 * transform);
-  DeviceBuffer<int> rowArg(chunk * batch.ny);
-  DeviceBuffer<double> peaks(4 * batch.pairs);
+  if (!m_phase || m_phase->width != batch.width || m_phase->height != batch.height || m_phase->nx != batch.nx ||
+      m_phase->ny != batch.ny || m_phase->pairs < chunk) {
+    m_phase.reset();  // the old buffers freed before the new ones are made
+    auto w = std::make_unique<PhaseWorkspace>();
+    w->width = batch.width;
+    w->height = batch.height;
+    w->nx = batch.nx;
+    w->ny = batch.ny;
+    w->pairs = perStaging;  // what any later batch of these images needs at once
+    w->twiddleX = toDevice(phaseFftTwiddles(batch.nx));
+    if (batch.ny != batch.nx) w->twiddleY = toDevice(phaseFftTwiddles(batch.ny));
+    w->images = DeviceBuffer<float>(perStaging * pairFloats);
+    w->surface = DeviceBuffer<float>(perStaging * transform);
+    w->rowMax = DeviceBuffer<float>(perStaging * batch.ny);
+    w->spectra = DeviceBuffer<float2>(perStaging * 2 * transform);
+    w->rowArg = DeviceBuffer<int>(perStaging * batch.ny);
+    m_phase = std::move(w);
+  }
+  PhaseWorkspace& w = *m_phase;
+  if (w.peaks.size() < 4 * batch.pairs) w.peaks = DeviceBuffer<double>(4 * batch.pairs);
   PhaseCorrelationLaunch p{};
-  p.images = images.get();
+  p.images = w.images.get();
   p.width = batch.width;
   p.height = batch.height;
-  p.x = axisOf(batch.nx, rx, twx);
-  p.y = axisOf(batch.ny, ry, batch.ny == batch.nx ? twx : twy);
-  p.spectra = spectra.get();
-  p.surface = surface.get();
-  p.rowMax = rowMax.get();
-  p.rowArg = rowArg.get();
+  p.x = axisOf(batch.nx, rx, w.twiddleX);
+  p.y = axisOf(batch.ny, ry, batch.ny == batch.nx ? w.twiddleX : w.twiddleY);
+  p.spectra = w.spectra.get();
+  p.surface = w.surface.get();
+  p.rowMax = w.rowMax.get();
+  p.rowArg = w.rowArg.get();
   for (std::size_t p0 = 0; p0 < batch.pairs; p0 += chunk) {
     const std::size_t n = std::min(chunk, batch.pairs - p0);
     const int b = r.nextStaging;
@@ -73,14 +87,14 @@ std::optional<std::vector<detect::PhasePeak>> CudaPreprocess::phaseCorrelations(
         batch.fill(p0 + q, staging + q * pairFloats, staging + q * pairFloats + plane);
     });
     ST_CUDA_CHECK(
-        cudaMemcpyAsync(images.get(), staging, n * pairFloats * sizeof(float), cudaMemcpyHostToDevice, s));
+        cudaMemcpyAsync(w.images.get(), staging, n * pairFloats * sizeof(float), cudaMemcpyHostToDevice, s));
     r.stagingFree[b].record(s);
     p.pairs = static_cast<int>(n);
-    p.peaks = peaks.get() + 4 * p0;
+    p.peaks = w.peaks.get() + 4 * p0;
     launchPhaseCorrelation(p, s);
   }
   std::vector<double> host(4 * batch.pairs);
-  ST_CUDA_CHECK(cudaMemcpyAsync(host.data(), peaks.get(), host.size() * sizeof(double), cudaMemcpyDeviceToHost, s));
+  ST_CUDA_CHECK(cudaMemcpyAsync(host.data(), w.peaks.get(), host.size() * sizeof(double), cudaMemcpyDeviceToHost, s));
   r.compute.sync();
   std::vector<detect::PhasePeak> out(batch.pairs);
   for (std::size_t k = 0; k < batch.pairs; ++k)
