@@ -444,68 +444,77 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
 
 // The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
 // between them (neighbours always), measured in parallel; failed comparisons are left out.
-// measureLinks' comparisons with the phase correlations made elsewhere (a device, issue 16) in one batch of
-// every link: the provider asks for each link's images as it fills its staging (in parallel, beside its own
-// transfers and transforms), then each link's paired stars are measured in parallel. A link the provider
-// did not make (a pair it gave back not ok, a batch it declined) is correlated here. The wall time of the
-// provider's call, the images included, is one part of `threadTime` (no thread's).
+// measureLinks' comparisons with the phase correlations made elsewhere (a device, issue 16), in groups of
+// one link per worker thread (a group's images, ~8.5 MB a link of 512^2, are freed before the next group's
+// are made: all 54 links' at once were ~460 MB of fresh pages, which doubled the images' thread time on an
+// H200 host). Per group, the provider asks for each link's images as it fills its staging (in parallel,
+// beside its own transfers and transforms), then each link's paired stars are measured in parallel. A link
+// the provider did not make (a pair it gave back not ok, a group it declined) is correlated here. The wall
+// time of the provider's calls, the images included, is one part of `threadTime` (no thread's).
 void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
                                      const SkyRateParams& params, const PhaseCorrelationProvider& correlate,
                                      CancelToken& cancel, std::vector<Link>& tried, std::vector<char>& ok,
                                      std::vector<TimedParts>& parts, TimedParts* threadTime) {
-  if (tried.empty()) return;
-  std::vector<LinkImages> images(tried.size());
-  std::vector<char> made(tried.size(), 0);  // images[l] made (ok[l] says whether the blocks overlap)
-  auto makeImages = [&](std::size_t l) {
-    PartTimer timer(parts[l]);
-    ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[l]);
-    made[l] = 1;
-    timer.lap("links' images (thread time)");
-  };
-  PhaseCorrelationBatch batch;
-  batch.width = stacks.front().value.cols;
-  batch.height = stacks.front().value.rows;
-  batch.nx = cv::getOptimalDFTSize(batch.width);
-  batch.ny = cv::getOptimalDFTSize(batch.height);
-  batch.pairs = tried.size();
-  batch.fill = [&](std::size_t l, float* a, float* b) {
-    makeImages(l);
-    if (ok[l]) {
-      windowedFloats(images[l].ia, window, a);
-      windowedFloats(images[l].ib, window, b);
-    } else {  // blocks that share no pixel: correlated as zeros, the result not used
-      std::fill(a, a + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
-      std::fill(b, b + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
-    }
-  };
-  std::optional<std::vector<PhasePeak>> peaks;
-  {
-    PartTimer timer(*threadTime);
-    peaks = correlate(batch);
-    if (peaks && peaks->size() != tried.size()) peaks.reset();
-    timer.lap("links' images and phase correlations elsewhere (wall)");
-  }
-  cancel.throwIfCancelled();
-  parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
-    for (std::size_t l = l0; l < l1; ++l) {
-      cancel.throwIfCancelled();
-      if (!made[l]) makeImages(l);
-      if (!ok[l]) continue;
+  const std::size_t group = std::max<std::size_t>(4, workerCount());
+  std::vector<LinkImages> images(std::min(group, tried.size()));
+  std::vector<char> made(images.size());
+  for (std::size_t g0 = 0; g0 < tried.size(); g0 += group) {
+    const std::size_t n = std::min(group, tried.size() - g0);
+    std::fill(made.begin(), made.end(), 0);
+    // Link g0 + q's images into images[q] (made[q]; ok says whether the blocks overlap).
+    auto makeImages = [&](std::size_t q) {
+      const std::size_t l = g0 + q;
       PartTimer timer(parts[l]);
-      double r = 0.0;
-      cv::Point2d d;
-      if (peaks && (*peaks)[l].ok) {
-        d = {(*peaks)[l].dx, (*peaks)[l].dy};
-        r = (*peaks)[l].response;
-      } else {
-        d = phaseShift(images[l].ia, images[l].ib, window, &r);
-        timer.lap("phase correlations (thread time)");
+      ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[q]);
+      made[q] = 1;
+      timer.lap("links' images (thread time)");
+    };
+    PhaseCorrelationBatch batch;
+    batch.width = stacks.front().value.cols;
+    batch.height = stacks.front().value.rows;
+    batch.nx = cv::getOptimalDFTSize(batch.width);
+    batch.ny = cv::getOptimalDFTSize(batch.height);
+    batch.pairs = n;
+    batch.fill = [&](std::size_t q, float* a, float* b) {
+      makeImages(q);
+      if (ok[g0 + q]) {
+        windowedFloats(images[q].ia, window, a);
+        windowedFloats(images[q].ib, window, b);
+      } else {  // blocks that share no pixel: correlated as zeros, the result not used
+        std::fill(a, a + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
+        std::fill(b, b + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
       }
-      ok[l] = finishLink(stacks[tried[l].i], stacks[tried[l].j], images[l], d, r, params, &tried[l]);
-      images[l] = LinkImages();  // freed on the thread that used it last
-      timer.lap("paired stars (thread time)");
+    };
+    std::optional<std::vector<PhasePeak>> peaks;
+    {
+      PartTimer timer(*threadTime);
+      peaks = correlate(batch);
+      if (peaks && peaks->size() != n) peaks.reset();
+      timer.lap("links' images and phase correlations elsewhere (wall)");
     }
-  });
+    cancel.throwIfCancelled();
+    parallelFor(n, 1, [&](std::size_t q0, std::size_t q1) {
+      for (std::size_t q = q0; q < q1; ++q) {
+        cancel.throwIfCancelled();
+        const std::size_t l = g0 + q;
+        if (!made[q]) makeImages(q);
+        if (!ok[l]) continue;
+        PartTimer timer(parts[l]);
+        double r = 0.0;
+        cv::Point2d d;
+        if (peaks && (*peaks)[q].ok) {
+          d = {(*peaks)[q].dx, (*peaks)[q].dy};
+          r = (*peaks)[q].response;
+        } else {
+          d = phaseShift(images[q].ia, images[q].ib, window, &r);
+          timer.lap("phase correlations (thread time)");
+        }
+        ok[l] = finishLink(stacks[tried[l].i], stacks[tried[l].j], images[q], d, r, params, &tried[l]);
+        images[q] = LinkImages();  // freed on the thread that used it last
+        timer.lap("paired stars (thread time)");
+      }
+    });
+  }
 }
 
 std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,

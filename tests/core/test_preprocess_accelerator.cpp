@@ -62,6 +62,11 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return std::nullopt;  // a working device that declines: the CPU makes the map
   }
+  std::optional<std::vector<detect::PhasePeak>> phaseCorrelations(const detect::PhaseCorrelationBatch&) override {
+    ++phaseCalls;
+    act();
+    return std::nullopt;  // a working device that declines: the CPU correlates
+  }
   bool zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in, pipeline::ZeroBiasResult&, ProgressSink&,
                 CancelToken&) override {
     ++calls;
@@ -81,7 +86,7 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     calib::applyPixelCalibration(cube, plan, progress, cancel);
     return stats::removeFrameBackgrounds(cube, params, progress, cancel);
   }
-  int calls = 0, snrCalls = 0, stackCalls = 0, calibrationCalls = 0;
+  int calls = 0, snrCalls = 0, stackCalls = 0, calibrationCalls = 0, phaseCalls = 0;
   bool declineCalibration = false;
 
  private:
@@ -286,8 +291,9 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
 }
 
 // The static sources' filtered SNR maps (PreprocessAccelerator::filteredSnr) and the stacks at the sky rate
-// (skyStack) in pipeline::preprocess: a device that fails is asked once, warned about once and then left
-// alone; one that declines is asked for every map and stack; either way the stars are the CPU's.
+// (skyStack) and the sky rate's phase correlations (phaseCorrelations) in pipeline::preprocess: a device that
+// fails is asked once, warned about once and then left alone; one that declines is asked for every map, stack
+// and group of links; either way the stars and the sky rate are the CPU's.
 TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
   NullProgress p;
   CancelToken c;
@@ -326,6 +332,17 @@ TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
       EXPECT_EQ(accel->snrCalls, 1);
     } else {
       EXPECT_GE(accel->snrCalls, 2);
+    }
+    // The sky rate's chain phase correlations likewise: the CPU's rate, a warning once when failing, every
+    // group of links asked when declining.
+    EXPECT_EQ(dev.skyRate, cpu.skyRate);
+    EXPECT_EQ(count("warning: the sky rate's phase correlations fell back to the CPU (fake device: "),
+              accel == &fail ? 1 : 0);
+    EXPECT_EQ(count("sky rate: the chain's phase correlations, 0 of "), 1);
+    if (accel == &fail) {
+      EXPECT_EQ(accel->phaseCalls, 1);
+    } else {
+      EXPECT_GE(accel->phaseCalls, 1);
     }
   }
 }
