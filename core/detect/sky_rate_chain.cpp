@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <iterator>
 #include <numeric>
 #include <optional>
@@ -442,19 +443,21 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
   return true;
 }
 
-// The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
-// between them (neighbours always), measured in parallel; failed comparisons are left out.
 // measureLinks' comparisons with the phase correlations made elsewhere (a device, issue 16), in groups of
 // one link per worker thread (a group's images, ~8.5 MB a link of 512^2, are freed before the next group's
 // are made: all 54 links' at once were ~460 MB of fresh pages, which doubled the images' thread time on an
-// H200 host). Per group, the provider asks for each link's images as it fills its staging (in parallel,
-// beside its own transfers and transforms), then each link's paired stars are measured in parallel. A link
-// the provider did not make (a pair it gave back not ok, a group it declined) is correlated here. The wall
-// time of the provider's calls, the images included, is one part of `threadTime` (no thread's).
+// H200 host). Per group, the provider asks for each link's images as it fills its staging (on every core;
+// where a staging buffer holds fewer pairs than a group, beside its transfers and transforms of the
+// previous ones), then each link's paired stars are measured in parallel. A link the provider did not make
+// (a pair it gave back not ok, a group it failed part way) is correlated here. A provider that declines a
+// group without asking for any image (a benchmark knob, a device that failed before, images it does not
+// take) leaves that group and the rest to `cpu` (the CPU's own path, all of them in one parallel loop). The
+// wall time of the provider's calls, the images included, is one part of `threadTime` (no thread's).
 void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
                                      const SkyRateParams& params, const PhaseCorrelationProvider& correlate,
                                      CancelToken& cancel, std::vector<Link>& tried, std::vector<char>& ok,
-                                     std::vector<TimedParts>& parts, TimedParts* threadTime) {
+                                     std::vector<TimedParts>& parts, TimedParts* threadTime,
+                                     const std::function<void(std::size_t first)>& cpu) {
   const std::size_t group = std::max<std::size_t>(4, workerCount());
   std::vector<LinkImages> images(std::min(group, tried.size()));
   std::vector<char> made(images.size());
@@ -492,6 +495,11 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
       if (peaks && peaks->size() != n) peaks.reset();
       timer.lap("links' images and phase correlations elsewhere (wall)");
     }
+    if (!peaks && std::none_of(made.begin(), made.begin() + static_cast<std::ptrdiff_t>(n),
+                               [](char m) { return m != 0; })) {
+      cpu(g0);
+      return;
+    }
     cancel.throwIfCancelled();
     parallelFor(n, 1, [&](std::size_t q0, std::size_t q1) {
       for (std::size_t q = q0; q < q1; ++q) {
@@ -517,6 +525,8 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
   }
 }
 
+// The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
+// between them (neighbours always), measured in parallel; failed comparisons are left out.
 std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
                                const SkyRateParams& params, int width, int height, CancelToken& cancel,
                                const PhaseCorrelationProvider* correlate, TimedParts* threadTime) {
@@ -532,17 +542,21 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
     }
   std::vector<char> ok(tried.size(), 0);
   std::vector<TimedParts> parts(tried.size());
-  if (correlate && *correlate) {
-    measureLinksCorrelatedElsewhere(stacks, rate, window, params, *correlate, cancel, tried, ok, parts,
-                                    threadTime);
-  } else {
-    parallelFor(tried.size(), 1, [&](std::size_t l0, std::size_t l1) {
-      for (std::size_t l = l0; l < l1; ++l) {
+  // Links [first, end) on the CPU, each on a thread of its own.
+  const auto onCpu = [&](std::size_t first) {
+    parallelFor(tried.size() - first, 1, [&](std::size_t l0, std::size_t l1) {
+      for (std::size_t l = first + l0; l < first + l1; ++l) {
         cancel.throwIfCancelled();
         ok[l] =
             measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
       }
     });
+  };
+  if (correlate && *correlate && !tried.empty()) {
+    measureLinksCorrelatedElsewhere(stacks, rate, window, params, *correlate, cancel, tried, ok, parts,
+                                    threadTime, onCpu);
+  } else {
+    onCpu(0);
   }
   for (const TimedParts& p : parts)
     for (const TimedPart& q : p.parts)

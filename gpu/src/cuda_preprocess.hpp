@@ -92,7 +92,8 @@ inline bool blockPairsOnHost() {
 }
 
 /// Benchmark knob: ST_GPU_PHASE_CORRELATIONS_ON_HOST=1 leaves the sky rate's chain's phase correlations to
-/// the CPU's FFTW (as before 2026-12-02's tenth stop), for before/after figures from one binary.
+/// the CPU's FFTW (the chain's links as before 2026-12-02's tenth stop: a declined first group hands them all
+/// to the CPU's loop), for before/after figures from one binary.
 inline bool phaseCorrelationsOnHost() {
   return envKnob("ST_GPU_PHASE_CORRELATIONS_ON_HOST");
 }
@@ -251,8 +252,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     std::size_t size = 0, maskSize = 0;
     std::uint64_t key = 0;
     bool ok = false;
-    /// The pixels came from the frame backgrounds' frames, not an upload: only the mask's few ms of upload are
-    /// in flight (set before the thread starts).
+    /// The pixels came from the frame backgrounds' frames, not an upload: only the mask's upload is in flight
+    /// (a few ms when sparse; a mask over 1/64 set goes whole, ~110 ms for 1500 x 512^2). Set before the
+    /// thread starts.
     bool keptFrames = false;
     std::atomic<bool> finished{false};  ///< the thread is done (ok or not): join() will not wait
     double seconds = 0.0;
@@ -275,8 +277,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
                          cudaStream_t s, bool parallelCopy);
   std::unique_ptr<DeviceResources> m_prefetchRes;  // its own streams and staging: no contention with m_res
   std::shared_ptr<Prefetch> m_prefetch;            // after m_prefetchRes: joined before that is freed
-  /// phaseCorrelations' device buffers, kept between its calls (a few per sky-rate iteration): at most a
-  /// staging buffer's pairs, ~110 MB for 512^2 images.
+  /// phaseCorrelations' device buffers, kept between its calls (a few per sky-rate iteration) and freed when
+  /// the per-pixel background begins: at most a staging buffer's pairs, ~110 MB for 512^2 images.
   struct PhaseWorkspace {
     int width = 0, height = 0, nx = 0, ny = 0;
     std::size_t pairs = 0;  ///< the pairs the buffers hold

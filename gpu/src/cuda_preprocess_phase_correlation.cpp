@@ -1,6 +1,7 @@
 // The sky rate's chain's phase correlations on the device (issue 16; phase_correlation_kernels.cu): the
 // links' images written as windowed floats straight into the pinned staging buffers on every core, a
-// staging buffer's pairs uploaded and correlated while the host fills the other, the peaks downloaded once.
+// staging buffer's pairs uploaded and correlated while the host fills the other (a batch of more pairs than
+// one holds: 16 of 512^2, 2 of 1432 x 1370), the peaks downloaded once.
 #include <algorithm>
 #include <vector>
 
@@ -48,20 +49,21 @@ std::optional<std::vector<detect::PhasePeak>> CudaPreprocess::phaseCorrelations(
   cudaStream_t s = r.compute.get();
   if (!m_phase || m_phase->width != batch.width || m_phase->height != batch.height || m_phase->nx != batch.nx ||
       m_phase->ny != batch.ny || m_phase->pairs < chunk) {
+    // Sized for this batch's chunk: the chain's groups of links all ask for the same number.
     m_phase.reset();  // the old buffers freed before the new ones are made
     auto w = std::make_unique<PhaseWorkspace>();
     w->width = batch.width;
     w->height = batch.height;
     w->nx = batch.nx;
     w->ny = batch.ny;
-    w->pairs = perStaging;  // what any later batch of these images needs at once
+    w->pairs = chunk;
     w->twiddleX = toDevice(phaseFftTwiddles(batch.nx));
     if (batch.ny != batch.nx) w->twiddleY = toDevice(phaseFftTwiddles(batch.ny));
-    w->images = DeviceBuffer<float>(perStaging * pairFloats);
-    w->surface = DeviceBuffer<float>(perStaging * transform);
-    w->rowMax = DeviceBuffer<float>(perStaging * batch.ny);
-    w->spectra = DeviceBuffer<float2>(perStaging * 2 * transform);
-    w->rowArg = DeviceBuffer<int>(perStaging * batch.ny);
+    w->images = DeviceBuffer<float>(chunk * pairFloats);
+    w->surface = DeviceBuffer<float>(chunk * transform);
+    w->rowMax = DeviceBuffer<float>(chunk * batch.ny);
+    w->spectra = DeviceBuffer<float2>(chunk * 2 * transform);
+    w->rowArg = DeviceBuffer<int>(chunk * batch.ny);
     m_phase = std::move(w);
   }
   PhaseWorkspace& w = *m_phase;

@@ -24,8 +24,8 @@ std::shared_ptr<CudaPreprocess::Prefetch> CudaPreprocess::readyPrefetch(const Fr
       pf->maskSize != cube.mask().size())
     return nullptr;
   // Without waiting: the CPU's stack (~0.1 s for 1500 x 512^2 on 16 threads) is quicker than waiting for an
-  // upload that has just begun. Frames kept from the frame backgrounds leave only the mask's sparse upload
-  // (a few ms): that is waited for (the sky rate's block pairs come right after the prefetch starts).
+  // upload that has just begun. Frames kept from the frame backgrounds leave only the mask's upload (a few ms
+  // when sparse): that is waited for (the sky rate's block pairs come right after the prefetch starts).
   if (!waitForUpload && !pf->finished.load() && !pf->keptFrames) return nullptr;
   pf->join();
   if (!pf->ok || pf->key != cubeKey(cube)) return nullptr;

@@ -282,8 +282,12 @@ __global__ void pairPeaks(PhaseCorrelationLaunch p) {
   out[3] = 1.0;
 }
 
+// Opts `kernel` in to `bytes` of dynamic shared memory where that and its static shared memory (reducePeak's
+// arrays) pass the default 48 KB a block.
 void allowSharedBytes(const void* kernel, std::size_t bytes) {
-  if (bytes > 48 * 1024)
+  cudaFuncAttributes attr{};
+  check(cudaFuncGetAttributes(&attr, kernel), "cudaFuncGetAttributes(phase correlation kernel)");
+  if (bytes + attr.sharedSizeBytes > 48 * 1024)
     check(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, static_cast<int>(bytes)),
           "cudaFuncSetAttribute(phase correlation shared memory)");
 }

@@ -1,8 +1,8 @@
 // The sky rate's chain's phase correlations on the device (issue 16: gpu/src/phase_correlation_kernels.cu,
 // an FFT of our own) against the CPU's detect::detail::phaseShift (single-precision FFTW), the oracle: on
 // compressed, Hanning-windowed star fields like the links', at whole and fractional offsets, at sizes that
-// need no padding (512^2), padding (97 x 131 -> 100 x 135) and radix-3 and radix-5 stages (243 x 250,
-// 375 x 360), the same offset within 1e-3 px and the same response within 1e-4 (the CPU-vs-OpenCV test's
+// need no padding (512^2), padding (97 x 131 -> 100 x 135), radix-3 and radix-5 stages (243 x 250,
+// 375 x 360) and rows of 6000 (more shared memory than a block has by default), the same offset within 1e-3 px and the same response within 1e-4 (the CPU-vs-OpenCV test's
 // tolerances: two FFTs' float rounding apart). A pair whose surface is not finite (an infinite pixel) comes
 // back not ok (the CPU correlates it), the others unchanged; sizes the kernels do not take and pairs larger than a staging
 // buffer are declined; ST_GPU_PHASE_CORRELATIONS_ON_HOST=1 declines every batch. Skips without a device.
@@ -58,8 +58,9 @@ TEST(GpuPhaseCorrelation, EqualsTheCpusPhaseShift) {
   struct Size {
     int w, h, pairs;
   };
-  // 20 pairs of 512^2 fill two staging buffers and part of a third: three chunks.
-  const Size sizes[] = {{512, 512, 20}, {97, 131, 4}, {243, 250, 4}, {375, 360, 3}};
+  // 20 pairs of 512^2: a staging buffer's 16, then 4 (two chunks). 6000 x 24: rows of 6000 whose shared
+  // memory with the peak's reduction arrays passes the default 48 KB a block.
+  const Size sizes[] = {{512, 512, 20}, {97, 131, 4}, {243, 250, 4}, {375, 360, 3}, {6000, 24, 2}};
   const double offsets[][2] = {{3.0, -2.0}, {0.37, 1.61}, {-7.25, 4.5}, {0.0, 0.0}, {12.6, -5.1}};
   double worstD = 0.0, worstR = 0.0;
   unsigned seed = 1;
@@ -89,8 +90,10 @@ TEST(GpuPhaseCorrelation, EqualsTheCpusPhaseShift) {
       EXPECT_NEAR(g.response, r, 1e-4);
       // The stars' offset, to the 5 x 5 centroid's accuracy (0.58 px off at worst on these small fields, on
       // the CPU as on the device): the peak is the stars'.
-      EXPECT_NEAR(g.dx, pairs[k].dx, 1.0);
-      EXPECT_NEAR(g.dy, pairs[k].dy, 1.0);
+      if (std::min(sz.w, sz.h) >= 64) {  // (the 24-row strip's window leaves too few rows to insist)
+        EXPECT_NEAR(g.dx, pairs[k].dx, 1.0);
+        EXPECT_NEAR(g.dy, pairs[k].dy, 1.0);
+      }
       worstD = std::max({worstD, std::fabs(g.dx - d.x), std::fabs(g.dy - d.y)});
       worstR = std::max(worstR, std::fabs(g.response - r));
     }
