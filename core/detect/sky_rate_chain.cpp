@@ -367,17 +367,6 @@ bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const 
   return ok;
 }
 
-// phaseShift's input on the CPU: the window (or none) times the image, rounded to float, width x height.
-void windowedFloats(const cv::Mat& image, const cv::Mat& window, float* out) {
-  for (int y = 0; y < image.rows; ++y) {
-    const double* row = image.ptr<double>(y);
-    const double* win = window.empty() ? nullptr : window.ptr<double>(y);
-    float* dst = out + static_cast<std::size_t>(y) * image.cols;
-    for (int x = 0; x < image.cols; ++x)
-      dst[x] = static_cast<float>(win ? win[x] * row[x] : row[x]);
-  }
-}
-
 // True when the links connect every block to block 0.
 bool connected(std::size_t blocks, const std::vector<Link>& links) {
   std::vector<std::size_t> parent(blocks);
@@ -481,8 +470,8 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
     batch.fill = [&](std::size_t q, float* a, float* b) {
       makeImages(q);
       if (ok[g0 + q]) {
-        windowedFloats(images[q].ia, window, a);
-        windowedFloats(images[q].ib, window, b);
+        windowedFloats(images[q].ia, window, a, static_cast<std::size_t>(batch.width));
+        windowedFloats(images[q].ib, window, b, static_cast<std::size_t>(batch.width));
       } else {  // blocks that share no pixel: correlated as zeros, the result not used
         std::fill(a, a + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
         std::fill(b, b + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);

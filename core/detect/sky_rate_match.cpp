@@ -369,6 +369,20 @@ std::size_t firstLargestShifted(const float* c, int nx, int ny) {
   return bestShifted;
 }
 
+void windowedFloats(const cv::Mat& image, const cv::Mat& window, float* out, std::size_t stride) {
+  for (int y = 0; y < image.rows; ++y) {
+    const double* row = image.ptr<double>(y);
+    const double* win = window.empty() ? nullptr : window.ptr<double>(y);
+    float* dst = out + static_cast<std::size_t>(y) * stride;
+    if (win)
+      for (int x = 0; x < image.cols; ++x)
+        dst[x] = static_cast<float>(win[x] * row[x]);
+    else
+      for (int x = 0; x < image.cols; ++x)
+        dst[x] = static_cast<float>(row[x]);
+  }
+}
+
 cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window, double* response) {
   CV_Assert(a.type() == CV_64FC1 && b.type() == CV_64FC1 && a.size() == b.size());
   CV_Assert(window.empty() || (window.type() == CV_64FC1 && window.size() == a.size()));
@@ -394,17 +408,7 @@ cv::Point2d phaseShift(const cv::Mat& a, const cv::Mat& b, const cv::Mat& window
   float* in = buf.in.get();
   auto transform = [&](const cv::Mat& m, fftwf_complex* out) {
     if (nx != w || ny != h) std::fill(in, in + nr, 0.0f);  // the padding
-    for (int y = 0; y < h; ++y) {
-      const double* row = m.ptr<double>(y);
-      const double* win = window.empty() ? nullptr : window.ptr<double>(y);
-      float* dst = in + static_cast<std::size_t>(y) * nx;
-      if (win)
-        for (int x = 0; x < w; ++x)
-          dst[x] = static_cast<float>(win[x] * row[x]);
-      else
-        for (int x = 0; x < w; ++x)
-          dst[x] = static_cast<float>(row[x]);
-    }
+    windowedFloats(m, window, in, static_cast<std::size_t>(nx));
     fftwf_execute_dft_r2c(plans.forward, in, out);
   };
   transform(a, buf.fa.get());

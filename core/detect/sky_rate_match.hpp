@@ -56,6 +56,11 @@ bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vecto
 /// weighs more for being brighter. False with fewer than 3 pairs.
 bool consensusOffset(const cv::Mat& a, const cv::Mat& b, cv::Point2d coarse, double minPeak, cv::Point2d* d);
 
+/// phaseShift's FFT input: the window (or none) times the CV_64F image, rounded to float, its rows `stride`
+/// floats apart in `out` (also what a device's phase correlations are given, so that both transform the same
+/// floats).
+void windowedFloats(const cv::Mat& image, const cv::Mat& window, float* out, std::size_t stride);
+
 /// cv::phaseCorrelate(a, b, window) (offset of b relative to a, px, and the response), computed as OpenCV
 /// does (zero padding to its optimal DFT size, the normalised cross-power spectrum, its quadrant swap, the
 /// 5 x 5 centroid) but with single-precision FFTW transforms: 1.5x-3x faster than OpenCV's double DFTs on the
