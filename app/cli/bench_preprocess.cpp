@@ -79,7 +79,8 @@ Score score(const sim::SimResult& sim, const pipeline::Prepared& p) {
     double nearest = 1e30;
     bool saturated = false;
     for (const auto& st : t.stars) {
-      const double d = std::hypot(st.xRefPx + t.skyVxPxPerS * dt[n] - x, st.yRefPx + t.skyVyPxPerS * dt[n] - y);
+      const double d =
+          std::hypot(st.xRefPx + t.skyVxPxPerS * dt[n] - x, st.yRefPx + t.skyVyPxPerS * dt[n] - y);
       if (d < nearest) nearest = d;
       if (d < 15.0 && st.saturated) saturated = true;
     }
@@ -132,13 +133,16 @@ std::uint64_t maskHash(const FrameCube& cube) {
 }  // namespace
 
 int benchPreprocess(const Args& args) {
-  const CliArgs a(args, {"preset", "seed", "frames", "size", "backend"}, {"json", "help", "given-sky-rate", "fingerprint"});
+  const CliArgs a(args, {"preset", "seed", "frames", "size", "backend"},
+                  {"json", "help", "given-sky-rate", "fingerprint", "chain-remeasure"});
   if (a.flag("help")) {
     std::printf(
         "usage: synthtrack-cli bench preprocess [--preset paper-neo] [--seed 1] [--frames N] [--size PX] "
-        "[--backend cpu|cuda] [--json] [--fingerprint]\n"
+        "[--backend cpu|cuda] [--json] [--fingerprint] [--chain-remeasure]\n"
         "  --fingerprint   also print the results to every digit and hashes of the zero-biased and filtered\n"
-        "                  cubes (after the timing): equal lines, the same pre-processing bit for bit\n");
+        "                  cubes (after the timing): equal lines, the same pre-processing bit for bit\n"
+        "  --chain-remeasure  the sky rate's chain as before 2026-12-02: every link in its first iteration\n"
+        "                  too, and every block stack and link again in each iteration\n");
     return 0;
   }
   const std::string presetName = a.value("preset").value_or("paper-neo");
@@ -154,6 +158,8 @@ int benchPreprocess(const Args& args) {
   const double simS = std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
   pipeline::PreprocessParams pp;
   pp.masters = sim::exactMasters(sim);
+  pp.skyRateParams.chainKeepUnchanged = !a.flag("chain-remeasure");
+  pp.skyRateParams.chainCoarseFirst = !a.flag("chain-remeasure");
   if (a.flag("given-sky-rate")) pp.skyRate = Velocity{sim.truth.skyVxPxPerS, sim.truth.skyVyPxPerS};
   // --backend cuda: the per-pixel background and the matched filter on the GPU (issue 16).
   const BackendSelection backend = makeBackend(parseBackendChoice(a.value("backend").value_or("cpu")));
@@ -205,7 +211,8 @@ int benchPreprocess(const Args& args) {
       sc.hitsRemoved, sc.hits, sc.hits ? 100.0 * sc.hitsRemoved / sc.hits : 100.0, out.cosmicRays,
       sc.objectPixelsRemoved, sc.objectPixels);
   std::printf(
-      "cosmic-ray pixels flagged %zu, truth's hit pixels %zu (%.2fx); flagged on no hit: %zu within 5 px of a "
+      "cosmic-ray pixels flagged %zu, truth's hit pixels %zu (%.2fx); flagged on no hit: %zu within 5 px of "
+      "a "
       "star, %zu at 5-15 px, %zu farther; %zu of them within 15 px of a saturated star\n",
       out.cosmicRayPixels.size(), sc.truthPixels,
       sc.truthPixels ? double(out.cosmicRayPixels.size()) / double(sc.truthPixels) : 0.0, sc.falseNear,

@@ -227,11 +227,15 @@ SkyRate measureSkyRate(const FrameCube& cube, double background, double sigma, c
     out.note = "sky rate: " + pairText + "; not refined: " + chain.why;
     return out;
   }
-  const std::string chainText = "chained over " + std::to_string(chain.blocks.size()) + " blocks (" +
-                                std::to_string(chain.links) + " links, " + std::to_string(chain.starLinks) +
-                                " by paired stars, " + std::to_string(chain.iterations) +
-                                (chain.iterations == 1 ? " iteration" : " iterations") + ") gave (" +
-                                fixed(chain.rate.vx) + ", " + fixed(chain.rate.vy) + ") px/s";
+  const std::string chainText =
+      "chained over " + std::to_string(chain.blocks.size()) + " blocks (" + std::to_string(chain.links) +
+      " links, " + std::to_string(chain.starLinks) + " by paired stars, " + std::to_string(chain.iterations) +
+      (chain.iterations == 1 ? " iteration" : " iterations") +
+      (chain.coarseFirst ? ", the first by neighbouring blocks only" : "") +
+      (chain.iterations > 1 ? "; " + std::to_string(chain.stacksKept) + " stacks and " +
+                                  std::to_string(chain.linksKept) + " links kept from the iteration before"
+                            : std::string()) +
+      ") gave (" + fixed(chain.rate.vx) + ", " + fixed(chain.rate.vy) + ") px/s";
   Velocity tol;
   if (!agrees(pairs, out.rate, chain.rate, &tol)) {
     out.note = "sky rate: " + pairText + ", kept; " + chainText + ", which disagrees (tolerance " +

@@ -3,10 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
-#include <functional>
-#include <iterator>
-#include <numeric>
 #include <optional>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -17,7 +13,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "sky_rate_match.hpp"
+#include "sky_rate_links.hpp"
 #include "st/common/parallel.hpp"
 
 namespace st::detect::detail {
@@ -26,23 +22,6 @@ namespace {
 // A stack pixel is used when at least this fraction of its block's frames contributed to it (masked
 // samples, a hot pixel or a cosmic ray, may be missing).
 constexpr double kFullCoverage = 0.97;
-// Sources paired between blocks peak at >= 2 times the detection threshold (log1p(1) compressed); the
-// windowed centroids weigh them by their precision.
-const double kPairPeak = std::log1p(1.0);
-// The variance given to an offset from the phase correlation's peak alone (its sub-pixel interpolation is
-// good to ~0.3 px, and a bright mover pulls it), px^2.
-constexpr double kPhaseVarPx2 = 0.3 * 0.3;
-
-// One block stacked at the current rate about its own mean time: a star at x_ref + u t in the frames sits
-// in the stack at x_ref + u tS - meanShift (u the true rate), since frame n is shifted by the whole pixels
-// round(v (t_n - tS)) of the current rate v. Single precision, 9 bytes a pixel: every block is held at once.
-struct BlockStack {
-  cv::Mat value;    // CV_32F, mean of F_n - background where covered, else 0
-  cv::Mat noise;    // CV_32F, sigma / sqrt(frames contributing)
-  cv::Mat covered;  // CV_8U, 255 where (nearly) every frame of the block contributed
-  double tS = 0.0;  // mean t_n - t_ref over the block
-  cv::Point2d meanShift;
-};
 
 struct Layout {
   std::vector<std::size_t> first;  // block k is frames [first[k], first[k + 1])
@@ -188,19 +167,38 @@ void finishBlock(BlockStack& b, const ShiftedBlock& blk, const ShiftedSums& sums
          [&](std::size_t i) { return sums.count[i]; });
 }
 
-// The blocks' stacks at `rate`: their sums from `provider` when it makes them, else on the CPU (in parallel
-// over the blocks).
-std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout, Velocity rate,
-                                    double background, double sigma, const std::vector<double>& dt,
-                                    const ShiftedSumsProvider* provider, CancelToken& cancel,
-                                    TimedParts& parts) {
+// The blocks' stacks at `rate` into `stacks`, their frames' shifts into `shifts`. A block whose frames keep
+// the shifts they had in the previous iteration (`shifts` and `stacks` as that one left them) keeps its
+// stack, the same sums of the same frames, and `same` says so; the others' sums come from `provider` when it
+// makes them, else from the CPU (in parallel over the blocks).
+void stackBlocks(const FrameCube& cube, const Layout& layout, Velocity rate, double background, double sigma,
+                 const std::vector<double>& dt, const ShiftedSumsProvider* provider, bool keep,
+                 CancelToken& cancel, std::vector<ShiftedBlock>& shifts, std::vector<BlockStack>& stacks,
+                 std::vector<char>& same, TimedParts& parts) {
   PartTimer timer(parts);
   const std::size_t k = layout.count();
   const int w = cube.width(), h = cube.height();
-  std::vector<BlockStack> stacks(k);
-  std::vector<ShiftedBlock> blocks(k);
-  for (std::size_t b = 0; b < k; ++b)
-    blocks[b] = blockShifts(layout.first[b], layout.first[b + 1], rate, dt, stacks[b]);
+  const bool before = keep && shifts.size() == k && stacks.size() == k;
+  std::vector<BlockStack> next(k);
+  std::vector<ShiftedBlock> nextShifts(k);
+  std::vector<std::size_t> todo;
+  same.assign(k, 0);
+  for (std::size_t b = 0; b < k; ++b) {
+    nextShifts[b] = blockShifts(layout.first[b], layout.first[b + 1], rate, dt, next[b]);
+    if (before && nextShifts[b].sx == shifts[b].sx && nextShifts[b].sy == shifts[b].sy) {
+      next[b] = std::move(stacks[b]);
+      same[b] = 1;
+    } else {
+      todo.push_back(b);
+    }
+  }
+  stacks = std::move(next);
+  shifts = std::move(nextShifts);
+  if (todo.empty()) return;
+  std::vector<ShiftedBlock> blocks;
+  for (std::size_t b : todo)
+    blocks.push_back(shifts[b]);
+  const std::size_t n = todo.size();
   std::optional<std::vector<ShiftedSums>> made;
   if (provider && *provider) {
     made = (*provider)(cube, blocks, background, ShiftedSumsForm::SumsOrMeans);
@@ -209,178 +207,31 @@ std::vector<BlockStack> stackBlocks(const FrameCube& cube, const Layout& layout,
     auto whole = [np](const ShiftedSums& b) {
       return (b.sum.size() == np && b.count.size() == np) || (b.mean.size() == np && b.frames.size() == np);
     };
-    if (made && (made->size() != k || !std::all_of(made->begin(), made->end(), whole))) made.reset();
+    if (made && (made->size() != n || !std::all_of(made->begin(), made->end(), whole))) made.reset();
   }
   if (made) {
     timer.lap("stacks: sums made elsewhere");
-    parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b < b1; ++b)
-        finishBlock(stacks[b], blocks[b], (*made)[b], w, h, sigma);
+    parallelFor(n, 1, [&](std::size_t q0, std::size_t q1) {
+      for (std::size_t q = q0; q < q1; ++q)
+        finishBlock(stacks[todo[q]], blocks[q], (*made)[q], w, h, sigma);
     });
     timer.lap("stacks: finished");
-    return stacks;
+    return;
   }
   // On the CPU, as many blocks at a time as there are threads (each block's sums are two frame-sized double
   // images), each group's sums made by bands of rows on every thread.
   const std::size_t group = std::max<unsigned>(1, workerCount());
-  for (std::size_t g0 = 0; g0 < k; g0 += group) {
+  for (std::size_t g0 = 0; g0 < n; g0 += group) {
     cancel.throwIfCancelled();
-    const std::size_t g1 = std::min(k, g0 + group);
+    const std::size_t g1 = std::min(n, g0 + group);
     const std::vector<ShiftedBlock> some(blocks.begin() + static_cast<std::ptrdiff_t>(g0),
                                          blocks.begin() + static_cast<std::ptrdiff_t>(g1));
     const std::vector<ShiftedSums> sums = detect::shiftedSums(cube, some, background);
-    parallelFor(g1 - g0, 1, [&](std::size_t b0, std::size_t b1) {
-      for (std::size_t b = b0; b < b1; ++b)
-        finishBlock(stacks[g0 + b], blocks[g0 + b], sums[b], w, h, sigma);
+    parallelFor(g1 - g0, 1, [&](std::size_t q0, std::size_t q1) {
+      for (std::size_t q = q0; q < q1; ++q)
+        finishBlock(stacks[todo[g0 + q]], blocks[g0 + q], sums[q], w, h, sigma);
     });
   }
-  return stacks;
-}
-
-// out(x, y) = in(x + gx, y + gy), zero where that falls outside `in`.
-cv::Mat translated(const cv::Mat& in, int gx, int gy) {
-  cv::Mat out = cv::Mat::zeros(in.size(), in.type());
-  const int w = in.cols, h = in.rows;
-  const int x0 = std::max(0, -gx), x1 = std::min(w, w - gx), y0 = std::max(0, -gy), y1 = std::min(h, h - gy);
-  if (x1 <= x0 || y1 <= y0) return out;
-  in(cv::Rect(x0 + gx, y0 + gy, x1 - x0, y1 - y0)).copyTo(out(cv::Rect(x0, y0, x1 - x0, y1 - y0)));
-  return out;
-}
-
-struct Link {
-  std::size_t i = 0, j = 0;
-  cv::Point2d d;    // P_j - P_i, px: the star field's motion from block i to block j
-  cv::Point2d var;  // its variance along x and y, px^2
-  double response = 0.0;
-  bool byStars = false;  // from the paired stars' windowed centroids (else the phase correlation's peak)
-};
-
-// A stack (or a translated one) as a linear image, valid where `valid`: its single-precision images as they
-// are (the readers widen each value to double, as a CV_64F copy did: 0.27 CPU-s of conversions a
-// pre-processing of the paper's cube, issue 16).
-LinearImage linearImage(const cv::Mat& value, const cv::Mat& noise, const cv::Mat& valid) {
-  return {value, noise, valid};
-}
-
-// The thresholded, compressed image that finds and pairs the sources: log1p(v / t) where v > t =
-// detectSigma * noise, else 0 (and 0 where not valid).
-cv::Mat compressed(const LinearImage& l, double detectSigma) {
-  cv::Mat out(l.value.size(), CV_64F);  // every pixel written below
-  for (int y = 0; y < out.rows; ++y) {
-    const float* v = l.value.ptr<float>(y);
-    const float* n = l.noise.ptr<float>(y);
-    const unsigned char* ok = l.valid.ptr<unsigned char>(y);
-    double* o = out.ptr<double>(y);
-    for (int x = 0; x < out.cols; ++x) {
-      const double t = detectSigma * n[x];
-      o[x] = ok[x] && t > 0.0 && v[x] > t ? std::log1p(v[x] / t) : 0.0;
-    }
-  }
-  return out;
-}
-
-// a & translated(b, gx, gy) for 0/255 masks, in one pass; `count` gets its non-zero pixels.
-cv::Mat bothCovered(const cv::Mat& a, const cv::Mat& b, int gx, int gy, int* count) {
-  cv::Mat out(a.size(), CV_8U);
-  const int w = a.cols, h = a.rows;
-  const int x0 = std::max(0, -gx), x1 = std::min(w, w - gx);
-  int n = 0;
-  for (int y = 0; y < h; ++y) {
-    unsigned char* o = out.ptr<unsigned char>(y);
-    const int by = y + gy;
-    if (by < 0 || by >= h || x1 <= x0) {
-      std::memset(o, 0, static_cast<std::size_t>(w));
-      continue;
-    }
-    const unsigned char* pa = a.ptr<unsigned char>(y);
-    const unsigned char* pb = b.ptr<unsigned char>(by);
-    std::memset(o, 0, static_cast<std::size_t>(x0));
-    for (int x = x0; x < x1; ++x) {
-      o[x] = pa[x] & pb[x + gx];
-      n += o[x] != 0;
-    }
-    std::memset(o + x1, 0, static_cast<std::size_t>(w - x1));
-  }
-  *count = n;
-  return out;
-}
-
-// A link's images: block j's stack moved by the whole pixels (gx, gy) the current rate predicts, both cut to
-// where both are fully covered; linear (for the windowed centroids) and compressed (for the phase
-// correlation and the pairing, CV_64F).
-struct LinkImages {
-  int gx = 0, gy = 0;
-  LinearImage la, lb;
-  cv::Mat ia, ib;
-};
-
-// Block i's and block j's link images. False when the two share no covered pixel.
-bool linkImages(const BlockStack& a, const BlockStack& b, Velocity rate, const SkyRateParams& params,
-                LinkImages* im) {
-  const double ex = rate.vx * (b.tS - a.tS) - b.meanShift.x + a.meanShift.x;
-  const double ey = rate.vy * (b.tS - a.tS) - b.meanShift.y + a.meanShift.y;
-  im->gx = static_cast<int>(std::lround(ex));
-  im->gy = static_cast<int>(std::lround(ey));
-  int covered = 0;
-  const cv::Mat both = bothCovered(a.covered, b.covered, im->gx, im->gy, &covered);
-  if (covered == 0) return false;
-  im->la = linearImage(a.value, a.noise, both);
-  im->lb = linearImage(translated(b.value, im->gx, im->gy), translated(b.noise, im->gx, im->gy), both);
-  im->ia = compressed(im->la, params.detectSigma);
-  im->ib = compressed(im->lb, params.detectSigma);
-  return true;
-}
-
-// The rest of a link from its phase correlation (the offset d of the compressed images, the response r):
-// the windowed centroids of the stars paired at that offset on the linear images replace d when there are
-// enough of them. False when the response is too weak.
-bool finishLink(const BlockStack& a, const BlockStack& b, const LinkImages& im, cv::Point2d d, double r,
-                const SkyRateParams& params, Link* link) {
-  if (!(r >= params.minResponse)) return false;
-  cv::Point2d c;
-  link->byStars = windowedOffset(im.la, im.lb, pairSources(im.ia, im.ib, d, kPairPeak), &c, &link->var);
-  if (link->byStars) {
-    d = c;
-  } else {
-    link->var = {kPhaseVarPx2, kPhaseVarPx2};
-  }
-  link->response = r;
-  link->d = {im.gx + d.x + b.meanShift.x - a.meanShift.x, im.gy + d.y + b.meanShift.y - a.meanShift.y};
-  return true;
-}
-
-// Compares blocks i and j on this thread: their link images, the residual offset coarsely by phase
-// correlation, then by the windowed centroids of the paired stars on the linear stacks (one validity mask
-// for both, so that a window cut by it is cut alike in both). False when they share no reliable star
-// pattern.
-bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 const SkyRateParams& params, Link* link, TimedParts* parts) {
-  PartTimer timer(*parts);  // its seconds are this thread's; its CPU time is not used
-  LinkImages im;
-  if (!linkImages(a, b, rate, params, &im)) return false;
-  timer.lap("links' images (thread time)");
-  double r = 0.0;
-  const cv::Point2d d = phaseShift(im.ia, im.ib, window, &r);
-  timer.lap("phase correlations (thread time)");
-  const bool ok = finishLink(a, b, im, d, r, params, link);
-  timer.lap("paired stars (thread time)");
-  return ok;
-}
-
-// True when the links connect every block to block 0.
-bool connected(std::size_t blocks, const std::vector<Link>& links) {
-  std::vector<std::size_t> parent(blocks);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto root = [&](std::size_t k) {
-    while (parent[k] != k)
-      k = parent[k] = parent[parent[k]];
-    return k;
-  };
-  for (const Link& l : links)
-    parent[root(l.i)] = root(l.j);
-  for (std::size_t k = 1; k < blocks; ++k)
-    if (root(k) != root(0)) return false;
-  return true;
 }
 
 // Weighted least-squares positions of the star field per block (block 0 at 0) from the links, then a
@@ -432,135 +283,6 @@ bool sameShifts(const Layout& l, const std::vector<SkyRateBlock>& blocks, const 
   return true;
 }
 
-// measureLinks' comparisons with the phase correlations made elsewhere (a device, issue 16), in groups of
-// one link per worker thread (a group's images, ~8.5 MB a link of 512^2, are freed before the next group's
-// are made: all 54 links' at once were ~460 MB of fresh pages, which doubled the images' thread time on an
-// H200 host). Per group, the provider asks for each link's images as it fills its staging (on every core;
-// where a staging buffer holds fewer pairs than a group, beside its transfers and transforms of the
-// previous ones), then each link's paired stars are measured in parallel. A link the provider did not make
-// (a pair it gave back not ok, a group it failed part way) is correlated here. A provider that declines a
-// group without asking for any image (a benchmark knob, a device that failed before, images it does not
-// take) leaves that group and the rest to `cpu` (the CPU's own path, all of them in one parallel loop). The
-// wall time of the provider's calls, the images included, is one part of `threadTime` (no thread's).
-void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
-                                     const SkyRateParams& params, const PhaseCorrelationProvider& correlate,
-                                     CancelToken& cancel, std::vector<Link>& tried, std::vector<char>& ok,
-                                     std::vector<TimedParts>& parts, TimedParts* threadTime,
-                                     const std::function<void(std::size_t first)>& cpu) {
-  const std::size_t group = std::max<std::size_t>(4, workerCount());
-  std::vector<LinkImages> images(std::min(group, tried.size()));
-  std::vector<char> made(images.size());
-  for (std::size_t g0 = 0; g0 < tried.size(); g0 += group) {
-    const std::size_t n = std::min(group, tried.size() - g0);
-    std::fill(made.begin(), made.end(), 0);
-    // Link g0 + q's images into images[q] (made[q]; ok says whether the blocks overlap).
-    auto makeImages = [&](std::size_t q) {
-      const std::size_t l = g0 + q;
-      PartTimer timer(parts[l]);
-      ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[q]);
-      made[q] = 1;
-      timer.lap("links' images (thread time)");
-    };
-    PhaseCorrelationBatch batch;
-    batch.width = stacks.front().value.cols;
-    batch.height = stacks.front().value.rows;
-    batch.nx = cv::getOptimalDFTSize(batch.width);
-    batch.ny = cv::getOptimalDFTSize(batch.height);
-    batch.pairs = n;
-    batch.fill = [&](std::size_t q, float* a, float* b) {
-      makeImages(q);
-      if (ok[g0 + q]) {
-        windowedFloats(images[q].ia, window, a, static_cast<std::size_t>(batch.width));
-        windowedFloats(images[q].ib, window, b, static_cast<std::size_t>(batch.width));
-      } else {  // blocks that share no pixel: correlated as zeros, the result not used
-        std::fill(a, a + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
-        std::fill(b, b + static_cast<std::size_t>(batch.width) * batch.height, 0.0f);
-      }
-    };
-    std::optional<std::vector<PhasePeak>> peaks;
-    {
-      PartTimer timer(*threadTime);
-      peaks = correlate(batch);
-      if (peaks && peaks->size() != n) peaks.reset();
-      timer.lap("links' images and phase correlations elsewhere (wall)");
-    }
-    if (!peaks && std::none_of(made.begin(), made.begin() + static_cast<std::ptrdiff_t>(n),
-                               [](char m) { return m != 0; })) {
-      cpu(g0);
-      return;
-    }
-    cancel.throwIfCancelled();
-    parallelFor(n, 1, [&](std::size_t q0, std::size_t q1) {
-      for (std::size_t q = q0; q < q1; ++q) {
-        cancel.throwIfCancelled();
-        const std::size_t l = g0 + q;
-        if (!made[q]) makeImages(q);
-        if (!ok[l]) continue;
-        PartTimer timer(parts[l]);
-        double r = 0.0;
-        cv::Point2d d;
-        if (peaks && (*peaks)[q].ok) {
-          d = {(*peaks)[q].dx, (*peaks)[q].dy};
-          r = (*peaks)[q].response;
-        } else {
-          d = phaseShift(images[q].ia, images[q].ib, window, &r);
-          timer.lap("phase correlations (thread time)");
-        }
-        ok[l] = finishLink(stacks[tried[l].i], stacks[tried[l].j], images[q], d, r, params, &tried[l]);
-        images[q] = LinkImages();  // freed on the thread that used it last
-        timer.lap("paired stars (thread time)");
-      }
-    });
-  }
-}
-
-// The links of one iteration: every pair of blocks whose stars have moved at most linkFraction of the frame
-// between them (neighbours always), measured in parallel; failed comparisons are left out.
-std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity rate, const cv::Mat& window,
-                               const SkyRateParams& params, int width, int height, CancelToken& cancel,
-                               const PhaseCorrelationProvider* correlate, TimedParts* threadTime) {
-  const std::size_t k = stacks.size();
-  std::vector<Link> tried;
-  for (std::size_t i = 0; i < k; ++i)
-    for (std::size_t j = i + 1; j < k; ++j) {
-      const double t = stacks[j].tS - stacks[i].tS;
-      if (j > i + 1 && (std::fabs(rate.vx * t) > params.chainLinkFraction * width ||
-                        std::fabs(rate.vy * t) > params.chainLinkFraction * height))
-        continue;
-      tried.push_back({i, j, {}, {}, 0.0, false});
-    }
-  std::vector<char> ok(tried.size(), 0);
-  std::vector<TimedParts> parts(tried.size());
-  // Links [first, end) on the CPU, each on a thread of its own.
-  const auto onCpu = [&](std::size_t first) {
-    parallelFor(tried.size() - first, 1, [&](std::size_t l0, std::size_t l1) {
-      for (std::size_t l = first + l0; l < first + l1; ++l) {
-        cancel.throwIfCancelled();
-        ok[l] =
-            measureLink(stacks[tried[l].i], stacks[tried[l].j], rate, window, params, &tried[l], &parts[l]);
-      }
-    });
-  };
-  if (correlate && *correlate && !tried.empty()) {
-    measureLinksCorrelatedElsewhere(stacks, rate, window, params, *correlate, cancel, tried, ok, parts,
-                                    threadTime, onCpu);
-  } else {
-    onCpu(0);
-  }
-  for (const TimedParts& p : parts)
-    for (const TimedPart& q : p.parts)
-      threadTime->add(q.name, q.seconds);  // summed over the threads: no wall or CPU meaning of its own
-  std::vector<Link> links;
-  for (std::size_t l = 0; l < tried.size(); ++l)
-    if (ok[l]) links.push_back(tried[l]);
-  // The paired stars' links alone when they connect every block: the phase correlation's peak is coarse.
-  std::vector<Link> byStars;
-  std::copy_if(links.begin(), links.end(), std::back_inserter(byStars),
-               [](const Link& l) { return l.byStars; });
-  if (connected(k, byStars)) return byStars;
-  return links;
-}
-
 }  // namespace
 
 ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double background, double sigma,
@@ -579,30 +301,62 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
   Velocity rate = start;
   TimedParts threadTime, stackParts;
   PartTimer timer(out.parts);
-  for (int it = 0; it < 4; ++it) {
-    const std::vector<BlockStack> stacks =
-        stackBlocks(cube, layout, rate, background, sigma, dt, sums, cancel, stackParts);
+  std::vector<ShiftedBlock> shifts;
+  std::vector<BlockStack> stacks;
+  std::vector<char> same;
+  TriedLinks tried;
+  // The first iteration by neighbouring blocks only, when asked: its rate only sets the next one's stacks.
+  // Where the neighbours do not link every block, every pair is linked in it (the neighbours' links kept).
+  bool coarse = params.chainCoarseFirst && k > 2;
+  for (int it = 0, full = 0; full < 4; ++it) {
+    stackBlocks(cube, layout, rate, background, sigma, dt, sums, params.chainKeepUnchanged, cancel, shifts,
+                stacks, same, stackParts);
     timer.lap("stacks");
-    const std::vector<Link> links =
-        measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, correlate, &threadTime);
+    out.stacksKept += static_cast<int>(std::count(same.begin(), same.end(), 1));
+    std::vector<Link> links = measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel,
+                                           correlate, &threadTime, same, tried, &out.linksKept, coarse);
+    if (coarse && !connected(k, links)) {
+      coarse = false;
+      const std::vector<char> kept(k, 1);
+      int neighbours = 0;
+      links = measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, correlate,
+                           &threadTime, kept, tried, &neighbours);
+    }
     timer.lap("links");
     out.iterations = it + 1;
     if (!connected(k, links)) {
-      // A later iteration that loses the chain keeps the earlier one's result.
+      // A later iteration that loses the chain keeps the earlier one's result; after a coarse first one,
+      // which leaves none, the chain is measured again without it (what it would have kept).
+      if (!out.ok && out.coarseFirst) {
+        SkyRateParams again = params;
+        again.chainCoarseFirst = false;
+        ChainResult redo = chainSkyRate(cube, start, background, sigma, again, cancel, sums, correlate);
+        redo.parts.add(out.parts);  // the time spent here too
+        return redo;
+      }
       if (!out.ok)
         out.why = "the " + std::to_string(k) + " blocks could not all be linked by shared stars (" +
                   std::to_string(links.size()) + " links)";
       break;
     }
-    std::vector<double> responses;
-    int starLinks = 0;
-    for (const Link& l : links)
-      responses.push_back(l.response), starLinks += l.byStars ? 1 : 0;
     std::vector<SkyRateBlock> blocks(k);
     for (std::size_t b = 0; b < k; ++b)
       blocks[b] = {layout.first[b], layout.first[b + 1], stacks[b].tS, {}};
     Velocity next;
     solve(links, blocks, &next);
+    if (coarse) {  // the next iteration's rate, not a result
+      coarse = false;
+      out.coarseFirst = true;
+      // Where it keeps every frame's shifts, the next iteration links every pair at this rate, as one
+      // without a coarse first would (the stacks and the neighbours' links kept: no extra cost).
+      if (!sameShifts(layout, blocks, dt, rate, next)) rate = next;
+      continue;
+    }
+    ++full;
+    std::vector<double> responses;
+    int starLinks = 0;
+    for (const Link& l : links)
+      responses.push_back(l.response), starLinks += l.byStars ? 1 : 0;
     std::nth_element(responses.begin(), responses.begin() + responses.size() / 2, responses.end());
     out.ok = true;
     out.response = responses[responses.size() / 2];

@@ -13,10 +13,14 @@ struct ChainResult {
   double response = 0.0;             ///< median phase-correlation peak over the links
   std::vector<SkyRateBlock> blocks;  ///< with their offsets from the linear model, when ok
   double residualRmsPx = 0.0;
-  int links = 0;      ///< block comparisons used (last iteration)
-  int starLinks = 0;  ///< ... of which by the paired stars' windowed centroids (the others: phase peak)
-  std::string why;    ///< why it failed, when !ok
+  int links = 0;       ///< block comparisons used (last iteration)
+  int starLinks = 0;   ///< ... of which by the paired stars' windowed centroids (the others: phase peak)
+  std::string why;     ///< why it failed, when !ok
   int iterations = 0;  ///< stacks-and-links rounds run
+  /// Over the iterations after the first: the block stacks and the links kept from the one before (their
+  /// blocks' frames kept their whole-pixel shifts: the same images, hence the same measurement).
+  int stacksKept = 0, linksKept = 0;
+  bool coarseFirst = false;  ///< the first iteration linked neighbouring blocks only (SkyRateParams)
   /// Over all iterations: the wall time of the blocks' stacks and of the links, and the links' thread time
   /// in their images, phase correlations and paired stars (SkyRate::parts).
   TimedParts parts;

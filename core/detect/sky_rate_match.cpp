@@ -245,7 +245,8 @@ bool windowedOffset(const LinearImage& a, const LinearImage& b, const std::vecto
       if (flatTopped(a, p.a.x, p.a.y) || flatTopped(b, p.b.x, p.b.y)) continue;
       const double sw = windowSigma(a, p.a.x, p.a.y);
       Centroid ca, cb;
-      if (!windowedCentroid(a, p.a.x, p.a.y, sw, &ca) || !windowedCentroid(b, p.b.x, p.b.y, sw, &cb)) continue;
+      if (!windowedCentroid(a, p.a.x, p.a.y, sw, &ca) || !windowedCentroid(b, p.b.x, p.b.y, sw, &cb))
+        continue;
       each[k] = {cb.x - ca.x, cb.y - ca.y, ca.varX + cb.varX, ca.varY + cb.varY};
       made[k] = 1;
     }

@@ -25,6 +25,14 @@ struct SkyRateParams {
   double chainLinkFraction = 0.5;   ///< blocks are compared when the stars move at most this fraction of
                                     ///< the frame between them (neighbours always); never beyond
   int chainMinBlockFrames = 4;      ///< frames per block at least
+  /// An iteration after the first keeps the stacks of the blocks whose frames keep their whole-pixel shifts,
+  /// and the links between them (the same images give the same measurement); false measures all again (the
+  /// tests' reference).
+  bool chainKeepUnchanged = true;
+  /// The first iteration links only neighbouring blocks: its rate only sets the next iteration's stacks,
+  /// and the blocks' neighbours link them all. False links every pair in every iteration (the tests'
+  /// reference, with chainKeepUnchanged false the chain as it was before 2026-12-02's eleventh stop).
+  bool chainCoarseFirst = true;
 };
 
 /// One block of contiguous frames of the chained refinement, and where its stars were found.
