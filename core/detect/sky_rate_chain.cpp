@@ -318,9 +318,10 @@ ChainResult chainSkyRate(const FrameCube& cube, Velocity start, double backgroun
     if (coarse && !connected(k, links)) {
       coarse = false;
       const std::vector<char> kept(k, 1);
-      int neighbours = 0;
+      int keptWithinIteration =
+          0;  // the neighbours' links, re-used in this iteration: not "kept from the one before"
       links = measureLinks(stacks, rate, window, params, cube.width(), cube.height(), cancel, correlate,
-                           &threadTime, kept, tried, &neighbours);
+                           &threadTime, kept, tried, &keptWithinIteration);
     }
     timer.lap("links");
     out.iterations = it + 1;
