@@ -22,8 +22,8 @@ using detail::linkSigmaPx;
 using detail::measureLink;
 using detail::StarImages;
 
-constexpr int kQuickFrames = 64;     ///< links sampled on long sequences before measuring every frame
-constexpr int kMaxBack = 3;          ///< a failed link is retried against up to this many earlier frames
+constexpr int kQuickFrames = 64;        ///< links sampled on long sequences before measuring every frame
+constexpr int kMaxBack = 3;             ///< a failed link is retried against up to this many earlier frames
 constexpr double kBridgeSigmaPx = 5.0;  ///< error of a frame placed by the median rate (no significant link)
 
 /// A frame's departure from the model is used only beyond this many sigmas of its measurement.
@@ -93,8 +93,8 @@ class SegmentFit {
 /// the frame-to-frame scatter from the median of successive differences).
 /// An axis whose rate is not significant (below 3 sigma) is 0: dithers and re-pointings of a tracked
 /// telescope do not make the stars drift. `note` says what was found.
-Velocity robustRate(const std::vector<double>& t, const std::vector<double>& px, const std::vector<double>& py,
-                    std::string& note) {
+Velocity robustRate(const std::vector<double>& t, const std::vector<double>& px,
+                    const std::vector<double>& py, std::string& note) {
   const std::size_t n = t.size();
   std::vector<double> d;
   for (std::size_t k = 1; k < n; ++k)
@@ -137,7 +137,8 @@ Velocity robustRate(const std::vector<double>& t, const std::vector<double>& px,
   const char* axis[2] = {"x", "y"};
   for (int a = 0; a < 2; ++a) {
     if (std::abs(rate[a]) < 3.0 * sigmaRate) {
-      s << ", no significant drift along " << axis[a] << " (" << rate[a] << " +- " << sigmaRate << " px/s): 0";
+      s << ", no significant drift along " << axis[a] << " (" << rate[a] << " +- " << sigmaRate
+        << " px/s): 0";
       rate[a] = 0.0;
     }
   }
@@ -150,8 +151,8 @@ std::string modelNote(const Registration& r, std::size_t frames) {
   s.precision(3);
   switch (r.model) {
     case Registration::Model::Linear:
-      s << "registration: the linear sky rate fits the star field of the " << frames << " frames (residual rms "
-        << r.rmsPx << " px, max " << r.maxPx << " px";
+      s << "registration: the linear sky rate fits the star field of the " << frames
+        << " frames (residual rms " << r.rmsPx << " px, max " << r.maxPx << " px";
       if (!r.position.empty()) s << "; no frame departs from it beyond its measurement error";
       s << ")";
       break;
@@ -172,10 +173,9 @@ std::string modelNote(const Registration& r, std::size_t frames) {
 
 }  // namespace
 
-
 Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> givenRate,
                                  const RegistrationParams& params, ProgressSink& progress,
-                                 CancelToken& cancel) {
+                                 CancelToken& cancel, const RegistrationHooks& hooks) {
   Registration r;
   const std::size_t nf = cube.frameCount();
   r.offsets.assign(nf, PixelOffset{});
@@ -187,7 +187,7 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
   std::vector<std::size_t> order(nf);
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return dt[a] < dt[b]; });
-  const StarImages images(cube);
+  const StarImages images(cube, hooks.gate);
 
   // Long sequences: sampled links first; when they all follow one linear rate, that is the model.
   if (nf > 2 * kQuickFrames) {
@@ -195,12 +195,34 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
     std::vector<std::size_t> at(kQuickFrames);
     for (int i = 0; i < kQuickFrames; ++i)
       at[i] = (nf - 2) * static_cast<std::size_t>(i) / (kQuickFrames - 1);
+    // On a device when it takes them (the frames it holds: none read here); the links it did not make, and
+    // all of them without one, on the CPU.
+    std::vector<char> made(quick.size(), 0);
+    if (hooks.links) {
+      RegistrationLinkBatch batch;
+      batch.bin = images.bin();
+      batch.width = images.width();
+      batch.height = images.height();
+      batch.taperX = &images.weights().taperX;
+      batch.taperY = &images.weights().taperY;
+      batch.highPass = &images.weights().highPass;
+      for (int i = 0; i < kQuickFrames; ++i)
+        batch.pairs.emplace_back(order[at[i] + 1], order[at[i]]);
+      if (const auto peaks = hooks.links(cube, batch); peaks && peaks->size() == quick.size()) {
+        for (std::size_t i = 0; i < quick.size(); ++i)
+          if ((*peaks)[i].ok) {
+            quick[i] = detail::linkFromPeak(images, (*peaks)[i], params.minPeakSnr);
+            made[i] = 1;
+          }
+      }
+    }
     parallelFor(quick.size(), 1, [&](std::size_t b, std::size_t e) {
       for (std::size_t i = b; i < e; ++i) {
         cancel.throwIfCancelled();
-        quick[i] = measureLink(images, order[at[i] + 1], order[at[i]], params.minPeakSnr);
+        if (!made[i]) quick[i] = measureLink(images, order[at[i] + 1], order[at[i]], params.minPeakSnr);
       }
     });
+    r.linksElsewhere = static_cast<int>(std::count(made.begin(), made.end(), 1));
     std::vector<double> rx, ry;
     for (int i = 0; i < kQuickFrames; ++i) {
       const double gap = dt[order[at[i] + 1]] - dt[order[at[i]]];
@@ -224,8 +246,11 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
       sum2 += ex * ex + ey * ey;
       agree = agree && e <= std::max(params.quickTolerancePx, kSignificance * quick[i].sigma);
     }
-    const std::string sampled = " (" + std::to_string(r.linksMeasured) + " of " + std::to_string(kQuickFrames) +
-                                " sampled frame pairs significant)";
+    const std::string sampled =
+        " (" + std::to_string(r.linksMeasured) + " of " + std::to_string(kQuickFrames) +
+        " sampled frame pairs significant" +
+        (r.linksElsewhere > 0 ? "; " + std::to_string(r.linksElsewhere) + " measured on the device" : "") +
+        ")";
     if (r.linksMeasured < kQuickFrames / 2) {  // faint frames (EMCCD at 16.7 Hz): not worth every frame
       r.note = modelNote(r, nf) + sampled;
       return r;
@@ -401,7 +426,8 @@ Registration measureRegistration(const FrameCube& cube, std::optional<Velocity> 
   }
   r.note = modelNote(r, nf);
   if (bridged > 0)
-    r.note += "; " + std::to_string(bridged) + " frame(s) without a significant link to the 3 before placed at "
+    r.note += "; " + std::to_string(bridged) +
+              " frame(s) without a significant link to the 3 before placed at "
               "the links' median rate";
   return r;
 }
@@ -461,7 +487,8 @@ std::size_t alignWholePixels(FrameCube& cube, Registration& reg, CancelToken& ca
   std::vector<std::pair<int, int>> shift(nf);
   bool any = false;
   for (std::size_t n = 0; n < nf; ++n) {
-    shift[n] = {static_cast<int>(std::lround(reg.offsets[n].x)), static_cast<int>(std::lround(reg.offsets[n].y))};
+    shift[n] = {static_cast<int>(std::lround(reg.offsets[n].x)),
+                static_cast<int>(std::lround(reg.offsets[n].y))};
     any = any || shift[n].first != 0 || shift[n].second != 0;
   }
   if (!any) return 0;
@@ -504,7 +531,8 @@ std::vector<std::uint32_t> alignedCoverage(const Registration& reg, int width, i
     }
     int c = 0;
     for (int x = 0; x < width; ++x)
-      out[static_cast<std::size_t>(y) * width + x] = static_cast<std::uint32_t>(c += diff[static_cast<std::size_t>(x)]);
+      out[static_cast<std::size_t>(y) * width + x] =
+          static_cast<std::uint32_t>(c += diff[static_cast<std::size_t>(x)]);
   }
   return out;
 }

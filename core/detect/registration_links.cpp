@@ -3,18 +3,20 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <utility>
 
 #include "st/common/fftw_plans.hpp"
 
 namespace st::detect {
 namespace {
 
-constexpr float kClipSigma = 30.0f;  ///< a star image's pixels are clipped here (bright stars do not dominate)
+constexpr float kClipSigma =
+    30.0f;  ///< a star image's pixels are clipped here (bright stars do not dominate)
 constexpr float kFloorSigma = 2.5f;  ///< and zeroed below this (the noise does not correlate)
 constexpr int kBinAbove = 1024;      ///< frames wider or taller than this are binned 2x2 first
 constexpr int kTaperPx = 24;         ///< star images fade to 0 over this band at the edges (at most 1/8 side)
-constexpr double kHighPassPx = 12.0; ///< structure wider than this (a saturated star's clipped disk) is
-                                     ///< filtered out of the correlation: point-like stars set the peak
+constexpr double kHighPassPx = 12.0;  ///< structure wider than this (a saturated star's clipped disk) is
+                                      ///< filtered out of the correlation: point-like stars set the peak
 
 using detail::CorrelationWeights;
 using fftw::CplxBuf;
@@ -36,14 +38,16 @@ CorrelationWeights correlationWeights(int w, int h) {
   cw.taperX = taper(w);
   cw.taperY = taper(h);
   const int hw = w / 2 + 1;
-  const double sx = 2.0 * M_PI / w, sy = 2.0 * M_PI / h, scale2 = kHighPassPx * kHighPassPx / (4.0 * M_PI * M_PI);
+  const double sx = 2.0 * M_PI / w, sy = 2.0 * M_PI / h,
+               scale2 = kHighPassPx * kHighPassPx / (4.0 * M_PI * M_PI);
   cw.highPass.resize(static_cast<std::size_t>(hw) * h);
   for (int ky = 0; ky < h; ++ky) {
     const int fy = ky <= h / 2 ? ky : ky - h;
     const double ky2 = (sy * fy) * (sy * fy);
     for (int kx = 0; kx < hw; ++kx) {
       const double k2 = ky2 + (sx * kx) * (sx * kx);
-      cw.highPass[static_cast<std::size_t>(ky) * hw + kx] = static_cast<float>(1.0 - std::exp(-0.5 * k2 * scale2));
+      cw.highPass[static_cast<std::size_t>(ky) * hw + kx] =
+          static_cast<float>(1.0 - std::exp(-0.5 * k2 * scale2));
     }
   }
   return cw;
@@ -51,8 +55,8 @@ CorrelationWeights correlationWeights(int w, int h) {
 
 /// The star image of one frame (model in the header), binned by `bin`, into `out` (w/bin x h/bin), tapered
 /// at the edges with `weights` (made for w/bin x h/bin).
-void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin, const CorrelationWeights& weights,
-               float* out) {
+void starImage(const float* f, const std::uint8_t* mask, int w, int h, int bin,
+               const CorrelationWeights& weights, float* out) {
   const int bw = w / bin, bh = h / bin;
   std::vector<float> sample;
   sample.reserve(static_cast<std::size_t>(w) * h / 7 + 1);
@@ -172,7 +176,7 @@ PixelOffset correlate(const float* a, const float* b, int w, int h, const Correl
 
 namespace detail {
 
-StarImages::StarImages(const FrameCube& cube) : m_cube(cube) {
+StarImages::StarImages(const FrameCube& cube, FrameGate gate) : m_cube(cube), m_gate(std::move(gate)) {
   m_bin = std::max(cube.width(), cube.height()) > kBinAbove ? 2 : 1;
   m_w = cube.width() / m_bin;
   m_h = cube.height() / m_bin;
@@ -180,6 +184,7 @@ StarImages::StarImages(const FrameCube& cube) : m_cube(cube) {
 }
 
 std::vector<float> StarImages::make(std::size_t n) const {
+  if (m_gate) m_gate(n);
   std::vector<float> out(static_cast<std::size_t>(m_w) * m_h);
   const auto& mask = m_cube.mask();
   starImage(m_cube.frame(n), mask.empty() ? nullptr : mask.data() + n * m_cube.framePixels(), m_cube.width(),
@@ -199,11 +204,20 @@ Link measureLink(const StarImages& images, std::size_t later, std::size_t earlie
   std::optional<PixelOffset> g;
   if (guide) g = PixelOffset{guide->x / images.bin(), guide->y / images.bin()};
   bool atEdge = false;
-  const PixelOffset s = correlate(a.data(), b.data(), images.width(), images.height(), images.weights(), l.snr,
-                                  g, guideRadius / images.bin(), &atEdge);
+  const PixelOffset s = correlate(a.data(), b.data(), images.width(), images.height(), images.weights(),
+                                  l.snr, g, guideRadius / images.bin(), &atEdge);
   l.step = {s.x * images.bin(), s.y * images.bin()};
   l.sigma = linkSigmaPx(l.snr) * images.bin();
   l.ok = l.snr >= minSnr && !atEdge;
+  return l;
+}
+
+Link linkFromPeak(const StarImages& images, const RegistrationLinkPeak& peak, double minSnr) {
+  Link l;
+  l.snr = peak.snr;
+  l.step = {peak.dx * images.bin(), peak.dy * images.bin()};
+  l.sigma = linkSigmaPx(l.snr) * images.bin();
+  l.ok = l.snr >= minSnr;
   return l;
 }
 

@@ -25,7 +25,8 @@ struct CorrelationWeights {
 /// Star images of the frames, computed on demand and kept (a link needs its two frames' images).
 class StarImages {
  public:
-  explicit StarImages(const FrameCube& cube);
+  /// `gate` (may be empty) is called before a frame's pixels are read.
+  explicit StarImages(const FrameCube& cube, FrameGate gate = {});
   [[nodiscard]] const CorrelationWeights& weights() const noexcept { return m_weights; }
   [[nodiscard]] int bin() const noexcept { return m_bin; }
   [[nodiscard]] int width() const noexcept { return m_w; }
@@ -35,6 +36,7 @@ class StarImages {
 
  private:
   const FrameCube& m_cube;
+  FrameGate m_gate;
   int m_bin = 1, m_w = 0, m_h = 0;
   CorrelationWeights m_weights;
 };
@@ -45,7 +47,7 @@ class StarImages {
 double linkSigmaPx(double snr);
 
 struct Link {
-  PixelOffset step;    ///< from the earlier frame to the later, full-resolution px
+  PixelOffset step;  ///< from the earlier frame to the later, full-resolution px
   double snr = 0.0;
   double sigma = 0.0;  ///< 1-sigma error of the step per axis, full-resolution px (linkSigmaPx x bin)
   bool ok = false;
@@ -56,5 +58,8 @@ struct Link {
 /// guideRadius of it, and one on that rim is rejected.
 Link measureLink(const StarImages& images, std::size_t later, std::size_t earlier, double minSnr,
                  const std::optional<PixelOffset>& guide = std::nullopt, double guideRadius = 0.0);
+
+/// The link of a peak measured elsewhere (RegistrationLinkPeak, unguided), as measureLink makes it.
+Link linkFromPeak(const StarImages& images, const RegistrationLinkPeak& peak, double minSnr);
 
 }  // namespace st::detect::detail

@@ -147,6 +147,21 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   auto last = start;
   double lastCpu = processCpuSeconds();
   Prepared out;
+  // A device may be downloading frames into `out`'s cubes behind the stages after the one that made them
+  // (the frame backgrounds' behind registration and the sky rate; the zero-biased cube's behind the noise
+  // model and the matched filter): waited for where the host frames are read, and before `out` is freed
+  // when a stage throws.
+  const struct HostCopiesGuard {
+    PreprocessAccelerator* accel;
+    ~HostCopiesGuard() {
+      if (!accel) return;
+      try {
+        accel->allowFrameDownloadBehind(false);
+        accel->finishHostCopies();
+      } catch (...) {  // the stage's own exception is on its way out
+      }
+    }
+  } hostCopies{params.accelerator};
   auto lap = [&](const char* stage) {
     const auto now = std::chrono::steady_clock::now();
     const double cpu = processCpuSeconds();
@@ -172,6 +187,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   }
   out.calibration = calib::finishCalibration(cube, masters, calibration);
   lap("calibrate");
+  // This function gates its reads of the host frames until the cosmic rays (registration frame by frame,
+  // the sky rate's CPU fallbacks, and every frame before the cosmic rays): a device may download the frame
+  // backgrounds' frames behind registration and the sky rate, which read its own copy.
+  if (params.accelerator) params.accelerator->allowFrameDownloadBehind(true);
   {
     SubProgress sub(progress, 0.1, 0.12);
     out.frameBackgrounds =
@@ -184,6 +203,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       out.notes.push_back(std::to_string(out.frameBackgrounds.framesSkipped) +
                           " frame(s) without a background model (SEP failed): their sky level was kept");
   }
+  if (params.accelerator) params.accelerator->allowFrameDownloadBehind(false);
   lap("frame backgrounds");
   // The frames are as the frame backgrounds left them: a device that kept them reads them from there for
   // the global background and the hot pixels (issue 16).
@@ -223,22 +243,25 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   detect::ShiftedSumsProvider deviceSums;
   if (params.accelerator)
     deviceSums = [&sumsStep, accel = params.accelerator](const FrameCube& c,
-                                                          const std::vector<detect::ShiftedBlock>& blocks,
-                                                          double background, detect::ShiftedSumsForm form) {
-      return sumsStep([&] { return accel->shiftedSums(c, blocks, background, form); });
+                                                         const std::vector<detect::ShiftedBlock>& blocks,
+                                                         double background, detect::ShiftedSumsForm form) {
+      auto sums = sumsStep([&] { return accel->shiftedSums(c, blocks, background, form); });
+      if (!sums) accel->finishHostCopies();  // the CPU reads the host frames
+      return sums;
     };
   DeviceStep correlationStep(params.accelerator, "the sky rate's phase correlations", out.notes);
   detect::PhaseCorrelationProvider deviceCorrelations;
   if (params.accelerator)
-    deviceCorrelations = [&correlationStep, accel = params.accelerator](const detect::PhaseCorrelationBatch& b) {
+    deviceCorrelations = [&correlationStep,
+                          accel = params.accelerator](const detect::PhaseCorrelationBatch& b) {
       return correlationStep([&] { return accel->phaseCorrelations(b); });
     };
   if (params.skyRate) {
     out.skyRate = *params.skyRate;
   } else if (!rateFromRegistration) {
-    const detect::SkyRate r = detect::measureSkyRate(cube, out.global.mean, out.global.sigma,
-                                                     params.skyRateParams, cancel, &deviceSums,
-                                                     &deviceCorrelations);
+    const detect::SkyRate r =
+        detect::measureSkyRate(cube, out.global.mean, out.global.sigma, params.skyRateParams, cancel,
+                               &deviceSums, &deviceCorrelations);
     out.skyRate = r.rate;
     out.skyRateMeasured = r.reliable;
     std::ostringstream note;
@@ -250,9 +273,18 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                           std::to_string(sumsStep.made) + " of " + std::to_string(sumsStep.asked) +
                           " sets on " + params.accelerator->name());
     if (params.accelerator && correlationStep.asked > 0)
-      out.notes.push_back("sky rate: the chain's phase correlations, " + std::to_string(correlationStep.made) +
-                          " of " + std::to_string(correlationStep.asked) + " batches on " +
-                          params.accelerator->name());
+      out.notes.push_back(
+          "sky rate: the chain's phase correlations, " + std::to_string(correlationStep.made) + " of " +
+          std::to_string(correlationStep.asked) + " batches on " + params.accelerator->name());
+  }
+  if (params.accelerator) {
+    // Every stage from here reads the host frames.
+    const auto t0 = std::chrono::steady_clock::now();
+    params.accelerator->finishHostCopies();
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (waited >= 0.001)
+      out.notes.push_back("sky rate: waited " + std::to_string(waited) +
+                          " s after it for the frame backgrounds' download");
   }
   lap("sky rate");
   {
@@ -390,18 +422,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
-  // From zeroBias on, the device may be downloading the zero-biased cube into `cube` (behind the noise model
-  // and the matched filter): waited for below, and before `out` is freed when a stage throws.
-  const struct HostCopiesGuard {
-    PreprocessAccelerator* accel;
-    ~HostCopiesGuard() {
-      if (!accel) return;
-      try {
-        accel->finishHostCopies();
-      } catch (...) {  // the stage's own exception is on its way out
-      }
-    }
-  } hostCopies{params.accelerator};
   ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));

@@ -94,6 +94,7 @@ std::vector<std::size_t> findHotPixelsOn(PreprocessAccelerator* accel, const Fra
     } catch (const GpuError& e) {
       notes.push_back(fallbackNote(*accel, "hot pixels", e));
     }
+    accel->finishHostCopies();  // the CPU reads the host frames
   }
   return detect::findHotPixels(cube, global.mean, global.sigma, params, cancel);
 }

@@ -2,10 +2,14 @@
 
 #include <sstream>
 
+#include "st/common/error.hpp"
+
+#include "st/pipeline/preprocess_accelerator.hpp"
+
 namespace st::pipeline {
 
-bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params, ProgressSink& progress,
-                         CancelToken& cancel, std::size_t* framesMoved) {
+bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams& params,
+                         ProgressSink& progress, CancelToken& cancel, std::size_t* framesMoved) {
   if (framesMoved) *framesMoved = 0;
   if (params.givenRegistration) {
     detect::applyRegistration(cube, *params.givenRegistration);
@@ -17,16 +21,41 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
     out.registration = {};
     return false;
   }
-  detect::Registration reg = detect::measureRegistration(cube, params.skyRate, params.registration, progress, cancel);
+  // A device's download of the frame backgrounds' frames may still run (issue 16): each frame is waited
+  // for before it is read, every frame before any is written.
+  // The long sequences' sampled links on the device when it takes them, from the frames it kept.
+  PreprocessAccelerator* accel = params.accelerator;
+  detect::RegistrationHooks hooks;
+  std::string linksFailed;
+  if (accel) {
+    hooks.gate = [accel, &cube](std::size_t n) { accel->waitForHostFrames(cube, n, n + 1); };
+    hooks.links = [accel, &linksFailed](const FrameCube& c, const detect::RegistrationLinkBatch& batch)
+        -> std::optional<std::vector<detect::RegistrationLinkPeak>> {
+      try {
+        return accel->registrationLinks(c, batch);
+      } catch (const GpuError& e) {
+        linksFailed = e.what();
+        return std::nullopt;
+      }
+    };
+  }
+  detect::Registration reg =
+      detect::measureRegistration(cube, params.skyRate, params.registration, progress, cancel, hooks);
+  if (reg.linksElsewhere > 0) out.notes.push_back(accel->lastNote());
+  if (!linksFailed.empty())
+    out.notes.push_back("warning: registration's sampled links fell back to the CPU (" + accel->name() +
+                        ": " + linksFailed + ")");
   out.notes.push_back(reg.note);
   if (params.registration.alignWholePixels) {
+    if (accel) accel->finishHostCopies();
     const std::size_t moved = detect::alignWholePixels(cube, reg, cancel);
     if (framesMoved) *framesMoved = moved;
     if (moved > 0) {
-      out.notes.push_back("registration: " + std::to_string(moved) +
-                          " frame(s) moved by whole pixels onto the first frame's pixel grid for the per-pixel "
-                          "stages (the pixels they uncover masked), and back onto their own after the matched "
-                          "filter");
+      out.notes.push_back(
+          "registration: " + std::to_string(moved) +
+          " frame(s) moved by whole pixels onto the first frame's pixel grid for the per-pixel "
+          "stages (the pixels they uncover masked), and back onto their own after the matched "
+          "filter");
     }
   }
   detect::applyRegistration(cube, reg);

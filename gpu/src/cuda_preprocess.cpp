@@ -88,7 +88,6 @@ std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std:
 
 stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
-  finishHostCopies();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   m_note.clear();
@@ -99,6 +98,7 @@ stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
     m_note = "global background on " + name() + " from the frame backgrounds' frames (no upload)";
     return out;
   }
+  finishHostCopies();  // the host frames are read
   return globalBackgroundUploaded(cube, params, r.compute.get());
 }
 
@@ -133,12 +133,15 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
-  finishHostCopies();
-  // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here.
+  // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here, after
+  // their download (if it still runs: the upload reads the host frames too).
+  const bool takeKept = m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
+                        m_sepFrames.size() == cube.pixels().size();
+  if (!takeKept) finishHostCopies();
+  // Their download may still be writing the host pixels: the prefetch is then known by the cube's shape.
+  const bool shapeKeyOnly = takeKept && framesPending(cube);
   DeviceBuffer<float> kept;
-  if (m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
-      m_sepFrames.size() == cube.pixels().size())
-    kept = std::move(m_sepFrames);
+  if (takeKept) kept = std::move(m_sepFrames);
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
   m_sepFramesData = nullptr;
@@ -149,7 +152,8 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   p->data = cube.pixels().data();
   p->size = cube.pixels().size();
   p->maskSize = cube.mask().size();
-  p->key = cubeKey(cube);
+  p->key = shapeKeyOnly ? cubeShapeKey(cube) : cubeKey(cube);
+  p->shapeKeyOnly = shapeKeyOnly;
   p->keptFrames = kept.size() > 0;
   const std::uint8_t* maskData = cube.mask().data();
   // A thread of its own, copying on that thread only: the host copies into the pinned staging buffers run
@@ -177,7 +181,8 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   // The guard joins the upload's thread when the pipeline lets it go (before its cube is freed).
   // Unused by then (the pipeline stopped before its per-pixel background: cancelled, an error), its device
   // copy is freed rather than held until the next prefetch.
-  return std::shared_ptr<void>(static_cast<void*>(p.get()), [p](void*) {
+  return std::shared_ptr<void>(static_cast<void*>(p.get()), [this, p](void*) {
+    m_copies.drain();  // the frame backgrounds' download may still read the kept frames
     p->join();
     p->ok = false;
     p->pix = DeviceBuffer<float>();

@@ -3,6 +3,7 @@
 // one file each (issue 16):
 //   cuda_preprocess.cpp             the device, globalBackground, prefetch, the staged copies, the factory
 //   cuda_preprocess_frame_backgrounds.cpp  the frame backgrounds (SEP per frame: frame_backgrounds.*)
+//   cuda_preprocess_registration.cpp  registration's sampled links from the frame backgrounds' frames
 //   cuda_preprocess_sky_stack.cpp  the stacks from the prefetched cube: the sky rate's block sums, the
 //                                  cosmic-ray fills patched in, the stacks at the sky rate (static sources,
 //                                  PSF) and their filtered SNR maps
@@ -124,8 +125,12 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
   void finishHostCopies() override {
-    if (std::exception_ptr e = m_copies.wait()) std::rethrow_exception(e);
+    std::exception_ptr e = m_copies.wait();
+    m_framesPendingData = nullptr;
+    if (e) std::rethrow_exception(e);
   }
+  void allowFrameDownloadBehind(bool allow) override { m_frameDownloadBehind = allow; }
+  void waitForHostFrames(const FrameCube& cube, std::size_t first, std::size_t end) override;
 
   stats::FrameBackgrounds removeFrameBackgrounds(FrameCube& cube, const stats::FrameBackgroundParams& params,
                                                  ProgressSink& progress, CancelToken& cancel) override;
@@ -137,6 +142,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) override;
   std::optional<std::vector<float>> hotPixelExcess(const FrameCube& cube, double background,
                                                    const detect::HotPixelParams& params) override;
+  std::optional<std::vector<detect::RegistrationLinkPeak>> registrationLinks(
+      const FrameCube& cube, const detect::RegistrationLinkBatch& batch) override;
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override;
   std::shared_ptr<void> prefetch(const FrameCube& cube) override;
@@ -256,6 +263,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     /// (a few ms when sparse; a mask over 1/64 set goes whole, ~110 ms for 1500 x 512^2). Set before the
     /// thread starts.
     bool keptFrames = false;
+    /// `key` is cubeShapeKey, not cubeKey: the kept frames' download into the host cube was still running
+    /// when the prefetch began (its pixels are not read until waitForHostFrames or finishHostCopies).
+    bool shapeKeyOnly = false;
     std::atomic<bool> finished{false};  ///< the thread is done (ok or not): join() will not wait
     double seconds = 0.0;
     void join() {
@@ -296,6 +306,15 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   DeviceBuffer<std::uint8_t> m_sepMask;
   const float* m_sepFramesData = nullptr;
   bool m_sepFramesValid = false;
+  /// allowFrameDownloadBehind: the frame backgrounds' download may run behind the stages after it.
+  bool m_frameDownloadBehind = false;
+  /// The host cube that download is writing (until finishHostCopies), and its frames' size in floats.
+  const float* m_framesPendingData = nullptr;
+  std::size_t m_framesPendingFramePixels = 0;
+  /// `cube`'s pixels are that download's destination and it may still be writing them.
+  bool framesPending(const FrameCube& cube) const {
+    return m_framesPendingData != nullptr && m_framesPendingData == cube.pixels().data();
+  }
   /// The kept frames when the pipeline vouched that they are `cube`'s and the cube's mask is the size of the
   /// kept one (none or the same); else null.
   const float* keptFrames(const FrameCube& cube) const {

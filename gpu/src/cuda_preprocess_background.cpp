@@ -61,7 +61,8 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   const std::shared_ptr<Prefetch> pf = std::move(m_prefetch);
   if (pf) pf->join();
   const bool prefetched = pf && pf->ok && pf->data == cube.pixels().data() && pf->size == nf * np &&
-                          pf->maskSize == cube.mask().size() && pf->key == cubeKey(cube);
+                          pf->maskSize == cube.mask().size() &&
+                          pf->key == (pf->shapeKeyOnly ? cubeShapeKey(cube) : cubeKey(cube));
   DeviceBuffer<float> pix = prefetched ? std::move(pf->pix) : DeviceBuffer<float>(nf * np);
   DeviceBuffer<std::uint8_t> mask;
   if (prefetched)

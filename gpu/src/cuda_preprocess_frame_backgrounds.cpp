@@ -3,6 +3,7 @@
 // (calibrateAndRemoveFrameBackgrounds: calib::applyPixelCalibration's float steps), SEP's mesh statistics
 // and spline on the device with the per-frame filter and spline derivatives on the host
 // (frame_backgrounds.*), the frames downloaded.
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -29,7 +30,20 @@ bool calibrateOnCpu() {
   return envKnob("ST_GPU_CALIBRATE_ON_CPU");
 }
 
+/// Benchmark knob: ST_GPU_FRAME_DOWNLOAD_FIRST=1 downloads the frame backgrounds' frames before the stage
+/// returns, as before 2026-12-03, instead of behind registration and the sky rate.
+bool frameDownloadFirst() {
+  return envKnob("ST_GPU_FRAME_DOWNLOAD_FIRST");
+}
+
 }  // namespace
+
+void CudaPreprocess::waitForHostFrames(const FrameCube& cube, std::size_t first, std::size_t end) {
+  if (!framesPending(cube) || first >= end) return;
+  const float* base = cube.pixels().data();
+  const std::size_t np = m_framesPendingFramePixels;
+  if (std::exception_ptr e = m_copies.waitFor(base + first * np, base + end * np)) std::rethrow_exception(e);
+}
 
 stats::FrameBackgrounds CudaPreprocess::removeFrameBackgrounds(FrameCube& cube,
                                                                const stats::FrameBackgroundParams& params,
@@ -103,10 +117,26 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   cancel.throwIfCancelled();
   progress.report(0.7, "frame backgrounds (GPU)");
   // Every kernel succeeded: the host cube is written now (a failure part way stops the run: the CPU would
-  // calibrate or subtract the frames written again).
-  downloadInPlace(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get(),
-                  "the frame backgrounds", name());
-  const double down = sw.lap();
+  // calibrate or subtract the frames written again). Where the pipeline allows it, behind the stages after
+  // this one (HostCopies), in pieces of a staging buffer (32 MiB) that a stage needing a few frames first
+  // (registration's sampled links on the CPU: waitForHostFrames) moves to the front; the global background,
+  // the hot pixels, registration's sampled links and the sky rate read the frames kept here on the device.
+  const bool behind = m_frameDownloadBehind && !syncDownloads() && !frameDownloadFirst();
+  double down = 0.0;
+  if (behind) {
+    const std::size_t perPiece = std::max<std::size_t>(1, kStagingBytes / (np * sizeof(float)));
+    for (std::size_t f0 = 0; f0 < nf; f0 += perPiece) {
+      const std::size_t f1 = std::min(nf, f0 + perPiece);
+      m_copies.enqueue(cube.pixels().data() + f0 * np, pix.get() + f0 * np, (f1 - f0) * np * sizeof(float),
+                       r.compute.get(), true, "the frame backgrounds");
+    }
+    m_framesPendingData = cube.pixels().data();
+    m_framesPendingFramePixels = np;
+  } else {
+    downloadInPlace(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get(),
+                    "the frame backgrounds", name());
+    down = sw.lap();
+  }
   // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise).
   m_sepFrames = std::move(pix);
   m_sepMask = std::move(mask);
@@ -122,7 +152,8 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   m_note = std::string(plan ? "calibration and frame backgrounds on " : "frame backgrounds on ") + name() +
            ": upload " + ms(upload) + (plan ? ", calibration " + ms(calibrate) : std::string()) +
            ", meshes " + ms(sep.meshSeconds) + ", filter and splines on the host " + ms(sep.hostSeconds) +
-           ", subtraction " + ms(sep.subtractSeconds) + ", download " + ms(down) +
+           ", subtraction " + ms(sep.subtractSeconds) +
+           (behind ? std::string(", download behind the stages after it") : ", download " + ms(down)) +
            "; frames kept on the device for the global background, hot pixels and prefetch";
   progress.report(1.0, "frame backgrounds (GPU)");
   return out;

@@ -28,7 +28,7 @@ std::shared_ptr<CudaPreprocess::Prefetch> CudaPreprocess::readyPrefetch(const Fr
   // when sparse): that is waited for (the sky rate's block pairs come right after the prefetch starts).
   if (!waitForUpload && !pf->finished.load() && !pf->keptFrames) return nullptr;
   pf->join();
-  if (!pf->ok || pf->key != cubeKey(cube)) return nullptr;
+  if (!pf->ok || pf->key != (pf->shapeKeyOnly ? cubeShapeKey(cube) : cubeKey(cube))) return nullptr;
   return pf;
 }
 
@@ -49,7 +49,8 @@ void CudaPreprocess::patchPrefetch(const FrameCube& cube, const std::vector<std:
       launchScatter(pf->pix.get(), idx.get(), val.get(), pixels.size(), r.compute.get());
       r.compute.sync();
     }
-    pf->key = cubeKey(cube);
+    pf->shapeKeyOnly = framesPending(cube);  // the pipeline waits for the frames before the cosmic rays
+    pf->key = pf->shapeKeyOnly ? cubeShapeKey(cube) : cubeKey(cube);
   } catch (const std::exception&) {
     // Dropped: the stages after upload the cube themselves.
     pf->ok = false;

@@ -15,8 +15,11 @@ namespace {
 
 /// The frames stats::globalBackground uses (evenly spaced) and its clip's shift (the first sample in its
 /// gathering order); st::InputError when every sample is masked.
+/// With `devicePix` (the cube on the device, frame-major) the frames' values are read from there: the host
+/// cube's may still be downloading (the frame backgrounds' download behind the stages after it).
 std::vector<int> framesAndShift(const FrameCube& cube, const stats::GlobalBackgroundParams& params,
-                                double& shift) {
+                                double& shift, const float* devicePix = nullptr,
+                                cudaStream_t stream = nullptr) {
   if (cube.empty()) throw InputError("global background: the frame cube has no frames");
   const std::size_t total = cube.frameCount();
   const std::size_t used = std::min(total, std::max<std::size_t>(1, params.frames));
@@ -25,9 +28,18 @@ std::vector<int> framesAndShift(const FrameCube& cube, const stats::GlobalBackgr
     frames.push_back(static_cast<int>(used == total ? i : (i * total) / used));
   const std::size_t np = cube.framePixels();
   const auto& hostMask = cube.mask();
+  std::vector<float> copied;
   for (const int n : frames) {
     const std::size_t base = static_cast<std::size_t>(n) * np;
     const float* f = cube.frame(static_cast<std::size_t>(n));
+    if (devicePix) {
+      copied.resize(np);
+      ST_CUDA_CHECK(cudaMemcpyAsync(copied.data(), devicePix + base, np * sizeof(float),
+                                    cudaMemcpyDeviceToHost,
+                                    stream));  // after the work queued on `stream` that wrote it
+      ST_CUDA_CHECK(cudaStreamSynchronize(stream));
+      f = copied.data();
+    }
     for (std::size_t i = 0; i < np; ++i) {
       if ((!hostMask.empty() && hostMask[base + i]) || !std::isfinite(f[i])) continue;
       shift = f[i];
@@ -93,7 +105,7 @@ stats::ClipStats clip(const float* pix, const std::uint8_t* mask, const std::vec
 stats::ClipStats globalBackgroundOnDevice(const FrameCube& cube, const float* pix, const std::uint8_t* mask,
                                           const stats::GlobalBackgroundParams& params, cudaStream_t stream) {
   double shift = 0.0;
-  const std::vector<int> frames = framesAndShift(cube, params, shift);
+  const std::vector<int> frames = framesAndShift(cube, params, shift, pix, stream);
   return clip(pix, mask, frames, cube.framePixels(), shift, params.xi, stream);
 }
 

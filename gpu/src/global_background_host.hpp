@@ -12,7 +12,8 @@ namespace st::gpu {
 /// stats::globalBackground(cube, params) computed from `pix` (the same cube on the device, frame-major) and
 /// `mask` (its mask on the device, or null): the same samples, the same clip and convergence rule; mean and
 /// sigma within the rounding of the CPU's sequential double sums (tests: 1e-12 relative), count and
-/// iterations equal. `cube` is read for the clip's shift (the first sample) and the error message only.
+/// iterations equal. `cube` is read for its mask, shape and the error message only (the clip's shift, the
+/// first sample, is read from `pix`: the host pixels may still be downloading).
 /// Throws st::InputError when every sample is masked (as the CPU), st::GpuError on a CUDA failure.
 stats::ClipStats globalBackgroundOnDevice(const FrameCube& cube, const float* pix, const std::uint8_t* mask,
                                           const stats::GlobalBackgroundParams& params, cudaStream_t stream);

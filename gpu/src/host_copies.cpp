@@ -1,6 +1,7 @@
 // HostCopies (host_copies.hpp): device -> host copies on a thread of their own, behind the stages after them.
 #include "host_copies.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <utility>
 
@@ -52,6 +53,32 @@ void HostCopies::drain() noexcept {
   m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
 }
 
+std::exception_ptr HostCopies::waitFor(const void* begin, const void* end) {
+  const char* lo = static_cast<const char*>(begin);
+  const char* hi = static_cast<const char*>(end);
+  const auto writes = [lo, hi](const char* b, const char* e) { return b < hi && lo < e; };
+  const auto pieceWrites = [&](const Piece& p) {
+    const char* b = static_cast<const char*>(p.host);
+    return writes(b, b + p.bytes);
+  };
+  std::unique_lock lock(m_mutex);
+  // Those pieces first, in their order, then the others in theirs (moved: a piece's event is not
+  // assignable).
+  if (std::any_of(m_queue.begin(), m_queue.end(), pieceWrites)) {
+    std::deque<Piece> first, rest;
+    for (Piece& p : m_queue)
+      (pieceWrites(p) ? first : rest).push_back(std::move(p));
+    for (Piece& p : rest)
+      first.push_back(std::move(p));
+    m_queue.swap(first);
+  }
+  m_changed.wait(lock, [&] {
+    return std::none_of(m_queue.begin(), m_queue.end(), pieceWrites) &&
+           !(m_running && writes(m_runningBegin, m_runningEnd));
+  });
+  return std::exchange(m_error, nullptr);
+}
+
 bool HostCopies::busy() const {
   const std::lock_guard lock(m_mutex);
   return !m_queue.empty() || m_running;
@@ -69,6 +96,8 @@ void HostCopies::run(std::stop_token stop) {
     Piece p = std::move(m_queue.front());
     m_queue.pop_front();
     m_running = true;
+    m_runningBegin = static_cast<const char*>(p.host);
+    m_runningEnd = m_runningBegin + p.bytes;
     lock.unlock();
     const auto t0 = std::chrono::steady_clock::now();
     std::exception_ptr error;

@@ -44,6 +44,11 @@ class HostCopies {
   void drain() noexcept;
   /// True while a copy is queued or running.
   [[nodiscard]] bool busy() const;
+  /// Blocks until no queued or running copy writes host bytes in [begin, end): the queued pieces that do
+  /// are moved to the front of the queue first (in their order), so a stage that needs a few frames of a
+  /// cube still downloading waits for those, not for the whole cube. The first failure since the last
+  /// wait() is returned (and forgotten), null when none.
+  [[nodiscard]] std::exception_ptr waitFor(const void* begin, const void* end);
 
   /// drain() when it goes out of scope: declared after the buffers the copies read or write, it keeps them
   /// alive until the copies are done, also while an exception unwinds the scope.
@@ -79,7 +84,9 @@ class HostCopies {
   mutable std::mutex m_mutex;
   std::condition_variable_any m_changed;
   std::deque<Piece> m_queue;
-  bool m_running = false;  ///< the thread is copying a piece taken off the queue
+  bool m_running = false;                ///< the thread is copying a piece taken off the queue
+  const char* m_runningBegin = nullptr;  ///< the host bytes that piece writes
+  const char* m_runningEnd = nullptr;
   std::exception_ptr m_error;
   double m_seconds = 0.0;
   std::jthread m_thread;  // last: stopped and joined before the members it reads are destroyed

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "cuda_check.hpp"
+#include "phase_fft_device.cuh"
 
 namespace st::gpu {
 
@@ -27,107 +28,17 @@ std::vector<float2> phaseFftTwiddles(int n) {
   const double pi = 3.14159265358979323846;
   for (int k = 0; k < n; ++k) {
     const double a = -2.0 * pi * static_cast<double>(k) / n;
-    t[static_cast<std::size_t>(k)] = make_float2(static_cast<float>(std::cos(a)), static_cast<float>(std::sin(a)));
+    t[static_cast<std::size_t>(k)] =
+        make_float2(static_cast<float>(std::cos(a)), static_cast<float>(std::sin(a)));
   }
   return t;
 }
 
 namespace {
 
+using namespace fft;
+
 constexpr int kThreads = 256;
-
-__device__ __forceinline__ float2 cmul(float2 a, float2 b) {
-  return make_float2(a.x * b.x - a.y * b.y, a.x * b.y + a.y * b.x);
-}
-__device__ __forceinline__ float2 cadd(float2 a, float2 b) {
-  return make_float2(a.x + b.x, a.y + b.y);
-}
-__device__ __forceinline__ float2 csub(float2 a, float2 b) {
-  return make_float2(a.x - b.x, a.y - b.y);
-}
-
-// Where element i of the input goes so that the stages, first to last, leave the transform in natural order:
-// the last stage's radix splits i first (i mod r), its digit the most significant of the position.
-__device__ int reversedPos(int i, const PhaseFftAxis& a) {
-  int pos = 0, len = a.n;
-  for (int t = a.stages - 1; t >= 0; --t) {
-    const int r = a.radix[t];
-    const int q = i % r;
-    i /= r;
-    len /= r;
-    pos += q * len;
-  }
-  return pos;
-}
-
-// One stage: n / R butterflies, each combining R transforms of length m into one of length m R.
-template <int R>
-__device__ void radixStage(float2* s, const PhaseFftAxis& a, int m, bool inverse) {
-  const int n = a.n, len = m * R, step = n / len, root = n / R;
-  for (int j = threadIdx.x; j < n / R; j += blockDim.x) {
-    const int k = j % m;
-    const int base = (j / m) * len + k;
-    float2 z[R];
-#pragma unroll
-    for (int q = 0; q < R; ++q) {
-      z[q] = s[base + q * m];
-      if (q > 0 && k > 0) {
-        float2 w = a.twiddle[k * q * step];
-        if (inverse) w.y = -w.y;
-        z[q] = cmul(z[q], w);
-      }
-    }
-    if constexpr (R == 2) {
-      s[base] = cadd(z[0], z[1]);
-      s[base + m] = csub(z[0], z[1]);
-    } else if constexpr (R == 4) {
-      const float2 e = cadd(z[0], z[2]), f = csub(z[0], z[2]);
-      const float2 g = cadd(z[1], z[3]), t = csub(z[1], z[3]);
-      // -i t forward, +i t inverse
-      const float2 rt = inverse ? make_float2(-t.y, t.x) : make_float2(t.y, -t.x);
-      s[base] = cadd(e, g);
-      s[base + m] = cadd(f, rt);
-      s[base + 2 * m] = csub(e, g);
-      s[base + 3 * m] = csub(f, rt);
-    } else {
-#pragma unroll
-      for (int p = 0; p < R; ++p) {
-        float2 y = z[0];
-#pragma unroll
-        for (int q = 1; q < R; ++q) {
-          float2 w = a.twiddle[((p * q) % R) * root];
-          if (inverse) w.y = -w.y;
-          y = cadd(y, cmul(z[q], w));
-        }
-        s[base + p * m] = y;
-      }
-    }
-  }
-  __syncthreads();
-}
-
-// The transform of s (a.n complexes, in reversedPos order on entry, natural order on return). Every thread of
-// the block must call it.
-__device__ void fftShared(float2* s, const PhaseFftAxis& a, bool inverse) {
-  int m = 1;
-  for (int st = 0; st < a.stages; ++st) {
-    switch (a.radix[st]) {
-      case 2:
-        radixStage<2>(s, a, m, inverse);
-        break;
-      case 3:
-        radixStage<3>(s, a, m, inverse);
-        break;
-      case 4:
-        radixStage<4>(s, a, m, inverse);
-        break;
-      default:
-        radixStage<5>(s, a, m, inverse);
-        break;
-    }
-    m *= a.radix[st];
-  }
-}
 
 // Each image's rows, zero-padded, transformed along x into the spectra.
 __global__ void rowsForward(PhaseCorrelationLaunch p) {
@@ -172,7 +83,8 @@ __global__ void columnsCrossPower(PhaseCorrelationLaunch p) {
     const double re = __dadd_rn(__dmul_rn(fa.x, fb.x), __dmul_rn(fa.y, fb.y));
     const double im = __dsub_rn(__dmul_rn(fa.y, fb.x), __dmul_rn(fa.x, fb.y));
     const double m = sqrt(__dadd_rn(__dmul_rn(re, re), __dmul_rn(im, im)));
-    sb[i] = m > 0.0 ? make_float2(static_cast<float>(re / m), static_cast<float>(im / m)) : make_float2(0.0f, 0.0f);
+    sb[i] = m > 0.0 ? make_float2(static_cast<float>(re / m), static_cast<float>(im / m))
+                    : make_float2(0.0f, 0.0f);
   }
   __syncthreads();
   for (int i = threadIdx.x; i < ny; i += blockDim.x)
@@ -201,7 +113,8 @@ __device__ void reducePeak(float& v, int& idx, int& finite) {
   for (int half = blockDim.x / 2; half > 0; half /= 2) {
     if (threadIdx.x < half) {
       const int o = threadIdx.x + half;
-      if (better(rv[o], ri[o], rv[threadIdx.x], ri[threadIdx.x])) rv[threadIdx.x] = rv[o], ri[threadIdx.x] = ri[o];
+      if (better(rv[o], ri[o], rv[threadIdx.x], ri[threadIdx.x]))
+        rv[threadIdx.x] = rv[o], ri[threadIdx.x] = ri[o];
       rf[threadIdx.x] &= rf[o];
     }
     __syncthreads();
@@ -300,11 +213,14 @@ void launchPhaseCorrelation(const PhaseCorrelationLaunch& p, cudaStream_t s) {
   allowSharedBytes(reinterpret_cast<const void*>(&rowsForward), rowBytes);
   allowSharedBytes(reinterpret_cast<const void*>(&rowsInverse), rowBytes);
   allowSharedBytes(reinterpret_cast<const void*>(&columnsCrossPower), colBytes);
-  rowsForward<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(2 * p.pairs)), kThreads, rowBytes, s>>>(p);
+  rowsForward<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(2 * p.pairs)), kThreads, rowBytes,
+                s>>>(p);
   checkLaunch("phase correlation: rowsForward");
-  columnsCrossPower<<<dim3(static_cast<unsigned>(p.x.n), static_cast<unsigned>(p.pairs)), kThreads, colBytes, s>>>(p);
+  columnsCrossPower<<<dim3(static_cast<unsigned>(p.x.n), static_cast<unsigned>(p.pairs)), kThreads, colBytes,
+                      s>>>(p);
   checkLaunch("phase correlation: columnsCrossPower");
-  rowsInverse<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(p.pairs)), kThreads, rowBytes, s>>>(p);
+  rowsInverse<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(p.pairs)), kThreads, rowBytes, s>>>(
+      p);
   checkLaunch("phase correlation: rowsInverse");
   pairPeaks<<<static_cast<unsigned>(p.pairs), kThreads, 0, s>>>(p);
   checkLaunch("phase correlation: pairPeaks");

@@ -17,6 +17,8 @@
 #include <limits>
 #include <optional>
 #include <random>
+#include <thread>
+#include <vector>
 
 #include "require_gpu_preprocess.hpp"
 #include "st/calib/calibration.hpp"
@@ -175,6 +177,60 @@ TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
     EXPECT_FALSE(accel->hotPixelExcess(cube, c.mean, hp).has_value());
     accel->globalBackground(cube, {});
     EXPECT_EQ(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
+  }
+}
+
+// The frames' download behind the stages after the frame backgrounds (allowFrameDownloadBehind, issue 16):
+// frames asked for with waitForHostFrames (from several threads, the last ones first) are the synchronous
+// download's bit for bit before the rest has landed; the global background and hot pixels come from the kept
+// frames meanwhile, equal to the synchronous run's; finishHostCopies leaves the whole cube equal. Without
+// the pipeline's word the download is done on return, as before.
+TEST(GpuFrameBackgrounds, DownloadBehindGivesTheSameFramesWhenWaitedFor) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool withMask : {false, true}) {
+    // 1 MB frames: 32 to a download piece, so asking for one frame moves one piece ahead of up to 7 others.
+    const FrameCube in = skyCube(512, 512, 240, 8, withMask);
+    NullProgress progress;
+    CancelToken cancel;
+    FrameCube sync = in;
+    accel->removeFrameBackgrounds(sync, {}, progress, cancel);
+    EXPECT_EQ(accel->lastNote().find("behind"), std::string::npos) << accel->lastNote();
+    accel->framesUnchangedSinceFrameBackgrounds(sync, true);
+    const stats::ClipStats gSync = accel->globalBackground(sync, {});
+    const auto hotSync = accel->hotPixelExcess(sync, gSync.mean, {});
+    ASSERT_TRUE(hotSync.has_value());
+
+    FrameCube behind = in;
+    accel->allowFrameDownloadBehind(true);
+    accel->removeFrameBackgrounds(behind, {}, progress, cancel);
+    accel->allowFrameDownloadBehind(false);
+    EXPECT_NE(accel->lastNote().find("download behind"), std::string::npos) << accel->lastNote();
+    accel->framesUnchangedSinceFrameBackgrounds(behind, true);
+    const std::size_t np = in.framePixels();
+    const std::vector<std::size_t> asked{239, 3, 120, 200, 17, 238};
+    std::vector<int> same(asked.size(), 0);
+    {
+      std::vector<std::jthread> threads;
+      for (std::size_t k = 0; k < asked.size(); ++k)
+        threads.emplace_back([&, k] {
+          accel->waitForHostFrames(behind, asked[k], asked[k] + 1);
+          same[k] = std::memcmp(behind.frame(asked[k]), sync.frame(asked[k]), np * sizeof(float)) == 0;
+        });
+    }
+    for (std::size_t k = 0; k < asked.size(); ++k)
+      EXPECT_TRUE(same[k]) << "frame " << asked[k] << (withMask ? " (masked cube)" : "");
+    // The kept frames serve while the rest of the download may still run.
+    const stats::ClipStats g = accel->globalBackground(behind, {});
+    EXPECT_NE(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
+    EXPECT_EQ(g.mean, gSync.mean);
+    EXPECT_EQ(g.sigma, gSync.sigma);
+    EXPECT_EQ(g.count, gSync.count);
+    const auto hot = accel->hotPixelExcess(behind, g.mean, {});
+    ASSERT_TRUE(hot.has_value());
+    EXPECT_EQ(*hot, *hotSync);
+    accel->finishHostCopies();
+    EXPECT_EQ(std::memcmp(behind.pixels().data(), sync.pixels().data(), in.pixels().size() * sizeof(float)),
+              0);
   }
 }
 

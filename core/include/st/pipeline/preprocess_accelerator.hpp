@@ -17,6 +17,7 @@
 #include "st/common/progress.hpp"
 #include "st/detect/hot_pixels.hpp"
 #include "st/detect/moving_mask.hpp"
+#include "st/detect/registration.hpp"
 #include "st/detect/sky_rate.hpp"
 #include "st/detect/sky_stack.hpp"
 #include "st/detect/star_subtraction.hpp"
@@ -70,6 +71,18 @@ class PreprocessAccelerator {
   /// written). The pipeline calls it before the CPU does a stage the device failed, and before it returns;
   /// the device's own stages wait where they need the host copy. The default has none to wait for.
   virtual void finishHostCopies() {}
+  /// The pipeline's word that it gates its reads of the host frames after removeFrameBackgrounds (or
+  /// calibrateAndRemoveFrameBackgrounds) with waitForHostFrames and finishHostCopies: a device may then leave
+  /// that stage's download of the frames running behind the stages after it (registration, the sky rate),
+  /// which read the frames it keeps. Until the pipeline allows it (and once it says false again), that
+  /// download is done when the stage returns. The default has none.
+  virtual void allowFrameDownloadBehind(bool allow) { (void)allow; }
+  /// Blocks until frames [first, end) of `cube` are on the host (the frame backgrounds' download behind, its
+  /// pieces holding them moved to the front); throws st::Error when a download failed part way. May be
+  /// called from several threads at once. The default has none to wait for.
+  virtual void waitForHostFrames(const FrameCube& cube, std::size_t first, std::size_t end) {
+    (void)cube, (void)first, (void)end;
+  }
   /// Same contract as stats::removeFrameBackgrounds (SEP's background per frame): the same levels and rms
   /// (within the rounding of SEP's double sums), the frames within float rounding of the CPU's. The default
   /// is the CPU's.
@@ -100,6 +113,14 @@ class PreprocessAccelerator {
   /// prefetch(cube) instead of uploading the pixels; without a true it must not. The default does nothing.
   virtual void framesUnchangedSinceFrameBackgrounds(const FrameCube& cube, bool unchanged) {
     (void)cube, (void)unchanged;
+  }
+  /// Registration's sampled links (detect::RegistrationLinkBatch) from the frames the device kept from
+  /// removeFrameBackgrounds (once framesUnchangedSinceFrameBackgrounds said true) and the host cube's mask;
+  /// none when it cannot (no such frames, a transform size it does not take). Throws st::GpuError.
+  virtual std::optional<std::vector<detect::RegistrationLinkPeak>> registrationLinks(
+      const FrameCube& cube, const detect::RegistrationLinkBatch& batch) {
+    (void)cube, (void)batch;
+    return std::nullopt;
   }
   /// The smallest block-mean excess of each pixel that detect::findHotPixels computes (see
   /// detect::hotPixelsFromExcess: the same sums in the same order, so the same pixels); none when the device

@@ -1,0 +1,142 @@
+// CudaPreprocess::registrationLinks: registration's sampled links (detect::RegistrationLinkBatch) from the
+// frames the frame backgrounds kept on the device, so that the host frames (whose download may still run
+// behind, issue 16) are not read.
+#include <algorithm>
+#include <map>
+#include <span>
+
+#include "cuda_preprocess.hpp"
+#include "registration_link_kernels.hpp"
+#include "sky_stack_kernels.hpp"
+#include "st/common/sparse_bytes.hpp"
+
+namespace st::gpu {
+
+using namespace preprocess_detail;
+
+namespace {
+
+/// Benchmark knob: ST_GPU_REGISTRATION_ON_HOST=1 leaves registration's sampled links to the CPU, as before
+/// 2026-12-03, for before/after figures from one binary.
+bool registrationOnHost() {
+  return envKnob("ST_GPU_REGISTRATION_ON_HOST");
+}
+
+}  // namespace
+
+std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registrationLinks(
+    const FrameCube& cube, const detect::RegistrationLinkBatch& batch) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const bool frames = m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
+                      m_sepFrames.size() == cube.pixels().size() && m_sepFrames.size() > 0;
+  const int bw = batch.width, bh = batch.height, bin = batch.bin;
+  const std::vector<int> rx = phaseFftRadices(bw), ry = phaseFftRadices(bh);
+  if (registrationOnHost() || !frames || batch.pairs.empty() || bin < 1 || rx.empty() || ry.empty() ||
+      bw * bin > cube.width() || bh * bin > cube.height() || !batch.taperX || !batch.taperY ||
+      !batch.highPass || batch.taperX->size() != static_cast<std::size_t>(bw) ||
+      batch.taperY->size() != static_cast<std::size_t>(bh) ||
+      batch.highPass->size() != static_cast<std::size_t>(bw / 2 + 1) * bh)
+    return std::nullopt;
+  Stopwatch sw;
+  // Each frame once (a slot), the pairs by slot.
+  std::map<std::size_t, int> slotOf;
+  std::vector<int> slotFrame, pairSlots;
+  for (const auto& [later, earlier] : batch.pairs) {
+    for (const std::size_t n : {later, earlier}) {
+      if (n >= nf) return std::nullopt;
+      const auto [it, added] = slotOf.emplace(n, static_cast<int>(slotFrame.size()));
+      if (added) slotFrame.push_back(static_cast<int>(n));
+      pairSlots.push_back(it->second);
+    }
+  }
+  const std::size_t slots = slotFrame.size(), pairs = batch.pairs.size();
+  const std::size_t pixels = static_cast<std::size_t>(bw) * bh;
+  ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+  DeviceResources& r = resources();
+  cudaStream_t s = r.compute.get();
+  // The slots' masks (the host's: the hot pixels were masked after the frame backgrounds), their few set
+  // bytes scattered into zeroed buffers.
+  DeviceBuffer<std::uint8_t> masks;
+  if (cube.mask().size() == cube.pixels().size()) {
+    masks = DeviceBuffer<std::uint8_t>(slots * np);
+    ST_CUDA_CHECK(cudaMemsetAsync(masks.get(), 0, slots * np, s));
+    std::vector<std::uint64_t> index;
+    std::vector<std::uint8_t> value;
+    for (std::size_t k = 0; k < slots; ++k) {
+      const std::span<const std::uint8_t> m(cube.mask().data() + static_cast<std::size_t>(slotFrame[k]) * np,
+                                            np);
+      const std::optional<SparseBytes> sparse = sparseBytes(m, np);
+      for (std::size_t e = 0; e < sparse->index.size(); ++e) {
+        index.push_back(k * np + sparse->index[e]);
+        value.push_back(sparse->value[e]);
+      }
+    }
+    if (!index.empty()) {
+      const DeviceBuffer<std::uint64_t> indexD = toDevice(index);
+      const DeviceBuffer<std::uint8_t> valueD = toDevice(value);
+      launchScatter(masks.get(), indexD.get(), valueD.get(), index.size(), s);
+      ST_CUDA_CHECK(cudaStreamSynchronize(s));  // before the entries are freed
+    }
+  }
+  const DeviceBuffer<int> slotFrameD = toDevice(slotFrame), pairSlotsD = toDevice(pairSlots);
+  const DeviceBuffer<float> taperX = toDevice(*batch.taperX), taperY = toDevice(*batch.taperY),
+                            highPass = toDevice(*batch.highPass);
+  const DeviceBuffer<float2> twX = toDevice(phaseFftTwiddles(bw)), twY = toDevice(phaseFftTwiddles(bh));
+  const std::size_t sampleStride = (np + 6) / 7;
+  DeviceBuffer<float> samples(slots * sampleStride), median(slots), sigma(slots), images(slots * pixels);
+  DeviceBuffer<float2> spectra(slots * pixels), products(pairs * pixels);
+  DeviceBuffer<float> surface(pairs * pixels), rowMax(pairs * bh);
+  DeviceBuffer<int> rowArg(pairs * bh);
+  DeviceBuffer<double> rowSum(pairs * bh), rowSum2(pairs * bh), peaks(pairs * 3);
+  RegistrationLinkLaunch p;
+  p.frames = m_sepFrames.get();
+  p.masks = masks.size() ? masks.get() : nullptr;
+  p.slotFrame = slotFrameD.get();
+  p.slots = static_cast<int>(slots);
+  p.width = cube.width();
+  p.height = cube.height();
+  p.bin = bin;
+  p.bw = bw;
+  p.bh = bh;
+  p.samples = samples.get();
+  p.sampleStride = sampleStride;
+  p.median = median.get();
+  p.sigma = sigma.get();
+  p.taperX = taperX.get();
+  p.taperY = taperY.get();
+  p.images = images.get();
+  const auto axis = [](int n, const std::vector<int>& radices, const float2* twiddles) {
+    PhaseFftAxis a;
+    a.n = n;
+    a.stages = static_cast<int>(radices.size());
+    std::copy(radices.begin(), radices.end(), a.radix);
+    a.twiddle = twiddles;
+    return a;
+  };
+  p.x = axis(bw, rx, twX.get());
+  p.y = axis(bh, ry, twY.get());
+  p.spectra = spectra.get();
+  p.highPass = highPass.get();
+  p.pairSlots = pairSlotsD.get();
+  p.pairs = static_cast<int>(pairs);
+  p.products = products.get();
+  p.surface = surface.get();
+  p.rowMax = rowMax.get();
+  p.rowArg = rowArg.get();
+  p.rowSum = rowSum.get();
+  p.rowSum2 = rowSum2.get();
+  p.peaks = peaks.get();
+  launchRegistrationLinks(p, s);
+  std::vector<double> peaksH(pairs * 3);
+  ST_CUDA_CHECK(
+      cudaMemcpyAsync(peaksH.data(), peaks.get(), peaksH.size() * sizeof(double), cudaMemcpyDeviceToHost, s));
+  ST_CUDA_CHECK(cudaStreamSynchronize(s));
+  std::vector<detect::RegistrationLinkPeak> out(pairs);
+  for (std::size_t k = 0; k < pairs; ++k)
+    out[k] = {peaksH[3 * k], peaksH[3 * k + 1], peaksH[3 * k + 2], true};
+  m_note = "registration's " + std::to_string(pairs) + " sampled links on " + name() + " from the frame " +
+           "backgrounds' frames: " + ms(sw.lap());
+  return out;
+}
+
+}  // namespace st::gpu
