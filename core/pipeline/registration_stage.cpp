@@ -47,7 +47,8 @@ bool registerFramesStage(Prepared& out, FrameCube& cube, const PreprocessParams&
                         ": " + linksFailed + ")");
   out.notes.push_back(reg.note);
   if (params.registration.alignWholePixels) {
-    if (accel) accel->finishHostCopies();
+    // It moves frames only under the per-frame model: every frame must be on the host first.
+    if (accel && reg.model == detect::Registration::Model::PerFrame) accel->finishHostCopies();
     const std::size_t moved = detect::alignWholePixels(cube, reg, cancel);
     if (framesMoved) *framesMoved = moved;
     if (moved > 0) {

@@ -22,7 +22,7 @@ namespace st::gpu {
 using namespace preprocess_detail;
 
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
-                                 cudaStream_t s) {
+                                 cudaStream_t s, unsigned copyThreads) {
   r.copy.sync();  // the staging buffers may still feed an upload
   const std::size_t piece = kStagingBytes;
   const std::size_t pieces = (bytes + piece - 1) / piece;
@@ -43,8 +43,9 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     // 2 MiB a task for the cubes' pieces; a stack's few MB spread over the threads too.
     const std::size_t chunk =
         std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21);
-    parallelFor(len, chunk,
-                [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); });
+    parallelFor(
+        len, chunk, [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); },
+        copyThreads);
   }
 }
 

@@ -101,7 +101,9 @@ inline bool phaseCorrelationsOnHost() {
 
 /// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
 /// core while the next piece's DMA runs).
-void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s);
+/// `copyThreads` bounds the threads of the host copy (0: every core).
+void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
+              unsigned copyThreads = 0);
 
 /// download() into the pipeline's own cube, in place: a failure part way leaves it half written, so it is
 /// not a GpuError (whose contract is a cube as it was, for the CPU to process again) but an Error that
@@ -298,6 +300,14 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     DeviceBuffer<double> peaks;
   };
   std::unique_ptr<PhaseWorkspace> m_phase;
+  /// registrationLinks' device buffers, freed when the per-pixel background begins (as m_phase).
+  struct RegistrationWorkspace {
+    DeviceBuffer<float> samples, median, sigma, images, surface, rowMax;
+    DeviceBuffer<float2> spectra, products;
+    DeviceBuffer<int> rowArg;
+    DeviceBuffer<double> rowSum, rowSum2, peaks;
+  };
+  std::unique_ptr<RegistrationWorkspace> m_registration;
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
   // cube once the pipeline has said its pixels did not change since (framesUnchangedSinceFrameBackgrounds).
   // globalBackground and hotPixelExcess read them too, with the mask uploaded with them (freed once the hot

@@ -25,7 +25,8 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
                                                   const detect::MovingMask* exclude, ProgressSink& progress,
                                                   CancelToken& cancel, KeptCube* keep) {
   finishHostCopies();
-  m_phase.reset();  // the sky rate's phase-correlation buffers: not needed from here
+  m_phase.reset();         // the sky rate's phase-correlation buffers: not needed from here
+  m_registration.reset();  // nor registration's
   Stopwatch sw;
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();

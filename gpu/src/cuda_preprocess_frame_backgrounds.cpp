@@ -36,6 +36,13 @@ bool frameDownloadFirst() {
   return envKnob("ST_GPU_FRAME_DOWNLOAD_FIRST");
 }
 
+/// The threads of the frame backgrounds' download's host copy behind the sky rate (whose links' images and
+/// paired stars run on ~6 cores): 4, or ST_GPU_FRAME_DOWNLOAD_THREADS (0: every core), for A/B runs.
+unsigned frameDownloadThreads() {
+  const char* e = std::getenv("ST_GPU_FRAME_DOWNLOAD_THREADS");
+  return e && *e ? static_cast<unsigned>(std::strtoul(e, nullptr, 10)) : 6u;
+}
+
 }  // namespace
 
 void CudaPreprocess::waitForHostFrames(const FrameCube& cube, std::size_t first, std::size_t end) {
@@ -128,7 +135,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
     for (std::size_t f0 = 0; f0 < nf; f0 += perPiece) {
       const std::size_t f1 = std::min(nf, f0 + perPiece);
       m_copies.enqueue(cube.pixels().data() + f0 * np, pix.get() + f0 * np, (f1 - f0) * np * sizeof(float),
-                       r.compute.get(), true, "the frame backgrounds");
+                       r.compute.get(), true, "the frame backgrounds", frameDownloadThreads());
     }
     m_framesPendingData = cube.pixels().data();
     m_framesPendingFramePixels = np;

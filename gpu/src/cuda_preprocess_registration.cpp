@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <map>
 #include <span>
+#include <type_traits>
 
 #include "cuda_preprocess.hpp"
 #include "registration_link_kernels.hpp"
@@ -78,16 +79,32 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
       ST_CUDA_CHECK(cudaStreamSynchronize(s));  // before the entries are freed
     }
   }
+  const double maskSeconds = sw.lap();
   const DeviceBuffer<int> slotFrameD = toDevice(slotFrame), pairSlotsD = toDevice(pairSlots);
   const DeviceBuffer<float> taperX = toDevice(*batch.taperX), taperY = toDevice(*batch.taperY),
                             highPass = toDevice(*batch.highPass);
   const DeviceBuffer<float2> twX = toDevice(phaseFftTwiddles(bw)), twY = toDevice(phaseFftTwiddles(bh));
   const std::size_t sampleStride = (np + 6) / 7;
-  DeviceBuffer<float> samples(slots * sampleStride), median(slots), sigma(slots), images(slots * pixels);
-  DeviceBuffer<float2> spectra(slots * pixels), products(pairs * pixels);
-  DeviceBuffer<float> surface(pairs * pixels), rowMax(pairs * bh);
-  DeviceBuffer<int> rowArg(pairs * bh);
-  DeviceBuffer<double> rowSum(pairs * bh), rowSum2(pairs * bh), peaks(pairs * 3);
+  // The work buffers (~0.6 GB for 64 links of 512^2 frames) are kept until zeroBias: freeing them here would
+  // wait for the frame backgrounds' download running behind.
+  if (!m_registration) m_registration = std::make_unique<RegistrationWorkspace>();
+  RegistrationWorkspace& ws = *m_registration;
+  const auto fit = [](auto& buffer, std::size_t count) {
+    if (buffer.size() < count) buffer = std::remove_reference_t<decltype(buffer)>(count);
+    return buffer.get();
+  };
+  float* samples = fit(ws.samples, slots * sampleStride);
+  float* median = fit(ws.median, slots);
+  float* sigma = fit(ws.sigma, slots);
+  float* images = fit(ws.images, slots * pixels);
+  float2* spectra = fit(ws.spectra, slots * pixels);
+  float2* products = fit(ws.products, pairs * pixels);
+  float* surface = fit(ws.surface, pairs * pixels);
+  float* rowMax = fit(ws.rowMax, pairs * bh);
+  int* rowArg = fit(ws.rowArg, pairs * bh);
+  double* rowSum = fit(ws.rowSum, pairs * bh);
+  double* rowSum2 = fit(ws.rowSum2, pairs * bh);
+  double* peaks = fit(ws.peaks, pairs * 3);
   RegistrationLinkLaunch p;
   p.frames = m_sepFrames.get();
   p.masks = masks.size() ? masks.get() : nullptr;
@@ -98,13 +115,13 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
   p.bin = bin;
   p.bw = bw;
   p.bh = bh;
-  p.samples = samples.get();
+  p.samples = samples;
   p.sampleStride = sampleStride;
-  p.median = median.get();
-  p.sigma = sigma.get();
+  p.median = median;
+  p.sigma = sigma;
   p.taperX = taperX.get();
   p.taperY = taperY.get();
-  p.images = images.get();
+  p.images = images;
   const auto axis = [](int n, const std::vector<int>& radices, const float2* twiddles) {
     PhaseFftAxis a;
     a.n = n;
@@ -115,27 +132,30 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
   };
   p.x = axis(bw, rx, twX.get());
   p.y = axis(bh, ry, twY.get());
-  p.spectra = spectra.get();
+  p.spectra = spectra;
   p.highPass = highPass.get();
   p.pairSlots = pairSlotsD.get();
   p.pairs = static_cast<int>(pairs);
-  p.products = products.get();
-  p.surface = surface.get();
-  p.rowMax = rowMax.get();
-  p.rowArg = rowArg.get();
-  p.rowSum = rowSum.get();
-  p.rowSum2 = rowSum2.get();
-  p.peaks = peaks.get();
+  p.products = products;
+  p.surface = surface;
+  p.rowMax = rowMax;
+  p.rowArg = rowArg;
+  p.rowSum = rowSum;
+  p.rowSum2 = rowSum2;
+  p.peaks = peaks;
+  const double buffers = sw.lap();
   launchRegistrationLinks(p, s);
   std::vector<double> peaksH(pairs * 3);
   ST_CUDA_CHECK(
-      cudaMemcpyAsync(peaksH.data(), peaks.get(), peaksH.size() * sizeof(double), cudaMemcpyDeviceToHost, s));
+      cudaMemcpyAsync(peaksH.data(), peaks, peaksH.size() * sizeof(double), cudaMemcpyDeviceToHost, s));
   ST_CUDA_CHECK(cudaStreamSynchronize(s));
   std::vector<detect::RegistrationLinkPeak> out(pairs);
   for (std::size_t k = 0; k < pairs; ++k)
     out[k] = {peaksH[3 * k], peaksH[3 * k + 1], peaksH[3 * k + 2], true};
+  const double kernels = sw.lap();
   m_note = "registration's " + std::to_string(pairs) + " sampled links on " + name() + " from the frame " +
-           "backgrounds' frames: " + ms(sw.lap());
+           "backgrounds' frames: masks " + ms(maskSeconds) + ", buffers " + ms(buffers) + ", kernels " +
+           ms(kernels);
   return out;
 }
 

@@ -13,7 +13,8 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
                               pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
   if (stagewise()) return false;
   finishHostCopies();
-  m_phase.reset();  // the sky rate's phase-correlation buffers: not needed from here
+  m_phase.reset();         // the sky rate's phase-correlation buffers: not needed from here
+  m_registration.reset();  // nor registration's
   forgetKept();  // a run before this one's (a failure below leaves none to be taken for this cube's)
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();

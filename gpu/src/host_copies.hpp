@@ -35,8 +35,10 @@ class HostCopies {
   /// then throws st::Error (the run stops) instead of the GpuError (a CPU fallback writes a fresh
   /// destination anew). `what` names the data in messages. The caller keeps `dev` and `host` alive and
   /// unwritten until wait() or drain() returns (DrainOnExit for the exceptions on the way).
+  /// `copyThreads` bounds the threads of its host copy (0: every core; a few for a download that runs behind
+  /// host stages, which would lose their cores to it).
   void enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
-               std::string what);
+               std::string what, unsigned copyThreads = 0);
   /// Blocks until every queued copy is done; the first failure since the last wait() is returned (and
   /// forgotten), null when none.
   [[nodiscard]] std::exception_ptr wait();
@@ -73,6 +75,7 @@ class HostCopies {
     Event ready;
     bool inPlace;
     std::string what;
+    unsigned copyThreads;
   };
   void run(std::stop_token stop);
   DeviceResources& resources();
