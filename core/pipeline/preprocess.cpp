@@ -422,6 +422,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   zin.singleFrameRadiusPx = static_cast<int>(std::ceil(out.psf.fwhm())) + 1;
   zin.removeResidualMean = params.removeResidualMean;
   zin.residualMeshPx = params.residualMeshPx;
+  if (params.weightedFilter) zin.noiseModel = &params.noise;
   ZeroBiasResult zb = zeroBiasOn(params.accelerator, cube, zin, progress, cancel, out.notes);
   for (auto& stage : zb.stageSeconds)
     out.stageSeconds.push_back(std::move(stage));

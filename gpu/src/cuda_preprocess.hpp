@@ -308,6 +308,20 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     DeviceBuffer<double> rowSum, rowSum2, peaks;
   };
   std::unique_ptr<RegistrationWorkspace> m_registration;
+  /// The noise model's variance map and reference sigma (stats::estimateNoiseModel of no frames), made on
+  /// the host beside zeroBias's device stages, for the next estimateNoiseModel of the same inputs (their
+  /// addresses, sizes, values' hash and the parameters).
+  struct NoiseShape {
+    stats::NoiseModel model;
+    const float* sigma = nullptr;
+    const std::uint8_t* unmeasured = nullptr;
+    std::size_t sigmaSize = 0, unmeasuredSize = 0;
+    std::uint64_t hash = 0;
+    stats::NoiseModelParams params;
+  };
+  std::optional<NoiseShape> m_noiseShape;
+  /// The hash NoiseShape keeps of the inputs.
+  static std::uint64_t noiseShapeHash(const Image& pixelSigma, const std::vector<std::uint8_t>& unmeasured);
   // The frames removeFrameBackgrounds left on the device (its download's source), for prefetch() of the same
   // cube once the pipeline has said its pixels did not change since (framesUnchangedSinceFrameBackgrounds).
   // globalBackground and hotPixelExcess read them too, with the mask uploaded with them (freed once the hot

@@ -2,6 +2,8 @@
 // (stats::estimateNoiseModel) on the device.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <utility>
 
 #include "cuda_preprocess.hpp"
 #include "residual_means_host.hpp"
@@ -44,6 +46,26 @@ double CudaPreprocess::removeResidualMeans(FrameCube& cube, int meshPx, double c
   return rms;
 }
 
+std::uint64_t CudaPreprocess::noiseShapeHash(const Image& pixelSigma,
+                                             const std::vector<std::uint8_t>& unmeasured) {
+  // FNV-1a over the bytes, 8 at a time.
+  std::uint64_t h = 1469598103934665603ull;
+  const auto mix = [&h](const void* data, std::size_t bytes) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    std::size_t i = 0;
+    for (; i + 8 <= bytes; i += 8) {
+      std::uint64_t v;
+      std::memcpy(&v, p + i, 8);
+      h = (h ^ v) * 1099511628211ull;
+    }
+    for (; i < bytes; ++i)
+      h = (h ^ p[i]) * 1099511628211ull;
+  };
+  mix(pixelSigma.pixels.data(), pixelSigma.pixels.size() * sizeof(float));
+  mix(unmeasured.data(), unmeasured.size());
+  return h;
+}
+
 stats::NoiseModel CudaPreprocess::estimateNoiseModel(const FrameCube& zeroBiased, const Image& pixelSigma,
                                                      const std::vector<std::uint8_t>& unmeasured,
                                                      const stats::NoiseModelParams& params,
@@ -64,9 +86,19 @@ stats::NoiseModel CudaPreprocess::noiseModel(const FrameCube& zeroBiased, const 
   const int w = zeroBiased.width(), h = zeroBiased.height();
   const std::size_t nf = zeroBiased.frameCount(), np = zeroBiased.framePixels();
   // The variance map and the reference sigma before the frame scales: the CPU's own function on a cube of
-  // no frames (its frame-scale loop is then empty and the typical scale 1).
-  const FrameCube shape(w, h, 0);
-  stats::NoiseModel m = stats::estimateNoiseModel(shape, pixelSigma, unmeasured, params, cancel);
+  // no frames (its frame-scale loop is then empty and the typical scale 1), made beside zeroBias when it was
+  // given these inputs.
+  std::optional<NoiseShape> made = std::exchange(m_noiseShape, std::nullopt);
+  const bool madeBeside =
+      made && made->sigma == pixelSigma.pixels.data() && made->sigmaSize == pixelSigma.pixels.size() &&
+      made->unmeasured == unmeasured.data() && made->unmeasuredSize == unmeasured.size() &&
+      made->params.smoothBoxPx == params.smoothBoxPx &&
+      made->params.noisyPixelRatio == params.noisyPixelRatio &&
+      made->params.sampleStride == params.sampleStride &&
+      made->hash == noiseShapeHash(pixelSigma, unmeasured);
+  stats::NoiseModel m =
+      madeBeside ? std::move(made->model)
+                 : stats::estimateNoiseModel(FrameCube(w, h, 0), pixelSigma, unmeasured, params, cancel);
   const double hostMap = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
@@ -113,8 +145,10 @@ stats::NoiseModel CudaPreprocess::noiseModel(const FrameCube& zeroBiased, const 
   for (double& v : m.frameScale)
     if (!(std::isfinite(v) && v > 0.0)) v = typical;
   m.sigmaRef *= typical;
-  m_note = "noise model on " + name() + ": variance map on the host " + ms(hostMap) + ", " +
-           (kept ? "frames already on the device" : "upload " + ms(upload)) + ", frame medians " +
+  m_note = "noise model on " + name() + ": variance map " +
+           (madeBeside ? "made on the host beside the zero-bias stages (checked in " + ms(hostMap) + ")"
+                       : "on the host " + ms(hostMap)) +
+           ", " + (kept ? "frames already on the device" : "upload " + ms(upload)) + ", frame medians " +
            ms(kernels);
   return m;
 }

@@ -1,5 +1,8 @@
 // CudaPreprocess::zeroBias: the per-pixel background, star subtraction, the zeroing stages and the residual
 // means with the cube kept on the device from one upload to one download (issue 16).
+#include <functional>
+#include <future>
+
 #include "cuda_preprocess.hpp"
 #include "residual_means_host.hpp"
 #include "resident_cube.hpp"
@@ -8,6 +11,17 @@
 namespace st::gpu {
 
 using namespace preprocess_detail;
+
+namespace {
+
+/// Benchmark knob: ST_GPU_ZERO_BIAS_AS_BEFORE=1 makes the residual means in one piece with the zero-biased
+/// cube's download after them, and leaves the noise model's variance map to the noise model stage, as before
+/// 2026-12-03, for before/after figures from one binary.
+bool zeroBiasAsBefore() {
+  return envKnob("ST_GPU_ZERO_BIAS_AS_BEFORE");
+}
+
+}  // namespace
 
 bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& in,
                               pipeline::ZeroBiasResult& out, ProgressSink& progress, CancelToken& cancel) {
@@ -27,6 +41,29 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   }
   const std::string bgNote = m_note;
   lap("per-pixel background");
+  // The noise model's variance map on the host (~13-17 ms for 512^2) beside the device stages below, from
+  // the per-pixel sigma and unmeasured pixels they only read; joined before this returns (the pipeline
+  // moves them on).
+  m_noiseShape.reset();
+  std::future<std::optional<NoiseShape>> noiseShape;
+  if (in.noiseModel && !zeroBiasAsBefore())
+    noiseShape = std::async(
+        std::launch::async,
+        [&bg = out.background, params = *in.noiseModel, w, h, &cancel]() -> std::optional<NoiseShape> {
+          try {
+            NoiseShape n;
+            n.model = stats::estimateNoiseModel(FrameCube(w, h, 0), bg.sigma, bg.filled, params, cancel);
+            n.sigma = bg.sigma.pixels.data();
+            n.sigmaSize = bg.sigma.pixels.size();
+            n.unmeasured = bg.filled.data();
+            n.unmeasuredSize = bg.filled.size();
+            n.hash = noiseShapeHash(bg.sigma, bg.filled);
+            n.params = params;
+            return n;
+          } catch (const std::exception&) {
+            return std::nullopt;  // the noise model stage makes it (and reports what is wrong)
+          }
+        });
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
@@ -62,19 +99,44 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   kc.mask = DeviceBuffer<std::uint8_t>();
   kc.sigma = DeviceBuffer<float>();
   Stopwatch rm;
-  if (in.removeResidualMean)
-    out.residualMeanRms = removeResidualMeansOnDevice(kc.pix.get(), w, h, static_cast<int>(nf),
-                                                      in.residualMeshPx, in.residualClipSigma, s);
+  // The download runs behind the noise model and the filter (HostCopies; finishHostCopies() waits for it),
+  // and with the residual means, chunk by chunk of 128 frames behind their own chunks: the host cube is then
+  // written before the last kernels have run, so a device failure from there stops the run (st::Error)
+  // instead of handing the half-written cube to the CPU.
+  const bool behind = !syncDownloads();
+  const bool chunks = behind && !zeroBiasAsBefore();
+  const auto queueDownload = [&](int f0, int f1) {
+    m_copies.enqueue(cube.pixels().data() + static_cast<std::size_t>(f0) * np,
+                     kc.pix.get() + static_cast<std::size_t>(f0) * np,
+                     static_cast<std::size_t>(f1 - f0) * np * sizeof(float), s, true, "the zero-biased cube");
+  };
+  bool queued = false;
+  if (in.removeResidualMean) {
+    try {
+      out.residualMeanRms =
+          removeResidualMeansOnDevice(kc.pix.get(), w, h, static_cast<int>(nf), in.residualMeshPx,
+                                      in.residualClipSigma, s, chunks ? 128 : 0,
+                                      chunks ? std::function<void(int, int)>([&](int f0, int f1) {
+                                        queueDownload(f0, f1);
+                                        queued = true;
+                                      })
+                                             : std::function<void(int, int)>());
+      ST_CUDA_CHECK(cudaStreamSynchronize(s));
+    } catch (const GpuError& e) {
+      if (!queued) throw;
+      m_copies.drain();
+      throw Error("the residual means failed on " + name() +
+                  " after the zero-biased cube's download had begun (" + e.what() + ")");
+    }
+  }
   ST_CUDA_CHECK(cudaStreamSynchronize(s));
   const double rmKernels = rm.lap();
   cancel.throwIfCancelled();
-  // Every kernel succeeded: the host cube is written now, and the frames kept for the matched filter. The
-  // download runs behind the noise model and the filter (HostCopies; finishHostCopies() waits for it).
-  const bool behind = !syncDownloads();
-  if (behind)
-    m_copies.enqueue(cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, true,
-                     "the zero-biased cube");
-  else
+  // Every kernel succeeded: the host cube is written now (or already, chunk by chunk), and the frames kept
+  // for the matched filter.
+  if (behind) {
+    if (!queued) queueDownload(0, static_cast<int>(nf));
+  } else
     downloadInPlace(r, cube.pixels().data(), kc.pix.get(), nf * np * sizeof(float), s, "the zero-biased cube",
                     name());
   const double down = rm.lap();
@@ -84,6 +146,7 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   m_keptShapeKey = behind ? cubeShapeKey(cube) : 0;
   m_keptKey = behind ? 0 : cubeKey(cube);
   progress.report(0.83, "residual means (GPU)");
+  if (noiseShape.valid()) m_noiseShape = noiseShape.get();
   lap("residual means");
   std::string stages;
   for (const auto& [stage, sec] : out.stageSeconds)

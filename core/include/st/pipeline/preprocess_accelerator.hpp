@@ -44,6 +44,9 @@ struct ZeroBiasInputs {
   bool removeResidualMean = true;
   int residualMeshPx = 64;
   double residualClipSigma = 5.0;
+  /// The noise model the pipeline estimates next (estimateNoiseModel from the per-pixel sigma and the
+  /// unmeasured pixels), when it does: a device may make its variance map on the host beside its own stages.
+  const stats::NoiseModelParams* noiseModel = nullptr;
 };
 
 /// Their results; stageSeconds: "per-pixel background", "star subtraction" (when attempted), "zeroing",
