@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 
 #include "cuda_preprocess.hpp"
 #include "st/common/error.hpp"
@@ -92,34 +93,51 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   const bool hasMask = cube.mask().size() == cube.pixels().size();
   DeviceBuffer<float> pix(nf * np);
   DeviceBuffer<std::uint8_t> mask(hasMask ? nf * np : 0);
-  Uploader up(r, cube.pixels().data(), np);
-  up.upload(pix.get(), 0, static_cast<int>(nf), r.copy.get());
   if (hasMask) uploadMask(r, mask.get(), cube.mask().data(), nf * np, r.copy.get(), true);
-  r.copy.sync();
-  const double upload = sw.lap();
-  cancel.throwIfCancelled();
-  double calibrate = 0.0;
+  auto masterOnDevice = [](const Image* m) { return m ? toDevice(m->pixels) : DeviceBuffer<float>(); };
+  DeviceBuffer<float> bias, dark, flat, overscan, darkSeconds;
   if (plan) {
-    auto masterOnDevice = [](const Image* m) { return m ? toDevice(m->pixels) : DeviceBuffer<float>(); };
-    DeviceBuffer<float> bias = masterOnDevice(plan->bias), dark = masterOnDevice(plan->darkPerS),
-                        flat = masterOnDevice(plan->flat);
-    DeviceBuffer<float> overscan = toDevice(plan->overscan), darkSeconds = toDevice(plan->darkSeconds);
-    PixelCalibrationLaunch pc{pix.get(),
-                              nf,
-                              np,
-                              overscan.get(),
-                              darkSeconds.get(),
-                              plan->bias ? bias.get() : nullptr,
-                              plan->darkPerS ? dark.get() : nullptr,
-                              plan->flat ? flat.get() : nullptr};
-    launchPixelCalibration(pc, r.compute.get());
-    r.compute.sync();
-    calibrate = sw.lap();
+    bias = masterOnDevice(plan->bias);
+    dark = masterOnDevice(plan->darkPerS);
+    flat = masterOnDevice(plan->flat);
+    overscan = toDevice(plan->overscan);
+    darkSeconds = toDevice(plan->darkSeconds);
   }
+  // Chunk by chunk of 128 frames: each chunk's upload, then on the compute stream its calibration and SEP's
+  // meshes while the next chunks upload (as before 2026-12-03 with ST_GPU_FRAME_UPLOAD_WHOLE=1: the whole
+  // upload first).
+  Uploader up(r, cube.pixels().data(), np);
+  Event uploaded;
+  const auto chunkReady = [&](int f0, int f1) {
+    up.upload(pix.get(), f0, f1, r.copy.get());
+    uploaded.record(r.copy.get());
+    ST_CUDA_CHECK(cudaStreamWaitEvent(r.compute.get(), uploaded.get(), 0));
+    if (plan) {
+      const std::size_t at = static_cast<std::size_t>(f0);
+      PixelCalibrationLaunch pc{pix.get() + at * np,
+                                static_cast<std::size_t>(f1 - f0),
+                                np,
+                                overscan.get() + at,
+                                darkSeconds.get() + at,
+                                plan->bias ? bias.get() : nullptr,
+                                plan->darkPerS ? dark.get() : nullptr,
+                                plan->flat ? flat.get() : nullptr};
+      launchPixelCalibration(pc, r.compute.get());
+    }
+  };
+  const bool whole = envKnob("ST_GPU_FRAME_UPLOAD_WHOLE");
+  double upload = 0.0;
+  if (whole) {
+    chunkReady(0, static_cast<int>(nf));
+    r.compute.sync();
+    upload = sw.lap();
+  }
+  cancel.throwIfCancelled();
   progress.report(0.3, "frame backgrounds (GPU)");
   const SepFrameBackgrounds sep = removeFrameBackgroundsOnDevice(
       pix.get(), hasMask ? mask.get() : nullptr, cube.width(), cube.height(), static_cast<int>(nf),
-      params.meshPx, params.filterCells, r.compute.get());
+      params.meshPx, params.filterCells, r.compute.get(), whole ? 0 : 128,
+      whole ? std::function<void(int, int)>() : std::function<void(int, int)>(chunkReady));
   sw.lap();
   cancel.throwIfCancelled();
   progress.report(0.7, "frame backgrounds (GPU)");
@@ -156,12 +174,15 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   for (const double l : out.level)
     finite += std::isfinite(l) ? 1 : 0;
   out.framesSkipped = nf - finite;
-  m_note = std::string(plan ? "calibration and frame backgrounds on " : "frame backgrounds on ") + name() +
-           ": upload " + ms(upload) + (plan ? ", calibration " + ms(calibrate) : std::string()) +
-           ", meshes " + ms(sep.meshSeconds) + ", filter and splines on the host " + ms(sep.hostSeconds) +
-           ", subtraction " + ms(sep.subtractSeconds) +
-           (behind ? std::string(", download behind the stages after it") : ", download " + ms(down)) +
-           "; frames kept on the device for the global background, hot pixels and prefetch";
+  m_note =
+      std::string(plan ? "calibration and frame backgrounds on " : "frame backgrounds on ") + name() + ": " +
+      (whole
+           ? "upload" + std::string(plan ? " and calibration " : " ") + ms(upload) + ", meshes "
+           : std::string("upload") + (plan ? ", calibration" : "") + " and meshes by chunks of 128 frames ") +
+      ms(sep.meshSeconds) + ", filter and splines on the host " + ms(sep.hostSeconds) + ", subtraction " +
+      ms(sep.subtractSeconds) +
+      (behind ? std::string(", download behind the stages after it") : ", download " + ms(down)) +
+      "; frames kept on the device for the global background, hot pixels and prefetch";
   progress.report(1.0, "frame backgrounds (GPU)");
   return out;
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "cuda_check.hpp"
@@ -15,7 +16,8 @@ namespace st::gpu {
 
 SepFrameBackgrounds removeFrameBackgroundsOnDevice(float* pix, const std::uint8_t* mask, int width,
                                                    int height, int nf, int meshPx, int filterCells,
-                                                   cudaStream_t stream) {
+                                                   cudaStream_t stream, int framesPerChunk,
+                                                   const std::function<void(int, int)>& chunkReady) {
   using clock = std::chrono::steady_clock;
   SepFrameBackgrounds out;
   out.level.assign(static_cast<std::size_t>(nf), std::nan(""));
@@ -27,9 +29,27 @@ SepFrameBackgrounds removeFrameBackgroundsOnDevice(float* pix, const std::uint8_
   const std::size_t nb = static_cast<std::size_t>(nx) * ny;
   auto t0 = clock::now();
   DeviceBuffer<float> back(static_cast<std::size_t>(nf) * nb), sigma(static_cast<std::size_t>(nf) * nb);
-  SepMeshLaunch m{pix,        mask,       width, height, nf, bw, bh, nx, ny, stats::sep::histogramStep(),
-                  back.get(), sigma.get()};
-  launchSepMeshes(m, stream);
+  // Each chunk's meshes once chunkReady has queued what they need on the stream (its frames' upload).
+  const int chunk = framesPerChunk > 0 && chunkReady ? std::min(framesPerChunk, nf) : nf;
+  const std::size_t np = static_cast<std::size_t>(width) * height;
+  for (int f0 = 0; f0 < nf; f0 += chunk) {
+    const int f1 = std::min(nf, f0 + chunk);
+    if (chunk < nf) chunkReady(f0, f1);
+    const std::size_t at = static_cast<std::size_t>(f0);
+    SepMeshLaunch m{pix + at * np,
+                    mask ? mask + at * np : nullptr,
+                    width,
+                    height,
+                    f1 - f0,
+                    bw,
+                    bh,
+                    nx,
+                    ny,
+                    stats::sep::histogramStep(),
+                    back.get() + at * nb,
+                    sigma.get() + at * nb};
+    launchSepMeshes(m, stream);
+  }
   std::vector<float> b(back.size()), s(sigma.size()), db(back.size());
   ST_CUDA_CHECK(
       cudaMemcpyAsync(b.data(), back.get(), b.size() * sizeof(float), cudaMemcpyDeviceToHost, stream));

@@ -16,6 +16,8 @@
 // The hot pixels' per-pixel excess is made from the same kept frames. Plain structs only (C++17).
 #include <cuda_runtime.h>
 
+#include <functional>
+
 #include <cstddef>
 #include <cstdint>
 
@@ -89,10 +91,13 @@ struct SepFrameBackgrounds {
 /// stats::removeFrameBackgrounds(cube, {meshPx, filterCells}) on `pix` (nf frames of width x height on the
 /// current device, written in place; `mask` the cube's mask there, or null): SEP with bw = min(max(8,
 /// meshPx), width), bh = min(max(8, meshPx), height), fw = fh = max(1, filterCells), fthresh 0. Throws
-/// st::GpuError on a CUDA failure.
+/// st::GpuError on a CUDA failure. With `framesPerChunk` > 0 and `chunkReady`, the meshes are measured chunk
+/// by chunk of frames, chunkReady(f0, f1) called first for each (it queues on `stream` what frames [f0, f1)
+/// need first: their upload, their calibration), so that the upload of the next chunks runs beside them.
 SepFrameBackgrounds removeFrameBackgroundsOnDevice(float* pix, const std::uint8_t* mask, int width,
                                                    int height, int nf, int meshPx, int filterCells,
-                                                   cudaStream_t stream);
+                                                   cudaStream_t stream, int framesPerChunk = 0,
+                                                   const std::function<void(int, int)>& chunkReady = {});
 
 /// detect::findHotPixels's per-pixel excess from frames on the device (the frames the frame backgrounds
 /// keep): for each pixel, the smallest over `blocks` blocks of float(sum / count - background), the sum of
