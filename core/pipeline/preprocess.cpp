@@ -246,7 +246,19 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
                                                          const std::vector<detect::ShiftedBlock>& blocks,
                                                          double background, detect::ShiftedSumsForm form) {
       auto sums = sumsStep([&] { return accel->shiftedSums(c, blocks, background, form); });
-      if (!sums) accel->finishHostCopies();  // the CPU reads the host frames
+      // Not made, or not of the blocks' shape (the sky rate then drops it): the CPU reads the host frames.
+      const std::size_t np = c.framePixels();
+      const bool shaped = sums && sums->size() == blocks.size() &&
+                          std::all_of(sums->begin(), sums->end(), [&](const detect::ShiftedSums& s) {
+                            return form == detect::ShiftedSumsForm::DoubleMeans
+                                       ? s.doubleMean.size() == np
+                                       : (s.mean.size() == np && s.frames.size() == np) ||
+                                             (s.sum.size() == np && s.count.size() == np);
+                          });
+      if (!shaped) {
+        accel->finishHostCopies();
+        sums.reset();
+      }
       return sums;
     };
   DeviceStep correlationStep(params.accelerator, "the sky rate's phase correlations", out.notes);

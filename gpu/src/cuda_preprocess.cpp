@@ -136,9 +136,11 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   // The frame backgrounds' frames: this cube's pixels when the pipeline said so; else freed here, after
   // their download (if it still runs: the upload reads the host frames too).
-  const bool takeKept = m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
+  const bool takeKept = !stagewise() && m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
                         m_sepFrames.size() == cube.pixels().size();
   if (!takeKept) finishHostCopies();
+  // Taken, they may still feed that download: an exception below waits for it before they are freed.
+  const HostCopies::DrainOnError drainOnError(m_copies);
   // Their download may still be writing the host pixels: the prefetch is then known by the cube's shape.
   const bool shapeKeyOnly = takeKept && framesPending(cube);
   DeviceBuffer<float> kept;
@@ -156,15 +158,16 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   p->key = shapeKeyOnly ? cubeShapeKey(cube) : cubeKey(cube);
   p->shapeKeyOnly = shapeKeyOnly;
   p->keptFrames = kept.size() > 0;
+  if (p->keptFrames) p->pix = std::move(kept);  // owned by the prefetch from here, not by its thread
   const std::uint8_t* maskData = cube.mask().data();
   // A thread of its own, copying on that thread only: the host copies into the pinned staging buffers run
   // beside the CPU stages (static sources, PSF) instead of on every core at the per-pixel background.
-  p->thread = std::jthread([this, q = p.get(), maskData, kept = std::move(kept)]() mutable {
+  p->thread = std::jthread([this, q = p.get(), maskData]() {
     try {
       Stopwatch sw;
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
       DeviceResources& r = ensureResources(m_prefetchRes);
-      q->pix = q->keptFrames ? std::move(kept) : DeviceBuffer<float>(q->size);
+      if (!q->keptFrames) q->pix = DeviceBuffer<float>(q->size);
       if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
       if (!q->keptFrames)
         stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);

@@ -148,24 +148,40 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   // the hot pixels, registration's sampled links and the sky rate read the frames kept here on the device.
   const bool behind = m_frameDownloadBehind && !syncDownloads() && !frameDownloadFirst();
   double down = 0.0;
+  // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise), from
+  // here: the download reads them there.
+  m_sepFrames = std::move(pix);
+  m_sepMask = std::move(mask);
+  m_sepFramesData = cube.pixels().data();
+  const float* frames = m_sepFrames.get();
   if (behind) {
     const std::size_t perPiece = std::max<std::size_t>(1, kStagingBytes / (np * sizeof(float)));
-    for (std::size_t f0 = 0; f0 < nf; f0 += perPiece) {
-      const std::size_t f1 = std::min(nf, f0 + perPiece);
-      m_copies.enqueue(cube.pixels().data() + f0 * np, pix.get() + f0 * np, (f1 - f0) * np * sizeof(float),
-                       r.compute.get(), true, "the frame backgrounds", frameDownloadThreads());
+    std::size_t queued = 0;
+    try {
+      for (std::size_t f0 = 0; f0 < nf; f0 += perPiece) {
+        const std::size_t f1 = std::min(nf, f0 + perPiece);
+        m_copies.enqueue(cube.pixels().data() + f0 * np, frames + f0 * np, (f1 - f0) * np * sizeof(float),
+                         r.compute.get(), true, "the frame backgrounds", frameDownloadThreads());
+        queued = f1;
+      }
+    } catch (const std::exception& e) {
+      if (queued == 0) {  // the host cube untouched: the CPU redoes the stage, and these frames are not kept
+        m_sepFrames = DeviceBuffer<float>();
+        m_sepMask = DeviceBuffer<std::uint8_t>();
+        m_sepFramesData = nullptr;
+        throw;
+      }
+      m_copies.drain();  // the pieces queued write the host cube: the CPU may not redo the stage on it
+      throw Error("the frame backgrounds' download from " + name() + " could not be queued after frame " +
+                  std::to_string(queued) + " (" + e.what() + "), leaving the frames half written");
     }
     m_framesPendingData = cube.pixels().data();
     m_framesPendingFramePixels = np;
   } else {
-    downloadInPlace(r, cube.pixels().data(), pix.get(), nf * np * sizeof(float), r.compute.get(),
+    downloadInPlace(r, cube.pixels().data(), frames, nf * np * sizeof(float), r.compute.get(),
                     "the frame backgrounds", name());
     down = sw.lap();
   }
-  // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise).
-  m_sepFrames = std::move(pix);
-  m_sepMask = std::move(mask);
-  m_sepFramesData = cube.pixels().data();
   stats::FrameBackgrounds out;
   out.level = sep.level;
   out.rms = sep.rms;

@@ -52,6 +52,10 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
   }
   const std::size_t slots = slotFrame.size(), pairs = batch.pairs.size();
   const std::size_t pixels = static_cast<std::size_t>(bw) * bh;
+  // Its buffers stay until zeroBias, beside the kept cube: at most 3 GiB of them (64 links of 2048^2
+  // binned frames would take ~11 GB), else the CPU measures the links.
+  const std::size_t bytes = slots * (np + (np + 6) / 7 * 4 + pixels * 12) + pairs * pixels * 12;
+  if (bytes > (std::size_t{3} << 30)) return std::nullopt;
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
@@ -66,7 +70,11 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
     for (std::size_t k = 0; k < slots; ++k) {
       const std::span<const std::uint8_t> m(cube.mask().data() + static_cast<std::size_t>(slotFrame[k]) * np,
                                             np);
-      const std::optional<SparseBytes> sparse = sparseBytes(m, np);
+      const std::optional<SparseBytes> sparse = sparseBytes(m, np / 64);
+      if (!sparse) {  // a frame's mask over 1/64 set: copied whole
+        ST_CUDA_CHECK(cudaMemcpyAsync(masks.get() + k * np, m.data(), np, cudaMemcpyHostToDevice, s));
+        continue;
+      }
       for (std::size_t e = 0; e < sparse->index.size(); ++e) {
         index.push_back(k * np + sparse->index[e]);
         value.push_back(sparse->value[e]);
@@ -78,6 +86,7 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
       launchScatter(masks.get(), indexD.get(), valueD.get(), index.size(), s);
       ST_CUDA_CHECK(cudaStreamSynchronize(s));  // before the entries are freed
     }
+    ST_CUDA_CHECK(cudaStreamSynchronize(s));  // the whole frames' masks copied (pageable: before returning)
   }
   const double maskSeconds = sw.lap();
   const DeviceBuffer<int> slotFrameD = toDevice(slotFrame), pairSlotsD = toDevice(pairSlots);

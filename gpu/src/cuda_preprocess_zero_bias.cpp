@@ -35,6 +35,9 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   Stopwatch sw;
   auto lap = [&](const char* stage) { out.stageSeconds.emplace_back(stage, sw.lap()); };
   KeptCube kc;
+  // The zero-biased cube's download, queued chunk by chunk with the residual means, reads kc.pix: a
+  // cancellation or failure after the first chunk waits for it before kc is freed.
+  const HostCopies::DrainOnError drainOnError(m_copies);
   {
     SubProgress sub(progress, 0.4, 0.65);
     out.background = pixelBackground(cube, in.background, in.exclude, sub, cancel, &kc);
@@ -128,8 +131,9 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
       throw Error("the residual means failed on " + name() +
                   " after the zero-biased cube's download had begun (" + e.what() + ")");
     }
+  } else {
+    ST_CUDA_CHECK(cudaStreamSynchronize(s));
   }
-  ST_CUDA_CHECK(cudaStreamSynchronize(s));
   const double rmKernels = rm.lap();
   cancel.throwIfCancelled();
   // Every kernel succeeded: the host cube is written now (or already, chunk by chunk), and the frames kept

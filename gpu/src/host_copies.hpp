@@ -64,6 +64,23 @@ class HostCopies {
    private:
     HostCopies& m_copies;
   };
+  /// drain() when it goes out of scope because an exception unwinds it (not on a normal exit, where the
+  /// copies run on behind the caller): declared after a buffer that queued copies read, it keeps that buffer
+  /// alive until they are done.
+  class DrainOnError {
+   public:
+    explicit DrainOnError(HostCopies& copies) noexcept
+        : m_copies(copies), m_uncaught(std::uncaught_exceptions()) {}
+    ~DrainOnError() {
+      if (std::uncaught_exceptions() > m_uncaught) m_copies.drain();
+    }
+    DrainOnError(const DrainOnError&) = delete;
+    DrainOnError& operator=(const DrainOnError&) = delete;
+
+   private:
+    HostCopies& m_copies;
+    int m_uncaught;
+  };
   /// Seconds spent copying since construction (for the stages' notes: the difference over a stage).
   [[nodiscard]] double copySeconds() const;
 
