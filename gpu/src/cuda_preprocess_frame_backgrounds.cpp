@@ -109,7 +109,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   Uploader up(r, cube.pixels().data(), np);
   Event uploaded;
   const auto chunkReady = [&](int f0, int f1) {
-    up.upload(pix.get(), f0, f1, r.copy.get());
+    up.upload(pix.get() + static_cast<std::size_t>(f0) * np, f0, f1, r.copy.get());  // dst: frame f0's place
     uploaded.record(r.copy.get());
     ST_CUDA_CHECK(cudaStreamWaitEvent(r.compute.get(), uploaded.get(), 0));
     if (plan) {

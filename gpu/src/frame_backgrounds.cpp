@@ -30,11 +30,11 @@ SepFrameBackgrounds removeFrameBackgroundsOnDevice(float* pix, const std::uint8_
   auto t0 = clock::now();
   DeviceBuffer<float> back(static_cast<std::size_t>(nf) * nb), sigma(static_cast<std::size_t>(nf) * nb);
   // Each chunk's meshes once chunkReady has queued what they need on the stream (its frames' upload).
-  const int chunk = framesPerChunk > 0 && chunkReady ? std::min(framesPerChunk, nf) : nf;
+  const int chunk = framesPerChunk > 0 ? std::min(framesPerChunk, nf) : nf;
   const std::size_t np = static_cast<std::size_t>(width) * height;
   for (int f0 = 0; f0 < nf; f0 += chunk) {
     const int f1 = std::min(nf, f0 + chunk);
-    if (chunk < nf) chunkReady(f0, f1);
+    if (chunkReady) chunkReady(f0, f1);
     const std::size_t at = static_cast<std::size_t>(f0);
     SepMeshLaunch m{pix + at * np,
                     mask ? mask + at * np : nullptr,
