@@ -31,17 +31,16 @@ bool calibrateOnCpu() {
   return envKnob("ST_GPU_CALIBRATE_ON_CPU");
 }
 
-/// ST_GPU_FRAME_DOWNLOAD_BEHIND=1 leaves the frame backgrounds' download running behind registration and the
-/// sky rate (where the pipeline allows it) instead of finishing it before the stage returns. Off by default:
-/// on the H200 hosts of 2026-12-03 it saved the stage its ~35 ms download but slowed the sky rate by as much
-/// (the sky rate's own device-to-host copies and host copies share the link and the memory with it), the
-/// pre-processing within the hosts' noise either way (gpu/bench/HISTORY.md).
-bool frameDownloadBehind() {
-  return envKnob("ST_GPU_FRAME_DOWNLOAD_BEHIND");
+/// Benchmark knob: ST_GPU_FRAME_DOWNLOAD_FIRST=1 finishes the frame backgrounds' download before the stage
+/// returns, as before 2026-12-03, instead of behind registration and the sky rate. Behind, the stage saves
+/// its ~35 ms download and the sky rate loses ~25 ms to it (its own device-to-host copies and host copies
+/// share the link and the memory): pre-processing 0.57-0.59 s against 0.59-0.66 s on one H200 host
+/// (2026-12-03 03:33 UTC), with 2 copy threads; 6 and every core slowed the sky rate by all they saved.
+bool frameDownloadFirst() {
+  return envKnob("ST_GPU_FRAME_DOWNLOAD_FIRST");
 }
 
-/// The threads of that download's host copy: 2, or ST_GPU_FRAME_DOWNLOAD_THREADS (0: every core; 6 and
-/// every core slowed the sky rate more, 2026-12-03).
+/// The threads of that download's host copy: 2, or ST_GPU_FRAME_DOWNLOAD_THREADS (0: every core).
 unsigned frameDownloadThreads() {
   const char* e = std::getenv("ST_GPU_FRAME_DOWNLOAD_THREADS");
   return e && *e ? static_cast<unsigned>(std::strtoul(e, nullptr, 10)) : 2u;
@@ -145,12 +144,12 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   cancel.throwIfCancelled();
   progress.report(0.7, "frame backgrounds (GPU)");
   // Every kernel succeeded: the host cube is written now (a failure part way stops the run: the CPU would
-  // calibrate or subtract the frames written again). Where the pipeline allows it and
-  // ST_GPU_FRAME_DOWNLOAD_BEHIND asks for it, behind the stages after this one (HostCopies), in pieces of a
+  // calibrate or subtract the frames written again). Where the pipeline allows it, behind the stages after
+  // this one (HostCopies), in pieces of a
   // staging buffer (32 MiB) that a stage needing a few frames first (registration's sampled links on the CPU:
   // waitForHostFrames) moves to the front; the global background, the hot pixels, registration's sampled
   // links and the sky rate read the frames kept here on the device.
-  const bool behind = m_frameDownloadBehind && frameDownloadBehind() && !syncDownloads();
+  const bool behind = m_frameDownloadBehind && !frameDownloadFirst() && !syncDownloads();
   double down = 0.0;
   // Kept for the prefetch of this cube (its pixels equal these until the pipeline says otherwise), from
   // here: the download reads them there.

@@ -181,19 +181,13 @@ TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
   }
 }
 
-// The frames' download behind the stages after the frame backgrounds (allowFrameDownloadBehind with
-// ST_GPU_FRAME_DOWNLOAD_BEHIND=1, issue 16):
+// The frames' download behind the stages after the frame backgrounds (allowFrameDownloadBehind, issue 16):
 // frames asked for with waitForHostFrames (from several threads, the last ones first) are the synchronous
 // download's bit for bit before the rest has landed; the global background and hot pixels come from the kept
 // frames meanwhile, equal to the synchronous run's; finishHostCopies leaves the whole cube equal. Without
 // the pipeline's word the download is done on return, as before.
 TEST(GpuFrameBackgrounds, DownloadBehindGivesTheSameFramesWhenWaitedFor) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
-  // Off by default (it did not pay on the H200 hosts): asked for by its knob, set for this test only.
-  ::setenv("ST_GPU_FRAME_DOWNLOAD_BEHIND", "1", 1);
-  const struct Unset {
-    ~Unset() { ::unsetenv("ST_GPU_FRAME_DOWNLOAD_BEHIND"); }
-  } unset;
   for (const bool withMask : {false, true}) {
     // 1 MB frames: 32 to a download piece, so asking for one frame moves one piece ahead of up to 7 others.
     const FrameCube in = skyCube(512, 512, 240, 8, withMask);
