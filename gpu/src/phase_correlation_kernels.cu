@@ -195,24 +195,14 @@ __global__ void pairPeaks(PhaseCorrelationLaunch p) {
   out[3] = 1.0;
 }
 
-// Opts `kernel` in to `bytes` of dynamic shared memory where that and its static shared memory (reducePeak's
-// arrays) pass the default 48 KB a block.
-void allowSharedBytes(const void* kernel, std::size_t bytes) {
-  cudaFuncAttributes attr{};
-  check(cudaFuncGetAttributes(&attr, kernel), "cudaFuncGetAttributes(phase correlation kernel)");
-  if (bytes + attr.sharedSizeBytes > 48 * 1024)
-    check(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, static_cast<int>(bytes)),
-          "cudaFuncSetAttribute(phase correlation shared memory)");
-}
-
 }  // namespace
 
 void launchPhaseCorrelation(const PhaseCorrelationLaunch& p, cudaStream_t s) {
   const std::size_t rowBytes = static_cast<std::size_t>(p.x.n) * sizeof(float2);
   const std::size_t colBytes = 2 * static_cast<std::size_t>(p.y.n) * sizeof(float2);
-  allowSharedBytes(reinterpret_cast<const void*>(&rowsForward), rowBytes);
-  allowSharedBytes(reinterpret_cast<const void*>(&rowsInverse), rowBytes);
-  allowSharedBytes(reinterpret_cast<const void*>(&columnsCrossPower), colBytes);
+  allowSharedBytes(reinterpret_cast<const void*>(&rowsForward), rowBytes, "phase correlation kernel");
+  allowSharedBytes(reinterpret_cast<const void*>(&rowsInverse), rowBytes, "phase correlation kernel");
+  allowSharedBytes(reinterpret_cast<const void*>(&columnsCrossPower), colBytes, "phase correlation kernel");
   rowsForward<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(2 * p.pairs)), kThreads, rowBytes,
                 s>>>(p);
   checkLaunch("phase correlation: rowsForward");

@@ -5,6 +5,10 @@
 // for the .cu files that include it.
 #include <cuda_runtime.h>
 
+#include <cstddef>
+#include <string>
+
+#include "cuda_check.hpp"
 #include "phase_correlation_kernels.hpp"
 
 namespace st::gpu::fft {
@@ -100,6 +104,16 @@ __device__ inline void fftShared(float2* s, const PhaseFftAxis& a, bool inverse)
     }
     m *= a.radix[st];
   }
+}
+
+/// Opts `kernel` in to `bytes` of dynamic shared memory where that and its static shared memory pass the
+/// default 48 KB a block (host code); `what` names the kernels in the error.
+inline void allowSharedBytes(const void* kernel, std::size_t bytes, const char* what) {
+  cudaFuncAttributes attr{};
+  check(cudaFuncGetAttributes(&attr, kernel), (std::string("cudaFuncGetAttributes(") + what + ")").c_str());
+  if (bytes + attr.sharedSizeBytes > 48 * 1024)
+    check(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, static_cast<int>(bytes)),
+          (std::string("cudaFuncSetAttribute(") + what + " shared memory)").c_str());
 }
 
 }  // namespace st::gpu::fft

@@ -259,14 +259,6 @@ __global__ void pairPeaks(RegistrationLinkLaunch p) {
   out[2] = rms > 0.0 ? (at(px, py) - mean) / rms : 0.0;
 }
 
-void allowSharedBytes(const void* kernel, std::size_t bytes) {
-  cudaFuncAttributes attr{};
-  check(cudaFuncGetAttributes(&attr, kernel), "cudaFuncGetAttributes(registration link kernel)");
-  if (bytes + attr.sharedSizeBytes > 48 * 1024)
-    check(cudaFuncSetAttribute(kernel, cudaFuncAttributeMaxDynamicSharedMemorySize, static_cast<int>(bytes)),
-          "cudaFuncSetAttribute(registration link shared memory)");
-}
-
 }  // namespace
 
 void launchRegistrationLinks(const RegistrationLinkLaunch& p, cudaStream_t s) {
@@ -277,9 +269,10 @@ void launchRegistrationLinks(const RegistrationLinkLaunch& p, cudaStream_t s) {
   checkLaunch("registration links: starImages");
   const std::size_t rowBytes = static_cast<std::size_t>(p.x.n) * sizeof(float2);
   const std::size_t colBytes = 2 * static_cast<std::size_t>(p.y.n) * sizeof(float2);
-  allowSharedBytes(reinterpret_cast<const void*>(&rowsForward), rowBytes);
-  allowSharedBytes(reinterpret_cast<const void*>(&rowsInverse), rowBytes);
-  allowSharedBytes(reinterpret_cast<const void*>(&columnsCrossCorrelation), colBytes);
+  allowSharedBytes(reinterpret_cast<const void*>(&rowsForward), rowBytes, "registration link kernel");
+  allowSharedBytes(reinterpret_cast<const void*>(&rowsInverse), rowBytes, "registration link kernel");
+  allowSharedBytes(reinterpret_cast<const void*>(&columnsCrossCorrelation), colBytes,
+                   "registration link kernel");
   rowsForward<<<dim3(static_cast<unsigned>(p.y.n), static_cast<unsigned>(p.slots)), kThreads, rowBytes, s>>>(
       p);
   checkLaunch("registration links: rowsForward");
