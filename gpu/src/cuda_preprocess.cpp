@@ -22,9 +22,9 @@ namespace st::gpu {
 using namespace preprocess_detail;
 
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
-                                 cudaStream_t s, unsigned copyThreads) {
+                                 cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes) {
   r.copy.sync();  // the staging buffers may still feed an upload
-  const std::size_t piece = kStagingBytes;
+  const std::size_t piece = chunkBytes > 0 ? std::min(chunkBytes, kStagingBytes) : kStagingBytes;
   const std::size_t pieces = (bytes + piece - 1) / piece;
   Event ready[2];
   auto enqueue = [&](std::size_t p) {

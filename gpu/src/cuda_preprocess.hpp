@@ -101,9 +101,10 @@ inline bool phaseCorrelationsOnHost() {
 
 /// Device -> pageable host through the two pinned staging buffers (the host copy of one piece on every
 /// core while the next piece's DMA runs).
-/// `copyThreads` bounds the threads of the host copy (0: every core).
+/// `copyThreads` bounds the threads of the host copy (0: every core); `chunkBytes` (0: a staging buffer's)
+/// the size of each DMA, so that other streams' copies wait at most one such chunk on the copy engine.
 void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
-              unsigned copyThreads = 0);
+              unsigned copyThreads = 0, std::size_t chunkBytes = 0);
 
 /// download() into the pipeline's own cube, in place: a failure part way leaves it half written, so it is
 /// not a GpuError (whose contract is a cube as it was, for the CPU to process again) but an Error that

@@ -46,6 +46,13 @@ unsigned frameDownloadThreads() {
   return e && *e ? static_cast<unsigned>(std::strtoul(e, nullptr, 10)) : 2u;
 }
 
+/// Each DMA of that download: 32 MiB (a staging buffer), or ST_GPU_FRAME_DOWNLOAD_CHUNK_MB MiB: the sky
+/// rate's own small downloads wait behind one such DMA on the copy engine.
+std::size_t frameDownloadChunkBytes() {
+  const char* e = std::getenv("ST_GPU_FRAME_DOWNLOAD_CHUNK_MB");
+  return e && *e ? static_cast<std::size_t>(std::strtoul(e, nullptr, 10)) << 20 : kStagingBytes;
+}
+
 }  // namespace
 
 void CudaPreprocess::waitForHostFrames(const FrameCube& cube, std::size_t first, std::size_t end) {
@@ -164,7 +171,8 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
       for (std::size_t f0 = 0; f0 < nf; f0 += perPiece) {
         const std::size_t f1 = std::min(nf, f0 + perPiece);
         m_copies.enqueue(cube.pixels().data() + f0 * np, frames + f0 * np, (f1 - f0) * np * sizeof(float),
-                         r.compute.get(), true, "the frame backgrounds", frameDownloadThreads());
+                         r.compute.get(), true, "the frame backgrounds", frameDownloadThreads(),
+                         frameDownloadChunkBytes());
         queued = f1;
       }
     } catch (const std::exception& e) {

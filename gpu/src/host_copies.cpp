@@ -29,9 +29,9 @@ DeviceResources& HostCopies::resources() {
 }
 
 void HostCopies::enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
-                         std::string what, unsigned copyThreads) {
+                         std::string what, unsigned copyThreads, std::size_t chunkBytes) {
   if (bytes == 0) return;
-  Piece p{host, dev, bytes, Event(), inPlace, std::move(what), copyThreads};
+  Piece p{host, dev, bytes, Event(), inPlace, std::move(what), copyThreads, chunkBytes};
   p.ready.record(writer);
   {
     const std::lock_guard lock(m_mutex);
@@ -105,7 +105,7 @@ void HostCopies::run(std::stop_token stop) {
       DeviceResources& r = resources();
       ST_CUDA_CHECK(cudaSetDevice(m_device));
       ST_CUDA_CHECK(cudaStreamWaitEvent(r.copy.get(), p.ready.get(), 0));
-      preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get(), p.copyThreads);
+      preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get(), p.copyThreads, p.chunkBytes);
     } catch (const GpuError& e) {
       error = std::current_exception();
       if (p.inPlace) {

@@ -36,9 +36,10 @@ class HostCopies {
   /// destination anew). `what` names the data in messages. The caller keeps `dev` and `host` alive and
   /// unwritten until wait() or drain() returns (DrainOnExit for the exceptions on the way).
   /// `copyThreads` bounds the threads of its host copy (0: every core; a few for a download that runs behind
-  /// host stages, which would lose their cores to it).
+  /// host stages, which would lose their cores to it); `chunkBytes` each DMA's size
+  /// (preprocess_detail::download).
   void enqueue(void* host, const void* dev, std::size_t bytes, cudaStream_t writer, bool inPlace,
-               std::string what, unsigned copyThreads = 0);
+               std::string what, unsigned copyThreads = 0, std::size_t chunkBytes = 0);
   /// Blocks until every queued copy is done; the first failure since the last wait() is returned (and
   /// forgotten), null when none.
   [[nodiscard]] std::exception_ptr wait();
@@ -93,6 +94,7 @@ class HostCopies {
     bool inPlace;
     std::string what;
     unsigned copyThreads;
+    std::size_t chunkBytes;  ///< each DMA's size (0: a staging buffer's)
   };
   void run(std::stop_token stop);
   DeviceResources& resources();
