@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
 #include <limits>
+#include <mutex>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -133,6 +138,122 @@ SkyStack stackAtSkyRate(const FrameCube& cube, Velocity rate, double subtract, P
   return s;
 }
 
+// The stacks a prefetch makes on its thread, handed to stack() one by one.
+struct SkyStackCache::Prefetch {
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::vector<Key> keys;
+  std::vector<std::optional<SkyStack>> stacks;  // none: the provider declined (the CPU makes it)
+  std::vector<std::exception_ptr> errors;       // rethrown by the stack() that asks for it
+  std::vector<char> finished, taken, made;
+  double seconds = 0.0;
+  std::jthread thread;  // last: joined before the members it writes are destroyed
+
+  // The stack of `key` when it is one of them not taken yet (`*found`), waiting for it: none when the
+  // provider did not make it; its exception rethrown.
+  std::optional<SkyStack> take(const Key& key, bool* found) {
+    std::unique_lock lock(mutex);
+    *found = false;
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      if (taken[k] || keys[k] != key) continue;
+      changed.wait(lock, [&] { return finished[k] != 0; });
+      taken[k] = 1;
+      *found = true;
+      if (errors[k]) std::rethrow_exception(errors[k]);
+      return std::move(stacks[k]);
+    }
+    return std::nullopt;
+  }
+};
+
+void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtract,
+                             const std::vector<Range>& ranges) {
+  if (!m_provider) return;
+  if (m_prefetch) {
+    {
+      const std::lock_guard lock(m_prefetch->mutex);
+      if (std::find(m_prefetch->finished.begin(), m_prefetch->finished.end(), 0) !=
+          m_prefetch->finished.end())
+        return;  // one in flight
+    }
+    settle();
+    // The stacks the last one made that were not asked for are kept.
+    for (std::size_t k = 0; k < m_prefetch->keys.size(); ++k)
+      if (!m_prefetch->taken[k] && m_prefetch->stacks[k] && !m_prefetch->errors[k]) {
+        m_stacks.emplace(m_prefetch->keys[k], std::move(*m_prefetch->stacks[k]));
+        ++m_made, ++m_provided;
+      }
+    m_prefetchedBefore += static_cast<int>(std::count(m_prefetch->made.begin(), m_prefetch->made.end(), 1));
+    m_prefetchSecondsBefore += m_prefetch->seconds;
+    m_prefetch.reset();
+  }
+  std::vector<Key> keys;
+  const std::size_t nf = cube.frameCount();
+  for (auto [first, last] : ranges) {
+    if (last == 0 || last > nf) last = nf;
+    const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last};
+    if (first < last && !m_stacks.contains(key) && std::find(keys.begin(), keys.end(), key) == keys.end())
+      keys.push_back(key);
+  }
+  if (keys.empty()) return;
+  auto pf = std::make_shared<Prefetch>();
+  pf->keys = keys;
+  pf->stacks.resize(keys.size());
+  pf->errors.resize(keys.size());
+  pf->finished.assign(keys.size(), 0);
+  pf->taken.assign(keys.size(), 0);
+  pf->made.assign(keys.size(), 0);
+  // The thread reads the cube, a copy of the provider and the state it is joined with (never *this, which
+  // may be moved meanwhile).
+  try {
+    pf->thread = std::jthread([state = pf.get(), provider = m_provider, c = &cube, rate, subtract] {
+      const auto t0 = std::chrono::steady_clock::now();
+      for (std::size_t k = 0; k < state->keys.size(); ++k) {
+        std::optional<SkyStack> made;
+        std::exception_ptr error;
+        try {
+          made = provider(*c, rate, subtract, std::get<4>(state->keys[k]), std::get<5>(state->keys[k]));
+        } catch (...) {
+          error = std::current_exception();
+        }
+        const std::lock_guard lock(state->mutex);
+        state->made[k] = made ? 1 : 0;
+        state->stacks[k] = std::move(made);
+        state->errors[k] = error;
+        state->finished[k] = 1;
+        if (k + 1 == state->keys.size())
+          state->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        state->changed.notify_all();
+      }
+    });
+  } catch (const std::system_error&) {
+    return;  // no thread: stack() makes each as before
+  }
+  m_prefetch = std::move(pf);
+}
+
+void SkyStackCache::settle() {
+  if (m_prefetch && m_prefetch->thread.joinable()) m_prefetch->thread.join();
+}
+
+double SkyStackCache::prefetchSeconds() const {
+  double s = m_prefetchSecondsBefore;
+  if (m_prefetch) {
+    const std::lock_guard lock(m_prefetch->mutex);
+    s += m_prefetch->seconds;
+  }
+  return s;
+}
+
+int SkyStackCache::prefetched() const {
+  int n = m_prefetchedBefore;
+  if (m_prefetch) {
+    const std::lock_guard lock(m_prefetch->mutex);
+    n += static_cast<int>(std::count(m_prefetch->made.begin(), m_prefetch->made.end(), 1));
+  }
+  return n;
+}
+
 const SkyStack& SkyStackCache::stack(const FrameCube& cube, Velocity rate, double subtract,
                                      ProgressSink& progress, CancelToken& cancel, std::size_t first,
                                      std::size_t last) {
@@ -145,7 +266,9 @@ const SkyStack& SkyStackCache::stack(const FrameCube& cube, Velocity rate, doubl
   }
   const auto t0 = std::chrono::steady_clock::now();
   std::optional<SkyStack> made;
-  if (m_provider) made = m_provider(cube, rate, subtract, first, last);
+  bool prefetched = false;
+  if (m_prefetch) made = m_prefetch->take(key, &prefetched);
+  if (m_provider && !prefetched) made = m_provider(cube, rate, subtract, first, last);
   if (made) {
     ++m_provided;
     progress.report(1.0, "stack at sky rate");

@@ -17,12 +17,18 @@ double median(std::vector<double> v) {
 
 }  // namespace
 
+std::vector<SkyStackCache::Range> thirdRanges(std::size_t frames) {
+  const std::size_t third = frames / 3;
+  if (third < 2) return {};
+  return {{0, third}, {third, frames - third}, {frames - third, frames}};
+}
+
 ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double background, int meshPx,
                         SkyStackCache& stacks, CancelToken& cancel) {
   ThirdStacks out;
-  const std::size_t n = cube.frameCount(), third = n / 3;
-  if (third < 2) return out;
-  const std::size_t bounds[4] = {0, third, n - third, n};
+  const std::vector<SkyStackCache::Range> ranges = thirdRanges(cube.frameCount());
+  if (ranges.empty()) return out;
+  const std::size_t bounds[4] = {ranges[0].first, ranges[1].first, ranges[2].first, ranges[2].second};
   const std::vector<double> dt = cube.timeOffsetsS();
   NullProgress none;
   for (int k = 0; k < 3; ++k) {

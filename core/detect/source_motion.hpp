@@ -32,6 +32,8 @@ struct ThirdStacks {
 };
 ThirdStacks thirdStacks(const FrameCube& cube, Velocity skyRate, double background, int meshPx,
                         SkyStackCache& stacks, CancelToken& cancel);
+/// The frame ranges thirdStacks stacks for a cube of `frames` frames (none below 6 frames).
+std::vector<SkyStackCache::Range> thirdRanges(std::size_t frames);
 
 /// A source's centroids (canvas px, less the integer-shift residuals) in the three thirds, with their
 /// variances from the stack noise (single-frame sigma / sqrt(count) per pixel; the source's own photon

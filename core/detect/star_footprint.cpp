@@ -27,16 +27,17 @@ bool haveAvx2() {
 
 // filteredSnr's pixels x0, x0 + 1, ... of row y while a block of 16 fits before xEnd (every tap inside the
 // row): per pixel the same products and sums in the same order as the scalar loop. Returns the next x.
-__attribute__((target("avx2"))) int filteredSnrInteriorAvx2(const float* rc, const float* cnt, const double* k,
-                                                            int w, int h, int r, int y, int x0, int xEnd,
-                                                            double sigma, float* out) {
+__attribute__((target("avx2"))) int filteredSnrInteriorAvx2(const float* rc, const float* cnt,
+                                                            const double* k, int w, int h, int r, int y,
+                                                            int x0, int xEnd, double sigma, float* out) {
   const int kw = 2 * r + 1;
   const int j0 = std::max(-r, -y), j1 = std::min(r, h - 1 - y);
   const __m256d sg = _mm256_set1_pd(sigma), zero = _mm256_setzero_pd();
   int x = x0;
   for (; x + 16 <= xEnd; x += 16) {
     __m256d num[4], den[4];
-    for (int q = 0; q < 4; ++q) num[q] = den[q] = _mm256_setzero_pd();
+    for (int q = 0; q < 4; ++q)
+      num[q] = den[q] = _mm256_setzero_pd();
     for (int j = j0; j <= j1; ++j) {
       const std::size_t row = static_cast<std::size_t>(y + j) * w;
       const double* kr = k + static_cast<std::size_t>(j + r) * kw + r;
@@ -47,10 +48,12 @@ __attribute__((target("avx2"))) int filteredSnrInteriorAvx2(const float* rc, con
         const float* pc = cnt + row + x + i;
         const __m256 r0 = _mm256_loadu_ps(pr), r1 = _mm256_loadu_ps(pr + 8);
         const __m256 c0 = _mm256_loadu_ps(pc), c1 = _mm256_loadu_ps(pc + 8);
-        const __m256d rv[4] = {_mm256_cvtps_pd(_mm256_castps256_ps128(r0)), _mm256_cvtps_pd(_mm256_extractf128_ps(r0, 1)),
-                               _mm256_cvtps_pd(_mm256_castps256_ps128(r1)), _mm256_cvtps_pd(_mm256_extractf128_ps(r1, 1))};
-        const __m256d cv[4] = {_mm256_cvtps_pd(_mm256_castps256_ps128(c0)), _mm256_cvtps_pd(_mm256_extractf128_ps(c0, 1)),
-                               _mm256_cvtps_pd(_mm256_castps256_ps128(c1)), _mm256_cvtps_pd(_mm256_extractf128_ps(c1, 1))};
+        const __m256d rv[4] = {
+            _mm256_cvtps_pd(_mm256_castps256_ps128(r0)), _mm256_cvtps_pd(_mm256_extractf128_ps(r0, 1)),
+            _mm256_cvtps_pd(_mm256_castps256_ps128(r1)), _mm256_cvtps_pd(_mm256_extractf128_ps(r1, 1))};
+        const __m256d cv[4] = {
+            _mm256_cvtps_pd(_mm256_castps256_ps128(c0)), _mm256_cvtps_pd(_mm256_extractf128_ps(c0, 1)),
+            _mm256_cvtps_pd(_mm256_castps256_ps128(c1)), _mm256_cvtps_pd(_mm256_extractf128_ps(c1, 1))};
         for (int q = 0; q < 4; ++q) {
           num[q] = _mm256_add_pd(num[q], _mm256_mul_pd(kv, rv[q]));
           den[q] = _mm256_add_pd(den[q], _mm256_mul_pd(k2, cv[q]));
@@ -62,8 +65,9 @@ __attribute__((target("avx2"))) int filteredSnrInteriorAvx2(const float* rc, con
       const __m256d pos = _mm256_cmp_pd(den[q], zero, _CMP_GT_OQ);
       float* o = out + static_cast<std::size_t>(y) * w + x + 4 * q;
       const __m128 prev = _mm_loadu_ps(o);
-      _mm_storeu_ps(o, _mm_blendv_ps(prev, _mm256_cvtpd_ps(snr), _mm_castsi128_ps(_mm256_cvtpd_epi32(
-                                                                   _mm256_and_pd(pos, _mm256_set1_pd(-1.0))))));
+      _mm_storeu_ps(
+          o, _mm_blendv_ps(prev, _mm256_cvtpd_ps(snr),
+                           _mm_castsi128_ps(_mm256_cvtpd_epi32(_mm256_and_pd(pos, _mm256_set1_pd(-1.0))))));
     }
   }
   return x;
@@ -126,14 +130,18 @@ std::vector<float> filteredSnr(const Image& resid, const Image& count, double si
   return out;
 }
 
+std::vector<SkyStackCache::Range> halfRanges(std::size_t frames) {
+  return {{0, frames / 2}, {frames / 2, frames}};
+}
+
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
                       double sigma, double fwhmPx, SkyStackCache& stacks, CancelToken& cancel) {
   HalfStacks out;
-  const std::size_t half = cube.frameCount() / 2;
+  const std::vector<SkyStackCache::Range> ranges = halfRanges(cube.frameCount());
   NullProgress none;
   for (int k = 0; k < 2; ++k) {
-    const SkyStack& h = k == 0 ? stacks.stack(cube, skyRate, background, none, cancel, 0, half)
-                               : stacks.stack(cube, skyRate, background, none, cancel, half, 0);
+    const auto [first, last] = ranges[static_cast<std::size_t>(k)];
+    const SkyStack& h = stacks.stack(cube, skyRate, background, none, cancel, first, last);
     const Image resid = residualWhereCounted(h.mean, h.count, local);
     (k == 0 ? out.first : out.second) = filteredSnr(resid, h.count, sigma, fwhmPx, stacks.snrProvider());
     (k == 0 ? out.countFirst : out.countSecond) = h.count;

@@ -37,6 +37,8 @@ struct HalfStacks {
 };
 HalfStacks halfStacks(const FrameCube& cube, Velocity skyRate, double background, const Image& local,
                       double sigma, double fwhmPx, SkyStackCache& stacks, CancelToken& cancel);
+/// The frame ranges halfStacks stacks for a cube of `frames` frames.
+std::vector<SkyStackCache::Range> halfRanges(std::size_t frames);
 
 /// `count` with 0 wherever snr or snrF is at least `level`, dilated by a square of +-growPx: the weight of
 /// a background that leaves the sources out.

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <future>
+#include <mutex>
 #include <optional>
 #include <sstream>
 
@@ -313,11 +314,16 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // Stacks at the sky rate on a device, from the cube prefetch() is uploading (issue 16): the cosmic rays'
   // protection, then the static sources and the PSF. A device failure: a note, the CPU stacks from then on.
   DeviceStep stacksStep(params.accelerator, "the stacks at the sky rate", out.notes);
+  // The static-source search has the stacks of the thirds and halves made on a thread of the cache's beside
+  // its own device calls (the stacks and their SNR maps): one at a time, and their DeviceSteps' counts and
+  // notes with them.
+  std::mutex stackCalls;
   detect::SkyStackCache::Provider deviceStacks;
   if (params.accelerator)
-    deviceStacks = [&stacksStep, accel = params.accelerator](const FrameCube& c, Velocity rate,
-                                                             double subtract, std::size_t firstFrame,
-                                                             std::size_t endFrame) {
+    deviceStacks = [&stacksStep, &stackCalls, accel = params.accelerator](
+                       const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
+                       std::size_t endFrame) {
+      const std::lock_guard lock(stackCalls);
       return stacksStep([&] { return accel->skyStack(c, rate, subtract, firstFrame, endFrame); });
     };
   calib::CosmicRayResult cr;
@@ -362,9 +368,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // on the device too: the same values.
   DeviceStep snrStep(params.accelerator, "the static sources' filtered SNR", out.notes);
   if (params.accelerator)
-    skyStacks.setSnrProvider([&snrStep, accel = params.accelerator](const detect::FilteredSnrInputs& in) {
-      return snrStep([&] { return accel->filteredSnr(in); });
-    });
+    skyStacks.setSnrProvider(
+        [&snrStep, &stackCalls, accel = params.accelerator](const detect::FilteredSnrInputs& in) {
+          const std::lock_guard lock(stackCalls);
+          return snrStep([&] { return accel->filteredSnr(in); });
+        });
   {
     SubProgress sub(progress, 0.3, 0.38);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
@@ -395,8 +403,10 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator) {
     std::ostringstream note;
     note << "stacks at the sky rate: " << skyStacks.made() << " made (" << skyStacks.provided() << " on "
-         << params.accelerator->name() << ") in " << skyStacks.seconds()
-         << " s; their filtered SNR maps: " << snrStep.asked << " (" << snrStep.made << " on the device)";
+         << params.accelerator->name() << ", " << skyStacks.prefetched()
+         << " of them beside the host work in " << skyStacks.prefetchSeconds() << " s) in "
+         << skyStacks.seconds() << " s; their filtered SNR maps: " << snrStep.asked << " (" << snrStep.made
+         << " on the device)";
     out.notes.push_back(note.str());
   }
   skyStacks = detect::SkyStackCache();  // its memory (several canvases) is not needed any more

@@ -5,8 +5,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <future>
 #include <optional>
 #include <random>
+#include <stdexcept>
+#include <thread>
 
 #include "st/calib/calibration.hpp"
 #include "st/common/error.hpp"
@@ -62,7 +67,8 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return std::nullopt;  // a working device that declines: the CPU makes the map
   }
-  std::optional<std::vector<detect::PhasePeak>> phaseCorrelations(const detect::PhaseCorrelationBatch&) override {
+  std::optional<std::vector<detect::PhasePeak>> phaseCorrelations(
+      const detect::PhaseCorrelationBatch&) override {
     ++phaseCalls;
     act();
     return std::nullopt;  // a working device that declines: the CPU correlates
@@ -370,6 +376,65 @@ TEST(SkyStackCache, ProviderStacksAreUsedAndNoneFallsBackToTheCpu) {
   EXPECT_EQ(asked, 2);
   EXPECT_EQ(cache.made(), 2);
   EXPECT_EQ(cache.provided(), 1);
+}
+
+// A prefetch (issue 16: the static-source search's thirds and halves made on a device beside its host work)
+// runs the provider on a thread of its own and returns at once; stack() hands out what it made, the CPU's
+// stack where it declined, and its exception where it threw; the stacks are those asked for one by one.
+TEST(SkyStackCache, PrefetchRunsTheProviderOnItsOwnThreadAndStackTakesWhatItMade) {
+  const FrameCube c = noiseCube(48, 40, 30);
+  NullProgress progress;
+  CancelToken cancel;
+  const Velocity rate{0.5, -0.2};
+  detect::SkyStackCache cache;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  std::atomic<int> asked{0};
+  std::thread::id providerThread;
+  cache.setProvider([&](const FrameCube& cube, Velocity v, double subtract, std::size_t first,
+                        std::size_t last) -> std::optional<detect::SkyStack> {
+    if (asked++ == 0) {
+      released.wait();  // the caller goes on meanwhile
+      providerThread = std::this_thread::get_id();
+    }
+    if (first == 5) throw std::runtime_error("provider fault");
+    if (first != 0) return std::nullopt;
+    detect::SkyStack s = detect::stackAtSkyRate(cube, v, subtract, progress, cancel, first, last);
+    s.mean.pixels[0] = 12345.0f + static_cast<float>(last);  // the provider's, and which
+    return s;
+  });
+  cache.prefetch(c, rate, 100.0, {{0, 10}, {10, 20}, {5, 15}, {0, 0}, {0, 30}});  // {0, 0} is {0, 30}
+  // prefetch() returned while its thread's first call waits for the release.
+  for (int i = 0; i < 5000 && asked.load() == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(asked.load(), 1);
+  release.set_value();
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 0, 10).mean.pixels[0], 12355.0f);
+  EXPECT_NE(providerThread, std::this_thread::get_id());
+  const detect::SkyStack cpu = detect::stackAtSkyRate(c, rate, 100.0, progress, cancel, 10, 20);
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 10, 20).mean.pixels, cpu.mean.pixels);
+  EXPECT_THROW(cache.stack(c, rate, 100.0, progress, cancel, 5, 15), std::runtime_error);
+  cache.settle();
+  EXPECT_EQ(asked.load(), 4);  // one call a distinct range; none more when asked
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel).mean.pixels[0], 12375.0f);
+  EXPECT_EQ(cache.prefetched(), 2);
+  EXPECT_EQ(cache.provided(), 2);
+  EXPECT_EQ(cache.made(), 3);
+  // Every range made already (or made by this prefetch): nothing new asked.
+  cache.prefetch(c, rate, 100.0, {{0, 10}, {10, 20}, {0, 30}});
+  cache.settle();
+  EXPECT_EQ(asked.load(), 4);
+  // A stack it made that was never asked for is kept by the next prefetch, and the provider is not asked
+  // for it again.
+  cache.prefetch(c, rate, 100.0, {{0, 20}});
+  cache.settle();
+  cache.prefetch(c, rate, 100.0, {{0, 20}, {0, 25}});
+  cache.settle();
+  EXPECT_EQ(asked.load(), 6);
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 0, 20).mean.pixels[0], 12365.0f);
+  EXPECT_EQ(cache.stack(c, rate, 100.0, progress, cancel, 0, 25).mean.pixels[0], 12370.0f);
+  EXPECT_EQ(asked.load(), 6);
+  EXPECT_EQ(cache.prefetched(), 4);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <tuple>
 #include <vector>
@@ -69,18 +70,37 @@ class SkyStackCache {
   void setSnrProvider(SnrProvider provider) { m_snrProvider = std::move(provider); }
   /// The SNR provider, or null.
   [[nodiscard]] const SnrProvider* snrProvider() const { return m_snrProvider ? &m_snrProvider : nullptr; }
-  /// Stacks made so far, those of them the provider made, and the wall time spent making them (s).
+  /// A frame range [first, last) of a cube (last = 0: to its last frame).
+  using Range = std::pair<std::size_t, std::size_t>;
+  /// Starts making the stacks of these ranges (those not made yet) by the provider, one after another on a
+  /// thread of its own (issue 16: a device makes them beside the host work that comes before they are asked
+  /// for); stack() takes each as it is asked for, waiting for it if need be, and the CPU makes one the
+  /// provider did not. Nothing without a provider or while a prefetch is in flight. The provider is then
+  /// called from that thread beside this thread's own calls of it and of the SNR provider: the caller makes
+  /// those calls exclusive (pipeline/preprocess.cpp). The cube must stay unchanged until settle() or the
+  /// cache's end.
+  void prefetch(const FrameCube& cube, Velocity rate, double subtract, const std::vector<Range>& ranges);
+  /// Waits for a prefetch in flight; its stacks stay for stack().
+  void settle();
+
+  /// Stacks made so far, those of them the provider made, and the wall time spent making them (s): on this
+  /// thread (a prefetched stack counts the wait for it only).
   [[nodiscard]] int made() const { return m_made; }
   [[nodiscard]] int provided() const { return m_provided; }
   [[nodiscard]] double seconds() const { return m_seconds; }
+  /// The stacks the provider made on the prefetches' thread, and that thread's wall time (s).
+  [[nodiscard]] int prefetched() const;
+  [[nodiscard]] double prefetchSeconds() const;
 
  private:
   using Key = std::tuple<const void*, double, double, double, std::size_t, std::size_t>;
+  struct Prefetch;  // sky_stack.cpp; shared_ptr: its thread is joined when the last owner lets it go
   std::map<Key, SkyStack> m_stacks;
   Provider m_provider;
   SnrProvider m_snrProvider;
-  int m_made = 0, m_provided = 0;
-  double m_seconds = 0.0;
+  std::shared_ptr<Prefetch> m_prefetch;
+  int m_made = 0, m_provided = 0, m_prefetchedBefore = 0;
+  double m_seconds = 0.0, m_prefetchSecondsBefore = 0.0;
 };
 
 /// A smooth local background of an image: one-sided clip (xi = 3) of each `mesh` x `mesh` cell over pixels
