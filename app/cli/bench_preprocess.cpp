@@ -134,15 +134,18 @@ std::uint64_t maskHash(const FrameCube& cube) {
 
 int benchPreprocess(const Args& args) {
   const CliArgs a(args, {"preset", "seed", "frames", "size", "backend"},
-                  {"json", "help", "given-sky-rate", "fingerprint", "chain-remeasure"});
+                  {"json", "help", "given-sky-rate", "fingerprint", "chain-remeasure", "no-stacks-ahead"});
   if (a.flag("help")) {
     std::printf(
         "usage: synthtrack-cli bench preprocess [--preset paper-neo] [--seed 1] [--frames N] [--size PX] "
-        "[--backend cpu|cuda] [--json] [--fingerprint] [--chain-remeasure]\n"
+        "[--backend cpu|cuda] [--json] [--fingerprint] [--chain-remeasure] [--no-stacks-ahead]\n"
         "  --fingerprint   also print the results to every digit and hashes of the zero-biased and filtered\n"
         "                  cubes (after the timing): equal lines, the same pre-processing bit for bit\n"
         "  --chain-remeasure  the sky rate's chain as before 2026-12-02: every link in its first iteration\n"
-        "                  too, and every block stack and link again in each iteration\n");
+        "                  too, and every block stack and link again in each iteration\n"
+        "  --no-stacks-ahead  with a device, each stack at the sky rate made when asked, as before "
+        "2026-12-03\n"
+        "                  (not the protection's and the static sources' thirds and halves ahead)\n");
     return 0;
   }
   const std::string presetName = a.value("preset").value_or("paper-neo");
@@ -160,6 +163,7 @@ int benchPreprocess(const Args& args) {
   pp.masters = sim::exactMasters(sim);
   pp.skyRateParams.chainKeepUnchanged = !a.flag("chain-remeasure");
   pp.skyRateParams.chainCoarseFirst = !a.flag("chain-remeasure");
+  pp.stacksAhead = !a.flag("no-stacks-ahead");
   if (a.flag("given-sky-rate")) pp.skyRate = Velocity{sim.truth.skyVxPxPerS, sim.truth.skyVyPxPerS};
   // --backend cuda: the per-pixel background and the matched filter on the GPU (issue 16).
   const BackendSelection backend = makeBackend(parseBackendChoice(a.value("backend").value_or("cpu")));

@@ -22,6 +22,16 @@
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::calib {
+
+std::vector<detect::SkyStackCache::Range> protectionRanges(std::size_t frames, int protectBlocks) {
+  std::vector<detect::SkyStackCache::Range> out;
+  if (frames == 0) return out;
+  const std::size_t blocks = std::clamp<std::size_t>(static_cast<std::size_t>(protectBlocks), 1, frames);
+  for (std::size_t b = 0; b < blocks; ++b)
+    out.emplace_back(frames * b / blocks, frames * (b + 1) / blocks);
+  return out;
+}
+
 namespace {
 
 // The two frames a frame is compared with: its neighbours, or the next two at either end.
@@ -75,7 +85,7 @@ class TimeReference {
 // above the local background, counts per frame.
 struct Protection {
   detect::MovingMask mask;
-  std::vector<float> signal;  // on the mask's canvas
+  std::vector<float> signal;     // on the mask's canvas
   int stacks = 0, provided = 0;  // stacks at the sky rate used, and made by the provider
   double stackSeconds = 0.0;     // making them
   [[nodiscard]] float signalAt(std::size_t n, int x, int y) const {
@@ -92,8 +102,9 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
                       ProgressSink& progress, CancelToken& cancel,
                       const detect::SkyStackCache::Provider* stacks) {
   detect::MovingMask mask(cube, params.skyRate);
-  const std::size_t nf = cube.frameCount();
-  const int blocks = static_cast<int>(std::clamp<std::size_t>(params.protectBlocks, 1, nf));
+  const std::vector<detect::SkyStackCache::Range> ranges =
+      protectionRanges(cube.frameCount(), params.protectBlocks);
+  const int blocks = static_cast<int>(ranges.size());
   // A block observes a canvas pixel when enough of its frames cover it (a drifting star is in the field for
   // part of the night only); blocks that do not observe it neither protect nor veto.
   std::vector<float> minSnr, minMean;
@@ -102,7 +113,7 @@ Protection protection(const FrameCube& cube, const CosmicRayParams& params, doub
   double stackSeconds = 0.0;
   for (int b = 0; b < blocks; ++b) {
     SubProgress sub(progress, 0.5 * b / blocks, 0.5 * (b + 1) / blocks);
-    const std::size_t f0 = nf * b / blocks, f1 = nf * (b + 1) / blocks;
+    const auto [f0, f1] = ranges[static_cast<std::size_t>(b)];
     const auto t0 = std::chrono::steady_clock::now();
     std::optional<detect::SkyStack> made;
     if (stacks && *stacks) {

@@ -1,4 +1,5 @@
 #include "st/common/parallel.hpp"
+#include "st/common/parallel_cap.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -159,12 +160,26 @@ void parallelFor(std::size_t n, std::size_t chunk,
   parallelFor(n, chunk, body, 0);
 }
 
+namespace {
+thread_local unsigned t_threadCap = 0;  // ParallelThreadCap's (0: none)
+}  // namespace
+
+ParallelThreadCap::ParallelThreadCap(unsigned maxThreads) noexcept : m_previous(t_threadCap) {
+  const unsigned cap = std::max(1u, maxThreads);
+  t_threadCap = m_previous > 0 ? std::min(m_previous, cap) : cap;
+}
+
+ParallelThreadCap::~ParallelThreadCap() {
+  t_threadCap = m_previous;
+}
+
 void parallelFor(std::size_t n, std::size_t chunk, const std::function<void(std::size_t, std::size_t)>& body,
                  unsigned maxThreads) {
   if (n == 0) return;
   chunk = std::max<std::size_t>(1, chunk);
   const std::size_t chunks = (n + chunk - 1) / chunk;
-  const unsigned cap = maxThreads > 0 ? std::min(maxThreads, workerCount()) : workerCount();
+  unsigned cap = maxThreads > 0 ? std::min(maxThreads, workerCount()) : workerCount();
+  if (t_threadCap > 0) cap = std::min(cap, t_threadCap);
   const unsigned threads = static_cast<unsigned>(std::min<std::size_t>(cap, chunks));
   if (threads <= 1) {
     for (std::size_t b = 0; b < n; b += chunk)

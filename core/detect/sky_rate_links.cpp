@@ -100,17 +100,56 @@ struct LinkImages {
   cv::Mat ia, ib;
 };
 
-// Block i's and block j's link images. False when the two share no covered pixel.
+// Each block's compressed image over its own covered pixels (compressed() of {value, noise, covered}), made
+// once for all the links it takes part in (issue 16: ~5 links a block on the paper's cube). A link's
+// compressed image is its block's where both blocks are covered, else 0: compressed() of the link's linear
+// image, value for value (a pixel both cover is one its own block covers, and moved by whole pixels).
+std::vector<cv::Mat> compressedBlocks(const std::vector<BlockStack>& stacks, const std::vector<Link>& links,
+                                      double detectSigma) {
+  std::vector<cv::Mat> out(stacks.size());
+  std::vector<char> used(stacks.size(), 0);
+  for (const Link& l : links)
+    used[l.i] = used[l.j] = 1;
+  parallelFor(stacks.size(), 1, [&](std::size_t k0, std::size_t k1) {
+    for (std::size_t k = k0; k < k1; ++k)
+      if (used[k])
+        out[k] = compressed(linearImage(stacks[k].value, stacks[k].noise, stacks[k].covered), detectSigma);
+  });
+  return out;
+}
+
+// `full` (CV_64F) moved by (gx, gy) as translated() does, where `both` is set; 0 elsewhere.
+cv::Mat maskedCompressed(const cv::Mat& full, const cv::Mat& both, int gx, int gy) {
+  cv::Mat out(full.size(), CV_64F);
+  const int w = full.cols, h = full.rows;
+  for (int y = 0; y < h; ++y) {
+    const unsigned char* ok = both.ptr<unsigned char>(y);
+    double* o = out.ptr<double>(y);
+    const int by = y + gy;
+    const double* in = by >= 0 && by < h ? full.ptr<double>(by) : nullptr;
+    for (int x = 0; x < w; ++x) {
+      const int bx = x + gx;
+      // A pixel both cover lies inside the moved block (bothCovered).
+      o[x] = ok[x] && in && bx >= 0 && bx < w ? in[bx] : 0.0;
+    }
+  }
+  return out;
+}
+
+// Block i's and block j's link images (their compressed images from `fullA` and `fullB`, compressedBlocks'
+// when given, else made here). False when the two share no covered pixel.
 bool linkImages(const BlockStack& a, const BlockStack& b, Velocity rate, const SkyRateParams& params,
-                LinkImages* im) {
+                LinkImages* im, const cv::Mat* fullA = nullptr, const cv::Mat* fullB = nullptr) {
   wholeShift(a, b, rate, &im->gx, &im->gy);
   int covered = 0;
   const cv::Mat both = bothCovered(a.covered, b.covered, im->gx, im->gy, &covered);
   if (covered == 0) return false;
   im->la = linearImage(a.value, a.noise, both);
   im->lb = linearImage(translated(b.value, im->gx, im->gy), translated(b.noise, im->gx, im->gy), both);
-  im->ia = compressed(im->la, params.detectSigma);
-  im->ib = compressed(im->lb, params.detectSigma);
+  im->ia = fullA && !fullA->empty() ? maskedCompressed(*fullA, both, 0, 0)
+                                    : compressed(im->la, params.detectSigma);
+  im->ib = fullB && !fullB->empty() ? maskedCompressed(*fullB, both, im->gx, im->gy)
+                                    : compressed(im->lb, params.detectSigma);
   return true;
 }
 
@@ -137,10 +176,11 @@ bool finishLink(const BlockStack& a, const BlockStack& b, const LinkImages& im, 
 // for both, so that a window cut by it is cut alike in both). False when they share no reliable star
 // pattern.
 bool measureLink(const BlockStack& a, const BlockStack& b, Velocity rate, const cv::Mat& window,
-                 const SkyRateParams& params, Link* link, TimedParts* parts) {
+                 const SkyRateParams& params, Link* link, TimedParts* parts, const cv::Mat* fullA,
+                 const cv::Mat* fullB) {
   PartTimer timer(*parts);  // its seconds are this thread's; its CPU time is not used
   LinkImages im;
-  if (!linkImages(a, b, rate, params, &im)) return false;
+  if (!linkImages(a, b, rate, params, &im, fullA, fullB)) return false;
   timer.lap("links' images (thread time)");
   double r = 0.0;
   const cv::Point2d d = phaseShift(im.ia, im.ib, window, &r);
@@ -165,6 +205,7 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
                                      const PhaseCorrelationProvider& correlate, CancelToken& cancel,
                                      std::vector<Link>& tried, std::vector<char>& ok,
                                      std::vector<TimedParts>& parts, TimedParts* threadTime,
+                                     const std::vector<cv::Mat>& full,
                                      const std::function<void(std::size_t first)>& cpu) {
   const std::size_t group = std::max<std::size_t>(4, workerCount());
   std::vector<LinkImages> images(std::min(group, tried.size()));
@@ -176,7 +217,8 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
     auto makeImages = [&](std::size_t q) {
       const std::size_t l = g0 + q;
       PartTimer timer(parts[l]);
-      ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[q]);
+      ok[l] = linkImages(stacks[tried[l].i], stacks[tried[l].j], rate, params, &images[q], &full[tried[l].i],
+                         &full[tried[l].j]);
       made[q] = 1;
       timer.lap("links' images (thread time)");
     };
@@ -295,19 +337,20 @@ std::vector<Link> measureLinks(const std::vector<BlockStack>& stacks, Velocity r
     measured.push_back(tried[l]);
   std::vector<char> measuredOk(measured.size(), 0);
   std::vector<TimedParts> parts(measured.size());
+  const std::vector<cv::Mat> full = compressedBlocks(stacks, measured, params.detectSigma);
   // Links [first, end) of `measured` on the CPU, each on a thread of its own.
   const auto onCpu = [&](std::size_t first) {
     parallelFor(measured.size() - first, 1, [&](std::size_t l0, std::size_t l1) {
       for (std::size_t l = first + l0; l < first + l1; ++l) {
         cancel.throwIfCancelled();
         measuredOk[l] = measureLink(stacks[measured[l].i], stacks[measured[l].j], rate, window, params,
-                                    &measured[l], &parts[l]);
+                                    &measured[l], &parts[l], &full[measured[l].i], &full[measured[l].j]);
       }
     });
   };
   if (correlate && *correlate && !measured.empty()) {
     measureLinksCorrelatedElsewhere(stacks, rate, window, params, *correlate, cancel, measured, measuredOk,
-                                    parts, threadTime, onCpu);
+                                    parts, threadTime, full, onCpu);
   } else {
     onCpu(0);
   }

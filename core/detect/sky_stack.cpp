@@ -16,6 +16,7 @@
 #endif
 
 #include "st/common/parallel.hpp"
+#include "st/common/parallel_cap.hpp"
 #include "st/stats/sigma_clip.hpp"
 
 namespace st::detect {
@@ -168,15 +169,9 @@ struct SkyStackCache::Prefetch {
 
 void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtract,
                              const std::vector<Range>& ranges) {
-  if (!m_provider) return;
+  if (!m_provider || !m_prefetchAllowed) return;
   if (m_prefetch) {
-    {
-      const std::lock_guard lock(m_prefetch->mutex);
-      if (std::find(m_prefetch->finished.begin(), m_prefetch->finished.end(), 0) !=
-          m_prefetch->finished.end())
-        return;  // one in flight
-    }
-    settle();
+    settle();  // one in flight: its stacks first (its provider makes one at a time)
     // The stacks the last one made that were not asked for are kept.
     for (std::size_t k = 0; k < m_prefetch->keys.size(); ++k)
       if (!m_prefetch->taken[k] && m_prefetch->stacks[k] && !m_prefetch->errors[k]) {
@@ -207,6 +202,8 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
   // may be moved meanwhile).
   try {
     pf->thread = std::jthread([state = pf.get(), provider = m_provider, c = &cube, rate, subtract] {
+      // Beside the caller's loops on every core: this thread's own (the provider's host copies) on two.
+      const ParallelThreadCap cap(2);
       const auto t0 = std::chrono::steady_clock::now();
       for (std::size_t k = 0; k < state->keys.size(); ++k) {
         std::optional<SkyStack> made;
@@ -230,6 +227,14 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
     return;  // no thread: stack() makes each as before
   }
   m_prefetch = std::move(pf);
+}
+
+std::optional<SkyStack> SkyStackCache::takePrefetched(const FrameCube& cube, Velocity rate, double subtract,
+                                                      std::size_t first, std::size_t last, bool* found) {
+  *found = false;
+  if (!m_prefetch) return std::nullopt;
+  if (last == 0 || last > cube.frameCount()) last = cube.frameCount();
+  return m_prefetch->take(Key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last}, found);
 }
 
 void SkyStackCache::settle() {

@@ -261,23 +261,18 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   out.moverMask = out.mask;
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack& s = cache.stack(cube, skyRate, background, sub, cancel);
-  // The stacks of the thirds (the movers' test) and of the halves (the faint sources' test) made beside
-  // the analysis below where a provider (a device) makes them: the same stacks, off this thread's path
-  // (issue 16: ~20 ms of the paper's first search).
-  {
-    std::vector<SkyStackCache::Range> more;
-    if (params.keepMovers) more = detail::thirdRanges(cube.frameCount());
-    if (params.filteredDetection)
-      for (const SkyStackCache::Range& r : detail::halfRanges(cube.frameCount()))
-        more.push_back(r);
-    cache.prefetch(cube, skyRate, background, more);
-  }
+  // The stacks of the thirds (the movers' test) made beside the analysis below where a provider (a device)
+  // makes them, then those of the halves (the faint sources' test) beside the components and the motions
+  // (after the analysis' own device calls): the same stacks, off this thread's path (issue 16).
+  if (params.keepMovers) cache.prefetch(cube, skyRate, background, detail::thirdRanges(cube.frameCount()));
   lap("stack");
   const int cw = s.mean.width, ch = s.mean.height;
   TimedParts analysisParts;
   const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts);
   lap("analysis");
   out.parts.add(analysisParts);
+  if (params.filteredDetection)
+    cache.prefetch(cube, skyRate, background, detail::halfRanges(cube.frameCount()));
   const Image& resid = an.resid;
   const std::vector<float>& snr = an.snr;
   const std::vector<float>& snrF = an.snrF;

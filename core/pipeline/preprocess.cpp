@@ -290,27 +290,6 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
           "sky rate: the chain's phase correlations, " + std::to_string(correlationStep.made) + " of " +
           std::to_string(correlationStep.asked) + " batches on " + params.accelerator->name());
   }
-  if (params.accelerator) {
-    // Every stage from here reads the host frames.
-    const auto t0 = std::chrono::steady_clock::now();
-    params.accelerator->finishHostCopies();
-    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (waited >= 0.001)
-      out.notes.push_back("sky rate: waited " + std::to_string(waited) +
-                          " s after it for the frame backgrounds' download");
-  }
-  lap("sky rate");
-  {
-    // The cosmic rays, static sources and PSF make a few dozen canvas-sized images on this thread (the stacks
-    // at the sky rate and their analyses): their pages faulted on every core now, not one by one there.
-    const MovingMask canvas(cube, out.skyRate);
-    const std::size_t canvasBytes =
-        static_cast<std::size_t>(canvas.canvasWidth()) * canvas.canvasHeight() * sizeof(float);
-    HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
-  }
-  detect::StaticSourceParams sp = params.stars;
-  sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;
-  if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
   // Stacks at the sky rate on a device, from the cube prefetch() is uploading (issue 16): the cosmic rays'
   // protection, then the static sources and the PSF. A device failure: a note, the CPU stacks from then on.
   DeviceStep stacksStep(params.accelerator, "the stacks at the sky rate", out.notes);
@@ -326,6 +305,38 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
       const std::lock_guard lock(stackCalls);
       return stacksStep([&] { return accel->skyStack(c, rate, subtract, firstFrame, endFrame); });
     };
+  // The cosmic rays' protection stacks (the frames as the frame backgrounds left them, at the sky rate, none
+  // subtracted) made on the device beside the wait for the frames' download below and the cosmic rays' noise
+  // (issue 16); the notes of this thread wait in `waitedNote` until no other thread may add one.
+  detect::SkyStackCache protectionStacks;
+  if (deviceStacks && params.removeCosmicRays && params.stacksAhead) {
+    protectionStacks.setProvider(deviceStacks);
+    protectionStacks.prefetch(cube, out.skyRate, 0.0,
+                              calib::protectionRanges(cube.frameCount(), params.cosmicRays.protectBlocks));
+  }
+  std::string waitedNote;
+  if (params.accelerator) {
+    // Every stage from here reads the host frames.
+    const auto t0 = std::chrono::steady_clock::now();
+    params.accelerator->finishHostCopies();
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (waited >= 0.001)
+      waitedNote =
+          "sky rate: waited " + std::to_string(waited) + " s after it for the frame backgrounds' download";
+  }
+  if (!params.removeCosmicRays && !waitedNote.empty()) out.notes.push_back(waitedNote);
+  lap("sky rate");
+  {
+    // The cosmic rays, static sources and PSF make a few dozen canvas-sized images on this thread (the stacks
+    // at the sky rate and their analyses): their pages faulted on every core now, not one by one there.
+    const MovingMask canvas(cube, out.skyRate);
+    const std::size_t canvasBytes =
+        static_cast<std::size_t>(canvas.canvasWidth()) * canvas.canvasHeight() * sizeof(float);
+    HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
+  }
+  detect::StaticSourceParams sp = params.stars;
+  sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;
+  if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);
@@ -336,10 +347,22 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     DeviceStep preTestStep(params.accelerator, "the cosmic rays' pre-test", out.notes);
     calib::CosmicRayPreTest devicePreTest;
     if (params.accelerator)
-      devicePreTest = [&preTestStep, accel = params.accelerator](const FrameCube& c, float thr) {
+      devicePreTest = [&preTestStep, &stackCalls, accel = params.accelerator](const FrameCube& c, float thr) {
+        const std::lock_guard lock(stackCalls);
         return preTestStep([&] { return accel->cosmicRayPreTest(c, thr); });
       };
-    cr = calib::removeCosmicRays(cube, cp, sub, cancel, &deviceStacks, &devicePreTest);
+    detect::SkyStackCache::Provider crStacks;
+    if (deviceStacks)
+      crStacks = [&](const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
+                     std::size_t endFrame) {
+        bool found = false;
+        std::optional<detect::SkyStack> s =
+            protectionStacks.takePrefetched(c, rate, subtract, firstFrame, endFrame, &found);
+        return found ? std::move(s) : deviceStacks(c, rate, subtract, firstFrame, endFrame);
+      };
+    cr = calib::removeCosmicRays(cube, cp, sub, cancel, &crStacks, &devicePreTest);
+    protectionStacks.settle();
+    if (!waitedNote.empty()) out.notes.push_back(waitedNote);
     if (cr.preTestProvided) out.notes.push_back(params.accelerator->lastNote());  // its last device step
     out.cosmicRaysPerFrame = cr.perFrame;
     out.cosmicRays = cr.total;
@@ -364,6 +387,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // change until the per-pixel background).
   detect::SkyStackCache skyStacks;
   if (deviceStacks) skyStacks.setProvider(deviceStacks);
+  skyStacks.allowPrefetch(params.stacksAhead);
   // Their matched-filtered SNR maps (2 per static-source search, 4 when it looks at the halves of the frames)
   // on the device too: the same values.
   DeviceStep snrStep(params.accelerator, "the static sources' filtered SNR", out.notes);

@@ -1,6 +1,7 @@
 // The CUDA pre-processing accelerator: the device, the global background, the prefetch of the calibrated
 // cube, the staged copies and the factory (the stages: cuda_preprocess.hpp).
 #include <algorithm>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
@@ -20,6 +21,20 @@
 namespace st::gpu {
 
 using namespace preprocess_detail;
+
+namespace {
+
+/// A download's host copy out of a staging buffer: non-temporal stores (copyStreaming), or memcpy as
+/// before 2026-12-03 with ST_GPU_DOWNLOAD_MEMCPY=1.
+void copyOut(char* dst, const char* src, std::size_t n) {
+  static const bool plain = envKnob("ST_GPU_DOWNLOAD_MEMCPY");
+  if (plain)
+    std::memcpy(dst, src, n);
+  else
+    copyStreaming(dst, src, n);
+}
+
+}  // namespace
 
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
                                  cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes) {
@@ -44,7 +59,7 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     const std::size_t chunk =
         std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21);
     parallelFor(
-        len, chunk, [&](std::size_t lo, std::size_t hi) { std::memcpy(dst + lo, src + lo, hi - lo); },
+        len, chunk, [&](std::size_t lo, std::size_t hi) { copyOut(dst + lo, src + lo, hi - lo); },
         copyThreads);
   }
 }
@@ -226,12 +241,18 @@ void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src
     // threads would slow (4 copied the paper's cube and mask in 137 ms instead of one core's 283, H100
     // machine, 2026-11-27 14:41, but one copy thread slows the sky rate least: 15:22 run, pre-processing
     // 2.47-2.50 s). A foreground upload copies on every core.
+    const auto copy = [plain = uploadByMemcpy()](char* to, const char* in, std::size_t n) {
+      if (plain)
+        std::memcpy(to, in, n);
+      else
+        copyStreaming(to, in, n);
+    };
     if (parallelCopy)
       parallelFor(len,
                   std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21),
-                  [&](std::size_t lo, std::size_t hi) { std::memcpy(stage + lo, from + lo, hi - lo); });
+                  [&](std::size_t lo, std::size_t hi) { copy(stage + lo, from + lo, hi - lo); });
     else
-      std::memcpy(stage, from, len);
+      copy(stage, from, len);
     ST_CUDA_CHECK(cudaMemcpyAsync(static_cast<char*>(dst) + off, stage, len, cudaMemcpyHostToDevice, s));
     r.stagingFree[b].record(s);
   }

@@ -239,7 +239,8 @@ stack::MatchedFilterResult CudaPreprocess::filter(const FrameCube& cube, bool ha
            (weighted ? ", weighted" : "") + "): " +
            (kept ? "the residual means' frames on the device (" + ms(upload) + ")" : "upload " + ms(upload)) +
            ", kernels " + ms(kernels) + " (weights " + ms(Event::elapsed(k0, k1)) + ", filter " +
-           ms(Event::elapsed(k1, k2)) + ")" +
+           ms(Event::elapsed(k1, k2)) +
+           (filterRegisterBlocked(half) ? ", 4 outputs a thread" : ", one output a thread") + ")" +
            (freshDest ? ", waited " + ms(waitAlloc) + " for the host buffer" : std::string()) +
            (behind ? ", download behind the launches (" + ms(m_copies.copySeconds() - copiedBefore) +
                          " of copies since the filter began, with the zero-biased cube's), waited " +

@@ -5,6 +5,7 @@
 // FFT (float tolerance: tests/gpu GpuFilter.MatchesCpu).
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 
 #include "cuda_check.hpp"
 #include "preprocess_params.hpp"
@@ -207,6 +208,141 @@ __global__ void filterKernel(FilterLaunch p) {
   p.out[base + q] = acc;
 }
 
+// The filter with 4 adjacent outputs a thread along x (issue 16: 3x fewer shared-memory loads a product than
+// filterKernel's one output a thread): each thread reads its row window as float4s once per kernel row and
+// keeps it in registers. Every output's products are summed in filterKernel's order (kernel rows, then
+// columns, ascending; one fmaf each), so the two give the same bits.
+constexpr int kX4Outputs = 4;
+constexpr int kX4TileX = 32 * kX4Outputs;  // outputs a block along x
+constexpr int kX4TileY = 8;
+
+template <int H>
+constexpr int x4TileWidth() {  // the tile's row pitch: every float4 of every window inside, a multiple of 4
+  return (kX4TileX + 2 * H + 2 + 3) / 4 * 4;
+}
+
+template <int H>
+__global__ void filterKernelX4(FilterLaunch p) {
+  constexpr int K = 2 * H + 1;
+  constexpr int W4 = (kX4Outputs + K - 1 + 3) / 4;  // float4s a window
+  constexpr int TW = x4TileWidth<H>(), TH = kX4TileY + 2 * H;
+  extern __shared__ float4 tile4[];
+  float* tile = reinterpret_cast<float*>(tile4);
+  const int n = p.f0 + static_cast<int>(blockIdx.z);
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t base = static_cast<std::size_t>(n) * np;
+  const int x0 = blockIdx.x * kX4TileX - H, y0 = blockIdx.y * kX4TileY - H;
+  const float invS2 = p.invVar ? p.invS2[n] : 1.0f;
+  for (int t = threadIdx.y * 32 + threadIdx.x; t < TW * TH; t += 32 * kX4TileY) {
+    const int gx = x0 + t % TW, gy = y0 + t / TW;
+    float v = 0.0f;
+    if (gx >= 0 && gy >= 0 && gx < p.width && gy < p.height) {
+      const std::size_t q = static_cast<std::size_t>(gy) * p.width + gx;
+      v = p.in[base + q];
+      if (!isfinite(v) || (p.mask && p.mask[base + q])) v = 0.0f;
+      if (p.invVar) v = __fmul_rn(v, __fmul_rn(p.invVar[q], invS2));
+    }
+    tile[t] = v;
+  }
+  __syncthreads();
+  const int xo = blockIdx.x * kX4TileX + threadIdx.x * kX4Outputs, y = blockIdx.y * kX4TileY + threadIdx.y;
+  if (xo >= p.width || y >= p.height) return;
+  float acc[kX4Outputs] = {};
+#pragma unroll 1
+  for (int dy = 0; dy < K; ++dy) {
+    const float4* row =
+        reinterpret_cast<const float4*>(tile + (threadIdx.y + dy) * TW + threadIdx.x * kX4Outputs);
+    float v[4 * W4];
+#pragma unroll
+    for (int m = 0; m < W4; ++m) {
+      const float4 f = row[m];
+      v[4 * m] = f.x;
+      v[4 * m + 1] = f.y;
+      v[4 * m + 2] = f.z;
+      v[4 * m + 3] = f.w;
+    }
+    const float* krow = c_filter + dy * K;
+#pragma unroll
+    for (int dx = 0; dx < K; ++dx) {
+      const float k = krow[dx];
+#pragma unroll
+      for (int q = 0; q < kX4Outputs; ++q)
+        acc[q] = fmaf(k, v[dx + q], acc[q]);
+    }
+  }
+#pragma unroll
+  for (int q = 0; q < kX4Outputs; ++q) {
+    const int x = xo + q;
+    if (x >= p.width) break;
+    const std::size_t i = static_cast<std::size_t>(y) * p.width + x;
+    p.out[base + i] = p.outScale ? __fmul_rn(acc[q], p.outScale[i]) : acc[q];
+  }
+}
+
+template <int H>
+void launchFilterX4(const FilterLaunch& q, cudaStream_t s) {
+  const std::size_t shared = sizeof(float) * x4TileWidth<H>() * (kX4TileY + 2 * H);
+  static bool configured = false;
+  if (!configured) {
+    ST_CUDA_CHECK(
+        cudaFuncSetAttribute(filterKernelX4<H>, cudaFuncAttributeMaxDynamicSharedMemorySize, 96 * 1024));
+    configured = true;
+  }
+  const dim3 grid((q.width + kX4TileX - 1) / kX4TileX, (q.height + kX4TileY - 1) / kX4TileY, q.f1 - q.f0);
+  filterKernelX4<H><<<grid, dim3(32, kX4TileY), shared, s>>>(q);
+  checkLaunch("filterKernelX4");
+}
+
+// The register-blocked filter for kernel half sizes 1-12 (false: another size, filterKernel's).
+bool launchFilterX4Any(const FilterLaunch& q, cudaStream_t s) {
+  switch (q.half) {
+    case 1:
+      launchFilterX4<1>(q, s);
+      return true;
+    case 2:
+      launchFilterX4<2>(q, s);
+      return true;
+    case 3:
+      launchFilterX4<3>(q, s);
+      return true;
+    case 4:
+      launchFilterX4<4>(q, s);
+      return true;
+    case 5:
+      launchFilterX4<5>(q, s);
+      return true;
+    case 6:
+      launchFilterX4<6>(q, s);
+      return true;
+    case 7:
+      launchFilterX4<7>(q, s);
+      return true;
+    case 8:
+      launchFilterX4<8>(q, s);
+      return true;
+    case 9:
+      launchFilterX4<9>(q, s);
+      return true;
+    case 10:
+      launchFilterX4<10>(q, s);
+      return true;
+    case 11:
+      launchFilterX4<11>(q, s);
+      return true;
+    case 12:
+      launchFilterX4<12>(q, s);
+      return true;
+    default:
+      return false;
+  }
+}
+
+/// ST_GPU_FILTER_PLAIN=1: filterKernel, one output a thread, as before 2026-12-03 (read at each launch).
+bool plainFilter() {
+  const char* e = std::getenv("ST_GPU_FILTER_PLAIN");
+  return e && *e && *e != '0';
+}
+
 __global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const double* invS2,
                             const float* invVar, const std::uint32_t* covering, float* omega, int width,
                             int height, int nf) {
@@ -219,7 +355,8 @@ __global__ void omegaKernel(const float* pix, const std::uint8_t* mask, const do
     const float f = pix[off];
     if (f != 0.0f && isfinite(f) && !(mask && mask[off])) acc = __dadd_rn(acc, invS2[n]);
   }
-  const double frames = covering ? static_cast<double>(covering[i] > 1u ? covering[i] : 1u) : static_cast<double>(nf);
+  const double frames =
+      covering ? static_cast<double>(covering[i] > 1u ? covering[i] : 1u) : static_cast<double>(nf);
   omega[i] = static_cast<float>(__dmul_rn(acc / frames, static_cast<double>(invVar[i])));
 }
 
@@ -291,6 +428,10 @@ void setFilterKernel(const float* kernel, int half, cudaStream_t s) {
       cudaMemcpyToSymbolAsync(c_filter, kernel, sizeof(float) * k * k, 0, cudaMemcpyHostToDevice, s));
 }
 
+bool filterRegisterBlocked(int half) {
+  return half >= 1 && half <= 12 && !plainFilter();
+}
+
 void launchFilter(const FilterLaunch& p, cudaStream_t s) {
   const std::size_t shared = sizeof(float) * (kTileX + 2 * p.half) * (kTileY + 2 * p.half);
   static bool configured = false;
@@ -298,10 +439,12 @@ void launchFilter(const FilterLaunch& p, cudaStream_t s) {
     ST_CUDA_CHECK(cudaFuncSetAttribute(filterKernel, cudaFuncAttributeMaxDynamicSharedMemorySize, 96 * 1024));
     configured = true;
   }
+  const bool plain = plainFilter();
   for (int f0 = p.f0; f0 < p.f1; f0 += 65535) {
     FilterLaunch q = p;
     q.f0 = f0;
     q.f1 = p.f1 - f0 < 65535 ? p.f1 : f0 + 65535;
+    if (!plain && launchFilterX4Any(q, s)) continue;
     const dim3 grid((p.width + kTileX - 1) / kTileX, (p.height + kTileY - 1) / kTileY, q.f1 - q.f0);
     filterKernel<<<grid, dim3(kTileX, kTileY), shared, s>>>(q);
     checkLaunch("filterKernel");
@@ -311,7 +454,8 @@ void launchFilter(const FilterLaunch& p, cudaStream_t s) {
 void launchOmega(const float* pix, const std::uint8_t* mask, const double* invS2, const float* invVar,
                  const std::uint32_t* covering, float* omega, int width, int height, int nf, cudaStream_t s) {
   const std::size_t np = static_cast<std::size_t>(width) * height;
-  omegaKernel<<<blocksFor(np, 256), 256, 0, s>>>(pix, mask, invS2, invVar, covering, omega, width, height, nf);
+  omegaKernel<<<blocksFor(np, 256), 256, 0, s>>>(pix, mask, invS2, invVar, covering, omega, width, height,
+                                                 nf);
   checkLaunch("omegaKernel");
 }
 

@@ -62,6 +62,9 @@ struct FilterLaunch {
 /// Copies the (2 half + 1)^2 kernel (row-major) to constant memory.
 void setFilterKernel(const float* kernel, int half, cudaStream_t s);
 void launchFilter(const FilterLaunch& p, cudaStream_t s);
+/// Whether launchFilter runs a kernel of this half size with 4 outputs a thread (half 1-12, unless
+/// ST_GPU_FILTER_PLAIN=1), else one output a thread; the same bits either way.
+bool filterRegisterBlocked(int half);
 
 /// omega(q) = invVar(q) x mean over frames of [q used in frame n] / s_n^2 (stack::filterCube's weights); the
 /// mean is over covering[q] frames (at least 1) when `covering` is given (NoiseModel::framesCovering), else

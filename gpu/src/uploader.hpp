@@ -4,13 +4,60 @@
 // buffers (shared by the exact and the tree search).
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 
 #include "cuda_check.hpp"
 #include "st/common/parallel.hpp"
 
+#if defined(__x86_64__) || defined(_M_X64)
+#include <emmintrin.h>
+#endif
+
 namespace st::gpu {
+
+/// memcpy with non-temporal stores (SSE2, every x86-64; memcpy elsewhere and below 4 KiB): the
+/// destination's lines are not read before they are written. The staged copies' pieces (up to 2 MiB a task)
+/// are below glibc's own non-temporal threshold, so memcpy reads every destination line first: a third more
+/// memory traffic beside the stages that run while a cube is uploaded or downloaded (issue 16). The stores
+/// are fenced before it returns.
+inline void copyStreaming(void* dstv, const void* srcv, std::size_t n) {
+#if defined(__x86_64__) || defined(_M_X64)
+  if (n >= 4096) {
+    char* dst = static_cast<char*>(dstv);
+    const char* src = static_cast<const char*>(srcv);
+    const std::size_t head = (16 - reinterpret_cast<std::uintptr_t>(dst) % 16) % 16;
+    std::memcpy(dst, src, head);
+    dst += head, src += head, n -= head;
+    std::size_t i = 0;
+    for (; i + 64 <= n; i += 64) {
+      const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i));
+      const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 16));
+      const __m128i c = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 32));
+      const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + i + 48));
+      _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i), a);
+      _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 16), b);
+      _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 32), c);
+      _mm_stream_si128(reinterpret_cast<__m128i*>(dst + i + 48), d);
+    }
+    std::memcpy(dst + i, src + i, n - i);
+    _mm_sfence();
+    return;
+  }
+#endif
+  std::memcpy(dstv, srcv, n);
+}
+
+/// ST_GPU_UPLOAD_MEMCPY=1: the uploads' copies into the staging buffers by memcpy, as before 2026-12-03.
+inline bool uploadByMemcpy() {
+  static const bool plain = [] {
+    const char* e = std::getenv("ST_GPU_UPLOAD_MEMCPY");
+    return e && *e && *e != '0';
+  }();
+  return plain;
+}
 
 /// One pinned staging buffer. 8 MiB pieces were slower (H100, 2026-11-22: the paper's cube uploaded in
 /// 117-130 ms instead of 43-51 ms; parallelFor starts its threads for every piece).
@@ -67,8 +114,12 @@ class Uploader {
       // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
       float* dst0 = static_cast<float*>(m_r.staging(b));
       const float* src0 = src + off;
+      const bool plain = uploadByMemcpy();
       parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
-        std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
+        if (plain)
+          std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
+        else
+          copyStreaming(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
       });
       ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, dst0, piece * sizeof(float), cudaMemcpyHostToDevice, stream));
       m_r.stagingFree[b].record(stream);

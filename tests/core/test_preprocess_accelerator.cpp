@@ -10,6 +10,7 @@
 #include <future>
 #include <optional>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <thread>
 
@@ -56,11 +57,16 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
     act();
     return stats::removeResidualMeans(cube, meshPx, clipSigma, progress, cancel);
   }
-  std::optional<detect::SkyStack> skyStack(const FrameCube&, Velocity, double, std::size_t,
-                                           std::size_t) override {
+  std::optional<detect::SkyStack> skyStack(const FrameCube& cube, Velocity rate, double subtract,
+                                           std::size_t first, std::size_t last) override {
     ++stackCalls;
     act();
-    return std::nullopt;  // a working device that declines: the CPU stacks
+    if (!makeStacks) return std::nullopt;  // a working device that declines: the CPU stacks
+    // One that makes them (the CPU's stacks), from whichever thread asks.
+    stackThreads.insert(std::this_thread::get_id());
+    NullProgress p;
+    CancelToken c;
+    return detect::stackAtSkyRate(cube, rate, subtract, p, c, first, last);
   }
   std::optional<std::vector<float>> filteredSnr(const detect::FilteredSnrInputs&) override {
     ++snrCalls;
@@ -94,6 +100,8 @@ class FakeAccelerator final : public pipeline::PreprocessAccelerator {
   }
   int calls = 0, snrCalls = 0, stackCalls = 0, calibrationCalls = 0, phaseCalls = 0;
   bool declineCalibration = false;
+  bool makeStacks = false;
+  std::set<std::thread::id> stackThreads;
 
  private:
   void act() const {
@@ -376,6 +384,47 @@ TEST(SkyStackCache, ProviderStacksAreUsedAndNoneFallsBackToTheCpu) {
   EXPECT_EQ(asked, 2);
   EXPECT_EQ(cache.made(), 2);
   EXPECT_EQ(cache.provided(), 1);
+}
+
+// Stacks at the sky rate made by a device on threads of their own (issue 16: the cosmic rays' protection
+// stacks beside the wait for the frames' download, the static sources' thirds and halves beside their
+// analysis) are the stacks asked for: the cosmic rays, stars and PSF are the CPU's, to the bit.
+TEST(PreprocessAccelerator, StacksMadeAheadOnOtherThreadsGiveTheCpusResults) {
+  NullProgress p;
+  CancelToken c;
+  const sim::SimResult sim = sim::simulate(sim::preset("small"), 3, p, c);
+  pipeline::PreprocessParams params;
+  params.masters = sim::exactMasters(sim);
+  const pipeline::Prepared cpu = pipeline::preprocess(sim.cube, params, p, c);
+  FakeAccelerator dev(FakeAccelerator::Mode::Work);
+  dev.makeStacks = true;
+  params.accelerator = &dev;
+  const pipeline::Prepared got = pipeline::preprocess(sim.cube, params, p, c);
+  EXPECT_EQ(got.cosmicRayPixels, cpu.cosmicRayPixels);
+  EXPECT_GT(cpu.cosmicRayPixels.size(), 0u);
+  ASSERT_EQ(got.stars.size(), cpu.stars.size());
+  for (std::size_t i = 0; i < cpu.stars.size(); ++i) {
+    EXPECT_EQ(got.stars[i].x, cpu.stars[i].x) << i;
+    EXPECT_EQ(got.stars[i].y, cpu.stars[i].y) << i;
+    EXPECT_EQ(got.stars[i].flux, cpu.stars[i].flux) << i;
+  }
+  EXPECT_EQ(got.movers.size(), cpu.movers.size());
+  EXPECT_EQ(got.psf.radius, cpu.psf.radius);
+  EXPECT_EQ(got.psf.beta, cpu.psf.beta);
+  EXPECT_EQ(got.sigmaN, cpu.sigmaN);
+  // The protection's three stacks and the search's thirds and halves came from threads other than this one.
+  EXPECT_GE(dev.stackCalls, 3 + 5);
+  EXPECT_TRUE(std::any_of(dev.stackThreads.begin(), dev.stackThreads.end(),
+                          [](std::thread::id t) { return t != std::this_thread::get_id(); }));
+  const auto note = std::find_if(got.notes.begin(), got.notes.end(), [](const std::string& n) {
+    return n.starts_with("cosmic rays: 3 of 3 protection stacks at the sky rate on fake device");
+  });
+  EXPECT_NE(note, got.notes.end());
+  const auto stacks = std::find_if(got.notes.begin(), got.notes.end(), [](const std::string& n) {
+    return n.find("of them beside the host work") != std::string::npos;
+  });
+  ASSERT_NE(stacks, got.notes.end());
+  EXPECT_EQ(stacks->find(", 0 of them beside"), std::string::npos) << *stacks;
 }
 
 // A prefetch (issue 16: the static-source search's thirds and halves made on a device beside its host work)

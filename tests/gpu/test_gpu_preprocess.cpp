@@ -21,6 +21,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 #include <span>
@@ -254,6 +255,40 @@ INSTANTIATE_TEST_SUITE_P(Cases, GpuFilter,
                          ::testing::Values(FilterCase{2.0, false, false}, FilterCase{2.0, true, true},
                                            FilterCase{3.5, true, false}, FilterCase{3.5, false, true},
                                            FilterCase{1.5, true, true}, FilterCase{2.0, true, false, true}));
+
+// The filter with 4 outputs a thread (kernel half sizes 1-12) gives filterKernel's bits, one output a thread
+// (ST_GPU_FILTER_PLAIN=1): widths that are not a multiple of its 128-pixel tiles or of 4, odd and even half
+// sizes, weighted or not, masked or not, and a half size of 13 and more (the plain kernel in both runs).
+TEST(GpuFilter, FourOutputsAThreadGiveThePlainKernelsBits) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  accel->setKeepResident(false);
+  NullProgress progress;
+  CancelToken cancel;
+  int blocked = 0;
+  for (const double fwhm : {0.8, 1.5, 2.0, 3.5, 5.0, 9.0})
+    for (const int w : {131, 96, 257}) {
+      stats::NoiseModel model;
+      const bool masked = w != 96;
+      const FrameCube in = zeroBiased(w, 37, 9, 11, masked, model);
+      const stack::FilterKernel kernel = stack::makeFilterKernel(psf::Moffat::fromFwhm(fwhm));
+      for (const bool weighted : {false, true}) {
+        SCOPED_TRACE("FWHM " + std::to_string(fwhm) + ", half " + std::to_string(kernel.halfSize) +
+                     ", width " + std::to_string(w) + (weighted ? ", weighted" : ""));
+        FrameCube plain = in, fast = in;
+        ASSERT_EQ(setenv("ST_GPU_FILTER_PLAIN", "1", 1), 0);
+        accel->filterCube(plain, kernel, progress, cancel, weighted ? &model : nullptr, 0);
+        EXPECT_NE(accel->lastNote().find("one output a thread"), std::string::npos) << accel->lastNote();
+        ASSERT_EQ(unsetenv("ST_GPU_FILTER_PLAIN"), 0);
+        accel->filterCube(fast, kernel, progress, cancel, weighted ? &model : nullptr, 0);
+        const bool x4 = accel->lastNote().find("4 outputs a thread") != std::string::npos;
+        EXPECT_EQ(x4, kernel.halfSize >= 1 && kernel.halfSize <= 12) << accel->lastNote();
+        blocked += x4 ? 1 : 0;
+        ASSERT_EQ(fast.pixels().size(), plain.pixels().size());
+        EXPECT_EQ(std::memcmp(fast.pixels().data(), plain.pixels().data(), plain.pixels().size() * 4), 0);
+      }
+    }
+  EXPECT_GE(blocked, 24);
+}
 
 TEST(GpuFilter, KernelTooLargeIsAGpuErrorAndTheCubeIsUntouched) {
   ST_REQUIRE_GPU_PREPROCESS(accel);

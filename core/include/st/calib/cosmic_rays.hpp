@@ -77,7 +77,7 @@ struct CosmicRayParams {
   double sourceMedianLow = 0.15;
   double sourceMedianHigh = 0.8;
   double sourceMedianSigma = 3.0;
-  Velocity skyRate;              ///< px/s, so that protection follows drifting stars
+  Velocity skyRate;  ///< px/s, so that protection follows drifting stars
   /// Calibrated counts at which pixels saturate (pre-processing derives it from SATURATE or BITPIX). When
   /// set, a pixel within bleedReachPx rows of a pixel of its own column at or above bleedFraction of it in
   /// the same frame is not a hit: the tip of a saturated star's bleed column moves by a pixel or two from
@@ -97,15 +97,15 @@ struct CosmicRayResult {
   std::vector<std::size_t> perFrame;  ///< pixels flagged in each frame
   std::size_t total = 0;
   std::vector<std::uint64_t> pixels;  ///< flat indices n * width * height + y * width + x, sorted
-  std::size_t sourceSeeds = 0;        ///< seeds set aside as resolved sources (CosmicRayParams::sourceMedianLow)
-  std::size_t protectedPixels = 0;    ///< reference positions protected as stars
-  int protectionStacks = 0;           ///< stacks at the sky rate the protection used (protectBlocks)
-  int protectionStacksProvided = 0;   ///< of them, made by removeCosmicRays' provider (a device)
-  bool preTestProvided = false;       ///< the seeds' pre-test came from removeCosmicRays' preTest
-  double sigma = 0.0;                 ///< single-frame noise from frame differences, counts
-  TailModel tail;                     ///< the measured tail of the excess
-  double seedThreshold = 0.0;         ///< excess a seed had to exceed, counts
-  double growThreshold = 0.0;         ///< excess a grown neighbour had to exceed, counts
+  std::size_t sourceSeeds = 0;  ///< seeds set aside as resolved sources (CosmicRayParams::sourceMedianLow)
+  std::size_t protectedPixels = 0;   ///< reference positions protected as stars
+  int protectionStacks = 0;          ///< stacks at the sky rate the protection used (protectBlocks)
+  int protectionStacksProvided = 0;  ///< of them, made by removeCosmicRays' provider (a device)
+  bool preTestProvided = false;      ///< the seeds' pre-test came from removeCosmicRays' preTest
+  double sigma = 0.0;                ///< single-frame noise from frame differences, counts
+  TailModel tail;                    ///< the measured tail of the excess
+  double seedThreshold = 0.0;        ///< excess a seed had to exceed, counts
+  double growThreshold = 0.0;        ///< excess a grown neighbour had to exceed, counts
   /// Wall time of the parts, for the notes: the noise from frame differences, the protection (and of it, its
   /// stacks at the sky rate), the excess tail, the seeds (pass 1), growing and filling.
   TimedParts parts;
@@ -128,6 +128,10 @@ using CosmicRayPreTest =
 
 /// That pre-test on the CPU (the reference the device's is tested against).
 CosmicRayPreTestWords cosmicRayPreTestWords(const FrameCube& cube, float thr);
+
+/// The frame ranges whose stacks at the sky rate (nothing subtracted) the protection asks for, for a cube of
+/// `frames` frames and `protectBlocks` blocks: made ahead elsewhere, they are the same stacks.
+std::vector<detect::SkyStackCache::Range> protectionRanges(std::size_t frames, int protectBlocks);
 
 /// Finds and removes cosmic-ray hits in place. Needs >= 3 frames (fewer: nothing is done, total 0).
 /// Masked pixels are never flagged. The protection's stacks at the sky rate come from `stacks` when given

@@ -75,13 +75,19 @@ class SkyStackCache {
   /// Starts making the stacks of these ranges (those not made yet) by the provider, one after another on a
   /// thread of its own (issue 16: a device makes them beside the host work that comes before they are asked
   /// for); stack() takes each as it is asked for, waiting for it if need be, and the CPU makes one the
-  /// provider did not. Nothing without a provider or while a prefetch is in flight. The provider is then
+  /// provider did not. Nothing without a provider; one in flight is waited for first. The provider is then
   /// called from that thread beside this thread's own calls of it and of the SNR provider: the caller makes
   /// those calls exclusive (pipeline/preprocess.cpp). The cube must stay unchanged until settle() or the
   /// cache's end.
   void prefetch(const FrameCube& cube, Velocity rate, double subtract, const std::vector<Range>& ranges);
+  /// False: prefetch() does nothing (each stack made when asked; the same stacks).
+  void allowPrefetch(bool allow) { m_prefetchAllowed = allow; }
   /// Waits for a prefetch in flight; its stacks stay for stack().
   void settle();
+  /// The prefetch's stack of this range moved out to the caller (waiting for it; not kept here): `*found`
+  /// says whether the prefetch has it, none when its provider declined it; its exception rethrown.
+  std::optional<SkyStack> takePrefetched(const FrameCube& cube, Velocity rate, double subtract,
+                                         std::size_t first, std::size_t last, bool* found);
 
   /// Stacks made so far, those of them the provider made, and the wall time spent making them (s): on this
   /// thread (a prefetched stack counts the wait for it only).
@@ -100,6 +106,7 @@ class SkyStackCache {
   SnrProvider m_snrProvider;
   std::shared_ptr<Prefetch> m_prefetch;
   int m_made = 0, m_provided = 0, m_prefetchedBefore = 0;
+  bool m_prefetchAllowed = true;
   double m_seconds = 0.0, m_prefetchSecondsBefore = 0.0;
 };
 

@@ -17,9 +17,9 @@
 //   -> the inverse-variance-weighted matched filter (stats/noise_model.hpp, stack/matched_filter.hpp).
 //
 // Memory: the raw cube is taken by value and becomes the zero-biased cube in place; the only extra full
-// cube is the matched-filtered copy (Prepared::filtered), none when !keepZeroBiased (filtered in place). Per-pixel images (background, noise), the
-// stacks and masks are frame-sized; the cube's pixel mask (1 byte per sample, a quarter of a float cube)
-// exists only when the loader or the bad-pixel mask needs one.
+// cube is the matched-filtered copy (Prepared::filtered), none when !keepZeroBiased (filtered in place).
+// Per-pixel images (background, noise), the stacks and masks are frame-sized; the cube's pixel mask (1 byte
+// per sample, a quarter of a float cube) exists only when the loader or the bad-pixel mask needs one.
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -66,14 +66,18 @@ struct PreprocessParams {
   double psfFwhmPx = 3.0;            ///< footprint dilation before the fit, and the fallback PSF
   double psfBeta = 4.0;              ///< beta of the fallback PSF (paper §3.3)
   std::optional<std::pair<double, double>>
-      psfStar;                                   ///< the star the user names for the PSF (0-based px, t_ref)
+      psfStar;  ///< the star the user names for the PSF (0-based px, t_ref)
   /// The PSF measured before (out-of-core pre-processing: on the reference region): used as it is, no PSF
   /// fit, and the static sources' footprints drawn at its FWHM from the start.
   std::optional<psf::Moffat> givenPsf;
-  bool matchedFilter = true;                     ///< produce Prepared::filtered (one extra cube)
+  bool matchedFilter = true;  ///< produce Prepared::filtered (one extra cube)
   /// Keep the zero-biased cube (Prepared::frames) beside the filtered one. False: the matched filter runs
   /// in place on it (one cube less at the peak; Prepared::frames is left empty), for a search without fits.
   bool keepZeroBiased = true;
+  /// With an accelerator: stacks at the sky rate made on threads of their own ahead of their use (the cosmic
+  /// rays' protection beside the wait for the frames' download, the static sources' thirds and halves beside
+  /// their analysis). The same stacks either way (false: each made when asked, for comparison).
+  bool stacksAhead = true;
   stats::FrameBackgroundParams frameBackground;  ///< each frame's smooth background (SEP), before all else
   bool removeResidualMean = true;  ///< remove each zero-biased frame's residual local mean (mesh)
   int residualMeshPx = 64;         ///< its mesh cell
