@@ -146,7 +146,7 @@ struct SkyStackCache::Prefetch {
   std::vector<Key> keys;
   std::vector<std::optional<SkyStack>> stacks;  // none: the provider declined (the CPU makes it)
   std::vector<std::exception_ptr> errors;       // rethrown by the stack() that asks for it
-  std::vector<char> finished, taken, made;
+  std::vector<char> finished, taken;
   double seconds = 0.0;
   std::jthread thread;  // last: joined before the members it writes are destroyed
 
@@ -172,13 +172,10 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
   if (!m_provider || !m_prefetchAllowed) return;
   if (m_prefetch) {
     settle();  // one in flight: its stacks first (its provider makes one at a time)
-    // The stacks the last one made that were not asked for are kept.
+    // The stacks the last one made that were not asked for are kept (counted when handed out).
     for (std::size_t k = 0; k < m_prefetch->keys.size(); ++k)
-      if (!m_prefetch->taken[k] && m_prefetch->stacks[k] && !m_prefetch->errors[k]) {
-        m_stacks.emplace(m_prefetch->keys[k], std::move(*m_prefetch->stacks[k]));
-        ++m_made, ++m_provided;
-      }
-    m_prefetchedBefore += static_cast<int>(std::count(m_prefetch->made.begin(), m_prefetch->made.end(), 1));
+      if (!m_prefetch->taken[k] && m_prefetch->stacks[k] && !m_prefetch->errors[k])
+        m_ahead.emplace(m_prefetch->keys[k], std::move(*m_prefetch->stacks[k]));
     m_prefetchSecondsBefore += m_prefetch->seconds;
     m_prefetch.reset();
   }
@@ -187,7 +184,8 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
   for (auto [first, last] : ranges) {
     if (last == 0 || last > nf) last = nf;
     const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last};
-    if (first < last && !m_stacks.contains(key) && std::find(keys.begin(), keys.end(), key) == keys.end())
+    if (first < last && !m_stacks.contains(key) && !m_ahead.contains(key) &&
+        std::find(keys.begin(), keys.end(), key) == keys.end())
       keys.push_back(key);
   }
   if (keys.empty()) return;
@@ -197,32 +195,34 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
   pf->errors.resize(keys.size());
   pf->finished.assign(keys.size(), 0);
   pf->taken.assign(keys.size(), 0);
-  pf->made.assign(keys.size(), 0);
   // The thread reads the cube, a copy of the provider and the state it is joined with (never *this, which
   // may be moved meanwhile).
   try {
-    pf->thread = std::jthread([state = pf.get(), provider = m_provider, c = &cube, rate, subtract] {
-      // Beside the caller's loops on every core: this thread's own (the provider's host copies) on two.
-      const ParallelThreadCap cap(2);
-      const auto t0 = std::chrono::steady_clock::now();
-      for (std::size_t k = 0; k < state->keys.size(); ++k) {
-        std::optional<SkyStack> made;
-        std::exception_ptr error;
-        try {
-          made = provider(*c, rate, subtract, std::get<4>(state->keys[k]), std::get<5>(state->keys[k]));
-        } catch (...) {
-          error = std::current_exception();
-        }
-        const std::lock_guard lock(state->mutex);
-        state->made[k] = made ? 1 : 0;
-        state->stacks[k] = std::move(made);
-        state->errors[k] = error;
-        state->finished[k] = 1;
-        if (k + 1 == state->keys.size())
-          state->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        state->changed.notify_all();
-      }
-    });
+    pf->thread = std::jthread(
+        [state = pf.get(), provider = m_provider, c = &cube, rate, subtract](std::stop_token stop) {
+          // Beside the caller's loops on every core: this thread's own (the provider's host copies) on two.
+          const ParallelThreadCap cap(2);
+          const auto t0 = std::chrono::steady_clock::now();
+          for (std::size_t k = 0; k < state->keys.size(); ++k) {
+            std::optional<SkyStack> made;
+            std::exception_ptr error;
+            // The cache going away (a cancel or an error unwinding its owner): the rest is not made.
+            if (!stop.stop_requested()) {
+              try {
+                made = provider(*c, rate, subtract, std::get<4>(state->keys[k]), std::get<5>(state->keys[k]));
+              } catch (...) {
+                error = std::current_exception();
+              }
+            }
+            const std::lock_guard lock(state->mutex);
+            state->stacks[k] = std::move(made);
+            state->errors[k] = error;
+            state->finished[k] = 1;
+            if (k + 1 == state->keys.size())
+              state->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            state->changed.notify_all();
+          }
+        });
   } catch (const std::system_error&) {
     return;  // no thread: stack() makes each as before
   }
@@ -234,7 +234,12 @@ std::optional<SkyStack> SkyStackCache::takePrefetched(const FrameCube& cube, Vel
   *found = false;
   if (!m_prefetch) return std::nullopt;
   if (last == 0 || last > cube.frameCount()) last = cube.frameCount();
-  return m_prefetch->take(Key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last}, found);
+  bool taken = false;
+  std::optional<SkyStack> s =
+      m_prefetch->take(Key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last}, &taken);
+  *found = s.has_value();  // one declined ahead is the caller's to ask again
+  if (s) ++m_prefetched;
+  return s;
 }
 
 void SkyStackCache::settle() {
@@ -250,15 +255,6 @@ double SkyStackCache::prefetchSeconds() const {
   return s;
 }
 
-int SkyStackCache::prefetched() const {
-  int n = m_prefetchedBefore;
-  if (m_prefetch) {
-    const std::lock_guard lock(m_prefetch->mutex);
-    n += static_cast<int>(std::count(m_prefetch->made.begin(), m_prefetch->made.end(), 1));
-  }
-  return n;
-}
-
 const SkyStack& SkyStackCache::stack(const FrameCube& cube, Velocity rate, double subtract,
                                      ProgressSink& progress, CancelToken& cancel, std::size_t first,
                                      std::size_t last) {
@@ -271,9 +267,16 @@ const SkyStack& SkyStackCache::stack(const FrameCube& cube, Velocity rate, doubl
   }
   const auto t0 = std::chrono::steady_clock::now();
   std::optional<SkyStack> made;
-  bool prefetched = false;
-  if (m_prefetch) made = m_prefetch->take(key, &prefetched);
-  if (m_provider && !prefetched) made = m_provider(cube, rate, subtract, first, last);
+  if (auto ahead = m_ahead.find(key); ahead != m_ahead.end()) {
+    made = std::move(ahead->second);
+    m_ahead.erase(ahead);
+  } else if (m_prefetch) {
+    bool found = false;
+    made = m_prefetch->take(key, &found);
+  }
+  if (made) ++m_prefetched;
+  // One the provider declined ahead is asked again (the device may hold the cube by now).
+  if (m_provider && !made) made = m_provider(cube, rate, subtract, first, last);
   if (made) {
     ++m_provided;
     progress.report(1.0, "stack at sky rate");

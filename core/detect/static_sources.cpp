@@ -262,8 +262,8 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   SubProgress sub(progress, 0.0, 0.8);
   const SkyStack& s = cache.stack(cube, skyRate, background, sub, cancel);
   // The stacks of the thirds (the movers' test) made beside the analysis below where a provider (a device)
-  // makes them, then those of the halves (the faint sources' test) beside the components and the motions
-  // (after the analysis' own device calls): the same stacks, off this thread's path (issue 16).
+  // makes them, and those of the halves (the faint sources' test) once there is a source to test: the same
+  // stacks, off this thread's path (issue 16).
   if (params.keepMovers) cache.prefetch(cube, skyRate, background, detail::thirdRanges(cube.frameCount()));
   lap("stack");
   const int cw = s.mean.width, ch = s.mean.height;
@@ -271,8 +271,6 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts);
   lap("analysis");
   out.parts.add(analysisParts);
-  if (params.filteredDetection)
-    cache.prefetch(cube, skyRate, background, detail::halfRanges(cube.frameCount()));
   const Image& resid = an.resid;
   const std::vector<float>& snr = an.snr;
   const std::vector<float>& snrF = an.snrF;
@@ -323,6 +321,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     });
     auto more = components(seeds, grows, cw, ch);
     comps.insert(comps.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+    // Sources seen only after the filter are tested on the halves' stacks below: made ahead, beside the
+    // describing and the motions (issue 16).
+    if (comps.size() > nPerPixel)
+      cache.prefetch(cube, skyRate, background, detail::halfRanges(cube.frameCount()));
   }
   lap("components");
   double frames = 0.0;

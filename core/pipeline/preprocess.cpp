@@ -355,13 +355,13 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     if (deviceStacks)
       crStacks = [&](const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
                      std::size_t endFrame) {
-        bool found = false;
+        bool found = false;  // one declined ahead is asked again
         std::optional<detect::SkyStack> s =
             protectionStacks.takePrefetched(c, rate, subtract, firstFrame, endFrame, &found);
         return found ? std::move(s) : deviceStacks(c, rate, subtract, firstFrame, endFrame);
       };
     cr = calib::removeCosmicRays(cube, cp, sub, cancel, &crStacks, &devicePreTest);
-    protectionStacks.settle();
+    protectionStacks = detect::SkyStackCache();  // settled: its thread joined, stacks not asked for freed
     if (!waitedNote.empty()) out.notes.push_back(waitedNote);
     if (cr.preTestProvided) out.notes.push_back(params.accelerator->lastNote());  // its last device step
     out.cosmicRaysPerFrame = cr.perFrame;

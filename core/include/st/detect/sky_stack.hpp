@@ -85,7 +85,8 @@ class SkyStackCache {
   /// Waits for a prefetch in flight; its stacks stay for stack().
   void settle();
   /// The prefetch's stack of this range moved out to the caller (waiting for it; not kept here): `*found`
-  /// says whether the prefetch has it, none when its provider declined it; its exception rethrown.
+  /// says whether it had one (not when its provider declined it: the caller asks again); its exception
+  /// rethrown.
   std::optional<SkyStack> takePrefetched(const FrameCube& cube, Velocity rate, double subtract,
                                          std::size_t first, std::size_t last, bool* found);
 
@@ -94,8 +95,9 @@ class SkyStackCache {
   [[nodiscard]] int made() const { return m_made; }
   [[nodiscard]] int provided() const { return m_provided; }
   [[nodiscard]] double seconds() const { return m_seconds; }
-  /// The stacks the provider made on the prefetches' thread, and that thread's wall time (s).
-  [[nodiscard]] int prefetched() const;
+  /// The stacks handed out that the provider made ahead on the prefetches' thread, and that thread's wall
+  /// time (s).
+  [[nodiscard]] int prefetched() const { return m_prefetched; }
   [[nodiscard]] double prefetchSeconds() const;
 
  private:
@@ -105,7 +107,8 @@ class SkyStackCache {
   Provider m_provider;
   SnrProvider m_snrProvider;
   std::shared_ptr<Prefetch> m_prefetch;
-  int m_made = 0, m_provided = 0, m_prefetchedBefore = 0;
+  std::map<Key, SkyStack> m_ahead;  // made ahead, not asked for yet (a settled prefetch's)
+  int m_made = 0, m_provided = 0, m_prefetched = 0;
   bool m_prefetchAllowed = true;
   double m_seconds = 0.0, m_prefetchSecondsBefore = 0.0;
 };
