@@ -173,16 +173,16 @@ __global__ void backgroundSubtractKernel(BackgroundLaunch p) {
   }
 }
 
-__global__ void filterKernel(FilterLaunch p) {
-  extern __shared__ float tile[];
-  const int K = 2 * p.half + 1;
-  const int tw = kTileX + 2 * p.half, th = kTileY + 2 * p.half;
+// The filter's tile of frame f0 + blockIdx.z: the input's pixels [x0, x0 + tw) x [y0, y0 + th) row by row
+// (0 outside the frame, where masked and where not finite; times the weight where weighted), by every thread
+// of the block, then a barrier.
+__device__ __forceinline__ void loadFilterTile(const FilterLaunch& p, float* tile, int x0, int y0, int tw,
+                                               int th) {
   const int n = p.f0 + static_cast<int>(blockIdx.z);
-  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
-  const std::size_t base = static_cast<std::size_t>(n) * np;
-  const int x0 = blockIdx.x * kTileX - p.half, y0 = blockIdx.y * kTileY - p.half;
+  const std::size_t base = static_cast<std::size_t>(n) * p.width * p.height;
   const float invS2 = p.invVar ? p.invS2[n] : 1.0f;
-  for (int t = threadIdx.y * kTileX + threadIdx.x; t < tw * th; t += kTileX * kTileY) {
+  const int threads = static_cast<int>(blockDim.x * blockDim.y);
+  for (int t = static_cast<int>(threadIdx.y * blockDim.x + threadIdx.x); t < tw * th; t += threads) {
     const int gx = x0 + t % tw, gy = y0 + t / tw;
     float v = 0.0f;
     if (gx >= 0 && gy >= 0 && gx < p.width && gy < p.height) {
@@ -194,6 +194,15 @@ __global__ void filterKernel(FilterLaunch p) {
     tile[t] = v;
   }
   __syncthreads();
+}
+
+__global__ void filterKernel(FilterLaunch p) {
+  extern __shared__ float tile[];
+  const int K = 2 * p.half + 1;
+  const int tw = kTileX + 2 * p.half, th = kTileY + 2 * p.half;
+  const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
+  const std::size_t base = static_cast<std::size_t>(p.f0 + static_cast<int>(blockIdx.z)) * np;
+  loadFilterTile(p, tile, blockIdx.x * kTileX - p.half, blockIdx.y * kTileY - p.half, tw, th);
   const int x = blockIdx.x * kTileX + threadIdx.x, y = blockIdx.y * kTileY + threadIdx.y;
   if (x >= p.width || y >= p.height) return;
   float acc = 0.0f;
@@ -228,23 +237,9 @@ __global__ void filterKernelX4(FilterLaunch p) {
   constexpr int TW = x4TileWidth<H>(), TH = kX4TileY + 2 * H;
   extern __shared__ float4 tile4[];
   float* tile = reinterpret_cast<float*>(tile4);
-  const int n = p.f0 + static_cast<int>(blockIdx.z);
   const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
-  const std::size_t base = static_cast<std::size_t>(n) * np;
-  const int x0 = blockIdx.x * kX4TileX - H, y0 = blockIdx.y * kX4TileY - H;
-  const float invS2 = p.invVar ? p.invS2[n] : 1.0f;
-  for (int t = threadIdx.y * 32 + threadIdx.x; t < TW * TH; t += 32 * kX4TileY) {
-    const int gx = x0 + t % TW, gy = y0 + t / TW;
-    float v = 0.0f;
-    if (gx >= 0 && gy >= 0 && gx < p.width && gy < p.height) {
-      const std::size_t q = static_cast<std::size_t>(gy) * p.width + gx;
-      v = p.in[base + q];
-      if (!isfinite(v) || (p.mask && p.mask[base + q])) v = 0.0f;
-      if (p.invVar) v = __fmul_rn(v, __fmul_rn(p.invVar[q], invS2));
-    }
-    tile[t] = v;
-  }
-  __syncthreads();
+  const std::size_t base = static_cast<std::size_t>(p.f0 + static_cast<int>(blockIdx.z)) * np;
+  loadFilterTile(p, tile, blockIdx.x * kX4TileX - H, blockIdx.y * kX4TileY - H, TW, TH);
   const int xo = blockIdx.x * kX4TileX + threadIdx.x * kX4Outputs, y = blockIdx.y * kX4TileY + threadIdx.y;
   if (xo >= p.width || y >= p.height) return;
   float acc[kX4Outputs] = {};
