@@ -304,6 +304,26 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
   EXPECT_EQ(b.stageSeconds.size(), 3u);  // no star subtraction without a region
 }
 
+// The small simulated observation (seed 3), its parameters (the exact masters) and its CPU pre-processing:
+// made once for the tests that compare a device's pre-processing with it.
+struct SmallReference {
+  sim::SimResult sim;
+  pipeline::PreprocessParams params;
+  pipeline::Prepared cpu;
+};
+const SmallReference& smallReference() {
+  static const SmallReference ref = [] {
+    NullProgress p;
+    CancelToken c;
+    SmallReference r;
+    r.sim = sim::simulate(sim::preset("small"), 3, p, c);
+    r.params.masters = sim::exactMasters(r.sim);
+    r.cpu = pipeline::preprocess(r.sim.cube, r.params, p, c);
+    return r;
+  }();
+  return ref;
+}
+
 // The static sources' filtered SNR maps (PreprocessAccelerator::filteredSnr) and the stacks at the sky rate
 // (skyStack) and the sky rate's phase correlations (phaseCorrelations) in pipeline::preprocess: a device that
 // fails is asked once, warned about once and then left alone; one that declines is asked for every map, stack
@@ -311,10 +331,10 @@ TEST(PreprocessAccelerator, ZeroBiasDeviceFailureRestoresTheStarMaskAndRunsTheSt
 TEST(PreprocessAccelerator, FilteredSnrFailureWarnsOnceAndTheStarsAreTheCpus) {
   NullProgress p;
   CancelToken c;
-  const sim::SimResult sim = sim::simulate(sim::preset("small"), 3, p, c);
-  pipeline::PreprocessParams params;
-  params.masters = sim::exactMasters(sim);
-  const pipeline::Prepared cpu = pipeline::preprocess(sim.cube, params, p, c);
+  const SmallReference& ref = smallReference();
+  const sim::SimResult& sim = ref.sim;
+  pipeline::PreprocessParams params = ref.params;
+  const pipeline::Prepared& cpu = ref.cpu;
   FakeAccelerator fail(FakeAccelerator::Mode::Fail), decline(FakeAccelerator::Mode::Work);
   for (FakeAccelerator* accel : {&fail, &decline}) {
     SCOPED_TRACE(accel == &fail ? "failing" : "declining");
@@ -392,10 +412,10 @@ TEST(SkyStackCache, ProviderStacksAreUsedAndNoneFallsBackToTheCpu) {
 TEST(PreprocessAccelerator, StacksMadeAheadOnOtherThreadsGiveTheCpusResults) {
   NullProgress p;
   CancelToken c;
-  const sim::SimResult sim = sim::simulate(sim::preset("small"), 3, p, c);
-  pipeline::PreprocessParams params;
-  params.masters = sim::exactMasters(sim);
-  const pipeline::Prepared cpu = pipeline::preprocess(sim.cube, params, p, c);
+  const SmallReference& ref = smallReference();
+  const sim::SimResult& sim = ref.sim;
+  pipeline::PreprocessParams params = ref.params;
+  const pipeline::Prepared& cpu = ref.cpu;
   FakeAccelerator dev(FakeAccelerator::Mode::Work);
   dev.makeStacks = true;
   params.accelerator = &dev;
