@@ -4,11 +4,13 @@
 #include <cstdio>
 
 #include "st/common/cpu_time.hpp"
+#include "st/common/trace.hpp"
 
 namespace st {
 
 void TimedParts::add(const std::string& name, double seconds, double cpuSeconds) {
-  const auto it = std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
+  const auto it =
+      std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
   if (it != parts.end()) {
     it->seconds += seconds;
     it->cpuSeconds += cpuSeconds;
@@ -23,7 +25,8 @@ void TimedParts::add(const TimedParts& other, const std::string& prefix) {
 }
 
 double TimedParts::seconds(const std::string& name) const {
-  const auto it = std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
+  const auto it =
+      std::find_if(parts.begin(), parts.end(), [&](const TimedPart& p) { return p.name == name; });
   return it != parts.end() ? it->seconds : 0.0;
 }
 
@@ -48,6 +51,7 @@ double PartTimer::lap(const std::string& name) {
   const double cpu = processCpuSeconds();
   const double s = std::chrono::duration<double>(now - m_last).count();
   m_out.add(name, s, cpu - m_lastCpu);
+  trace::record(name, m_last, now);
   m_last = now;
   m_lastCpu = cpu;
   return s;

@@ -20,6 +20,7 @@
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/common/cpu_time.hpp"
 #include "st/common/timed_parts.hpp"
+#include "st/common/trace.hpp"
 #include "st/pipeline/registration_stage.hpp"
 #include "st/psf/psf_star.hpp"
 #include "st/stack/matched_filter.hpp"
@@ -41,6 +42,7 @@ class DeviceStep {
   auto operator()(const Call& call) -> decltype(call()) {
     ++asked;
     if (m_failed) return std::nullopt;
+    const trace::Scope traced("device: " + m_what);
     try {
       auto result = call();
       made += result ? 1 : 0;
@@ -168,6 +170,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     const double cpu = processCpuSeconds();
     out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - last).count());
     out.stageCpuSeconds.emplace_back(stage, cpu - lastCpu);
+    trace::record(stage, last, now);
     last = now;
     lastCpu = cpu;
   };
@@ -213,6 +216,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.findHotPixels) {
     const auto hot = findHotPixelsOn(params.accelerator, cube, out.global, {}, cancel, out.notes);
     out.hotPixels = detect::maskPixelsInAllFrames(cube, hot);
+    if (params.accelerator) params.accelerator->maskedInAllFrames(cube, hot);
   }
   lap("global background");
   // With a device for the matched filter, the filtered cube's host buffer (1.5 GB for 1500 x 512^2: 0.5-1.5 s
@@ -302,7 +306,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     deviceStacks = [&stacksStep, &stackCalls, accel = params.accelerator](
                        const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
                        std::size_t endFrame) {
-      const std::lock_guard lock(stackCalls);
+      std::unique_lock lock(stackCalls, std::defer_lock);
+      {
+        const trace::Scope waiting("device stack: waits for the device");
+        lock.lock();
+      }
       return stacksStep([&] { return accel->skyStack(c, rate, subtract, firstFrame, endFrame); });
     };
   // The cosmic rays' protection stacks (the frames as the frame backgrounds left them, at the sky rate, none
@@ -318,6 +326,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator) {
     // Every stage from here reads the host frames.
     const auto t0 = std::chrono::steady_clock::now();
+    const trace::Scope waiting("sky rate: waits for the frames' download");
     params.accelerator->finishHostCopies();
     const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (waited >= 0.001)
@@ -348,7 +357,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     calib::CosmicRayPreTest devicePreTest;
     if (params.accelerator)
       devicePreTest = [&preTestStep, &stackCalls, accel = params.accelerator](const FrameCube& c, float thr) {
-        const std::lock_guard lock(stackCalls);
+        std::unique_lock lock(stackCalls, std::defer_lock);
+        {
+          const trace::Scope waiting("cosmic-ray pre-test: waits for the device");
+          lock.lock();
+        }
         return preTestStep([&] { return accel->cosmicRayPreTest(c, thr); });
       };
     detect::SkyStackCache::Provider crStacks;
@@ -394,7 +407,11 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator)
     skyStacks.setSnrProvider(
         [&snrStep, &stackCalls, accel = params.accelerator](const detect::FilteredSnrInputs& in) {
-          const std::lock_guard lock(stackCalls);
+          std::unique_lock lock(stackCalls, std::defer_lock);
+          {
+            const trace::Scope waiting("filtered SNR: waits for the device");
+            lock.lock();
+          }
           return snrStep([&] { return accel->filteredSnr(in); });
         });
   {

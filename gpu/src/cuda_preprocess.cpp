@@ -38,6 +38,7 @@ void copyOut(char* dst, const char* src, std::size_t n) {
 
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
                                  cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes) {
+  const trace::Scope traced("download");
   r.copy.sync();  // the staging buffers may still feed an upload
   const std::size_t piece = chunkBytes > 0 ? std::min(chunkBytes, kStagingBytes) : kStagingBytes;
   const std::size_t pieces = (bytes + piece - 1) / piece;
@@ -61,6 +62,60 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     parallelFor(
         len, chunk, [&](std::size_t lo, std::size_t hi) { copyOut(dst + lo, src + lo, hi - lo); },
         copyThreads);
+  }
+}
+
+void preprocess_detail::downloadPieces(DeviceResources& r, const std::vector<DownloadPiece>& pieces,
+                                       cudaStream_t s) {
+  static const bool oneByOne = [] {
+    const char* v = std::getenv("ST_GPU_GATHER_DOWNLOADS");
+    return v && std::string(v) == "0";
+  }();
+  if (oneByOne) {
+    for (const DownloadPiece& p : pieces)
+      download(r, p.host, p.dev, p.bytes, s);
+    return;
+  }
+  const trace::Scope traced("download (gathered)");
+  // Segments of at most kSegment bytes (the host copy's tasks), packed into batches of a staging buffer.
+  constexpr std::size_t kSegment = std::size_t{1} << 19;
+  struct Segment {
+    char* host;
+    const char* dev;
+    std::size_t bytes, offset;  // offset: in its batch's staging buffer
+  };
+  std::vector<std::vector<Segment>> batches(1);
+  std::size_t used = 0;
+  for (const DownloadPiece& p : pieces)
+    for (std::size_t off = 0; off < p.bytes; off += kSegment) {
+      const std::size_t len = std::min(kSegment, p.bytes - off);
+      if (used + len > kStagingBytes) {
+        batches.emplace_back();
+        used = 0;
+      }
+      batches.back().push_back(
+          {static_cast<char*>(p.host) + off, static_cast<const char*>(p.dev) + off, len, used});
+      used += len;
+    }
+  if (batches.back().empty()) return;  // no bytes at all
+  r.copy.sync();                       // the staging buffers may still feed an upload
+  Event ready[2];
+  auto enqueue = [&](std::size_t b) {
+    char* staging = static_cast<char*>(r.staging(static_cast<int>(b & 1)));
+    for (const Segment& g : batches[b])
+      ST_CUDA_CHECK(cudaMemcpyAsync(staging + g.offset, g.dev, g.bytes, cudaMemcpyDeviceToHost, s));
+    ready[b & 1].record(s);
+  };
+  enqueue(0);
+  for (std::size_t b = 0; b < batches.size(); ++b) {
+    if (b + 1 < batches.size()) enqueue(b + 1);
+    ready[b & 1].sync();
+    const char* staging = static_cast<const char*>(r.staging(static_cast<int>(b & 1)));
+    const std::vector<Segment>& batch = batches[b];
+    parallelFor(batch.size(), 1, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i)
+        copyOut(batch[i].host, staging + batch[i].offset, batch[i].bytes);
+    });
   }
 }
 
@@ -135,7 +190,7 @@ std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube
   ST_CUDA_CHECK(
       cudaMemcpyAsync(out.data(), excess.get(), np * sizeof(float), cudaMemcpyDeviceToHost, r.compute.get()));
   r.compute.sync();
-  m_sepMask = DeviceBuffer<std::uint8_t>();  // the pipeline masks the hot pixels next: the kept mask is stale
+  m_sepMaskCurrent = false;  // the pipeline masks the hot pixels next (maskedInAllFrames)
   m_note = "hot pixels' block means on " + name() + " from the frame backgrounds' frames: " + ms(sw.lap());
   return out;
 }
@@ -146,6 +201,43 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
   const bool reuse = !envKnob("ST_GPU_SEP_NO_REUSE");
   m_sepFramesValid = unchanged && reuse && m_sepFrames.size() > 0 &&
                      m_sepFramesData == cube.pixels().data() && m_sepFrames.size() == cube.pixels().size();
+}
+
+void CudaPreprocess::maskedInAllFrames(const FrameCube& cube, const std::vector<std::size_t>& pixels) {
+  const std::size_t nf = cube.frameCount(), np = cube.framePixels();
+  const bool ours = !stagewise() && m_sepFrames.size() > 0 && m_sepFramesData == cube.pixels().data() &&
+                    m_sepFrames.size() == cube.pixels().size();
+  const bool inRange = std::all_of(pixels.begin(), pixels.end(), [np](std::size_t i) { return i < np; });
+  try {
+    // The kept mask (none before: zeros) with the same pixels set in every frame, on the stream of the
+    // stages that read it (the prefetch takes it); the host mask's 393 MB (1500 x 512^2) not scanned and
+    // uploaded again (~10 ms the sky rate waited for, H200 2026-12-03).
+    if (ours && inRange && (m_sepMask.size() == cube.mask().size() || m_sepMask.size() == 0)) {
+      if (cube.mask().empty()) {  // nothing masked on the host (no pixels): nothing to keep
+        m_sepMaskCurrent = pixels.empty() && m_sepMask.size() == 0;
+        return;
+      }
+      ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
+      DeviceResources& r = resources();
+      cudaStream_t s = r.compute.get();
+      if (m_sepMask.size() == 0) {
+        m_sepMask = DeviceBuffer<std::uint8_t>(nf * np);
+        ST_CUDA_CHECK(cudaMemsetAsync(m_sepMask.get(), 0, nf * np, s));
+      }
+      if (!pixels.empty()) {
+        const std::vector<std::uint64_t> idx(pixels.begin(), pixels.end());
+        const DeviceBuffer<std::uint64_t> idxD = toDevice(idx);
+        launchMaskInAllFrames(m_sepMask.get(), idxD.get(), idx.size(), nf, np, s);
+        r.compute.sync();  // before the indices are freed
+      }
+      m_sepMaskCurrent = true;
+      return;
+    }
+  } catch (const std::exception&) {
+    // Dropped: the prefetch uploads the host's mask.
+  }
+  m_sepMask = DeviceBuffer<std::uint8_t>();
+  m_sepMaskCurrent = false;
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
@@ -160,8 +252,13 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   const bool shapeKeyOnly = takeKept && framesPending(cube);
   DeviceBuffer<float> kept;
   if (takeKept) kept = std::move(m_sepFrames);
+  // The mask too, when the kept one is the host's (the hot pixels applied: maskedInAllFrames).
+  DeviceBuffer<std::uint8_t> keptMask;
+  if (takeKept && m_sepMaskCurrent && m_sepMask.size() > 0 && m_sepMask.size() == cube.mask().size())
+    keptMask = std::move(m_sepMask);
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
+  m_sepMaskCurrent = false;
   m_sepFramesData = nullptr;
   m_sepFramesValid = false;
   if (stagewise()) return nullptr;
@@ -174,6 +271,13 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   p->shapeKeyOnly = shapeKeyOnly;
   p->keptFrames = kept.size() > 0;
   if (p->keptFrames) p->pix = std::move(kept);  // owned by the prefetch from here, not by its thread
+  p->keptMask = keptMask.size() > 0;
+  if (p->keptMask) p->mask = std::move(keptMask);
+  m_note = std::string("prefetch on ") + name() + ": " +
+           (p->keptFrames ? "the frame backgrounds' frames" : "the frames uploaded") +
+           (p->maskSize == 0 ? ", no mask"
+            : p->keptMask    ? ", their mask with the hot pixels set on the device"
+                             : ", the mask uploaded");
   const std::uint8_t* maskData = cube.mask().data();
   // A thread of its own, copying on that thread only: the host copies into the pinned staging buffers run
   // beside the CPU stages (static sources, PSF) instead of on every core at the per-pixel background.
@@ -183,10 +287,11 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
       DeviceResources& r = ensureResources(m_prefetchRes);
       if (!q->keptFrames) q->pix = DeviceBuffer<float>(q->size);
-      if (q->maskSize) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
+      const bool uploadTheMask = q->maskSize > 0 && !q->keptMask;
+      if (uploadTheMask) q->mask = DeviceBuffer<std::uint8_t>(q->maskSize);
       if (!q->keptFrames)
         stagedUpload(r, q->pix.get(), q->data, q->size * sizeof(float), r.copy.get(), false);
-      if (q->maskSize) uploadMask(r, q->mask.get(), maskData, q->maskSize, r.copy.get(), false);
+      if (uploadTheMask) uploadMask(r, q->mask.get(), maskData, q->maskSize, r.copy.get(), false);
       r.copy.sync();
       q->seconds = sw.lap();
       q->ok = true;

@@ -32,6 +32,7 @@
 #include "device_info.hpp"
 #include "host_copies.hpp"
 #include "resident_cube.hpp"
+#include "st/common/trace.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "uploader.hpp"
 
@@ -106,6 +107,20 @@ inline bool phaseCorrelationsOnHost() {
 void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
               unsigned copyThreads = 0, std::size_t chunkBytes = 0);
 
+/// One region of a gathered download (downloadPieces).
+struct DownloadPiece {
+  void* host;
+  const void* dev;
+  std::size_t bytes;
+};
+
+/// The pieces' device -> host copies as one download: packed into the staging buffers a buffer at a time
+/// (one sync a buffer, not one a piece), the next buffer's DMAs queued while this one is copied out on
+/// every core. For many small results (the sky rate's 32 block means, a stack's three images): each piece's
+/// own download() waited behind the frames' download on the copy engine (0.2-1.1 ms a piece, H200
+/// 2026-12-03). ST_GPU_GATHER_DOWNLOADS=0 downloads them one by one, as before.
+void downloadPieces(DeviceResources& r, const std::vector<DownloadPiece>& pieces, cudaStream_t s);
+
 /// download() into the pipeline's own cube, in place: a failure part way leaves it half written, so it is
 /// not a GpuError (whose contract is a cube as it was, for the CPU to process again) but an Error that
 /// stops the run, naming `what` and `device`.
@@ -128,6 +143,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   [[nodiscard]] std::string lastNote() const override { return m_note; }  // the last stage's
   void setKeepResident(bool keep) override { m_keepResident = keep; }
   void finishHostCopies() override {
+    const trace::Scope waiting("waits for the host copies");
     std::exception_ptr e = m_copies.wait();
     m_framesPendingData = nullptr;
     if (e) std::rethrow_exception(e);
@@ -149,6 +165,7 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
       const FrameCube& cube, const detect::RegistrationLinkBatch& batch) override;
   double removeResidualMeans(FrameCube& cube, int meshPx, double clipSigma, ProgressSink& progress,
                              CancelToken& cancel) override;
+  void maskedInAllFrames(const FrameCube& cube, const std::vector<std::size_t>& pixels) override;
   std::shared_ptr<void> prefetch(const FrameCube& cube) override;
   void patchPrefetch(const FrameCube& cube, const std::vector<std::uint64_t>& pixels) override;
   std::optional<std::vector<detect::ShiftedSums>> shiftedSums(const FrameCube& cube,
@@ -266,6 +283,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
     /// (a few ms when sparse; a mask over 1/64 set goes whole, ~110 ms for 1500 x 512^2). Set before the
     /// thread starts.
     bool keptFrames = false;
+    /// The mask too is the device's (the frame backgrounds' with the hot pixels, maskedInAllFrames): no
+    /// upload at all. Set before the thread starts.
+    bool keptMask = false;
     /// `key` is cubeShapeKey, not cubeKey: the kept frames' download into the host cube was still running
     /// when the prefetch began (its pixels are not read until waitForHostFrames or finishHostCopies).
     bool shapeKeyOnly = false;
@@ -329,6 +349,9 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   // pixels are found: the pipeline then masks them).
   DeviceBuffer<float> m_sepFrames;
   DeviceBuffer<std::uint8_t> m_sepMask;
+  /// m_sepMask is the host cube's mask: false from hotPixelExcess (the pipeline masks the hot pixels next)
+  /// until maskedInAllFrames applies them.
+  bool m_sepMaskCurrent = false;
   const float* m_sepFramesData = nullptr;
   bool m_sepFramesValid = false;
   /// allowFrameDownloadBehind: the frame backgrounds' download may run behind the stages after it.
@@ -344,7 +367,8 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   /// kept one (none or the same); else null.
   const float* keptFrames(const FrameCube& cube) const {
     return m_sepFramesValid && m_sepFramesData == cube.pixels().data() &&
-                   m_sepFrames.size() == cube.pixels().size() && cube.mask().size() == m_sepMask.size()
+                   m_sepFrames.size() == cube.pixels().size() && m_sepMaskCurrent &&
+                   cube.mask().size() == m_sepMask.size()
                ? m_sepFrames.get()
                : nullptr;
   }

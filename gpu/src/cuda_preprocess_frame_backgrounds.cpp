@@ -162,6 +162,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   // here: the download reads them there.
   m_sepFrames = std::move(pix);
   m_sepMask = std::move(mask);
+  m_sepMaskCurrent = true;
   m_sepFramesData = cube.pixels().data();
   const float* frames = m_sepFrames.get();
   if (behind) {

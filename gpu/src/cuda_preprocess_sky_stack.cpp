@@ -4,6 +4,7 @@
 // (detect::stackAtSkyRate) that the static-source search and the PSF stage ask for. The sums are the CPU's
 // (sky_stack_kernels.cu), so the results are equal.
 #include <algorithm>
+#include <optional>
 #include <vector>
 
 #include "cuda_preprocess.hpp"
@@ -63,6 +64,8 @@ std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
     const FrameCube& cube, const std::vector<detect::ShiftedBlock>& blocks, double background,
     detect::ShiftedSumsForm form) {
   if (form == detect::ShiftedSumsForm::DoubleMeans && blockPairsOnHost()) return std::nullopt;
+  const trace::Scope whole("block sums on the device (with freeing)");
+  std::optional<trace::Scope> part(std::in_place, "block sums: prefetch ready");
   const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
   if (!pf || blocks.empty()) return std::nullopt;
   const std::size_t nf = cube.frameCount(), np = cube.framePixels(), k = blocks.size();
@@ -78,6 +81,7 @@ std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
     start[b + 1] = static_cast<int>(sx.size());
   }
   Stopwatch sw;
+  part.emplace("block sums: device buffers and launch");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
@@ -105,6 +109,7 @@ std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
   p.frames = doubles ? nullptr : frames.get();
   p.doubleMean = doubles ? doubleMean.get() : nullptr;
   launchShiftedSums(p, s);
+  part.emplace("block sums: host images");
   // The host's images allocated and zeroed on every core while the kernel runs, not on this thread.
   std::vector<detect::ShiftedSums> out(k);
   parallelFor(k, 1, [&](std::size_t b0, std::size_t b1) {
@@ -118,15 +123,18 @@ std::optional<std::vector<detect::ShiftedSums>> CudaPreprocess::shiftedSums(
     }
   });
   // Through the pinned staging buffers, copied out on every core (pageable copies ran at a few GB/s on one
-  // thread).
+  // thread), gathered.
+  part.reset();
+  std::vector<DownloadPiece> pieces;
   for (std::size_t b = 0; b < k; ++b) {
     if (doubles) {
-      download(r, out[b].doubleMean.data(), doubleMean.get() + b * np, np * sizeof(double), s);
+      pieces.push_back({out[b].doubleMean.data(), doubleMean.get() + b * np, np * sizeof(double)});
       continue;
     }
-    download(r, out[b].mean.data(), mean.get() + b * np, np * sizeof(float), s);
-    download(r, out[b].frames.data(), frames.get() + b * np, np * sizeof(float), s);
+    pieces.push_back({out[b].mean.data(), mean.get() + b * np, np * sizeof(float)});
+    pieces.push_back({out[b].frames.data(), frames.get() + b * np, np * sizeof(float)});
   }
+  downloadPieces(r, pieces, s);
   m_note = "the sky rate's " + std::to_string(k) + (doubles ? " block means on " : " block sums on ") +
            name() + ": " + ms(sw.lap());
   return out;
@@ -138,9 +146,12 @@ std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, 
   const std::size_t nf = cube.frameCount();
   if (last == 0 || last > nf) last = nf;
   Stopwatch sw;
+  const trace::Scope whole("stack on the device (with freeing)");
+  std::optional<trace::Scope> part(std::in_place, "stack: prefetch ready");
   const std::shared_ptr<Prefetch> pf = readyPrefetch(cube, false);
   if (!pf || first >= last) return std::nullopt;
   const double waited = sw.lap();
+  part.emplace("stack: device buffers and launch");
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
   DeviceResources& r = resources();
   cudaStream_t s = r.compute.get();
@@ -176,14 +187,17 @@ std::optional<detect::SkyStack> CudaPreprocess::skyStack(const FrameCube& cube, 
   p.count = count.get();
   p.max = mx.get();
   launchSkyStack(p, s);
+  part.emplace("stack: host images");
   out.mean = Image(cw, ch);
   out.count = Image(cw, ch);
   out.max = Image(cw, ch);
-  if (nc > 0) {  // through the pinned staging buffers (download)
-    download(r, out.mean.data(), mean.get(), nc * 4, s);
-    download(r, out.count.data(), count.get(), nc * 4, s);
-    download(r, out.max.data(), mx.get(), nc * 4, s);
-  }
+  part.reset();
+  if (nc > 0)  // through the pinned staging buffers
+    downloadPieces(r,
+                   {{out.mean.data(), mean.get(), nc * 4},
+                    {out.count.data(), count.get(), nc * 4},
+                    {out.max.data(), mx.get(), nc * 4}},
+                   s);
   r.compute.sync();
   m_note = "stack at the sky rate on " + name() + " (frames " + std::to_string(first) + " to " +
            std::to_string(last) + "): join " + ms(waited) + ", " + ms(sw.lap());

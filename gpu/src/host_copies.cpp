@@ -7,6 +7,7 @@
 
 #include "cuda_preprocess.hpp"
 #include "st/common/error.hpp"
+#include "st/common/trace.hpp"
 
 namespace st::gpu {
 
@@ -120,7 +121,9 @@ void HostCopies::run(std::stop_token stop) {
     } catch (...) {
       error = std::current_exception();
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const auto t1 = std::chrono::steady_clock::now();
+    trace::record("copy: " + p.what, t0, t1);
+    const double seconds = std::chrono::duration<double>(t1 - t0).count();
     lock.lock();
     m_seconds += seconds;
     if (error && !m_error) m_error = error;

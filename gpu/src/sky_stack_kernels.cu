@@ -2,6 +2,7 @@
 // (i + x0 + shiftX[n], j + y0 + shiftY[n]) when it lies in the frame and is not masked: the sum of
 // (double(v) - subtract) in frame order, the count, the largest value; mean = float(sum / count), and 0 mean
 // and maximum where no frame contributed (core/detect/sky_stack.cpp).
+#include <algorithm>
 #include <cmath>
 
 #include "cuda_check.hpp"
@@ -148,6 +149,29 @@ void launchScatter(float* pix, const std::uint64_t* index, const float* value, s
 void launchScatter(std::uint8_t* mask, const std::uint64_t* index, const std::uint8_t* value, std::size_t n,
                    cudaStream_t s) {
   scatter(mask, index, value, n, s);
+}
+
+namespace {
+
+__global__ void maskInAllFramesKernel(std::uint8_t* mask, const std::uint64_t* pixels, std::size_t count,
+                                      std::size_t nf, std::size_t np) {
+  const std::size_t j = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (j >= count) return;
+  const std::size_t i = pixels[j];
+  for (std::size_t n = blockIdx.y; n < nf; n += gridDim.y)
+    mask[n * np + i] = 1;
+}
+
+}  // namespace
+
+void launchMaskInAllFrames(std::uint8_t* mask, const std::uint64_t* pixels, std::size_t count, std::size_t nf,
+                           std::size_t np, cudaStream_t s) {
+  if (count == 0 || nf == 0) return;
+  constexpr int kThreads = 128;
+  const dim3 grid(static_cast<unsigned>((count + kThreads - 1) / kThreads),
+                  static_cast<unsigned>(std::min<std::size_t>(nf, 1024)));
+  maskInAllFramesKernel<<<grid, kThreads, 0, s>>>(mask, pixels, count, nf, np);
+  checkLaunch("maskInAllFramesKernel");
 }
 
 void launchCosmicRayPreTest(const float* pix, std::size_t nf, std::size_t np, float thr,

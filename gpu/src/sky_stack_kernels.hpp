@@ -66,6 +66,9 @@ void launchCosmicRayPreTest(const float* pix, std::size_t nf, std::size_t np, fl
 /// pix[index[k]] = value[k] for k < n (the cosmic-ray fills patched into a prefetched cube).
 void launchScatter(float* pix, const std::uint64_t* index, const float* value, std::size_t n, cudaStream_t s);
 /// mask[index[k]] = value[k] for k < n (a sparse mask uploaded: its non-zero bytes into a zeroed buffer).
+/// mask[n * np + pixels[j]] = 1 for every frame n < nf and j < count (detect::maskPixelsInAllFrames).
+void launchMaskInAllFrames(std::uint8_t* mask, const std::uint64_t* pixels, std::size_t count, std::size_t nf,
+                           std::size_t np, cudaStream_t s);
 void launchScatter(std::uint8_t* mask, const std::uint64_t* index, const std::uint8_t* value, std::size_t n,
                    cudaStream_t s);
 

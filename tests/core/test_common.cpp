@@ -4,6 +4,10 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+#include <map>
 #include <memory>
 #include <random>
 #include <vector>
@@ -15,8 +19,12 @@
 #include "st/common/parallel.hpp"
 #include "st/common/prefault.hpp"
 #include "st/common/sparse_bytes.hpp"
+#include "st/common/timed_parts.hpp"
+#include "st/common/trace.hpp"
 #include "st/common/units.hpp"
 #include "st/psf/moffat.hpp"
+
+#include <nlohmann/json.hpp>
 
 namespace st {
 namespace {
@@ -183,6 +191,59 @@ TEST(Moffat, FwhmAndIntegralsMatchClosedForms) {
     }
   EXPECT_NEAR(sum / m.integral(), 1.0, 2e-3);
   EXPECT_NEAR(sum2 / m.integralOfSquare(), 1.0, 2e-3);
+}
+
+}  // namespace
+}  // namespace st
+
+namespace st {
+namespace {
+
+// The trace (ST_TRACE) records scopes and PartTimer laps from every thread with their real times, and its
+// file is valid JSON with the Chrome trace fields Perfetto reads.
+TEST(Trace, RecordsScopesAndLapsOfEveryThreadAsChromeEvents) {
+  const std::filesystem::path path = std::filesystem::temp_directory_path() / "st_test_trace.json";
+  trace::stop();
+  {
+    const trace::Scope before("before start");  // not recorded: off
+  }
+  trace::start(path.string());
+  ASSERT_TRUE(trace::enabled());
+  {
+    const trace::Scope scope("outer \"quoted\"");
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  std::thread other([] { const trace::Scope scope("on another thread"); });
+  other.join();
+  TimedParts parts;
+  PartTimer timer(parts);
+  std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  timer.lap("a lap");
+  EXPECT_EQ(trace::flush(), 3u);
+  trace::stop();
+  EXPECT_FALSE(trace::enabled());
+  EXPECT_EQ(trace::flush(), 0u);
+
+  std::ifstream in(path);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  const auto& events = j.at("traceEvents");
+  ASSERT_EQ(events.size(), 3u);
+  std::map<std::string, nlohmann::json> byName;
+  for (const auto& e : events) {
+    EXPECT_EQ(e.at("ph"), "X");
+    byName[e.at("name").get<std::string>()] = e;
+  }
+  ASSERT_EQ(byName.count("outer \"quoted\""), 1u);
+  ASSERT_EQ(byName.count("on another thread"), 1u);
+  ASSERT_EQ(byName.count("a lap"), 1u);
+  const auto& outer = byName["outer \"quoted\""];
+  EXPECT_GE(outer.at("dur").get<double>(), 19000.0);  // microseconds
+  EXPECT_NE(outer.at("tid"), byName["on another thread"].at("tid"));
+  EXPECT_GE(byName["a lap"].at("dur").get<double>(), 4000.0);
+  // In order: the lap began after the scope ended.
+  EXPECT_GE(byName["a lap"].at("ts").get<double>(),
+            outer.at("ts").get<double>() + outer.at("dur").get<double>() - 1.0);
+  std::filesystem::remove(path);
 }
 
 }  // namespace

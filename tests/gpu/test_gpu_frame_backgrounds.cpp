@@ -11,6 +11,8 @@
 // the work (removeFrameBackgroundsOn). Every test skips without a device.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -26,6 +28,7 @@
 #include "st/common/error.hpp"
 #include "st/common/progress.hpp"
 #include "st/detect/hot_pixels.hpp"
+#include "st/detect/sky_stack.hpp"
 #include "st/gpu/preprocess.hpp"
 #include "st/pipeline/preprocess_accelerator.hpp"
 #include "st/stats/background.hpp"
@@ -179,6 +182,57 @@ TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
     accel->globalBackground(cube, {});
     EXPECT_EQ(accel->lastNote().find("no upload"), std::string::npos) << accel->lastNote();
   }
+}
+
+// The hot pixels masked on the host are set in the device's kept mask too (maskedInAllFrames, issue 16): the
+// prefetch then takes the frames and the mask from the device with no upload, and its stacks at the sky rate
+// (whose counts and maxima see every masked sample) equal the CPU's bit for bit, with and without a mask
+// before the hot pixels. Without the pipeline's word after hotPixelExcess, the mask is uploaded as before.
+TEST(GpuFrameBackgrounds, HotPixelsMaskedOnTheDeviceGiveThePrefetchTheHostsMask) {
+  ST_REQUIRE_GPU_PREPROCESS(accel);
+  for (const bool told : {true, false})
+    for (const bool withMask : {false, true}) {
+      SCOPED_TRACE(std::string(withMask ? "a mask before" : "no mask before") +
+                   (told ? ", told" : ", not told"));
+      FrameCube cube = skyCube(150, 120, 30, 9, withMask);
+      for (std::size_t k = 0; k < cube.frameCount(); ++k)
+        for (const std::size_t i : {std::size_t{40 * 150 + 70}, std::size_t{90 * 150 + 20}})
+          cube.frame(k)[i] += 400.0f;
+      NullProgress progress;
+      CancelToken cancel;
+      accel->removeFrameBackgrounds(cube, {}, progress, cancel);
+      accel->framesUnchangedSinceFrameBackgrounds(cube, true);
+      const stats::ClipStats g = accel->globalBackground(cube, {});
+      const detect::HotPixelParams hp;
+      const auto excess = accel->hotPixelExcess(cube, g.mean, hp);
+      ASSERT_TRUE(excess.has_value());
+      const auto hot =
+          detect::hotPixelsFromExcess(*excess, cube.width(), cube.height(), cube.frameCount(), g.sigma, hp);
+      ASSERT_GE(hot.size(), 2u);
+      detect::maskPixelsInAllFrames(cube, hot);
+      if (told) accel->maskedInAllFrames(cube, hot);
+      const std::shared_ptr<void> guard = accel->prefetch(cube);
+      const std::string note = accel->lastNote();
+      EXPECT_EQ(note.find("hot pixels set on the device") != std::string::npos, told) << note;
+      EXPECT_NE(note.find("the frame backgrounds' frames"), std::string::npos) << note;
+      const Velocity rate{0.9, -0.3};
+      for (const auto& [first, last] : {std::pair<std::size_t, std::size_t>{0, 30}, {10, 20}}) {
+        std::optional<detect::SkyStack> dev;
+        for (int tries = 0; tries < 1000 && !dev; ++tries) {
+          dev = accel->skyStack(cube, rate, g.mean, first, last);
+          if (!dev) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        ASSERT_TRUE(dev.has_value());
+        accel->finishHostCopies();
+        const detect::SkyStack cpu =
+            detect::stackAtSkyRate(cube, rate, g.mean, progress, cancel, first, last);
+        ASSERT_EQ(dev->count.pixels.size(), cpu.count.pixels.size());
+        EXPECT_EQ(std::memcmp(dev->count.data(), cpu.count.data(), cpu.count.pixels.size() * sizeof(float)),
+                  0);
+        EXPECT_EQ(std::memcmp(dev->max.data(), cpu.max.data(), cpu.max.pixels.size() * sizeof(float)), 0);
+        EXPECT_EQ(std::memcmp(dev->mean.data(), cpu.mean.data(), cpu.mean.pixels.size() * sizeof(float)), 0);
+      }
+    }
 }
 
 // The frames' download behind the stages after the frame backgrounds (allowFrameDownloadBehind, issue 16):

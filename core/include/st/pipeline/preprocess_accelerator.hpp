@@ -133,6 +133,14 @@ class PreprocessAccelerator {
     (void)cube, (void)background, (void)params;
     return std::nullopt;
   }
+  /// The pipeline masked these pixels (y * width + x) in every frame of `cube`
+  /// (detect::maskPixelsInAllFrames, after hotPixelExcess; also with none, when the mask did not change), and
+  /// changed its mask in no other way since removeFrameBackgrounds: a device that kept that stage's frames
+  /// and mask may apply the same to its copy of the mask instead of uploading the mask again at
+  /// prefetch(cube). The default does nothing.
+  virtual void maskedInAllFrames(const FrameCube& cube, const std::vector<std::size_t>& pixels) {
+    (void)cube, (void)pixels;
+  }
   /// `cube` is the input of the next subtractPixelBackground or zeroBias and does not change until then (the
   /// stages in between only read it) but at the pixels later passed to patchPrefetch: a device may start
   /// uploading it now, behind those stages. The returned guard (may be null) must be destroyed before the
