@@ -208,11 +208,14 @@ void CudaPreprocess::maskedInAllFrames(const FrameCube& cube, const std::vector<
   const bool ours = !stagewise() && m_sepFrames.size() > 0 && m_sepFramesData == cube.pixels().data() &&
                     m_sepFrames.size() == cube.pixels().size();
   const bool inRange = std::all_of(pixels.begin(), pixels.end(), [np](std::size_t i) { return i < np; });
+  // Benchmark knob: ST_GPU_HOT_MASK_UPLOAD=1 uploads the host's mask at the prefetch and scans it for
+  // registration, as before 2026-12-03.
+  static const bool asBefore = envKnob("ST_GPU_HOT_MASK_UPLOAD");
   try {
     // The kept mask (none before: zeros) with the same pixels set in every frame, on the stream of the
     // stages that read it (the prefetch takes it); the host mask's 393 MB (1500 x 512^2) not scanned and
     // uploaded again (~10 ms the sky rate waited for, H200 2026-12-03).
-    if (ours && inRange && (m_sepMask.size() == cube.mask().size() || m_sepMask.size() == 0)) {
+    if (ours && inRange && !asBefore && (m_sepMask.size() == cube.mask().size() || m_sepMask.size() == 0)) {
       if (cube.mask().empty()) {  // nothing masked on the host (no pixels): nothing to keep
         m_sepMaskCurrent = pixels.empty() && m_sepMask.size() == 0;
         return;
