@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <future>
 #include <mutex>
 #include <optional>
@@ -341,7 +342,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     const MovingMask canvas(cube, out.skyRate);
     const std::size_t canvasBytes =
         static_cast<std::size_t>(canvas.canvasWidth()) * canvas.canvasHeight() * sizeof(float);
-    HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
+    // Benchmark knob: ST_NO_HEAP_WARM=1 leaves it out (for before/after figures from one binary).
+    static const bool noWarm = [] {
+      const char* v = std::getenv("ST_NO_HEAP_WARM");
+      return v && std::string(v) == "1";
+    }();
+    const trace::Scope traced("warming this thread's heap");
+    if (!noWarm)
+      HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
   }
   detect::StaticSourceParams sp = params.stars;
   sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;

@@ -10,6 +10,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/common/trace.hpp"
 
 namespace st::psf {
 namespace {
@@ -85,8 +86,8 @@ double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Moffat::G
   parallelFor(n, std::max<std::size_t>(1, kSamplesPerChunk / std::max<std::size_t>(1, samples)),
               [&](std::size_t i0, std::size_t i1) {
                 for (std::size_t i = i0; i < i1; ++i)
-                  ws.residual[i] = pixels[i].value -
-                                   modelAt(p, pixels[i].x, pixels[i].y, s, smear, jtj ? &ws.grad[i] : nullptr);
+                  ws.residual[i] = pixels[i].value - modelAt(p, pixels[i].x, pixels[i].y, s, smear,
+                                                             jtj ? &ws.grad[i] : nullptr);
               });
   double ssr = 0.0;
   if (jtj) jtj->setZero();
@@ -281,7 +282,12 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   // all the same. A pinned fit near its star is refined: a trail the plain model cannot follow may pin beta
   // until the smear is modelled.
   const SmearKernel none{{0.0}, {0.0}, {1.0}};
+  auto t0 = trace::Clock::now();
   LmState lm = runLevenbergMarquardt(pixels, p, s, none, o.maxIterations);
+  if (trace::enabled())
+    trace::record("Moffat fit: plain, " + std::to_string(pixels.size()) + " pixels, " +
+                      std::to_string(lm.iterations) + " iterations",
+                  t0, trace::Clock::now());
   const double plainFwhm = Moffat{lm.p[kR], lm.p[kBeta]}.fwhm();
   const bool strayed = betaAtFitBound(lm.p[kBeta]) && !(std::hypot(lm.p[kX0] - xGuess, lm.p[kY0] - yGuess) <=
                                                         fitWanderLimitPx(plainFwhm) + 2.0);
@@ -317,7 +323,12 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   }
   if (!o.smear.empty() && lm.converged() && !strayed && !tooFaint) {
     const int used = lm.iterations;
+    t0 = trace::Clock::now();
     lm = runLevenbergMarquardt(pixels, lm.p, s, o.smear, o.maxIterations);
+    if (trace::enabled())
+      trace::record("Moffat fit: with the smear, " + std::to_string(o.smear.weight.size()) + " offsets, " +
+                        std::to_string(lm.iterations) + " iterations",
+                    t0, trace::Clock::now());
     lm.iterations += used;
   }
   p = lm.p;
@@ -385,7 +396,8 @@ std::vector<RadialBin> radialProfile(const Image& image, const MoffatFit& fit, d
 std::string implausibleFit(const MoffatFit& fit, double xGuess, double yGuess, int width, int height) {
   char buf[160];
   const double w = fit.fwhm();
-  if (!std::isfinite(fit.x0) || !std::isfinite(fit.y0) || !std::isfinite(w)) return "non-finite centre or FWHM";
+  if (!std::isfinite(fit.x0) || !std::isfinite(fit.y0) || !std::isfinite(w))
+    return "non-finite centre or FWHM";
   if (fit.x0 < -0.5 || fit.y0 < -0.5 || fit.x0 > width - 0.5 || fit.y0 > height - 0.5) {
     std::snprintf(buf, sizeof buf, "centre (%.1f, %.1f) outside the image", fit.x0, fit.y0);
     return buf;

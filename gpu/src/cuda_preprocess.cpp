@@ -191,6 +191,7 @@ std::optional<std::vector<float>> CudaPreprocess::hotPixelExcess(const FrameCube
       cudaMemcpyAsync(out.data(), excess.get(), np * sizeof(float), cudaMemcpyDeviceToHost, r.compute.get()));
   r.compute.sync();
   m_sepMaskCurrent = false;  // the pipeline masks the hot pixels next (maskedInAllFrames)
+  m_sepMaskVouched = false;
   m_note = "hot pixels' block means on " + name() + " from the frame backgrounds' frames: " + ms(sw.lap());
   return out;
 }
@@ -217,7 +218,7 @@ void CudaPreprocess::maskedInAllFrames(const FrameCube& cube, const std::vector<
     // uploaded again (~10 ms the sky rate waited for, H200 2026-12-03).
     if (ours && inRange && !asBefore && (m_sepMask.size() == cube.mask().size() || m_sepMask.size() == 0)) {
       if (cube.mask().empty()) {  // nothing masked on the host (no pixels): nothing to keep
-        m_sepMaskCurrent = pixels.empty() && m_sepMask.size() == 0;
+        m_sepMaskCurrent = m_sepMaskVouched = pixels.empty() && m_sepMask.size() == 0;
         return;
       }
       ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
@@ -233,14 +234,14 @@ void CudaPreprocess::maskedInAllFrames(const FrameCube& cube, const std::vector<
         launchMaskInAllFrames(m_sepMask.get(), idxD.get(), idx.size(), nf, np, s);
         r.compute.sync();  // before the indices are freed
       }
-      m_sepMaskCurrent = true;
+      m_sepMaskCurrent = m_sepMaskVouched = true;
       return;
     }
   } catch (const std::exception&) {
     // Dropped: the prefetch uploads the host's mask.
   }
   m_sepMask = DeviceBuffer<std::uint8_t>();
-  m_sepMaskCurrent = false;
+  m_sepMaskCurrent = m_sepMaskVouched = false;
 }
 
 std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
@@ -257,11 +258,11 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   if (takeKept) kept = std::move(m_sepFrames);
   // The mask too, when the kept one is the host's (the hot pixels applied: maskedInAllFrames).
   DeviceBuffer<std::uint8_t> keptMask;
-  if (takeKept && m_sepMaskCurrent && m_sepMask.size() > 0 && m_sepMask.size() == cube.mask().size())
+  if (takeKept && m_sepMaskVouched && m_sepMask.size() > 0 && m_sepMask.size() == cube.mask().size())
     keptMask = std::move(m_sepMask);
   m_sepFrames = DeviceBuffer<float>();
   m_sepMask = DeviceBuffer<std::uint8_t>();
-  m_sepMaskCurrent = false;
+  m_sepMaskCurrent = m_sepMaskVouched = false;
   m_sepFramesData = nullptr;
   m_sepFramesValid = false;
   if (stagewise()) return nullptr;

@@ -352,6 +352,10 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   /// m_sepMask is the host cube's mask: false from hotPixelExcess (the pipeline masks the hot pixels next)
   /// until maskedInAllFrames applies them.
   bool m_sepMaskCurrent = false;
+  /// The pipeline said (maskedInAllFrames) that m_sepMask is the host's mask: the frame backgrounds' with the
+  /// hot pixels and nothing else changed. Only then do registration and the prefetch take it instead of the
+  /// host's (framesUnchangedSinceFrameBackgrounds allows other changes to the mask).
+  bool m_sepMaskVouched = false;
   const float* m_sepFramesData = nullptr;
   bool m_sepFramesValid = false;
   /// allowFrameDownloadBehind: the frame backgrounds' download may run behind the stages after it.

@@ -163,6 +163,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   m_sepFrames = std::move(pix);
   m_sepMask = std::move(mask);
   m_sepMaskCurrent = true;
+  m_sepMaskVouched = false;
   m_sepFramesData = cube.pixels().data();
   const float* frames = m_sepFrames.get();
   if (behind) {

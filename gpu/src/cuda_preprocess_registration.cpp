@@ -65,7 +65,7 @@ std::optional<std::vector<detect::RegistrationLinkPeak>> CudaPreprocess::registr
   // 2026-12-03).
   DeviceBuffer<std::uint8_t> masks;
   bool masksOnDevice = false;
-  if (cube.mask().size() == cube.pixels().size() && m_sepMaskCurrent &&
+  if (cube.mask().size() == cube.pixels().size() && m_sepMaskVouched &&
       m_sepMask.size() == cube.mask().size()) {
     masks = DeviceBuffer<std::uint8_t>(slots * np);
     for (std::size_t k = 0; k < slots; ++k)

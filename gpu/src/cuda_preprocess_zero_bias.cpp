@@ -115,6 +115,12 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   };
   bool queued = false;
   if (in.removeResidualMean) {
+    // The chunks' cell means go through staging buffer 0 (pinned: the pipelined path), once no upload or
+    // download of this stage's uses it.
+    r.copy.sync();
+    r.stagingFree[0].sync();
+    void* pinned = chunks ? r.staging(0) : nullptr;
+    const trace::Scope traced("residual means on the device");
     try {
       out.residualMeanRms =
           removeResidualMeansOnDevice(kc.pix.get(), w, h, static_cast<int>(nf), in.residualMeshPx,
@@ -123,7 +129,8 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
                                         queueDownload(f0, f1);
                                         queued = true;
                                       })
-                                             : std::function<void(int, int)>());
+                                             : std::function<void(int, int)>(),
+                                      pinned, pinned ? kStagingBytes : 0);
       ST_CUDA_CHECK(cudaStreamSynchronize(s));
     } catch (const GpuError& e) {
       if (!queued) throw;
