@@ -22,20 +22,6 @@ namespace st::gpu {
 
 using namespace preprocess_detail;
 
-namespace {
-
-/// A download's host copy out of a staging buffer: non-temporal stores (copyStreaming), or memcpy as
-/// before 2026-12-03 with ST_GPU_DOWNLOAD_MEMCPY=1.
-void copyOut(char* dst, const char* src, std::size_t n) {
-  static const bool plain = envKnob("ST_GPU_DOWNLOAD_MEMCPY");
-  if (plain)
-    std::memcpy(dst, src, n);
-  else
-    copyStreaming(dst, src, n);
-}
-
-}  // namespace
-
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
                                  cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes) {
   const trace::Scope traced("download");
@@ -60,7 +46,10 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
     const std::size_t chunk =
         std::clamp<std::size_t>(len / workerCount(), std::size_t{1} << 16, std::size_t{1} << 21);
     parallelFor(
-        len, chunk, [&](std::size_t lo, std::size_t hi) { copyOut(dst + lo, src + lo, hi - lo); },
+        len, chunk,
+        [&](std::size_t lo, std::size_t hi) {
+          copyStaged(dst + lo, src + lo, hi - lo, StagedDirection::Download);
+        },
         copyThreads);
   }
 }
@@ -114,7 +103,7 @@ void preprocess_detail::downloadPieces(DeviceResources& r, const std::vector<Dow
     const std::vector<Segment>& batch = batches[b];
     parallelFor(batch.size(), 1, [&](std::size_t i0, std::size_t i1) {
       for (std::size_t i = i0; i < i1; ++i)
-        copyOut(batch[i].host, staging + batch[i].offset, batch[i].bytes);
+        copyStaged(batch[i].host, staging + batch[i].offset, batch[i].bytes, StagedDirection::Download);
     });
   }
 }
@@ -350,11 +339,8 @@ void CudaPreprocess::stagedUpload(DeviceResources& r, void* dst, const void* src
     // threads would slow (4 copied the paper's cube and mask in 137 ms instead of one core's 283, H100
     // machine, 2026-11-27 14:41, but one copy thread slows the sky rate least: 15:22 run, pre-processing
     // 2.47-2.50 s). A foreground upload copies on every core.
-    const auto copy = [plain = uploadByMemcpy()](char* to, const char* in, std::size_t n) {
-      if (plain)
-        std::memcpy(to, in, n);
-      else
-        copyStreaming(to, in, n);
+    const auto copy = [](char* to, const char* in, std::size_t n) {
+      copyStaged(to, in, n, StagedDirection::Upload);
     };
     if (parallelCopy)
       parallelFor(len,

@@ -59,6 +59,26 @@ inline bool uploadByMemcpy() {
   return plain;
 }
 
+/// ST_GPU_DOWNLOAD_MEMCPY=1: the downloads' copies out of the staging buffers by memcpy, as before
+/// 2026-12-03.
+inline bool downloadByMemcpy() {
+  static const bool plain = [] {
+    const char* e = std::getenv("ST_GPU_DOWNLOAD_MEMCPY");
+    return e && *e && *e != '0';
+  }();
+  return plain;
+}
+
+/// A staged copy's host side, into a staging buffer (`upload`) or out of one: copyStreaming, or memcpy
+/// where the knob of its direction asks for it (uploadByMemcpy, downloadByMemcpy).
+enum class StagedDirection { Upload, Download };
+inline void copyStaged(void* dst, const void* src, std::size_t n, StagedDirection direction) {
+  if (direction == StagedDirection::Upload ? uploadByMemcpy() : downloadByMemcpy())
+    std::memcpy(dst, src, n);
+  else
+    copyStreaming(dst, src, n);
+}
+
 /// One pinned staging buffer. 8 MiB pieces were slower (H100, 2026-11-22: the paper's cube uploaded in
 /// 117-130 ms instead of 43-51 ms; parallelFor starts its threads for every piece).
 inline constexpr std::size_t kStagingBytes = std::size_t{32} << 20;
@@ -114,12 +134,8 @@ class Uploader {
       // Many threads fill the pinned buffer: one thread's memcpy (~10 GB/s) would be slower than the DMA.
       float* dst0 = static_cast<float*>(m_r.staging(b));
       const float* src0 = src + off;
-      const bool plain = uploadByMemcpy();
       parallelFor(piece, std::size_t{1} << 19, [&](std::size_t lo, std::size_t hi) {
-        if (plain)
-          std::memcpy(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
-        else
-          copyStreaming(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float));
+        copyStaged(dst0 + lo, src0 + lo, (hi - lo) * sizeof(float), StagedDirection::Upload);
       });
       ST_CUDA_CHECK(cudaMemcpyAsync(dst + off, dst0, piece * sizeof(float), cudaMemcpyHostToDevice, stream));
       m_r.stagingFree[b].record(stream);
