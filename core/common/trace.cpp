@@ -1,5 +1,6 @@
 #include "st/common/trace.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
@@ -74,11 +75,15 @@ void appendEscaped(std::string& out, std::string_view s) {
 
 std::size_t State::flushLocked() {
   if (!on.load() || path.empty()) return 0;
+  // Times from the earliest part's start (a part may have begun before the trace's state was made).
+  Clock::time_point first = origin;
+  for (const Event& e : events)
+    first = std::min(first, e.begin);
   std::string text = "{\"traceEvents\":[\n";
   char num[96];
   for (std::size_t i = 0; i < events.size(); ++i) {
     const Event& e = events[i];
-    const double ts = std::chrono::duration<double, std::micro>(e.begin - origin).count();
+    const double ts = std::chrono::duration<double, std::micro>(e.begin - first).count();
     const double dur = std::chrono::duration<double, std::micro>(e.end - e.begin).count();
     text += "{\"name\":\"";
     appendEscaped(text, e.name);

@@ -195,8 +195,8 @@ void CudaPreprocess::framesUnchangedSinceFrameBackgrounds(const FrameCube& cube,
 
 void CudaPreprocess::maskedInAllFrames(const FrameCube& cube, const std::vector<std::size_t>& pixels) {
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
-  const bool ours = !stagewise() && m_sepFrames.size() > 0 && m_sepFramesData == cube.pixels().data() &&
-                    m_sepFrames.size() == cube.pixels().size();
+  const bool ours = !stagewise() && m_sepFramesValid && m_sepFrames.size() > 0 &&
+                    m_sepFramesData == cube.pixels().data() && m_sepFrames.size() == cube.pixels().size();
   const bool inRange = std::all_of(pixels.begin(), pixels.end(), [np](std::size_t i) { return i < np; });
   // Benchmark knob: ST_GPU_HOT_MASK_UPLOAD=1 uploads the host's mask at the prefetch and scans it for
   // registration, as before 2026-12-03.
@@ -249,11 +249,7 @@ std::shared_ptr<void> CudaPreprocess::prefetch(const FrameCube& cube) {
   DeviceBuffer<std::uint8_t> keptMask;
   if (takeKept && m_sepMaskVouched && m_sepMask.size() > 0 && m_sepMask.size() == cube.mask().size())
     keptMask = std::move(m_sepMask);
-  m_sepFrames = DeviceBuffer<float>();
-  m_sepMask = DeviceBuffer<std::uint8_t>();
-  m_sepMaskCurrent = m_sepMaskVouched = false;
-  m_sepFramesData = nullptr;
-  m_sepFramesValid = false;
+  dropKeptFrames();
   if (stagewise()) return nullptr;
   if (m_prefetch) m_prefetch->join();
   auto p = std::make_shared<Prefetch>();

@@ -367,6 +367,14 @@ class CudaPreprocess final : public CudaPreprocessAccelerator {
   bool framesPending(const FrameCube& cube) const {
     return m_framesPendingData != nullptr && m_framesPendingData == cube.pixels().data();
   }
+  /// Forgets the frame backgrounds' frames and mask kept on the device, and what was said of them.
+  void dropKeptFrames() {
+    m_sepFrames = DeviceBuffer<float>();
+    m_sepMask = DeviceBuffer<std::uint8_t>();
+    m_sepFramesData = nullptr;
+    m_sepFramesValid = false;
+    m_sepMaskCurrent = m_sepMaskVouched = false;
+  }
   /// The kept frames when the pipeline vouched that they are `cube`'s and the cube's mask is the size of the
   /// kept one (none or the same); else null.
   const float* keptFrames(const FrameCube& cube) const {

@@ -86,10 +86,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
   finishHostCopies();
   forgetKept();  // a new cube: the last one's zero-biased frames are not wanted
   m_note.clear();
-  m_sepFrames = DeviceBuffer<float>();
-  m_sepMask = DeviceBuffer<std::uint8_t>();
-  m_sepFramesData = nullptr;
-  m_sepFramesValid = false;
+  dropKeptFrames();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   if (!params.enabled || nf == 0 || sepOnCpu()) {
     if (plan) calib::applyPixelCalibration(cube, *plan, progress, cancel);
@@ -179,9 +176,7 @@ stats::FrameBackgrounds CudaPreprocess::frameBackgrounds(FrameCube& cube,
       }
     } catch (const std::exception& e) {
       if (queued == 0) {  // the host cube untouched: the CPU redoes the stage, and these frames are not kept
-        m_sepFrames = DeviceBuffer<float>();
-        m_sepMask = DeviceBuffer<std::uint8_t>();
-        m_sepFramesData = nullptr;
+        dropKeptFrames();
         throw;
       }
       m_copies.drain();  // the pieces queued write the host cube: the CPU may not redo the stage on it

@@ -3,7 +3,9 @@
 // waits for which copy or device call). Off unless the environment names a file: ST_TRACE=run.json writes
 // every traced part of the process, on every thread, as Chrome trace events ("ph": "X"), readable by
 // Perfetto (ui.perfetto.dev), chrome://tracing and scripts/trace_summary.py, when the process exits.
-// Recording costs a steady_clock read and, while on, a locked push per part; off, one relaxed load.
+// Recording costs a steady_clock read and, while on, a locked push per part; off, one relaxed load. The
+// events stay in memory until the process exits (a long GUI session holds them all; a crash writes none), and
+// a child process inherits ST_TRACE and writes the same file: trace one process at a time.
 #include <chrono>
 #include <string>
 #include <string_view>
