@@ -150,14 +150,19 @@ TEST(GpuFrameBackgrounds, TheOnFunctionUsesTheDeviceAndNotesIt) {
   EXPECT_EQ(c.level.size(), in.frameCount());
 }
 
+// 30 frames of 150 x 120 with two hot pixels: raised in every frame, their neighbours not.
+FrameCube hotPixelCube(unsigned seed, bool withMask) {
+  FrameCube cube = skyCube(150, 120, 30, seed, withMask);
+  for (std::size_t k = 0; k < cube.frameCount(); ++k)
+    for (const std::size_t i : {std::size_t{40 * 150 + 70}, std::size_t{90 * 150 + 20}})
+      cube.frame(k)[i] += 400.0f;
+  return cube;
+}
+
 TEST(GpuFrameBackgrounds, KeptFramesGiveTheGlobalBackgroundAndHotPixels) {
   ST_REQUIRE_GPU_PREPROCESS(accel);
   for (const bool withMask : {false, true}) {
-    FrameCube cube = skyCube(150, 120, 30, 7, withMask);
-    // Hot pixels: raised in every frame, their neighbours not.
-    for (std::size_t k = 0; k < cube.frameCount(); ++k)
-      for (const std::size_t i : {std::size_t{40 * 150 + 70}, std::size_t{90 * 150 + 20}})
-        cube.frame(k)[i] += 400.0f;
+    FrameCube cube = hotPixelCube(7, withMask);
     NullProgress progress;
     CancelToken cancel;
     accel->removeFrameBackgrounds(cube, {}, progress, cancel);
@@ -194,10 +199,7 @@ TEST(GpuFrameBackgrounds, HotPixelsMaskedOnTheDeviceGiveThePrefetchTheHostsMask)
     for (const bool withMask : {false, true}) {
       SCOPED_TRACE(std::string(withMask ? "a mask before" : "no mask before") +
                    (told ? ", told" : ", not told"));
-      FrameCube cube = skyCube(150, 120, 30, 9, withMask);
-      for (std::size_t k = 0; k < cube.frameCount(); ++k)
-        for (const std::size_t i : {std::size_t{40 * 150 + 70}, std::size_t{90 * 150 + 20}})
-          cube.frame(k)[i] += 400.0f;
+      FrameCube cube = hotPixelCube(9, withMask);
       NullProgress progress;
       CancelToken cancel;
       accel->removeFrameBackgrounds(cube, {}, progress, cancel);
