@@ -29,6 +29,12 @@
 namespace st::pipeline {
 namespace {
 
+// `m` locked, the wait for it traced as `waiting` (st/common/trace.hpp).
+std::unique_lock<std::mutex> lockTraced(std::mutex& m, const char* waiting) {
+  const trace::Scope traced(waiting);
+  return std::unique_lock(m);
+}
+
 // A step a device may make for pre-processing (issue 16: the sky rate's block sums, the stacks at the sky
 // rate, their filtered SNR maps): asked and made counted; after the device's first st::GpuError a warning in
 // the notes ("warning: WHAT fell back to the CPU (device: message)") and none from then on: the CPU makes
@@ -307,11 +313,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     deviceStacks = [&stacksStep, &stackCalls, accel = params.accelerator](
                        const FrameCube& c, Velocity rate, double subtract, std::size_t firstFrame,
                        std::size_t endFrame) {
-      std::unique_lock lock(stackCalls, std::defer_lock);
-      {
-        const trace::Scope waiting("device stack: waits for the device");
-        lock.lock();
-      }
+      const auto lock = lockTraced(stackCalls, "device stack: waits for the device");
       return stacksStep([&] { return accel->skyStack(c, rate, subtract, firstFrame, endFrame); });
     };
   // The cosmic rays' protection stacks (the frames as the frame backgrounds left them, at the sky rate, none
@@ -365,11 +367,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     calib::CosmicRayPreTest devicePreTest;
     if (params.accelerator)
       devicePreTest = [&preTestStep, &stackCalls, accel = params.accelerator](const FrameCube& c, float thr) {
-        std::unique_lock lock(stackCalls, std::defer_lock);
-        {
-          const trace::Scope waiting("cosmic-ray pre-test: waits for the device");
-          lock.lock();
-        }
+        const auto lock = lockTraced(stackCalls, "cosmic-ray pre-test: waits for the device");
         return preTestStep([&] { return accel->cosmicRayPreTest(c, thr); });
       };
     detect::SkyStackCache::Provider crStacks;
@@ -415,11 +413,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   if (params.accelerator)
     skyStacks.setSnrProvider(
         [&snrStep, &stackCalls, accel = params.accelerator](const detect::FilteredSnrInputs& in) {
-          std::unique_lock lock(stackCalls, std::defer_lock);
-          {
-            const trace::Scope waiting("filtered SNR: waits for the device");
-            lock.lock();
-          }
+          const auto lock = lockTraced(stackCalls, "filtered SNR: waits for the device");
           return snrStep([&] { return accel->filteredSnr(in); });
         });
   {

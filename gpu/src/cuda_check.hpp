@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdlib>
 #include <vector>
 #include <string>
 #include <utility>
@@ -12,6 +13,13 @@
 #include "st/common/error.hpp"
 
 namespace st::gpu {
+
+/// An environment knob (the benchmarks' before/after switches): set and neither empty nor starting with
+/// '0'. Read at each call.
+inline bool envKnob(const char* name) {
+  const char* e = std::getenv(name);
+  return e && *e && *e != '0';
+}
 
 /// Throws st::GpuError naming the call and CUDA's own text when `err` is not cudaSuccess.
 inline void check(cudaError_t err, const char* what) {

@@ -66,12 +66,6 @@ inline std::string ms(double s) {
   return text;
 }
 
-/// An environment knob: set and neither empty nor starting with '0'. Read at each call.
-inline bool envKnob(const char* name) {
-  const char* e = std::getenv(name);
-  return e && *e && *e != '0';
-}
-
 /// Benchmark knob: ST_GPU_STAGEWISE=1 runs the pre-processing as before the resident zero-biased cube (the
 /// cube uploaded and downloaded by the per-pixel background and again by the residual means, star
 /// subtraction, zeroing and the noise model on the CPU, no prefetch), for before/after figures from one

@@ -122,7 +122,7 @@ void HostCopies::run(std::stop_token stop) {
       error = std::current_exception();
     }
     const auto t1 = std::chrono::steady_clock::now();
-    trace::record("copy: " + p.what, t0, t1);
+    if (trace::enabled()) trace::record("copy: " + p.what, t0, t1);
     const double seconds = std::chrono::duration<double>(t1 - t0).count();
     lock.lock();
     m_seconds += seconds;

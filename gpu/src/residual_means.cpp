@@ -1,6 +1,4 @@
 #include <algorithm>
-#include <cstdlib>
-#include <string>
 #include <cmath>
 #include <functional>
 #include <vector>
@@ -10,15 +8,6 @@
 #include "residual_means_host.hpp"
 
 namespace st::gpu {
-
-namespace {
-
-bool serialKnob() {
-  const char* v = std::getenv("ST_GPU_RESIDUAL_MEANS_SERIAL");
-  return v && std::string(v) == "1";
-}
-
-}  // namespace
 
 double removeResidualMeansOnDevice(float* pix, int width, int height, int nf, int meshPx, double clipSigma,
                                    cudaStream_t stream, int framesPerChunk,
@@ -65,7 +54,8 @@ double removeResidualMeansOnDevice(float* pix, int width, int height, int nf, in
   };
   const std::size_t meansBytes = static_cast<std::size_t>(chunk) * cells * sizeof(double);
   const std::size_t slot = (meansBytes + static_cast<std::size_t>(chunk) + 255) / 256 * 256;
-  const bool pipelined = framesPerChunk > 0 && pinned && 2 * slot <= pinnedBytes && !serialKnob();
+  const bool pipelined =
+      framesPerChunk > 0 && pinned && 2 * slot <= pinnedBytes && !envKnob("ST_GPU_RESIDUAL_MEANS_SERIAL");
   if (pipelined) {
     // Two slots of pinned memory and two device buffers, alternating by chunk: chunk k + 1's means are
     // queued before the host fills chunk k's, whose subtraction (and chunkDone's download) follows them.

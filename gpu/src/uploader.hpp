@@ -52,20 +52,14 @@ inline void copyStreaming(void* dstv, const void* srcv, std::size_t n) {
 
 /// ST_GPU_UPLOAD_MEMCPY=1: the uploads' copies into the staging buffers by memcpy, as before 2026-12-03.
 inline bool uploadByMemcpy() {
-  static const bool plain = [] {
-    const char* e = std::getenv("ST_GPU_UPLOAD_MEMCPY");
-    return e && *e && *e != '0';
-  }();
+  static const bool plain = envKnob("ST_GPU_UPLOAD_MEMCPY");
   return plain;
 }
 
 /// ST_GPU_DOWNLOAD_MEMCPY=1: the downloads' copies out of the staging buffers by memcpy, as before
 /// 2026-12-03.
 inline bool downloadByMemcpy() {
-  static const bool plain = [] {
-    const char* e = std::getenv("ST_GPU_DOWNLOAD_MEMCPY");
-    return e && *e && *e != '0';
-  }();
+  static const bool plain = envKnob("ST_GPU_DOWNLOAD_MEMCPY");
   return plain;
 }
 
