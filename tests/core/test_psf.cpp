@@ -1,9 +1,12 @@
 // PSF: Moffat fit by Levenberg-Marquardt (paper \label{MoffatPsf}), radial profile, star selection.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "st/common/error.hpp"
 #include "st/psf/moffat.hpp"
@@ -144,6 +147,62 @@ TEST(PsfStar, ChoosesIsolatedUnsaturatedStar) {
   const std::vector<StarCandidate> catalog{{50.3, 60.6, 1e6, true}, {100.4, 120.3, 5e4, false}};
   EXPECT_NEAR(measurePsf(img, catalog, opt).star.x, 100.4, 1e-9);
   EXPECT_NEAR(measurePsfAt(img, 30.0, 130.0, opt).fit.fwhm(), truth.fwhm(), 0.05 * truth.fwhm());
+}
+
+// measurePsf fits its candidates in waves, in parallel: its verdicts must be those of one candidate at a
+// time in flux order, whatever maxAccepted (the wave sizes) is. The reference fits each candidate alone (a
+// catalogue of one: the same fit, the same judgement where no neighbour crowds it).
+TEST(PsfStar, WavesOfParallelFitsJudgeAsOneAtATime) {
+  const Moffat truth{2.6, 3.5};
+  Image img(400, 300);
+  // 12 isolated stars; the 130, 120 and 110 ones peak below minPeakSnr (noise 8) and are rejected.
+  const double amps[12] = {6000, 5500, 130, 5000, 120, 4500, 4000, 110, 3500, 3000, 2800, 2600};
+  for (int i = 0; i < 12; ++i)
+    addStar(img, 60.3 + 90.0 * (i % 4), 60.6 + 90.0 * (i / 4), truth, amps[i]);
+  addNoise(img, 200.0, 8.0, 11);
+  const std::vector<StarCandidate> candidates = findStarCandidates(img, 10.0, std::nullopt);
+  ASSERT_GE(candidates.size(), 10u);
+  // The reference: each candidate alone, brightest first.
+  std::vector<bool> accepted;
+  std::vector<double> fwhm;
+  for (const StarCandidate& c : candidates) {
+    try {
+      const PsfMeasurement one = measurePsf(img, {c}, PsfStarOptions{});
+      accepted.push_back(true);
+      fwhm.push_back(one.fit.fwhm());
+    } catch (const InputError&) {
+      accepted.push_back(false);
+      fwhm.push_back(0.0);
+    }
+  }
+  ASSERT_GE(std::count(accepted.begin(), accepted.end(), false), 3);
+  PsfStarOptions all;
+  all.maxAccepted = 100;
+  const PsfMeasurement everyone = measurePsf(img, candidates, all);
+  for (const int k : {1, 2, 3, 5, 9}) {
+    PsfStarOptions o;
+    o.maxAccepted = k;
+    const PsfMeasurement m = measurePsf(img, candidates, o);
+    // One at a time: considered up to the k-th acceptance.
+    int considered = 0, taken = 0, rejected = 0;
+    std::vector<double> expected;
+    for (std::size_t i = 0; i < candidates.size() && taken < k; ++i) {
+      ++considered;
+      if (accepted[i]) {
+        ++taken;
+        expected.push_back(fwhm[i]);
+      } else {
+        ++rejected;
+      }
+    }
+    std::sort(expected.begin(), expected.end());
+    SCOPED_TRACE("maxAccepted " + std::to_string(k));
+    EXPECT_EQ(m.candidatesConsidered, considered);
+    EXPECT_EQ(m.acceptedFwhm, expected);  // bit for bit
+    ASSERT_EQ(static_cast<int>(m.rejected.size()), rejected);
+    for (int r = 0; r < rejected; ++r)
+      EXPECT_EQ(m.rejected[r], everyone.rejected[r]);
+  }
 }
 
 TEST(PsfStar, NoUsableStarSaysSoAndAsksForFwhm) {
