@@ -6,7 +6,7 @@ set -euo pipefail
 build=$1
 dest=$2
 mkdir -p "$dest/lib"
-bins=("$build"/tests/st_gpu_test_* "$build"/gpu/st_gpu_bench "$build"/app/synthtrack-cli)
+bins=("$build"/tests/st_gpu_test_* "$build"/gpu/st_gpu_bench "$build"/gpu/st_gpu_copy_probe "$build"/app/synthtrack-cli)
 for b in "${bins[@]}"; do
   [ -x "$b" ] || continue
   strip -o "$dest/$(basename "$b")" "$b"

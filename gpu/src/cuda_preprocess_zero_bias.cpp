@@ -33,7 +33,13 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   Stopwatch sw;
-  auto lap = [&](const char* stage) { out.stageSeconds.emplace_back(stage, sw.lap()); };
+  auto stageStart = std::chrono::steady_clock::now();
+  auto lap = [&](const char* stage) {
+    const auto now = std::chrono::steady_clock::now();
+    if (trace::enabled()) trace::record(stage, stageStart, now);
+    stageStart = now;
+    out.stageSeconds.emplace_back(stage, sw.lap());
+  };
   KeptCube kc;
   // The zero-biased cube's download, queued chunk by chunk with the residual means, reads kc.pix: a
   // cancellation or failure after the first chunk waits for it before kc is freed.

@@ -6,6 +6,7 @@
 #include "cuda_check.hpp"
 #include "residual_means.hpp"
 #include "residual_means_host.hpp"
+#include "st/common/trace.hpp"
 
 namespace st::gpu {
 
@@ -83,7 +84,10 @@ double removeResidualMeansOnDevice(float* pix, int width, int height, int nf, in
     for (int k = 0; k < chunks; ++k) {
       const int f0 = k * chunk, f1 = std::min(nf, f0 + chunk), n = f1 - f0, b = k & 1;
       if (k + 1 < chunks) queueMeans(k + 1);
-      ready[b].sync();
+      {
+        const trace::Scope traced("residual means: waits for a chunk's cell means");
+        ready[b].sync();
+      }
       fill(hostMeans(b), hostSkip(b), f0, n);
       ST_CUDA_CHECK(cudaMemcpyAsync(meansD[b].get(), hostMeans(b), static_cast<std::size_t>(n) * cells * 8,
                                     cudaMemcpyHostToDevice, stream));
