@@ -33,12 +33,29 @@ double medianOf(const std::vector<float>& v) {
 /// Median and robust sigma of the non-zero finite pixels (subsampled to at most ~2^20).
 void robustStats(const Image& image, double* med, double* sigma) {
   const std::size_t stride = std::max<std::size_t>(1, image.size() >> 20);
+  // Gathered by chunks on every core (the order does not matter to an order statistic): one thread took
+  // ~3 ms of the PSF stage's start on the paper's 1.8M-pixel stack.
+  const std::size_t samples = (image.size() + stride - 1) / stride;
+  constexpr std::size_t kChunk = std::size_t{1} << 16;
+  const std::size_t chunks = (samples + kChunk - 1) / kChunk;
+  std::vector<std::vector<float>> parts(chunks);
+  parallelFor(chunks, 1, [&](std::size_t c0, std::size_t c1) {
+    for (std::size_t c = c0; c < c1; ++c) {
+      std::vector<float>& part = parts[c];
+      part.reserve(kChunk);
+      for (std::size_t k = c * kChunk; k < std::min(samples, (c + 1) * kChunk); ++k) {
+        const float p = image.pixels[k * stride];
+        if (p != 0.0f && std::isfinite(p)) part.push_back(p);
+      }
+    }
+  });
   std::vector<float> v;
-  v.reserve(image.size() / stride + 1);
-  for (std::size_t i = 0; i < image.size(); i += stride) {
-    const float p = image.pixels[i];
-    if (p != 0.0f && std::isfinite(p)) v.push_back(p);
-  }
+  std::size_t total = 0;
+  for (const auto& part : parts)
+    total += part.size();
+  v.reserve(total);
+  for (const auto& part : parts)
+    v.insert(v.end(), part.begin(), part.end());
   if (v.size() < 16) {
     *med = 0.0;
     *sigma = 0.0;
