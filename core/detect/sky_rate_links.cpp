@@ -2,13 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <iterator>
 #include <numeric>
 #include <optional>
-#include <string>
 
 #include <opencv2/imgproc.hpp>
 
@@ -209,22 +207,7 @@ void measureLinksCorrelatedElsewhere(const std::vector<BlockStack>& stacks, Velo
                                      std::vector<TimedParts>& parts, TimedParts* threadTime,
                                      const std::vector<cv::Mat>& full,
                                      const std::function<void(std::size_t first)>& cpu) {
-  // The links go to the provider in groups whose images are held at once: every link of the iteration in
-  // one group when their images (LinkImages: ~6 planes of a block stack each) fit in 512 MB, else a link a
-  // thread. One group lets the device correlate a staging buffer's pairs while the host makes the next
-  // ones', and the paired stars of every link run in one parallel loop: groups of 16 on the paper's cube
-  // (16 threads) made 3 rounds of images, correlations and paired stars one after another (issue 16,
-  // 2026-12-03). Each link's result does not depend on its group. Benchmark knob:
-  // ST_SKY_RATE_LINKS_BY_THREADS=1 makes the groups a link a thread, as before.
-  static const bool byThreads = [] {
-    const char* v = std::getenv("ST_SKY_RATE_LINKS_BY_THREADS");
-    return v && *v && std::string(v) != "0";
-  }();
-  constexpr std::size_t kImagesBudget = std::size_t{512} << 20;
-  const std::size_t perLink = 6 * stacks.front().value.total() * sizeof(float);
-  const std::size_t group =
-      std::max({std::size_t{4}, static_cast<std::size_t>(workerCount()),
-                byThreads ? std::size_t{0} : kImagesBudget / std::max<std::size_t>(1, perLink)});
+  const std::size_t group = std::max<std::size_t>(4, workerCount());
   std::vector<LinkImages> images(std::min(group, tried.size()));
   std::vector<char> made(images.size());
   for (std::size_t g0 = 0; g0 < tried.size(); g0 += group) {
