@@ -7,8 +7,6 @@
 #include <exception>
 #include <memory>
 #include <thread>
-#include <utility>
-#include <vector>
 
 #include <system_error>
 
@@ -29,25 +27,10 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   const trace::Scope traced("download");
   r.copy.sync();  // the staging buffers may still feed an upload
   const std::size_t piece = chunkBytes > 0 ? std::min(chunkBytes, kStagingBytes) : kStagingBytes;
-  // The pieces: the first and the last a quarter of the others where there are more than two, so that the
-  // DMA before the first host copy and the host copy after the last DMA, which nothing overlaps, are short
-  // (the pipeline's downloads are jobs of 128 frames, 4 pieces each: ~1.3 ms of the ~3.4 ms a job was
-  // that fill and drain, H200 2026-12-03). ST_GPU_DOWNLOAD_UNTAPERED=1: equal pieces, as before.
-  static const bool untapered = envKnob("ST_GPU_DOWNLOAD_UNTAPERED");
-  const std::size_t edge = untapered || bytes <= 2 * piece ? piece : std::max<std::size_t>(piece / 4, 1);
-  std::vector<std::pair<std::size_t, std::size_t>> plan;  // (offset, bytes)
-  for (std::size_t off = 0; off < bytes;) {
-    const bool first = off == 0;
-    std::size_t len = std::min(first ? edge : piece, bytes - off);
-    if (!first && edge < piece && bytes - off > edge && bytes - off - len < edge)
-      len = bytes - off - edge;  // the last piece: `edge` bytes
-    plan.emplace_back(off, len);
-    off += len;
-  }
-  const std::size_t pieces = plan.size();
+  const std::size_t pieces = (bytes + piece - 1) / piece;
   Event ready[2];
   auto enqueue = [&](std::size_t p) {
-    const auto [off, len] = plan[p];
+    const std::size_t off = p * piece, len = std::min(piece, bytes - off);
     ST_CUDA_CHECK(cudaMemcpyAsync(r.staging(static_cast<int>(p & 1)), static_cast<const char*>(dev) + off,
                                   len, cudaMemcpyDeviceToHost, s));
     ready[p & 1].record(s);
@@ -56,7 +39,7 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
   for (std::size_t p = 0; p < pieces; ++p) {
     if (p + 1 < pieces) enqueue(p + 1);
     ready[p & 1].sync();
-    const auto [off, len] = plan[p];
+    const std::size_t off = p * piece, len = std::min(piece, bytes - off);
     char* dst = static_cast<char*>(host) + off;
     const char* src = static_cast<const char*>(r.staging(static_cast<int>(p & 1)));
     // 2 MiB a task for the cubes' pieces; a stack's few MB spread over the threads too.

@@ -1,6 +1,6 @@
 // The staged device -> host download (gpu/src: preprocess_detail::download): every byte arrives, whatever the
-// size and the DMA chunk (its piece plan tapers the first and last pieces of a download of more than two
-// staging buffers); white-box, on the device. Skips when no CUDA device is usable.
+// size and the DMA chunk (pieces around one and two staging buffers, odd remainders); white-box, on the
+// device. Skips when no CUDA device is usable.
 #include <gtest/gtest.h>
 
 #include <cstddef>
@@ -32,8 +32,8 @@ TEST(StagedDownload, EveryByteArrivesWhateverTheSizeAndChunk) {
   DeviceBuffer<std::uint8_t> dev(most);
   ST_CUDA_CHECK(cudaMemcpy(dev.get(), source.data(), most, cudaMemcpyHostToDevice));
   DeviceResources r;
-  // Sizes around one and two staging buffers (where the plan starts to taper), an odd remainder, and the
-  // whole; chunks of a staging buffer (0), of the frame backgrounds' kind, and odd.
+  // Sizes around one and two staging buffers, an odd remainder, and the whole; chunks of a staging buffer
+  // (0), of the frame backgrounds' kind, and odd.
   const std::size_t sizes[] = {1,
                                4095,
                                kStagingBytes,
