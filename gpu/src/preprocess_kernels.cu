@@ -50,54 +50,38 @@ __device__ __forceinline__ float keyFloat(unsigned k) {
 
 // stats/strong_signal_cut.cpp cutStrongAboveMedian for one pixel: the lower median (element (c - 1) / 2 in
 // order of the c samples left in, the value std::nth_element gives: the smallest float key with at least
-// (c - 1) / 2 + 1 samples at or below it) by a 16-way search over the float keys (8 passes, each counting
-// the samples at or below 15 pivots; the answer is the same key a bisection's 32 passes found, 13 of the
-// per-pixel background's 24.5 ms on the paper's cube, H200 2026-12-03), then the samples above
-// median + strongOffset (in double) become NaN.
+// (c - 1) / 2 + 1 samples at or below it) by bisection over the float keys between the smallest and the
+// largest sample's (the counting pass finds them: ~23 passes on sky values instead of 32, each counting the
+// samples at or below the middle key), then the samples above median + strongOffset (in double) become NaN.
+// A 16-way search (8 passes of 15 pivots) was slower: 14.9 against 12.6 ms on the paper's cube (H200,
+// 2026-12-03), the passes' compares and not their loads being the cost.
 __global__ void backgroundStrongCutKernel(BackgroundLaunch p) {
   const std::size_t np = static_cast<std::size_t>(p.width) * p.height;
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i >= np) return;
   float* b = p.buf + i;
-  unsigned c = 0;
-  for (int k = 0; k < p.nk; ++k)
-    c += isnan(b[static_cast<std::size_t>(k) * np]) ? 0u : 1u;
+  unsigned c = 0, lo = 0xffffffffu, hi = 0u;
+  for (int k = 0; k < p.nk; ++k) {
+    const float v = b[static_cast<std::size_t>(k) * np];
+    if (isnan(v)) continue;
+    const unsigned key = floatKey(v);
+    ++c;
+    lo = min(lo, key);
+    hi = max(hi, key);
+  }
   if (c == 0) return;
   const unsigned rank = (c - 1) / 2 + 1;  // the smallest key with at least this many samples at or below it
-  constexpr int kWays = 16;
-  // The answer lies in [lo, hi]; each pass counts the samples at or below kWays - 1 pivots that split it
-  // into kWays parts of `step` keys (pivots clamped to hi: a part past hi is empty) and keeps the first part
-  // whose top pivot has `rank` of them, else the last part.
-  unsigned lo = 0u, hi = 0xffffffffu;
   while (lo < hi) {
-    const unsigned long long step = (static_cast<unsigned long long>(hi) - lo) / kWays + 1;
-    unsigned pivot[kWays - 1], below[kWays - 1];
-#pragma unroll
-    for (int j = 0; j < kWays - 1; ++j) {
-      const unsigned long long top = lo + (j + 1) * step - 1;
-      pivot[j] = top < hi ? static_cast<unsigned>(top) : hi;
-      below[j] = 0u;
-    }
+    const unsigned mid = lo + (hi - lo) / 2;
+    unsigned below = 0;
     for (int k = 0; k < p.nk; ++k) {
       const float v = b[static_cast<std::size_t>(k) * np];
-      if (isnan(v)) continue;
-      const unsigned key = floatKey(v);
-#pragma unroll
-      for (int j = 0; j < kWays - 1; ++j)
-        below[j] += key <= pivot[j] ? 1u : 0u;
+      below += (!isnan(v) && floatKey(v) <= mid) ? 1u : 0u;
     }
-    unsigned newLo = pivot[kWays - 2] + 1u, newHi = hi;  // the last part, when no pivot has `rank`
-    bool found = false;
-#pragma unroll
-    for (int j = 0; j < kWays - 1; ++j) {
-      if (!found && below[j] >= rank) {
-        found = true;
-        newLo = j == 0 ? lo : pivot[j - 1] + 1u;
-        newHi = pivot[j];
-      }
-    }
-    lo = newLo;
-    hi = newHi;
+    if (below >= rank)
+      hi = mid;
+    else
+      lo = mid + 1;
   }
   const double cut = __dadd_rn(static_cast<double>(keyFloat(lo)), p.strongOffset);
   for (int k = 0; k < p.nk; ++k) {
