@@ -12,8 +12,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "cuda_check.hpp"
@@ -30,6 +33,24 @@ double seconds(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+/// `cudaHostRegister` of [data, data + bytes) until destroyed (unregistered also when an error unwinds).
+class Registered {
+ public:
+  Registered(void* data, std::size_t bytes) : m_data(data) {
+    ST_CUDA_CHECK(cudaHostRegister(data, bytes, cudaHostRegisterDefault));
+  }
+  ~Registered() {
+    if (m_data) cudaHostUnregister(m_data);
+  }
+  Registered(const Registered&) = delete;
+  Registered& operator=(const Registered&) = delete;
+  /// Unregisters now (timed by the caller).
+  void release() { ST_CUDA_CHECK(cudaHostUnregister(std::exchange(m_data, nullptr))); }
+
+ private:
+  void* m_data;
+};
+
 void report(const char* what, double s, std::size_t bytes) {
   std::printf("  %-58s %8.1f ms  %6.1f GB/s\n", what, 1e3 * s, static_cast<double>(bytes) / s / 1e9);
 }
@@ -44,12 +65,18 @@ int run(int argc, char** argv) {
   const int frames = argc > 1 ? std::atoi(argv[1]) : 1500;
   const int size = argc > 2 ? std::atoi(argv[2]) : 512;
   const int rounds = argc > 3 ? std::atoi(argv[3]) : 3;
+  if (frames <= 0 || size <= 0 || rounds <= 0) {
+    std::fprintf(stderr, "usage: st_gpu_copy_probe [frames > 0] [size > 0] [rounds > 0]\n");
+    return 2;
+  }
   const std::size_t count = static_cast<std::size_t>(frames) * size * size, bytes = count * sizeof(float);
   std::printf("cube %d x %d^2: %.2f GB; %u host threads\n", frames, size, bytes / 1e9, st::workerCount());
   ST_CUDA_CHECK(cudaSetDevice(0));
   st::gpu::DeviceBuffer<float> dev(count);
   ST_CUDA_CHECK(cudaMemset(dev.get(), 0, bytes));
   st::gpu::DeviceResources r;
+  r.staging(0);  // pinned here, not inside the first round's timings
+  r.staging(1);
   cudaStream_t s = r.copy.get();
   std::vector<float> host(count), other(count);
   touch(host);
@@ -80,7 +107,7 @@ int run(int argc, char** argv) {
     }
     {
       const auto t0 = Clock::now();
-      ST_CUDA_CHECK(cudaHostRegister(host.data(), bytes, cudaHostRegisterDefault));
+      Registered pinned(host.data(), bytes);
       report("cudaHostRegister of the touched cube", seconds(t0), bytes);
       const auto t1 = Clock::now();
       ST_CUDA_CHECK(cudaMemcpyAsync(host.data(), dev.get(), bytes, cudaMemcpyDeviceToHost, s));
@@ -98,7 +125,7 @@ int run(int argc, char** argv) {
       ST_CUDA_CHECK(cudaStreamSynchronize(s));
       report("upload straight from the registered cube", seconds(t3), bytes);
       const auto t4 = Clock::now();
-      ST_CUDA_CHECK(cudaHostUnregister(host.data()));
+      pinned.release();
       report("cudaHostUnregister", seconds(t4), bytes);
     }
     {
@@ -109,28 +136,35 @@ int run(int argc, char** argv) {
       report("Uploader alone (staging, filled on every core)", seconds(t0), bytes);
     }
     {
-      // The same upload while another thread registers (then unregisters) the other cube.
+      // The same upload while another thread registers the other cube (unregistered after the join; the
+      // thread's failure, if any, rethrown here).
       double registerS = 0.0;
+      std::optional<Registered> pinned;
+      std::exception_ptr pinError;
       const auto t0 = Clock::now();
-      std::thread pinner([&] {
-        const auto p0 = Clock::now();
-        ST_CUDA_CHECK(cudaHostRegister(host.data(), bytes, cudaHostRegisterDefault));
-        registerS = seconds(p0);
+      std::jthread pinner([&] {
+        try {
+          const auto p0 = Clock::now();
+          pinned.emplace(host.data(), bytes);
+          registerS = seconds(p0);
+        } catch (...) {
+          pinError = std::current_exception();
+        }
       });
       st::gpu::Uploader up(r, other.data(), static_cast<std::size_t>(size) * size);
       up.upload(dev.get(), 0, frames, s);
       ST_CUDA_CHECK(cudaStreamSynchronize(s));
       const double uploadS = seconds(t0);
       pinner.join();
+      if (pinError) std::rethrow_exception(pinError);
       report("Uploader while another thread registers a cube", uploadS, bytes);
       report("  ... that cudaHostRegister", registerS, bytes);
-      ST_CUDA_CHECK(cudaHostUnregister(host.data()));
     }
   }
   {
     const auto t0 = Clock::now();
-    void* pinned = nullptr;
-    ST_CUDA_CHECK(cudaMallocHost(&pinned, bytes));
+    st::gpu::PinnedBuffer whole(bytes);  // cudaMallocHost (freed by cudaFreeHost also on an error)
+    void* pinned = whole.get();
     report("cudaMallocHost of a cube", seconds(t0), bytes);
     const auto t1 = Clock::now();
     ST_CUDA_CHECK(cudaMemcpyAsync(pinned, dev.get(), bytes, cudaMemcpyDeviceToHost, s));
@@ -141,7 +175,7 @@ int run(int argc, char** argv) {
     ST_CUDA_CHECK(cudaStreamSynchronize(s));
     report("DMA into it (again)", seconds(t2), bytes);
     const auto t3 = Clock::now();
-    ST_CUDA_CHECK(cudaFreeHost(pinned));
+    whole = st::gpu::PinnedBuffer();
     report("cudaFreeHost", seconds(t3), bytes);
   }
   return 0;
