@@ -23,7 +23,9 @@ namespace st::gpu {
 using namespace preprocess_detail;
 
 void preprocess_detail::download(DeviceResources& r, void* host, const void* dev, std::size_t bytes,
-                                 cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes) {
+                                 cudaStream_t s, unsigned copyThreads, std::size_t chunkBytes,
+                                 const std::atomic<int>* waiters) {
+  static const bool keepCap = envKnob("ST_GPU_COPY_CAP_WHILE_WAITED");
   const trace::Scope traced("download");
   r.copy.sync();  // the staging buffers may still feed an upload
   const std::size_t piece = chunkBytes > 0 ? std::min(chunkBytes, kStagingBytes) : kStagingBytes;
@@ -50,7 +52,7 @@ void preprocess_detail::download(DeviceResources& r, void* host, const void* dev
         [&](std::size_t lo, std::size_t hi) {
           copyStaged(dst + lo, src + lo, hi - lo, StagedDirection::Download);
         },
-        copyThreads);
+        !keepCap && waiters && waiters->load(std::memory_order_relaxed) > 0 ? 0u : copyThreads);
   }
 }
 

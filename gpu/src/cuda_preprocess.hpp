@@ -98,8 +98,11 @@ inline bool phaseCorrelationsOnHost() {
 /// core while the next piece's DMA runs).
 /// `copyThreads` bounds the threads of the host copy (0: every core); `chunkBytes` (0: a staging buffer's)
 /// the size of each DMA, so that other streams' copies wait at most one such chunk on the copy engine.
+/// `waiters`: while it is positive (someone waits for this download), each piece's host copy runs on every
+/// core whatever copyThreads; ST_GPU_COPY_CAP_WHILE_WAITED=1 keeps the cap.
 void download(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
-              unsigned copyThreads = 0, std::size_t chunkBytes = 0);
+              unsigned copyThreads = 0, std::size_t chunkBytes = 0,
+              const std::atomic<int>* waiters = nullptr);
 
 /// One region of a gathered download (downloadPieces).
 struct DownloadPiece {

@@ -43,13 +43,31 @@ void HostCopies::enqueue(void* host, const void* dev, std::size_t bytes, cudaStr
   m_changed.notify_all();
 }
 
+namespace {
+
+/// Counts a blocked caller for its scope (HostCopies::m_waiters).
+class Waiting {
+ public:
+  explicit Waiting(std::atomic<int>& waiters) : m_waiters(waiters) { m_waiters.fetch_add(1); }
+  ~Waiting() { m_waiters.fetch_sub(1); }
+  Waiting(const Waiting&) = delete;
+  Waiting& operator=(const Waiting&) = delete;
+
+ private:
+  std::atomic<int>& m_waiters;
+};
+
+}  // namespace
+
 std::exception_ptr HostCopies::wait() {
+  const Waiting waiting(m_waiters);
   std::unique_lock lock(m_mutex);
   m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
   return std::exchange(m_error, nullptr);
 }
 
 void HostCopies::drain() noexcept {
+  const Waiting waiting(m_waiters);
   std::unique_lock lock(m_mutex);
   m_changed.wait(lock, [this] { return m_queue.empty() && !m_running; });
 }
@@ -62,6 +80,7 @@ std::exception_ptr HostCopies::waitFor(const void* begin, const void* end) {
     const char* b = static_cast<const char*>(p.host);
     return writes(b, b + p.bytes);
   };
+  const Waiting waiting(m_waiters);
   std::unique_lock lock(m_mutex);
   // Those pieces first, in their order, then the others in theirs (moved: a piece's event is not
   // assignable).
@@ -106,7 +125,8 @@ void HostCopies::run(std::stop_token stop) {
       DeviceResources& r = resources();
       ST_CUDA_CHECK(cudaSetDevice(m_device));
       ST_CUDA_CHECK(cudaStreamWaitEvent(r.copy.get(), p.ready.get(), 0));
-      preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get(), p.copyThreads, p.chunkBytes);
+      preprocess_detail::download(r, p.host, p.dev, p.bytes, r.copy.get(), p.copyThreads, p.chunkBytes,
+                                  &m_waiters);
     } catch (const GpuError& e) {
       error = std::current_exception();
       if (p.inPlace) {

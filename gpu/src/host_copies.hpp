@@ -3,6 +3,7 @@
 // beside the noise model and the matched filter's kernels, and the filtered frames' download launch by launch
 // beside the filter's later launches. The downloads were ~80 ms of the paper's pre-processing (1500 x
 // 512^2, H200, 2026-12-02) with the device idle.
+#include <atomic>
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
@@ -111,6 +112,10 @@ class HostCopies {
   const char* m_runningEnd = nullptr;
   std::exception_ptr m_error;
   double m_seconds = 0.0;
+  /// Callers blocked in wait(), drain() or waitFor(): while there is one, the host copies run on every core
+  /// whatever their copyThreads (their cap keeps the cores for the stages beside them; a waiting stage has
+  /// none running).
+  std::atomic<int> m_waiters{0};
   std::jthread m_thread;  // last: stopped and joined before the members it reads are destroyed
 };
 
