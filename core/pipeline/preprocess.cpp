@@ -1,5 +1,7 @@
 #include "st/pipeline/preprocess.hpp"
 
+#include "preprocess_psf.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,6 +13,7 @@
 #include <sstream>
 
 #include "../common/opencv_threads.hpp"
+#include "st/common/env_flag.hpp"
 #include "st/common/error.hpp"
 #include "st/common/memory_budget.hpp"
 #include "st/common/moving_mask.hpp"
@@ -69,80 +72,6 @@ class DeviceStep {
   std::vector<std::string>& m_notes;
   bool m_failed = false;
 };
-
-// The PSF from the sky-rate stack `s` of the frames before the per-pixel background (which, where the stars
-// do not drift, takes the wings of every star just outside its mask into the background and leaves a
-// narrow, steep-winged profile: FWHM 2.0 px, beta 7.95 on Lowell frames whose stars measure 2.35-2.56 px),
-// isolated unsaturated catalog stars away from the edges, the median of up to 5 accepted; the fallback FWHM
-// with a note when none is usable, and a note when the accepted stars disagree.
-void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params) {
-  std::vector<psf::StarCandidate> candidates;
-  for (const auto& st : out.stars)
-    candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
-  TimedParts parts;
-  PartTimer timer(parts);
-  psf::PsfStarOptions opt;
-  opt.fit.noiseSigma = 0.0;
-  opt.fit.smear = psf::stackSmear(out.frames, out.skyRate);  // the stack's trails and shift rounding
-  timer.lap("smear");
-  try {
-    const psf::PsfMeasurement m = params.psfStar ? psf::measurePsfAt(s.mean, params.psfStar->first - s.x0,
-                                                                     params.psfStar->second - s.y0, opt)
-                                                 : psf::measurePsf(s.mean, candidates, opt);
-    timer.lap("fits");
-    std::ostringstream fitted;
-    if (params.psfStar)
-      fitted << "PSF: the given star fitted";
-    else
-      fitted << "PSF: " << m.candidatesConsidered << " star(s) fitted, " << m.acceptedFwhm.size()
-             << " accepted";
-    if (!m.rejected.empty()) fitted << " (first rejected: " << m.rejected.front() << ")";
-    fitted << "; " << parts.text();
-    out.notes.push_back(fitted.str());
-    out.psf = m.fit.model;
-    out.psfFitted = true;
-    out.psfStarAt = std::make_pair(m.fit.x0 + s.x0, m.fit.y0 + s.y0);
-    const auto& f = m.acceptedFwhm;
-    if (f.size() >= 2 && f.back() > 1.2 * f.front()) {
-      std::ostringstream note;
-      note << "PSF: the " << f.size() << " stars accepted disagree (FWHM " << f.front() << " to " << f.back()
-           << " px); the median star's " << out.psf.fwhm() << " px is used (variable seeing or focus?)";
-      out.notes.push_back(note.str());
-    }
-  } catch (const InputError& e) {
-    out.psf = psf::Moffat::fromFwhm(params.psfFwhmPx, params.psfBeta);
-    out.psfFitted = false;
-    std::ostringstream note;
-    note << "PSF: " << e.what() << "; using the given FWHM " << params.psfFwhmPx << " px, beta "
-         << params.psfBeta;
-    out.notes.push_back(note.str());
-  }
-}
-
-// The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
-// BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master
-// bias), in calibrated counts, with a 5% margin for the flat and the bias pattern; none when the header says
-// neither. Without it, stars clipped in a few frames show no flat top in the stack and are taken for the PSF
-// (Lowell: FWHM +11%), and the tips of bleed columns are taken for cosmic rays.
-std::optional<double> saturationCounts(const FrameCube& cube, const PreprocessParams& params,
-                                       const calib::CalibrationReport& calibration) {
-  std::optional<double> fullScale = cube.header.getDouble("SATURATE");
-  if (!fullScale) {
-    const auto bitpix = cube.header.getDouble("BITPIX");
-    if (bitpix && *bitpix > 0 && *bitpix <= 32)
-      fullScale =
-          std::ldexp(1.0, static_cast<int>(*bitpix) - 1) - 1.0 + cube.header.getDouble("BZERO").value_or(0.0);
-  }
-  if (!fullScale) return std::nullopt;
-  auto median = [](std::vector<float> v) {
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-    return static_cast<double>(v[v.size() / 2]);
-  };
-  double biasLevel = 0.0;
-  if (params.masters && !params.masters->bias.empty()) biasLevel += median(params.masters->bias.pixels);
-  if (!calibration.overscanLevel.empty()) biasLevel += median(calibration.overscanLevel);
-  return 0.95 * (*fullScale - biasLevel);
-}
 
 }  // namespace
 
@@ -345,17 +274,14 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     const std::size_t canvasBytes =
         static_cast<std::size_t>(canvas.canvasWidth()) * canvas.canvasHeight() * sizeof(float);
     // Benchmark knob: ST_NO_HEAP_WARM=1 leaves it out (for before/after figures from one binary).
-    static const bool noWarm = [] {
-      const char* v = std::getenv("ST_NO_HEAP_WARM");
-      return v && std::string(v) == "1";
-    }();
+    static const bool noWarm = envFlag("ST_NO_HEAP_WARM");
     const trace::Scope traced("warming this thread's heap");
     if (!noWarm)
       HeapReuseScope::warmCallerHeap(std::min<std::size_t>(32 * canvasBytes, std::size_t{512} << 20));
   }
   detect::StaticSourceParams sp = params.stars;
   sp.psfFwhmPx = params.givenPsf ? params.givenPsf->fwhm() : params.psfFwhmPx;
-  if (!sp.saturationLevel) sp.saturationLevel = saturationCounts(cube, params, out.calibration);
+  if (!sp.saturationLevel) sp.saturationLevel = detail::saturationCounts(cube, params, out.calibration);
   calib::CosmicRayResult cr;
   if (params.removeCosmicRays) {
     SubProgress sub(progress, 0.1, 0.3);
@@ -433,7 +359,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     SubProgress sub(progress, 0.38, 0.4);
     const detect::SkyStack& psfStack = skyStacks.stack(cube, out.skyRate, out.global.mean, sub, cancel);
     out.stars = stars.stars;
-    measurePsfInto(out, psfStack, params);
+    detail::measurePsfInto(out, psfStack, params);
   }
   lap("PSF");
   if (out.psfFitted && std::abs(out.psf.fwhm() / sp.psfFwhmPx - 1.0) > 0.15) {

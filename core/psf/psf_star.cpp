@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "st/common/env_flag.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/stats/order_statistic.hpp"
@@ -211,12 +211,9 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
   MoffatFitOptions fitOptions = o.fit;
   if (noise > 0.0 && o.minPeakSnr > 0.0) fitOptions.rejectBelowAmplitude = o.minPeakSnr * noise;
   const std::size_t wanted = static_cast<std::size_t>(std::max(1, o.maxAccepted));
+  // Benchmark knob: ST_PSF_FITS_ONE_AT_A_TIME=1 fits one star a wave (the fits of before, for figures).
+  static const bool oneAtATime = envFlag("ST_PSF_FITS_ONE_AT_A_TIME");
   for (std::size_t next = 0; next < eligible.size() && accepted.size() < wanted;) {
-    // Benchmark knob: ST_PSF_FITS_ONE_AT_A_TIME=1 fits one star a wave (the fits of before, for figures).
-    static const bool oneAtATime = [] {
-      const char* v = std::getenv("ST_PSF_FITS_ONE_AT_A_TIME");
-      return v && *v && std::string(v) != "0";
-    }();
     const std::size_t wave = oneAtATime ? 1 : std::min(eligible.size() - next, wanted - accepted.size());
     std::vector<std::optional<MoffatFit>> fits(wave);
     std::vector<std::string> failed(wave);

@@ -5,20 +5,18 @@
 
 #include <algorithm>
 #include <cstddef>
-#include <cstdlib>
 #include <vector>
 #include <string>
 #include <utility>
 
+#include "st/common/env_flag.hpp"
 #include "st/common/error.hpp"
 
 namespace st::gpu {
 
-/// An environment knob (the benchmarks' before/after switches): set and neither empty nor starting with
-/// '0'. Read at each call.
+/// An environment knob (the benchmarks' before/after switches): st::envFlag, read at each call.
 inline bool envKnob(const char* name) {
-  const char* e = std::getenv(name);
-  return e && *e && *e != '0';
+  return envFlag(name);
 }
 
 /// Throws st::GpuError naming the call and CUDA's own text when `err` is not cudaSuccess.
