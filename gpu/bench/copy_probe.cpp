@@ -55,6 +55,18 @@ void report(const char* what, double s, std::size_t bytes) {
   std::printf("  %-58s %8.1f ms  %6.1f GB/s\n", what, 1e3 * s, static_cast<double>(bytes) / s / 1e9);
 }
 
+/// Seconds of the device -> host DMA of `bytes` from `dev` in staging-buffer-sized pieces on `s` (to its
+/// sync), piece p (at byte offset off) into dest(p, off).
+template <class Dest>
+double dmaInPieces(const float* dev, std::size_t bytes, cudaStream_t s, Dest dest) {
+  const auto t0 = Clock::now();
+  for (std::size_t off = 0, p = 0; off < bytes; off += st::gpu::kStagingBytes, ++p)
+    ST_CUDA_CHECK(cudaMemcpyAsync(dest(p, off), reinterpret_cast<const char*>(dev) + off,
+                                  std::min(st::gpu::kStagingBytes, bytes - off), cudaMemcpyDeviceToHost, s));
+  ST_CUDA_CHECK(cudaStreamSynchronize(s));
+  return seconds(t0);
+}
+
 /// Touches every page of `v` on every core (the pipeline's cubes are written before they are copied into).
 void touch(std::vector<float>& v) {
   st::parallelFor(v.size(), std::size_t{1} << 20,
@@ -85,13 +97,10 @@ int run(int argc, char** argv) {
     std::printf("round %d\n", round);
     {
       // DMA alone, 32 MiB pieces into the two staging buffers, alternating, no host copy.
-      const auto t0 = Clock::now();
-      for (std::size_t off = 0, p = 0; off < bytes; off += st::gpu::kStagingBytes, ++p)
-        ST_CUDA_CHECK(
-            cudaMemcpyAsync(r.staging(static_cast<int>(p & 1)), reinterpret_cast<char*>(dev.get()) + off,
-                            std::min(st::gpu::kStagingBytes, bytes - off), cudaMemcpyDeviceToHost, s));
-      ST_CUDA_CHECK(cudaStreamSynchronize(s));
-      report("DMA alone into the staging buffers (32 MiB pieces)", seconds(t0), bytes);
+      const double t = dmaInPieces(dev.get(), bytes, s, [&](std::size_t p, std::size_t) {
+        return r.staging(static_cast<int>(p & 1));
+      });
+      report("DMA alone into the staging buffers (32 MiB pieces)", t, bytes);
     }
     {
       const auto t0 = Clock::now();
@@ -113,13 +122,10 @@ int run(int argc, char** argv) {
       ST_CUDA_CHECK(cudaMemcpyAsync(host.data(), dev.get(), bytes, cudaMemcpyDeviceToHost, s));
       ST_CUDA_CHECK(cudaStreamSynchronize(s));
       report("DMA straight into the registered cube (one copy)", seconds(t1), bytes);
-      const auto t2 = Clock::now();
-      for (std::size_t off = 0; off < bytes; off += st::gpu::kStagingBytes)
-        ST_CUDA_CHECK(cudaMemcpyAsync(
-            reinterpret_cast<char*>(host.data()) + off, reinterpret_cast<char*>(dev.get()) + off,
-            std::min(st::gpu::kStagingBytes, bytes - off), cudaMemcpyDeviceToHost, s));
-      ST_CUDA_CHECK(cudaStreamSynchronize(s));
-      report("DMA straight into the registered cube (32 MiB pieces)", seconds(t2), bytes);
+      const double t2 = dmaInPieces(dev.get(), bytes, s, [&](std::size_t, std::size_t off) {
+        return static_cast<void*>(reinterpret_cast<char*>(host.data()) + off);
+      });
+      report("DMA straight into the registered cube (32 MiB pieces)", t2, bytes);
       const auto t3 = Clock::now();
       ST_CUDA_CHECK(cudaMemcpyAsync(dev.get(), host.data(), bytes, cudaMemcpyHostToDevice, s));
       ST_CUDA_CHECK(cudaStreamSynchronize(s));

@@ -32,13 +32,12 @@ bool CudaPreprocess::zeroBias(FrameCube& cube, const pipeline::ZeroBiasInputs& i
   forgetKept();  // a run before this one's (a failure below leaves none to be taken for this cube's)
   const int w = cube.width(), h = cube.height();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
-  Stopwatch sw;
   auto stageStart = std::chrono::steady_clock::now();
-  auto lap = [&](const char* stage) {
+  auto lap = [&](const char* stage) {  // the stage's seconds, and its trace event when tracing
     const auto now = std::chrono::steady_clock::now();
     if (trace::enabled()) trace::record(stage, stageStart, now);
+    out.stageSeconds.emplace_back(stage, std::chrono::duration<double>(now - stageStart).count());
     stageStart = now;
-    out.stageSeconds.emplace_back(stage, sw.lap());
   };
   KeptCube kc;
   // The zero-biased cube's download, queued chunk by chunk with the residual means, reads kc.pix: a
