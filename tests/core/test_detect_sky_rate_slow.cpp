@@ -4,7 +4,8 @@
 // (which share no stars) were compared: seed 21 gave (-3.15, -1.42) px/s for a truth of (16.39, 0). Oracle:
 // the simulator's drift within 0.01 px/s (0.3 px over the span) on every seed, measured on the calibrated
 // cube (exact masters) with the global background removed and the hot pixels masked, as the pre-processing
-// does before it; seeds 1..20 and 21 (the reported failure). Measured 2026-11-25 on the 2-core dev machine:
+// does before it; seeds 1 and 21 (the reported failure), and seeds 21..40 through the pipeline in
+// test_pipeline_seeds_slow.cpp (until 2026-12-03 seeds 1..21 here). Measured 2026-11-25 on the 2-core dev machine:
 // largest error 0.0039 px/s over seeds 1..20, 0.0017 on seed 21; ~2 s per measurement, ~30 s per seed
 // with the simulation (7.7 min for the 21 seeds). The 1500-frame cube (90 s, the field crossing the frame
 // three times) of the report, `synthtrack-cli simulate --preset paper-neo --frames 1500 --seed 5`, measured
@@ -52,7 +53,10 @@ TEST_P(SkyRatePaperNeo, WithinOneHundredthOfAPixelPerSecond) {
   EXPECT_LT(r.residualRmsPx, 0.3) << r.note;
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, SkyRatePaperNeo, ::testing::Range(1, 22));
+// Two seeds here: the first, and 21 (the reported failure). The same oracle over 20 seeds (21..40) is checked
+// on the pipeline's own measurement in test_pipeline_seeds_slow.cpp, which simulates those seeds anyway: the
+// 19 further seeds here cost CI ~9 minutes of simulation (2026-12-03).
+INSTANTIATE_TEST_SUITE_P(Seeds, SkyRatePaperNeo, ::testing::Values(1, 21));
 
 }  // namespace
 }  // namespace st::detect
