@@ -5,12 +5,12 @@
 // the simulator's drift within 0.01 px/s (0.3 px over the span) on every seed, measured on the calibrated
 // cube (exact masters) with the global background removed and the hot pixels masked, as the pre-processing
 // does before it; seeds 1 and 21 (the reported failure), and seeds 21..40 through the pipeline in
-// test_pipeline_seeds_slow.cpp (until 2026-12-03 seeds 1..21 here). Measured 2026-11-25 on the 2-core dev machine:
-// largest error 0.0039 px/s over seeds 1..20, 0.0017 on seed 21; ~2 s per measurement, ~30 s per seed
-// with the simulation (7.7 min for the 21 seeds). The 1500-frame cube (90 s, the field crossing the frame
-// three times) of the report, `synthtrack-cli simulate --preset paper-neo --frames 1500 --seed 5`, measured
-// the same way: error (+0.0004, +0.0007) px/s; through `synthtrack-cli preprocess` on the raw frames (the
-// report's run): block pairs (15.97, 0.49), chained (16.3934, 0.0006) px/s for a truth of (16.3934, 0).
+// test_pipeline_seeds_slow.cpp (until 2026-12-03 seeds 1..21 here). Measured 2026-11-25 on the 2-core dev
+// machine: largest error 0.0039 px/s over seeds 1..20, 0.0017 on seed 21; ~2 s per measurement, ~30 s per
+// seed with the simulation (7.7 min for the 21 seeds). The 1500-frame cube (90 s, the field crossing the
+// frame three times) of the report, `synthtrack-cli simulate --preset paper-neo --frames 1500 --seed 5`,
+// measured the same way: error (+0.0004, +0.0007) px/s; through `synthtrack-cli preprocess` on the raw frames
+// (the report's run): block pairs (15.97, 0.49), chained (16.3934, 0.0006) px/s for a truth of (16.3934, 0).
 #include <gtest/gtest.h>
 
 #include <chrono>
