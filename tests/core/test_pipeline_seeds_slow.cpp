@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <regex>
 #include <string>
 
 #include "st/detect/registration.hpp"
@@ -30,6 +31,17 @@
 
 namespace st::pipeline {
 namespace {
+
+// The chained sky rate's residual rms over its blocks, px, from pre-processing's note ("... chained over 20
+// blocks ... residual rms 0.0178 px ..."); -1 when no note says the rate is the chained one (the fallbacks
+// say "not refined" or "which disagrees").
+double chainedResidualRmsPx(const Prepared& prep) {
+  static const std::regex rms("chained over .* residual rms ([0-9.eE+-]+) px");
+  std::smatch m;
+  for (const std::string& note : prep.notes)
+    if (std::regex_search(note, m, rms)) return std::stod(m[1].str());
+  return -1.0;
+}
 
 TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   NullProgress p;
@@ -46,18 +58,23 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
     // the simulator's drift: within 0.01 px/s (0.3 px over the span) on every seed, the oracle of
     // test_detect_sky_rate_slow.cpp, which measures the chained refinement alone on two seeds.
     ++seeds;
-    const double rateErr = std::max(std::fabs(prep.skyRate.vx - sim.truth.skyVxPxPerS),
-                                    std::fabs(prep.skyRate.vy - sim.truth.skyVyPxPerS));
-    maxRateErr = std::max(maxRateErr, rateErr);
-    EXPECT_TRUE(prep.skyRateMeasured) << "seed " << seed;
-    EXPECT_LE(rateErr, 0.01) << "seed " << seed << ": sky rate (" << prep.skyRate.vx << ", "
-                             << prep.skyRate.vy << ") px/s";
+    maxRateErr = std::max({maxRateErr, std::fabs(prep.skyRate.vx - sim.truth.skyVxPxPerS),
+                           std::fabs(prep.skyRate.vy - sim.truth.skyVyPxPerS)});
+    EXPECT_NEAR(prep.skyRate.vx, sim.truth.skyVxPxPerS, 0.01) << "seed " << seed;  // fails on NaN too
+    EXPECT_NEAR(prep.skyRate.vy, sim.truth.skyVyPxPerS, 0.01) << "seed " << seed;
     // The simulated field moves exactly linearly, yet registration may take per-frame offsets (seed 37 on
-    // 2026-12-03: "3 pointings", rms 0.919 px; the rate then comes from the registered field and was still
-    // within 0.0039 px/s). Counted and printed, not asserted: a known false detection of pointings.
+    // 2026-12-03: "3 pointings", rms 0.919 px; the rate then comes from the registered field, within 0.004
+    // px/s): a known false detection of pointings, counted and bounded below. Elsewhere the rate must be the
+    // chained refinement's, its blocks' departures from the line measurement noise (< 0.3 px rms), as the
+    // sky-rate test asserts on its own two seeds.
     if (prep.registration.model == detect::Registration::Model::PerFrame) {
       ++perFrame;
       std::printf("seed %u: registration took per-frame offsets: %s\n", seed, prep.registration.note.c_str());
+    } else {
+      EXPECT_TRUE(prep.skyRateMeasured) << "seed " << seed;
+      const double chainRms = chainedResidualRmsPx(prep);
+      EXPECT_GE(chainRms, 0.0) << "seed " << seed << ": the sky rate is not the chained refinement's";
+      EXPECT_LT(chainRms, 0.3) << "seed " << seed;
     }
     const search::VelocityGrid grid =
         search::makeVelocityGrid(demoGridSpec(prep.frames.plateScaleArcsecPerPx), prep.filtered);
@@ -139,6 +156,9 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   EXPECT_NEAR(mean, 1.0, 0.05);
   EXPECT_EQ(within15, seeds);
   EXPECT_LE(others, 2.0 * expectedFalse + 1.0);
+  // Seed 37's false pointings (above) and no more: more seeds taking per-frame offsets on a linear field
+  // would also shrink the seeds that check the chained sky rate.
+  EXPECT_LE(perFrame, 1);
 }
 
 }  // namespace
