@@ -221,6 +221,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     note << r.note << ": (" << r.rate.vx << ", " << r.rate.vy << ") px/s";
     out.notes.push_back(note.str());
     if (!r.parts.parts.empty()) out.notes.push_back("sky rate: " + r.parts.text());
+    out.skyRateMeasurement = r;
     if (params.accelerator && sumsStep.asked > 0)
       out.notes.push_back("sky rate: the block pairs' means and the chain's block stacks, " +
                           std::to_string(sumsStep.made) + " of " + std::to_string(sumsStep.asked) +

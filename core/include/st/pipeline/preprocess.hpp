@@ -104,6 +104,9 @@ struct Prepared {
   std::vector<detect::MovingSource> movers;
   Velocity skyRate;  ///< px/s
   bool skyRateMeasured = false;
+  /// How the sky rate was measured (chained or not, the blocks' residual rms) when detect::measureSkyRate
+  /// ran; left default when the rate was given or came from registration.
+  detect::SkyRate skyRateMeasurement;
   /// The registration measured (model, rate, rms); the offsets themselves are in frames.info().
   detect::Registration registration;
   calib::CalibrationReport calibration;
