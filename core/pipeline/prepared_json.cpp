@@ -9,6 +9,45 @@
 
 namespace st::pipeline {
 
+namespace {
+
+const char* modelName(detect::Registration::Model m) {
+  switch (m) {
+    case detect::Registration::Model::Linear:
+      return "linear";
+    case detect::Registration::Model::PerFrame:
+      return "per_frame";
+    case detect::Registration::Model::Unmeasured:
+      break;
+  }
+  return "unmeasured";
+}
+
+/// The registration's model and, per frame (cube order), the star field's measured position relative to
+/// frame 0 (empty when not every frame was measured) and the offset o_n the search applies (px).
+nlohmann::json registrationToJson(const Prepared& p) {
+  using nlohmann::json;
+  const detect::Registration& r = p.registration;
+  json j = {{"model", modelName(r.model)},
+            {"rate_px_s", {r.rate.vx, r.rate.vy}},
+            {"residual_rms_px", r.rmsPx},
+            {"residual_max_px", r.maxPx},
+            {"links_measured", r.linksMeasured},
+            {"significant_frames", r.significantFrames},
+            {"note", r.note}};
+  json position = json::array();
+  for (const auto& o : r.position)
+    position.push_back({o.x, o.y});
+  j["position_px"] = std::move(position);
+  json offsets = json::array();
+  for (const auto& info : p.frames.info())
+    offsets.push_back({info.offsetXPx, info.offsetYPx});
+  j["offset_px"] = std::move(offsets);
+  return j;
+}
+
+}  // namespace
+
 nlohmann::json preparedToJson(const Prepared& p) {
   using nlohmann::json;
   json j;
@@ -22,6 +61,7 @@ nlohmann::json preparedToJson(const Prepared& p) {
   j["global_background_counts"] = p.global.mean;
   j["global_sigma_counts"] = p.global.sigma;
   j["sky_rate_px_s"] = {{"vx", p.skyRate.vx}, {"vy", p.skyRate.vy}, {"measured", p.skyRateMeasured}};
+  j["registration"] = registrationToJson(p);
   j["psf"] = {{"model", "moffat"},
               {"radius_px", p.psf.radius},
               {"beta", p.psf.beta},

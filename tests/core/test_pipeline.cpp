@@ -95,6 +95,16 @@ TEST_P(PipelineTest, PreparesZeroBiasedFilteredFramesAgainstTruth) {
   EXPECT_NEAR(j["sigma_n_counts"].get<double>(), out.sigmaN, 1e-12);
   EXPECT_NEAR(j["psf"]["fwhm_px"].get<double>(), out.psf.fwhm(), 1e-12);
   EXPECT_EQ(j["cosmic_rays"]["per_frame"].size(), raw.frameCount());
+  const auto& reg = j["registration"];
+  EXPECT_EQ(reg["offset_px"].size(), raw.frameCount());
+  EXPECT_EQ(reg["model"].get<std::string>() == "per_frame",
+            out.registration.model == detect::Registration::Model::PerFrame);
+  EXPECT_EQ(reg["significant_frames"].get<int>(), out.registration.significantFrames);
+  ASSERT_EQ(reg["position_px"].size(), out.registration.position.size());
+  for (std::size_t n = 0; n < out.registration.position.size(); ++n) {
+    EXPECT_EQ(reg["position_px"][n][0].get<double>(), out.registration.position[n].x);
+    EXPECT_EQ(reg["offset_px"][n][1].get<double>(), out.frames.info()[n].offsetYPx);
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(TrackedAndDrifting, PipelineTest, ::testing::Values(false, true));

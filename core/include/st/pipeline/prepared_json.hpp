@@ -1,7 +1,8 @@
 #pragma once
 // The JSON sidecar of a pre-processed cube (prepared.json next to prepared.fits): noise, background level,
-// PSF, sky rate, cosmic-ray and single-frame counts, and the star catalog (positions at t_ref, with RA/Dec
-// when the cube has a WCS). Units are in the keys (ARCHITECTURE.md).
+// PSF, sky rate, registration (model, residuals, each frame's measured star-field position and applied
+// offset), cosmic-ray and single-frame counts, and the star catalog (positions at t_ref, with RA/Dec when
+// the cube has a WCS). Units are in the keys (ARCHITECTURE.md).
 #include <string>
 
 #include <nlohmann/json.hpp>
