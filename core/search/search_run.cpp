@@ -121,9 +121,15 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
     hits.resize(params.maxCandidates);
   }
   parallelSort(hits, before);
+  result.staticSources.clear();
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
       mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold, offsets));
+  setAsideStaticSources(result, psfFwhmPx, dtS, skyRate);
+}
+
+void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const std::vector<double>& dtS,
+                           Velocity skyRate) {
   // Static sources: relative to the stars, less than one FWHM over the span (the cell's velocity is the grid
   // velocity, so the limit is compared with the offset of the grid cell from the sky rate).
   double tMin = 0.0, tMax = 0.0;
@@ -133,17 +139,15 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
     tMax = *hi;
   }
   const double limit = staticRateLimitPxS(psfFwhmPx, tMax - tMin);
-  result.staticSources.clear();
-  if (limit > 0.0) {
-    auto isStatic = [&](const Candidate& c) {
-      // Strictly less than the limit (a grid of FWHM / span steps keeps its first ring of cells as movers).
-      return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) < limit * (1.0 - 1e-9);
-    };
-    for (const Candidate& c : result.candidates)
-      if (isStatic(c)) result.staticSources.push_back(c);
-    result.candidates.erase(std::remove_if(result.candidates.begin(), result.candidates.end(), isStatic),
-                            result.candidates.end());
-  }
+  if (limit <= 0.0) return;
+  auto isStatic = [&](const Candidate& c) {
+    // Strictly less than the limit (a grid of FWHM / span steps keeps its first ring of cells as movers).
+    return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) < limit * (1.0 - 1e-9);
+  };
+  for (const Candidate& c : result.candidates)
+    if (isStatic(c)) result.staticSources.push_back(c);
+  result.candidates.erase(std::remove_if(result.candidates.begin(), result.candidates.end(), isStatic),
+                          result.candidates.end());
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

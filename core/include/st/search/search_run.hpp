@@ -65,4 +65,9 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
                    const std::vector<double>& dtS, int width, int height, const SearchParams& params,
                    const std::vector<PixelOffset>& offsets, Velocity skyRate);
 
+/// Moves the candidates within the static-rate limit of `skyRate` (staticRateLimitPxS of the PSF FWHM and
+/// the span of `dtS`) from result.candidates to the end of result.staticSources, in their order.
+void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const std::vector<double>& dtS,
+                           Velocity skyRate);
+
 }  // namespace st::search
