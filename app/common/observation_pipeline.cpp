@@ -415,6 +415,9 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
     r = search::searchTiled(load, tiles, width, height, grid, params, progress, cancel);
     r.methodReason = method.reason;
     r.backendNote += ", " + std::to_string(memory.overlapPx) + " px overlap";
+    // As searchWithChoice does in memory: the tree's candidates on the exact statistic.
+    if (params.method == search::SearchMethod::Tree)
+      (void)search::polishTiledTreeCandidates(load, tiles, r, cancel);
     if (backend.name().rfind("cpu", 0) != 0) r.warnings.push_back("out of core: the search ran on the CPU");
   } else if (hooks.search) {
     search::SearchParams params = o.request.params;

@@ -249,13 +249,8 @@ SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, 
   result.methodReason = choice.reason;
   if (choice.method == SearchMethod::Tree && !result.candidates.empty()) {
     // The tree's candidates on the exact statistic, each around its own cell (tree_polish.hpp).
-    const PolishSummary polished = polishTreeCandidates(cube, result, kPolishedTreeCandidates, cancel);
-    char text[200];
-    std::snprintf(text, sizeof text,
-                  "tree candidates re-scored by the exact search within +-1 px and +-2 grid steps: %d of %d "
-                  "moved to a better cell, %d dropped (below the threshold, or on a stronger one's cell)",
-                  polished.moved, polished.rescored, polished.dropped);
-    result.backendNote = result.backendNote.empty() ? std::string(text) : result.backendNote + "\n" + text;
+    const std::string text = polishNote(polishTreeCandidates(cube, result, kPolishedTreeCandidates, cancel));
+    result.backendNote = result.backendNote.empty() ? text : result.backendNote + "\n" + text;
   }
   if (choice.method == SearchMethod::Tree && cube.psfFwhmPx > 0.0) {
     // What the tree costs for this cube (issue 16), in the note every front end shows.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "ipsa_kernel.hpp"
@@ -10,6 +11,7 @@
 #include "st/common/memory_budget.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/search/search_run.hpp"
+#include "st/search/tree_polish.hpp"
 #include "st/search/velocity_grid.hpp"
 #include "tree_region.hpp"
 
@@ -96,8 +98,8 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
     {
       const FilteredCube cube = load(tile.read);
       if (cube.frames.width() != tile.read.width || cube.frames.height() != tile.read.height) {
-        throw InputError("out-of-core search: a tile was read as " + std::to_string(cube.frames.width()) + " x " +
-                         std::to_string(cube.frames.height()) + " px instead of " +
+        throw InputError("out-of-core search: a tile was read as " + std::to_string(cube.frames.width()) +
+                         " x " + std::to_string(cube.frames.height()) + " px instead of " +
                          std::to_string(tile.read.width) + " x " + std::to_string(tile.read.height));
       }
       if (t == 0) {
@@ -150,8 +152,9 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
       const int x = out.map.argX[iv] + tile.read.x0;
       const int y = out.map.argY[iv] + tile.read.y0;
       // Ties go to the lowest (y, x), as in the in-memory search.
-      const bool better = map.argX[iv] < 0 || snr > map.maxSnr[iv] ||
-                          (snr == map.maxSnr[iv] && (y < map.argY[iv] || (y == map.argY[iv] && x < map.argX[iv])));
+      const bool better =
+          map.argX[iv] < 0 || snr > map.maxSnr[iv] ||
+          (snr == map.maxSnr[iv] && (y < map.argY[iv] || (y == map.argY[iv] && x < map.argX[iv])));
       if (better) {
         map.maxSnr[iv] = snr;
         map.argX[iv] = x;
@@ -164,6 +167,35 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
   result.elapsedS = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   progress.report(1.0, params.method == SearchMethod::Tree ? "velocity search (tree)" : "velocity search");
   return result;
+}
+
+PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vector<SearchTile>& tiles,
+                                        SearchResult& result, CancelToken& cancel) {
+  std::vector<std::optional<Candidate>> polished(std::min(kPolishedTreeCandidates, result.candidates.size()));
+  double psfFwhm = 0.0;
+  std::vector<double> dtS;
+  Velocity skyRate;
+  for (const SearchTile& tile : tiles) {
+    std::optional<FilteredCube> cube;
+    for (std::size_t i = 0; i < polished.size(); ++i) {
+      const Candidate& c = result.candidates[i];
+      if (c.x < tile.owned.x0 || c.y < tile.owned.y0 || c.x >= tile.owned.x0 + tile.owned.width ||
+          c.y >= tile.owned.y0 + tile.owned.height)
+        continue;
+      cancel.throwIfCancelled();
+      if (!cube) {
+        cube = load(tile.read);
+        psfFwhm = cube->psfFwhmPx;
+        dtS = cube->frames.timeOffsetsS();
+        skyRate = cube->skyRate;
+      }
+      polished[i] = polishCandidate(*cube, result, c, tile.read.x0, tile.read.y0, cancel);
+    }
+  }
+  if (dtS.empty()) return {};  // no candidate to re-score
+  const PolishSummary summary = finishPolish(result, polished, psfFwhm, dtS, skyRate);
+  result.backendNote += "\n" + polishNote(summary);
+  return summary;
 }
 
 }  // namespace st::search

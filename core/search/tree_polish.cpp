@@ -18,59 +18,66 @@ constexpr int kHalfPx = 1;     ///< pixels searched on each side of its position
 
 }  // namespace
 
-PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& result, std::size_t maxCandidates,
-                                   CancelToken& cancel) {
-  PolishSummary out;
+std::optional<Candidate> polishCandidate(const FilteredCube& cube, const SearchResult& result,
+                                         const Candidate& c, int x0, int y0, CancelToken& cancel) {
   const VelocityGrid& grid = result.grid;
   const int w = cube.frames.width(), h = cube.frames.height();
-  const std::vector<double> dt = cube.frames.timeOffsetsS();
+  const int cx = c.x - x0, cy = c.y - y0;  // in the cube's pixels
+  const int xa = std::max(0, cx - kHalfPx), xb = std::min(w - 1, cx + kHalfPx);
+  const int ya = std::max(0, cy - kHalfPx), yb = std::min(h - 1, cy + kHalfPx);
+  if (xa > xb || ya > yb) return std::nullopt;
   detail::KernelParams kp;
   kp.sigmaF = cube.sigmaF;
   kp.snrThreshold = result.snrThreshold;
   kp.minFrames = std::max(1, result.minFrames);
   kp.maxHits = 1;
   NullProgress quiet;
-  const std::size_t n = std::min(maxCandidates, result.candidates.size());
-  std::vector<char> keep(result.candidates.size(), 1);
-  for (std::size_t i = 0; i < n; ++i) {
-    cancel.throwIfCancelled();
-    Candidate& c = result.candidates[i];
-    const int x0 = std::max(0, c.x - kHalfPx), x1 = std::min(w - 1, c.x + kHalfPx);
-    const int y0 = std::max(0, c.y - kHalfPx), y1 = std::min(h - 1, c.y + kHalfPx);
-    const VelocityGrid local{c.v, grid.stepPxS, 2 * kHalfSteps + 1, 2 * kHalfSteps + 1};
-    const detail::KernelOutput k = detail::runIpsaKernel(
-        cube.frames, local, detail::Roi{x0, y0, x1 - x0 + 1, y1 - y0 + 1}, kp, quiet, cancel);
-    ++out.rescored;
-    int best = -1;
-    for (int iv = 0; iv < static_cast<int>(local.count()); ++iv) {
-      const int ivx = c.ivx + iv % local.nvx - kHalfSteps, ivy = c.ivy + iv / local.nvx - kHalfSteps;
-      if (ivx < 0 || ivy < 0 || ivx >= grid.nvx || ivy >= grid.nvy) continue;  // not a cell of the search
-      if (k.map.argX[iv] < 0) continue;
-      if (best < 0 || k.map.maxSnr[iv] > k.map.maxSnr[best]) best = iv;
+  const VelocityGrid local{c.v, grid.stepPxS, 2 * kHalfSteps + 1, 2 * kHalfSteps + 1};
+  const detail::KernelOutput k = detail::runIpsaKernel(
+      cube.frames, local, detail::Roi{xa, ya, xb - xa + 1, yb - ya + 1}, kp, quiet, cancel);
+  int best = -1;
+  for (int iv = 0; iv < static_cast<int>(local.count()); ++iv) {
+    const int ivx = c.ivx + iv % local.nvx - kHalfSteps, ivy = c.ivy + iv / local.nvx - kHalfSteps;
+    if (ivx < 0 || ivy < 0 || ivx >= grid.nvx || ivy >= grid.nvy) continue;  // not a cell of the search
+    if (k.map.argX[iv] < 0) continue;
+    if (best < 0 || k.map.maxSnr[iv] > k.map.maxSnr[best]) best = iv;
+  }
+  if (best < 0 || !(k.map.maxSnr[best] > result.snrThreshold)) return std::nullopt;
+  Candidate p = c;
+  p.ivx = c.ivx + best % local.nvx - kHalfSteps;
+  p.ivy = c.ivy + best / local.nvx - kHalfSteps;
+  p.v = grid.at(p.ivx, p.ivy);
+  const IpsaCell cell =
+      ipsaReference(cube.frames, cube.frames.timeOffsetsS(), k.map.argX[best], k.map.argY[best], p.v);
+  p.x = k.map.argX[best] + x0;
+  p.y = k.map.argY[best] + y0;
+  p.sum = cell.sum;
+  p.nIn = cell.nIn;
+  p.snr = k.map.maxSnr[best];
+  p.fap =
+      stats::detectionFap(p.snr, result.trials.nx, result.trials.ny, result.trials.nvx, result.trials.nvy);
+  return p;
+}
+
+PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional<Candidate>>& polished,
+                           double psfFwhmPx, const std::vector<double>& dtS, Velocity skyRate) {
+  PolishSummary out;
+  std::vector<Candidate> kept;
+  for (std::size_t i = 0; i < result.candidates.size(); ++i) {
+    const Candidate& c = result.candidates[i];
+    if (i >= polished.size()) {
+      kept.push_back(c);
+      continue;
     }
-    if (best < 0 || !(k.map.maxSnr[best] > result.snrThreshold)) {
-      keep[i] = 0;
+    ++out.rescored;
+    if (!polished[i]) {
       ++out.dropped;
       continue;
     }
-    Candidate p = c;
-    p.ivx = c.ivx + best % local.nvx - kHalfSteps;
-    p.ivy = c.ivy + best / local.nvx - kHalfSteps;
-    p.v = grid.at(p.ivx, p.ivy);
-    p.x = k.map.argX[best];
-    p.y = k.map.argY[best];
-    const IpsaCell cell = ipsaReference(cube.frames, dt, p.x, p.y, p.v);
-    p.sum = cell.sum;
-    p.nIn = cell.nIn;
-    p.snr = k.map.maxSnr[best];
-    p.fap =
-        stats::detectionFap(p.snr, result.trials.nx, result.trials.ny, result.trials.nvx, result.trials.nvy);
+    const Candidate& p = *polished[i];
     if (p.x != c.x || p.y != c.y || p.ivx != c.ivx || p.ivy != c.ivy) ++out.moved;
-    c = p;
+    kept.push_back(p);
   }
-  std::vector<Candidate> kept;
-  for (std::size_t i = 0; i < result.candidates.size(); ++i)
-    if (keep[i]) kept.push_back(result.candidates[i]);
   // Decreasing SNR (ties as setCandidates orders cells), then one candidate per cell.
   std::stable_sort(kept.begin(), kept.end(), [](const Candidate& a, const Candidate& b) {
     if (a.snr != b.snr) return a.snr > b.snr;
@@ -85,8 +92,24 @@ PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& resul
     }
     result.candidates.push_back(c);
   }
-  setAsideStaticSources(result, cube.psfFwhmPx, dt, cube.skyRate);
+  setAsideStaticSources(result, psfFwhmPx, dtS, skyRate);
   return out;
+}
+
+PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& result, std::size_t maxCandidates,
+                                   CancelToken& cancel) {
+  std::vector<std::optional<Candidate>> polished(std::min(maxCandidates, result.candidates.size()));
+  for (std::size_t i = 0; i < polished.size(); ++i) {
+    cancel.throwIfCancelled();
+    polished[i] = polishCandidate(cube, result, result.candidates[i], 0, 0, cancel);
+  }
+  return finishPolish(result, polished, cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.skyRate);
+}
+
+std::string polishNote(const PolishSummary& s) {
+  return "tree candidates re-scored by the exact search within +-1 px and +-2 grid steps: " +
+         std::to_string(s.moved) + " of " + std::to_string(s.rescored) + " moved to a better cell, " +
+         std::to_string(s.dropped) + " dropped (below the threshold, or on a stronger one's cell)";
 }
 
 }  // namespace st::search

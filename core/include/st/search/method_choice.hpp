@@ -42,8 +42,6 @@ inline constexpr double kCudaAutoTreeMinSavingS = 0.1;
 
 /// ...and loses at most this fraction of the exact search's SNR for the cube's PSF (treeSnrLoss; issue 16).
 inline constexpr double kAutoTreeMaxSnrLoss = 0.03;
-/// A tree search's strongest candidates re-scored by the exact search around their cells (tree_polish.hpp).
-inline constexpr std::size_t kPolishedTreeCandidates = 64;
 
 /// The tree search's SNR loss against the exact search (the worst of 12 objects) on matched-filtered point
 /// sources of PSF FWHM `fwhmPx` (Moffat beta 4, the paper's problem's tree: tracks within 2 px of the exact
@@ -150,9 +148,9 @@ MethodChoice resolveMethod(const SearchBackend& backend, const FilteredCube& cub
                            SearchMethod requested, MethodEstimate* estimate = nullptr);
 
 /// Runs backend.search() with choice.method and records the method and choice.reason in the result
-/// (SearchResult::method, methodReason). A tree search's first kPolishedTreeCandidates candidates are then
-/// re-scored by the exact search around their cells (polishTreeCandidates; what it did is a line of
-/// backendNote). Throws what the backend throws.
+/// (SearchResult::method, methodReason). A tree search's first kPolishedTreeCandidates (tree_polish.hpp)
+/// candidates are then re-scored by the exact search around their cells (polishTreeCandidates; what it did is
+/// a line of backendNote). Throws what the backend throws.
 SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, const VelocityGrid& grid,
                               const SearchParams& params, const MethodChoice& choice, ProgressSink& progress,
                               CancelToken& cancel);

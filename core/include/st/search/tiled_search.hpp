@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "st/common/progress.hpp"
+#include "st/search/tree_polish.hpp"
 #include "st/search/types.hpp"
 
 namespace st::search {
@@ -56,5 +57,12 @@ using TileLoader = std::function<FilteredCube(const TileRect& read)>;
 SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& tiles, int width, int height,
                          const VelocityGrid& grid, const SearchParams& params, ProgressSink& progress,
                          CancelToken& cancel);
+
+/// A tiled tree search's candidates re-scored by the exact search as searchWithChoice does in memory
+/// (tree_polish.hpp): each of the first kPolishedTreeCandidates on the tile that owns it (its read area
+/// holds every track of the window), the tiles with candidates read again; a line added to backendNote.
+/// Throws what `load` throws and st::Cancelled.
+PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vector<SearchTile>& tiles,
+                                        SearchResult& result, CancelToken& cancel);
 
 }  // namespace st::search

@@ -6,11 +6,18 @@
 // with the exact kernel over +-1 px and +-2 grid steps around its cell (cells of the search's grid only), and
 // its best exact cell replaces it.
 #include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "st/common/progress.hpp"
 #include "st/search/types.hpp"
 
 namespace st::search {
+
+/// A tree search's strongest candidates re-scored (searchWithChoice, searchTiled): the rest keep the tree's
+/// cells.
+inline constexpr std::size_t kPolishedTreeCandidates = 64;
 
 struct PolishSummary {
   int rescored = 0;  ///< candidates searched again
@@ -27,5 +34,19 @@ struct PolishSummary {
 /// of `result` (the tree's velocity map) is left as the tree made it. Throws st::Cancelled.
 PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& result, std::size_t maxCandidates,
                                    CancelToken& cancel);
+
+/// The parts, for a search that holds the cube in pieces (searchTiled): candidate `c` (image pixels)
+/// re-scored on `cube`, whose pixel (0, 0) is image pixel (x0, y0) and which holds every track of the window
+/// (a tile's read area around its owned area); nullopt when its best exact cell is not above the threshold.
+/// Uses result.grid, snrThreshold, minFrames and trials.
+std::optional<Candidate> polishCandidate(const FilteredCube& cube, const SearchResult& result,
+                                         const Candidate& c, int x0, int y0, CancelToken& cancel);
+/// Puts polished[i] in place of result.candidates[i] (dropping those without one; candidates past
+/// polished.size() are kept as they are), then orders, merges one cell's candidates and sets aside the static
+/// ones as polishTreeCandidates does.
+PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional<Candidate>>& polished,
+                           double psfFwhmPx, const std::vector<double>& dtS, Velocity skyRate);
+/// The line of SearchResult::backendNote that says what the re-scoring did.
+std::string polishNote(const PolishSummary& summary);
 
 }  // namespace st::search
