@@ -173,6 +173,9 @@ OutOfCoreSearch searchOutOfCore(const OutOfCoreCube& cube, const search::Velocit
                                    progress, cancel);
   out.result.methodReason = method.reason;
   out.result.backendNote += ", " + std::to_string(overlap) + " px overlap";
+  // As searchWithChoice does in memory: the tree's candidates on the exact statistic.
+  if (params.method == search::SearchMethod::Tree)
+    (void)search::polishTiledTreeCandidates(load, plan.tiles, out.result, cancel);
   out.tiles = plan.tiles.size();
   out.overlapPx = overlap;
   out.perTile = plan.perTile;

@@ -5,7 +5,7 @@
 #include <set>
 #include <tuple>
 
-#include "ipsa_kernel.hpp"
+#include "st/common/parallel.hpp"
 #include "st/search/ipsa.hpp"
 #include "st/search/search_run.hpp"
 #include "st/stats/false_alarm.hpp"
@@ -23,50 +23,57 @@ std::optional<Candidate> polishCandidate(const FilteredCube& cube, const SearchR
   const VelocityGrid& grid = result.grid;
   const int w = cube.frames.width(), h = cube.frames.height();
   const int cx = c.x - x0, cy = c.y - y0;  // in the cube's pixels
-  const int xa = std::max(0, cx - kHalfPx), xb = std::min(w - 1, cx + kHalfPx);
-  const int ya = std::max(0, cy - kHalfPx), yb = std::min(h - 1, cy + kHalfPx);
-  if (xa > xb || ya > yb) return std::nullopt;
-  detail::KernelParams kp;
-  kp.sigmaF = cube.sigmaF;
-  kp.snrThreshold = result.snrThreshold;
-  kp.minFrames = std::max(1, result.minFrames);
-  kp.maxHits = 1;
-  NullProgress quiet;
-  const VelocityGrid local{c.v, grid.stepPxS, 2 * kHalfSteps + 1, 2 * kHalfSteps + 1};
-  const detail::KernelOutput k = detail::runIpsaKernel(
-      cube.frames, local, detail::Roi{xa, ya, xb - xa + 1, yb - ya + 1}, kp, quiet, cancel);
-  int best = -1;
-  for (int iv = 0; iv < static_cast<int>(local.count()); ++iv) {
-    const int ivx = c.ivx + iv % local.nvx - kHalfSteps, ivy = c.ivy + iv / local.nvx - kHalfSteps;
-    if (ivx < 0 || ivy < 0 || ivx >= grid.nvx || ivy >= grid.nvy) continue;  // not a cell of the search
-    if (k.map.argX[iv] < 0) continue;
-    if (best < 0 || k.map.maxSnr[iv] > k.map.maxSnr[best]) best = iv;
+  const std::vector<double> dt = cube.frames.timeOffsetsS();
+  const int minFrames = std::max(1, result.minFrames);
+  // Every cell by the reference sum at the search grid's own velocities (grid.at: the same doubles, so the
+  // same whole-pixel shifts as the search), in the order y, x, ivy, ivx: of equal SNRs the first is kept.
+  std::optional<Candidate> best;
+  for (int y = std::max(0, cy - kHalfPx); y <= std::min(h - 1, cy + kHalfPx); ++y) {
+    cancel.throwIfCancelled();
+    for (int x = std::max(0, cx - kHalfPx); x <= std::min(w - 1, cx + kHalfPx); ++x)
+      for (int ivy = std::max(0, c.ivy - kHalfSteps); ivy <= std::min(grid.nvy - 1, c.ivy + kHalfSteps);
+           ++ivy)
+        for (int ivx = std::max(0, c.ivx - kHalfSteps); ivx <= std::min(grid.nvx - 1, c.ivx + kHalfSteps);
+             ++ivx) {
+          const Velocity v = grid.at(ivx, ivy);
+          const IpsaCell cell = ipsaReference(cube.frames, dt, x, y, v);
+          if (cell.nIn < minFrames) continue;
+          const double snr = cell.sum / (cube.sigmaF * std::sqrt(static_cast<double>(cell.nIn)));
+          if (best && !(snr > best->snr)) continue;
+          Candidate p = c;
+          p.x = x + x0;
+          p.y = y + y0;
+          p.ivx = ivx;
+          p.ivy = ivy;
+          p.v = v;
+          p.sum = cell.sum;
+          p.nIn = cell.nIn;
+          p.snr = snr;
+          best = p;
+        }
   }
-  if (best < 0 || !(k.map.maxSnr[best] > result.snrThreshold)) return std::nullopt;
-  Candidate p = c;
-  p.ivx = c.ivx + best % local.nvx - kHalfSteps;
-  p.ivy = c.ivy + best / local.nvx - kHalfSteps;
-  p.v = grid.at(p.ivx, p.ivy);
-  const IpsaCell cell =
-      ipsaReference(cube.frames, cube.frames.timeOffsetsS(), k.map.argX[best], k.map.argY[best], p.v);
-  p.x = k.map.argX[best] + x0;
-  p.y = k.map.argY[best] + y0;
-  p.sum = cell.sum;
-  p.nIn = cell.nIn;
-  p.snr = k.map.maxSnr[best];
-  p.fap =
-      stats::detectionFap(p.snr, result.trials.nx, result.trials.ny, result.trials.nvx, result.trials.nvy);
-  return p;
+  if (!best || !(best->snr > result.snrThreshold)) return std::nullopt;
+  best->fap = stats::detectionFap(best->snr, result.trials.nx, result.trials.ny, result.trials.nvx,
+                                  result.trials.nvy);
+  return best;
 }
 
 PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional<Candidate>>& polished,
                            double psfFwhmPx, const std::vector<double>& dtS, Velocity skyRate) {
   PolishSummary out;
-  std::vector<Candidate> kept;
+  // Decreasing SNR, ties as setCandidates orders cells.
+  const auto before = [](const Candidate& a, const Candidate& b) {
+    if (a.snr != b.snr) return a.snr > b.snr;
+    return std::tie(a.y, a.x, a.ivy, a.ivx) < std::tie(b.y, b.x, b.ivy, b.ivx);
+  };
+  using Cell = std::tuple<int, int, int, int>;
+  const auto cellOf = [](const Candidate& c) { return Cell{c.x, c.y, c.ivx, c.ivy}; };
+  // The re-scored candidates first (one per cell, the strongest), then the rest where their cell is free.
+  std::vector<Candidate> rescored, rest;
   for (std::size_t i = 0; i < result.candidates.size(); ++i) {
     const Candidate& c = result.candidates[i];
     if (i >= polished.size()) {
-      kept.push_back(c);
+      rest.push_back(c);
       continue;
     }
     ++out.rescored;
@@ -74,35 +81,41 @@ PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional
       ++out.dropped;
       continue;
     }
-    const Candidate& p = *polished[i];
-    if (p.x != c.x || p.y != c.y || p.ivx != c.ivx || p.ivy != c.ivy) ++out.moved;
-    kept.push_back(p);
+    if (cellOf(*polished[i]) != cellOf(c)) ++out.moved;
+    rescored.push_back(*polished[i]);
   }
-  // Decreasing SNR (ties as setCandidates orders cells), then one candidate per cell.
-  std::stable_sort(kept.begin(), kept.end(), [](const Candidate& a, const Candidate& b) {
-    if (a.snr != b.snr) return a.snr > b.snr;
-    return std::tie(a.y, a.x, a.ivy, a.ivx) < std::tie(b.y, b.x, b.ivy, b.ivx);
-  });
-  std::set<std::tuple<int, int, int, int>> cells;
+  std::stable_sort(rescored.begin(), rescored.end(), before);
+  std::set<Cell> cells;
   result.candidates.clear();
-  for (const Candidate& c : kept) {
-    if (!cells.insert({c.x, c.y, c.ivx, c.ivy}).second) {
-      ++out.dropped;
-      continue;
+  for (const auto* list : {&rescored, &rest})
+    for (const Candidate& c : *list) {
+      if (!cells.insert(cellOf(c)).second) {
+        ++out.dropped;
+        continue;
+      }
+      result.candidates.push_back(c);
     }
-    result.candidates.push_back(c);
-  }
+  std::stable_sort(result.candidates.begin(), result.candidates.end(), before);
+  // A candidate re-scored onto the sky rate joins the static sources, once per cell and in their order.
+  std::vector<Candidate> earlier = std::move(result.staticSources);
+  result.staticSources.clear();
   setAsideStaticSources(result, psfFwhmPx, dtS, skyRate);
+  std::set<Cell> staticCells;
+  for (const Candidate& c : result.staticSources)
+    staticCells.insert(cellOf(c));
+  for (const Candidate& c : earlier)
+    if (staticCells.insert(cellOf(c)).second) result.staticSources.push_back(c);
+  std::stable_sort(result.staticSources.begin(), result.staticSources.end(), before);
   return out;
 }
 
 PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& result, std::size_t maxCandidates,
                                    CancelToken& cancel) {
   std::vector<std::optional<Candidate>> polished(std::min(maxCandidates, result.candidates.size()));
-  for (std::size_t i = 0; i < polished.size(); ++i) {
-    cancel.throwIfCancelled();
-    polished[i] = polishCandidate(cube, result, result.candidates[i], 0, 0, cancel);
-  }
+  parallelFor(polished.size(), 1, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i)
+      polished[i] = polishCandidate(cube, result, result.candidates[i], 0, 0, cancel);
+  });
   return finishPolish(result, polished, cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.skyRate);
 }
 

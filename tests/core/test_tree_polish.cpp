@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "search_test_cubes.hpp"
@@ -67,7 +68,10 @@ TEST(TreePolish, ACandidateOffItsCellComesBackToTheExactBest) {
   c.ivy -= 2;
   c.v = m.grid.at(c.ivx, c.ivy);
   c.x += 1;
-  c.snr = 99.0;
+  c.snr = 99.0;  // and every other measured field stale
+  c.sum = -1.0;
+  c.nIn = 0;
+  c.fap = 1.0;
   CancelToken cancel;
   const PolishSummary s = polishTreeCandidates(m.fc, off, 64, cancel);
   EXPECT_GE(s.moved, 1);
@@ -80,7 +84,46 @@ TEST(TreePolish, ACandidateOffItsCellComesBackToTheExactBest) {
   EXPECT_NEAR(p.snr, best.snr, 1e-4 * best.snr);
   EXPECT_NEAR(p.snr, referenceSnr(m.fc, p), 1e-4 * best.snr);
   EXPECT_EQ(p.nIn, best.nIn);
+  EXPECT_NEAR(p.sum, best.sum, 1e-4 * std::abs(best.sum));
+  EXPECT_NEAR(p.fap, best.fap, 1e-3 * best.fap + 1e-300);
   EXPECT_LT(p.fap, 1e-6);
+}
+
+// The out-of-core path re-scores each candidate on the tile that owns it (polishCandidate with the tile's
+// origin): on a crop whose pixel (0, 0) is image pixel (5, 7) and which holds every track of the window, the
+// same cell, sums and SNR as on the whole cube.
+TEST(TreePolish, OnACropTheSameCellAsOnTheWholeCube) {
+  const MoverCube m = moverCube(3.0);
+  SearchResult r = exactSearch(m);
+  ASSERT_FALSE(r.candidates.empty());
+  Candidate c = r.candidates.front();
+  c.ivx -= 1;
+  c.ivy += 2;
+  c.v = m.grid.at(c.ivx, c.ivy);
+  c.y -= 1;
+  CancelToken cancel;
+  const std::optional<Candidate> whole = polishCandidate(m.fc, r, c, 0, 0, cancel);
+  ASSERT_TRUE(whole.has_value());
+  FilteredCube crop = m.fc;
+  const int x0 = 5, y0 = 7, cw = 56, ch = 55;
+  crop.frames = FrameCube(cw, ch, m.fc.frames.frameCount());
+  crop.frames.info() = m.fc.frames.info();
+  for (std::size_t n = 0; n < crop.frames.frameCount(); ++n)
+    for (int y = 0; y < ch; ++y)
+      for (int x = 0; x < cw; ++x)
+        crop.frames.frame(n)[static_cast<std::size_t>(y) * cw + x] =
+            m.fc.frames.frame(n)[static_cast<std::size_t>(y + y0) * m.fc.frames.width() + x + x0];
+  const std::optional<Candidate> part = polishCandidate(crop, r, c, x0, y0, cancel);
+  ASSERT_TRUE(part.has_value());
+  EXPECT_EQ(part->x, whole->x);
+  EXPECT_EQ(part->y, whole->y);
+  EXPECT_EQ(part->ivx, whole->ivx);
+  EXPECT_EQ(part->ivy, whole->ivy);
+  EXPECT_EQ(part->nIn, whole->nIn);
+  EXPECT_DOUBLE_EQ(part->sum, whole->sum);
+  EXPECT_DOUBLE_EQ(part->snr, whole->snr);
+  EXPECT_EQ(whole->x, r.candidates.front().x);
+  EXPECT_EQ(whole->ivy, r.candidates.front().ivy);
 }
 
 TEST(TreePolish, NoiseAloneIsDroppedAndOneCellKeepsOneCandidate) {

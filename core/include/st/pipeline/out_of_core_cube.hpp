@@ -3,9 +3,10 @@
 // its header, times and WCS from a small corner, and every pixel read later through CFITSIO's subset reader
 // (io::loadFrames with a crop) in regions that fit the budget. The search runs out of core through the same
 // core functions as `synthtrack-cli search --preprocessed` (pipeline::planTiledSearch, search::searchTiled,
-// each tile filtered by pipeline::searchInputFromPrepared), so its candidates equal the in-memory search's
-// (search/tiled_search.hpp). Stacks for display are summed in strips of rows with the overlap of the
-// largest shift, so they equal stack::stackIpsa of the cube in memory.
+// each tile filtered by pipeline::searchInputFromPrepared; a tree search's candidates re-scored on their
+// tiles, search::polishTiledTreeCandidates), so its candidates equal the in-memory search's
+// (search/tiled_search.hpp). Stacks for display are summed in strips of rows with the overlap of the largest
+// shift, so they equal stack::stackIpsa of the cube in memory.
 #include <string>
 #include <vector>
 

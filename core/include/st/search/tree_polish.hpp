@@ -3,8 +3,8 @@
 // the SNR at the paper's PSF), and they can move the best cell: on paper-neo seeds 41-130 (H200, CPU,
 // 2026-12-04) the tree put the asteroid's cell 2 grid steps off the truth on 2 seeds (72: vx 15.79 against
 // 15.687 px/s, where the exact search picks 15.74) and 1.9 steps on a third. Each candidate is searched again
-// with the exact kernel over +-1 px and +-2 grid steps around its cell (cells of the search's grid only), and
-// its best exact cell replaces it.
+// on the exact statistic over +-1 px and +-2 grid steps around its cell (cells of the search's grid only),
+// and its best exact cell replaces it.
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -25,13 +25,15 @@ struct PolishSummary {
   int dropped = 0;   ///< below the threshold in the exact statistic, or merged into another's cell
 };
 
-/// Replaces each of the first `maxCandidates` of result.candidates (the strongest) by the best cell of the
-/// exact search (runIpsaKernel, the search's sigma_F and minimum frames) over x +- 1, y +- 1 px and the grid
-/// cells within +- 2 steps of its velocity: x, y, v, grid indices, S, N_in, SNR and FAP (result.trials); its
-/// clusterCells kept. A candidate whose best exact SNR is not above result.snrThreshold is dropped, and so
-/// is one that lands on the cell of a stronger one. The candidates are then in decreasing SNR, and those
-/// within the static-rate limit of cube.skyRate join result.staticSources (setAsideStaticSources). The rest
-/// of `result` (the tree's velocity map) is left as the tree made it. Throws st::Cancelled.
+/// Replaces each of the first `maxCandidates` of result.candidates (the strongest; on every core) by its best
+/// cell of the exact statistic over x +- 1, y +- 1 px and the grid cells within +- 2 steps of its velocity:
+/// each cell's reference sum (ipsaReference, at the grid's own velocities), SNR = S / (sigma_F sqrt(N_in))
+/// where N_in reaches result.minFrames; x, y, v, grid indices, S, N_in, SNR and FAP (result.trials) replaced,
+/// clusterCells kept. A candidate whose best SNR is not above result.snrThreshold is dropped, and so is one
+/// on the cell of a stronger re-scored one (or, not re-scored, on any re-scored one's cell). The candidates
+/// are then in decreasing SNR, and those within the static-rate limit of cube.skyRate join
+/// result.staticSources (setAsideStaticSources; one per cell, in decreasing SNR). The rest of `result` (the
+/// tree's velocity map, the sidelobes merged) is left as the tree made it. Throws st::Cancelled.
 PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& result, std::size_t maxCandidates,
                                    CancelToken& cancel);
 
