@@ -98,8 +98,8 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
     {
       const FilteredCube cube = load(tile.read);
       if (cube.frames.width() != tile.read.width || cube.frames.height() != tile.read.height) {
-        throw InputError("out-of-core search: a tile was read as " + std::to_string(cube.frames.width()) +
-                         " x " + std::to_string(cube.frames.height()) + " px instead of " +
+        throw InputError("out-of-core search: a tile was read as " + std::to_string(cube.frames.width()) + " x " +
+                         std::to_string(cube.frames.height()) + " px instead of " +
                          std::to_string(tile.read.width) + " x " + std::to_string(tile.read.height));
       }
       if (t == 0) {
@@ -152,9 +152,8 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
       const int x = out.map.argX[iv] + tile.read.x0;
       const int y = out.map.argY[iv] + tile.read.y0;
       // Ties go to the lowest (y, x), as in the in-memory search.
-      const bool better =
-          map.argX[iv] < 0 || snr > map.maxSnr[iv] ||
-          (snr == map.maxSnr[iv] && (y < map.argY[iv] || (y == map.argY[iv] && x < map.argX[iv])));
+      const bool better = map.argX[iv] < 0 || snr > map.maxSnr[iv] ||
+                          (snr == map.maxSnr[iv] && (y < map.argY[iv] || (y == map.argY[iv] && x < map.argX[iv])));
       if (better) {
         map.maxSnr[iv] = snr;
         map.argX[iv] = x;
@@ -194,7 +193,7 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
   }
   if (dtS.empty()) return {};  // no candidate to re-score
   const PolishSummary summary = finishPolish(result, polished, psfFwhm, dtS, skyRate);
-  result.backendNote += "\n" + polishNote(summary);
+  result.backendNote.append(1, '\n').append(polishNote(summary));
   return summary;
 }
 
