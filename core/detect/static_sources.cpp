@@ -250,8 +250,10 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
 }  // namespace
 
 StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double background,
-                                const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel,
+                                const StaticSourceParams& given, ProgressSink& progress, CancelToken& cancel,
                                 SkyStackCache* stacks) {
+  StaticSourceParams params = given;
+  if (params.catalogueOnly) params.filteredDetection = false;
   SkyStackCache own;
   SkyStackCache& cache = stacks ? *stacks : own;
   StaticSources out;
@@ -391,6 +393,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
     } else if (keptAsMover(motion, k, comp, s, cw, skyRate, params, st, out)) {
       continue;
     }
+    if (params.catalogueOnly) {
+      out.stars.push_back(std::move(st));
+      continue;
+    }
     for (int p : comp) {
       // A saturated star in a drifting field is masked whole; where single frames are the measure (a static
       // field, or stars subtracted), its clipped core is far above maskSnr anyway.
@@ -436,9 +442,11 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   lap("footprints");
   // The dilation covers the stars' sub-pixel motion under the sky rate's integer shifts; a static field has
   // none, so one pixel there.
-  out.mask.dilate(narrow ? 1 : base);
-  out.subtractRegion.dilate(base);
-  out.moverMask.dilate(base);
+  if (!params.catalogueOnly) {
+    out.mask.dilate(narrow ? 1 : base);
+    out.subtractRegion.dilate(base);
+    out.moverMask.dilate(base);
+  }
   std::sort(out.stars.begin(), out.stars.end(), [](const Star& a, const Star& b) { return a.flux > b.flux; });
   lap("dilation");
   cache.settle();  // a stack made beside and not asked for (no faint source to test) is kept

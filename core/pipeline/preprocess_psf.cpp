@@ -13,7 +13,8 @@
 
 namespace st::pipeline::detail {
 
-void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params) {
+void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params,
+                    std::optional<double> stackNoise) {
   std::vector<psf::StarCandidate> candidates;
   for (const auto& st : out.stars)
     candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
@@ -21,6 +22,7 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
   PartTimer timer(parts);
   psf::PsfStarOptions opt;
   opt.fit.noiseSigma = 0.0;
+  opt.imageNoise = stackNoise;
   opt.fit.smear = psf::stackSmear(out.frames, out.skyRate);  // the stack's trails and shift rounding
   timer.lap("smear");
   try {

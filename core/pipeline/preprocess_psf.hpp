@@ -14,8 +14,10 @@ namespace st::pipeline::detail {
 // do not drift, takes the wings of every star just outside its mask into the background and leaves a
 // narrow, steep-winged profile: FWHM 2.0 px, beta 7.95 on Lowell frames whose stars measure 2.35-2.56 px),
 // isolated unsaturated catalog stars away from the edges, the median of up to 5 accepted; the fallback FWHM
-// with a note when none is usable, and a note when the accepted stars disagree.
-void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params);
+// with a note when none is usable, and a note when the accepted stars disagree. `stackNoise`:
+// psf::robustImageNoise(s.mean) where the caller has measured it (beside other work), else measured here.
+void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params,
+                    std::optional<double> stackNoise = std::nullopt);
 
 // The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
 // BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master

@@ -178,7 +178,7 @@ PsfMeasurement measurePsf(const Image& image, const std::vector<StarCandidate>& 
       given.empty() ? findStarCandidates(image, 10.0, o.saturationLevel) : given;
   std::vector<StarCandidate> sorted = all;
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.flux > b.flux; });
-  const double noise = robustImageNoise(image);
+  const double noise = o.imageNoise ? *o.imageNoise : robustImageNoise(image);
   PsfMeasurement m;
   std::vector<std::pair<MoffatFit, StarCandidate>> accepted;
   // The candidates that pass the cuts, brightest first, up to maxTries (the cuts do not depend on the fits).

@@ -266,5 +266,50 @@ TEST(StaticSources, FaintStarsFoundAfterThePsfFilterSlowObjectsNot) {
   EXPECT_EQ(found.stars.size(), 1u);
 }
 
+// The PSF's catalogue (catalogueOnly, issue 16: what the pipeline runs before the PSF fit, the whole search
+// then running once at the fitted FWHM) against the whole search as the oracle, in a drifting field with a
+// bright slow mover (3 px over the span relative to the stars, a star-like short streak per pixel): the same
+// per-pixel stars (the whole search's stars with SNR >= 7; positions within 0.05 px, fluxes within 2%; its
+// analysis leaves the filtered blobs out of the second mesh background, so not to every digit), the faint
+// star seen only after the filter not among them, the mover left out of both catalogues alike, and no mask.
+TEST(StaticSources, CatalogueOnlyIsTheWholeSearchsPerPixelStarsWithoutMasks) {
+  test::SynthScene sc = scene({0.3, -0.2});
+  sc.stars.push_back({45.0, 60.0, 3.5});  // SNR ~5 per pixel in the stack, ~11 after the filter
+  sc.objX = 75.0, sc.objY = 20.0;
+  sc.objRate = {0.35, -0.2};  // 0.05 px/s off the stars: 3 px over the 60 s
+  sc.objPeak = 40.0;
+  FrameCube cube = sc.make();
+  NullProgress p;
+  CancelToken c;
+  const stats::ClipStats global = stats::globalBackground(cube);
+  const Velocity rate{0.3, -0.2};
+  const StaticSources whole = findStaticSources(cube, rate, global.mean, {}, p, c);
+  StaticSourceParams only;
+  only.catalogueOnly = true;
+  const StaticSources cat = findStaticSources(cube, rate, global.mean, only, p, c);
+  ASSERT_EQ(whole.movers.size(), 1u) << "the scene's mover is not one: the test does not test leaving it out";
+  ASSERT_EQ(cat.movers.size(), 1u);
+  EXPECT_NEAR(cat.movers[0].x, whole.movers[0].x, 0.05);
+  EXPECT_NEAR(cat.movers[0].y, whole.movers[0].y, 0.05);
+  ASSERT_NE(nearest(whole.stars, 45.0, 60.0), nullptr) << "the faint star is not found after the filter";
+  EXPECT_EQ(nearest(cat.stars, 45.0, 60.0), nullptr);
+  std::size_t perPixel = 0;
+  for (const Star& w : whole.stars) {
+    if (w.snr < StaticSourceParams{}.snrThreshold) continue;
+    ++perPixel;
+    const Star* s = nearest(cat.stars, w.x, w.y);
+    ASSERT_NE(s, nullptr) << "star at " << w.x << "," << w.y << " not in the PSF's catalogue";
+    EXPECT_NEAR(s->x, w.x, 0.05);
+    EXPECT_NEAR(s->y, w.y, 0.05);
+    EXPECT_NEAR(s->flux, w.flux, 0.02 * w.flux);
+    EXPECT_EQ(s->saturated, w.saturated);
+  }
+  EXPECT_EQ(perPixel, sc.stars.size() - 1);
+  EXPECT_EQ(cat.stars.size(), perPixel);
+  EXPECT_EQ(cat.mask.count(), 0u);
+  EXPECT_EQ(cat.subtractRegion.count(), 0u);
+  EXPECT_GT(whole.mask.count(), 0u);
+}
+
 }  // namespace
 }  // namespace st::detect

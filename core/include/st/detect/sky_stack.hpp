@@ -47,7 +47,7 @@ struct FilteredSnrInputs {
 };
 
 /// Stacks of one cube at one rate, made once and handed out again: pre-processing asks for the same stacks
-/// several times (the static-source search, again at the fitted FWHM, and the PSF; each search stacks the
+/// several times (the PSF's catalogue, the PSF, the static-source search at the fitted FWHM; each stacks the
 /// whole cube, its thirds and its halves), one full pass over the cube each. The cube must not change while
 /// the cache is in use; requests differing in rate, subtracted level or frame range are separate stacks.
 class SkyStackCache {

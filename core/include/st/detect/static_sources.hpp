@@ -63,6 +63,11 @@ struct StaticSourceParams {
   bool subtractStars = true;
   double minMoverShiftPx = 1.0;
   double moverShiftSigmas = 5.0;
+  /// Only the catalogue that a PSF fit needs (issue 16): the sources seen per pixel, movers left out, with
+  /// their flux, peak and saturation; no filtered detection, no halves' test, no footprints (`mask` and
+  /// `subtractRegion` stay empty, `moverMask` is not dilated). What the pipeline runs before the PSF is fitted, so that
+  /// the whole search runs once, at the fitted FWHM.
+  bool catalogueOnly = false;
 };
 
 /// One static source, at the reference epoch t_ref (0-based pixels; may lie outside the frame when the sky

@@ -35,6 +35,9 @@ struct PsfStarOptions {
   int maxTries = 30;     ///< candidates fitted, brightest first, before giving up
   int maxAccepted = 9;   ///< stars accepted before stopping (see measurePsf for the choice among them)
   MoffatFitOptions fit;  ///< options of the Moffat fit
+  /// robustImageNoise(image) where the caller has it already (issue 16: measured beside other work); else
+  /// measurePsf measures it. minPeakSnr is in its units.
+  std::optional<double> imageNoise;
 };
 
 /// The PSF measured on one star.
