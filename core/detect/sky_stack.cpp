@@ -343,4 +343,15 @@ Image residualWhereCounted(const Image& mean, const Image& count, const Image& l
   return out;
 }
 
+std::shared_ptr<const void> SkyStackCache::derived(Derived kind, const FrameCube& cube, Velocity rate,
+                                                   double subtract, int meshPx) const {
+  const auto it = m_derived.find({kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx});
+  return it == m_derived.end() ? nullptr : it->second;
+}
+
+void SkyStackCache::keepDerived(Derived kind, const FrameCube& cube, Velocity rate, double subtract, int meshPx,
+                                std::shared_ptr<const void> value) {
+  m_derived[{kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx}] = std::move(value);
+}
+
 }  // namespace st::detect

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <vector>
 
 #include "st/common/parallel.hpp"
@@ -22,8 +24,15 @@ std::vector<std::vector<int>> components(const std::vector<std::uint8_t>& seeds,
   std::vector<std::vector<int>> out;
   std::vector<std::uint8_t> seen(seeds.size(), 0);
   std::vector<int> stack;
-  for (int i = 0; i < static_cast<int>(seeds.size()); ++i) {
-    if (seen[i] || !seeds[i]) continue;
+  // The seeds are a few thousand of a canvas's 1-2M pixels: memchr skips the zeros many at a time (the
+  // byte-by-byte scan took ~3 ms a call on paper-neo's 1500-frame canvas; issue 16). Seeds are 0 or 1.
+  const std::uint8_t* const begin = seeds.data();
+  const std::uint8_t* const end = begin + seeds.size();
+  for (const std::uint8_t* at = begin; at < end; ++at) {
+    at = static_cast<const std::uint8_t*>(std::memchr(at, 1, static_cast<std::size_t>(end - at)));
+    if (!at) break;
+    const int i = static_cast<int>(at - begin);
+    if (seen[i]) continue;
     std::vector<int> comp;
     stack.push_back(i);
     seen[i] = 1;
@@ -164,43 +173,69 @@ struct StackSnr {
   stats::ClipStats noise;
 };
 
-StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel,
-                      const SkyStackCache::SnrProvider* device, TimedParts& parts) {
-  PartTimer timer(parts);
-  StackSnr a;
-  a.snr.assign(s.mean.size(), 0.0f);
-  a.snrF.assign(s.mean.size(), 0.0f);
-  Image weight = s.count;
-  for (int pass = 0; pass < 2; ++pass) {
-    a.local = meshBackground(s.mean, weight, params.meshPx);
-    timer.lap("analysis: mesh background");
-    a.resid = residualWhereCounted(s.mean, s.count, a.local);
-    const std::size_t np = a.resid.size();
-    // R sqrt(count): the single-frame noise scale everywhere
-    const std::vector<float> scaled = gatherInOrder(
-        np, [&](std::size_t i) { return s.count.pixels[i] > 0; },
-        [&](std::size_t i) { return a.resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
-    timer.lap("analysis: residual");
-    a.noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
-    timer.lap("analysis: noise clip");
-    if (a.noise.sigma > 0) {
-      parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
-        for (std::size_t i = i0; i < i1; ++i)
-          a.snr[i] = static_cast<float>(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]) / a.noise.sigma);
-      });
-    }
-    cancel.throwIfCancelled();
-    timer.lap("analysis: SNR");
-    // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
-    // after the matched filter.
-    if (params.filteredDetection)
-      a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx, device);
-    timer.lap("analysis: filtered SNR");
-    if (pass == 0)
-      weight = detail::excludeSources(s.count, a.snr, a.snrF, params.growSnr + 1.0,
-                                      static_cast<int>(std::ceil(params.psfFwhmPx)));
-    timer.lap("analysis: sources left out");
+// The first pass up to its per-pixel SNR: no FWHM in it, so kept in the cache for the next search of the
+// same stack (SkyStackCache::Derived::FirstAnalysis).
+struct FirstAnalysis {
+  Image resid, local;
+  std::vector<float> snr;
+  stats::ClipStats noise;
+};
+
+// One pass's mesh background of s.mean with `weight`, the residual, its clipped noise (of R sqrt(count),
+// the single-frame noise scale everywhere) and the per-pixel SNR (`snr` left as it is where the noise is 0).
+void meshPass(const SkyStack& s, const Image& weight, int meshPx, Image& local, Image& resid,
+              stats::ClipStats& noise, std::vector<float>& snr, PartTimer& timer, CancelToken& cancel) {
+  local = meshBackground(s.mean, weight, meshPx);
+  timer.lap("analysis: mesh background");
+  resid = residualWhereCounted(s.mean, s.count, local);
+  const std::size_t np = resid.size();
+  const std::vector<float> scaled = gatherInOrder(
+      np, [&](std::size_t i) { return s.count.pixels[i] > 0; },
+      [&](std::size_t i) { return resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
+  timer.lap("analysis: residual");
+  noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+  timer.lap("analysis: noise clip");
+  if (noise.sigma > 0) {
+    parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
+      for (std::size_t i = i0; i < i1; ++i)
+        snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
+    });
   }
+  cancel.throwIfCancelled();
+  timer.lap("analysis: SNR");
+}
+
+// `first`: the first pass up to its SNR where a search of the same stack made it, else made here (and left
+// in `first` for the caller to keep).
+StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel,
+                      const SkyStackCache::SnrProvider* device, TimedParts& parts,
+                      std::shared_ptr<const FirstAnalysis>& first) {
+  PartTimer timer(parts);
+  const std::size_t np = s.mean.size();
+  if (!first) {
+    auto made = std::make_shared<FirstAnalysis>();
+    made->snr.assign(np, 0.0f);
+    meshPass(s, s.count, params.meshPx, made->local, made->resid, made->noise, made->snr, timer, cancel);
+    first = std::move(made);
+  } else {
+    timer.lap("analysis: first pass (kept from the search before)");
+  }
+  // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
+  // after the matched filter.
+  std::vector<float> firstSnrF(np, 0.0f);
+  if (params.filteredDetection)
+    firstSnrF = detail::filteredSnr(first->resid, s.count, first->noise.sigma, params.psfFwhmPx, device);
+  timer.lap("analysis: filtered SNR");
+  const Image weight = detail::excludeSources(s.count, first->snr, firstSnrF, params.growSnr + 1.0,
+                                              static_cast<int>(std::ceil(params.psfFwhmPx)));
+  timer.lap("analysis: sources left out");
+  StackSnr a;
+  a.snr = first->snr;  // kept where the second pass's noise is 0
+  meshPass(s, weight, params.meshPx, a.local, a.resid, a.noise, a.snr, timer, cancel);
+  a.snrF.assign(np, 0.0f);
+  if (params.filteredDetection)
+    a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx, device);
+  timer.lap("analysis: filtered SNR");
   return a;
 }
 
@@ -208,7 +243,7 @@ StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, Cance
 // slow mover is above spikeSnr in the stack): their centroids in the stacks of the thirds of the frames and
 // the stars' common shift (keepMovers).
 struct Motion {
-  detail::ThirdStacks thirds;
+  std::shared_ptr<const detail::ThirdStacks> thirds;  // null where movers are not judged
   std::vector<detail::SourceShift> shifts;
   std::pair<double, double> common{0.0, 0.0};
 };
@@ -220,11 +255,19 @@ Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background
   Motion m;
   m.shifts.resize(nPerPixel);
   if (!params.keepMovers) return m;
-  m.thirds = detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel);
-  if (!m.thirds.valid()) return m;
+  // Kept in `stacks` for the next search of the same cube (the PSF's catalogue, then the search at the fitted
+  // FWHM): the same images.
+  m.thirds = std::static_pointer_cast<const detail::ThirdStacks>(
+      stacks.derived(SkyStackCache::Derived::Thirds, cube, skyRate, background, params.meshPx));
+  if (!m.thirds) {
+    m.thirds = std::make_shared<const detail::ThirdStacks>(
+        detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel));
+    stacks.keepDerived(SkyStackCache::Derived::Thirds, cube, skyRate, background, params.meshPx, m.thirds);
+  }
+  if (!m.thirds->valid()) return m;
   parallelFor(nPerPixel, 4, [&](std::size_t k0, std::size_t k1) {
     for (std::size_t k = k0; k < k1; ++k)
-      if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, m.thirds, sigma);
+      if (!stars[k].saturated) m.shifts[k] = detail::measureShift(comps[k], cw, *m.thirds, sigma);
   });
   m.common = detail::commonShift(m.shifts);
   return m;
@@ -235,10 +278,10 @@ bool keptAsMover(const Motion& motion, std::size_t k, const std::vector<int>& co
                  Velocity skyRate, const StaticSourceParams& params, Star& star, StaticSources& out) {
   if (k >= motion.shifts.size() || !motion.shifts[k].measured) return false;
   MovingSource m =
-      detail::judgeMotion(motion.shifts[k], motion.common, motion.thirds, s.x0, s.y0, params, star);
+      detail::judgeMotion(motion.shifts[k], motion.common, *motion.thirds, s.x0, s.y0, params, star);
   if (!m.moving) return false;
   // A bright source must also leave its earlier place (a saturated star's changing bleed moves its centroid).
-  if (star.snr >= params.spikeSnr && !detail::vacates(comp, cw, motion.thirds, params.psfFwhmPx))
+  if (star.snr >= params.spikeSnr && !detail::vacates(comp, cw, *motion.thirds, params.psfFwhmPx))
     return false;
   m.v = {m.v.vx + skyRate.vx, m.v.vy + skyRate.vy};
   for (int p : comp)
@@ -270,7 +313,12 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   lap("stack");
   const int cw = s.mean.width, ch = s.mean.height;
   TimedParts analysisParts;
-  const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts);
+  using Derived = SkyStackCache::Derived;
+  auto first = std::static_pointer_cast<const FirstAnalysis>(
+      cache.derived(Derived::FirstAnalysis, cube, skyRate, background, params.meshPx));
+  const bool firstKept = first != nullptr;
+  const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts, first);
+  if (!firstKept) cache.keepDerived(Derived::FirstAnalysis, cube, skyRate, background, params.meshPx, first);
   lap("analysis");
   out.parts.add(analysisParts);
   const Image& resid = an.resid;

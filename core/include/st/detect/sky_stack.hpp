@@ -100,6 +100,17 @@ class SkyStackCache {
   [[nodiscard]] int prefetched() const { return m_prefetched; }
   [[nodiscard]] double prefetchSeconds() const;
 
+  /// What a static-source search derives from these stacks without the FWHM (issue 16: ~8 ms each on
+  /// paper-neo's 1500 frames): the stacks of the thirds less their mesh backgrounds (the movers' test) and the
+  /// whole stack's first analysis (mesh background, residual, noise, per-pixel SNR). Kept for a later search
+  /// of the same cube at the same rate, level and mesh (the PSF's catalogue, then the search at the fitted
+  /// FWHM); the caller knows each kind's type (static_sources.cpp). Null: none kept.
+  enum class Derived { Thirds, FirstAnalysis };
+  [[nodiscard]] std::shared_ptr<const void> derived(Derived kind, const FrameCube& cube, Velocity rate,
+                                                    double subtract, int meshPx) const;
+  void keepDerived(Derived kind, const FrameCube& cube, Velocity rate, double subtract, int meshPx,
+                   std::shared_ptr<const void> value);
+
  private:
   using Key = std::tuple<const void*, double, double, double, std::size_t, std::size_t>;
   struct Prefetch;  // sky_stack.cpp; shared_ptr: its thread is joined when the last owner lets it go
@@ -108,6 +119,8 @@ class SkyStackCache {
   SnrProvider m_snrProvider;
   std::shared_ptr<Prefetch> m_prefetch;
   std::map<Key, SkyStack> m_ahead;  // made ahead, not asked for yet (a settled prefetch's)
+  std::map<std::tuple<Derived, const void*, double, double, double, int>, std::shared_ptr<const void>>
+      m_derived;
   int m_made = 0, m_provided = 0, m_prefetched = 0;
   bool m_prefetchAllowed = true;
   double m_seconds = 0.0, m_prefetchSecondsBefore = 0.0;
