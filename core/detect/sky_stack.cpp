@@ -15,6 +15,7 @@
 #include <immintrin.h>
 #endif
 
+#include "st/common/env_flag.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/parallel_cap.hpp"
 #include "st/stats/sigma_clip.hpp"
@@ -345,6 +346,9 @@ Image residualWhereCounted(const Image& mean, const Image& count, const Image& l
 
 std::shared_ptr<const void> SkyStackCache::derived(Derived kind, const FrameCube& cube, Velocity rate,
                                                    double subtract, int meshPx) const {
+  // Benchmark knob: ST_NO_KEPT_DERIVED=1 keeps none (each search derives its own, as before issue 16's).
+  static const bool none = envFlag("ST_NO_KEPT_DERIVED");
+  if (none) return nullptr;
   const auto it = m_derived.find({kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx});
   return it == m_derived.end() ? nullptr : it->second;
 }
