@@ -502,4 +502,14 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   return out;
 }
 
+void prefetchStaticSourceStacks(const FrameCube& cube, Velocity skyRate, double background,
+                                const StaticSourceParams& params, SkyStackCache& stacks) {
+  std::vector<SkyStackCache::Range> ranges;
+  if (params.keepMovers) ranges = detail::thirdRanges(cube.frameCount());
+  if (params.filteredDetection && !params.catalogueOnly)
+    for (const auto& r : detail::halfRanges(cube.frameCount()))
+      ranges.push_back(r);
+  if (!ranges.empty()) stacks.prefetch(cube, skyRate, background, ranges);
+}
+
 }  // namespace st::detect

@@ -125,6 +125,13 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel,
                                 SkyStackCache* stacks = nullptr);
 
+/// Has `stacks` make ahead, on its provider's thread, the stacks that findStaticSources with `params` asks for
+/// beyond the whole cube's: the thirds' (movers) and the halves' (sources seen only after the filter, which
+/// a search of many stars always has). For a caller with other work before the search (the pipeline's PSF fit,
+/// issue 16); nothing without a provider (SkyStackCache::prefetch).
+void prefetchStaticSourceStacks(const FrameCube& cube, Velocity skyRate, double background,
+                                const StaticSourceParams& params, SkyStackCache& stacks);
+
 /// The reference positions (x0 + i, y0 + j) that `mask`'s canvas sets, row by row (zeroMasked's list, shared
 /// with the GPU path).
 std::vector<std::pair<int, int>> maskedPositions(const MovingMask& mask);
