@@ -34,6 +34,7 @@ nlohmann::json registrationToJson(const Prepared& p) {
             {"residual_max_px", r.maxPx},
             {"links_measured", r.linksMeasured},
             {"significant_frames", r.significantFrames},
+            {"outlier_frames", r.outlierFrames},
             {"note", r.note}};
   json position = json::array();
   for (const auto& o : r.position)

@@ -78,6 +78,9 @@ struct Registration {
   int linksElsewhere = 0;             ///< sampled links a device measured (RegistrationHooks::links)
   int significantFrames = 0;          ///< frames whose offset departs from the model beyond 5 sigma of
                                       ///< its measurement (the others keep o_n = 0)
+  /// Of those, frames taken for measurement outliers of a linear field and kept on the line (a few isolated
+  /// frames of a long sequence: detect/registration.cpp); the model is then Linear.
+  int outlierFrames = 0;
   /// The whole-pixel shifts alignWholePixels moved frame n by (its content by -alignedPx[n]), cube order;
   /// empty when no frame was moved (or restoreWholePixels moved them back).
   std::vector<std::pair<int, int>> alignedPx;
