@@ -412,12 +412,14 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
       (void)filterTiles;
       return std::move(p.cube);
     };
-    r = search::searchTiled(load, tiles, width, height, grid, params, progress, cancel);
+    // The tree's candidates re-scored by the exact statistic after it (as searchWithChoice does in memory):
+    // the tiles that own them read again, the last tenth of the progress.
+    const bool tree = params.method == search::SearchMethod::Tree;
+    SubProgress searching(progress, 0.0, tree ? 0.9 : 1.0), rescoring(progress, 0.9, 1.0);
+    r = search::searchTiled(load, tiles, width, height, grid, params, searching, cancel);
     r.methodReason = method.reason;
     r.backendNote += ", " + std::to_string(memory.overlapPx) + " px overlap";
-    // As searchWithChoice does in memory: the tree's candidates on the exact statistic.
-    if (params.method == search::SearchMethod::Tree)
-      (void)search::polishTiledTreeCandidates(load, tiles, r, cancel);
+    if (tree) (void)search::polishTiledTreeCandidates(load, tiles, r, rescoring, cancel);
     if (backend.name().rfind("cpu", 0) != 0) r.warnings.push_back("out of core: the search ran on the CPU");
   } else if (hooks.search) {
     search::SearchParams params = o.request.params;

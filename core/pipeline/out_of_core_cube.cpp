@@ -169,13 +169,15 @@ OutOfCoreSearch searchOutOfCore(const OutOfCoreCube& cube, const search::Velocit
     return std::move(p.cube);
   };
   OutOfCoreSearch out;
+  // The tree's candidates re-scored by the exact statistic after it (as searchWithChoice does in memory):
+  // the tiles that own them read again, the last tenth of the progress.
+  const bool tree = params.method == search::SearchMethod::Tree;
+  SubProgress searching(progress, 0.0, tree ? 0.9 : 1.0), rescoring(progress, 0.9, 1.0);
   out.result = search::searchTiled(load, plan.tiles, cube.shape.width, cube.shape.height, grid, params,
-                                   progress, cancel);
+                                   searching, cancel);
   out.result.methodReason = method.reason;
   out.result.backendNote += ", " + std::to_string(overlap) + " px overlap";
-  // As searchWithChoice does in memory: the tree's candidates on the exact statistic.
-  if (params.method == search::SearchMethod::Tree)
-    (void)search::polishTiledTreeCandidates(load, plan.tiles, out.result, cancel);
+  if (tree) (void)search::polishTiledTreeCandidates(load, plan.tiles, out.result, rescoring, cancel);
   out.tiles = plan.tiles.size();
   out.overlapPx = overlap;
   out.perTile = plan.perTile;

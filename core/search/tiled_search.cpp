@@ -169,8 +169,19 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
 }
 
 PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vector<SearchTile>& tiles,
-                                        SearchResult& result, CancelToken& cancel) {
+                                        SearchResult& result, ProgressSink& progress, CancelToken& cancel) {
   std::vector<std::optional<Candidate>> polished(std::min(kPolishedTreeCandidates, result.candidates.size()));
+  const auto owns = [&](const SearchTile& tile, const Candidate& c) {
+    return c.x >= tile.owned.x0 && c.y >= tile.owned.y0 && c.x < tile.owned.x0 + tile.owned.width &&
+           c.y < tile.owned.y0 + tile.owned.height;
+  };
+  // The tiles read again, for the progress (each is a whole tile's read and pre-processing).
+  std::size_t toRead = 0;
+  for (const SearchTile& tile : tiles)
+    toRead += std::any_of(result.candidates.begin(),
+                          result.candidates.begin() + static_cast<std::ptrdiff_t>(polished.size()),
+                          [&](const Candidate& c) { return owns(tile, c); });
+  std::size_t read = 0;
   double psfFwhm = 0.0;
   std::vector<double> dtS;
   Velocity skyRate;
@@ -178,12 +189,14 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
     std::optional<FilteredCube> cube;
     for (std::size_t i = 0; i < polished.size(); ++i) {
       const Candidate& c = result.candidates[i];
-      if (c.x < tile.owned.x0 || c.y < tile.owned.y0 || c.x >= tile.owned.x0 + tile.owned.width ||
-          c.y >= tile.owned.y0 + tile.owned.height)
-        continue;
+      if (!owns(tile, c)) continue;
       cancel.throwIfCancelled();
       if (!cube) {
+        progress.report(static_cast<double>(read) / static_cast<double>(toRead),
+                        "re-scoring the tree's candidates: reading tile " + std::to_string(read + 1) + " of " +
+                            std::to_string(toRead) + " again");
         cube = load(tile.read);
+        ++read;
         psfFwhm = cube->psfFwhmPx;
         dtS = cube->frames.timeOffsetsS();
         skyRate = cube->skyRate;
@@ -191,6 +204,7 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
       polished[i] = polishCandidate(*cube, result, c, tile.read.x0, tile.read.y0, cancel);
     }
   }
+  progress.report(1.0, "re-scoring the tree's candidates");
   if (dtS.empty()) return {};  // no candidate to re-score
   const PolishSummary summary = finishPolish(result, polished, psfFwhm, dtS, skyRate);
   result.backendNote.append(1, '\n').append(polishNote(summary));

@@ -60,9 +60,9 @@ SearchResult searchTiled(const TileLoader& load, const std::vector<SearchTile>& 
 
 /// A tiled tree search's candidates re-scored by the exact search as searchWithChoice does in memory
 /// (tree_polish.hpp): each of the first kPolishedTreeCandidates on the tile that owns it (its read area
-/// holds every track of the window), the tiles with candidates read again; a line added to backendNote.
-/// Throws what `load` throws and st::Cancelled.
+/// holds every track of the window), the tiles with candidates read again (progress by tile); a line added
+/// to backendNote. Throws what `load` throws and st::Cancelled.
 PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vector<SearchTile>& tiles,
-                                        SearchResult& result, CancelToken& cancel);
+                                        SearchResult& result, ProgressSink& progress, CancelToken& cancel);
 
 }  // namespace st::search
