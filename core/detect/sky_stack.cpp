@@ -171,6 +171,16 @@ struct SkyStackCache::Prefetch {
 void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtract,
                              const std::vector<Range>& ranges) {
   if (!m_provider || !m_prefetchAllowed) return;
+  // Nothing new (made, made ahead, or in flight): the one in flight is not waited for here.
+  const std::size_t frames = cube.frameCount();
+  const bool anythingNew = std::any_of(ranges.begin(), ranges.end(), [&](Range r) {
+    if (r.second == 0 || r.second > frames) r.second = frames;
+    const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, r.first, r.second};
+    return r.first < r.second && !m_stacks.contains(key) && !m_ahead.contains(key) &&
+           !(m_prefetch && std::find(m_prefetch->keys.begin(), m_prefetch->keys.end(), key) !=
+                               m_prefetch->keys.end());
+  });
+  if (!anythingNew) return;
   if (m_prefetch) {
     settle();  // one in flight: its stacks first (its provider makes one at a time)
     // The stacks the last one made that were not asked for are kept (counted when handed out).
@@ -355,6 +365,8 @@ std::shared_ptr<const void> SkyStackCache::derived(Derived kind, const FrameCube
 
 void SkyStackCache::keepDerived(Derived kind, const FrameCube& cube, Velocity rate, double subtract, int meshPx,
                                 std::shared_ptr<const void> value) {
+  static const bool none = envFlag("ST_NO_KEPT_DERIVED");  // the knob of derived()
+  if (none) return;
   m_derived[{kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx}] = std::move(value);
 }
 

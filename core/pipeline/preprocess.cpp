@@ -11,6 +11,7 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
+#include <system_error>
 
 #include "../common/opencv_threads.hpp"
 #include "st/common/env_flag.hpp"
@@ -355,7 +356,8 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   } else {
     // The PSF from the sky-rate stack before the per-pixel background, on a catalogue of the sources seen
     // per pixel at the assumed FWHM (movers left out; no filtered detection, halves' test or footprints:
-    // the fit takes the brightest isolated stars). The whole static-source search then runs once, at the
+    // the fit takes the brightest isolated stars, isolated from these sources: a neighbour seen only after the
+    // filter no longer makes a star crowded). The whole static-source search then runs once, at the
     // fitted FWHM (or the assumed one where the fit fails): its wing radii and dilation are the stars' own
     // (Lowell's 1.9 px stars masked as 3 px ones lose 10.6% of the pixels). Until issue 16 the whole search
     // ran at the assumed FWHM first and again when the fit was off by more than 15%; on paper-neo's 1500
@@ -363,33 +365,46 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     // Benchmark knob: ST_PSF_FULL_CATALOGUE=1 runs the whole search there (the time of before, when the fit
     // was off by more than 15%).
     static const bool fullCatalogue = envFlag("ST_PSF_FULL_CATALOGUE");
+    std::optional<double> psfNoise;
     detect::StaticSourceParams forPsf = sp;
     forPsf.catalogueOnly = !fullCatalogue;
     SubProgress stackSub(progress, 0.3, 0.31);
     const detect::SkyStack& psfStack = skyStacks.stack(cube, out.skyRate, out.global.mean, stackSub, cancel);
-    // The stack's robust noise (the PSF fit's amplitude cut; ~7 ms of one thread's sorting on paper-neo's
-    // 1.8M-pixel stack) on a thread of its own beside the catalogue: the cache's stacks stay where they are
-    // (std::map) while the catalogue adds the thirds'.
-    std::future<double> psfNoise = std::async(std::launch::async, [&psfStack] {
-      const trace::Scope traced("PSF: the stack's noise");
-      const ParallelThreadCap cap(2);
-      return psf::robustImageNoise(psfStack.mean);
-    });
-    {
-      SubProgress sub(progress, 0.31, 0.34);
-      stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, forPsf, sub, cancel, &skyStacks);
+    // A given PSF star (psfStar) needs neither the catalogue nor the stack's noise (measurePsfAt).
+    if (!params.psfStar) {
+      // The stack's robust noise (the PSF fit's amplitude cut; ~7 ms of one thread's sorting on paper-neo's
+      // 1.8M-pixel stack) on a thread of its own beside the catalogue: the cache's stacks stay where they are
+      // (std::map) while the catalogue adds the thirds'. Without a thread, measurePsf measures it.
+      std::future<double> noiseAhead;
+      try {
+        noiseAhead = std::async(std::launch::async, [&psfStack] {
+          const trace::Scope traced("PSF: the stack's noise");
+          const ParallelThreadCap cap(2);
+          return psf::robustImageNoise(psfStack.mean);
+        });
+      } catch (const std::system_error&) {
+      }
+      {
+        SubProgress sub(progress, 0.31, 0.34);
+        stars =
+            detect::findStaticSources(cube, out.skyRate, out.global.mean, forPsf, sub, cancel, &skyStacks);
+      }
+      out.notes.push_back("static sources, the PSF's catalogue: " + stars.parts.text());
+      out.stars = stars.stars;
+      if (noiseAhead.valid()) psfNoise = noiseAhead.get();
     }
-    out.notes.push_back("static sources, the PSF's catalogue: " + stars.parts.text());
     lap("static sources for the PSF");
     // The search's stacks of the halves of the frames made on the device beside the PSF's fits (the search
     // asked for them only once it had found a faint source: ~20 ms of its time on paper-neo's 1500 frames).
+    // Its thread may add a device's warning to out.notes meanwhile: the PSF's notes wait in psfNotes.
     detect::prefetchStaticSourceStacks(cube, out.skyRate, out.global.mean, sp, skyStacks);
-    out.stars = stars.stars;
-    detail::measurePsfInto(out, psfStack, params, psfNoise.get());
+    std::vector<std::string> psfNotes;
+    detail::measurePsfInto(out, psfStack, params, psfNoise, &psfNotes);
     lap("PSF");
     if (out.psfFitted) sp.psfFwhmPx = out.psf.fwhm();
     SubProgress sub(progress, 0.36, 0.4);
     stars = detect::findStaticSources(cube, out.skyRate, out.global.mean, sp, sub, cancel, &skyStacks);
+    out.notes.insert(out.notes.end(), psfNotes.begin(), psfNotes.end());  // the search settled the prefetch
     out.notes.push_back("static sources at " + std::string(out.psfFitted ? "the fitted" : "the assumed") +
                         " FWHM: " + stars.parts.text());
     lap("static sources");

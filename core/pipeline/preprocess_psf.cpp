@@ -14,7 +14,8 @@
 namespace st::pipeline::detail {
 
 void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params,
-                    std::optional<double> stackNoise) {
+                    std::optional<double> stackNoise, std::vector<std::string>* notes) {
+  std::vector<std::string>& said = notes ? *notes : out.notes;
   std::vector<psf::StarCandidate> candidates;
   for (const auto& st : out.stars)
     candidates.push_back({st.x - s.x0, st.y - s.y0, st.flux, st.saturated});
@@ -38,7 +39,7 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
              << " accepted";
     if (!m.rejected.empty()) fitted << " (first rejected: " << m.rejected.front() << ")";
     fitted << "; " << parts.text();
-    out.notes.push_back(fitted.str());
+    said.push_back(fitted.str());
     out.psf = m.fit.model;
     out.psfFitted = true;
     out.psfStarAt = std::make_pair(m.fit.x0 + s.x0, m.fit.y0 + s.y0);
@@ -47,7 +48,7 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
       std::ostringstream note;
       note << "PSF: the " << f.size() << " stars accepted disagree (FWHM " << f.front() << " to " << f.back()
            << " px); the median star's " << out.psf.fwhm() << " px is used (variable seeing or focus?)";
-      out.notes.push_back(note.str());
+      said.push_back(note.str());
     }
   } catch (const InputError& e) {
     out.psf = psf::Moffat::fromFwhm(params.psfFwhmPx, params.psfBeta);
@@ -55,7 +56,7 @@ void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessPa
     std::ostringstream note;
     note << "PSF: " << e.what() << "; using the given FWHM " << params.psfFwhmPx << " px, beta "
          << params.psfBeta;
-    out.notes.push_back(note.str());
+    said.push_back(note.str());
   }
 }
 

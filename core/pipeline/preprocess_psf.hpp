@@ -2,6 +2,8 @@
 // Two steps of preprocess() (core/pipeline/preprocess.cpp), kept here to keep that file to the stages' order:
 // the PSF measured on the sky-rate stack, and the frames' saturation level in calibrated counts.
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "st/calib/calibration.hpp"
 #include "st/common/frame_cube.hpp"
@@ -16,8 +18,9 @@ namespace st::pipeline::detail {
 // isolated unsaturated catalog stars away from the edges, the median of up to 5 accepted; the fallback FWHM
 // with a note when none is usable, and a note when the accepted stars disagree. `stackNoise`:
 // psf::robustImageNoise(s.mean) where the caller has measured it (beside other work), else measured here.
+// The notes go to `notes` where given (a thread beside may be adding to out.notes), else to out.notes.
 void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params,
-                    std::optional<double> stackNoise = std::nullopt);
+                    std::optional<double> stackNoise = std::nullopt, std::vector<std::string>* notes = nullptr);
 
 // The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
 // BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master

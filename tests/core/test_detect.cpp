@@ -311,5 +311,55 @@ TEST(StaticSources, CatalogueOnlyIsTheWholeSearchsPerPixelStarsWithoutMasks) {
   EXPECT_GT(whole.mask.count(), 0u);
 }
 
+// What a search keeps in the shared SkyStackCache (the thirds less their mesh backgrounds, the first analysis
+// pass: SkyStackCache::derived) changes nothing: the PSF's catalogue at FWHM 3 then the whole search at 2.2 on
+// one cache give the fresh whole search at 2.2 to every bit (stars, movers, the three masks, the stack noise),
+// and a search with another mesh on that cache gives its own fresh result (the mesh is in the key).
+TEST(StaticSources, WhatTheCacheKeepsChangesNothing) {
+  test::SynthScene sc = scene({0.3, -0.2});
+  sc.stars.push_back({45.0, 60.0, 3.5});
+  sc.objX = 75.0, sc.objY = 20.0;
+  sc.objRate = {0.35, -0.2};
+  sc.objPeak = 40.0;
+  const FrameCube cube = sc.make();
+  NullProgress p;
+  CancelToken c;
+  const stats::ClipStats global = stats::globalBackground(cube);
+  const Velocity rate{0.3, -0.2};
+  const auto same = [](const StaticSources& a, const StaticSources& b, const char* what) {
+    ASSERT_EQ(a.stars.size(), b.stars.size()) << what;
+    for (std::size_t k = 0; k < a.stars.size(); ++k) {
+      const Star &u = a.stars[k], &v = b.stars[k];
+      EXPECT_TRUE(u.x == v.x && u.y == v.y && u.flux == v.flux && u.peak == v.peak && u.snr == v.snr &&
+                  u.filteredSnr == v.filteredSnr && u.pixels == v.pixels && u.saturated == v.saturated &&
+                  u.bleedColumns == v.bleedColumns && u.motionXPx == v.motionXPx && u.motionYPx == v.motionYPx)
+          << what << ": star " << k;
+    }
+    ASSERT_EQ(a.movers.size(), b.movers.size()) << what;
+    for (std::size_t k = 0; k < a.movers.size(); ++k)
+      EXPECT_TRUE(a.movers[k].x == b.movers[k].x && a.movers[k].y == b.movers[k].y &&
+                  a.movers[k].v.vx == b.movers[k].v.vx && a.movers[k].shiftPx == b.movers[k].shiftPx)
+          << what << ": mover " << k;
+    EXPECT_EQ(a.mask.canvas(), b.mask.canvas()) << what;
+    EXPECT_EQ(a.moverMask.canvas(), b.moverMask.canvas()) << what;
+    EXPECT_EQ(a.subtractRegion.canvas(), b.subtractRegion.canvas()) << what;
+    EXPECT_EQ(a.stackNoise, b.stackNoise) << what;
+  };
+  StaticSourceParams at22;
+  at22.psfFwhmPx = 2.2;
+  StaticSourceParams catalogue;
+  catalogue.catalogueOnly = true;
+  SkyStackCache shared;
+  (void)findStaticSources(cube, rate, global.mean, catalogue, p, c, &shared);
+  const StaticSources kept = findStaticSources(cube, rate, global.mean, at22, p, c, &shared);
+  const StaticSources fresh = findStaticSources(cube, rate, global.mean, at22, p, c);
+  ASSERT_FALSE(fresh.movers.empty()) << "the scene's mover is not one: the thirds' part is not tested";
+  same(kept, fresh, "the catalogue then the search on one cache");
+  StaticSourceParams mesh16 = at22;
+  mesh16.meshPx = 16;
+  same(findStaticSources(cube, rate, global.mean, mesh16, p, c, &shared),
+       findStaticSources(cube, rate, global.mean, mesh16, p, c), "another mesh on that cache");
+}
+
 }  // namespace
 }  // namespace st::detect

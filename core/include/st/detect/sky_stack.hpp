@@ -47,8 +47,8 @@ struct FilteredSnrInputs {
 };
 
 /// Stacks of one cube at one rate, made once and handed out again: pre-processing asks for the same stacks
-/// several times (the PSF's catalogue, the PSF, the static-source search at the fitted FWHM; each stacks the
-/// whole cube, its thirds and its halves), one full pass over the cube each. The cube must not change while
+/// several times (the PSF's catalogue: the whole cube's stack and its thirds'; the PSF: the whole cube's; the
+/// static-source search at the fitted FWHM: those and its halves'), one full pass over the cube each. The cube must not change while
 /// the cache is in use; requests differing in rate, subtracted level or frame range are separate stacks.
 class SkyStackCache {
  public:
