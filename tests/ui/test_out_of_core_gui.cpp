@@ -5,7 +5,8 @@
 // cancelled, and finds the same best candidate as the in-memory core search of the same cube; the selected
 // candidate's stack is summed in strips and equals stack::stackIpsa. Raw frames whose pre-processing is over
 // the budget are pre-processed out of core in the load job's worker (strips of rows) and their filtered cube
-// opened out of core. Core: stackOutOfCore equals stack::stackIpsa; planOpen's three answers.
+// opened out of core. Core: stackOutOfCore equals stack::stackIpsa; planOpen's three answers; the tree
+// search in tiles re-scores its candidates as in memory.
 //
 // ST_OUT_OF_CORE_SCREENSHOT_DIR, when set, gets a grab of the window in the banner state
 // (out_of_core_banner.png).
@@ -16,6 +17,7 @@
 #include <QLabel>
 #include <QSettings>
 #include <QStatusBar>
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <cstdio>
@@ -108,6 +110,52 @@ TEST(OutOfCoreGui, CoreStacksInStripsEqualTheInMemoryStack) {
   const Image strips = pipeline::stackOutOfCore(ooc, kV, 2u << 20, progress, cancel);
   const stack::StackResult whole = stack::stackIpsa(cube, kV);
   EXPECT_EQ(strips.pixels, whole.sum.pixels);
+}
+
+// The GUI's out-of-core tree search (pipeline::searchOutOfCore, a cube in tiles) re-scores its candidates by
+// the exact statistic as the in-memory search does (searchWithMethod: tree_polish): the same candidates,
+// cells and SNRs; the re-scoring reads the tiles that own them again, with progress to 1.
+TEST(OutOfCoreGui, CoreTreeSearchInTilesReScoresAsInMemory) {
+  test::TempDir dir;
+  const FrameCube cube = dotCube();
+  const std::string path = writePrepared(dir, cube);
+  struct Said : ProgressSink {
+    std::vector<std::pair<double, std::string>> said;
+    void report(double f, std::string_view stage) override { said.emplace_back(f, std::string(stage)); }
+  } said;
+  CancelToken cancel;
+  const pipeline::OutOfCoreCube ooc = pipeline::openOutOfCore({path}, {}, said, cancel);
+  const search::VelocityGrid grid{{kV.vx + 0.03, kV.vy - 0.02}, 0.05, 9, 9};
+  search::SearchParams params;
+  params.method = search::SearchMethod::Tree;
+  said.said.clear();
+  const pipeline::OutOfCoreSearch tiled = pipeline::searchOutOfCore(ooc, grid, params, 90u << 20, said, cancel);
+  std::printf("%zu tiles, %s\n", tiled.tiles, tiled.result.backendNote.c_str());
+  ASSERT_GE(tiled.tiles, 2u) << "one tile: the test does not test the tiles";
+  ASSERT_EQ(tiled.result.method, search::SearchMethod::Tree) << tiled.result.methodReason;
+  EXPECT_NE(tiled.result.backendNote.find("re-scored"), std::string::npos) << tiled.result.backendNote;
+  ASSERT_FALSE(said.said.empty());
+  EXPECT_DOUBLE_EQ(said.said.back().first, 1.0);
+  EXPECT_TRUE(std::any_of(said.said.begin(), said.said.end(),
+                          [](const auto& s) { return s.second.find("re-scoring") != std::string::npos; }));
+  search::FilteredCube fc;
+  fc.frames = cube;
+  fc.sigmaF = 0.05;
+  fc.psfFwhmPx = 2.5;
+  NullProgress quiet;
+  const auto backend = search::makeCpuBackend();
+  const search::SearchResult whole = search::searchWithMethod(*backend, fc, grid, params, quiet, cancel);
+  ASSERT_FALSE(whole.candidates.empty());
+  ASSERT_EQ(tiled.result.candidates.size(), whole.candidates.size());
+  for (std::size_t k = 0; k < whole.candidates.size(); ++k) {
+    const auto &a = tiled.result.candidates[k], &b = whole.candidates[k];
+    EXPECT_EQ(a.x, b.x) << k;
+    EXPECT_EQ(a.y, b.y) << k;
+    EXPECT_DOUBLE_EQ(a.v.vx, b.v.vx) << k;
+    EXPECT_DOUBLE_EQ(a.v.vy, b.v.vy) << k;
+    EXPECT_NEAR(a.snr, b.snr, 1e-4 * b.snr) << k;
+    EXPECT_EQ(a.nIn, b.nIn) << k;
+  }
 }
 
 TEST(OutOfCoreGui, CorePlanOpenKeepsWhatFitsOpensPreparedOutOfCoreAndRefusesRawFrames) {
