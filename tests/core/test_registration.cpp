@@ -278,10 +278,10 @@ TEST(Registration, DitheredSequenceIsMeasured) {
 }
 
 // A few isolated departing frames of a long sequence are measurement outliers, not pointings (paper-neo seed
-// 52: one star-poor frame's link 0.7 px off the truth gave a per-frame model whose two "pointings" put the sky
-// rate 0.012 px/s off): 120 frames of the dither simulation, one frame moved by (3, -2) px: the linear model, that
-// frame counted as an outlier. Three consecutive frames moved (a short pointing), and every other frame of the
-// second half moved (a nod): per-frame offsets, each moved frame's the move within 0.25 px.
+// 52: one star-poor frame's link 0.7 px off the truth gave a per-frame model whose two "pointings" put the
+// sky rate 0.012 px/s off): 120 frames of the dither simulation, one frame moved by (3, -2) px: the linear
+// model, that frame counted as an outlier. Three consecutive frames moved (a short pointing), and every other
+// frame of the second half moved (a nod): per-frame offsets, each moved frame's the move within 0.25 px.
 TEST(Registration, AnIsolatedFrameIsAnOutlierAShortPointingOrANodIsNot) {
   NullProgress p;
   CancelToken c;
