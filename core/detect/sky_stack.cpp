@@ -171,16 +171,25 @@ struct SkyStackCache::Prefetch {
 void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtract,
                              const std::vector<Range>& ranges) {
   if (!m_provider || !m_prefetchAllowed) return;
-  // Nothing new (made, made ahead, or in flight): the one in flight is not waited for here.
-  const std::size_t frames = cube.frameCount();
-  const bool anythingNew = std::any_of(ranges.begin(), ranges.end(), [&](Range r) {
-    if (r.second == 0 || r.second > frames) r.second = frames;
-    const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, r.first, r.second};
-    return r.first < r.second && !m_stacks.contains(key) && !m_ahead.contains(key) &&
-           !(m_prefetch && std::find(m_prefetch->keys.begin(), m_prefetch->keys.end(), key) !=
-                               m_prefetch->keys.end());
-  });
-  if (!anythingNew) return;
+  // The ranges' stacks not made, not made ahead and (with `inFlight`) not being made by the prefetch in
+  // flight, once each.
+  const auto toMake = [&](bool inFlight) {
+    std::vector<Key> keys;
+    const std::size_t nf = cube.frameCount();
+    for (auto [first, last] : ranges) {
+      if (last == 0 || last > nf) last = nf;
+      const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last};
+      const auto listed = [&key](const std::vector<Key>& in) {
+        return std::find(in.begin(), in.end(), key) != in.end();
+      };
+      if (first < last && !m_stacks.contains(key) && !m_ahead.contains(key) && !listed(keys) &&
+          !(inFlight && m_prefetch && listed(m_prefetch->keys)))
+        keys.push_back(key);
+    }
+    return keys;
+  };
+  // Nothing new: the one in flight is not waited for.
+  if (toMake(true).empty()) return;
   if (m_prefetch) {
     settle();  // one in flight: its stacks first (its provider makes one at a time)
     // The stacks the last one made that were not asked for are kept (counted when handed out).
@@ -190,15 +199,7 @@ void SkyStackCache::prefetch(const FrameCube& cube, Velocity rate, double subtra
     m_prefetchSecondsBefore += m_prefetch->seconds;
     m_prefetch.reset();
   }
-  std::vector<Key> keys;
-  const std::size_t nf = cube.frameCount();
-  for (auto [first, last] : ranges) {
-    if (last == 0 || last > nf) last = nf;
-    const Key key{cube.pixels().data(), rate.vx, rate.vy, subtract, first, last};
-    if (first < last && !m_stacks.contains(key) && !m_ahead.contains(key) &&
-        std::find(keys.begin(), keys.end(), key) == keys.end())
-      keys.push_back(key);
-  }
+  const std::vector<Key> keys = toMake(false);
   if (keys.empty()) return;
   auto pf = std::make_shared<Prefetch>();
   pf->keys = keys;
@@ -356,16 +357,14 @@ Image residualWhereCounted(const Image& mean, const Image& count, const Image& l
 
 std::shared_ptr<const void> SkyStackCache::derived(Derived kind, const FrameCube& cube, Velocity rate,
                                                    double subtract, int meshPx) const {
-  // Benchmark knob: ST_NO_KEPT_DERIVED=1 keeps none (each search derives its own, as before issue 16's).
-  static const bool none = envFlag("ST_NO_KEPT_DERIVED");
-  if (none) return nullptr;
   const auto it = m_derived.find({kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx});
   return it == m_derived.end() ? nullptr : it->second;
 }
 
-void SkyStackCache::keepDerived(Derived kind, const FrameCube& cube, Velocity rate, double subtract, int meshPx,
-                                std::shared_ptr<const void> value) {
-  static const bool none = envFlag("ST_NO_KEPT_DERIVED");  // the knob of derived()
+void SkyStackCache::keepDerived(Derived kind, const FrameCube& cube, Velocity rate, double subtract,
+                                int meshPx, std::shared_ptr<const void> value) {
+  // Benchmark knob: ST_NO_KEPT_DERIVED=1 keeps none (each search derives its own, as before issue 16's).
+  static const bool none = envFlag("ST_NO_KEPT_DERIVED");
   if (none) return;
   m_derived[{kind, cube.pixels().data(), rate.vx, rate.vy, subtract, meshPx}] = std::move(value);
 }

@@ -173,65 +173,71 @@ struct StackSnr {
   stats::ClipStats noise;
 };
 
-// The first pass up to its per-pixel SNR: no FWHM in it, so kept in the cache for the next search of the
-// same stack (SkyStackCache::Derived::FirstAnalysis).
-struct FirstAnalysis {
-  Image resid, local;
-  std::vector<float> snr;
-  stats::ClipStats noise;
-};
-
 // One pass's mesh background of s.mean with `weight`, the residual, its clipped noise (of R sqrt(count),
-// the single-frame noise scale everywhere) and the per-pixel SNR (`snr` left as it is where the noise is 0).
-void meshPass(const SkyStack& s, const Image& weight, int meshPx, Image& local, Image& resid,
-              stats::ClipStats& noise, std::vector<float>& snr, PartTimer& timer, CancelToken& cancel) {
-  local = meshBackground(s.mean, weight, meshPx);
+// the single-frame noise scale everywhere) and the per-pixel SNR into `a` (a.snr left as it is where the
+// noise is 0; a.snrF not touched).
+void meshPass(const SkyStack& s, const Image& weight, int meshPx, StackSnr& a, PartTimer& timer,
+              CancelToken& cancel) {
+  a.local = meshBackground(s.mean, weight, meshPx);
   timer.lap("analysis: mesh background");
-  resid = residualWhereCounted(s.mean, s.count, local);
-  const std::size_t np = resid.size();
+  a.resid = residualWhereCounted(s.mean, s.count, a.local);
+  const std::size_t np = a.resid.size();
   const std::vector<float> scaled = gatherInOrder(
       np, [&](std::size_t i) { return s.count.pixels[i] > 0; },
-      [&](std::size_t i) { return resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
+      [&](std::size_t i) { return a.resid.pixels[i] * std::sqrt(s.count.pixels[i]); });
   timer.lap("analysis: residual");
-  noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
+  a.noise = stats::sigmaClipSymmetric(scaled.data(), scaled.size(), 4.0);
   timer.lap("analysis: noise clip");
-  if (noise.sigma > 0) {
+  if (a.noise.sigma > 0) {
     parallelFor(np, kPixelChunk, [&](std::size_t i0, std::size_t i1) {
       for (std::size_t i = i0; i < i1; ++i)
-        snr[i] = static_cast<float>(resid.pixels[i] * std::sqrt(s.count.pixels[i]) / noise.sigma);
+        a.snr[i] = static_cast<float>(a.resid.pixels[i] * std::sqrt(s.count.pixels[i]) / a.noise.sigma);
     });
   }
   cancel.throwIfCancelled();
   timer.lap("analysis: SNR");
 }
 
-// `first`: the first pass up to its SNR where a search of the same stack made it, else made here (and left
-// in `first` for the caller to keep).
-StackSnr analyseStack(const SkyStack& s, const StaticSourceParams& params, CancelToken& cancel,
-                      const SkyStackCache::SnrProvider* device, TimedParts& parts,
-                      std::shared_ptr<const FirstAnalysis>& first) {
+// What `cache` keeps of `kind` for this cube, rate, level and mesh (SkyStackCache::derived), else made by
+// `make` and kept there for the next search.
+template <class T, class Make>
+std::shared_ptr<const T> keptOrMade(SkyStackCache& cache, SkyStackCache::Derived kind, const FrameCube& cube,
+                                    Velocity rate, double background, int meshPx, Make&& make) {
+  auto kept = std::static_pointer_cast<const T>(cache.derived(kind, cube, rate, background, meshPx));
+  if (!kept) {
+    kept = std::make_shared<const T>(make());
+    cache.keepDerived(kind, cube, rate, background, meshPx, kept);
+  }
+  return kept;
+}
+
+// The first pass up to its per-pixel SNR (snrF empty): no FWHM in it, so kept in the cache for the next
+// search of the same stack (SkyStackCache::Derived::FirstAnalysis).
+StackSnr firstAnalysis(const SkyStack& s, int meshPx, TimedParts& parts, CancelToken& cancel) {
+  PartTimer timer(parts);
+  StackSnr f;
+  f.snr.assign(s.mean.size(), 0.0f);
+  meshPass(s, s.count, meshPx, f, timer, cancel);
+  return f;
+}
+
+// The rest of the two passes from `first` (firstAnalysis).
+StackSnr analyseStack(const SkyStack& s, const StackSnr& first, const StaticSourceParams& params,
+                      CancelToken& cancel, const SkyStackCache::SnrProvider* device, TimedParts& parts) {
   PartTimer timer(parts);
   const std::size_t np = s.mean.size();
-  if (!first) {
-    auto made = std::make_shared<FirstAnalysis>();
-    made->snr.assign(np, 0.0f);
-    meshPass(s, s.count, params.meshPx, made->local, made->resid, made->noise, made->snr, timer, cancel);
-    first = std::move(made);
-  } else {
-    timer.lap("analysis: first pass (kept from the search before)");
-  }
   // What the velocity search sees at the sky rate: faint stars below the threshold per pixel are above it
   // after the matched filter.
   std::vector<float> firstSnrF(np, 0.0f);
   if (params.filteredDetection)
-    firstSnrF = detail::filteredSnr(first->resid, s.count, first->noise.sigma, params.psfFwhmPx, device);
+    firstSnrF = detail::filteredSnr(first.resid, s.count, first.noise.sigma, params.psfFwhmPx, device);
   timer.lap("analysis: filtered SNR");
-  const Image weight = detail::excludeSources(s.count, first->snr, firstSnrF, params.growSnr + 1.0,
+  const Image weight = detail::excludeSources(s.count, first.snr, firstSnrF, params.growSnr + 1.0,
                                               static_cast<int>(std::ceil(params.psfFwhmPx)));
   timer.lap("analysis: sources left out");
   StackSnr a;
-  a.snr = first->snr;  // kept where the second pass's noise is 0
-  meshPass(s, weight, params.meshPx, a.local, a.resid, a.noise, a.snr, timer, cancel);
+  a.snr = first.snr;  // kept where the second pass's noise is 0
+  meshPass(s, weight, params.meshPx, a, timer, cancel);
   a.snrF.assign(np, 0.0f);
   if (params.filteredDetection)
     a.snrF = detail::filteredSnr(a.resid, s.count, a.noise.sigma, params.psfFwhmPx, device);
@@ -257,13 +263,9 @@ Motion measureMotions(const FrameCube& cube, Velocity skyRate, double background
   if (!params.keepMovers) return m;
   // Kept in `stacks` for the next search of the same cube (the PSF's catalogue, then the search at the fitted
   // FWHM): the same images.
-  m.thirds = std::static_pointer_cast<const detail::ThirdStacks>(
-      stacks.derived(SkyStackCache::Derived::Thirds, cube, skyRate, background, params.meshPx));
-  if (!m.thirds) {
-    m.thirds = std::make_shared<const detail::ThirdStacks>(
-        detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel));
-    stacks.keepDerived(SkyStackCache::Derived::Thirds, cube, skyRate, background, params.meshPx, m.thirds);
-  }
+  m.thirds = keptOrMade<detail::ThirdStacks>(
+      stacks, SkyStackCache::Derived::Thirds, cube, skyRate, background, params.meshPx,
+      [&] { return detail::thirdStacks(cube, skyRate, background, params.meshPx, stacks, cancel); });
   if (!m.thirds->valid()) return m;
   parallelFor(nPerPixel, 4, [&](std::size_t k0, std::size_t k1) {
     for (std::size_t k = k0; k < k1; ++k)
@@ -313,12 +315,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
   lap("stack");
   const int cw = s.mean.width, ch = s.mean.height;
   TimedParts analysisParts;
-  using Derived = SkyStackCache::Derived;
-  auto first = std::static_pointer_cast<const FirstAnalysis>(
-      cache.derived(Derived::FirstAnalysis, cube, skyRate, background, params.meshPx));
-  const bool firstKept = first != nullptr;
-  const StackSnr an = analyseStack(s, params, cancel, cache.snrProvider(), analysisParts, first);
-  if (!firstKept) cache.keepDerived(Derived::FirstAnalysis, cube, skyRate, background, params.meshPx, first);
+  const auto first = keptOrMade<StackSnr>(
+      cache, SkyStackCache::Derived::FirstAnalysis, cube, skyRate, background, params.meshPx,
+      [&] { return firstAnalysis(s, params.meshPx, analysisParts, cancel); });
+  const StackSnr an = analyseStack(s, *first, params, cancel, cache.snrProvider(), analysisParts);
   lap("analysis");
   out.parts.add(analysisParts);
   const Image& resid = an.resid;

@@ -355,13 +355,13 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     out.psfFitted = true;  // fitted on the reference region
   } else {
     // The PSF from the sky-rate stack before the per-pixel background, on a catalogue of the sources seen
-    // per pixel at the assumed FWHM (movers left out; no filtered detection, halves' test or footprints:
-    // the fit takes the brightest isolated stars, isolated from these sources: a neighbour seen only after the
-    // filter no longer makes a star crowded). The whole static-source search then runs once, at the
-    // fitted FWHM (or the assumed one where the fit fails): its wing radii and dilation are the stars' own
-    // (Lowell's 1.9 px stars masked as 3 px ones lose 10.6% of the pixels). Until issue 16 the whole search
-    // ran at the assumed FWHM first and again when the fit was off by more than 15%; on paper-neo's 1500
-    // frames the catalogue takes ~half of a whole search.
+    // per pixel at the assumed FWHM (movers left out; no filtered detection, halves' test or footprints).
+    // The fit takes the brightest stars isolated from these sources: a neighbour seen only after the filter
+    // no longer makes a star crowded. The whole static-source search then runs once, at the fitted FWHM (or
+    // the assumed one where the fit fails): its wing radii and dilation are the stars' own (Lowell's 1.9 px
+    // stars masked as 3 px ones lose 10.6% of the pixels). Until issue 16 the whole search ran at the
+    // assumed FWHM first and again when the fit was off by more than 15%; on paper-neo's 1500 frames the
+    // catalogue takes ~half of a whole search.
     // Benchmark knob: ST_PSF_FULL_CATALOGUE=1 runs the whole search there (the time of before, when the fit
     // was off by more than 15%).
     static const bool fullCatalogue = envFlag("ST_PSF_FULL_CATALOGUE");

@@ -20,7 +20,8 @@ namespace st::pipeline::detail {
 // psf::robustImageNoise(s.mean) where the caller has measured it (beside other work), else measured here.
 // The notes go to `notes` where given (a thread beside may be adding to out.notes), else to out.notes.
 void measurePsfInto(Prepared& out, const detect::SkyStack& s, const PreprocessParams& params,
-                    std::optional<double> stackNoise = std::nullopt, std::vector<std::string>* notes = nullptr);
+                    std::optional<double> stackNoise = std::nullopt,
+                    std::vector<std::string>* notes = nullptr);
 
 // The ADC full scale of the raw frames (SATURATE, else the integer BITPIX's full scale 2^(BITPIX-1) - 1 +
 // BZERO: 65535 for unsigned 16-bit frames without SATURATE), less the bias (the overscan level and the master

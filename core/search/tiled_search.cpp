@@ -193,8 +193,8 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
       cancel.throwIfCancelled();
       if (!cube) {
         progress.report(static_cast<double>(read) / static_cast<double>(toRead),
-                        "re-scoring the tree's candidates: reading tile " + std::to_string(read + 1) + " of " +
-                            std::to_string(toRead) + " again");
+                        "re-scoring the tree's candidates: reading tile " + std::to_string(read + 1) +
+                            " of " + std::to_string(toRead) + " again");
         cube = load(tile.read);
         ++read;
         psfFwhm = cube->psfFwhmPx;

@@ -48,8 +48,9 @@ struct FilteredSnrInputs {
 
 /// Stacks of one cube at one rate, made once and handed out again: pre-processing asks for the same stacks
 /// several times (the PSF's catalogue: the whole cube's stack and its thirds'; the PSF: the whole cube's; the
-/// static-source search at the fitted FWHM: those and its halves'), one full pass over the cube each. The cube must not change while
-/// the cache is in use; requests differing in rate, subtracted level or frame range are separate stacks.
+/// static-source search at the fitted FWHM: those and its halves'), one full pass over the cube each. The
+/// cube must not change while the cache is in use; requests differing in rate, subtracted level or frame
+/// range are separate stacks.
 class SkyStackCache {
  public:
   /// Makes a stack elsewhere (a device, issue 16): the same contract as stackAtSkyRate(cube, rate, subtract,
@@ -101,10 +102,10 @@ class SkyStackCache {
   [[nodiscard]] double prefetchSeconds() const;
 
   /// What a static-source search derives from these stacks without the FWHM (issue 16: ~8 ms each on
-  /// paper-neo's 1500 frames): the stacks of the thirds less their mesh backgrounds (the movers' test) and the
-  /// whole stack's first analysis (mesh background, residual, noise, per-pixel SNR). Kept for a later search
-  /// of the same cube at the same rate, level and mesh (the PSF's catalogue, then the search at the fitted
-  /// FWHM); the caller knows each kind's type (static_sources.cpp). Null: none kept.
+  /// paper-neo's 1500 frames): the stacks of the thirds less their mesh backgrounds (the movers' test) and
+  /// the whole stack's first analysis (mesh background, residual, noise, per-pixel SNR). Kept for a later
+  /// search of the same cube at the same rate, level and mesh (the PSF's catalogue, then the search at the
+  /// fitted FWHM); the caller knows each kind's type (static_sources.cpp). Null: none kept.
   enum class Derived { Thirds, FirstAnalysis };
   [[nodiscard]] std::shared_ptr<const void> derived(Derived kind, const FrameCube& cube, Velocity rate,
                                                     double subtract, int meshPx) const;

@@ -65,8 +65,8 @@ struct StaticSourceParams {
   double moverShiftSigmas = 5.0;
   /// Only the catalogue that a PSF fit needs (issue 16): the sources seen per pixel, movers left out, with
   /// their flux, peak and saturation; no filtered detection, no halves' test, no footprints (`mask` and
-  /// `subtractRegion` stay empty, `moverMask` is not dilated). What the pipeline runs before the PSF is fitted, so that
-  /// the whole search runs once, at the fitted FWHM.
+  /// `subtractRegion` stay empty, `moverMask` is not dilated). What the pipeline runs before the PSF is
+  /// fitted, so that the whole search runs once, at the fitted FWHM.
   bool catalogueOnly = false;
 };
 
@@ -125,10 +125,10 @@ StaticSources findStaticSources(const FrameCube& cube, Velocity skyRate, double 
                                 const StaticSourceParams& params, ProgressSink& progress, CancelToken& cancel,
                                 SkyStackCache* stacks = nullptr);
 
-/// Has `stacks` make ahead, on its provider's thread, the stacks that findStaticSources with `params` asks for
-/// beyond the whole cube's: the thirds' (movers) and the halves' (sources seen only after the filter, which
-/// a search of many stars always has). For a caller with other work before the search (the pipeline's PSF fit,
-/// issue 16); nothing without a provider (SkyStackCache::prefetch).
+/// Has `stacks` make ahead, on its provider's thread, the stacks that findStaticSources with `params` asks
+/// for beyond the whole cube's: the thirds' (movers) and the halves' (sources seen only after the filter,
+/// which a search of many stars always has). For a caller with other work before the search (the pipeline's
+/// PSF fit, issue 16); nothing without a provider (SkyStackCache::prefetch).
 void prefetchStaticSourceStacks(const FrameCube& cube, Velocity skyRate, double background,
                                 const StaticSourceParams& params, SkyStackCache& stacks);
 
