@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "moffat_samples.hpp"
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/trace.hpp"
@@ -17,7 +18,7 @@ namespace {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
-enum Param { kX0 = 0, kY0, kR, kBeta, kAmp, kBg };
+using detail::kAmp, detail::kBeta, detail::kBg, detail::kR, detail::kX0, detail::kY0;
 
 constexpr double kMinRadius = 0.2;
 constexpr double kMaxRadius = 200.0;
@@ -28,66 +29,45 @@ struct Pixel {
   double x, y, value;
 };
 
-/// Model value and its gradient with respect to the six parameters at one pixel (pixel mean, s x s, averaged
-/// over the smear offsets; `smear` has at least one entry).
-double modelAt(const Vec6& p, double px, double py, const Moffat::GaussRule& g, const SmearKernel& smear,
-               Vec6* grad) {
-  const double r2inv = 1.0 / (p[kR] * p[kR]);
-  double sumP = 0.0, sumDx = 0.0, sumDy = 0.0, sumDr = 0.0, sumDb = 0.0;
-  for (std::size_t k = 0; k < smear.weight.size(); ++k) {
-    for (int j = 0; j < g.n; ++j) {
-      const double dy = py + g.x[j] - p[kY0] - smear.dy[k];
-      for (int i = 0; i < g.n; ++i) {
-        const double dx = px + g.x[i] - p[kX0] - smear.dx[k];
-        const double wt = smear.weight[k] * g.w[i] * g.w[j];
-        const double rr = dx * dx + dy * dy;
-        const double u = 1.0 + rr * r2inv;
-        const double lnu = std::log(u);
-        const double val = wt * std::exp(-p[kBeta] * lnu);
-        const double q = 2.0 * p[kBeta] * val / u * r2inv;  // 2 beta u^(-beta-1) / R^2
-        sumP += val;
-        sumDx += q * dx;
-        sumDy += q * dy;
-        sumDr += q * rr / p[kR];
-        sumDb -= lnu * val;
-      }
-    }
-  }
-  if (grad) {
-    (*grad)[kX0] = p[kAmp] * sumDx;
-    (*grad)[kY0] = p[kAmp] * sumDy;
-    (*grad)[kR] = p[kAmp] * sumDr;
-    (*grad)[kBeta] = p[kAmp] * sumDb;
-    (*grad)[kAmp] = sumP;
-    (*grad)[kBg] = 1.0;
-  }
-  return p[kBg] + p[kAmp] * sumP;
-}
-
 /// Per-pixel residuals and model gradients of one evaluation, reused across the evaluations of a fit.
 struct Workspace {
   std::vector<double> residual;
   std::vector<Vec6> grad;
 };
 
-/// Model samples (pixels x smear offsets x Gauss points) per parallel chunk: ~50-100 us of exp and log, so a
-/// chunk outweighs its hand-over.
-constexpr std::size_t kSamplesPerChunk = 4096;
+/// Model samples (pixels x smear offsets x Gauss points) per parallel chunk: ~50-100 us of exp and log
+/// (detail::moffatModelAt: ~2-3 ns a sample), so a chunk outweighs its hand-over.
+constexpr std::size_t kSamplesPerChunk = 32768;
+
+/// The model's samples of a pixel (detail::MoffatSamples) and, for ST_PSF_LIBM_MODEL=1, its rule and smear.
+struct Model {
+  Moffat::GaussRule rule;
+  SmearKernel smear;
+  detail::MoffatSamples samples;
+  Model(const Moffat::GaussRule& g, const SmearKernel& k)
+      : rule(g), smear(k), samples(detail::moffatSamples(g, k)) {}
+};
 
 /// Sum of squared residuals; with normal equations when jtj/jtr are given. The pixels' models are computed on
-/// every core (a smeared model is K x 16 exp and log per pixel: ~5 ms a call for the paper's stack), then
-/// summed in pixel order on this thread: the same sums, bit for bit, as one pixel at a time.
-double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Moffat::GaussRule& s,
-                const SmearKernel& smear, Mat6* jtj, Vec6* jtr, Workspace& ws) {
+/// every core (a smeared model is K x 16 exp and log per pixel), then summed in pixel order on this thread:
+/// the same sums, bit for bit, as one pixel at a time.
+double evaluate(const std::vector<Pixel>& pixels, const Vec6& p, const Model& m, Mat6* jtj, Vec6* jtr,
+                Workspace& ws) {
   const std::size_t n = pixels.size();
   ws.residual.resize(n);
   if (jtj) ws.grad.resize(n);
-  const std::size_t samples = smear.weight.size() * static_cast<std::size_t>(s.n * s.n);
+  const std::size_t samples = m.samples.weight.size();
+  const bool libm = detail::moffatModelLibm();
   parallelFor(n, std::max<std::size_t>(1, kSamplesPerChunk / std::max<std::size_t>(1, samples)),
               [&](std::size_t i0, std::size_t i1) {
-                for (std::size_t i = i0; i < i1; ++i)
-                  ws.residual[i] = pixels[i].value - modelAt(p, pixels[i].x, pixels[i].y, s, smear,
-                                                             jtj ? &ws.grad[i] : nullptr);
+                for (std::size_t i = i0; i < i1; ++i) {
+                  double* grad = jtj ? ws.grad[i].data() : nullptr;
+                  const double model =
+                      libm ? detail::moffatModelAtLibm(p.data(), pixels[i].x, pixels[i].y, m.rule, m.smear,
+                                                       grad)
+                           : detail::moffatModelAt(p.data(), pixels[i].x, pixels[i].y, m.samples, grad);
+                  ws.residual[i] = pixels[i].value - model;
+                }
               });
   double ssr = 0.0;
   if (jtj) jtj->setZero();
@@ -166,14 +146,14 @@ struct LmState {
 };
 
 /// Levenberg-Marquardt from `start` (damping on the diagonal of J^T J, x10 / x0.1).
-LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& start, const Moffat::GaussRule& s,
-                              const SmearKernel& smear, int maxIterations) {
+LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& start, const Model& model,
+                              int maxIterations) {
   LmState st;
   Vec6 p = start;
   Mat6 jtj, trialJtj;
   Vec6 jtr, trialJtr;
   Workspace ws, trialWs;
-  double ssr = evaluate(pixels, p, s, smear, &jtj, &jtr, ws);
+  double ssr = evaluate(pixels, p, model, &jtj, &jtr, ws);
   double lambda = 1e-3;
   int it = 0;
   FitConvergence conv = FitConvergence::MaxIterations;
@@ -188,11 +168,11 @@ LmState runLevenbergMarquardt(const std::vector<Pixel>& pixels, const Vec6& star
       a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
       Vec6 trial = p + a.ldlt().solve(jtr);
       clampParams(trial);
-      // With its normal equations: modelAt computes the gradient's sums with the value either way, so they
-      // cost a rank update per pixel, and an accepted trial is not evaluated again (half the exp and log of
-      // a fit; the same sums bit for bit, as modelAt's value does not depend on whether the gradient is
-      // kept).
-      const double trialSsr = evaluate(pixels, trial, s, smear, &trialJtj, &trialJtr, trialWs);
+      // With its normal equations: moffatModelAt computes the gradient's sums with the value either way, so
+      // they cost a rank update per pixel, and an accepted trial is not evaluated again (half the exp and log
+      // of a fit; the same sums bit for bit, as moffatModelAt's value does not depend on whether the gradient
+      // is kept).
+      const double trialSsr = evaluate(pixels, trial, model, &trialJtj, &trialJtr, trialWs);
       if (std::isfinite(trialSsr) && trialSsr < ssr) {
         const double step = ((trial - p).cwiseAbs().array() / (p.cwiseAbs().array() + 1e-12)).maxCoeff();
         const double reduction = (ssr - trialSsr) / std::max(ssr, 1e-300);
@@ -283,7 +263,7 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   // until the smear is modelled.
   const SmearKernel none{{0.0}, {0.0}, {1.0}};
   auto t0 = trace::Clock::now();
-  LmState lm = runLevenbergMarquardt(pixels, p, s, none, o.maxIterations);
+  LmState lm = runLevenbergMarquardt(pixels, p, Model(s, none), o.maxIterations);
   if (trace::enabled())
     trace::record("Moffat fit: plain, " + std::to_string(pixels.size()) + " pixels, " +
                       std::to_string(lm.iterations) + " iterations",
@@ -324,7 +304,7 @@ MoffatFit fitMoffat(const Image& image, double xGuess, double yGuess, const Moff
   if (!o.smear.empty() && lm.converged() && !strayed && !tooFaint) {
     const int used = lm.iterations;
     t0 = trace::Clock::now();
-    lm = runLevenbergMarquardt(pixels, lm.p, s, o.smear, o.maxIterations);
+    lm = runLevenbergMarquardt(pixels, lm.p, Model(s, o.smear), o.maxIterations);
     if (trace::enabled())
       trace::record("Moffat fit: with the smear, " + std::to_string(o.smear.weight.size()) + " offsets, " +
                         std::to_string(lm.iterations) + " iterations",
