@@ -71,8 +71,22 @@ double laneLog(double x) {
 #ifdef ST_MOFFAT_LANES_AVX2
 namespace {
 
-// laneExp and laneLog in four lanes, the same operations in the same order (the lanes whose input the
-// scalar function hands to the library are patched from it).
+// `out` with the lanes where `ok` is clear taken from `library` of `x` (the inputs the scalar functions hand
+// to the C library).
+template <class Library>
+__attribute__((target("avx2"))) inline __m256d fromLibrary(__m256d x, __m256d out, __m256d ok,
+                                                           Library library) {
+  const int good = _mm256_movemask_pd(ok);
+  if (good == 0xF) return out;
+  alignas(32) double in[4], res[4];
+  _mm256_store_pd(in, x);
+  _mm256_store_pd(res, out);
+  for (int l = 0; l < 4; ++l)
+    if (!(good & (1 << l))) res[l] = library(in[l]);
+  return _mm256_load_pd(res);
+}
+
+// laneExp and laneLog in four lanes, the same operations in the same order.
 __attribute__((target("avx2"))) inline __m256d exp4(__m256d x) {
   const __m256d k = _mm256_round_pd(_mm256_mul_pd(x, _mm256_set1_pd(kInvLn2)),
                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
@@ -92,19 +106,10 @@ __attribute__((target("avx2"))) inline __m256d exp4(__m256d x) {
   const __m256i ki =
       _mm256_sub_epi64(_mm256_castpd_si256(_mm256_add_pd(k, magic)), _mm256_castpd_si256(magic));
   const __m256i scale = _mm256_slli_epi64(_mm256_add_epi64(ki, _mm256_set1_epi64x(1023)), 52);
-  __m256d out = _mm256_mul_pd(y, _mm256_castsi256_pd(scale));
   const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(x, _mm256_set1_pd(-kExpLimit), _CMP_GT_OQ),
                                    _mm256_cmp_pd(x, _mm256_set1_pd(kExpLimit), _CMP_LT_OQ));
-  if (_mm256_movemask_pd(ok) != 0xF) {
-    alignas(32) double in[4], res[4];
-    _mm256_store_pd(in, x);
-    _mm256_store_pd(res, out);
-    const int good = _mm256_movemask_pd(ok);
-    for (int l = 0; l < 4; ++l)
-      if (!(good & (1 << l))) res[l] = std::exp(in[l]);
-    out = _mm256_load_pd(res);
-  }
-  return out;
+  return fromLibrary(x, _mm256_mul_pd(y, _mm256_castsi256_pd(scale)), ok,
+                     [](double v) { return std::exp(v); });
 }
 
 __attribute__((target("avx2"))) inline __m256d set(double v) {
@@ -139,19 +144,11 @@ __attribute__((target("avx2"))) inline __m256d log4(__m256d x) {
   const __m256d hfsq = _mm256_mul_pd(_mm256_mul_pd(set(0.5), f), f);
   const __m256d inner =
       _mm256_add_pd(_mm256_mul_pd(s, _mm256_add_pd(hfsq, r)), _mm256_mul_pd(e, set(kLn2Lo)));
-  __m256d out = _mm256_sub_pd(_mm256_mul_pd(e, set(kLn2Hi)), _mm256_sub_pd(_mm256_sub_pd(hfsq, inner), f));
+  const __m256d out =
+      _mm256_sub_pd(_mm256_mul_pd(e, set(kLn2Hi)), _mm256_sub_pd(_mm256_sub_pd(hfsq, inner), f));
   const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(x, set(kMinNormal), _CMP_GE_OQ),
                                    _mm256_cmp_pd(x, set(HUGE_VAL), _CMP_LT_OQ));
-  if (_mm256_movemask_pd(ok) != 0xF) {
-    alignas(32) double in[4], res[4];
-    _mm256_store_pd(in, x);
-    _mm256_store_pd(res, out);
-    const int good = _mm256_movemask_pd(ok);
-    for (int l = 0; l < 4; ++l)
-      if (!(good & (1 << l))) res[l] = std::log(in[l]);
-    out = _mm256_load_pd(res);
-  }
-  return out;
+  return fromLibrary(x, out, ok, [](double v) { return std::log(v); });
 }
 
 __attribute__((target("avx2"))) void exp4To(const double* x, double* out) {
