@@ -64,8 +64,9 @@ constexpr const char* kHelp =
     "  --telescope-design D       reflector (default), refractor, Schmidt, ...\n"
     "  --telescope-detector CCD   CCD (default) or CMO (CMOS); also the ADES mode and 80-column note 2\n"
     "  --ast-cat CAT     reference catalogue of the WCS solution as the MPC spells it (ADES astCat: Gaia3,\n"
-    "                    Gaia2, UCAC4, PS1_DR2, ATLAS2, ...); gives the 80-column code of column 72\n"
-    "  --mpc-cat C       80-column catalogue code (column 72), instead of the one of --ast-cat\n"
+    "                    Gaia2, UCAC4, PS1_DR2, ATLAS2, ...); named on the 80-column NET line (column 72\n"
+    "                    is left blank: the MPC fills it)\n"
+    "  --mpc-cat C       the catalogue by its MPC code (W = Gaia DR3, ...), instead of --ast-cat's\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
     "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
     "catalog\n"
@@ -134,7 +135,7 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   }
   if (auto s = cli.value("ast-cat")) settings["ast_cat"] = *s;
   if (auto s = cli.value("mpc-cat")) {
-    if (s->size() != 1) throw UsageError("--mpc-cat needs one character (column 72 of the 80-column format)");
+    if (s->size() != 1) throw UsageError("--mpc-cat needs one character (the MPC's catalogue code, e.g. W)");
     settings["mpc_catalog_code"] = *s;
   }
   if (settings != ed.session().settings) ed.setSettings(settings);
@@ -368,6 +369,14 @@ int cmdReport(const Args& args) {
   }
   for (const auto& w : out.warnings)
     std::fprintf(stderr, "warning: %s\n", w.c_str());
+  if (!out.notWritten.empty()) {
+    for (const auto& path : out.notWritten)
+      std::fprintf(stderr,
+                   "error: %s not written: no detection to submit (label a candidate real, with a fit "
+                   "and a WCS)\n",
+                   path.c_str());
+    return 1;
+  }
   return 0;
 }
 

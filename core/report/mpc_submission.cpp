@@ -146,7 +146,8 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
     put(66, fmt("%4.1f", *det.mag));
     if (!det.band.empty()) line[70] = det.band[0];
   }
-  line[71] = resolvedCatalogueCode(s);
+  // Column 72 stays blank: the MPC fills it from the NET line ("Catalogue Codes": "On new submissions,
+  // column 72 must be blank").
   put(78, s.stationCode);
   return line;
 }
@@ -165,7 +166,10 @@ SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const Su
   header("TEL", s.apertureM > 0.0
                     ? fmt("%.2f-m %s + %s", s.apertureM, s.telescopeDesign.c_str(), s.detector.c_str())
                     : s.telescopeDesign + " + " + s.detector);
-  header("NET", s.astCat);
+  header("NET", netCatalogueName(s));
+  if (const char code = resolvedCatalogueCode(s); code == ' ')
+    out.warnings.push_back("80-column: astCat '" + s.astCat +
+                           "' is not in the MPC's list of catalogue codes: the NET line names it as given");
   header("ACK", "synthtrack astrometry, " + std::to_string(ds.size()) + " observation(s)");
   if (s.observers.empty())
     out.warnings.push_back("80-column: no observer name for the OBS line (set --observer)");

@@ -111,8 +111,16 @@ void writeSubmission(const ReportRequest& r, ReportOutcome& out) {
   std::vector<std::string> warnings;
   const auto detections = realDetections(r.session, warnings);
   out.detections = detections.size();
-  if (detections.empty())
-    warnings.push_back("no candidate is labelled real with a sky position: nothing to submit");
+  if (detections.empty()) {
+    // An ADES file needs at least one observation (submit.xsd: obsData holds one or more), and an empty
+    // 80-column message is no submission either: none is written.
+    for (const ReportFile file : {ReportFile::AdesPsv, ReportFile::AdesXml, ReportFile::Mpc80})
+      if (const std::string* path = pathOf(r, file)) out.notWritten.push_back(*path);
+    warnings.push_back(
+        "no candidate is labelled real with a sky position: nothing to submit, no ADES or MPC file written");
+    out.warnings.insert(out.warnings.end(), warnings.begin(), warnings.end());
+    return;
+  }
   auto add = [&](const std::vector<std::string>& more) {
     for (const auto& w : more)
       if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);

@@ -95,22 +95,28 @@ char resolvedCatalogueCode(const SubmissionSettings& s) {
   return s.mpcCatalogCode != ' ' && s.mpcCatalogCode != '\0' ? s.mpcCatalogCode : mpcCatalogueCode(s.astCat);
 }
 
+std::string netCatalogueName(const SubmissionSettings& s) {
+  const StarCatalogue* c = findStarCatalogueByCode(resolvedCatalogueCode(s));
+  if (c && !c->mpcName.empty()) return std::string(c->mpcName);
+  if (c && s.astCat.empty()) return std::string(c->astCat);
+  return s.astCat;
+}
+
 std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& s, SubmissionFormat format) {
   std::vector<SettingsProblem> out;
   stationProblems(s, out);
   if (format == SubmissionFormat::Ades) {
     adesProblems(s, out);
   } else {
-    const char code = resolvedCatalogueCode(s);
-    if (code == ' ') {
+    const char code = s.mpcCatalogCode;
+    if (code != ' ' && code != '\0' && !findStarCatalogueByCode(code)) {
       out.push_back(
           {"mpc_catalog_code",
-           s.astCat.empty()
-               ? std::string("the reference catalogue (astCat, e.g. Gaia3) for the code of column 72")
-               : "a column-72 catalogue code: astCat '" + s.astCat + "' has none in the MPC's list"});
-    } else if (!std::isalnum(static_cast<unsigned char>(code))) {
-      out.push_back(
-          {"mpc_catalog_code", std::string("a column-72 code is a letter or digit, got '") + code + "'"});
+           std::string("a catalogue code from the MPC's \"Catalogue Codes\" list, got '") + code + "'"});
+    } else if (netCatalogueName(s).empty()) {
+      out.push_back({"ast_cat",
+                     "the reference catalogue of the astrometric solution for the NET line (astCat, "
+                     "e.g. Gaia3)"});
     }
   }
   return out;

@@ -36,7 +36,6 @@ AstrometricDetection publishedDetection() {
 SubmissionSettings settings291() {
   SubmissionSettings s;
   s.stationCode = "291";
-  s.mpcCatalogCode = 'd';
   s.observers = "A. Observer, B. Second";
   s.astCat = "Gaia3";
   return s;
@@ -59,11 +58,14 @@ TEST(Mpc80, ColumnsMatchThePublishedExample) {
   const std::string pub = kPublished;
   ASSERT_EQ(ours.size(), 80u);
   ASSERT_EQ(pub.size(), 80u);
-  // Identical where both carry the same text: designation, notes, magnitude, band, catalogue, station.
+  // Identical where both carry the same text: designation, notes, magnitude, band, station. Column 72, the
+  // catalogue code the MPC added on publication, is blank in a submission.
   for (int c : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15})
     EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
   for (int c = 57; c <= 80; ++c)
-    EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+    if (c != 72) EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+  EXPECT_EQ(pub[71], 'd');
+  EXPECT_EQ(ours[71], ' ');
   // Date, RA and Dec: the same separators in the same columns; ours carries one more decimal.
   EXPECT_EQ(cols(ours, 16, 32), "2004 09 16.152060");
   EXPECT_EQ(cols(ours, 33, 44), "16 13 11.570");
@@ -75,7 +77,7 @@ TEST(Mpc80, ColumnsMatchThePublishedExample) {
   EXPECT_DOUBLE_EQ(std::stod(cols(ours, 40, 44)), std::stod(cols(pub, 40, 44)));
   EXPECT_DOUBLE_EQ(std::stod(cols(ours, 52, 56)), std::stod(cols(pub, 52, 56)));
   // Full precision fills the fields edge to edge (no blank between them), as the fixed columns allow.
-  EXPECT_EQ(ours, "     NE00030  C2004 09 16.15206016 13 11.570+20 52 23.70         21.1 Vd     291");
+  EXPECT_EQ(ours, "     NE00030  C2004 09 16.15206016 13 11.570+20 52 23.70         21.1 V      291");
 }
 
 TEST(Mpc80, RoundingCarriesAndSigns) {
@@ -111,10 +113,10 @@ TEST(Mpc80, MessageHasTheHeaderLinesThenTheObservations) {
   EXPECT_EQ(lines[1], "OBS A. Observer, B. Second");
   EXPECT_EQ(lines[2], "MEA A. Observer");
   EXPECT_EQ(lines[3], "TEL reflector + CCD");
-  EXPECT_EQ(lines[4], "NET Gaia3");
+  EXPECT_EQ(lines[4], "NET Gaia-DR3");  // the MPC's name of astCat Gaia3
   EXPECT_EQ(lines[5].substr(0, 4), "ACK ");
   EXPECT_EQ(lines[6], mpc80Line(publishedDetection(), settings291()));
-  EXPECT_TRUE(t.warnings.empty());  // SNR 12, catalogue code set, observers given
+  EXPECT_TRUE(t.warnings.empty());  // SNR 12, a listed catalogue, observers given
 }
 
 TEST(Mpc80, NoMagnitudeCmosAndBadInput) {
@@ -135,7 +137,7 @@ TEST(Mpc80, NoMagnitudeCmosAndBadInput) {
   EXPECT_THROW((void)mpc80Line(d, settings291()), InputError);
 }
 
-TEST(Mpc80, CatalogueCodeOfColumn72FromTheAstCat) {
+TEST(Mpc80, Column72IsBlankAndTheNetLineNamesTheCatalogue) {
   // The MPC's catalogue codes (its "Catalogue Codes" page, and ADES-Master's packUtil.py).
   EXPECT_EQ(mpcCatalogueCode("Gaia3"), 'W');
   EXPECT_EQ(mpcCatalogueCode("Gaia2"), 'V');
@@ -143,23 +145,41 @@ TEST(Mpc80, CatalogueCodeOfColumn72FromTheAstCat) {
   EXPECT_EQ(mpcCatalogueCode("UCAC4"), 'q');
   EXPECT_EQ(mpcCatalogueCode("PS1_DR2"), '2');
   EXPECT_EQ(mpcCatalogueCode("gaia3"), ' ');  // ADES spells it exactly
+  // Column 72 is the MPC's to fill ("On new submissions, column 72 must be blank"); the NET line names the
+  // catalogue as that page does.
+  const auto netLine = [](const SubmissionSettings& s) {
+    const SubmissionText t = formatMpc80({publishedDetection()}, s);
+    const auto at = t.text.find("\nNET ");
+    return at == std::string::npos ? std::string()
+                                   : t.text.substr(at + 1, t.text.find('\n', at + 1) - at - 1);
+  };
   SubmissionSettings s = settings291();
-  s.mpcCatalogCode = ' ';
   s.astCat = "Gaia2";
-  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], 'V');
-  s.mpcCatalogCode = 'W';  // a given code wins
-  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], 'W');
-  // No code and a catalogue without one: refused, naming the column, not written blank.
+  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], ' ');
+  EXPECT_EQ(netLine(s), "NET Gaia-DR2");
+  s.astCat = "UCAC4";
+  EXPECT_EQ(netLine(s), "NET UCAC-4");
+  s.mpcCatalogCode = 'W';  // a given code names the catalogue
+  EXPECT_EQ(netLine(s), "NET Gaia-DR3");
+  EXPECT_EQ(mpc80Line(publishedDetection(), s)[71], ' ');
+  // A catalogue the list does not know: named as given, with a warning.
   s.mpcCatalogCode = ' ';
   s.astCat = "MyCat";
-  EXPECT_THROW((void)formatMpc80({publishedDetection()}, s), InputError);
+  const SubmissionText unlisted = formatMpc80({publishedDetection()}, s);
+  EXPECT_NE(unlisted.text.find("\nNET MyCat\n"), std::string::npos);
+  ASSERT_FALSE(unlisted.warnings.empty());
+  EXPECT_NE(unlisted.warnings.front().find("MyCat"), std::string::npos);
+  // No catalogue at all, or a code not in the list: refused, naming what is missing.
   s.astCat.clear();
   try {
     (void)mpc80Line(publishedDetection(), s);
     ADD_FAILURE() << "no error without a catalogue";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("column 72"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("NET line"), std::string::npos) << e.what();
   }
+  s.astCat = "Gaia3";
+  s.mpcCatalogCode = '!';
+  EXPECT_THROW((void)formatMpc80({publishedDetection()}, s), InputError);
 }
 
 TEST(StarCatalogues, AstCatFromAnAstrometryNetHeader) {
@@ -183,6 +203,7 @@ TEST(SubmissionSettingsJson, RoundTripAndMistypedKeys) {
   SubmissionSettings s = adesSettings291();
   s.submitter = "S. Ubmitter";
   s.detector = "CMO";
+  s.mpcCatalogCode = 'd';
   const SubmissionSettings back = submissionFromJson(toJson(s));
   EXPECT_EQ(toJson(back), toJson(s));
   EXPECT_DOUBLE_EQ(back.apertureM, 0.5);

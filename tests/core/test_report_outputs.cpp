@@ -6,6 +6,7 @@
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
 #include "st/report/fits_stack.hpp"
+#include "st/report/report_bundle.hpp"
 #include "st/report/session_report.hpp"
 #include "test_support.hpp"
 
@@ -114,6 +115,45 @@ TEST(SessionReport, OnlyRealCandidatesWithASkyPositionAreReported) {
   EXPECT_DOUBLE_EQ(*d[0].mag, 22.95);
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("candidate 3"), std::string::npos) << warnings[0];
+}
+
+// With no detection to submit, no ADES or 80-column file is written (an ADES file without an observation
+// fails submit.xsd: obsData needs one), the files asked for are named as not written, and the rest is
+// written.
+TEST(SessionReport, AnEmptySubmissionIsNotWritten) {
+  test::TempDir dir;
+  ReportRequest r;
+  r.session = labelled();
+  r.session.candidates[0].label = session::Label::Unsure;  // the only real one with a sky position
+  r.submission.stationCode = "291";
+  r.submission.observers = "A. Observer";
+  r.submission.apertureM = 0.5;
+  r.submission.astCat = "Gaia3";
+  const std::string psv = (dir / "out.psv").string(), xml = (dir / "out.xml").string(),
+                    mpc = (dir / "out_mpc.txt").string(), csv = (dir / "out.csv").string();
+  r.files[ReportFile::AdesPsv] = psv;
+  r.files[ReportFile::AdesXml] = xml;
+  r.files[ReportFile::Mpc80] = mpc;
+  r.files[ReportFile::CandidatesCsv] = csv;
+  NullProgress progress;
+  CancelToken cancel;
+  const ReportOutcome out = writeReports(r, progress, cancel);
+  EXPECT_EQ(out.detections, 0u);
+  EXPECT_EQ(out.notWritten, (std::vector<std::string>{psv, xml, mpc}));
+  EXPECT_EQ(out.written, std::vector<std::string>{csv});
+  for (const auto& path : {psv, xml, mpc})
+    EXPECT_FALSE(std::filesystem::exists(path)) << path;
+  EXPECT_TRUE(std::filesystem::exists(csv));
+  ASSERT_FALSE(out.warnings.empty());
+  EXPECT_NE(out.warnings.back().find("no ADES or MPC file written"), std::string::npos)
+      << out.warnings.back();
+  // With the candidate real again, all three are written.
+  r.session.candidates[0].label = session::Label::Real;
+  const ReportOutcome again = writeReports(r, progress, cancel);
+  EXPECT_EQ(again.detections, 1u);
+  EXPECT_TRUE(again.notWritten.empty());
+  for (const auto& path : {psv, xml, mpc})
+    EXPECT_TRUE(std::filesystem::exists(path)) << path;
 }
 
 TEST(SessionReport, RegionMarksUseFitsAndLabelColours) {

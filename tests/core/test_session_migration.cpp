@@ -102,6 +102,9 @@ TEST(SessionMigration, SavedAsFormatTwoAndReadBackIdentical) {
   EXPECT_EQ(back, s);
 }
 
+// The 80-column reference differs from what main wrote on 2026-11-25 in column 72, blank since 2026-12-04
+// (the MPC fills the catalogue code: "On new submissions, column 72 must be blank"), and in the NET line,
+// which names the catalogue as the MPC does (Gaia-DR2 for astCat Gaia2).
 TEST(SessionMigration, SubmissionFilesEqualWhatMainWrote) {
   test::TempDir dir;
   const Session s = SessionStore(copyOfV1(dir).string()).load();

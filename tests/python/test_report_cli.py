@@ -83,7 +83,7 @@ def main():
         # MPC 80-column, by column.
         all_lines = open(mpc).read().splitlines()
         head = [l for l in all_lines if l[:4] in ("COD ", "OBS ", "MEA ", "TEL ", "NET ", "ACK ")]
-        check(head[:3] == ["COD X05", "OBS A. Observer, B. Second", "MEA A. Observer"] and "NET Gaia3" in head,
+        check(head[:3] == ["COD X05", "OBS A. Observer, B. Second", "MEA A. Observer"] and "NET Gaia-DR3" in head,
               "MPC header lines %s" % head)
         lines = all_lines[len(head):]
         check(len(lines) == 2, "two real detections in the MPC file, got %d" % len(lines))
@@ -100,6 +100,7 @@ def main():
             check(abs(ra - c["fit"]["ra_deg"]) * 3600 <= 0.0075 + 1e-6, "RA cols 33-44 %s" % line[32:44])
             check(abs(dec - c["fit"]["dec_deg"]) * 3600 <= 0.005 + 1e-6, "Dec cols 45-56 %s" % line[44:56])
             check(line[56:65] == " " * 9 and line[65:71] == " " * 6, "cols 57-71 blank (no magnitude)")
+            check(line[71] == " ", "col 72 blank: the MPC fills the catalogue code (%r)" % line[71])
             check(line[77:80] == "X05", "station cols 78-80")
 
         # ADES PSV, field by field.

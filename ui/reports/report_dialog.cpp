@@ -148,8 +148,8 @@ QWidget* ReportDialog::buildObservatoryPage() {
   m_mpcCat->setMaxLength(1);
   m_mpcCat->setPlaceholderText("from the catalogue");
   m_mpcCat->setToolTip(
-      "80-column catalogue code, column 72 (e.g. W for Gaia DR3, V for Gaia DR2); empty: the "
-      "code of the catalogue above");
+      "The catalogue by its MPC code (e.g. W for Gaia DR3, V for Gaia DR2) for the 80-column NET line; "
+      "empty: the catalogue above. Column 72 itself is left blank: the MPC fills it");
   m_safeSnr = new QDoubleSpinBox(page);
   m_safeSnr->setRange(0.0, 100.0);
   m_safeSnr->setDecimals(1);
@@ -331,6 +331,8 @@ void ReportDialog::onFinished() {
   if (!r.error.isEmpty()) lines << "Failed: " + r.error;
   for (const auto& p : r.outcome.written)
     lines << "wrote " + QString::fromStdString(p);
+  for (const auto& p : r.outcome.notWritten)
+    lines << "not written (no detection to submit): " + QString::fromStdString(p);
   for (const auto& w : r.outcome.warnings)
     lines << "⚠ " + QString::fromStdString(w);
   m_result->setPlainText(lines.join("\n"));

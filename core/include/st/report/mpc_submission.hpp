@@ -38,12 +38,12 @@ struct SubmissionText {
   std::vector<std::string> warnings;  ///< low SNR, missing catalogue, truncated designation, ...
 };
 
-/// One 80-column line (exactly 80 characters, no newline). Throws st::InputError for settings with
-/// submissionProblems(Mpc80) (station code, column-72 code) or a designation longer than 7.
+/// One 80-column line (exactly 80 characters, no newline; column 72, the catalogue code, blank as the MPC
+/// wants it in submissions). Throws st::InputError for settings with submissionProblems(Mpc80) (station
+/// code, catalogue) or a designation longer than 7.
 [[nodiscard]] std::string mpc80Line(const AstrometricDetection& d, const SubmissionSettings& settings);
 /// The whole 80-column message: the MPC1992 header lines COD (station), OBS (observers), MEA (measurer), TEL
-/// (telescope), NET (astCat, when given), ACK, then one line per detection. Column 72 is the settings' code,
-/// else astCat's (resolvedCatalogueCode()).
+/// (telescope), NET (the catalogue by the MPC's name: netCatalogueName()), ACK, then one line per detection.
 [[nodiscard]] SubmissionText formatMpc80(const std::vector<AstrometricDetection>& detections,
                                          const SubmissionSettings& settings);
 /// The ADES document: obsContext from the settings, the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA,

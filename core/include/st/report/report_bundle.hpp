@@ -55,6 +55,9 @@ struct ReportOutcome {
   std::vector<std::string> written;   ///< paths, in the order written
   std::vector<std::string> warnings;  ///< low SNR, real candidates without a sky position, ...
   std::size_t detections = 0;         ///< astrometric detections in the submission files
+  /// Submission files asked for and not written: with no detection (no candidate labelled real with a sky
+  /// position) an ADES or 80-column file would be an empty submission, which the MPC's schema rejects.
+  std::vector<std::string> notWritten;
 };
 
 /// The GUI's file names in `folder`: baseName + "_candidates.json", "_candidates.csv", ".reg", ".psv",

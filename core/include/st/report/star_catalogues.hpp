@@ -1,8 +1,10 @@
 #pragma once
 // The astrometric reference catalogues the Minor Planet Center accepts: the ADES astCat value (the MPC's
 // "ADES Field Values" list; a batch naming an unlisted catalogue is rejected), the one-character code of
-// column 72 of the MPC1992 80-column record (the MPC's "Catalogue Codes" page; the same pairs as
-// IAU-ADES/ADES-Master Python/bin/packUtil.py catCodes), and whether the MPC lists it as deprecated.
+// column 72 of the MPC1992 80-column record and the catalogue's name there (the MPC's "Catalogue Codes"
+// page; the same pairs as IAU-ADES/ADES-Master Python/bin/packUtil.py catCodes), and whether the MPC lists
+// it as deprecated. Column 72 is the MPC's to fill: a submission leaves it blank and names the catalogue on
+// its NET header line (that page: "On new submissions, column 72 must be blank").
 #include <optional>
 #include <string>
 #include <string_view>
@@ -13,9 +15,10 @@
 namespace st::report {
 
 struct StarCatalogue {
-  std::string_view astCat;  ///< ADES astCat, e.g. "Gaia3"
-  char mpcCode = ' ';       ///< 80-column column 72, e.g. 'W'
-  bool deprecated = false;  ///< deprecated by the MPC (or not on its ADES list): a warning, not an error
+  std::string_view astCat;   ///< ADES astCat, e.g. "Gaia3"
+  char mpcCode = ' ';        ///< 80-column column 72 as the MPC fills it, e.g. 'W'
+  bool deprecated = false;   ///< deprecated by the MPC (or not on its ADES list): a warning, not an error
+  std::string_view mpcName;  ///< the "Catalogue Codes" page's name, for the NET line, e.g. "Gaia-DR3"
 };
 
 /// Every catalogue with an 80-column code, in the MPC's order of codes.
@@ -24,6 +27,8 @@ struct StarCatalogue {
 [[nodiscard]] const StarCatalogue* findStarCatalogue(std::string_view astCat);
 /// Column 72 for an astCat: its code, or ' ' when the catalogue has none.
 [[nodiscard]] char mpcCatalogueCode(std::string_view astCat);
+/// The catalogue with this column-72 code, or nullptr.
+[[nodiscard]] const StarCatalogue* findStarCatalogueByCode(char mpcCode);
 
 /// The reference catalogue of a header's WCS solution, when the header names it. Recognised: astrometry.net's
 /// "Index(N): .../index-NNNN.fits" COMMENT cards, whose series gives the catalogue (41xx Tycho-2 "Tyc2",

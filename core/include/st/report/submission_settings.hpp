@@ -22,7 +22,8 @@ struct SubmissionSettings {
   std::string detector = "CCD";  ///< ADES telescope detector and observation mode: CCD or CMO (CMOS)
   std::string
       astCat;  ///< reference catalogue of the WCS solution (ADES astCat, e.g. "Gaia3"); ADES requires it
-  /// Column 72 of the 80-column format; ' ' = the code of astCat (star_catalogues.hpp), which it overrides.
+  /// The reference catalogue by its 80-column code (star_catalogues.hpp), for the NET line; ' ' = astCat's.
+  /// Column 72 itself is left blank in a submission (the MPC fills it).
   char mpcCatalogCode = ' ';
   double safeSnr = 7.0;  ///< below this SNR a line gets a warning (paper §4.4 threshold)
 };
@@ -40,8 +41,8 @@ struct SettingsProblem {
 /// Every problem that would make a file of `format` invalid (empty when none). ADES: station code (3
 /// letters/digits), a measurer (given or the first observer), names of at most 100 characters, telescope
 /// design and detector (1-25 characters; the detector also the observation mode, so one of the MPC's modes),
-/// aperture > 0 and below 1000 m, astCat (1-8 of [.A-Za-z0-9_]). MPC 80-column: station code, and a column-72
-/// code (given, or known for astCat).
+/// aperture > 0 and below 1000 m, astCat (1-8 of [.A-Za-z0-9_]). MPC 80-column: station code, and a
+/// catalogue for the NET line (astCat, or a code of the MPC's list).
 [[nodiscard]] std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& settings,
                                                               SubmissionFormat format);
 /// The problems as one sentence: "ADES needs: the telescope aperture (...); astCat (...)".
@@ -51,8 +52,11 @@ struct SettingsProblem {
 [[nodiscard]] std::string measurerOf(const SubmissionSettings& settings);
 /// The observers, split at commas and trimmed, empty names dropped.
 [[nodiscard]] std::vector<std::string> observerNames(const SubmissionSettings& settings);
-/// Column 72: the given code, else astCat's (' ' when neither).
+/// The catalogue's 80-column code: the given one, else astCat's (' ' when neither).
 [[nodiscard]] char resolvedCatalogueCode(const SubmissionSettings& settings);
+/// The NET line's catalogue: the MPC's name for the resolved code (e.g. "Gaia-DR3"), else astCat as given
+/// (empty when neither).
+[[nodiscard]] std::string netCatalogueName(const SubmissionSettings& settings);
 
 /// The settings as kept in a session's settings and in the GUI's QSettings: station, observers, measurer,
 /// submitter, telescope_design, aperture_m, detector, ast_cat, mpc_catalog_code (one character, " " = from
