@@ -36,4 +36,13 @@ TEST(SimFits, CubeRoundTripKeepsPixelsTimesAndWcs) {
   EXPECT_NEAR(sky.decDeg, p.decDeg, 1e-9);
   EXPECT_NEAR(back.header.getDouble("GAIN").value_or(0.0), p.gainEPerAdu, 1e-12);
   EXPECT_TRUE(back.header.has("DATE-OBS"));
+  // The cube in memory carries the same WCS as the one read back (the GUI's demo uses it unwritten: it had
+  // no WCS, so no sky positions, until its cache was read on the next start).
+  ASSERT_TRUE(r.cube.wcs);
+  for (const auto& [x, y] : {std::pair{0.0, 0.0}, std::pair{100.0, 37.0}})
+    for (const auto& c : {r.cube.wcs->pixelToSky(x, y)}) {
+      const auto b = back.wcs->pixelToSky(x, y);
+      EXPECT_NEAR(c.raDeg, b.raDeg, 1e-12);
+      EXPECT_NEAR(c.decDeg, b.decDeg, 1e-12);
+    }
 }
