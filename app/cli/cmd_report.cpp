@@ -142,8 +142,7 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
 }
 
 Velocity skyRateOf(const session::Session& s) {
-  if (!s.search.contains("sky_rate")) return {};
-  return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+  return report::sessionSkyRate(s);
 }
 
 /// The WCS of --wcs FILE, mapping pixels at t_ref (the file's WCSEPOCH, else its first frame's time, is the
@@ -213,7 +212,12 @@ session::Session withSkyPositions(session::Session s, const std::optional<WcsMap
     auto& c = s.candidates[i];
     if (c.label != session::Label::Real || !c.fitted() || c.fit->sky) continue;
     const auto p = wcs->toSky(c.fit->x, c.fit->y);
-    c.fit->sky = candidate::SkyPosition{p.raDeg, p.decDeg};
+    // Its motion on the sky: the fitted velocity relative to the stars through the mapping's local scale.
+    const Velocity sky = skyRateOf(s);
+    const astro::SkyMotion m =
+        astro::skyMotionAt(wcs->toSky, c.fit->x, c.fit->y, {c.fit->v.vx - sky.vx, c.fit->v.vy - sky.vy});
+    c.fit->sky =
+        candidate::SkyPosition{p.raDeg, p.decDeg, m.rateDegPerDay, m.rateArcsecPerMin, m.positionAngleDeg};
     std::fprintf(stderr, "note: candidate %zu: sky position from --wcs at its fitted position\n", i + 1);
   }
   return s;

@@ -69,6 +69,43 @@ RelativeAstrometry relativeToStars(const fit::FitResult& asteroid, const std::ve
   return r;
 }
 
+namespace {
+
+// d(east, north)/d(x, y) of a mapping at (x, y), degrees per pixel (east = dRA cos Dec), by central
+// differences over +-0.5 px.
+Eigen::Matrix2d skyJacobian(const PixelToSky& pixelToSky, double x, double y, double decDeg) {
+  const double cosDec = std::cos(decDeg * kDeg);
+  const auto diff = [&](double ddx, double ddy) {
+    const SkyPoint a = pixelToSky(x + ddx, y + ddy);
+    const SkyPoint b = pixelToSky(x - ddx, y - ddy);
+    return Eigen::Vector2d(wrap180(a.raDeg - b.raDeg) * cosDec, a.decDeg - b.decDeg);
+  };
+  Eigen::Matrix2d j;
+  j.col(0) = diff(0.5, 0.0);
+  j.col(1) = diff(0.0, 0.5);
+  return j;
+}
+
+// Rate and position angle of a motion w (deg/s east, north).
+SkyMotion motionOf(const Eigen::Vector2d& w) {
+  const double rate = w.norm();
+  SkyMotion m;
+  m.rateDegPerDay = rate * kSecondsPerDay;
+  m.rateArcsecPerMin = rate * kArcsecPerDeg * 60.0;
+  double pa = std::atan2(w[0], w[1]) / kDeg;
+  if (pa < 0) pa += 360.0;
+  m.positionAngleDeg = rate > 0 ? pa : 0.0;
+  return m;
+}
+
+}  // namespace
+
+SkyMotion skyMotionAt(const PixelToSky& pixelToSky, double x, double y, Velocity relativePxPerS) {
+  const SkyPoint c = pixelToSky(x, y);
+  return motionOf(skyJacobian(pixelToSky, x, y, c.decDeg) *
+                  Eigen::Vector2d(relativePxPerS.vx, relativePxPerS.vy));
+}
+
 SkyMeasurement skyMeasurement(const PixelToSky& pixelToSky, const fit::FitResult& f, Velocity skyRate,
                               double mappingEpochOffsetS) {
   const double dt = f.tRefOffsetS - mappingEpochOffsetS;
@@ -79,16 +116,7 @@ SkyMeasurement skyMeasurement(const PixelToSky& pixelToSky, const fit::FitResult
   m.tRefMjd = f.tRefMjd;
   m.raDeg = c.raDeg;
   m.decDeg = c.decDeg;
-  // J: d(east, north)/d(x, y) in degrees per pixel, east = dRA cos(Dec).
-  const double cosDec = std::cos(c.decDeg * kDeg);
-  const auto diff = [&](double ddx, double ddy) {
-    const SkyPoint a = pixelToSky(x + ddx, y + ddy);
-    const SkyPoint b = pixelToSky(x - ddx, y - ddy);
-    return Eigen::Vector2d(wrap180(a.raDeg - b.raDeg) * cosDec, a.decDeg - b.decDeg);
-  };
-  Eigen::Matrix2d j;
-  j.col(0) = diff(0.5, 0.0);
-  j.col(1) = diff(0.0, 0.5);
+  const Eigen::Matrix2d j = skyJacobian(pixelToSky, x, y, c.decDeg);
   const auto& cov = bestCovariance(f);
   Eigen::Matrix2d cp;
   cp << cov(fit::kXc, fit::kXc), cov(fit::kXc, fit::kYc), cov(fit::kYc, fit::kXc), cov(fit::kYc, fit::kYc);
@@ -98,11 +126,10 @@ SkyMeasurement skyMeasurement(const PixelToSky& pixelToSky, const fit::FitResult
   const Eigen::Vector2d u(f.params.v.vx - skyRate.vx, f.params.v.vy - skyRate.vy);
   const Eigen::Vector2d w = j * u;  // deg/s east, north
   const double rate = w.norm();
-  m.rateDegPerDay = rate * kSecondsPerDay;
-  m.rateArcsecPerMin = rate * kArcsecPerDeg * 60.0;
-  double pa = std::atan2(w[0], w[1]) / kDeg;
-  if (pa < 0) pa += 360.0;
-  m.positionAngleDeg = rate > 0 ? pa : 0.0;
+  const SkyMotion motion = motionOf(w);
+  m.rateDegPerDay = motion.rateDegPerDay;
+  m.rateArcsecPerMin = motion.rateArcsecPerMin;
+  m.positionAngleDeg = motion.positionAngleDeg;
   if (rate > 0) {
     Eigen::Matrix2d cv;
     cv << cov(fit::kVx, fit::kVx), cov(fit::kVx, fit::kVy), cov(fit::kVy, fit::kVx), cov(fit::kVy, fit::kVy);

@@ -75,7 +75,11 @@ std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelT
       const double x1 = m.x + m.velocity->vx * m.trackEndS, y1 = m.y + m.velocity->vy * m.trackEndS;
       const std::string lprops = " # line=0 1 color=" + cleanText(m.color);
       if (toSky) {
-        const auto a = toSky(x0, y0), b = toSky(x1, y1);
+        // At time t the object is at (x, y) + v t on the detector, where the mapping of t_ref shows the sky
+        // of (x, y) + (v - skyRate) t: the detector track through the t_ref mapping would add the drift.
+        const double ux = m.velocity->vx - m.skyRate.vx, uy = m.velocity->vy - m.skyRate.vy;
+        const auto a = toSky(m.x + ux * m.trackStartS, m.y + uy * m.trackStartS);
+        const auto b = toSky(m.x + ux * m.trackEndS, m.y + uy * m.trackEndS);
         out += line("line(%.7f,%+.7f,%.7f,%+.7f)", a.raDeg, a.decDeg, b.raDeg, b.decDeg) + lprops + "\n";
       } else {
         out += line("line(%.3f,%.3f,%.3f,%.3f)", x0 + 1.0, y0 + 1.0, x1 + 1.0, y1 + 1.0) + lprops + "\n";

@@ -21,8 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 
 Velocity skyRateOf(const session::Session& s) {
-  if (!s.search.contains("sky_rate")) return {};
-  return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+  return sessionSkyRate(s);
 }
 
 void makeParent(const std::string& path) {

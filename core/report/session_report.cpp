@@ -54,8 +54,14 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s,
   return out;
 }
 
+Velocity sessionSkyRate(const session::Session& s) {
+  if (!s.search.contains("sky_rate")) return {};
+  return {s.search["sky_rate"].value("vx_px_s", 0.0), s.search["sky_rate"].value("vy_px_s", 0.0)};
+}
+
 std::vector<RegionMark> regionMarks(const session::Session& s, double trackStartS, double trackEndS) {
   std::vector<RegionMark> out;
+  const Velocity sky = sessionSkyRate(s);
   const double fwhm = number(s.search, "psf_fwhm_px").value_or(2.5);
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     const auto& c = s.candidates[i];
@@ -66,6 +72,7 @@ std::vector<RegionMark> regionMarks(const session::Session& s, double trackStart
     m.radiusPx = 2.0 * fwhm;
     if (trackEndS > trackStartS) {
       m.velocity = track.v;
+      m.skyRate = sky;
       m.trackStartS = trackStartS;
       m.trackEndS = trackEndS;
     }

@@ -111,6 +111,23 @@ TEST(Astrometry, SkyRateIsRemovedAndTheMappingEpochRespected) {
   EXPECT_NEAR(m.decDeg, 30.0, 1e-9);
 }
 
+// skyMotionAt (the CLI report's rate and PA for a fit it maps through --wcs) gives skyMeasurement's rate and
+// position angle for the same velocity relative to the stars.
+TEST(Astrometry, SkyMotionAtEqualsTheMeasurementsMotion) {
+  const PixelToSky wcs = tanProjection(150.0, 60.0, 0.3, 100.0, 100.0);
+  const Velocity sky{2.0, -0.5};
+  for (const Velocity v : {Velocity{0.0, 1.0}, Velocity{-0.7, 1.3}, Velocity{3.1, -2.2}, sky}) {
+    const SkyMeasurement m = skyMeasurement(wcs, fakeFit(130.0, 80.0, v, 0.01, 0.001), sky, 0.0);
+    const SkyMotion k = skyMotionAt(wcs, 130.0, 80.0, {v.vx - sky.vx, v.vy - sky.vy});
+    EXPECT_DOUBLE_EQ(k.rateDegPerDay, m.rateDegPerDay);
+    EXPECT_DOUBLE_EQ(k.rateArcsecPerMin, m.rateArcsecPerMin);
+    EXPECT_DOUBLE_EQ(k.positionAngleDeg, m.positionAngleDeg);
+  }
+  // North at 1 px/s = 7.2 deg/day, PA 0; east (-x) PA 90.
+  EXPECT_NEAR(skyMotionAt(wcs, 100.0, 100.0, {0.0, 1.0}).rateDegPerDay, 7.2, 1e-6);
+  EXPECT_NEAR(skyMotionAt(wcs, 100.0, 100.0, {-1.0, 0.0}).positionAngleDeg, 90.0, 1e-6);
+}
+
 TEST(Astrometry, RateFromAPlateScale) {
   const PlateScaleRate r = rateFromPlateScale(fakeFit(0, 0, {3.0, 4.0}, 0.1, 0.01), {0.0, -1.0}, 0.5);
   // |v - sky| = |(3, 5)| px/s

@@ -136,11 +136,14 @@ def main():
         check("color=red" in circles[2] and "ghost" in circles[2], "artifact drawn red with its reason")
         tracks = [l for l in reg_lines if l.startswith("line(")]
         check(len(tracks) == 3, "a track line per candidate")
-        if tracks:  # from the fitted velocity over the frames' span, mapped like the circles
+        if tracks:  # the fitted motion relative to the stars over the frames' span, mapped like the circles
             a = [float(v) for v in tracks[0][len("line("):tracks[0].index(")")].split(",")]
             f = cands[0]["fit"]
-            want = sky_at_tref(f["x"] + f["vx_px_s"] * t0, f["y"] + f["vy_px_s"] * t0)
-            check(abs(a[0] - want[0]) <= 1e-6 and abs(a[1] - want[1]) <= 1e-6, "track start %s vs %s" % (a, want))
+            # At the first frame (t0 before t_ref) the object sat at (x, y) + v t0 on the detector, where the
+            # first frame's WCS (astropy's) puts the sky position it had then.
+            ra0, dec0 = (float(v) for v in wcs.all_pix2world([[f["x"] + f["vx_px_s"] * t0,
+                                                                f["y"] + f["vy_px_s"] * t0]], 0)[0])
+            check(abs(a[0] - ra0) <= 1e-6 and abs(a[1] - dec0) <= 1e-6, "track start %s vs %s" % (a, (ra0, dec0)))
 
         # FITS stacks of the real candidates.
         names = sorted(os.listdir(stacks)) if os.path.isdir(stacks) else []

@@ -70,6 +70,16 @@ struct SkyMeasurement {
 [[nodiscard]] SkyMeasurement skyMeasurement(const Wcs& wcs, const fit::FitResult& fit, Velocity skyRate,
                                             double mappingEpochOffsetS);
 
+/// The on-sky motion of a velocity `relativePxPerS` (relative to the stars) at pixel (x, y) of a mapping,
+/// as skyMeasurement gives it: rate and position angle (east of north) through the mapping's local
+/// derivatives (central differences over +-0.5 px).
+struct SkyMotion {
+  double rateDegPerDay = 0.0;
+  double rateArcsecPerMin = 0.0;
+  double positionAngleDeg = 0.0;  ///< [0, 360); 0 when the rate is 0
+};
+[[nodiscard]] SkyMotion skyMotionAt(const PixelToSky& pixelToSky, double x, double y, Velocity relativePxPerS);
+
 /// Rate without a WCS, from a plate scale (arcsec/px): |v - skyRate| in deg/day and arcsec/min. The
 /// position angle needs the orientation, which only a WCS gives.
 struct PlateScaleRate {

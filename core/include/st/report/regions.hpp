@@ -23,8 +23,11 @@ struct RegionMark {
   double radiusPx = 5.0;
   std::string text;             ///< label shown by DS9 (quotes and braces are removed)
   std::string color = "green";  ///< a DS9 colour name
-  /// When set, a line from the track's position at trackStartS to trackEndS (seconds from t_ref) is added.
+  /// When set, a line from the track's position at trackStartS to trackEndS (seconds from t_ref) is added:
+  /// in image coordinates the detector track (velocity), on the sky the track relative to the stars
+  /// (velocity - skyRate: the sky mapping holds at t_ref, and the field drifts by skyRate).
   std::optional<Velocity> velocity;
+  Velocity skyRate;
   double trackStartS = 0.0;
   double trackEndS = 0.0;
 };

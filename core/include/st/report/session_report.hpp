@@ -20,9 +20,13 @@ namespace st::report {
                                                                std::vector<std::string>& warnings,
                                                                const std::string& prefix = "st");
 
+/// The session's sky rate (its search's "sky_rate", px/s; zero when absent).
+[[nodiscard]] Velocity sessionSkyRate(const session::Session& session);
+
 /// One DS9 mark per candidate at its fitted position (else its search cell), radius 2 PSF FWHM (5 px when
-/// unknown), with its velocity as a track line over the observation's span when it is known, coloured by
-/// label (real green, artifact red, unsure yellow, unvetted cyan), text "#N SNR s label".
+/// unknown), with its velocity (and the session's sky rate, for a track on the sky) as a track line over the
+/// observation's span when it is known, coloured by label (real green, artifact red, unsure yellow, unvetted
+/// cyan), text "#N SNR s label".
 [[nodiscard]] std::vector<RegionMark> regionMarks(const session::Session& session, double trackStartS = 0.0,
                                                   double trackEndS = 0.0);
 
