@@ -17,6 +17,7 @@
 #include <QVBoxLayout>
 #include <QtConcurrent>
 #include <qcustomplot.h>
+#include <cmath>
 
 #include "candidate_sheet.hpp"
 #include "figure_preset.hpp"
@@ -351,11 +352,18 @@ std::function<ImageFigure()> FigureDialog::presetBuilder(QString& error) {
   o.compass = m_compass->isChecked() ? compassNear(c->x, c->y) : std::nullopt;
   o.units = m_units->text();
   o.candidateNumber = *obs->selected() + 1;
-  o.motion = describeMotion(motionVsSky(*obs, c->x, c->y, c->v));
+  // The accepted fit's track when there is one (its stack, title SNR and motion), else the search cell's.
+  const ShownTrack shown = shownTrack(*obs, *obs->selected(), *c);
+  o.motion = describeMotion(motionVsSky(*obs, shown.x, shown.y, shown.v));
+  search::Candidate track = *c;
+  track.x = static_cast<int>(std::lround(shown.x));
+  track.y = static_cast<int>(std::lround(shown.y));
+  track.v = shown.v;
+  track.snr = shown.snr;
   const Velocity sky = obs->skyRate();
   const QString title = m_title->text();
   const bool bar = m_colourBar->isChecked(), axes = m_axes->isChecked();
-  return [cube, cand = *c, sky, o, title, bar, axes] {
+  return [cube, cand = track, sky, o, title, bar, axes] {
     ImageFigure fig = skyAndObjectFigure(*cube, cand, sky, o);
     if (!title.isEmpty()) fig.title = title;
     for (auto& p : fig.panels) {
@@ -394,13 +402,14 @@ std::function<ImageFigure()> FigureDialog::stripBuilder(const StampStrip& strip)
   }
   fig.title = m_title->text();
   const Observation* obs = m_ctx.observation;
-  if (const search::Candidate* c = obs ? obs->selectedCandidate() : nullptr)
-    fig.caption = QString("Candidate #%1 at (%2, %3) px: search SNR %4, %5.")
+  if (const search::Candidate* c = obs ? obs->selectedCandidate() : nullptr) {
+    const ShownTrack shown = shownTrack(*obs, *obs->selected(), *c);
+    fig.caption = QString("Candidate #%1 at (%2, %3) px: %4.")
                       .arg(*obs->selected() + 1)
-                      .arg(c->x)
-                      .arg(c->y)
-                      .arg(c->snr, 0, 'f', 1)
-                      .arg(describeMotion(motionVsSky(*obs, c->x, c->y, c->v)));
+                      .arg(shown.x, 0, 'f', shown.fitted ? 2 : 0)
+                      .arg(shown.y, 0, 'f', shown.fitted ? 2 : 0)
+                      .arg(describeShownTrack(*obs, shown));
+  }
   return [fig] { return fig; };
 }
 
@@ -427,7 +436,8 @@ std::function<ImageFigure()> FigureDialog::sheetBuilder(Source::Sheet which, QSt
   for (int i : chosen) {
     const search::Candidate& c = obs->result()->candidates[static_cast<std::size_t>(i)];
     const session::CandidateState* state = obs->candidateState(i);
-    entries.push_back({i + 1, c, describeMotion(motionVsSky(*obs, c.x, c.y, c.v)),
+    const ShownTrack shown = shownTrack(*obs, i, c);
+    entries.push_back({i + 1, c, describeMotion(motionVsSky(*obs, shown.x, shown.y, shown.v)),
                        state ? QString(session::toString(state->label)) : QString("unvetted")});
   }
   CandidateSheetOptions o;

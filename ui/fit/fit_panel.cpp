@@ -166,12 +166,13 @@ void FitPanel::updateTitle() {
     const int index = *m_obs->selected();
     const auto& states = m_obs->candidateStates();
     const bool stored = index < static_cast<int>(states.size()) && states[index].fit.has_value();
-    text = QString("Candidate %1 selected: SNR %2, %3, at (%4, %5) px — ")
+    // The accepted fit's values once there is one (they supersede the search cell's), else the search's.
+    const ShownTrack shown = shownTrack(*m_obs, index, *c);
+    text = QString("Candidate %1 selected: %2, at (%3, %4) px — ")
                .arg(index + 1)
-               .arg(c->snr, 0, 'f', 1)
-               .arg(describeMotion(motionVsSky(*m_obs, c->x, c->y, c->v)))
-               .arg(c->x)
-               .arg(c->y);
+               .arg(describeShownTrack(*m_obs, shown))
+               .arg(shown.x, 0, 'f', shown.fitted ? 2 : 0)
+               .arg(shown.y, 0, 'f', shown.fitted ? 2 : 0);
     if (m_outcome && m_fittedIndex == index)
       text += stored && m_outcome->summary == *states[index].fit
                   ? "fit done and stored on the candidate."

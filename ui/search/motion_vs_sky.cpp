@@ -48,4 +48,17 @@ QString describeMotionWithComponents(const MotionVsSky& m) {
   return describeMotion(m) + QString(" (vx %1, vy %2)").arg(m.vx, 0, 'g', 4).arg(m.vy, 0, 'g', 4);
 }
 
+ShownTrack shownTrack(const Observation& obs, int index, const search::Candidate& c) {
+  const session::CandidateState* state = obs.candidateState(index);
+  if (state && state->fitted()) return {state->fit->x, state->fit->y, state->fit->v, state->fit->snr, true};
+  return {static_cast<double>(c.x), static_cast<double>(c.y), c.v, c.snr, false};
+}
+
+QString describeShownTrack(const Observation& obs, const ShownTrack& t) {
+  return QString("%1 SNR %2, %3")
+      .arg(t.fitted ? "fit" : "search")
+      .arg(t.snr, 0, 'f', 1)
+      .arg(describeMotion(motionVsSky(obs, t.x, t.y, t.v)));
+}
+
 }  // namespace st::ui

@@ -34,4 +34,16 @@ struct MotionVsSky {
 /// The same with the components: "rate 12.3 deg/day vs sky, PA 245.1° (vx -5.2, vy 11.1)".
 [[nodiscard]] QString describeMotionWithComponents(const MotionVsSky& m);
 
+/// A candidate as the captions describe it: its accepted co-moving fit when that converged (its position,
+/// velocity and SNR supersede the search cell's), else its search cell.
+struct ShownTrack {
+  double x = 0.0, y = 0.0;
+  Velocity v;
+  double snr = 0.0;
+  bool fitted = false;
+};
+[[nodiscard]] ShownTrack shownTrack(const Observation& obs, int index, const search::Candidate& c);
+/// "fit SNR 15.9, rate 6.005 deg/day vs sky, PA 60.2°" (or "search SNR ..." without an accepted fit).
+[[nodiscard]] QString describeShownTrack(const Observation& obs, const ShownTrack& t);
+
 }  // namespace st::ui
