@@ -2,6 +2,8 @@
 
 #include <cstdio>
 
+#include "st/fit/comoving_fit.hpp"
+
 namespace st::report {
 namespace {
 
@@ -20,10 +22,21 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s,
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     const auto& c = s.candidates[i];
     if (c.label != session::Label::Real) continue;
-    if (!c.fit || !c.fit->sky) {
-      warnings.push_back(
-          "candidate " + std::to_string(i + 1) +
-          " is labelled real but has no fitted sky position (fit with a WCS first): not reported");
+    // Only a converged co-moving fit with a sky position is an observation; each missing piece is named.
+    const std::string which = "candidate " + std::to_string(i + 1) + " is labelled real but ";
+    if (!c.fit) {
+      warnings.push_back(which + "has no accepted co-moving fit (fit it and accept the fit): not reported");
+      continue;
+    }
+    if (!c.fit->converged()) {
+      warnings.push_back(which + "its fit did not converge (" + fit::toString(c.fit->status) +
+                         "): not reported; fit it again");
+      continue;
+    }
+    if (!c.fit->sky) {
+      warnings.push_back(which +
+                         "its fit has no sky position (the frames have no WCS: plate-solve them, or give the "
+                         "report a WCS file): not reported");
       continue;
     }
     const candidate::FitSummary& f = *c.fit;

@@ -117,6 +117,27 @@ TEST(SessionReport, OnlyRealCandidatesWithASkyPositionAreReported) {
   EXPECT_NE(warnings[0].find("candidate 3"), std::string::npos) << warnings[0];
 }
 
+// A real candidate is an observation only with a converged fit that has a sky position; the warning says
+// which piece is missing (it blamed the WCS for a fit that had diverged).
+TEST(SessionReport, EachMissingPieceOfARealCandidateIsNamed) {
+  session::Session s = labelled();
+  s.candidates[3].label = session::Label::Real;  // no fit at all
+  s.candidates[1].label = session::Label::Real;
+  s.candidates[1].fit = s.candidates[0].fit;  // with a sky position, but diverged
+  s.candidates[1].fit->status = fit::FitStatus::Diverged;
+  std::vector<std::string> warnings;
+  const auto d = realDetections(s, warnings);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_EQ(d[0].trkSub, "st00001");
+  ASSERT_EQ(warnings.size(), 3u);
+  EXPECT_NE(warnings[0].find("candidate 2 is labelled real but its fit did not converge"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[1].find("candidate 3 is labelled real but its fit has no sky position"), std::string::npos)
+      << warnings[1];
+  EXPECT_NE(warnings[2].find("candidate 4 is labelled real but has no accepted co-moving fit"), std::string::npos)
+      << warnings[2];
+}
+
 // With no detection to submit, no ADES or 80-column file is written (an ADES file without an observation
 // fails submit.xsd: obsData needs one), the files asked for are named as not written, and the rest is
 // written.
