@@ -113,6 +113,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     lastCpu = cpu;
   };
   if (raw.empty()) throw InputError("pre-processing: no frames");
+  // Said here, not after a second of stages: the per-pixel background needs that many samples of a pixel.
+  if (raw.frameCount() < params.background.minSamples)
+    throw InputError("pre-processing: " + std::to_string(raw.frameCount()) +
+                     " frame(s); synthetic tracking needs at least " +
+                     std::to_string(params.background.minSamples) +
+                     " (the per-pixel background measures each pixel's level over that many frames)");
   out.frames = std::move(raw);
   FrameCube& cube = out.frames;
   const calib::MasterCalibration noMasters;

@@ -152,6 +152,23 @@ std::string mpc80Line(const AstrometricDetection& det, const SubmissionSettings&
   return line;
 }
 
+namespace {
+
+// Observers are separated by commas: "Doe, J." becomes two of them, "Doe" and "J.". A name of initials alone
+// is said (not refused: it may be meant).
+void initialsWarnings(const SubmissionSettings& s, std::vector<std::string>& warnings) {
+  static const std::regex kInitials(R"(([A-Z]\.\s*)+)");
+  for (const auto& name : observerNames(s))
+    if (std::regex_match(name, kInitials)) {
+      const std::string w = "observer '" + name +
+                            "' is initials alone: observers are separated by commas (write 'J. Doe', not "
+                            "'Doe, J.')";
+      if (std::find(warnings.begin(), warnings.end(), w) == warnings.end()) warnings.push_back(w);
+    }
+}
+
+}  // namespace
+
 SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s) {
   checkSettings(s, SubmissionFormat::Mpc80);
   SubmissionText out;
@@ -173,6 +190,7 @@ SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const Su
   header("ACK", "synthtrack astrometry, " + std::to_string(ds.size()) + " observation(s)");
   if (s.observers.empty())
     out.warnings.push_back("80-column: no observer name for the OBS line (set --observer)");
+  initialsWarnings(s, out.warnings);
   for (const auto& d : ds)
     out.text += mpc80Line(d, s) + "\n";
   lowSnrWarnings(ds, s, out.warnings);
@@ -255,6 +273,7 @@ AdesDocument adesDocument(const std::vector<AstrometricDetection>& ds, const Sub
                           std::vector<std::string>& warnings) {
   checkSettings(s, SubmissionFormat::Ades);
   if (observerNames(s).empty()) warnings.push_back("ADES: no observer name (set --observer)");
+  initialsWarnings(s, warnings);
   if (const StarCatalogue* c = findStarCatalogue(s.astCat); !c) {
     warnings.push_back(
         "ADES: astCat '" + s.astCat +

@@ -44,7 +44,7 @@ void adesProblems(const SubmissionSettings& s, std::vector<SettingsProblem>& out
   }
   for (const auto& name : observerNames(s))
     if (!plainText(name, 100))
-      out.push_back({"observers", "observer names of at most 100 characters: '" + name + "'"});
+      out.push_back({"observers", "observer names of 1-100 characters without '|': '" + name + "'"});
   if (!s.submitter.empty() && !plainText(s.submitter, 100))
     out.push_back({"submitter", "a submitter name of 1-100 characters without '|'"});
   if (!plainText(s.telescopeDesign, 25))
@@ -54,7 +54,8 @@ void adesProblems(const SubmissionSettings& s, std::vector<SettingsProblem>& out
   char aperture[32];
   std::snprintf(aperture, sizeof aperture, "%g", s.apertureM);
   if (!(s.apertureM > 0.0 && s.apertureM < 1000.0))
-    out.push_back({"aperture_m", std::string("the telescope aperture in metres (> 0), got ") + aperture});
+    out.push_back(
+        {"aperture_m", std::string("the telescope aperture in metres (> 0 and < 1000), got ") + aperture});
   if (std::find_if(std::begin(kModes), std::end(kModes), [&](const char* m) { return s.detector == m; }) ==
       std::end(kModes)) {
     out.push_back(

@@ -129,8 +129,22 @@ TEST(Pipeline, NoStarFallsBackToGivenFwhmWithANote) {
     ASSERT_TRUE(std::isfinite(v));
 }
 
+TEST(Pipeline, TooFewFramesIsAClearError) {
+  NullProgress p;
+  CancelToken c;
+  try {
+    preprocess(FrameCube(16, 16, 1), {}, p, c);
+    FAIL();
+  } catch (const InputError& e) {
+    // Said before any stage runs, naming the count and the need (it was the per-pixel background's "no pixel
+    // has 10 unmasked background samples").
+    EXPECT_NE(std::string(e.what()).find("1 frame(s); synthetic tracking needs at least 10"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Pipeline, AllMaskedCubeIsAClearError) {
-  FrameCube cube(16, 16, 5);
+  FrameCube cube(16, 16, 12);
   cube.info()[0].file = "dead.fits";
   cube.mask().assign(cube.pixels().size(), 1);
   NullProgress p;

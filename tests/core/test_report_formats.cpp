@@ -182,6 +182,26 @@ TEST(Mpc80, Column72IsBlankAndTheNetLineNamesTheCatalogue) {
   EXPECT_THROW((void)formatMpc80({publishedDetection()}, s), InputError);
 }
 
+// Messages that name the real problem: observers split at commas ("Doe, J." is two of them, the second
+// initials alone: a warning), a name with the PSV separator, an aperture too large.
+TEST(SubmissionSettingsMessages, NameWhatIsWrong) {
+  SubmissionSettings s = adesSettings291();
+  s.observers = "Doe, J.";
+  const SubmissionText t = formatMpc80({publishedDetection()}, s);
+  ASSERT_FALSE(t.warnings.empty());
+  EXPECT_NE(t.warnings.back().find("'J.' is initials alone"), std::string::npos) << t.warnings.back();
+  EXPECT_TRUE(formatMpc80({publishedDetection()}, adesSettings291()).warnings.empty());
+  s.observers = "A|B";
+  auto problems = submissionProblems(s, SubmissionFormat::Ades);
+  ASSERT_FALSE(problems.empty());
+  EXPECT_NE(problems.front().message.find("without '|'"), std::string::npos) << problems.front().message;
+  s = adesSettings291();
+  s.apertureM = 12345.678;
+  problems = submissionProblems(s, SubmissionFormat::Ades);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].message.find("< 1000"), std::string::npos) << problems[0].message;
+}
+
 TEST(StarCatalogues, AstCatFromAnAstrometryNetHeader) {
   auto header = [](std::vector<std::string> indexes) {
     FitsHeader h;
