@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "backend_factory.hpp"
+#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/report/candidate_json.hpp"
 #include "cli_args.hpp"
@@ -161,7 +162,7 @@ int cmdDemo(const Args& args) {
   progress.finish();
   timings.mark("simulated and written");
   const double simulatedAt = timings.elapsed();
-  const double gain = sim.cube.header.getDouble("GAIN").value_or(1.0);
+  const double gain = astro::photoelectronsPerCount(sim.cube.header);
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
   // On the search's device when it is a GPU (per-pixel background and matched filter, issue 16).

@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "backend_factory.hpp"
+#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/report/candidate_json.hpp"
 #include "load_args.hpp"
@@ -437,7 +438,7 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                  {"tiles", memory.tiles},
                  {"peak_resident_bytes", peakResidentBytes()}};
   if (fit) {
-    const double gain = prepared->frames.header.getDouble("GAIN").value_or(1.0);
+    const double gain = astro::photoelectronsPerCount(prepared->frames.header);
     for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < o.fitMax; ++i) {
       progress.report(static_cast<double>(i) / static_cast<double>(r.candidates.size()), "co-moving fits");
       j["candidates"][i]["fit"] =

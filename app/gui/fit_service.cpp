@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/common/error.hpp"
 
@@ -14,7 +15,7 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
     throw InputError("co-moving fit: pre-processing kept no unfiltered frames or PSF (run it again)");
   const FrameCube& frames = prepared.unfiltered->frames;
   const pipeline::Prepared& products = *prepared.products;
-  const double gain = frames.header.getDouble("GAIN").value_or(1.0);
+  const double gain = astro::photoelectronsPerCount(frames.header);
   fit::FitOptions stackOptions;
   stackOptions.psf = products.psf;
   using Clock = std::chrono::steady_clock;

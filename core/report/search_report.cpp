@@ -28,8 +28,8 @@ std::string csvQuoted(const std::string& text) {
 }  // namespace
 
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                               const search::Candidate& c) {
-  return toJson(candidate::measureSearch(cube, grid, c));
+                               const search::Candidate& c, const std::vector<search::Candidate>* all) {
+  return toJson(candidate::measureSearch(cube, grid, c, all));
 }
 
 nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& r,
@@ -64,7 +64,7 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
   for (const auto& c : r.candidates)
-    j["candidates"].push_back(candidateToJson(cube, r.grid, c));
+    j["candidates"].push_back(candidateToJson(cube, r.grid, c, &r.candidates));
   j["static_sources"] = nlohmann::json::array();
   for (const auto& c : r.staticSources)
     j["static_sources"].push_back(candidateToJson(cube, r.grid, c));

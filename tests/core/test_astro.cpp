@@ -26,6 +26,21 @@ TEST(Photometry, ReproducesThePaperMagnitude) {
   EXPECT_TRUE(std::isnan(magnitude(0.0, zp)));
 }
 
+// Photo-electrons per count: GAIN, divided by an EMCCD's EMGAIN (the simulator's paper-neo header: GAIN 20
+// e-/ADU at the output, EMGAIN 200: 0.1 photo-electron per ADU).
+TEST(Photometry, PhotoelectronsPerCountFromGainAndEmGain) {
+  FitsHeader h;
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 1.0);  // neither: counts are photons
+  h.setNumber("GAIN", 20.0);
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 20.0);
+  h.setNumber("EMGAIN", 200.0);
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 0.1);
+  h.setNumber("EMGAIN", 1.0);  // no multiplication
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 20.0);
+  h.setNumber("GAIN", -3.0);  // not a gain: counts are photons
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 1.0);
+}
+
 TEST(Photometry, PhotonsFromAmplitudeAndSegmentScatter) {
   const psf::Moffat p{3.3, 4.0};
   EXPECT_DOUBLE_EQ(photonsFromAmplitude(2.0, p, 1.5), 1.5 * 2.0 * std::numbers::pi * 3.3 * 3.3 / 3.0);

@@ -61,6 +61,46 @@ TEST(SearchReport, RatesAreOnTheSkyRelativeToTheStarsAndFlagsStatics) {
   EXPECT_EQ(j["method_reason"], twoCandidates().methodReason);
 }
 
+// "crosses_brighter": a cell whose track meets (within 2 FWHM over the span) the track of a candidate at
+// least 10 times brighter at another velocity; not for a cell that never meets it, one less than 10 times
+// fainter, or one at the bright one's own velocity.
+TEST(SearchReport, CellsCrossingAMuchBrighterTrackAreFlagged) {
+  search::FilteredCube fc = scanCube();
+  fc.frames = FrameCube(128, 128, 41);
+  for (std::size_t n = 0; n < 41; ++n)  // -20 to +20 s about t_ref
+    fc.frames.info()[n].mjdMid = 60000.0 + static_cast<double>(n) / kSecondsPerDay;
+  search::SearchResult r = twoCandidates();
+  search::Candidate bright;
+  bright.x = 50;
+  bright.y = 50;
+  bright.v = {16.39, 0.5};
+  bright.snr = 4000.0;
+  bright.nIn = 41;
+  search::Candidate crossing = bright;  // 10 px to the right, 1 px/s slower in x: meets it at t = +10 s
+  crossing.x = 60;
+  crossing.v = {15.39, 0.5};
+  crossing.snr = 200.0;
+  search::Candidate away = crossing;  // 30 px above: never within 2 FWHM
+  away.y = 80;
+  search::Candidate bright2 = crossing;  // crossing, but only 8 times fainter
+  bright2.snr = 500.0;
+  search::Candidate same = bright;  // the bright one's own motion (a cell of its cluster)
+  same.x = 53;
+  same.snr = 150.0;
+  r.candidates = {bright, crossing, away, bright2, same};
+  const nlohmann::json j = searchResultToJson(fc, r, {"obs.fits"});
+  const auto flagged = [&](int i) {
+    for (const auto& f : j["candidates"][i]["flags"])
+      if (f == "crosses_brighter") return true;
+    return false;
+  };
+  EXPECT_FALSE(flagged(0));
+  EXPECT_TRUE(flagged(1));
+  EXPECT_FALSE(flagged(2));
+  EXPECT_FALSE(flagged(3));
+  EXPECT_FALSE(flagged(4));
+}
+
 TEST(SearchReport, CsvHasOneRowPerCandidateWithFlags) {
   const auto fc = scanCube();
   const nlohmann::json j = searchResultToJson(fc, twoCandidates(), {"obs.fits"});

@@ -11,6 +11,7 @@
 #include <QLineEdit>
 #include <QTableView>
 #include <QVBoxLayout>
+#include <algorithm>
 #include <cmath>
 
 #include "candidate_vetting.hpp"
@@ -42,6 +43,11 @@ QString CandidateModel::flagsOf(const search::Candidate& c) const {
     if (c.x < margin || c.y < margin || c.x > raw->width() - 1 - margin || c.y > raw->height() - 1 - margin)
       flags << "edge";
     if (c.nIn < static_cast<int>(raw->frameCount())) flags << "partial";
+  }
+  if (const auto& result = m_obs->result(); result && !result->candidates.empty()) {
+    const std::ptrdiff_t i = &c - result->candidates.data();
+    if (i >= 0 && static_cast<std::size_t>(i) < m_crossesBrighter.size() && m_crossesBrighter[i])
+      flags << "crosses brighter";
   }
   return flags.join(", ");
 }
@@ -238,6 +244,15 @@ QVariant CandidateModel::headerData(int section, Qt::Orientation orientation, in
 
 void CandidateModel::reload() {
   beginResetModel();
+  m_crossesBrighter.clear();
+  const auto& result = m_obs->result();
+  const auto& prepared = m_obs->prepared();
+  if (result && prepared && prepared->filtered) {
+    for (const auto& c : result->candidates) {
+      const auto flags = candidate::measureSearch(*prepared->filtered, result->grid, c, &result->candidates).flags;
+      m_crossesBrighter.push_back(std::find(flags.begin(), flags.end(), "crosses_brighter") != flags.end());
+    }
+  }
   endResetModel();
 }
 

@@ -57,8 +57,10 @@ class CandidateModel : public QAbstractTableModel {
   bool setData(const QModelIndex& index, const QVariant& value, int role) override;
   /// Flags shown for a candidate: "pre-processing mover" for one added from pre-processing's movers
   /// (candidate::isMover), "edge" within 2 PSF widths of the border, "partial" when fewer than all frames
-  /// contributed.
+  /// contributed, "crosses brighter" when its track meets a 10 times brighter candidate's
+  /// (candidate::measureSearch).
   QString flagsOf(const search::Candidate& c) const;
+  /// Reloads every row, and works out the flags that depend on the other candidates.
   void reload();
   /// One candidate's row changed (its vetting state).
   void reloadRow(int row);
@@ -66,6 +68,7 @@ class CandidateModel : public QAbstractTableModel {
  private:
   QVariant vettingData(const session::CandidateState& state, int column, int role) const;
   Observation* m_obs;
+  std::vector<char> m_crossesBrighter;  ///< per candidate of the result, made by reload()
 };
 
 class CandidateFilter : public QSortFilterProxyModel {

@@ -7,6 +7,7 @@
 #include <QPushButton>
 #include <QTableWidget>
 #include <QVBoxLayout>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <mutex>
@@ -85,10 +86,11 @@ FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidg
   m_cost->graph(0)->setPen(QPen(QColor(40, 90, 200), 2));
   m_cost->graph(0)->setScatterStyle(QCPScatterStyle(QCPScatterStyle::ssDisc, 5));
   m_cost->xAxis->setLabel("iteration");
-  m_cost->yAxis->setLabel("cost C");
-  m_cost->yAxis->setScaleType(QCPAxis::stLogarithmic);
+  // The change from the first cost, in per cent: a fit on noise-dominated data moves C (~2e8 on the demo) by
+  // a fraction of a per cent, which absolute ticks could not tell apart (they all read 2.048e+08).
+  m_cost->yAxis->setLabel("ΔC / C0 [%]");
   m_cost->yAxis->setNumberFormat("g");
-  m_cost->yAxis->setNumberPrecision(6);
+  m_cost->yAxis->setNumberPrecision(3);
   m_residual = new StampStrip(this);
   m_residual->setObjectName("fit data, model, residual");  // a figure source under this name
   m_residual->setMinimumHeight(130);
@@ -211,23 +213,18 @@ void FitPanel::cancel() {
 
 void FitPanel::rescaleCost() {
   m_cost->rescaleAxes();
-  // Log scale; decade ticks only when the cost spans a decade (a fit on noise-dominated data often changes
-  // C by a fraction of a per cent, where decade ticks would all read the same).
+  // From the first cost (0) down to the lowest, with a margin; a flat fit still gets a readable range.
   const QCPRange r = m_cost->yAxis->range();
-  const bool decades = r.lower > 0 && r.upper / r.lower > 10.0;
-  if (decades != m_logTicks) {
-    m_logTicks = decades;
-    m_cost->yAxis->setTicker(decades ? QSharedPointer<QCPAxisTicker>(new QCPAxisTickerLog)
-                                     : QSharedPointer<QCPAxisTicker>(new QCPAxisTicker));
-  }
-  m_cost->yAxis->scaleRange(1.05, m_cost->yAxis->range().center());
+  const double span = std::max(r.upper - r.lower, 1e-6);
+  m_cost->yAxis->setRange(r.lower - 0.05 * span, std::max(r.upper, 0.0) + 0.05 * span);
   m_cost->xAxis->setRange(-0.3, std::max(2.0, m_cost->xAxis->range().upper + 0.3));
 }
 
 void FitPanel::resetPlots() {
   m_cost->graph(0)->data()->clear();
+  m_cost0 = 0.0;
   m_cost->xAxis->setRange(0, 5);
-  m_cost->yAxis->setRange(1, 10);
+  m_cost->yAxis->setRange(-1, 0.1);
   m_cost->replot();
   m_residual->clear();
   m_table->setRowCount(0);
@@ -295,8 +292,10 @@ void FitPanel::drainLive() {
     m_live->residual.reset();
     m_live->posted = false;
   }
-  for (const auto& [it, cost] : points)
-    m_cost->graph(0)->addData(it, cost);
+  for (const auto& [it, cost] : points) {
+    if (m_cost->graph(0)->dataCount() == 0) m_cost0 = cost;
+    m_cost->graph(0)->addData(it, m_cost0 > 0.0 ? 100.0 * (cost / m_cost0 - 1.0) : 0.0);
+  }
   rescaleCost();
   m_cost->replot(QCustomPlot::rpQueuedReplot);
   if (residual) m_residual->setTiles({{residual, "residual (live)", false}});
@@ -311,9 +310,10 @@ void FitPanel::showOutcome(const FitOutcome& out) {
   const fit::FitResult& r = out.result;
   // The complete history (the live points were throttled, never dropped, but this is the reference).
   QVector<double> x, y;
+  if (!r.costHistory.empty()) m_cost0 = r.costHistory.front();
   for (std::size_t i = 0; i < r.costHistory.size(); ++i) {
     x.push_back(static_cast<double>(i));
-    y.push_back(r.costHistory[i]);
+    y.push_back(m_cost0 > 0.0 ? 100.0 * (r.costHistory[i] / m_cost0 - 1.0) : 0.0);
   }
   if (!r.costHistory.empty()) m_cost->graph(0)->setData(x, y, true);
   rescaleCost();

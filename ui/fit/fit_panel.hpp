@@ -91,7 +91,7 @@ class FitPanel : public QWidget {
   std::shared_ptr<const FitOutcome> m_outcome;
   int m_fittedIndex = -1;
   int m_runningIndex = -1;
-  bool m_logTicks = false;
+  double m_cost0 = 0.0;  ///< the fit's first cost: the plot shows its change from there, C / C0 - 1
 };
 
 }  // namespace st::ui

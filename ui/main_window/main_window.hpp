@@ -212,6 +212,7 @@ class MainWindow : public QMainWindow {
   QString m_plateSolveSummary;  ///< the last plate solve's success
   std::vector<StageSpec> m_preparedStages;  ///< the stages the current pre-processed cube was made with
   bool m_scripted = false;
+  QStringList m_loadingPaths;  ///< the inputs of the load job in flight (none for the demo)
   FigureDialog* m_figureDialog = nullptr;
   ReportDialog* m_reportDialog = nullptr;
   RecoveryDialog* m_recoveryDialog = nullptr;

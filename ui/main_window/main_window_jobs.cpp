@@ -41,7 +41,6 @@ void MainWindow::openInputs(const QStringList& paths) {
   auto load = m_services.loadFrames;
   const QString label =
       paths.size() == 1 ? QFileInfo(paths.front()).fileName() : QString("%1 inputs").arg(paths.size());
-  addRecent(paths);
   m_demoGrid = false;
   m_processing->clearFiles();
   const CalibrationOffer offer = offerCalibrationFolders(paths);
@@ -75,11 +74,16 @@ void MainWindow::openInputs(const QStringList& paths) {
     auto cube = std::make_shared<const FrameCube>(load(inputs, progress, cancel));
     return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
   });
-  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+  if (!started) {
+    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    return;
+  }
+  m_loadingPaths = paths;  // to the recent files once they have opened (onJobFinished)
 }
 
 void MainWindow::openDemo() {
   auto simulate = m_services.simulateDemo;
+  m_loadingPaths.clear();
   m_demoGrid = true;
   m_processing->clearFiles();
   m_search->setParams(pipeline::demoSearchParams());  // as synthtrack-cli demo
@@ -192,6 +196,13 @@ void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QStr
                                   .arg(m_obs->result() ? "; the previous result is shown" : ""));
   } else if (!ok) {
     m_jobLabel->setText(name + " failed");
+    // A file that would not open says why in the central view too (the status bar's line is cut short and
+    // gone after 10 s; a scripted run shows no dialog), and stays out of the recent files.
+    if (kind == JobKind::Load && !m_obs->raw())
+      m_view->setPlaceholder(
+          (m_loadingPaths.isEmpty() ? QString("Could not open the demo observation:\n")
+                                    : "Could not open " + m_loadingPaths.join(", ") + ":\n") +
+          message + "\n\n" + ImageView::defaultPlaceholder());
     if (kind == JobKind::PlateSolve)  // the WCS banner keeps the message, with "Try again" and "Settings…"
       statusBar()->showMessage(name + " failed: " + message, 20000);
     else
@@ -202,6 +213,11 @@ void MainWindow::onJobFinished(JobKind kind, bool ok, bool cancelled, const QStr
   // A cube written by `synthtrack-cli preprocess` opens as prepared whatever the setting: the service takes
   // its header's PSF, noise and sky rate and does not run the pipeline on it again.
   // Out of core it is opened pre-processed already.
+  if (ok && kind == JobKind::Load) {
+    if (!m_loadingPaths.isEmpty()) addRecent(m_loadingPaths);
+    m_view->setPlaceholder(ImageView::defaultPlaceholder());
+  }
+  if (kind == JobKind::Load) m_loadingPaths.clear();
   if (ok && kind == JobKind::Load && !outOfCore() && (m_autoPreprocess || rawIsPrepared())) runPreprocess();
 }
 

@@ -169,7 +169,7 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
   const auto& states = obs.candidateStates();
   for (std::size_t i = 0; i < result->candidates.size(); ++i) {
     session::CandidateState state = i < states.size() ? states[i] : session::CandidateState{};
-    state.search = candidate::measureSearch(cube, result->grid, result->candidates[i]);
+    state.search = candidate::measureSearch(cube, result->grid, result->candidates[i], &result->candidates);
     s.candidates.push_back(std::move(state));
   }
   return s;

@@ -14,9 +14,12 @@ ImageView::ImageView(QWidget* parent) : QWidget(parent) {
   setMouseTracking(true);
   setMinimumSize(200, 200);
   setAttribute(Qt::WA_OpaquePaintEvent);
-  m_placeholder =
-      tr("Open a FITS cube (File → Open), a folder, drop files here, or open the demo observation "
-         "(File → Open demo observation, Ctrl+D)");
+  m_placeholder = defaultPlaceholder();
+}
+
+QString ImageView::defaultPlaceholder() {
+  return tr("Open a FITS cube (File → Open), a folder, drop files here, or open the demo observation "
+            "(File → Open demo observation, Ctrl+D)");
 }
 
 void ImageView::setImage(std::shared_ptr<const Image> image, bool keepLimits) {

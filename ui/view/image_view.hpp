@@ -46,6 +46,9 @@ class ImageView : public QWidget {
   [[nodiscard]] const QString& overlayText() const noexcept { return m_overlay; }
   /// Text shown while there is no image.
   void setPlaceholder(const QString& text);
+  /// What an empty view says: how to open a cube or the demo.
+  [[nodiscard]] static QString defaultPlaceholder();
+  [[nodiscard]] const QString& placeholder() const noexcept { return m_placeholder; }
 
   [[nodiscard]] double zoom() const noexcept { return m_zoom; }
   void setZoom(double zoom);
