@@ -28,7 +28,7 @@ X, Y: 0-based pixel at the cube's reference epoch (mean mid-time); VX, VY in px/
   --fwhm F | --psf-r R --psf-beta B   PSF (Moffat; with --fwhm alone beta = 4, the paper's)
   --segments K          segment checks with K equal-time segments (default 4; 0 = none)
   --sigma-n S           per-pixel noise of one frame, data units (default: from the fit residuals)
-  --gain G              photons (e-) per data unit (default 1)
+  --gain G              photons (e-) per data unit (default: GAIN, else EGAIN, over EMGAIN; else 1)
   --stamp H             stamp half-size, px (default ceil(3 FWHM))
   --max-iter N          Levenberg-Marquardt iterations (default 100)
   --sky-vx-px-s V, --sky-vy-px-s V   motion of the stars, px/s (default 0: tracked)
@@ -246,7 +246,6 @@ int cmdFit(const Args& args) {
   fit::FitOptions opt;
   opt.psf = psfFromArgs(a);
   opt.sigmaN = a.number("sigma-n");
-  opt.gain = a.number("gain", 1.0);
   opt.stampHalfSize = static_cast<int>(a.integer("stamp").value_or(0));
   opt.maxIterations = static_cast<int>(a.integer("max-iter").value_or(100));
   const int segments = static_cast<int>(a.integer("segments").value_or(4));
@@ -260,6 +259,8 @@ int cmdFit(const Args& args) {
   progress.finish();
   for (const auto& w : cube.warnings)
     std::fprintf(stderr, "warning: %s\n", w.c_str());
+  // The header's photo-electrons per count (GAIN, or EGAIN, over EMGAIN) unless given: as search --fit.
+  opt.gain = a.number("gain").value_or(astro::photoelectronsPerCount(cube.header));
 
   const fit::FitParams start{
       {*a.number("vx-px-s"), *a.number("vy-px-s")}, *a.number("x"), *a.number("y"), std::nan(""), 0.0};

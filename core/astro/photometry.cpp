@@ -6,10 +6,15 @@
 namespace st::astro {
 
 double photoelectronsPerCount(const FitsHeader& header) {
-  const double gain = header.getDouble("GAIN").value_or(1.0);
+  const double gain = header.getDouble("GAIN").value_or(header.getDouble("EGAIN").value_or(1.0));
   const double em = header.getDouble("EMGAIN").value_or(1.0);
   const double perCount = gain > 0.0 && std::isfinite(gain) ? gain : 1.0;
   return em > 1.0 && std::isfinite(em) ? perCount / em : perCount;
+}
+
+double excessNoiseFactor(const FitsHeader& header) {
+  const double em = header.getDouble("EMGAIN").value_or(1.0);
+  return em > 1.0 && std::isfinite(em) ? 2.0 : 1.0;
 }
 
 double photonsFromAmplitude(double alpha, const psf::Moffat& psf, double gain) noexcept {

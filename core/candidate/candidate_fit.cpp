@@ -1,6 +1,7 @@
 #include "st/candidate/candidate_fit.hpp"
 
 #include "st/astro/astrometry.hpp"
+#include "st/astro/photometry.hpp"
 #include "st/io/wcs.hpp"
 #include "st/vet/segments.hpp"
 
@@ -18,6 +19,7 @@ FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepa
   opt.psf = prepared.psf;
   opt.sigmaN = prepared.sigmaN;
   opt.gain = gain;
+  opt.excessNoise = astro::excessNoiseFactor(frames.header);
   const fit::FitResult f = fit::fitComoving(frames, fit::startFromCandidate(c), opt, onIteration, cancel);
   FitSummary s = summarize(f);
   if (f.sigmaN > 0.0) {

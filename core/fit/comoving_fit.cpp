@@ -272,7 +272,8 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
   res.rmsResidual = std::sqrt(st.ev.cost / dof);
   res.sigmaN = o.sigmaN.value_or(res.rmsResidual);
   res.reducedChi2 = res.sigmaN > 0 ? st.ev.cost / (dof * res.sigmaN * res.sigmaN) : 0.0;
-  const ParamMatrix noise = prob.noiseMoment(st.p, res.sigmaN * res.sigmaN, o.gain);
+  const ParamMatrix noise =
+      prob.noiseMoment(st.p, res.sigmaN * res.sigmaN, o.gain / std::max(1.0, o.excessNoise));
   if (!fillCovariance(s, st.ev, noise, res) && res.status == FitStatus::Converged) {
     res.status = FitStatus::Singular;
     res.message = "J^T J is singular at the solution; no uncertainties";

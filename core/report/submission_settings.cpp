@@ -99,7 +99,9 @@ char resolvedCatalogueCode(const SubmissionSettings& s) {
 std::string netCatalogueName(const SubmissionSettings& s) {
   const StarCatalogue* c = findStarCatalogueByCode(resolvedCatalogueCode(s));
   if (c && !c->mpcName.empty()) return std::string(c->mpcName);
-  if (c && s.astCat.empty()) return std::string(c->astCat);
+  // A code given explicitly names its catalogue (by its astCat where the list gives it no other name).
+  const bool given = s.mpcCatalogCode != ' ' && s.mpcCatalogCode != '\0';
+  if (c && (given || s.astCat.empty())) return std::string(c->astCat);
   return s.astCat;
 }
 

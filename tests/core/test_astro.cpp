@@ -31,6 +31,8 @@ TEST(Photometry, ReproducesThePaperMagnitude) {
 TEST(Photometry, PhotoelectronsPerCountFromGainAndEmGain) {
   FitsHeader h;
   EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 1.0);  // neither: counts are photons
+  h.setNumber("EGAIN", 1.5);  // the other spelling, when GAIN is absent
+  EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 1.5);
   h.setNumber("GAIN", 20.0);
   EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 20.0);
   h.setNumber("EMGAIN", 200.0);
@@ -39,6 +41,10 @@ TEST(Photometry, PhotoelectronsPerCountFromGainAndEmGain) {
   EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 20.0);
   h.setNumber("GAIN", -3.0);  // not a gain: counts are photons
   EXPECT_DOUBLE_EQ(photoelectronsPerCount(h), 1.0);
+  // The EM register's excess noise (variance x2) only with a multiplication.
+  EXPECT_DOUBLE_EQ(excessNoiseFactor(h), 1.0);
+  h.setNumber("EMGAIN", 200.0);
+  EXPECT_DOUBLE_EQ(excessNoiseFactor(h), 2.0);
 }
 
 TEST(Photometry, PhotonsFromAmplitudeAndSegmentScatter) {

@@ -166,6 +166,26 @@ TEST(ComovingFit, HessianErrorsMatchThePaperFormulaAndTheSpreadIsHonest) {
   EXPECT_NEAR(r.snr, detectionSnr(src.photons / kPaperPsf.integral(), 50, r.sumP2, 3.0), 5.0);
 }
 
+// The EM register's excess noise doubles the source's photon-noise variance in the noise-model covariance:
+// the same fit, the same parameters, larger noise-model errors (by the photon term's share; here, where the
+// photon and background terms are comparable, by 10-40%); the Hessian errors and eq:sig are unchanged.
+TEST(ComovingFit, ExcessNoiseWidensOnlyTheNoiseModelErrors) {
+  const MovingSource src{24.2, 23.7, {2.0, 1.0}, 300.0};
+  const FrameCube cube = movingCube(src, 50, 3.0, 42);
+  FitOptions o = paperOptions();
+  o.sigmaN = 3.0;
+  const FitResult plain = fitComoving(cube, {{2.1, 0.9}, 24.0, 24.0, std::nan(""), 0.0}, o);
+  o.excessNoise = 2.0;
+  const FitResult em = fitComoving(cube, {{2.1, 0.9}, 24.0, 24.0, std::nan(""), 0.0}, o);
+  ASSERT_TRUE(plain.ok() && em.ok());
+  EXPECT_EQ(em.params.xc, plain.params.xc);
+  EXPECT_EQ(em.sigma[kXc], plain.sigma[kXc]);
+  EXPECT_EQ(em.sigmaPosPaper, plain.sigmaPosPaper);
+  const double ratio = em.sigmaNoiseModel[kXc] / plain.sigmaNoiseModel[kXc];
+  EXPECT_GT(ratio, 1.1);
+  EXPECT_LT(ratio, std::sqrt(2.0));  // the background's share stays as it was
+}
+
 TEST(ComovingFit, FixedVelocityStaysFixed) {
   const MovingSource src{24.4, 23.6, {0.0, 0.0}, 1000.0};
   const FrameCube cube = movingCube(src, 20, 1.0, 7);

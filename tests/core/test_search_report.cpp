@@ -87,7 +87,9 @@ TEST(SearchReport, CellsCrossingAMuchBrighterTrackAreFlagged) {
   search::Candidate same = bright;  // the bright one's own motion (a cell of its cluster)
   same.x = 53;
   same.snr = 150.0;
-  r.candidates = {bright, crossing, away, bright2, same};
+  search::Candidate later = crossing;  // 30 px to the right: the tracks would meet at t = +30 s, after the span
+  later.x = 80;
+  r.candidates = {bright, crossing, away, bright2, same, later};
   const nlohmann::json j = searchResultToJson(fc, r, {"obs.fits"});
   const auto flagged = [&](int i) {
     for (const auto& f : j["candidates"][i]["flags"])
@@ -99,6 +101,7 @@ TEST(SearchReport, CellsCrossingAMuchBrighterTrackAreFlagged) {
   EXPECT_FALSE(flagged(2));
   EXPECT_FALSE(flagged(3));
   EXPECT_FALSE(flagged(4));
+  EXPECT_FALSE(flagged(5));
 }
 
 TEST(SearchReport, CsvHasOneRowPerCandidateWithFlags) {

@@ -160,6 +160,30 @@ def main():
                     b = sky_at_tref(x, y)
                     check(abs(a[0] - b[0]) <= 1e-9 and abs(a[1] - b[1]) <= 1e-9, "stack WCS at (%g, %g)" % (x, y))
 
+        # A fit without RA/Dec, labelled real, mapped through --wcs: its position, and its rate and position
+        # angle from the motion relative to the stars (astropy: the separation and position angle of the
+        # positions 1 s apart through the same t_ref mapping).
+        from astropy.coordinates import SkyCoord
+        import astropy.units as u
+        bare = json.loads(json.dumps(result))
+        f0 = bare["candidates"][0]["fit"]
+        del f0["ra_deg"], f0["dec_deg"]
+        bpath, bjson = os.path.join(tmp, "bare.json"), os.path.join(tmp, "bare_out.json")
+        with open(bpath, "w") as f:
+            json.dump(bare, f)
+        r = run(cli, ["report", bpath, "--label", "1=real", "--wcs", obs, "--candidates-json", bjson])
+        check(r.returncode == 0, "report --wcs of a bare fit: %d %s" % (r.returncode, r.stderr))
+        if r.returncode == 0:
+            got = json.load(open(bjson))["candidates"][0]["fit"]
+            ux, uy = f0["vx_px_s"] - sky[0], f0["vy_px_s"] - sky[1]
+            a0 = SkyCoord(*sky_at_tref(f0["x"], f0["y"]), unit="deg")
+            a1 = SkyCoord(*sky_at_tref(f0["x"] + ux, f0["y"] + uy), unit="deg")
+            want_rate = a0.separation(a1).deg * 86400.0
+            want_pa = a0.position_angle(a1).deg % 360.0
+            check(abs(got["rate_deg_day"] - want_rate) <= 1e-4 * want_rate,
+                  "rate %s vs astropy %s deg/day" % (got.get("rate_deg_day"), want_rate))
+            check(abs(got["pa_deg"] - want_pa) <= 0.01, "PA %s vs astropy %s" % (got.get("pa_deg"), want_pa))
+
         # The session kept the labels; a corrupted session is refused with a backup.
         s = json.load(open(session))
         check([c["label"] for c in s["candidates"]] == ["real", "real", "artifact"], "session labels")

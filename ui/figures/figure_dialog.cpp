@@ -355,6 +355,7 @@ std::function<ImageFigure()> FigureDialog::presetBuilder(QString& error) {
   // The accepted fit's track when there is one (its stack, title SNR and motion), else the search cell's.
   const ShownTrack shown = shownTrack(*obs, *obs->selected(), *c);
   o.motion = describeMotion(motionVsSky(*obs, shown.x, shown.y, shown.v));
+  o.snrLabel = shown.fitted ? "fit SNR" : "search SNR";
   search::Candidate track = *c;
   track.x = static_cast<int>(std::lround(shown.x));
   track.y = static_cast<int>(std::lround(shown.y));
@@ -436,8 +437,8 @@ std::function<ImageFigure()> FigureDialog::sheetBuilder(Source::Sheet which, QSt
   for (int i : chosen) {
     const search::Candidate& c = obs->result()->candidates[static_cast<std::size_t>(i)];
     const session::CandidateState* state = obs->candidateState(i);
-    const ShownTrack shown = shownTrack(*obs, i, c);
-    entries.push_back({i + 1, c, describeMotion(motionVsSky(*obs, shown.x, shown.y, shown.v)),
+    // The sheet's stamps are stacked at each candidate's search cell: its motion is the cell's too.
+    entries.push_back({i + 1, c, describeMotion(motionVsSky(*obs, c.x, c.y, c.v)),
                        state ? QString(session::toString(state->label)) : QString("unvetted")});
   }
   CandidateSheetOptions o;

@@ -68,8 +68,9 @@ ImageFigure skyAndObjectFigure(const search::FilteredCube& cube, const search::C
   const QPointF offset = side * (2 * fwhm + 2);
   fig.panels[1].arrows.push_back({start + offset, end + offset, QColor(255, 200, 0), "motion"});
 
-  fig.title = QString("Synthetic tracking of candidate #%1 (SNR %2)")
+  fig.title = QString("Synthetic tracking of candidate #%1 (%2 %3)")
                   .arg(options.candidateNumber)
+                  .arg(options.snrLabel)
                   .arg(c.snr, 0, 'f', 1);
   QString onSky = options.motion.isEmpty() ? QString() : ", " + options.motion;
   if (onSky.isEmpty() && options.plateScaleArcsecPerPx && *options.plateScaleArcsecPerPx > 0)

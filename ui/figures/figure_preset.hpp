@@ -23,6 +23,7 @@ struct SkyAndObjectOptions {
   /// The object's motion as the GUI shows it (relative to the stars, in the Search dock's unit:
   /// describeMotion() of motion_vs_sky.hpp), for the caption; empty: deg/day from the plate scale.
   QString motion;
+  QString snrLabel = "SNR";  ///< what the title's SNR is: "fit SNR" or "search SNR"
 };
 
 /// The figure for candidate `c` of `cube`: left, the IPSA stack at c.v; right, the IPSA stack at `skyRate`

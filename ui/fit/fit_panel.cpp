@@ -215,7 +215,7 @@ void FitPanel::rescaleCost() {
   m_cost->rescaleAxes();
   // From the first cost (0) down to the lowest, with a margin; a flat fit still gets a readable range.
   const QCPRange r = m_cost->yAxis->range();
-  const double span = std::max(r.upper - r.lower, 1e-6);
+  const double span = std::max(r.upper - r.lower, 0.01);  // per cent
   m_cost->yAxis->setRange(r.lower - 0.05 * span, std::max(r.upper, 0.0) + 0.05 * span);
   m_cost->xAxis->setRange(-0.3, std::max(2.0, m_cost->xAxis->range().upper + 0.3));
 }

@@ -144,7 +144,8 @@ class MainWindow : public QMainWindow {
   void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
   QWidget* buildCentral();
   void buildStatusBar();
-  void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
+  /// False when another job runs (said in the status bar): nothing started.
+  bool startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
   void onJobFinished(JobKind kind, bool ok, bool cancelled, const QString& message, double elapsedS);
   void onRawChanged();
   void onPreparedChanged();

@@ -35,6 +35,10 @@ namespace st::ui {
 
 void MainWindow::openInputs(const QStringList& paths) {
   if (paths.isEmpty()) return;
+  if (m_jobs->busy()) {  // as openDemo: nothing changes while another job runs
+    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    return;
+  }
   std::vector<std::string> inputs;
   for (const QString& p : paths)
     inputs.push_back(QFileInfo(p).absoluteFilePath().toStdString());
@@ -82,26 +86,32 @@ void MainWindow::openInputs(const QStringList& paths) {
 }
 
 void MainWindow::openDemo() {
+  // Nothing changes while another job runs (the grid, the files, the session and the inputs in flight).
+  if (m_jobs->busy()) {
+    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    return;
+  }
   auto simulate = m_services.simulateDemo;
-  m_loadingPaths.clear();
   m_demoGrid = true;
   m_processing->clearFiles();
   m_search->setParams(pipeline::demoSearchParams());  // as synthtrack-cli demo
   m_session->prepareNew({}, true);
-  startLoad("demo observation (simulated paper-neo)",
-            [simulate](ProgressSink& progress, CancelToken& cancel) {
-              if (!simulate) throwMissingService("simulator");
-              return simulate(progress, cancel);
-            });
+  if (startLoad("demo observation (simulated paper-neo)",
+                [simulate](ProgressSink& progress, CancelToken& cancel) {
+                  if (!simulate) throwMissingService("simulator");
+                  return simulate(progress, cancel);
+                }))
+    m_loadingPaths.clear();  // the demo: no files for the recent list
 }
 
-void MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
+bool MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
   const bool started =
       m_jobs->start(JobKind::Load, [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
         return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
       });
   if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+  return started;
 }
 
 bool MainWindow::rawIsPrepared() const {

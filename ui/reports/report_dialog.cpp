@@ -337,7 +337,8 @@ void ReportDialog::onFinished() {
     lines << "⚠ " + QString::fromStdString(w);
   m_result->setPlainText(lines.join("\n"));
   refreshWarnings();
-  emit exportFinished(r.error.isEmpty(), m_result->toPlainText());
+  // Files asked for and not written (an empty submission) fail the export, as the CLI's exit 1.
+  emit exportFinished(r.error.isEmpty() && r.outcome.notWritten.empty(), m_result->toPlainText());
 }
 
 }  // namespace st::ui

@@ -254,9 +254,11 @@ void ScriptRunner::runExports(const ScriptOptions& script, std::function<void(bo
     // not make a valid file are named (the other reports are still written).
     const report::SubmissionSettings settings = r->submissionSettings();
     const auto& states = m_window->observation()->candidateStates();
+    // A real candidate with a converged fit that has a sky position, as report::realDetections takes them.
     const bool submit = !settings.stationCode.empty() &&
-                        std::any_of(states.begin(), states.end(),
-                                    [](const auto& s) { return s.label == session::Label::Real; });
+                        std::any_of(states.begin(), states.end(), [](const auto& s) {
+                          return s.label == session::Label::Real && s.fitted() && s.fit->sky;
+                        });
     bool ades = false, mpc = false;
     if (submit) {
       const auto adesProblems = report::submissionProblems(settings, report::SubmissionFormat::Ades);

@@ -10,12 +10,15 @@
 
 namespace st::astro {
 
-/// Photo-electrons per data unit of a frame from its header: GAIN (e-/ADU at the output amplifier; 1 when
-/// absent or not positive) divided by EMGAIN when it is above 1 (an EMCCD's multiplication: each detected
+/// Photo-electrons per data unit of a frame from its header: GAIN (e-/ADU at the output amplifier; else
+/// EGAIN; 1 when neither or not positive) divided by EMGAIN when it is above 1 (an EMCCD's multiplication: each detected
 /// photon leaves the register as EMGAIN electrons on average). The `gain` of photonsFromAmplitude and the
 /// co-moving fit; GAIN alone counted an EMCCD's photons EMGAIN times over (the paper-neo demo: 2489 for
 /// the truth's 12.2 photons per frame).
 [[nodiscard]] double photoelectronsPerCount(const FitsHeader& header);
+/// The source's photon-noise variance over Poisson's for a frame from its header: 2 with EMGAIN above 1 (an
+/// EMCCD's multiplication register at high gain; the simulator's EMCCD presets draw it so), else 1.
+[[nodiscard]] double excessNoiseFactor(const FitsHeader& header);
 
 /// Photons per frame of a source of PSF amplitude alpha (data units, P with peak 1): gain * alpha * sum P,
 /// with sum P over pixels = the Moffat integral pi R^2 / (beta - 1). gain in photons (e-) per data unit.

@@ -69,6 +69,9 @@ struct FitOptions {
   bool fitBackground = true;         ///< fit I0; false keeps it at the start value (frames are zero-biased)
   std::optional<double> sigmaN;      ///< per-pixel noise of one frame (data units); default: from residuals
   double gain = 1.0;                 ///< photons per data unit (e-/ADU) for photon counts and eq:sig
+  /// The source's photon-noise variance over Poisson's, in the noise model's covariance: 2 for an EMCCD's
+  /// multiplication register at high gain (astro::excessNoiseFactor), 1 otherwise. eq:sig stays the paper's.
+  double excessNoise = 1.0;
   int maxRecentre = 3;               ///< stamp re-centrings after convergence
   std::optional<double> maxShiftPx;  ///< Diverged when the position moves further from the start (default h)
   std::vector<std::size_t> frames;   ///< frames to use (indices into the cube); empty = all
