@@ -114,7 +114,12 @@ void writeSubmission(const ReportRequest& r, ReportOutcome& out) {
     // An ADES file needs at least one observation (submit.xsd: obsData holds one or more), and an empty
     // 80-column message is no submission either: none is written.
     for (const ReportFile file : {ReportFile::AdesPsv, ReportFile::AdesXml, ReportFile::Mpc80})
-      if (const std::string* path = pathOf(r, file)) out.notWritten.push_back(*path);
+      if (const std::string* path = pathOf(r, file)) {
+        out.notWritten.push_back(*path);
+        std::error_code ec;
+        if (fs::exists(*path, ec))  // not this run's: it must not be taken for one
+          warnings.push_back("'" + *path + "' is an earlier file, left as it was: not this run's submission");
+      }
     warnings.push_back(
         "no candidate is labelled real with a sky position: nothing to submit, no ADES or MPC file written");
     out.warnings.insert(out.warnings.end(), warnings.begin(), warnings.end());

@@ -175,6 +175,14 @@ TEST(SessionReport, AnEmptySubmissionIsNotWritten) {
   EXPECT_TRUE(again.notWritten.empty());
   for (const auto& path : {psv, xml, mpc})
     EXPECT_TRUE(std::filesystem::exists(path)) << path;
+  // Nothing to submit again: the earlier files stay, and each is said not to be this run's.
+  r.session.candidates[0].label = session::Label::Unsure;
+  const ReportOutcome stale = writeReports(r, progress, cancel);
+  EXPECT_EQ(stale.notWritten.size(), 3u);
+  int said = 0;
+  for (const auto& w : stale.warnings)
+    said += w.find("an earlier file, left as it was") != std::string::npos;
+  EXPECT_EQ(said, 3);
 }
 
 TEST(SessionReport, RegionMarksUseFitsAndLabelColours) {
