@@ -74,7 +74,10 @@ void printText(const io::InputSummary& s) {
                      : s.bitpix == 80 ? 64
                                       : s.bitpix;
   std::printf("BITPIX:      %d (%s)\n", stored, bitpixText(s.bitpix));
-  std::printf("first frame: MJD %.8f (%s UTC, mid-exposure)\n", s.firstMjd, isoFromMjd(s.firstMjd).c_str());
+  // A start time without an exposure time is no mid-time (io::frameTimeFromHeader's "(start), no exposure").
+  const bool startOnly = s.timeSource.find("no exposure") != std::string::npos;
+  std::printf("first frame: MJD %.8f (%s UTC, %s)\n", s.firstMjd, isoFromMjd(s.firstMjd).c_str(),
+              startOnly ? "start of the exposure: no exposure time, so the mid-time is unknown" : "mid-exposure");
   std::printf("last frame:  MJD %.8f (%s UTC)\n", s.lastMjd, isoFromMjd(s.lastMjd).c_str());
   std::printf("time span:   %.3f s\n", (s.lastMjd - s.firstMjd) * kSecondsPerDay);
   if (s.frames > 1) {

@@ -98,6 +98,14 @@ def main():
         # Usage and input errors: exit codes 2 and 1, one line on stderr.
         r = run_cli(cli, ["convert", inp])
         check(r.returncode == 2 and r.stderr.count("\n") == 1, f"convert without -o: rc {r.returncode}, {r.stderr!r}")
+        # A start time without an exposure time is said to be a start, not a mid-exposure time.
+        bare = os.path.join(tmp, "noexp.fits")
+        hdu = fits.PrimaryHDU(np.zeros((8, 8), dtype=np.float32))
+        hdu.header["DATE-OBS"] = "2026-01-02T03:04:05.0"
+        hdu.writeto(bare)
+        r = run_cli(cli, ["info", bare])
+        check(r.returncode == 0 and "start of the exposure" in r.stdout and "mid-exposure" not in r.stdout,
+              f"info without EXPTIME: rc {r.returncode}, {r.stdout!r}")
         r = run_cli(cli, ["info", os.path.join(tmp, "missing.fits")])
         check(r.returncode == 1 and "missing.fits" in r.stderr and r.stderr.count("\n") == 1,
               f"info on a missing file: rc {r.returncode}, {r.stderr!r}")
