@@ -7,7 +7,6 @@
 #include <map>
 #include <set>
 
-#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/report/candidate_json.hpp"
 #include "load_args.hpp"
@@ -126,9 +125,7 @@ void addTrackSnr(nlohmann::json& catalogue, const std::vector<batch::Observation
       c.v = {state[2], state[3]};
       c.snr = entry.value("snr", 0.0);
       c.nIn = static_cast<int>(prepared.frames.frameCount());
-      const double gain = astro::photoelectronsPerCount(prepared.frames.header);
-      nlohmann::json fit =
-          report::toFlatJson(candidate::fitCandidate(prepared, c, gain, processCancelToken()));
+      nlohmann::json fit = report::toFlatJson(candidate::fitCandidate(prepared, c, processCancelToken()));
       entry["track"] = {{"status", fit.value("status", std::string())},
                         {"snr", fit.value("snr", 0.0)},
                         {"method", "co-moving fit over the union of the observations its track crosses"},

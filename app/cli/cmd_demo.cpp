@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "backend_factory.hpp"
-#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/report/candidate_json.hpp"
 #include "cli_args.hpp"
@@ -162,7 +161,6 @@ int cmdDemo(const Args& args) {
   progress.finish();
   timings.mark("simulated and written");
   const double simulatedAt = timings.elapsed();
-  const double gain = astro::photoelectronsPerCount(sim.cube.header);
 
   // 2. Pre-processing (the raw cube becomes the zero-biased cube in place).
   // On the search's device when it is a GPU (per-pixel background and matched filter, issue 16).
@@ -194,7 +192,7 @@ int cmdDemo(const Args& args) {
   std::vector<std::optional<candidate::FitSummary>> fits(result.candidates.size());  // typed; JSON only written
   for (int i = 0; i < nFits; ++i) {
     progress.report(0.9 + 0.1 * i / std::max(1, nFits), "co-moving fits");
-    fits[i] = candidate::fitCandidate(prepared, result.candidates[i], gain, cancel);
+    fits[i] = candidate::fitCandidate(prepared, result.candidates[i], cancel);
     report["candidates"][i]["fit"] = report::toFlatJson(*fits[i]);
   }
   progress.finish();

@@ -141,10 +141,6 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (settings != ed.session().settings) ed.setSettings(settings);
 }
 
-Velocity skyRateOf(const session::Session& s) {
-  return report::sessionSkyRate(s);
-}
-
 /// The WCS of --wcs FILE, mapping pixels at t_ref (the file's WCSEPOCH, else its first frame's time, is the
 /// epoch its WCS belongs to). Holds the loaded cube so the mapping's Wcs stays alive.
 struct WcsMapping {
@@ -160,7 +156,7 @@ std::optional<WcsMapping> loadWcs(const CliArgs& cli, const session::Session& s)
   if (!m.cube.wcs) throw InputError("'" + *file + "' has no usable celestial WCS");
   const double epoch = m.cube.header.getDouble("WCSEPOCH").value_or(m.cube.info().front().mjdMid);
   const double tRef = s.search.value("t_ref_mjd", epoch);
-  m.toSky = report::skyMappingAtTRef(*m.cube.wcs, skyRateOf(s), (epoch - tRef) * 86400.0);
+  m.toSky = report::skyMappingAtTRef(*m.cube.wcs, report::sessionSkyRate(s), (epoch - tRef) * 86400.0);
   return m;
 }
 
@@ -208,12 +204,12 @@ report::SubmissionSettings submissionSettings(const nlohmann::json& json, const 
 /// Real candidates whose converged fit has no sky position get one through the --wcs mapping (in memory).
 session::Session withSkyPositions(session::Session s, const std::optional<WcsMapping>& wcs) {
   if (!wcs) return s;
+  const Velocity sky = report::sessionSkyRate(s);
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     auto& c = s.candidates[i];
     if (c.label != session::Label::Real || !c.fitted() || c.fit->sky) continue;
     const auto p = wcs->toSky(c.fit->x, c.fit->y);
     // Its motion on the sky: the fitted velocity relative to the stars through the mapping's local scale.
-    const Velocity sky = skyRateOf(s);
     const astro::SkyMotion m =
         astro::skyMotionAt(wcs->toSky, c.fit->x, c.fit->y, {c.fit->v.vx - sky.vx, c.fit->v.vy - sky.vy});
     c.fit->sky =

@@ -6,7 +6,6 @@
 #include <optional>
 
 #include "backend_factory.hpp"
-#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/report/candidate_json.hpp"
 #include "load_args.hpp"
@@ -438,11 +437,10 @@ nlohmann::json runObservation(const ObservationInput& in, const SearchOptions& o
                  {"tiles", memory.tiles},
                  {"peak_resident_bytes", peakResidentBytes()}};
   if (fit) {
-    const double gain = astro::photoelectronsPerCount(prepared->frames.header);
     for (std::size_t i = 0; i < r.candidates.size() && static_cast<long long>(i) < o.fitMax; ++i) {
       progress.report(static_cast<double>(i) / static_cast<double>(r.candidates.size()), "co-moving fits");
       j["candidates"][i]["fit"] =
-          report::toFlatJson(candidate::fitCandidate(*prepared, r.candidates[i], gain, cancel));
+          report::toFlatJson(candidate::fitCandidate(*prepared, r.candidates[i], cancel));
     }
   }
   return j;

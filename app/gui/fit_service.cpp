@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cmath>
 
-#include "st/astro/photometry.hpp"
 #include "st/candidate/candidate_fit.hpp"
 #include "st/common/error.hpp"
 
@@ -15,7 +14,6 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
     throw InputError("co-moving fit: pre-processing kept no unfiltered frames or PSF (run it again)");
   const FrameCube& frames = prepared.unfiltered->frames;
   const pipeline::Prepared& products = *prepared.products;
-  const double gain = astro::photoelectronsPerCount(frames.header);
   fit::FitOptions stackOptions;
   stackOptions.psf = products.psf;
   using Clock = std::chrono::steady_clock;
@@ -31,7 +29,7 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
     onStep(step);
   };
   ui::FitOutcome out;
-  out.summary = candidate::fitCandidate(frames, products, candidate, gain, cancel, onIteration, &out.result);
+  out.summary = candidate::fitCandidate(frames, products, candidate, cancel, onIteration, &out.result);
   return out;
 }
 

@@ -7,18 +7,17 @@
 
 namespace st::candidate {
 
-FitSummary fitCandidate(const pipeline::Prepared& prepared, const search::Candidate& c, double gain,
-                        CancelToken& cancel) {
-  return fitCandidate(prepared.frames, prepared, c, gain, cancel);
+FitSummary fitCandidate(const pipeline::Prepared& prepared, const search::Candidate& c, CancelToken& cancel) {
+  return fitCandidate(prepared.frames, prepared, c, cancel);
 }
 
-FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepared, const search::Candidate& c,
-                        double gain, CancelToken& cancel, const fit::IterationCallback& onIteration,
-                        fit::FitResult* result) {
+FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepared,
+                        const search::Candidate& c, CancelToken& cancel,
+                        const fit::IterationCallback& onIteration, fit::FitResult* result) {
   fit::FitOptions opt;
   opt.psf = prepared.psf;
   opt.sigmaN = prepared.sigmaN;
-  opt.gain = gain;
+  opt.gain = astro::photoelectronsPerCount(frames.header);
   opt.excessNoise = astro::excessNoiseFactor(frames.header);
   const fit::FitResult f = fit::fitComoving(frames, fit::startFromCandidate(c), opt, onIteration, cancel);
   FitSummary s = summarize(f);

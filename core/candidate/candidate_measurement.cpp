@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <utility>
 
 #include "st/common/error.hpp"
+#include "st/search/sidelobes.hpp"
 #include "st/search/sky_motion.hpp"
 
 namespace st::candidate {
@@ -95,37 +97,37 @@ FitSummary summarize(const fit::FitResult& f) {
   return s;
 }
 
-namespace {
-
-// Closest approach (px) of two straight tracks over [t0, t1] (seconds from t_ref).
-double closestApproach(const search::Candidate& a, const search::Candidate& b, double t0, double t1) {
-  const double px = a.x - b.x, py = a.y - b.y;
-  const double vx = a.v.vx - b.v.vx, vy = a.v.vy - b.v.vy;
-  const double v2 = vx * vx + vy * vy;
-  const double t = v2 > 0.0 ? std::clamp(-(px * vx + py * vy) / v2, t0, t1) : 0.0;
-  return std::hypot(px + vx * t, py + vy * t);
-}
-
-bool crossesBrighter(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                     const search::Candidate& c, const std::vector<search::Candidate>& all) {
+std::vector<char> crossesBrighter(const search::FilteredCube& cube, const search::VelocityGrid& grid,
+                                  const std::vector<search::Candidate>& all) {
   constexpr double kBrighter = 10.0;  // SNR ratio
+  std::vector<char> out(all.size(), 0);
+  // The frames' span, read once, and only when a pair needs it (a cube without frames has no times).
+  std::optional<std::pair<double, double>> span;
+  const auto spanOfFrames = [&] {
+    if (!span) {
+      const auto dt = cube.frames.timeOffsetsS();
+      const auto [t0, t1] = std::minmax_element(dt.begin(), dt.end());
+      span = dt.empty() ? std::pair{0.0, 0.0} : std::pair{*t0, *t1};
+    }
+    return *span;
+  };
   const double reach = 2.0 * (cube.psfFwhmPx > 0.0 ? cube.psfFwhmPx : 3.0);
-  std::vector<double> dt;  // the frames' times, read once a brighter candidate at another motion is there
-  for (const search::Candidate& b : all) {
-    if (!(b.snr >= kBrighter * c.snr)) continue;
-    if (std::hypot(b.v.vx - c.v.vx, b.v.vy - c.v.vy) <= grid.stepPxS) continue;  // the same motion
-    if (dt.empty()) dt = cube.frames.timeOffsetsS();
-    if (dt.empty()) return false;
-    const auto [t0, t1] = std::minmax_element(dt.begin(), dt.end());
-    if (closestApproach(c, b, *t0, *t1) <= reach) return true;
-  }
-  return false;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    for (const search::Candidate& b : all) {
+      const search::Candidate& c = all[i];
+      if (!(b.snr >= kBrighter * c.snr)) continue;
+      if (std::hypot(b.v.vx - c.v.vx, b.v.vy - c.v.vy) <= grid.stepPxS) continue;  // the same motion
+      const auto [t0, t1] = spanOfFrames();
+      if (search::closestApproach(c, b, t0, t1) <= reach) {
+        out[i] = 1;
+        break;
+      }
+    }
+  return out;
 }
-
-}  // namespace
 
 SearchMeasurement measureSearch(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                                const search::Candidate& c, const std::vector<search::Candidate>* all) {
+                                const search::Candidate& c, bool crossingBrighter) {
   SearchMeasurement m;
   m.cell = c;
   const Velocity onSky{c.v.vx - cube.skyRate.vx, c.v.vy - cube.skyRate.vy};
@@ -133,7 +135,7 @@ SearchMeasurement measureSearch(const search::FilteredCube& cube, const search::
   if (std::abs(onSky.vx) <= grid.stepPxS && std::abs(onSky.vy) <= grid.stepPxS) m.flags.push_back("at_sky_rate");
   // Fewer frames than the cube has: the track leaves the frame (edge of the field).
   if (static_cast<std::size_t>(c.nIn) < cube.frames.frameCount()) m.flags.push_back("partial");
-  if (all && crossesBrighter(cube, grid, c, *all)) m.flags.push_back("crosses_brighter");
+  if (crossingBrighter) m.flags.push_back("crosses_brighter");
   const search::SkyMotion motion = search::skyMotion(cube.frames, c.x, c.y, onSky);
   m.rateDegPerDay = motion.rateDegPerDay;
   m.paDeg = motion.paDeg;

@@ -226,10 +226,7 @@ FitsHeader frameHeader(const LoadPlan& plan, std::vector<std::string>& warnings)
 }
 
 void attachWcs(FrameCube& cube, const LoadOptions& options) {
-  FitsHeader forWcs = cube.header;
-  forWcs.set("NAXIS", "2");
-  forWcs.erase("NAXIS3");
-  cube.wcs = Wcs::fromHeader(forWcs, &cube.warnings);
+  cube.wcs = cubeWcs(cube.header, &cube.warnings);
   if (options.plateScaleArcsecPerPx && (options.forcePlateScale || !cube.wcs)) {
     cube.plateScaleArcsecPerPx = options.plateScaleArcsecPerPx;
   } else if (cube.wcs) {
@@ -256,6 +253,13 @@ void checkMemory(const LoadPlan& plan) {
 }
 
 }  // namespace
+
+std::shared_ptr<const Wcs> cubeWcs(const FitsHeader& header, std::vector<std::string>* warnings) {
+  FitsHeader forWcs = header;
+  forWcs.set("NAXIS", "2");
+  forWcs.erase("NAXIS3");
+  return Wcs::fromHeader(forWcs, warnings);
+}
 
 FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& options,
                      ProgressSink& progress, CancelToken& cancel) {

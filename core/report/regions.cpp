@@ -71,15 +71,15 @@ std::string ds9Regions(const std::vector<RegionMark>& marks, const astro::PixelT
       out += line("circle(%.3f,%.3f,%.3f)", m.x + 1.0, m.y + 1.0, m.radiusPx) + props + "\n";
     }
     if (m.velocity) {
-      const double x0 = m.x + m.velocity->vx * m.trackStartS, y0 = m.y + m.velocity->vy * m.trackStartS;
-      const double x1 = m.x + m.velocity->vx * m.trackEndS, y1 = m.y + m.velocity->vy * m.trackEndS;
+      // At time t the object is at (x, y) + v t on the detector, where the mapping of t_ref shows the sky of
+      // (x, y) + (v - skyRate) t: on the sky the track is the motion relative to the stars.
+      const Velocity u =
+          toSky ? Velocity{m.velocity->vx - m.skyRate.vx, m.velocity->vy - m.skyRate.vy} : *m.velocity;
+      const double x0 = m.x + u.vx * m.trackStartS, y0 = m.y + u.vy * m.trackStartS;
+      const double x1 = m.x + u.vx * m.trackEndS, y1 = m.y + u.vy * m.trackEndS;
       const std::string lprops = " # line=0 1 color=" + cleanText(m.color);
       if (toSky) {
-        // At time t the object is at (x, y) + v t on the detector, where the mapping of t_ref shows the sky
-        // of (x, y) + (v - skyRate) t: the detector track through the t_ref mapping would add the drift.
-        const double ux = m.velocity->vx - m.skyRate.vx, uy = m.velocity->vy - m.skyRate.vy;
-        const auto a = toSky(m.x + ux * m.trackStartS, m.y + uy * m.trackStartS);
-        const auto b = toSky(m.x + ux * m.trackEndS, m.y + uy * m.trackEndS);
+        const auto a = toSky(x0, y0), b = toSky(x1, y1);
         out += line("line(%.7f,%+.7f,%.7f,%+.7f)", a.raDeg, a.decDeg, b.raDeg, b.decDeg) + lprops + "\n";
       } else {
         out += line("line(%.3f,%.3f,%.3f,%.3f)", x0 + 1.0, y0 + 1.0, x1 + 1.0, y1 + 1.0) + lprops + "\n";

@@ -20,10 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-Velocity skyRateOf(const session::Session& s) {
-  return sessionSkyRate(s);
-}
-
 void makeParent(const std::string& path) {
   const fs::path parent = fs::path(path).parent_path();
   if (parent.empty()) return;
@@ -60,7 +56,7 @@ std::string numberField(std::optional<double> v) {
 void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
   const FrameCube& cube = *r.raw;
   const auto& c = r.session.candidates[i];
-  const Velocity sky = skyRateOf(r.session);
+  const Velocity sky = sessionSkyRate(r.session);
   const auto dt = cube.timeOffsetsS();
   const std::vector<bool> which = r.stacksObjectOnly ? std::vector<bool>{true} : std::vector<bool>{false, true};
   for (const bool object : which) {
@@ -179,7 +175,7 @@ RegionContext regionContext(const FrameCube* raw, const session::Session& s) {
   ctx.trackStartS = dt.front();
   ctx.trackEndS = dt.back();
   if (raw->wcs) {
-    ctx.toSky = skyMappingAtTRef(*raw->wcs, skyRateOf(s), dt.front());
+    ctx.toSky = skyMappingAtTRef(*raw->wcs, sessionSkyRate(s), dt.front());
     ctx.frame = ds9SkyFrame(*raw->wcs);
   }
   return ctx;

@@ -28,8 +28,8 @@ std::string csvQuoted(const std::string& text) {
 }  // namespace
 
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                               const search::Candidate& c, const std::vector<search::Candidate>* all) {
-  return toJson(candidate::measureSearch(cube, grid, c, all));
+                               const search::Candidate& c, bool crossingBrighter) {
+  return toJson(candidate::measureSearch(cube, grid, c, crossingBrighter));
 }
 
 nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search::SearchResult& r,
@@ -63,8 +63,9 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["sidelobes_merged"] = r.sidelobesMerged;
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
-  for (const auto& c : r.candidates)
-    j["candidates"].push_back(candidateToJson(cube, r.grid, c, &r.candidates));
+  const std::vector<char> crossing = candidate::crossesBrighter(cube, r.grid, r.candidates);
+  for (std::size_t i = 0; i < r.candidates.size(); ++i)
+    j["candidates"].push_back(candidateToJson(cube, r.grid, r.candidates[i], crossing[i] != 0));
   j["static_sources"] = nlohmann::json::array();
   for (const auto& c : r.staticSources)
     j["static_sources"].push_back(candidateToJson(cube, r.grid, c));

@@ -80,7 +80,8 @@ double sidelobeSnr(const Candidate& source, const Candidate& cell, const std::ve
   return source.snr * std::sqrt(static_cast<double>(nSource) / nCell) * cross / own;
 }
 
-/// Closest approach (px) of the two straight tracks over [t0, t1].
+}  // namespace
+
 double closestApproach(const Candidate& a, const Candidate& b, double t0, double t1) {
   const double px = a.x - b.x, py = a.y - b.y;
   const double vx = a.v.vx - b.v.vx, vy = a.v.vy - b.v.vy;
@@ -88,8 +89,6 @@ double closestApproach(const Candidate& a, const Candidate& b, double t0, double
   const double t = v2 > 0.0 ? std::clamp(-(px * vx + py * vy) / v2, t0, t1) : 0.0;
   return std::hypot(px + vx * t, py + vy * t);
 }
-
-}  // namespace
 
 double sidelobeSnr(const Candidate& source, const Candidate& cell, const std::vector<double>& dtS, int width,
                    int height, double psfFwhmPx) {

@@ -10,7 +10,7 @@
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
 #include "st/common/units.hpp"
-#include "st/io/wcs.hpp"
+#include "st/io/fits_reader.hpp"
 #include "st/sim/samplers.hpp"
 
 namespace st::sim {
@@ -194,11 +194,9 @@ SimResult simulate(const SimParams& params, std::uint64_t seed, ProgressSink& pr
   result.truth = makeTruth(params, seed, scene, renderer);
   result.cube.header = detail::simHeader(params, seed, scene);
   result.cube.plateScaleArcsecPerPx = params.plateScaleArcsecPerPx;
-  // The header's WCS parsed as a reader would parse the cube written from it (io::loadFrames): a cube used
-  // in memory (the GUI's demo, the CLI demo's stacks) had none, so no sky positions, until written and read.
-  FitsHeader forWcs = result.cube.header;
-  forWcs.set("NAXIS", "2");
-  result.cube.wcs = Wcs::fromHeader(forWcs, &result.cube.warnings);
+  // The header's WCS as the reader attaches it to the cube written from it: a cube used in memory (the GUI's
+  // demo, the CLI demo's stacks) had none, so no sky positions, until written and read.
+  result.cube.wcs = io::cubeWcs(result.cube.header, &result.cube.warnings);
   result.biasFrame = scene.bias;
   result.flatFrame = scene.flat;
   return result;

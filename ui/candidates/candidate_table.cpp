@@ -11,7 +11,6 @@
 #include <QLineEdit>
 #include <QTableView>
 #include <QVBoxLayout>
-#include <algorithm>
 #include <cmath>
 
 #include "candidate_vetting.hpp"
@@ -247,12 +246,8 @@ void CandidateModel::reload() {
   m_crossesBrighter.clear();
   const auto& result = m_obs->result();
   const auto& prepared = m_obs->prepared();
-  if (result && prepared && prepared->filtered) {
-    for (const auto& c : result->candidates) {
-      const auto flags = candidate::measureSearch(*prepared->filtered, result->grid, c, &result->candidates).flags;
-      m_crossesBrighter.push_back(std::find(flags.begin(), flags.end(), "crosses_brighter") != flags.end());
-    }
-  }
+  if (result && prepared && prepared->filtered)
+    m_crossesBrighter = candidate::crossesBrighter(*prepared->filtered, result->grid, result->candidates);
   endResetModel();
 }
 

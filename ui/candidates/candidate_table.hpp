@@ -58,7 +58,7 @@ class CandidateModel : public QAbstractTableModel {
   /// Flags shown for a candidate: "pre-processing mover" for one added from pre-processing's movers
   /// (candidate::isMover), "edge" within 2 PSF widths of the border, "partial" when fewer than all frames
   /// contributed, "crosses brighter" when its track meets a 10 times brighter candidate's
-  /// (candidate::measureSearch).
+  /// (candidate::crossesBrighter).
   QString flagsOf(const search::Candidate& c) const;
   /// Reloads every row, and works out the flags that depend on the other candidates.
   void reload();

@@ -144,8 +144,9 @@ class MainWindow : public QMainWindow {
   void buildVettingDocks(QDockWidget* besideInspector, QDockWidget* candidates);
   QWidget* buildCentral();
   void buildStatusBar();
-  /// False when another job runs (said in the status bar): nothing started.
-  bool startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
+  /// Says in the status bar that another job runs (a request refused).
+  void sayBusy();
+  void startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load);
   void onJobFinished(JobKind kind, bool ok, bool cancelled, const QString& message, double elapsedS);
   void onRawChanged();
   void onPreparedChanged();

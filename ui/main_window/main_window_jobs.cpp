@@ -33,12 +33,13 @@
 
 namespace st::ui {
 
+void MainWindow::sayBusy() {
+  statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+}
+
 void MainWindow::openInputs(const QStringList& paths) {
   if (paths.isEmpty()) return;
-  if (m_jobs->busy()) {  // as openDemo: nothing changes while another job runs
-    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
-    return;
-  }
+  if (m_jobs->busy()) return sayBusy();  // as openDemo: nothing changes while another job runs
   std::vector<std::string> inputs;
   for (const QString& p : paths)
     inputs.push_back(QFileInfo(p).absoluteFilePath().toStdString());
@@ -79,7 +80,7 @@ void MainWindow::openInputs(const QStringList& paths) {
     return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
   });
   if (!started) {
-    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    sayBusy();
     return;
   }
   m_loadingPaths = paths;  // to the recent files once they have opened (onJobFinished)
@@ -87,31 +88,27 @@ void MainWindow::openInputs(const QStringList& paths) {
 
 void MainWindow::openDemo() {
   // Nothing changes while another job runs (the grid, the files, the session and the inputs in flight).
-  if (m_jobs->busy()) {
-    statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
-    return;
-  }
+  if (m_jobs->busy()) return sayBusy();
   auto simulate = m_services.simulateDemo;
   m_demoGrid = true;
   m_processing->clearFiles();
   m_search->setParams(pipeline::demoSearchParams());  // as synthtrack-cli demo
   m_session->prepareNew({}, true);
-  if (startLoad("demo observation (simulated paper-neo)",
-                [simulate](ProgressSink& progress, CancelToken& cancel) {
-                  if (!simulate) throwMissingService("simulator");
-                  return simulate(progress, cancel);
-                }))
-    m_loadingPaths.clear();  // the demo: no files for the recent list
+  // No load runs, so m_loadingPaths is empty (onJobFinished clears it): the demo has no recent file.
+  startLoad("demo observation (simulated paper-neo)",
+            [simulate](ProgressSink& progress, CancelToken& cancel) {
+              if (!simulate) throwMissingService("simulator");
+              return simulate(progress, cancel);
+            });
 }
 
-bool MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
+void MainWindow::startLoad(const QString& label, std::function<FrameCube(ProgressSink&, CancelToken&)> load) {
   const bool started =
       m_jobs->start(JobKind::Load, [this, load, label](ProgressSink& progress, CancelToken& cancel) {
         auto cube = std::make_shared<const FrameCube>(load(progress, cancel));
         return std::function<void()>([this, cube, label] { m_obs->setRaw(cube, label); });
       });
-  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
-  return started;
+  if (!started) sayBusy();
 }
 
 bool MainWindow::rawIsPrepared() const {
@@ -156,8 +153,7 @@ void MainWindow::runSearch() {
   const auto& prepared = m_obs->prepared();
   if (!prepared || !prepared->filtered) return;
   if (outOfCore()) {
-    if (!OutOfCoreController::of(this)->runSearch())
-      statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+    if (!OutOfCoreController::of(this)->runSearch()) sayBusy();
     return;
   }
   auto cube = prepared->filtered;

@@ -262,7 +262,7 @@ void MainWindow::openSession(const QString& path) {
         if (makeBackend) opened->backend = makeBackend(kind, opened->backendMessage);
         return std::function<void()>([this, opened] { applyOpenedSession(*opened); });
       });
-  if (!started) statusBar()->showMessage("Busy: " + m_jobs->currentName() + " is running", 4000);
+  if (!started) sayBusy();
 }
 
 void MainWindow::applyOpenedSession(const OpenedSession& opened) {

@@ -167,9 +167,10 @@ session::Session makeSession(const Observation& obs, const std::vector<std::stri
   s.search.erase("candidates");
   s.search["velocity_map"] = report::velocityMapToJson(result->map);
   const auto& states = obs.candidateStates();
+  const std::vector<char> crossing = candidate::crossesBrighter(cube, result->grid, result->candidates);
   for (std::size_t i = 0; i < result->candidates.size(); ++i) {
     session::CandidateState state = i < states.size() ? states[i] : session::CandidateState{};
-    state.search = candidate::measureSearch(cube, result->grid, result->candidates[i], &result->candidates);
+    state.search = candidate::measureSearch(cube, result->grid, result->candidates[i], crossing[i] != 0);
     s.candidates.push_back(std::move(state));
   }
   return s;

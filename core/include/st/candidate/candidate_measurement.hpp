@@ -116,16 +116,21 @@ struct CandidateMeasurement {
 /// The summary of a fit result (no segments or sky position: fitCandidate adds them).
 [[nodiscard]] FitSummary summarize(const fit::FitResult& result);
 
+/// Per candidate of a search's list `all`: whether its track meets, within 2 PSF FWHM over the frames'
+/// span, the track of a candidate at least 10 times brighter (SNR) at a velocity more than a grid step
+/// away. A very bright mover gives such cells from the frames where the two tracks overlap (the known-pair
+/// demo's SNR-4000 object: 16 cells of SNR 186-216 around it, whose excess the sidelobe model, the filter's
+/// response to a beta-4 Moffat, does not predict); flagged for the person, not dropped: a faint mover may
+/// cross a bright one's track.
+[[nodiscard]] std::vector<char> crossesBrighter(const search::FilteredCube& cube,
+                                                const search::VelocityGrid& grid,
+                                                const std::vector<search::Candidate>& all);
+
 /// The search's measurement of candidate `c` of a search on `cube` with `grid`: the flags and the on-sky
-/// rate and position angle relative to the stars (search::skyMotion; absent without a plate scale). With
-/// the search's other candidates (`all`, c among them or not), also "crosses_brighter": c's track meets,
-/// within 2 PSF FWHM over the frames' span, the track of a candidate at least 10 times brighter (SNR), at a
-/// velocity more than a grid step away. A very bright mover gives such cells from the frames where the two
-/// tracks overlap (the known-pair demo's SNR-4000 object: 16 cells of SNR 186-216 around it, whose
-/// excess the sidelobe model, the filter's response to a beta-4 Moffat, does not predict); flagged for the
-/// person, not dropped: a faint mover may cross a bright one's track.
-[[nodiscard]] SearchMeasurement measureSearch(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                                              const search::Candidate& c,
-                                              const std::vector<search::Candidate>* all = nullptr);
+/// rate and position angle relative to the stars (search::skyMotion; absent without a plate scale);
+/// "crosses_brighter" among the flags when `crossingBrighter` (crossesBrighter() of the search's list).
+[[nodiscard]] SearchMeasurement measureSearch(const search::FilteredCube& cube,
+                                              const search::VelocityGrid& grid, const search::Candidate& c,
+                                              bool crossingBrighter = false);
 
 }  // namespace st::candidate

@@ -50,6 +50,10 @@ FrameCube loadFrames(const std::vector<std::string>& inputs, const LoadOptions& 
 /// Convenience overload with default options and no progress.
 FrameCube loadFrames(const std::vector<std::string>& inputs);
 
+/// The celestial WCS of a frame or cube header, on its two image axes (a cube's NAXIS3 left out), as
+/// loadFrames attaches it; null without one (the reasons in `warnings`).
+std::shared_ptr<const Wcs> cubeWcs(const FitsHeader& header, std::vector<std::string>* warnings);
+
 /// A short description of the inputs without reading all pixels (for `synthtrack-cli info`).
 struct InputSummary {
   std::size_t frames = 0;

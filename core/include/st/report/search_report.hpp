@@ -14,11 +14,10 @@ namespace st::report {
 /// cluster_cells, ivx, ivy; and, when a plate scale or WCS is known, rate_deg_day and pa_deg of the motion
 /// on the sky, i.e. of v - skyRate (the stars' motion in the frames is taken out: for a scanning telescope
 /// the frame velocity is mostly the scan); and "flags": "at_sky_rate" when v is within one grid step of the
-/// sky rate (a static source left by pre-processing), "partial" when the track leaves the frame, and, given
-/// the search's candidates (`all`), "crosses_brighter" (candidate::measureSearch).
+/// sky rate (a static source left by pre-processing), "partial" when the track leaves the frame, and
+/// "crosses_brighter" when `crossingBrighter` (candidate::crossesBrighter of the search's list).
 nlohmann::json candidateToJson(const search::FilteredCube& cube, const search::VelocityGrid& grid,
-                               const search::Candidate& candidate,
-                               const std::vector<search::Candidate>* all = nullptr);
+                               const search::Candidate& candidate, bool crossingBrighter = false);
 
 /// The whole result: inputs, backend, method ("exact" or "tree") and method_reason (why: "requested" or
 /// "auto: ...", method_choice.hpp), t_ref (MJD), frames, sigma_F, PSF FWHM, sky rate, grid, trial counts,

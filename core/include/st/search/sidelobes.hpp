@@ -20,6 +20,9 @@
 
 namespace st::search {
 
+/// Closest approach (px) of two candidates' straight tracks (x + v t) over t in [t0, t1], seconds from t_ref.
+[[nodiscard]] double closestApproach(const Candidate& a, const Candidate& b, double t0, double t1);
+
 /// SNR that candidate `source` contributes to the cell of candidate `cell` (model above). `dtS` are
 /// t_n - t_ref in seconds, `width` x `height` the frame size, `psfFwhmPx` the matched filter's PSF FWHM.
 /// 0 when no frame of either track is inside the image.
