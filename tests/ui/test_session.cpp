@@ -8,7 +8,6 @@
 #include <QFile>
 #include <QFileInfo>
 #include <QRegularExpression>
-#include <QSettings>
 #include <cstdio>
 #include <QDir>
 #include <QSysInfo>
@@ -29,7 +28,6 @@
 
 #include "candidate_inspector.hpp"
 #include "candidate_table.hpp"
-#include "image_view.hpp"
 #include "job_runner.hpp"
 #include "main_window.hpp"
 #include "processing_panel.hpp"
@@ -98,24 +96,6 @@ QString sessionStatus(MainWindow& w) {
   for (auto* label : w.statusBar()->findChildren<QLabel*>())
     if (label->text().startsWith("Session")) return label->text();
   return {};
-}
-
-// A file that does not open: the central view says why, in full (the status bar's line is cut short and gone
-// after 10 s, and a scripted run shows no dialog), and it does not join the recent files.
-TEST(MainWindowLoad, AFailedOpenIsShownInTheViewAndNotRemembered) {
-  test::TempDir dir;
-  const std::string missing = (dir / "missing.fits").string();
-  auto calls = std::make_shared<Calls>();
-  MainWindow w(services(calls));
-  w.setScripted(true);
-  w.show();
-  const QStringList before = QSettings().value("recentFiles").toStringList();
-  w.openInputs({QString::fromStdString(missing)});
-  ASSERT_TRUE(test::waitFor([&] { return idle(w) && w.imageView()->placeholder().startsWith("Could not open"); }))
-      << w.imageView()->placeholder().toStdString();
-  EXPECT_TRUE(w.imageView()->placeholder().contains(QString::fromStdString("no such file '" + missing + "'")))
-      << w.imageView()->placeholder().toStdString();
-  EXPECT_EQ(QSettings().value("recentFiles").toStringList(), before);
 }
 
 /// Closes the next modal message box and returns its text (polls; the box runs its own event loop).
