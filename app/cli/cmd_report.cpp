@@ -33,8 +33,9 @@ constexpr const char* kHelp =
     "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
     "                             [--telescope-aperture M] [--telescope-design D]\n"
     "                             [--telescope-detector CCD|CMO]\n"
-    "                             [--ast-cat CAT] [--mpc-cat C] [--safe-snr S] [--wcs FITS] [--stacks DIR]\n"
-    "                             [--prepared P.json] [--known K.csv [--known-radius ARCSEC]]\n"
+    "                             [--ast-cat CAT] [--mpc-cat C] [--safe-snr S] [--positions segments|fit]\n"
+    "                             [--wcs FITS] [--stacks DIR] [--prepared P.json] [--known K.csv "
+    "[--known-radius ARCSEC]]\n"
     "  CANDIDATES.json   written by 'synthtrack-cli search --json' or the demo (candidates.json)\n"
     "  --session S.json  the vetting session: created from CANDIDATES.json when absent, else opened; every\n"
     "                    change is saved at once (atomically)\n"
@@ -68,6 +69,10 @@ constexpr const char* kHelp =
     "                    is left blank: the MPC fills it)\n"
     "  --mpc-cat C       the catalogue by its MPC code (W = Gaia DR3, ...), instead of --ast-cat's\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
+    "  --positions P     positions per real object: 'segments' (default: one per segment of its fit's\n"
+    "                    segment check, 4 at about half the fit's SNR each, the tracklet the MPC links a "
+    "new\n"
+    "                    object from) or 'fit' (the whole fit's one position at t_ref)\n"
     "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
     "catalog\n"
     "                    of the pre-processing sidecar and the input frames' times; kept in the session\n"
@@ -80,7 +85,7 @@ constexpr const char* kHelp =
 const std::set<std::string> kValuedOptions = {
     "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
     "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
-    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv"};
+    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv", "positions"};
 // clang-format on
 
 nlohmann::json readJson(const std::string& path) {
@@ -137,6 +142,13 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (auto s = cli.value("mpc-cat")) {
     if (s->size() != 1) throw UsageError("--mpc-cat needs one character (the MPC's catalogue code, e.g. W)");
     settings["mpc_catalog_code"] = *s;
+  }
+  if (auto s = cli.value("positions")) {
+    try {
+      settings["positions"] = report::toString(report::trackletPositionsFromString(*s));
+    } catch (const InputError& e) {
+      throw UsageError(std::string("--positions: ") + e.what());
+    }
   }
   if (settings != ed.session().settings) ed.setSettings(settings);
 }
@@ -215,6 +227,14 @@ session::Session withSkyPositions(session::Session s, const std::optional<WcsMap
     c.fit->sky =
         candidate::SkyPosition{p.raDeg, p.decDeg, m.rateDegPerDay, m.rateArcsecPerMin, m.positionAngleDeg};
     std::fprintf(stderr, "note: candidate %zu: sky position from --wcs at its fitted position\n", i + 1);
+    if (!c.fit->segments) continue;
+    // Each segment position at its own time: the stars have moved by the sky rate since t_ref.
+    for (auto& q : c.fit->segments->positions) {
+      if (q.raDeg) continue;
+      const auto at = wcs->toSky(q.x - sky.vx * q.tOffsetS, q.y - sky.vy * q.tOffsetS);
+      q.raDeg = at.raDeg;
+      q.decDeg = at.decDeg;
+    }
   }
   return s;
 }

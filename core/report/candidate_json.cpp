@@ -87,6 +87,56 @@ candidate::FitSummary fitCoreFromJson(const json& j, const std::string& where) {
   return f;
 }
 
+/// One segment position: segment, mjd_utc, t_offset_s, x, y, sigma_x_px, sigma_y_px, snr, and ra_deg,
+/// dec_deg, sigma_ra_arcsec, sigma_dec_arcsec when it has a sky position.
+json toJson(const candidate::SegmentPosition& p) {
+  json j{{"segment", p.segment},
+         {"mjd_utc", p.mjdUtc},
+         {"t_offset_s", p.tOffsetS},
+         {"x", p.x},
+         {"y", p.y},
+         {"sigma_x_px", p.sigmaXPx},
+         {"sigma_y_px", p.sigmaYPx},
+         {"snr", p.snr}};
+  put(j, "ra_deg", p.raDeg);
+  put(j, "dec_deg", p.decDeg);
+  put(j, "sigma_ra_arcsec", p.sigmaRaArcsec);
+  put(j, "sigma_dec_arcsec", p.sigmaDecArcsec);
+  return j;
+}
+
+json toJson(const std::vector<candidate::SegmentPosition>& positions) {
+  json list = json::array();
+  for (const auto& p : positions)
+    list.push_back(toJson(p));
+  return list;
+}
+
+std::vector<candidate::SegmentPosition> positionsFromJson(const json& j, const char* key,
+                                                          const std::string& where) {
+  std::vector<candidate::SegmentPosition> out;
+  if (!j.is_object() || !j.contains(key) || j[key].is_null()) return out;
+  if (!j[key].is_array()) throw InputError(where + ": key '" + key + "' is not an array");
+  for (const json& e : j[key]) {
+    const std::string w = where + ", " + key + "[" + std::to_string(out.size()) + "]";
+    candidate::SegmentPosition p;
+    p.segment = required<int>(e, "segment", w);
+    p.mjdUtc = required<double>(e, "mjd_utc", w);
+    p.tOffsetS = get<double>(e, "t_offset_s", 0.0, w);
+    p.x = required<double>(e, "x", w);
+    p.y = required<double>(e, "y", w);
+    p.sigmaXPx = get<double>(e, "sigma_x_px", 0.0, w);
+    p.sigmaYPx = get<double>(e, "sigma_y_px", 0.0, w);
+    p.snr = get<double>(e, "snr", 0.0, w);
+    p.raDeg = optional<double>(e, "ra_deg", w);
+    p.decDeg = optional<double>(e, "dec_deg", w);
+    p.sigmaRaArcsec = optional<double>(e, "sigma_ra_arcsec", w);
+    p.sigmaDecArcsec = optional<double>(e, "sigma_dec_arcsec", w);
+    out.push_back(p);
+  }
+  return out;
+}
+
 }  // namespace
 
 json toJson(const candidate::SearchMeasurement& s) {
@@ -131,6 +181,7 @@ json toFlatJson(const candidate::FitSummary& f) {
     j["segments_flagged"] = f.segments->flagged;
     j["segment_reasons"] = f.segments->reasons;
     j["segment_snr"] = f.segments->snr;
+    j["segment_positions"] = toJson(f.segments->positions);
   }
   if (f.sky) {
     j["ra_deg"] = f.sky->raDeg;
@@ -150,7 +201,8 @@ candidate::FitSummary fitFromFlatJson(const json& j, const std::string& where) {
   if (j.contains("segments_flagged")) {
     f.segments = candidate::SegmentSummary{get<bool>(j, "segments_flagged", false, where),
                                            get<std::vector<std::string>>(j, "segment_reasons", {}, where),
-                                           get<std::vector<double>>(j, "segment_snr", {}, where)};
+                                           get<std::vector<double>>(j, "segment_snr", {}, where),
+                                           positionsFromJson(j, "segment_positions", where)};
   }
   if (j.contains("ra_deg")) {
     f.sky = candidate::SkyPosition{get<double>(j, "ra_deg", 0.0, where), get<double>(j, "dec_deg", 0.0, where),
@@ -167,7 +219,10 @@ json toNestedJson(const candidate::FitSummary& f) {
                 {"vx_px_s", f.sigma.vxPxS},      {"vy_px_s", f.sigma.vyPxS},
                 {"pos_paper_px", f.sigma.posPaperPx}, {"vel_paper_px_s", f.sigma.velPaperPxS}};
   if (f.segments)
-    j["segments"] = {{"flagged", f.segments->flagged}, {"reasons", f.segments->reasons}, {"snr", f.segments->snr}};
+    j["segments"] = {{"flagged", f.segments->flagged},
+                     {"reasons", f.segments->reasons},
+                     {"snr", f.segments->snr},
+                     {"positions", toJson(f.segments->positions)}};
   if (f.sky)
     j["sky"] = {{"ra_deg", f.sky->raDeg},
                 {"dec_deg", f.sky->decDeg},
@@ -186,9 +241,9 @@ candidate::FitSummary fitFromNestedJson(const json& j, const std::string& where)
              get<double>(sigma, "pos_paper_px", 0.0, w), get<double>(sigma, "vel_paper_px_s", 0.0, w)};
   if (j.contains("segments") && j["segments"].is_object()) {
     const json& s = j["segments"];
-    f.segments = candidate::SegmentSummary{get<bool>(s, "flagged", false, w),
-                                           get<std::vector<std::string>>(s, "reasons", {}, w),
-                                           get<std::vector<double>>(s, "snr", {}, w)};
+    f.segments = candidate::SegmentSummary{
+        get<bool>(s, "flagged", false, w), get<std::vector<std::string>>(s, "reasons", {}, w),
+        get<std::vector<double>>(s, "snr", {}, w), positionsFromJson(s, "positions", w + ", segments")};
   }
   if (j.contains("sky") && j["sky"].is_object()) {
     const json& s = j["sky"];

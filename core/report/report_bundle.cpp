@@ -104,7 +104,7 @@ const std::string* pathOf(const ReportRequest& r, ReportFile file) {
 
 void writeSubmission(const ReportRequest& r, ReportOutcome& out) {
   std::vector<std::string> warnings;
-  const auto detections = realDetections(r.session, warnings);
+  const auto detections = realDetections(r.session, r.submission.positions, warnings);
   out.detections = detections.size();
   if (detections.empty()) {
     // An ADES file needs at least one observation (submit.xsd: obsData holds one or more), and an empty
@@ -231,9 +231,10 @@ std::string candidatesCsv(const session::Session& s) {
   return out;
 }
 
-std::vector<std::string> submissionWarnings(const session::Session& s, double safeSnr) {
+std::vector<std::string> submissionWarnings(const session::Session& s, const SubmissionSettings& settings) {
   std::vector<std::string> warnings;
-  for (const auto& d : realDetections(s, warnings)) {
+  const double safeSnr = settings.safeSnr;
+  for (const auto& d : realDetections(s, settings.positions, warnings)) {
     if (d.snr >= safeSnr) continue;
     char buf[200];
     std::snprintf(

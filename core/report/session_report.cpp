@@ -14,11 +14,15 @@ std::optional<double> number(const nlohmann::json& j, const char* key) {
 
 }  // namespace
 
-std::vector<AstrometricDetection> realDetections(const session::Session& s,
+std::vector<AstrometricDetection> realDetections(const session::Session& s, TrackletPositions positions,
                                                  std::vector<std::string>& warnings,
                                                  const std::string& prefix) {
   std::vector<AstrometricDetection> out;
   const auto scale = number(s.search, "plate_scale_arcsec_px");
+  // Pixel errors -> arcsec through the mean scale (the axes' orientation is not in the fit record).
+  const auto arcsec = [&](double px) {
+    return scale && px > 0.0 ? std::optional(px * *scale) : std::nullopt;
+  };
   for (std::size_t i = 0; i < s.candidates.size(); ++i) {
     const auto& c = s.candidates[i];
     if (c.label != session::Label::Real) continue;
@@ -45,19 +49,37 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s,
     const std::size_t width = prefix.size() < 7 ? 7 - prefix.size() : 0;
     if (number1.size() < width) number1.insert(0, width - number1.size(), '0');
     d.trkSub = prefix + number1;
+    d.mag = f.mag;
+    if (f.band) d.band = *f.band;
+    if (positions == TrackletPositions::Segments) {
+      std::vector<AstrometricDetection> tracklet;
+      if (f.segments)
+        for (const auto& p : f.segments->positions) {
+          if (!p.raDeg || !p.decDeg || !(p.mjdUtc > 0.0)) continue;
+          AstrometricDetection e = d;
+          e.raDeg = *p.raDeg;
+          e.decDeg = *p.decDeg;
+          e.mjdUtc = p.mjdUtc;
+          e.snr = p.snr;
+          e.sigmaRaArcsec = p.sigmaRaArcsec ? p.sigmaRaArcsec : arcsec(p.sigmaXPx);
+          e.sigmaDecArcsec = p.sigmaDecArcsec ? p.sigmaDecArcsec : arcsec(p.sigmaYPx);
+          tracklet.push_back(e);
+        }
+      if (tracklet.size() >= 2) {
+        out.insert(out.end(), tracklet.begin(), tracklet.end());
+        continue;
+      }
+      warnings.push_back("candidate " + std::to_string(i + 1) + " has " + std::to_string(tracklet.size()) +
+                         " segment position(s) on the sky (a fit made before segment positions were kept, "
+                         "or segments whose fits failed; fit it again): its one whole-fit position is "
+                         "reported, and the MPC links a new object only from two or more");
+    }
     d.raDeg = f.sky->raDeg;
     d.decDeg = f.sky->decDeg;
     d.mjdUtc = f.tRefMjd.value_or(number(s.search, "t_ref_mjd").value_or(0.0));
     d.snr = f.snr;
-    d.sigmaRaArcsec = f.sigmaRaArcsec;
-    d.sigmaDecArcsec = f.sigmaDecArcsec;
-    if (!d.sigmaRaArcsec && scale && f.sigma.xPx > 0.0 && f.sigma.yPx > 0.0) {
-      // Pixel errors -> arcsec through the mean scale (the axes' orientation is not in the fit record).
-      d.sigmaRaArcsec = f.sigma.xPx * *scale;
-      d.sigmaDecArcsec = f.sigma.yPx * *scale;
-    }
-    d.mag = f.mag;
-    if (f.band) d.band = *f.band;
+    d.sigmaRaArcsec = f.sigmaRaArcsec ? f.sigmaRaArcsec : arcsec(f.sigma.xPx);
+    d.sigmaDecArcsec = f.sigmaDecArcsec ? f.sigmaDecArcsec : arcsec(f.sigma.yPx);
     if (d.mjdUtc <= 0.0) {
       warnings.push_back("candidate " + std::to_string(i + 1) + " has no epoch (t_ref_mjd): not reported");
       continue;

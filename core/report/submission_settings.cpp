@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "st/common/error.hpp"
 #include "st/report/star_catalogues.hpp"
 
 namespace st::report {
@@ -132,6 +133,19 @@ std::string problemsText(const std::vector<SettingsProblem>& problems, Submissio
   return text;
 }
 
+const char* toString(TrackletPositions p) noexcept {
+  return p == TrackletPositions::Fit ? "fit" : "segments";
+}
+
+TrackletPositions trackletPositionsFromString(const std::string& text) {
+  for (TrackletPositions p : {TrackletPositions::Segments, TrackletPositions::Fit})
+    if (text == toString(p)) return p;
+  throw InputError(
+      "positions per object must be 'segments' (one per segment of the fit) or 'fit' (the whole "
+      "fit's one position), got '" +
+      text + "'");
+}
+
 nlohmann::json toJson(const SubmissionSettings& s) {
   return {{"station", s.stationCode},
           {"observers", s.observers},
@@ -142,7 +156,8 @@ nlohmann::json toJson(const SubmissionSettings& s) {
           {"detector", s.detector},
           {"ast_cat", s.astCat},
           {"mpc_catalog_code", std::string(1, s.mpcCatalogCode)},
-          {"safe_snr", s.safeSnr}};
+          {"safe_snr", s.safeSnr},
+          {"positions", toString(s.positions)}};
 }
 
 SubmissionSettings submissionFromJson(const nlohmann::json& j) {
@@ -166,6 +181,9 @@ SubmissionSettings submissionFromJson(const nlohmann::json& j) {
   text("mpc_catalog_code", code);
   if (code.size() == 1) s.mpcCatalogCode = code[0];
   number("safe_snr", s.safeSnr);
+  std::string positions;
+  text("positions", positions);
+  if (positions == toString(TrackletPositions::Fit)) s.positions = TrackletPositions::Fit;
   return s;
 }
 

@@ -126,7 +126,7 @@ void measureSegment(const FrameCube& cube, const fit::FitResult& whole, const fi
                       ? whole.snr * std::sqrt(static_cast<double>(f.framesInside) / whole.framesInside)
                       : 0.0;
   track.alpha = std::numeric_limits<double>::quiet_NaN();
-  const fit::FitResult r = fit::fitComoving(cube, track, o);
+  fit::FitResult r = fit::fitComoving(cube, track, o);
   m.fitStatus = r.status;
   if (r.ok()) {
     m.x = r.params.xc;
@@ -135,6 +135,7 @@ void measureSegment(const FrameCube& cube, const fit::FitResult& whole, const fi
     m.sigmaY = r.sigmaNoiseModel[fit::kYc];
     m.snr = r.snr;
   }
+  m.fit = std::move(r);
   const int half = base.stampHalfSize > 0 ? base.stampHalfSize : fit::defaultStampHalfSize(base.psf);
   m.stack = stackStamp(cube, m.frames, m.predictedX, m.predictedY, p.v, m.tMidOffsetS, half);
 }

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "st/calib/calibration.hpp"
+#include "st/candidate/candidate_fit.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/search/cpu_backend.hpp"
@@ -153,6 +154,10 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   };
   int bright = 0, brightFound = 0, mid = 0, midFound = 0;
   std::vector<double> ratios;
+  // The co-moving fit of each found mover of expected SNR >= 12 and its segment positions (what a report's
+  // tracklet gives) against the injected track, in units of their own errors.
+  std::vector<double> fitPulls, segmentPulls;
+  int fitted = 0, segmentPositions = 0;
   // ST_INJECTION_SEEDS=K runs only the first K seeds (for a quicker look while developing).
   const char* seedsEnv = std::getenv("ST_INJECTION_SEEDS");
   const unsigned seeds = seedsEnv ? static_cast<unsigned>(std::max(1, std::atoi(seedsEnv))) : 3u;
@@ -189,12 +194,33 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
     std::vector<bool> used(r.candidates.size(), false);
     for (const auto& m : movers) {
       double best = 0.0;
+      const search::Candidate* bestCell = nullptr;
       for (std::size_t k = 0; k < r.candidates.size(); ++k) {
         const auto& cd = r.candidates[k];
         if (std::hypot(cd.x - m.x, cd.y - m.y) > 2.5) continue;
         if (std::hypot(cd.v.vx - m.vx, cd.v.vy - m.vy) * span > 2 * 2.5 + 2 * step * span) continue;
         used[k] = true;
+        if (cd.snr > best) bestCell = &cd;
         best = std::max(best, cd.snr);
+      }
+      if (bestCell && m.snr >= 12) {
+        const candidate::FitSummary fit = candidate::fitCandidate(prep, *bestCell, c);
+        if (fit.converged()) {
+          ++fitted;
+          fitPulls.insert(fitPulls.end(), {(fit.x - m.x) / fit.sigma.xPx, (fit.y - m.y) / fit.sigma.yPx});
+          std::printf("seed %u mover (%.1f, %.1f) fit SNR %.1f sigma (%.3f, %.3f) px pull (%+.2f, %+.2f)",
+                      seed, m.x, m.y, fit.snr, fit.sigma.xPx, fit.sigma.yPx, fitPulls.end()[-2],
+                      fitPulls.back());
+          if (fit.segments)
+            for (const auto& q : fit.segments->positions) {
+              ++segmentPositions;
+              segmentPulls.insert(segmentPulls.end(), {(q.x - (m.x + m.vx * q.tOffsetS)) / q.sigmaXPx,
+                                                       (q.y - (m.y + m.vy * q.tOffsetS)) / q.sigmaYPx});
+              std::printf(" [%d: SNR %.1f sigma (%.3f, %.3f) pull (%+.2f, %+.2f)]", q.segment, q.snr,
+                          q.sigmaXPx, q.sigmaYPx, segmentPulls.end()[-2], segmentPulls.back());
+            }
+          std::printf("\n");
+        }
       }
       if (m.snr >= 12) {
         ++bright;
@@ -253,6 +279,20 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   const double median = ratios.empty() ? 0.0 : ratios[ratios.size() / 2];
   std::printf("completeness: SNR >= 12: %d / %d, SNR 8-12: %d / %d; median recovered/expected SNR %.3f\n",
               brightFound, bright, midFound, mid, median);
+  const auto rmsAndMax = [](const std::vector<double>& v) {
+    double s2 = 0.0, mx = 0.0;
+    for (double q : v) {
+      s2 += q * q;
+      mx = std::max(mx, std::fabs(q));
+    }
+    return std::pair{v.empty() ? 0.0 : std::sqrt(s2 / v.size()), mx};
+  };
+  const auto [fitRms, fitMax] = rmsAndMax(fitPulls);
+  const auto [segRms, segMax] = rmsAndMax(segmentPulls);
+  std::printf(
+      "fits of the found movers of SNR >= 12: %d converged of %d found, position pull rms %.3f (largest "
+      "%.2f); %d segment positions (of %d segments), pull rms %.3f (largest %.2f)\n",
+      fitted, brightFound, fitRms, fitMax, segmentPositions, 4 * fitted, segRms, segMax);
   EXPECT_GE(brightFound, 0.9 * bright);
   EXPECT_GE(midFound, 0.5 * mid);
   // Issue 14 asks for >= 0.8; measured 0.791 over the 3 seeds (2026-11-25): IPSA sums whole pixels, and with

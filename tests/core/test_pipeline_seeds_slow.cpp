@@ -19,7 +19,9 @@
 #include <cstdlib>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "st/candidate/candidate_fit.hpp"
 #include "st/detect/registration.hpp"
 #include "st/pipeline/demo_search.hpp"
 #include "st/pipeline/preprocess.hpp"
@@ -39,6 +41,10 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   int found = 0, seeds = 0, others = 0, onVelocity = 0, oneStep = 0, within15 = 0, staticSet = 0;
   double sumRatio = 0.0, expectedFalse = 0.0, maxRateErr = 0.0;
   int perFrame = 0;
+  // The asteroid's segment positions (candidate::fitCandidate, each segment's own fit) against the truth's
+  // track at each segment's time, in units of their own errors: what the tracklet of a report is worth.
+  std::vector<double> pulls;
+  int positions = 0;
   // ST_SEEDS=FIRST-LAST runs another range (a campaign over more seeds; the bounds below are the 20 seeds').
   unsigned first = 21, last = 40;
   if (const char* range = std::getenv("ST_SEEDS")) std::sscanf(range, "%u-%u", &first, &last);
@@ -113,6 +119,20 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
           (hit->v.vy - truth.vyPxPerS) / grid.stepPxS, std::string(r.method.name()).c_str());
       EXPECT_NEAR(ratio, 1.0, 0.45) << "seed " << seed;
       within15 += std::fabs(ratio - 1.0) <= 0.15;
+      const candidate::FitSummary fit = candidate::fitCandidate(prep, *hit, c);
+      EXPECT_TRUE(fit.converged()) << "seed " << seed << ": " << fit.message;
+      if (fit.segments) {
+        std::printf("seed %u: segment positions", seed);
+        for (const auto& q : fit.segments->positions) {
+          ++positions;
+          const double px = (q.x - (truth.xRefPx + truth.vxPxPerS * q.tOffsetS)) / q.sigmaXPx;
+          const double py = (q.y - (truth.yRefPx + truth.vyPxPerS * q.tOffsetS)) / q.sigmaYPx;
+          pulls.insert(pulls.end(), {px, py});
+          std::printf(" [%d: SNR %.1f, sigma (%.2f, %.2f) px, pull (%+.2f, %+.2f)]", q.segment, q.snr,
+                      q.sigmaXPx, q.sigmaYPx, px, py);
+        }
+        std::printf("\n");
+      }
     } else {
       std::printf(" (expected SNR %.2f at (%.1f, %.1f))\n", truth.expectedSnr, truth.xRefPx, truth.yRefPx);
     }
@@ -144,6 +164,20 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   // isolated registration outliers kept linear): 90 of 90, 88 within one step, 90 within two, mean 1.005, 86
   // within 15%, 1 other candidate (seed 66's V = 23.1 partial-span star, 0.14 px/s off the sky rate), per-frame
   // registration on 0 seeds (seed 52 before: 1), sky rate within 0.0060 px/s (0.0121 before, seed 52).
+  double sumPull2 = 0.0, maxPull = 0.0;
+  for (double q : pulls) {
+    sumPull2 += q * q;
+    maxPull = std::max(maxPull, std::fabs(q));
+  }
+  const double rmsPull = pulls.empty() ? 0.0 : std::sqrt(sumPull2 / pulls.size());
+  std::printf("segment positions: %d of %d segments, rms pull %.3f, largest |pull| %.2f (%zu pulls)\n",
+              positions, 4 * found, rmsPull, maxPull, pulls.size());
+  // Each found asteroid a tracklet: at least 3 of its 4 segments fitted on average; the errors honest to
+  // within the spread an rms of 2 x 80 unit normals has (~0.08) plus the fit's model error.
+  EXPECT_GE(positions, 3 * found);
+  EXPECT_GT(rmsPull, 0.75);
+  EXPECT_LT(rmsPull, 1.3);
+  EXPECT_LT(maxPull, 5.0);
   EXPECT_EQ(found, seeds);
   EXPECT_EQ(oneStep, seeds);
   EXPECT_EQ(onVelocity, seeds);

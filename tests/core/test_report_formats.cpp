@@ -231,6 +231,15 @@ TEST(SubmissionSettingsJson, RoundTripAndMistypedKeys) {
   nlohmann::json j = toJson(s);
   j["aperture_m"] = "wide";  // a hand-edited session: the default, not an exception
   EXPECT_DOUBLE_EQ(submissionFromJson(j).apertureM, 0.0);
+  // Positions per object: segments by default, "fit" kept, an unknown value the default.
+  EXPECT_EQ(back.positions, TrackletPositions::Segments);
+  s.positions = TrackletPositions::Fit;
+  EXPECT_EQ(toJson(s)["positions"], "fit");
+  EXPECT_EQ(submissionFromJson(toJson(s)).positions, TrackletPositions::Fit);
+  j["positions"] = "three";
+  EXPECT_EQ(submissionFromJson(j).positions, TrackletPositions::Segments);
+  EXPECT_EQ(trackletPositionsFromString("fit"), TrackletPositions::Fit);
+  EXPECT_THROW((void)trackletPositionsFromString("three"), InputError);
 }
 
 std::vector<std::string> split(const std::string& line) {

@@ -103,7 +103,7 @@ session::Session labelled() {
 
 TEST(SessionReport, OnlyRealCandidatesWithASkyPositionAreReported) {
   std::vector<std::string> warnings;
-  const auto d = realDetections(labelled(), warnings);
+  const auto d = realDetections(labelled(), TrackletPositions::Fit, warnings);
   ASSERT_EQ(d.size(), 1u);
   EXPECT_EQ(d[0].trkSub, "st00001");
   EXPECT_DOUBLE_EQ(d[0].raDeg, 150.1);
@@ -117,6 +117,98 @@ TEST(SessionReport, OnlyRealCandidatesWithASkyPositionAreReported) {
   EXPECT_NE(warnings[0].find("candidate 3"), std::string::npos) << warnings[0];
 }
 
+// Segment positions of the candidate of labelled(): n segments, the first `withSky` with a sky position.
+void addSegmentPositions(session::Session& s, int n, int withSky) {
+  candidate::SegmentSummary seg;
+  for (int k = 0; k < n; ++k) {
+    candidate::SegmentPosition p;
+    p.segment = k + 1;
+    p.tOffsetS = -11.25 + 7.5 * k;
+    p.mjdUtc = 60000.5 + p.tOffsetS / 86400.0;
+    p.x = 0.25 + 1.1 * p.tOffsetS;
+    p.y = 5.5 + 0.1 * p.tOffsetS;
+    p.sigmaXPx = 0.2 + 0.01 * k;
+    p.sigmaYPx = 0.4;
+    p.snr = 4.5 + k;
+    if (k < withSky) {
+      p.raDeg = 150.1 + 1e-4 * k;
+      p.decDeg = -20.2 - 1e-5 * k;
+    }
+    if (k == 0) p.sigmaRaArcsec = 0.07;  // the others from the pixel errors and the plate scale
+    if (k == 0) p.sigmaDecArcsec = 0.09;
+    seg.positions.push_back(p);
+  }
+  s.candidates[0].fit->segments = seg;
+}
+
+// With segment positions (the default), an object labelled real is a tracklet: one detection per segment
+// position on the sky, each at its own time with its own SNR and errors, all under one trkSub.
+TEST(SessionReport, ARealObjectIsATrackletOfItsSegmentPositions) {
+  session::Session s = labelled();
+  addSegmentPositions(s, 4, 4);
+  std::vector<std::string> warnings;
+  const auto d = realDetections(s, SubmissionSettings{}.positions, warnings);
+  ASSERT_EQ(d.size(), 4u);
+  for (int k = 0; k < 4; ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(d[k].trkSub, "st00001");
+    EXPECT_DOUBLE_EQ(d[k].mjdUtc, 60000.5 + (-11.25 + 7.5 * k) / 86400.0);
+    EXPECT_DOUBLE_EQ(d[k].raDeg, 150.1 + 1e-4 * k);
+    EXPECT_DOUBLE_EQ(d[k].decDeg, -20.2 - 1e-5 * k);
+    EXPECT_DOUBLE_EQ(d[k].snr, 4.5 + k);
+    EXPECT_DOUBLE_EQ(*d[k].mag, 22.95);
+    EXPECT_NEAR(*d[k].sigmaRaArcsec, k == 0 ? 0.07 : (0.2 + 0.01 * k) * 0.3, 1e-15);
+    EXPECT_NEAR(*d[k].sigmaDecArcsec, k == 0 ? 0.09 : 0.12, 1e-15);
+  }
+  // Segment positions without a sky position are left out; with two or more on the sky it is still a
+  // tracklet.
+  addSegmentPositions(s, 4, 2);
+  warnings.clear();
+  EXPECT_EQ(realDetections(s, TrackletPositions::Segments, warnings).size(), 2u);
+  ASSERT_EQ(warnings.size(), 1u);  // candidate 3's missing sky position only
+  EXPECT_EQ(warnings[0].find("candidate 1"), std::string::npos) << warnings[0];
+}
+
+// The candidates file (flat keys, what `report` reads back) keeps the segment positions exactly.
+TEST(SessionReport, SegmentPositionsSurviveTheCandidatesFile) {
+  session::Session s = labelled();
+  addSegmentPositions(s, 4, 3);
+  const session::Session back = session::fromSearchJson(candidatesJson(s));
+  ASSERT_TRUE(back.candidates[0].fit && back.candidates[0].fit->segments);
+  EXPECT_EQ(back.candidates[0].fit->segments->positions, s.candidates[0].fit->segments->positions);
+  EXPECT_FALSE(back.candidates[0].fit->segments->positions[3].raDeg);
+  nlohmann::json broken = candidatesJson(s);
+  broken["candidates"][0]["fit"]["segment_positions"][1].erase("mjd_utc");
+  try {
+    (void)session::fromSearchJson(broken);
+    ADD_FAILURE() << "a segment position without its epoch was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("segment_positions[1]: missing key 'mjd_utc'"), std::string::npos)
+        << e.what();
+  }
+}
+
+// Fewer than two segment positions on the sky (a session written before they were kept, or failed segment
+// fits): the whole fit's one position, with a warning that says the MPC needs two or more.
+TEST(SessionReport, OneSegmentPositionFallsBackToTheWholeFitWithAWarning) {
+  session::Session s = labelled();
+  addSegmentPositions(s, 4, 1);
+  std::vector<std::string> warnings;
+  const auto d = realDetections(s, TrackletPositions::Segments, warnings);
+  ASSERT_EQ(d.size(), 1u);
+  EXPECT_DOUBLE_EQ(d[0].raDeg, 150.1);
+  EXPECT_DOUBLE_EQ(d[0].mjdUtc, 60000.5);
+  EXPECT_DOUBLE_EQ(d[0].snr, 9.5);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_NE(warnings[0].find("candidate 1 has 1 segment position(s) on the sky"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("two or more"), std::string::npos) << warnings[0];
+  // Asked for the whole fit's position, there is nothing to warn about.
+  warnings.clear();
+  EXPECT_EQ(realDetections(s, TrackletPositions::Fit, warnings).size(), 1u);
+  EXPECT_EQ(warnings.size(), 1u);
+}
+
 // A real candidate is an observation only with a converged fit that has a sky position; the warning says
 // which piece is missing (it blamed the WCS for a fit that had diverged).
 TEST(SessionReport, EachMissingPieceOfARealCandidateIsNamed) {
@@ -126,7 +218,7 @@ TEST(SessionReport, EachMissingPieceOfARealCandidateIsNamed) {
   s.candidates[1].fit = s.candidates[0].fit;  // with a sky position, but diverged
   s.candidates[1].fit->status = fit::FitStatus::Diverged;
   std::vector<std::string> warnings;
-  const auto d = realDetections(s, warnings);
+  const auto d = realDetections(s, TrackletPositions::Fit, warnings);
   ASSERT_EQ(d.size(), 1u);
   EXPECT_EQ(d[0].trkSub, "st00001");
   ASSERT_EQ(warnings.size(), 3u);

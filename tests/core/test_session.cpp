@@ -86,6 +86,12 @@ TEST(Session, RoundTripIsExact) {
   s.candidates[2].label = Label::Unsure;
   s.candidates[0].label = Label::Real;
   s.candidates[0].artifacts = {{vet::ArtifactKind::Edge, false, 12.5, ""}};
+  candidate::SegmentSummary seg{true, {"segment 2: SNR 1 where 5 was expected"}, {5.1, 1.0}, {}};
+  seg.positions.push_back(
+      {1, 60000.1234, -7.123456789, 99.9876543210987, 50.5, 0.21, 0.19, 5.05, {}, {}, {}, {}});
+  seg.positions.push_back(
+      {2, 60000.1235, 7.5, 101.25, 50.5, 0.3, 0.25, 4.5, 150.0000001, -20.1, 0.061, 0.057});
+  s.candidates[0].fit->segments = seg;
   store.save(s);
   EXPECT_EQ(s.changes, 1);
   const Session back = store.load();

@@ -57,8 +57,9 @@ std::string readAll(const std::string& path) {
   return s.str();
 }
 
-// A converged fit at the candidate's cell with its sky position through the cube's WCS.
-candidate::FitSummary fitAt(const search::Candidate& c, const FrameCube& raw, double snr) {
+// A converged fit at the candidate's cell with its sky position through the cube's WCS, and `segments`
+// segment positions on the sky at SNR 8 (fitCandidate's segment check).
+candidate::FitSummary fitAt(const search::Candidate& c, const FrameCube& raw, double snr, int segments = 0) {
   const auto sky = raw.wcs->pixelToSky(c.x, c.y);
   candidate::FitSummary f;
   f.status = fit::FitStatus::Converged;
@@ -70,6 +71,13 @@ candidate::FitSummary fitAt(const search::Candidate& c, const FrameCube& raw, do
   f.tRefMjd = raw.tRefMjd();
   f.sigmaRaArcsec = 0.1;
   f.sigmaDecArcsec = 0.1;
+  if (segments > 0) f.segments = candidate::SegmentSummary{};
+  for (int k = 0; k < segments; ++k) {
+    const double t = -10.0 + 20.0 * k / std::max(1, segments - 1);
+    const auto at = raw.wcs->pixelToSky(c.x + c.v.vx * t, c.y + c.v.vy * t);
+    f.segments->positions.push_back({k + 1, raw.tRefMjd() + t / 86400.0, t, c.x + c.v.vx * t,
+                                     c.y + c.v.vy * t, 0.2, 0.2, 8.0, at.raDeg, at.decDeg, 0.15, 0.15});
+  }
   return f;
 }
 
@@ -95,7 +103,7 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   Observation* obs = w->observation();
   const auto& cands = obs->result()->candidates;
   const FrameCube& raw = *obs->raw();
-  obs->setCandidateFit(0, fitAt(cands[0], raw, 14.0));
+  obs->setCandidateFit(0, fitAt(cands[0], raw, 14.0, 4));  // a tracklet of 4 segment positions
   obs->setCandidateFit(1, fitAt(cands[1], raw, 5.0));  // below the safe SNR 7
   obs->setCandidateFit(2, fitAt(cands[2], raw, 20.0));
   obs->setCandidateLabel(0, session::Label::Real);
@@ -116,6 +124,10 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   EXPECT_TRUE(d->warningVisible());
   EXPECT_TRUE(d->warningText().contains("st00002: SNR 5.00")) << d->warningText().toStdString();
   EXPECT_FALSE(d->warningText().contains("st00001"));
+  // Candidate 2 has no segment positions: its one whole-fit position, said.
+  EXPECT_TRUE(d->warningText().contains("candidate 2 has 0 segment position(s) on the sky"))
+      << d->warningText().toStdString();
+  EXPECT_EQ(d->submissionSettings().positions, report::TrackletPositions::Segments);
 
   test::TempDir tmp;
   const char* keep = std::getenv("ST_REPORT_OUT");
@@ -133,21 +145,27 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   ASSERT_TRUE(ok) << d->resultText().toStdString();
   EXPECT_TRUE(d->resultText().contains("st00002: SNR 5.00 is below the safe 7.0"));
 
-  // ADES: header blocks, the field-name line, then exactly the two real candidates.
+  // ADES: header blocks, the field-name line, then the two real candidates: the first's tracklet of four
+  // segment positions, the second's one position.
   std::vector<std::string> data;
   for (const auto& l : readLines(folder + "/run.psv"))
     if (!l.empty() && l[0] != '#' && l[0] != '!' && l.find("trkSub") == std::string::npos) data.push_back(l);
-  ASSERT_EQ(data.size(), 2u);
-  EXPECT_EQ(data[0].substr(0, 7), "st00001");
-  EXPECT_EQ(data[1].substr(0, 7), "st00002");
+  ASSERT_EQ(data.size(), 5u);
+  for (int k = 0; k < 4; ++k)
+    EXPECT_EQ(data[k].rfind("st00001", 0), 0u) << data[k];
+  EXPECT_EQ(data[4].rfind("st00002", 0), 0u) << data[4];
   EXPECT_NE(readAll(folder + "/run.psv").find("! mpcCode 291"), std::string::npos);
-  // MPC 80-column: header lines (COD, OBS, ...) then the two observations, 80 columns, station in 78-80.
+  // MPC 80-column: header lines (COD, OBS, ...) then the five observations, 80 columns, station in 78-80,
+  // the tracklet's four at increasing times.
   std::vector<std::string> obsLines;
   for (const auto& l : readLines(folder + "/run_mpc.txt"))
     if (l.size() == 80 && l.substr(77, 3) == "291" && l.substr(0, 4) != "COD ") obsLines.push_back(l);
-  ASSERT_EQ(obsLines.size(), 2u);
-  EXPECT_EQ(obsLines[0].substr(5, 7), "st00001");
-  EXPECT_EQ(obsLines[1].substr(5, 7), "st00002");
+  ASSERT_EQ(obsLines.size(), 5u);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(obsLines[k].substr(5, 7), "st00001");
+    if (k > 0) EXPECT_GT(obsLines[k].substr(15, 17), obsLines[k - 1].substr(15, 17));
+  }
+  EXPECT_EQ(obsLines[4].substr(5, 7), "st00002");
   EXPECT_EQ(readAll(folder + "/run_mpc.txt").find("st00003"), std::string::npos);
 
   // JSON and CSV: every candidate, with its label.

@@ -58,6 +58,32 @@ void appendMotionRows(QTableWidget* table, const Observation& obs, double x, dou
   add("vy vs sky [" + unit + "]", num(m.vy), num(inUnit(sigmaVyPxS)));
 }
 
+// The segment check's verdict and each segment's own position: the tracklet a report submits (one position
+// per segment by default, report::realDetections).
+void appendSegmentRows(QTableWidget* table, const std::optional<candidate::SegmentSummary>& seg) {
+  if (!seg) return;
+  const auto add = [table](const QString& name, const QString& value, const QString& sigma = {},
+                           const QString& note = {}) {
+    const int i = table->rowCount();
+    table->insertRow(i);
+    const QString cells[] = {name, value, sigma, {}, note};
+    for (int c = 0; c < 5; ++c)
+      table->setItem(i, c, new QTableWidgetItem(cells[c]));
+  };
+  add(QString("segments (K = %1)").arg(seg->snr.size()), seg->flagged ? "flagged" : "consistent", {},
+      QString("%1 position%2 for the report")
+          .arg(seg->positions.size())
+          .arg(seg->positions.size() == 1 ? "" : "s"));
+  for (const auto& q : seg->positions) {
+    QString note = QString("SNR %1").arg(q.snr, 0, 'f', 1);
+    if (q.raDeg && q.decDeg)
+      note += QString(", RA %1 Dec %2 deg").arg(*q.raDeg, 0, 'f', 6).arg(*q.decDeg, 0, 'f', 6);
+    add(QString::asprintf("segment %d (x, y) [px] at t_ref %+.1f s", q.segment, q.tOffsetS),
+        QString("%1, %2").arg(q.x, 0, 'f', 3).arg(q.y, 0, 'f', 3),
+        QString("%1, %2").arg(q.sigmaXPx, 0, 'g', 3).arg(q.sigmaYPx, 0, 'g', 3), note);
+  }
+}
+
 }  // namespace
 
 FitPanel::FitPanel(Observation* observation, const CoreServices* services, QWidget* parent)
@@ -366,7 +392,7 @@ void FitPanel::fillTable(const FitOutcome& out) {
   }
   row("frames inside / used", QString("%1 / %2").arg(r.framesInside).arg(r.framesUsed));
   row("reduced χ²", num(r.reducedChi2));
-  if (const auto& seg = out.summary.segments) row("segments (K = 4)", seg->flagged ? "flagged" : "consistent");
+  appendSegmentRows(m_table, out.summary.segments);
   if (const auto& sky = out.summary.sky) {
     row("RA [deg] at t_ref", QString::number(sky->raDeg, 'f', 6));
     row("Dec [deg] at t_ref", QString::number(sky->decDeg, 'f', 6));
@@ -400,7 +426,7 @@ void FitPanel::fillStoredTable(int index, const candidate::FitSummary& fit) {
   appendMotionRows(m_table, *m_obs, fit.x, fit.y, fit.v, s.vxPxS, s.vyPxS);
   row("photons / frame", num(fit.photonsPerFrame));
   row("SNR (detection_snr)", num(fit.snr));
-  if (fit.segments) row("segments (K = 4)", fit.segments->flagged ? "flagged" : "consistent");
+  appendSegmentRows(m_table, fit.segments);
   if (const auto& sky = fit.sky) {
     row("RA [deg] at t_ref", QString::number(sky->raDeg, 'f', 6));
     row("Dec [deg] at t_ref", QString::number(sky->decDeg, 'f', 6));

@@ -154,6 +154,15 @@ QWidget* ReportDialog::buildObservatoryPage() {
   m_safeSnr->setRange(0.0, 100.0);
   m_safeSnr->setDecimals(1);
   m_safeSnr->setToolTip("Candidates labelled real below this SNR get a warning (the paper's threshold is 7)");
+  m_positions = new QComboBox(page);
+  m_positions->addItem("one per segment (a tracklet)", "segments");
+  m_positions->addItem("the whole fit's one", "fit");
+  m_positions->setToolTip(
+      "Positions per object labelled real. The MPC links a new object from a tracklet of two or more "
+      "positions: "
+      "one per segment gives each segment's own fit (4 segments, each at the mean time of its frames, SNR "
+      "about "
+      "half the whole fit's). The whole fit's one position is the most precise, but alone");
   form->addRow("Station code", m_station);
   form->addRow("Observers", m_observers);
   form->addRow("Measurer", m_measurer);
@@ -164,11 +173,13 @@ QWidget* ReportDialog::buildObservatoryPage() {
   form->addRow("Catalogue (astCat)", m_astCat);
   form->addRow("80-column catalogue code", m_mpcCat);
   form->addRow("Safe SNR", m_safeSnr);
+  form->addRow("Positions per object", m_positions);
   for (QLineEdit* e : {m_station, m_observers, m_measurer, m_submitter, m_telescope, m_astCat, m_mpcCat})
     connect(e, &QLineEdit::editingFinished, this, &ReportDialog::onSettingsEdited);
   connect(m_aperture, &QDoubleSpinBox::valueChanged, this, &ReportDialog::onSettingsEdited);
   connect(m_safeSnr, &QDoubleSpinBox::valueChanged, this, &ReportDialog::onSettingsEdited);
   connect(m_detector, &QComboBox::currentIndexChanged, this, &ReportDialog::onSettingsEdited);
+  connect(m_positions, &QComboBox::currentIndexChanged, this, &ReportDialog::onSettingsEdited);
   return page;
 }
 
@@ -185,6 +196,7 @@ report::SubmissionSettings ReportDialog::submissionSettings() const {
   const QString code = m_mpcCat->text();
   s.mpcCatalogCode = code.size() == 1 ? code[0].toLatin1() : ' ';
   s.safeSnr = m_safeSnr->value();
+  s.positions = report::trackletPositionsFromString(m_positions->currentData().toString().toStdString());
   return s;
 }
 
@@ -201,6 +213,7 @@ void ReportDialog::setSubmissionSettings(const report::SubmissionSettings& s) {
   m_astCat->setText(QString::fromStdString(s.astCat));
   m_mpcCat->setText(s.mpcCatalogCode == ' ' ? QString() : QString(QChar(s.mpcCatalogCode)));
   m_safeSnr->setValue(s.safeSnr);
+  m_positions->setCurrentIndex(m_positions->findData(QString(report::toString(s.positions))));
   m_loading = wasLoading;
   onSettingsEdited();
 }
@@ -256,7 +269,7 @@ void ReportDialog::refreshWarnings() {
   if (m_ctx.makeSession && m_ctx.observation && m_ctx.observation->result()) {
     try {
       const auto s = m_ctx.makeSession(toJson(submissionSettings()));
-      for (const auto& w : report::submissionWarnings(s, m_safeSnr->value()))
+      for (const auto& w : report::submissionWarnings(s, submissionSettings()))
         lines << "⚠ " + QString::fromStdString(w);
     } catch (const std::exception& e) {
       lines << "⚠ " + QString::fromStdString(e.what());

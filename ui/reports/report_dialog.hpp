@@ -103,6 +103,7 @@ class ReportDialog : public QDialog {
   QLineEdit* m_astCat = nullptr;
   QLineEdit* m_mpcCat = nullptr;
   QDoubleSpinBox* m_safeSnr = nullptr;
+  QComboBox* m_positions = nullptr;
   QLabel* m_warning = nullptr;
   QPlainTextEdit* m_result = nullptr;
   QPushButton* m_export = nullptr;

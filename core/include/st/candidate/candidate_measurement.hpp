@@ -53,12 +53,29 @@ struct FitUncertainty {
   friend bool operator==(const FitUncertainty&, const FitUncertainty&) = default;
 };
 
+/// One segment's own position (vet::SegmentMeasurement's fit, the velocity held at the whole fit's): an
+/// observation at the mean time of the segment's frames, one of the several positions per object that a
+/// submission to the MPC needs (report::realDetections).
+struct SegmentPosition {
+  int segment = 0;                        ///< 1-based segment number
+  double mjdUtc = 0.0;                    ///< the mean of the segment's frames' mid-times
+  double tOffsetS = 0.0;                  ///< the same, seconds from the cube's t_ref
+  double x = 0.0, y = 0.0;                ///< 0-based pixels at that time
+  double sigmaXPx = 0.0, sigmaYPx = 0.0;  ///< noise-model errors
+  double snr = 0.0;                       ///< the segment fit's detection SNR
+  /// ICRS at that time (astro::skyMeasurement through the frames' WCS); absent without a WCS.
+  std::optional<double> raDeg, decDeg;
+  std::optional<double> sigmaRaArcsec, sigmaDecArcsec;  ///< RA cos Dec and Dec
+  friend bool operator==(const SegmentPosition&, const SegmentPosition&) = default;
+};
+
 /// The K-segment consistency check of a fit (vet::checkSegments, paper §4.4): whether it flags the
-/// candidate, why, and each segment's forced SNR.
+/// candidate, why, each segment's forced SNR, and the positions of the segments whose fit converged.
 struct SegmentSummary {
   bool flagged = false;
   std::vector<std::string> reasons;
   std::vector<double> snr;
+  std::vector<SegmentPosition> positions;
   friend bool operator==(const SegmentSummary&, const SegmentSummary&) = default;
 };
 

@@ -21,15 +21,17 @@ namespace st::report {
 
 /// The flat fit object of the candidates file: status, message, iterations, x, y, vx_px_s, vy_px_s,
 /// sigma_x_px, sigma_y_px, sigma_vx_px_s, sigma_vy_px_s, sigma_pos_paper_px, sigma_vel_paper_px_s,
-/// photons_per_frame, snr; segments_flagged, segment_reasons, segment_snr (with a segment check); ra_deg,
+/// photons_per_frame, snr; segments_flagged, segment_reasons, segment_snr, segment_positions (with a segment
+/// check; each {segment, mjd_utc, t_offset_s, x, y, sigma_x_px, sigma_y_px, snr, and ra_deg, dec_deg,
+/// sigma_ra_arcsec, sigma_dec_arcsec with a sky position}); ra_deg,
 /// dec_deg, rate_deg_day, rate_arcsec_min, pa_deg (with a sky position); t_ref_mjd, sigma_ra_arcsec,
 /// sigma_dec_arcsec, mag, band when set. Also the layout of a session file of format 1.
 [[nodiscard]] nlohmann::json toFlatJson(const candidate::FitSummary& fit);
 [[nodiscard]] candidate::FitSummary fitFromFlatJson(const nlohmann::json& json, const std::string& where);
 
 /// The fit of a session file (format 2): the flat keys above without the groups, plus "sigma" {x_px, y_px,
-/// vx_px_s, vy_px_s, pos_paper_px, vel_paper_px_s}, "segments" {flagged, reasons, snr} and "sky" {ra_deg,
-/// dec_deg, rate_deg_day, rate_arcsec_min, pa_deg}.
+/// vx_px_s, vy_px_s, pos_paper_px, vel_paper_px_s}, "segments" {flagged, reasons, snr, positions} and "sky"
+/// {ra_deg, dec_deg, rate_deg_day, rate_arcsec_min, pa_deg}.
 [[nodiscard]] nlohmann::json toNestedJson(const candidate::FitSummary& fit);
 [[nodiscard]] candidate::FitSummary fitFromNestedJson(const nlohmann::json& json, const std::string& where);
 

@@ -83,8 +83,10 @@ ReportOutcome writeReports(const ReportRequest& request, ProgressSink& progress,
 /// when unknown). Text fields are quoted when they hold a comma, quote or newline (RFC 4180).
 [[nodiscard]] std::string candidatesCsv(const session::Session& session);
 
-/// Warnings for the candidates labelled real below `safeSnr` (and real ones without a sky position), as the
-/// dialog shows them before anything is written.
-[[nodiscard]] std::vector<std::string> submissionWarnings(const session::Session& session, double safeSnr);
+/// Warnings for the detections of the candidates labelled real (realDetections with the settings' positions)
+/// below the settings' safe SNR, and for real ones not reported or reported with one position, as the dialog
+/// shows them before anything is written.
+[[nodiscard]] std::vector<std::string> submissionWarnings(const session::Session& session,
+                                                          const SubmissionSettings& settings);
 
 }  // namespace st::report

@@ -10,13 +10,17 @@
 
 namespace st::report {
 
-/// The detections of the candidates labelled real, in session order. A candidate contributes when its fit has
-/// ra_deg and dec_deg (astro::skyMeasurement at t_ref, as the demo and GUI write); the epoch is the fit's
-/// t_ref_mjd, else the search's t_ref_mjd; SNR the fit's, else the search's; sigmas from the fit's
-/// sigma_ra_arcsec/sigma_dec_arcsec, else sigma_x_px/sigma_y_px times the plate scale; magnitude from "mag".
-/// trkSub = `prefix` + the 1-based candidate number, zero-padded to 7 characters. A real candidate without a
-/// sky position is skipped with a warning in `warnings`.
+/// The detections of the candidates labelled real, in session order. A candidate contributes when its
+/// accepted fit converged and has a sky position (astro::skyMeasurement at t_ref, as the demo and GUI write).
+/// With TrackletPositions::Segments, one detection per segment position on the sky (the fit's segment check:
+/// each at its segment's mean time, with its own SNR and sigmas) when there are two or more; else, and with
+/// TrackletPositions::Fit, the one whole-fit position: epoch the fit's t_ref_mjd, else the search's
+/// t_ref_mjd; SNR the fit's; sigmas from sigma_ra_arcsec/sigma_dec_arcsec, else sigma_x_px/sigma_y_px times
+/// the plate scale; magnitude and band the fit's. trkSub = `prefix` + the 1-based candidate number,
+/// zero-padded to 7 characters, the same for all of one object's positions. A real candidate that is not
+/// reported, or is reported with one position where segments were asked for, adds a warning naming why.
 [[nodiscard]] std::vector<AstrometricDetection> realDetections(const session::Session& session,
+                                                               TrackletPositions positions,
                                                                std::vector<std::string>& warnings,
                                                                const std::string& prefix = "st");
 

@@ -12,6 +12,16 @@
 
 namespace st::report {
 
+/// Which positions of an object labelled real a submission gives. The MPC links a new object from a
+/// tracklet of two or more positions at different times: Segments gives one per segment of the fit's segment
+/// check (each segment's own fit, velocity held, at the mean time of its frames: K = 4 positions at SNR ~ the
+/// whole fit's / 2); Fit gives the whole co-moving fit's one position at t_ref (the most precise, but alone).
+enum class TrackletPositions { Segments, Fit };
+/// "segments", "fit".
+[[nodiscard]] const char* toString(TrackletPositions positions) noexcept;
+/// Throws st::InputError naming the text when it is neither key.
+[[nodiscard]] TrackletPositions trackletPositionsFromString(const std::string& text);
+
 struct SubmissionSettings {
   std::string stationCode;                    ///< MPC observatory code, 3 characters (required)
   std::string observers;                      ///< observer name(s), comma-separated ("A. Smith, B. Jones")
@@ -26,6 +36,8 @@ struct SubmissionSettings {
   /// Column 72 itself is left blank in a submission (the MPC fills it).
   char mpcCatalogCode = ' ';
   double safeSnr = 7.0;  ///< below this SNR a line gets a warning (paper §4.4 threshold)
+  TrackletPositions positions =
+      TrackletPositions::Segments;  ///< positions per object (report::realDetections)
 };
 
 enum class SubmissionFormat { Ades, Mpc80 };
@@ -60,9 +72,9 @@ struct SettingsProblem {
 
 /// The settings as kept in a session's settings and in the GUI's QSettings: station, observers, measurer,
 /// submitter, telescope_design, aperture_m, detector, ast_cat, mpc_catalog_code (one character, " " = from
-/// astCat), safe_snr.
+/// astCat), safe_snr, positions ("segments" or "fit").
 [[nodiscard]] nlohmann::json toJson(const SubmissionSettings& settings);
-/// The inverse; missing or mistyped keys keep the defaults of SubmissionSettings.
+/// The inverse; missing, mistyped or unknown values keep the defaults of SubmissionSettings.
 [[nodiscard]] SubmissionSettings submissionFromJson(const nlohmann::json& json);
 
 }  // namespace st::report

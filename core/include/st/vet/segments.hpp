@@ -45,6 +45,9 @@ struct SegmentMeasurement {
   double sigmaX = 0.0, sigmaY = 0.0;  ///< noise-model errors of x, y
   double snr = 0.0;                   ///< detection_snr of the segment fit
   double photonsPerFrame = 0.0;       ///< gain * forcedAlpha * sum P
+  /// The segment fit itself (its tRefOffsetS is tMidOffsetS, its tRefMjd that time's MJD): the position's
+  /// covariance and epoch, for the segment's own astrometry (astro::skyMeasurement).
+  fit::FitResult fit;
   Image stack;  ///< IPSA stack of the segment at the fitted velocity, centred on the track
 };
 
