@@ -45,7 +45,7 @@ std::vector<PreprocessStageSpec> preprocessStageSpecs() {
       // another readout; on, a section that does not fit the frames is clipped with a warning. Bias, flat and
       // dark frames as `synthtrack-cli preprocess --bias/--flat/--dark` takes them (files or folders).
       {kCalibrationStageKey,
-       "Calibration (overscan, trim, bad pixels)",
+       "Calibration",
        {"Calibration (overscan, trim, bad pixels)"},
        true,
        true,
@@ -53,9 +53,11 @@ std::vector<PreprocessStageSpec> preprocessStageSpecs() {
        {F{"bias", "Bias frames", "bias (zero) frames, combined per pixel by the median"},
         F{"flat", "Flat frames",
           "flat-field frames (twilight or dome), bias-subtracted, median-combined and normalised to 1"},
-        F{"dark", "Dark frames", "dark frames, bias-subtracted and scaled by exposure"}}},
+        F{"dark", "Dark frames", "dark frames, bias-subtracted and scaled by exposure"}},
+       "overscan subtracted and trimmed by the headers' sections, bias, dark and flat applied, bad pixels "
+       "masked"},
       {kRegistrationStageKey,
-       "Registration (per-frame offsets from the stars)",
+       "Registration",
        {"Registration (per-frame offsets from the stars)"},
        d.registerFrames,
        true,
@@ -63,7 +65,9 @@ std::vector<PreprocessStageSpec> preprocessStageSpecs() {
           "each frame's star field is followed from frame to frame; while it stays within this rms of one "
           "linear sky rate that is the model, beyond it (dithers, guiding, re-pointing) per-frame offsets "
           "are used by every stage and the search"}},
-       {}},
+       {},
+       "per-frame offsets from the stars (dithers, guiding drift), or one linear sky rate when the field "
+       "moves linearly"},
       {kCosmicRaysStageKey,
        "Cosmic rays",
        {"Cosmic rays"},

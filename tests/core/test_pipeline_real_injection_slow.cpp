@@ -204,13 +204,17 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
         best = std::max(best, cd.snr);
       }
       if (bestCell && m.snr >= 12) {
-        const candidate::FitSummary fit = candidate::fitCandidate(prep, *bestCell, c);
+        fit::FitResult whole;
+        const candidate::FitSummary fit =
+            candidate::fitCandidate(prep.frames, prep, *bestCell, c, {}, &whole);
         if (fit.converged()) {
           ++fitted;
           fitPulls.insert(fitPulls.end(), {(fit.x - m.x) / fit.sigma.xPx, (fit.y - m.y) / fit.sigma.yPx});
-          std::printf("seed %u mover (%.1f, %.1f) fit SNR %.1f sigma (%.3f, %.3f) px pull (%+.2f, %+.2f)",
-                      seed, m.x, m.y, fit.snr, fit.sigma.xPx, fit.sigma.yPx, fitPulls.end()[-2],
-                      fitPulls.back());
+          std::printf(
+              "seed %u mover (%.1f, %.1f) fit SNR %.1f reduced chi2 %.3f sigma (%.3f, %.3f) px pull (%+.2f, "
+              "%+.2f)",
+              seed, m.x, m.y, fit.snr, whole.reducedChi2, fit.sigma.xPx, fit.sigma.yPx, fitPulls.end()[-2],
+              fitPulls.back());
           if (fit.segments)
             for (const auto& q : fit.segments->positions) {
               ++segmentPositions;
@@ -293,6 +297,16 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
       "fits of the found movers of SNR >= 12: %d converged of %d found, position pull rms %.3f (largest "
       "%.2f); %d segment positions (of %d segments), pull rms %.3f (largest %.2f)\n",
       fitted, brightFound, fitRms, fitMax, segmentPositions, 4 * fitted, segRms, segMax);
+  // Measured 2026-12-05 (dev VM, 3 seeds): 58 of 58 fitted, whole-fit pull rms 1.051 (largest 3.72); 232
+  // segment positions, pull rms 1.208 (largest 3.90), the same in every SNR bin from 5 to 12 (not the fit's
+  // low-SNR non-linearity; the simulator's seeds give 1.042), reduced chi^2 0.94-1.13 (the noise level is
+  // right). The first and last segments sit 0.6 and 0.2 sigma outward along the track on average: each
+  // pixel's background, from 15 frames, takes in part of a slow mover's own flux (the 0.915 of flux kept
+  // above). Held at the measured level.
+  EXPECT_EQ(fitted, brightFound);
+  EXPECT_EQ(segmentPositions, 4 * fitted);
+  EXPECT_LT(fitRms, 1.25);
+  EXPECT_LT(segRms, 1.35);
   EXPECT_GE(brightFound, 0.9 * bright);
   EXPECT_GE(midFound, 0.5 * mid);
   // Issue 14 asks for >= 0.8; measured 0.791 over the 3 seeds (2026-11-25): IPSA sums whole pixels, and with

@@ -55,6 +55,7 @@ struct StageSpec {
   std::string key;
   /// Keys older session files used for this stage (format 2 stored the display name).
   std::vector<std::string> formerKeys;
+  std::string help;  ///< what the stage does (the group's tooltip)
 };
 
 /// The paths of `stages`' file list `key` (first match), empty when there is none.

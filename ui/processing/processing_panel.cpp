@@ -45,6 +45,7 @@ ProcessingPanel::ProcessingPanel(std::vector<StageSpec> stages, QWidget* parent)
   innerLayout->setContentsMargins(2, 2, 2, 2);
   for (const StageSpec& stage : m_defaults) {
     auto* box = new QGroupBox(QString::fromStdString(stage.name), inner);
+    if (!stage.help.empty()) box->setToolTip(QString::fromStdString(stage.help));
     box->setCheckable(stage.optional);
     box->setChecked(stage.enabled);
     auto* form = new QFormLayout(box);

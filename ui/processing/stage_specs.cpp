@@ -10,6 +10,7 @@ std::vector<StageSpec> describedStages() {
     stage.name = s.label;
     stage.key = s.key;
     stage.formerKeys = s.formerKeys;
+    stage.help = s.help;
     stage.enabled = s.enabledByDefault;
     stage.optional = s.optional;
     for (const auto& p : s.params)

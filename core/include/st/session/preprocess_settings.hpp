@@ -43,6 +43,7 @@ struct PreprocessStageSpec {
   bool optional = true;  ///< false: always on
   std::vector<PreprocessParamSpec> params;
   std::vector<PreprocessFilesSpec> files;
+  std::string help;  ///< what the stage does, in a sentence (the label is kept short for a narrow panel)
 };
 
 /// Stable stage keys.
