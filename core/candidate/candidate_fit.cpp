@@ -1,5 +1,8 @@
 #include "st/candidate/candidate_fit.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 #include "st/astro/astrometry.hpp"
 #include "st/astro/photometry.hpp"
 #include "st/io/wcs.hpp"
@@ -11,6 +14,44 @@ FitSummary fitCandidate(const pipeline::Prepared& prepared, const search::Candid
   return fitCandidate(prepared.frames, prepared, c, cancel);
 }
 
+int trackletSegments(double snr) noexcept {
+  if (!(snr > 0.0) || !std::isfinite(snr)) return 2;
+  const double k = std::floor((snr / kTrackletSnr) * (snr / kTrackletSnr));
+  return static_cast<int>(std::clamp(k, 2.0, 4.0));
+}
+
+namespace {
+
+// The segment positions of `seg` worth submitting: the segment's fit converged with errors, its signal is
+// not missing (vet::SegmentMeasurement::missing), and it lies within kMaxPull of the whole fit's track on
+// each axis (a segment fit that wandered off onto noise or a neighbour is not the object).
+std::vector<SegmentPosition> positionsOf(const vet::SegmentReport& seg, const FrameCube& frames,
+                                         Velocity skyRate) {
+  constexpr double kMaxPull = 5.0;
+  // A FITS WCS belongs to the first frame; the stars have moved by the sky rate since then.
+  const double firstOffset = frames.timeOffsetsS().front();
+  std::vector<SegmentPosition> out;
+  for (const auto& m : seg.segments) {
+    if (m.frames.empty() || m.missing || !m.fit.ok() || !(m.sigmaX > 0.0) || !(m.sigmaY > 0.0)) continue;
+    if (std::abs(m.x - m.predictedX) > kMaxPull * m.sigmaX ||
+        std::abs(m.y - m.predictedY) > kMaxPull * m.sigmaY)
+      continue;
+    SegmentPosition p{
+        m.index + 1, m.fit.tRefMjd, m.tMidOffsetS, m.x, m.y, m.sigmaX, m.sigmaY, m.snr, {}, {}, {}, {}};
+    if (frames.wcs) {
+      const astro::SkyMeasurement sky = astro::skyMeasurement(*frames.wcs, m.fit, skyRate, firstOffset);
+      p.raDeg = sky.raDeg;
+      p.decDeg = sky.decDeg;
+      p.sigmaRaArcsec = sky.sigmaRaArcsec;
+      p.sigmaDecArcsec = sky.sigmaDecArcsec;
+    }
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace
+
 FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepared,
                         const search::Candidate& c, CancelToken& cancel,
                         const fit::IterationCallback& onIteration, fit::FitResult* result) {
@@ -21,29 +62,27 @@ FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepa
   opt.excessNoise = astro::excessNoiseFactor(frames.header);
   const fit::FitResult f = fit::fitComoving(frames, fit::startFromCandidate(c), opt, onIteration, cancel);
   FitSummary s = summarize(f);
-  // A FITS WCS belongs to the first frame; the stars have moved by the sky rate since then.
-  const double firstOffset = frames.timeOffsetsS().front();
   if (f.sigmaN > 0.0) {
-    const vet::SegmentReport seg = vet::checkSegments(frames, f, opt, vet::SegmentOptions{}, cancel);
+    const vet::SegmentOptions check;  // K = 4, the paper's
+    const vet::SegmentReport seg = vet::checkSegments(frames, f, opt, check, cancel);
     SegmentSummary summary{seg.flagged(), seg.reasons, {}, {}};
-    for (const auto& m : seg.segments) {
+    for (const auto& m : seg.segments)
       summary.snr.push_back(m.forcedSnr);
-      if (!f.ok() || !m.fit.ok() || !(m.sigmaX > 0.0) || !(m.sigmaY > 0.0)) continue;
-      SegmentPosition p{
-          m.index + 1, m.fit.tRefMjd, m.tMidOffsetS, m.x, m.y, m.sigmaX, m.sigmaY, m.snr, {}, {}, {}, {}};
-      if (frames.wcs) {
-        const astro::SkyMeasurement sky =
-            astro::skyMeasurement(*frames.wcs, m.fit, prepared.skyRate, firstOffset);
-        p.raDeg = sky.raDeg;
-        p.decDeg = sky.decDeg;
-        p.sigmaRaArcsec = sky.sigmaRaArcsec;
-        p.sigmaDecArcsec = sky.sigmaDecArcsec;
-      }
-      summary.positions.push_back(p);
+    if (f.ok()) {
+      // The tracklet: the check's own segments when their number suits the fit's SNR, else segments of
+      // their own (never more than the frames).
+      vet::SegmentOptions tracklet = check;
+      tracklet.segments = std::min(trackletSegments(f.snr), static_cast<int>(frames.frameCount()));
+      summary.positionSegments = tracklet.segments;
+      summary.positions =
+          tracklet.segments == check.segments
+              ? positionsOf(seg, frames, prepared.skyRate)
+              : positionsOf(vet::checkSegments(frames, f, opt, tracklet, cancel), frames, prepared.skyRate);
     }
     s.segments = std::move(summary);
   }
   if (f.ok() && frames.wcs) {
+    const double firstOffset = frames.timeOffsetsS().front();
     const astro::SkyMeasurement sky = astro::skyMeasurement(*frames.wcs, f, prepared.skyRate, firstOffset);
     s.sky = SkyPosition{sky.raDeg, sky.decDeg, sky.rateDegPerDay, sky.rateArcsecPerMin, sky.positionAngleDeg};
   }

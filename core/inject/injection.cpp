@@ -185,6 +185,8 @@ RawGeometry rawGeometry(const FrameCube& raw, const calib::MasterCalibration& ma
   }
   g.flat = masters.flat;
   g.integerCounts = raw.header.getDouble("BITPIX").value_or(-32.0) > 0.0;
+  const double em = raw.header.getDouble("EMGAIN").value_or(1.0);
+  g.emGain = em > 1.0 && std::isfinite(em) ? em : 1.0;
   return g;
 }
 
@@ -207,9 +209,13 @@ Image rawSignal(const InjectionPlan& plan, std::size_t frame, const RawGeometry&
   sim::Rng rng(sim::streamSeed(plan.params.seed, 1 + frame));
   for (std::size_t i = 0; i < expected.size(); ++i) {
     if (!(expected[i] > 0.0)) continue;
-    double v = g.gainEPerAdu > 0.0
-                   ? static_cast<double>(sim::poisson(rng, expected[i] * g.gainEPerAdu)) / g.gainEPerAdu
-                   : expected[i];
+    double v = expected[i];
+    if (g.gainEPerAdu > 0.0 && g.emGain > 1.0) {
+      const std::int64_t photoelectrons = sim::poisson(rng, expected[i] * g.gainEPerAdu / g.emGain);
+      v = sim::emRegister(rng, photoelectrons, g.emGain) / g.gainEPerAdu;
+    } else if (g.gainEPerAdu > 0.0) {
+      v = static_cast<double>(sim::poisson(rng, expected[i] * g.gainEPerAdu)) / g.gainEPerAdu;
+    }
     if (g.integerCounts) {
       const double whole = std::floor(v);
       v = whole + (sim::uniform01(rng) < v - whole ? 1.0 : 0.0);

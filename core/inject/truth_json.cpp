@@ -36,6 +36,7 @@ nlohmann::json truthToJson(const InjectionRun& run, const TruthMeta& meta) {
   j["bias_files"] = meta.biasFiles;
   j["flat_files"] = meta.flatFiles;
   j["gain_e_per_adu"] = run.geometry.gainEPerAdu;
+  j["em_gain"] = run.geometry.emGain;
   j["gain_source"] = meta.gainSource;
   j["plate_scale_arcsec_px"] = orNull(meta.plateScaleArcsecPerPx);
   j["zero_point_mag"] = orNull(p.zeroPointMag);

@@ -182,6 +182,7 @@ json toFlatJson(const candidate::FitSummary& f) {
     j["segment_reasons"] = f.segments->reasons;
     j["segment_snr"] = f.segments->snr;
     j["segment_positions"] = toJson(f.segments->positions);
+    j["position_segments"] = f.segments->positionSegments;
   }
   if (f.sky) {
     j["ra_deg"] = f.sky->raDeg;
@@ -202,7 +203,8 @@ candidate::FitSummary fitFromFlatJson(const json& j, const std::string& where) {
     f.segments = candidate::SegmentSummary{get<bool>(j, "segments_flagged", false, where),
                                            get<std::vector<std::string>>(j, "segment_reasons", {}, where),
                                            get<std::vector<double>>(j, "segment_snr", {}, where),
-                                           positionsFromJson(j, "segment_positions", where)};
+                                           positionsFromJson(j, "segment_positions", where),
+                                           get<int>(j, "position_segments", 0, where)};
   }
   if (j.contains("ra_deg")) {
     f.sky = candidate::SkyPosition{get<double>(j, "ra_deg", 0.0, where), get<double>(j, "dec_deg", 0.0, where),
@@ -222,7 +224,8 @@ json toNestedJson(const candidate::FitSummary& f) {
     j["segments"] = {{"flagged", f.segments->flagged},
                      {"reasons", f.segments->reasons},
                      {"snr", f.segments->snr},
-                     {"positions", toJson(f.segments->positions)}};
+                     {"positions", toJson(f.segments->positions)},
+                     {"position_segments", f.segments->positionSegments}};
   if (f.sky)
     j["sky"] = {{"ra_deg", f.sky->raDeg},
                 {"dec_deg", f.sky->decDeg},
@@ -243,7 +246,8 @@ candidate::FitSummary fitFromNestedJson(const json& j, const std::string& where)
     const json& s = j["segments"];
     f.segments = candidate::SegmentSummary{
         get<bool>(s, "flagged", false, w), get<std::vector<std::string>>(s, "reasons", {}, w),
-        get<std::vector<double>>(s, "snr", {}, w), positionsFromJson(s, "positions", w + ", segments")};
+        get<std::vector<double>>(s, "snr", {}, w), positionsFromJson(s, "positions", w + ", segments"),
+        get<int>(s, "position_segments", 0, w)};
   }
   if (j.contains("sky") && j["sky"].is_object()) {
     const json& s = j["sky"];

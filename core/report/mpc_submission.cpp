@@ -72,17 +72,24 @@ void checkDetection(const AstrometricDetection& d) {
 
 void lowSnrWarnings(const std::vector<AstrometricDetection>& ds, const SubmissionSettings& s,
                     std::vector<std::string>& warnings) {
-  for (const auto& d : ds) {
-    if (d.snr < s.safeSnr) {
-      warnings.push_back(
-          fmt("%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections "
-              "pulled out of the noise: confirm it before submitting",
-              d.trkSub.c_str(), d.snr, s.safeSnr));
-    }
-  }
+  for (auto& w : lowSnrWarnings(ds, s.safeSnr))
+    warnings.push_back(std::move(w));
 }
 
 }  // namespace
+
+std::vector<std::string> lowSnrWarnings(const std::vector<AstrometricDetection>& ds, double safeSnr) {
+  std::vector<std::string> out;
+  for (const auto& d : ds) {
+    if (!(d.snr < safeSnr)) continue;
+    const std::string which = d.segment > 0 ? d.trkSub + " segment " + std::to_string(d.segment) : d.trkSub;
+    out.push_back(
+        fmt("%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections "
+            "pulled out of the noise: confirm it before submitting",
+            which.c_str(), d.snr, safeSnr));
+  }
+  return out;
+}
 
 CalendarDate calendarFromMjd(double mjd) noexcept {
   const double dayFloor = std::floor(mjd);

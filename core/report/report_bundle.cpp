@@ -233,17 +233,8 @@ std::string candidatesCsv(const session::Session& s) {
 
 std::vector<std::string> submissionWarnings(const session::Session& s, const SubmissionSettings& settings) {
   std::vector<std::string> warnings;
-  const double safeSnr = settings.safeSnr;
-  for (const auto& d : realDetections(s, settings.positions, warnings)) {
-    if (d.snr >= safeSnr) continue;
-    char buf[200];
-    std::snprintf(
-        buf, sizeof buf,
-        "%s: SNR %.2f is below the safe %.1f; the MPC rejects shift-and-stack detections pulled out "
-        "of the noise: confirm it before submitting",
-        d.trkSub.c_str(), d.snr, safeSnr);
-    warnings.emplace_back(buf);
-  }
+  for (auto& w : lowSnrWarnings(realDetections(s, settings.positions, warnings), settings.safeSnr))
+    warnings.push_back(std::move(w));
   return warnings;
 }
 

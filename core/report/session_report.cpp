@@ -61,6 +61,7 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s, Trac
           e.decDeg = *p.decDeg;
           e.mjdUtc = p.mjdUtc;
           e.snr = p.snr;
+          e.segment = p.segment;
           e.sigmaRaArcsec = p.sigmaRaArcsec ? p.sigmaRaArcsec : arcsec(p.sigmaXPx);
           e.sigmaDecArcsec = p.sigmaDecArcsec ? p.sigmaDecArcsec : arcsec(p.sigmaYPx);
           tracklet.push_back(e);
@@ -69,10 +70,19 @@ std::vector<AstrometricDetection> realDetections(const session::Session& s, Trac
         out.insert(out.end(), tracklet.begin(), tracklet.end());
         continue;
       }
-      warnings.push_back("candidate " + std::to_string(i + 1) + " has " + std::to_string(tracklet.size()) +
-                         " segment position(s) on the sky (a fit made before segment positions were kept, "
-                         "or segments whose fits failed; fit it again): its one whole-fit position is "
-                         "reported, and the MPC links a new object only from two or more");
+      const std::string why =
+          !f.segments ? "its fit has no segment check (the noise level was unknown)"
+          : f.segments->positionSegments == 0
+              ? "its fit was accepted before segment positions were kept: fit it again"
+          : f.segments->positions.size() > tracklet.size()
+              ? "its segment positions have no RA/Dec: give the report the frames' WCS"
+              : "of its " + std::to_string(f.segments->positionSegments) +
+                    " segments the others' fits failed, missed the signal or left the track";
+      warnings.push_back(
+          "candidate " + std::to_string(i + 1) + " has " + std::to_string(tracklet.size()) +
+          " segment position(s) on the sky (" + why +
+          "): its one whole-fit position is reported, and the MPC links a new object only from "
+          "two or more");
     }
     d.raDeg = f.sky->raDeg;
     d.decDeg = f.sky->decDeg;

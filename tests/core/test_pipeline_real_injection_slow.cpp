@@ -157,7 +157,7 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   // The co-moving fit of each found mover of expected SNR >= 12 and its segment positions (what a report's
   // tracklet gives) against the injected track, in units of their own errors.
   std::vector<double> fitPulls, segmentPulls;
-  int fitted = 0, segmentPositions = 0;
+  int fitted = 0, segmentPositions = 0, segmentsCut = 0;
   // ST_INJECTION_SEEDS=K runs only the first K seeds (for a quicker look while developing).
   const char* seedsEnv = std::getenv("ST_INJECTION_SEEDS");
   const unsigned seeds = seedsEnv ? static_cast<unsigned>(std::max(1, std::atoi(seedsEnv))) : 3u;
@@ -215,6 +215,7 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
               "%+.2f)",
               seed, m.x, m.y, fit.snr, whole.reducedChi2, fit.sigma.xPx, fit.sigma.yPx, fitPulls.end()[-2],
               fitPulls.back());
+          if (fit.segments) segmentsCut += fit.segments->positionSegments;
           if (fit.segments)
             for (const auto& q : fit.segments->positions) {
               ++segmentPositions;
@@ -296,7 +297,7 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   std::printf(
       "fits of the found movers of SNR >= 12: %d converged of %d found, position pull rms %.3f (largest "
       "%.2f); %d segment positions (of %d segments), pull rms %.3f (largest %.2f)\n",
-      fitted, brightFound, fitRms, fitMax, segmentPositions, 4 * fitted, segRms, segMax);
+      fitted, brightFound, fitRms, fitMax, segmentPositions, segmentsCut, segRms, segMax);
   // Measured 2026-12-05 (dev VM, 3 seeds): 58 of 58 fitted, whole-fit pull rms 1.051 (largest 3.72); 232
   // segment positions, pull rms 1.208 (largest 3.90), the same in every SNR bin from 5 to 12 (not the fit's
   // low-SNR non-linearity; the simulator's seeds give 1.042), reduced chi^2 0.94-1.13 (the noise level is
@@ -304,7 +305,8 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   // pixel's background, from 15 frames, takes in part of a slow mover's own flux (the 0.915 of flux kept
   // above). Held at the measured level.
   EXPECT_EQ(fitted, brightFound);
-  EXPECT_EQ(segmentPositions, 4 * fitted);
+  EXPECT_GE(segmentPositions, 0.9 * segmentsCut);
+  EXPECT_GE(segmentsCut, 2 * fitted);
   EXPECT_LT(fitRms, 1.25);
   EXPECT_LT(segRms, 1.35);
   EXPECT_GE(brightFound, 0.9 * bright);

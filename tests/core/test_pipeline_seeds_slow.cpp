@@ -44,7 +44,7 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   // The asteroid's segment positions (candidate::fitCandidate, each segment's own fit) against the truth's
   // track at each segment's time, in units of their own errors: what the tracklet of a report is worth.
   std::vector<double> pulls;
-  int positions = 0;
+  int positions = 0, segmentsCut = 0;
   // ST_SEEDS=FIRST-LAST runs another range (a campaign over more seeds; the bounds below are the 20 seeds').
   unsigned first = 21, last = 40;
   if (const char* range = std::getenv("ST_SEEDS")) std::sscanf(range, "%u-%u", &first, &last);
@@ -122,7 +122,8 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
       const candidate::FitSummary fit = candidate::fitCandidate(prep, *hit, c);
       EXPECT_TRUE(fit.converged()) << "seed " << seed << ": " << fit.message;
       if (fit.segments) {
-        std::printf("seed %u: segment positions", seed);
+        segmentsCut += fit.segments->positionSegments;
+        std::printf("seed %u: segment positions (of %d)", seed, fit.segments->positionSegments);
         for (const auto& q : fit.segments->positions) {
           ++positions;
           const double px = (q.x - (truth.xRefPx + truth.vxPxPerS * q.tOffsetS)) / q.sigmaXPx;
@@ -171,10 +172,11 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   }
   const double rmsPull = pulls.empty() ? 0.0 : std::sqrt(sumPull2 / pulls.size());
   std::printf("segment positions: %d of %d segments, rms pull %.3f, largest |pull| %.2f (%zu pulls)\n",
-              positions, 4 * found, rmsPull, maxPull, pulls.size());
-  // Each found asteroid a tracklet: at least 3 of its 4 segments fitted on average; the errors honest to
-  // within the spread an rms of 2 x 80 unit normals has (~0.08) plus the fit's model error.
-  EXPECT_GE(positions, 3 * found);
+              positions, segmentsCut, rmsPull, maxPull, pulls.size());
+  // Each found asteroid a tracklet: nearly every segment gives a position; the errors honest to within the
+  // spread an rms of ~150 unit normals has (~0.06) plus the fit's model error.
+  EXPECT_GE(positions, 0.9 * segmentsCut);
+  EXPECT_GE(segmentsCut, 2 * found);
   EXPECT_GT(rmsPull, 0.75);
   EXPECT_LT(rmsPull, 1.3);
   EXPECT_LT(maxPull, 5.0);

@@ -160,6 +160,10 @@ TEST(SessionReport, ARealObjectIsATrackletOfItsSegmentPositions) {
     EXPECT_NEAR(*d[k].sigmaRaArcsec, k == 0 ? 0.07 : (0.2 + 0.01 * k) * 0.3, 1e-15);
     EXPECT_NEAR(*d[k].sigmaDecArcsec, k == 0 ? 0.09 : 0.12, 1e-15);
   }
+  // Each low-SNR position is named with its segment.
+  const auto low = lowSnrWarnings(d, 7.0);
+  ASSERT_EQ(low.size(), 3u);
+  EXPECT_EQ(low[0].rfind("st00001 segment 1: SNR 4.50 is below the safe 7.0", 0), 0u) << low[0];
   // Segment positions without a sky position are left out; with two or more on the sky it is still a
   // tracklet.
   addSegmentPositions(s, 4, 2);

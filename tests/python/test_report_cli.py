@@ -243,6 +243,42 @@ def vetting_on_the_demo(cli):
         check(not flags[0]["charge_leakage"]["triggered"], "asteroid not flagged for leakage")
         check(flags[0]["known_object"]["triggered"] and flags[0]["known_object"]["value"] < 0.01,
               "asteroid matches the known object: %s" % flags[0]["known_object"])
+        tracklet_of_the_demo(cli, tmp, cpath, real, wcs, mjd, sky)
+
+
+def tracklet_of_the_demo(cli, tmp, cpath, real, wcs, mjd, sky):
+    """The asteroid labelled real is submitted as a tracklet: one ADES line per segment position of its fit,
+    one trkSub, at each segment's mean time, at astropy's sky position of that pixel at that time (the WCS is
+    the first frame's: the stars have moved by the sky rate since); --positions fit gives the one position;
+    a bad --positions value is a usage error."""
+    positions = real["fit"].get("segment_positions", [])
+    check(len(positions) >= 2 and real["fit"].get("position_segments", 0) >= 2,
+          "the demo's fit has a tracklet: %d positions" % len(positions))
+    settings = ["--station", "X05", "--observer", "A. Observer", "--telescope-aperture", "0.5",
+                "--ast-cat", "Gaia3"]
+    ades = os.path.join(tmp, "tracklet.psv")
+    session = os.path.join(tmp, "t.json")
+    r = run(cli, ["report", cpath, "--session", session, "--label", "1=real", "--ades", ades] + settings)
+    check(r.returncode == 0, "report --ades with a tracklet: " + r.stderr)
+    body = [l for l in open(ades).read().splitlines() if not l.startswith(("#", "!"))]
+    names = [f.strip() for f in body[0].split("|")]
+    rows = [dict(zip(names, (v.strip() for v in l.split("|")))) for l in body[1:]]
+    check(len(rows) == len(positions), "one ADES line per segment position: %d of %d" % (len(rows), len(positions)))
+    t_first = (mjd[0] - float(np.mean(mjd))) * 86400.0
+    for row, q in zip(rows, positions):
+        check(row["trkSub"] == "st00001", "one trkSub: %s" % row["trkSub"])
+        t = Time(row["obsTime"][:-1], format="isot", scale="utc").mjd
+        check(abs(t - (float(np.mean(mjd)) + q["t_offset_s"] / 86400.0)) * 86400 <= 0.0005 + 1e-6,
+              "segment %d obsTime %s at its mean time" % (q["segment"], row["obsTime"]))
+        dt = q["t_offset_s"] - t_first
+        ra, dec = wcs.all_pix2world([[q["x"] - sky["vx"] * dt, q["y"] - sky["vy"] * dt]], 0)[0]
+        check(abs(float(row["ra"]) - ra) <= 2e-7 and abs(float(row["dec"]) - dec) <= 2e-7,
+              "segment %d ra/dec %s %s against astropy's %.7f %.7f" % (q["segment"], row["ra"], row["dec"], ra, dec))
+    r = run(cli, ["report", cpath, "--session", session, "--positions", "fit", "--ades", ades] + settings)
+    body = [l for l in open(ades).read().splitlines() if not l.startswith(("#", "!"))]
+    check(r.returncode == 0 and len(body) == 2, "--positions fit: one line (%d)" % (len(body) - 1))
+    r = run(cli, ["report", cpath, "--session", session, "--positions", "three", "--ades", ades] + settings)
+    check(r.returncode == 2 and "--positions" in r.stderr, "--positions three: usage error (%d) %s" % (r.returncode, r.stderr))
 
 
 if __name__ == "__main__":

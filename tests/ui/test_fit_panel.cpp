@@ -98,7 +98,8 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
         candidate::SegmentSummary{false,
                                   {},
                                   {5.0, 5.1, 4.9, 5.2},
-                                  {{2, 60000.5, -3.75, 20.5, 24.25, 0.2, 0.21, 5.1, 150.0, -20.0, {}, {}}}};
+                                  {{2, 60000.5, -3.75, 20.5, 24.25, 0.2, 0.21, 5.1, 150.0, -20.0, {}, {}}},
+                                  3};
     return out;
   };
   Observation obs;
@@ -148,10 +149,10 @@ TEST(FitPanel, RealFitPlotsDecreasingCostFillsTableAndAccepts) {
   EXPECT_FALSE(cell(table, "FAP", 1).isEmpty());
   // The segment check and each segment's position, the tracklet a report submits.
   EXPECT_EQ(cell(table, "segments (K = 4)", 1), "consistent");
-  EXPECT_EQ(cell(table, "segments (K = 4)", 4), "1 position for the report");
-  EXPECT_EQ(cell(table, "segment 2 (x, y) [px] at t_ref -3.8 s", 1), "20.500, 24.250");
-  EXPECT_EQ(cell(table, "segment 2 (x, y)", 2), "0.2, 0.21");
-  EXPECT_EQ(cell(table, "segment 2 (x, y)", 4), "SNR 5.1, RA 150.000000 Dec -20.000000 deg");
+  EXPECT_EQ(cell(table, "segments (K = 4)", 4), "tracklet: 1 position of 3 segments");
+  EXPECT_EQ(cell(table, "segment 2/3 (x, y) [px] at t_ref -3.8 s", 1), "20.500, 24.250");
+  EXPECT_EQ(cell(table, "segment 2/3 (x, y)", 2), "0.2, 0.21");
+  EXPECT_EQ(cell(table, "segment 2/3 (x, y)", 4), "SNR 5.1, RA 150.000000 Dec -20.000000 deg");
 
   // Accept stores the fit's JSON on the candidate.
   ASSERT_TRUE(panel.acceptButton()->isEnabled());

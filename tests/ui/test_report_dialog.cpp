@@ -72,6 +72,7 @@ candidate::FitSummary fitAt(const search::Candidate& c, const FrameCube& raw, do
   f.sigmaRaArcsec = 0.1;
   f.sigmaDecArcsec = 0.1;
   if (segments > 0) f.segments = candidate::SegmentSummary{};
+  if (segments > 0) f.segments->positionSegments = segments;
   for (int k = 0; k < segments; ++k) {
     const double t = -10.0 + 20.0 * k / std::max(1, segments - 1);
     const auto at = raw.wcs->pixelToSky(c.x + c.v.vx * t, c.y + c.v.vy * t);

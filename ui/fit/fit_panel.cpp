@@ -71,14 +71,16 @@ void appendSegmentRows(QTableWidget* table, const std::optional<candidate::Segme
       table->setItem(i, c, new QTableWidgetItem(cells[c]));
   };
   add(QString("segments (K = %1)").arg(seg->snr.size()), seg->flagged ? "flagged" : "consistent", {},
-      QString("%1 position%2 for the report")
+      QString("tracklet: %1 position%2 of %3 segments")
           .arg(seg->positions.size())
-          .arg(seg->positions.size() == 1 ? "" : "s"));
+          .arg(seg->positions.size() == 1 ? "" : "s")
+          .arg(seg->positionSegments));
   for (const auto& q : seg->positions) {
     QString note = QString("SNR %1").arg(q.snr, 0, 'f', 1);
     if (q.raDeg && q.decDeg)
       note += QString(", RA %1 Dec %2 deg").arg(*q.raDeg, 0, 'f', 6).arg(*q.decDeg, 0, 'f', 6);
-    add(QString::asprintf("segment %d (x, y) [px] at t_ref %+.1f s", q.segment, q.tOffsetS),
+    add(QString::asprintf("segment %d/%d (x, y) [px] at t_ref %+.1f s", q.segment, seg->positionSegments,
+                          q.tOffsetS),
         QString("%1, %2").arg(q.x, 0, 'f', 3).arg(q.y, 0, 'f', 3),
         QString("%1, %2").arg(q.sigmaXPx, 0, 'g', 3).arg(q.sigmaYPx, 0, 'g', 3), note);
   }

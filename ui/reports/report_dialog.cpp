@@ -153,16 +153,17 @@ QWidget* ReportDialog::buildObservatoryPage() {
   m_safeSnr = new QDoubleSpinBox(page);
   m_safeSnr->setRange(0.0, 100.0);
   m_safeSnr->setDecimals(1);
-  m_safeSnr->setToolTip("Candidates labelled real below this SNR get a warning (the paper's threshold is 7)");
+  m_safeSnr->setToolTip(
+      "Positions below this SNR get a warning (the paper's threshold is 7): a segment position's SNR is its "
+      "segment's own, about the whole fit's over the square root of the number of segments");
   m_positions = new QComboBox(page);
   m_positions->addItem("one per segment (a tracklet)", "segments");
   m_positions->addItem("the whole fit's one", "fit");
   m_positions->setToolTip(
       "Positions per object labelled real. The MPC links a new object from a tracklet of two or more "
-      "positions: "
-      "one per segment gives each segment's own fit (4 segments, each at the mean time of its frames, SNR "
-      "about "
-      "half the whole fit's). The whole fit's one position is the most precise, but alone");
+      "positions: one per segment gives each segment's own fit, at the mean time of its frames (2 to 4 "
+      "segments, as many as keep each near SNR 7). The whole fit's one position is the most precise, but "
+      "alone");
   form->addRow("Station code", m_station);
   form->addRow("Observers", m_observers);
   form->addRow("Measurer", m_measurer);

@@ -10,12 +10,24 @@
 
 namespace st::candidate {
 
+/// The SNR a tracklet's positions are cut for: the paper's detection threshold (§4.4).
+inline constexpr double kTrackletSnr = 7.0;
+
+/// How many equal-time segments a fit of SNR `snr` is cut into for its tracklet (one position each, the
+/// positions of an MPC submission): as many as keep each segment at kTrackletSnr, floor((snr / 7)^2), at
+/// least 2 (the fewest positions the MPC links an object from) and at most 4 (the segment check's K). SNR
+/// 15.9 (the demo): 4 segments of SNR ~8; 12: 2 of ~8.5; below 9.9 each of the 2 is below 7.
+[[nodiscard]] int trackletSegments(double snr) noexcept;
+
 /// Fits `candidate` on the zero-biased `frames` with the PSF, sigma_n and sky rate of `products` (its own
 /// `frames` are not read; the GUI keeps them in its unfiltered cube), with the photo-electrons per count and
 /// the excess noise of the frames' header (astro::photoelectronsPerCount, excessNoiseFactor):
 /// status, position at t_ref, velocity, noise-model and paper uncertainties, photons per frame, SNR; the
-/// segment check (K = 4, vet::checkSegments) when sigma_n is known; RA/Dec, rate and position angle when the
-/// frames have a WCS and the fit converged. `onIteration` sees every accepted step (calling thread);
+/// segment check (K = 4, vet::checkSegments) when sigma_n is known, and, when the fit converged, the
+/// tracklet: trackletSegments(SNR) segments (the check's own when that is 4), each segment's position where
+/// its fit converged, its signal is not missing and it lies within 5 sigma of the whole fit's track, with
+/// RA/Dec at its own time when the frames have a WCS; RA/Dec, rate and position angle of the whole fit when
+/// the frames have a WCS and the fit converged. `onIteration` sees every accepted step (calling thread);
 /// `result` (may be null) receives the whole fit (covariances, stacks, cost history). Throws st::Cancelled.
 [[nodiscard]] FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& products,
                                       const search::Candidate& candidate, CancelToken& cancel,

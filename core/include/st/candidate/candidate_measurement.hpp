@@ -70,12 +70,15 @@ struct SegmentPosition {
 };
 
 /// The K-segment consistency check of a fit (vet::checkSegments, paper §4.4): whether it flags the
-/// candidate, why, each segment's forced SNR, and the positions of the segments whose fit converged.
+/// candidate, why, each segment's forced SNR; and the fit's tracklet: the positions of its
+/// positionSegments equal-time segments (candidate::trackletSegments; the check's own when 4) that are worth
+/// submitting (candidate::fitCandidate says which).
 struct SegmentSummary {
   bool flagged = false;
   std::vector<std::string> reasons;
   std::vector<double> snr;
   std::vector<SegmentPosition> positions;
+  int positionSegments = 0;  ///< the segments the positions are of (0: none were cut)
   friend bool operator==(const SegmentSummary&, const SegmentSummary&) = default;
 };
 

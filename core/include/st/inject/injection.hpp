@@ -88,6 +88,10 @@ struct RawGeometry {
   int offsetY = 0;
   Image flat;       ///< normalised master flat at raw size; empty = 1
   double gainEPerAdu = 0.0;  ///< for the Poisson noise; <= 0: no noise (expected counts only)
+  /// EM multiplication of an EMCCD (the header's EMGAIN; 1 = none): the signal's photo-electrons are
+  /// gainEPerAdu / emGain per count, and go through the EM register (sim::emRegister), whose excess noise
+  /// doubles their variance, as the simulator renders them.
+  double emGain = 1.0;
   /// The raw frames hold integers (BITPIX > 0): the signal is rounded to whole counts stochastically (up
   /// with probability equal to the fraction), so that adding it to an integer frame loses no flux on
   /// average; plain rounding would drop every wing pixel below half a count.
@@ -96,13 +100,14 @@ struct RawGeometry {
 
 /// The geometry of `raw` (as loaded) under the calibration `preprocess` applies with `masters` and
 /// `params`: the trim offset (the masters' TRIMSEC when there is a master bias, else params' or the
-/// header's), the masters' flat, and integerCounts from the header's BITPIX. The gain is left 0 for the
-/// caller.
+/// header's), the masters' flat, integerCounts from the header's BITPIX and emGain from its EMGAIN. The gain
+/// is left 0 for the caller.
 RawGeometry rawGeometry(const FrameCube& raw, const calib::MasterCalibration& masters,
                         const calib::CalibParams& params);
 
 /// The injected signal of frame `frame` in raw counts at raw size: every mover's flux x stamp x flat,
-/// then Poisson(counts x gain) / gain per pixel, then stochastic rounding when integerCounts (one random
+/// then Poisson(counts x gain) / gain per pixel (with emGain > 1: emRegister(Poisson(counts x gain /
+/// emGain), emGain) / gain), then stochastic rounding when integerCounts (one random
 /// stream per frame, seeded by the plan's seed and the frame: deterministic).
 Image rawSignal(const InjectionPlan& plan, std::size_t frame, const RawGeometry& geometry);
 

@@ -21,11 +21,11 @@ namespace st::report {
 
 /// The flat fit object of the candidates file: status, message, iterations, x, y, vx_px_s, vy_px_s,
 /// sigma_x_px, sigma_y_px, sigma_vx_px_s, sigma_vy_px_s, sigma_pos_paper_px, sigma_vel_paper_px_s,
-/// photons_per_frame, snr; segments_flagged, segment_reasons, segment_snr, segment_positions (with a segment
-/// check; each {segment, mjd_utc, t_offset_s, x, y, sigma_x_px, sigma_y_px, snr, and ra_deg, dec_deg,
-/// sigma_ra_arcsec, sigma_dec_arcsec with a sky position}); ra_deg,
-/// dec_deg, rate_deg_day, rate_arcsec_min, pa_deg (with a sky position); t_ref_mjd, sigma_ra_arcsec,
-/// sigma_dec_arcsec, mag, band when set. Also the layout of a session file of format 1.
+/// photons_per_frame, snr; segments_flagged, segment_reasons, segment_snr, position_segments,
+/// segment_positions (with a segment check; each {segment, mjd_utc, t_offset_s, x, y, sigma_x_px, sigma_y_px,
+/// snr, and ra_deg, dec_deg, sigma_ra_arcsec, sigma_dec_arcsec with a sky position}); ra_deg, dec_deg,
+/// rate_deg_day, rate_arcsec_min, pa_deg (with a sky position); t_ref_mjd, sigma_ra_arcsec, sigma_dec_arcsec,
+/// mag, band when set. Also the layout of a session file of format 1.
 [[nodiscard]] nlohmann::json toFlatJson(const candidate::FitSummary& fit);
 [[nodiscard]] candidate::FitSummary fitFromFlatJson(const nlohmann::json& json, const std::string& where);
 

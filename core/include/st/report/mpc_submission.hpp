@@ -31,7 +31,13 @@ struct AstrometricDetection {
   std::optional<double> mag;
   std::string band = "G";
   double snr = 0.0;
+  int segment = 0;  ///< the fit segment this position is of (SegmentPosition::segment); 0: the whole fit
 };
+
+/// One warning per detection below `safeSnr` ("st00001 segment 2: SNR 6.10 is below the safe 7.0; ..."): the
+/// MPC asks shift-and-stack users not to submit detections pulled out of the noise.
+[[nodiscard]] std::vector<std::string> lowSnrWarnings(const std::vector<AstrometricDetection>& detections,
+                                                      double safeSnr);
 
 struct SubmissionText {
   std::string text;
