@@ -158,9 +158,8 @@ nlohmann::json astrometryJson(const CliArgs& a, const FrameCube& cube, const fit
           {{"dx_px", o.dx}, {"dy_px", o.dy}, {"sigma_x_px", o.sigmaX}, {"sigma_y_px", o.sigmaY}});
     }
   }
-  const double t0 = cube.timeOffsetsS().front();  // the WCS is the first frame's
   if (cube.wcs) {
-    const astro::SkyMeasurement m = astro::skyMeasurement(*cube.wcs, r, sky, t0);
+    const astro::SkyMeasurement m = astro::skyMeasurement(cube, r, sky);  // the first frame's WCS
     j["sky"] = {{"t_ref_mjd", m.tRefMjd},
                 {"ra_deg", m.raDeg},
                 {"dec_deg", m.decDeg},

@@ -28,8 +28,6 @@ namespace {
 std::vector<SegmentPosition> positionsOf(const vet::SegmentReport& seg, const FrameCube& frames,
                                          Velocity skyRate) {
   constexpr double kMaxPull = 5.0;
-  // A FITS WCS belongs to the first frame; the stars have moved by the sky rate since then.
-  const double firstOffset = frames.timeOffsetsS().front();
   std::vector<SegmentPosition> out;
   for (const auto& m : seg.segments) {
     if (m.frames.empty() || m.missing || !m.fit.ok() || !(m.sigmaX > 0.0) || !(m.sigmaY > 0.0)) continue;
@@ -39,7 +37,7 @@ std::vector<SegmentPosition> positionsOf(const vet::SegmentReport& seg, const Fr
     SegmentPosition p{
         m.index + 1, m.fit.tRefMjd, m.tMidOffsetS, m.x, m.y, m.sigmaX, m.sigmaY, m.snr, {}, {}, {}, {}};
     if (frames.wcs) {
-      const astro::SkyMeasurement sky = astro::skyMeasurement(*frames.wcs, m.fit, skyRate, firstOffset);
+      const astro::SkyMeasurement sky = astro::skyMeasurement(frames, m.fit, skyRate);
       p.raDeg = sky.raDeg;
       p.decDeg = sky.decDeg;
       p.sigmaRaArcsec = sky.sigmaRaArcsec;
@@ -82,8 +80,8 @@ FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepa
     s.segments = std::move(summary);
   }
   if (f.ok() && frames.wcs) {
-    const double firstOffset = frames.timeOffsetsS().front();
-    const astro::SkyMeasurement sky = astro::skyMeasurement(*frames.wcs, f, prepared.skyRate, firstOffset);
+    // The first frame's WCS: the stars have moved by the sky rate since then (and sit at its offset).
+    const astro::SkyMeasurement sky = astro::skyMeasurement(frames, f, prepared.skyRate);
     s.sky = SkyPosition{sky.raDeg, sky.decDeg, sky.rateDegPerDay, sky.rateArcsecPerMin, sky.positionAngleDeg};
   }
   if (result != nullptr) *result = f;

@@ -105,4 +105,15 @@ astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mapp
   };
 }
 
+astro::PixelToSky skyMappingAtTRef(const FrameCube& frames, Velocity skyRate) {
+  const std::shared_ptr<const Wcs> wcs = frames.wcs;
+  const double t0 = frames.timeOffsetsS().front();
+  const double ox = frames.info().front().offsetXPx + skyRate.vx * t0;
+  const double oy = frames.info().front().offsetYPx + skyRate.vy * t0;
+  return [wcs, ox, oy](double x, double y) {
+    const auto s = wcs->pixelToSky(x + ox, y + oy);
+    return astro::SkyPoint{s.raDeg, s.decDeg};
+  };
+}
+
 }  // namespace st::report

@@ -175,7 +175,7 @@ RegionContext regionContext(const FrameCube* raw, const session::Session& s) {
   ctx.trackStartS = dt.front();
   ctx.trackEndS = dt.back();
   if (raw->wcs) {
-    ctx.toSky = skyMappingAtTRef(*raw->wcs, sessionSkyRate(s), dt.front());
+    ctx.toSky = skyMappingAtTRef(*raw, sessionSkyRate(s));
     ctx.frame = ds9SkyFrame(*raw->wcs);
   }
   return ctx;

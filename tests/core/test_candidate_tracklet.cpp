@@ -13,6 +13,7 @@
 #include "st/candidate/candidate_fit.hpp"
 #include "st/io/wcs.hpp"
 #include "st/pipeline/preprocess.hpp"
+#include "st/report/regions.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/vet/segments.hpp"
 
@@ -85,6 +86,54 @@ TEST(Tracklet, PositionsOfTheSmallPresetAtTheirOwnTimesOnTheTrackAndSky) {
     EXPECT_NEAR(*q.sigmaRaArcsec / (q.sigmaXPx * truth.plateScaleArcsecPerPx), 1.0, 0.1);
     EXPECT_NEAR(*q.sigmaDecArcsec / (q.sigmaYPx * truth.plateScaleArcsecPerPx), 1.0, 0.1);
   }
+}
+
+// Registered frames whose first frame sits at an offset from the linear sky-rate model (dithers, guiding
+// drift: FrameInfo::offsetXPx/offsetYPx) fit in the registration's coordinates; the sky positions must map
+// through the first frame's own pixels. The same frames with every frame's registration offset (3, -2) px and
+// the candidate moved by (-3, +2) are the same observation: the same RA/Dec (before 2026-12-05 they were off
+// by the first frame's offset, ~1 arcsec here).
+TEST(Tracklet, SkyPositionsFollowTheFirstFramesRegistrationOffset) {
+  NullProgress p;
+  CancelToken c;
+  sim::SimResult sim = sim::simulate(sim::preset("small"), 7, p, c);
+  const sim::TruthObject o = sim.truth.objects.front();
+  pipeline::PreprocessParams params;
+  params.masters = sim::exactMasters(sim);
+  const pipeline::Prepared prep = pipeline::preprocess(std::move(sim.cube), params, p, c);
+  ASSERT_FALSE(prep.frames.hasFrameOffsets());
+  search::Candidate cell;
+  cell.x = static_cast<int>(std::lround(o.xRefPx));
+  cell.y = static_cast<int>(std::lround(o.yRefPx));
+  cell.v = {o.vxPxPerS, o.vyPxPerS};
+  const FitSummary plain = fitCandidate(prep, cell, c);
+  FrameCube shifted = prep.frames;
+  for (auto& info : shifted.info()) {
+    info.offsetXPx = 3.0;
+    info.offsetYPx = -2.0;
+  }
+  search::Candidate moved = cell;
+  moved.x -= 3;
+  moved.y += 2;
+  const FitSummary offset = fitCandidate(shifted, prep, moved, c);
+  ASSERT_TRUE(plain.sky && offset.sky && plain.segments && offset.segments);
+  EXPECT_NEAR(offset.x, plain.x - 3.0, 1e-3);
+  const double cosDec = std::cos(plain.sky->decDeg * M_PI / 180.0);
+  EXPECT_NEAR((offset.sky->raDeg - plain.sky->raDeg) * cosDec * 3600.0, 0.0, 1e-3);
+  EXPECT_NEAR((offset.sky->decDeg - plain.sky->decDeg) * 3600.0, 0.0, 1e-3);
+  ASSERT_EQ(offset.segments->positions.size(), plain.segments->positions.size());
+  for (std::size_t k = 0; k < plain.segments->positions.size(); ++k) {
+    const auto& a = plain.segments->positions[k];
+    const auto& b = offset.segments->positions[k];
+    EXPECT_NEAR((*b.raDeg - *a.raDeg) * cosDec * 3600.0, 0.0, 1e-3) << "segment " << a.segment;
+    EXPECT_NEAR((*b.decDeg - *a.decDeg) * 3600.0, 0.0, 1e-3) << "segment " << a.segment;
+  }
+  // The DS9 regions' mapping of the report: the same point through either cube.
+  const auto viaPlain = report::skyMappingAtTRef(prep.frames, prep.skyRate)(plain.x, plain.y);
+  const auto viaOffset = report::skyMappingAtTRef(shifted, prep.skyRate)(offset.x, offset.y);
+  EXPECT_NEAR((viaOffset.raDeg - viaPlain.raDeg) * cosDec * 3600.0, 0.0, 1e-3);
+  EXPECT_NEAR((viaOffset.decDeg - viaPlain.decDeg) * 3600.0, 0.0, 1e-3);
+  EXPECT_NEAR((viaPlain.raDeg - plain.sky->raDeg) * cosDec * 3600.0, 0.0, 1e-6);
 }
 
 }  // namespace

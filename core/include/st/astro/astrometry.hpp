@@ -69,6 +69,13 @@ struct SkyMeasurement {
 /// The same through a FITS WCS (st::Wcs, implemented in core/io).
 [[nodiscard]] SkyMeasurement skyMeasurement(const Wcs& wcs, const fit::FitResult& fit, Velocity skyRate,
                                             double mappingEpochOffsetS);
+/// The same through the WCS of `frames`, the first frame's (a FITS WCS belongs to it): its epoch, and its
+/// registration offset (FrameInfo::offsetXPx/offsetYPx): the registration puts frame n's star field that far
+/// from the linear sky-rate model, so a fitted position (x, y) lies at (x, y) + the first frame's offset in
+/// that frame's own pixels, which its WCS maps. Dithered or guided-drift frames have a non-zero one.
+/// Throws st::InputError when the frames have no WCS.
+[[nodiscard]] SkyMeasurement skyMeasurement(const FrameCube& frames, const fit::FitResult& fit,
+                                            Velocity skyRate);
 
 /// The on-sky motion of a velocity `relativePxPerS` (relative to the stars) at pixel (x, y) of a mapping,
 /// as skyMeasurement gives it: rate and position angle (east of north) through the mapping's local

@@ -52,5 +52,8 @@ void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& mar
 /// astro::skyMeasurement.
 [[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate,
                                                  double mappingEpochOffsetS);
+/// The same through the WCS of `frames` (which it must have), the first frame's: at its epoch, and at its
+/// registration offset (FrameInfo::offsetXPx/offsetYPx; astro::skyMeasurement's frames overload).
+[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const FrameCube& frames, Velocity skyRate);
 
 }  // namespace st::report
