@@ -12,9 +12,11 @@
 
 namespace st::report {
 
-FitsHeader wcsCardsAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS) {
+FitsHeader wcsCardsAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS,
+                          PixelOffset mappingFrameOffset) {
   FitsHeader h = wcs.toHeader();
-  const double shift[2] = {skyRate.vx * mappingEpochOffsetS, skyRate.vy * mappingEpochOffsetS};
+  const double shift[2] = {skyRate.vx * mappingEpochOffsetS + mappingFrameOffset.x,
+                           skyRate.vy * mappingEpochOffsetS + mappingFrameOffset.y};
   for (int i = 0; i < 2; ++i) {
     const std::string key = "CRPIX" + std::to_string(i + 1);
     const auto v = h.getDouble(key);
@@ -123,7 +125,8 @@ Image backgroundSubtractedMean(const Image& sum, const std::vector<std::uint16_t
 }
 
 void writeStackFits(const std::string& path, const Image& stack, const StackProvenance& p, const Wcs* wcs,
-                    double mappingEpochOffsetS, const std::vector<std::uint16_t>* coverage) {
+                    double mappingEpochOffsetS, const std::vector<std::uint16_t>* coverage,
+                    PixelOffset mappingFrameOffset) {
   FitsHeader params;
   params.setNumber("STVX", p.velocity.vx, "stack velocity x [px/s]");
   params.setNumber("STVY", p.velocity.vy, "stack velocity y [px/s]");
@@ -138,7 +141,7 @@ void writeStackFits(const std::string& path, const Image& stack, const StackProv
   for (const auto& in : p.inputs)
     h.cards.push_back(FitsCard{"HISTORY", "", "input " + in, false});
   if (wcs != nullptr) {
-    for (const auto& c : wcsCardsAtTRef(*wcs, p.skyRate, mappingEpochOffsetS).cards)
+    for (const auto& c : wcsCardsAtTRef(*wcs, p.skyRate, mappingEpochOffsetS, mappingFrameOffset).cards)
       h.cards.push_back(c);
   }
   io::writeImage(path, stack, h);

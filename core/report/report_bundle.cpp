@@ -80,7 +80,9 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
     const std::string path = r.stacksStem + name;
     makeParent(path);
     const stack::StackResult st = stack::stackIpsa(cube, dt, p.velocity);
-    writeStackFits(path, backgroundSubtractedMean(st.sum, st.nIn), p, cube.wcs.get(), dt.front(), &st.nIn);
+    const PixelOffset first{cube.info().front().offsetXPx, cube.info().front().offsetYPx};
+    writeStackFits(path, backgroundSubtractedMean(st.sum, st.nIn), p, cube.wcs.get(), dt.front(), &st.nIn,
+                   first);
     out.written.push_back(path);
   }
 }

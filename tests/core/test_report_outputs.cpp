@@ -77,6 +77,19 @@ TEST(FitsStack, WcsMovedToTRefAndProvenanceReadBack) {
     EXPECT_NEAR(a.raDeg, b.raDeg, 1e-10);
     EXPECT_NEAR(a.decDeg, b.decDeg, 1e-10);
   }
+  // Registered frames whose first frame sits at an offset (a dither): the stack's pixel is a registered
+  // position, which lies at that offset in the first frame's own pixels.
+  const std::string dithered = (dir / "dithered.fits").string();
+  writeStackFits(dithered, img, p, wcs.get(), firstOffsetS, nullptr, {2.5, -1.0});
+  const FrameCube backDithered = io::loadFrames({dithered}, options, progress, cancel);
+  ASSERT_NE(backDithered.wcs, nullptr);
+  for (const auto& [x, y] : {std::pair{0.0, 0.0}, {40.0, 12.5}}) {
+    const auto a = backDithered.wcs->pixelToSky(x, y);
+    const auto b =
+        wcs->pixelToSky(x + p.skyRate.vx * firstOffsetS + 2.5, y + p.skyRate.vy * firstOffsetS - 1.0);
+    EXPECT_NEAR(a.raDeg, b.raDeg, 1e-10);
+    EXPECT_NEAR(a.decDeg, b.decDeg, 1e-10);
+  }
 }
 
 session::Session labelled() {

@@ -242,14 +242,18 @@ void CandidateInspector::start() {
   if (prepared->products) in.stars = prepared->products->stars;
   in.knownObjects = m_known;
   in.knownObjectRadiusArcsec = m_radius->value();
-  // The sky position of the candidate at t_ref: a FITS WCS belongs to the first frame and the stars have
-  // moved by the sky rate since then (as st::astro::skyMeasurement). One call: cheap on this thread.
+  // The sky position of the candidate at t_ref: a FITS WCS belongs to the first frame, the stars have moved
+  // by the sky rate since then and sit at that frame's registration offset (dithers; as
+  // st::astro::skyMeasurement). One call: cheap on this thread.
   const auto& raw = m_obs->raw();
-  if (m_known && raw && m_services && m_services->pixelToSky && raw->frameCount() > 0) {
+  if (m_known && raw && m_services && m_services->pixelToSky && raw->frameCount() > 0 &&
+      !prepared->filtered->frames.info().empty()) {
     const double first = raw->timeOffsetsS().front();
     const Velocity sky = m_obs->skyRate();
+    const FrameInfo& registered = prepared->filtered->frames.info().front();
     try {
-      in.skyPosition = m_services->pixelToSky(*raw, c->x + sky.vx * first, c->y + sky.vy * first);
+      in.skyPosition = m_services->pixelToSky(*raw, c->x + sky.vx * first + registered.offsetXPx,
+                                              c->y + sky.vy * first + registered.offsetYPx);
     } catch (const std::exception&) {
       // outside the projection: the known-object check says the candidate has no sky position
     }

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "st/common/fits_header.hpp"
+#include "st/common/frame_cube.hpp"
 #include "st/common/image.hpp"
 #include "st/common/units.hpp"
 
@@ -36,10 +37,12 @@ struct StackProvenance {
 [[nodiscard]] Image backgroundSubtractedMean(const Image& sum, const std::vector<std::uint16_t>& coverage,
                                              int box = 0);
 
-/// The WCS cards of `wcs` (the frame at mappingEpochOffsetS seconds from t_ref, usually the first frame)
-/// moved to t_ref: CRPIXi -= skyRate_i * mappingEpochOffsetS, so a star's pixel in a stack at t_ref maps to
-/// its sky position (the convention of skyMappingAtTRef). SIP terms are relative to CRPIX and move with it.
-[[nodiscard]] FitsHeader wcsCardsAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS);
+/// The WCS cards of `wcs` (the frame at mappingEpochOffsetS seconds from t_ref, usually the first frame, with
+/// the registration offset `mappingFrameOffset`, FrameInfo::offsetXPx/offsetYPx) moved to t_ref: CRPIXi -=
+/// skyRate_i * mappingEpochOffsetS + offset_i, so a star's pixel in a stack at t_ref maps to its sky position
+/// (the convention of skyMappingAtTRef). SIP terms are relative to CRPIX and move with it.
+[[nodiscard]] FitsHeader wcsCardsAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS,
+                                        PixelOffset mappingFrameOffset = {});
 
 /// Writes `stack` as a float32 FITS image (io::writeImage) with provenance cards (SOFTWARE, STEP, DATE,
 /// STVX/STVY px/s, SKYVX/SKYVY px/s, TREFMJD, NFRAMES, STMODE, one HISTORY card per input) and, when `wcs`
@@ -49,6 +52,7 @@ struct StackProvenance {
 /// that contributed to each pixel. BUNIT from provenance.bunit when set.
 void writeStackFits(const std::string& path, const Image& stack, const StackProvenance& provenance,
                     const Wcs* wcs, double mappingEpochOffsetS,
-                    const std::vector<std::uint16_t>* coverage = nullptr);
+                    const std::vector<std::uint16_t>* coverage = nullptr,
+                    PixelOffset mappingFrameOffset = {});
 
 }  // namespace st::report
