@@ -37,6 +37,16 @@ QString num(double v, int precision = 4) {
   return QString::number(v, 'g', precision);
 }
 
+/// One row of the parameter table: name, value, noise-model sigma, Hessian sigma, the paper's column.
+void appendRow(QTableWidget* table, const QString& name, const QString& value, const QString& noiseModel = {},
+               const QString& hessian = {}, const QString& paper = {}) {
+  const int i = table->rowCount();
+  table->insertRow(i);
+  const QString cells[] = {name, value, noiseModel, hessian, paper};
+  for (int c = 0; c < 5; ++c)
+    table->setItem(i, c, new QTableWidgetItem(cells[c]));
+}
+
 /// The fitted motion relative to the stars in the Search dock's unit (motion_vs_sky.hpp, as the candidates
 /// table): rate, position angle and components with their noise-model sigmas (the sky rate is taken as
 /// exact). The fit's own parameters above stay in px/s, the unit it fits in.
@@ -46,11 +56,7 @@ void appendMotionRows(QTableWidget* table, const Observation& obs, double x, dou
   const QString unit = unitLabel(m.unit);
   const auto inUnit = [&](double pxPerS) { return fromPxPerS(pxPerS, m.unit, obs.plateScale()); };
   const auto add = [table](const QString& name, const QString& value, const QString& sigma = {}) {
-    const int i = table->rowCount();
-    table->insertRow(i);
-    const QString cells[] = {name, value, sigma, {}, {}};
-    for (int c = 0; c < 5; ++c)
-      table->setItem(i, c, new QTableWidgetItem(cells[c]));
+    appendRow(table, name, value, sigma);
   };
   add("rate vs sky [" + unit + "]", num(m.rate));
   add("PA [deg] (east of north)", m.paDeg ? QString::number(*m.paDeg, 'f', 1) : "— (no WCS)");
@@ -63,13 +69,7 @@ void appendMotionRows(QTableWidget* table, const Observation& obs, double x, dou
 void appendSegmentRows(QTableWidget* table, const std::optional<candidate::SegmentSummary>& seg) {
   if (!seg) return;
   const auto add = [table](const QString& name, const QString& value, const QString& sigma = {},
-                           const QString& note = {}) {
-    const int i = table->rowCount();
-    table->insertRow(i);
-    const QString cells[] = {name, value, sigma, {}, note};
-    for (int c = 0; c < 5; ++c)
-      table->setItem(i, c, new QTableWidgetItem(cells[c]));
-  };
+                           const QString& note = {}) { appendRow(table, name, value, sigma, {}, note); };
   add(QString("segments (K = %1)").arg(seg->snr.size()), seg->flagged ? "flagged" : "consistent", {},
       QString("tracklet: %1 position%2 of %3 segments")
           .arg(seg->positions.size())
@@ -365,13 +365,8 @@ void FitPanel::fillTable(const FitOutcome& out) {
   const auto& p = r.params;
   m_table->setRowCount(0);
   auto row = [this](const QString& name, const QString& value, const QString& nm = {},
-                    const QString& hess = {}, const QString& paper = {}) {
-    const int i = m_table->rowCount();
-    m_table->insertRow(i);
-    const QString cells[] = {name, value, nm, hess, paper};
-    for (int c = 0; c < 5; ++c)
-      m_table->setItem(i, c, new QTableWidgetItem(cells[c]));
-  };
+                    const QString& hess = {},
+                    const QString& paper = {}) { appendRow(m_table, name, value, nm, hess, paper); };
   const auto& nm = r.sigmaNoiseModel;
   const auto& h = r.sigma;
   row("vx [px/s]", num(p.v.vx, 6), num(nm[fit::kVx]), num(h[fit::kVx]), num(r.sigmaVelPaper) + " (vel_snr)");
@@ -413,13 +408,7 @@ void FitPanel::showSelectedFit() {
 void FitPanel::fillStoredTable(int index, const candidate::FitSummary& fit) {
   m_table->setRowCount(0);
   auto row = [this](const QString& name, const QString& value, const QString& nm = {},
-                    const QString& paper = {}) {
-    const int i = m_table->rowCount();
-    m_table->insertRow(i);
-    const QString cells[] = {name, value, nm, {}, paper};
-    for (int c = 0; c < 5; ++c)
-      m_table->setItem(i, c, new QTableWidgetItem(cells[c]));
-  };
+                    const QString& paper = {}) { appendRow(m_table, name, value, nm, {}, paper); };
   const auto& s = fit.sigma;
   row("vx [px/s]", num(fit.v.vx, 6), num(s.vxPxS), num(s.velPaperPxS) + " (vel_snr)");
   row("vy [px/s]", num(fit.v.vy, 6), num(s.vyPxS), num(s.velPaperPxS) + " (vel_snr)");
