@@ -377,13 +377,16 @@ int cmdReport(const Args& args) {
       std::printf("DS9 regions of %zu candidates (%s): %s\n", request.session.candidates.size(),
                   request.regions.frame.c_str(), path.c_str());
     else if (is("ades"))
-      std::printf("ADES PSV, %zu detections: %s\n", out.detections, path.c_str());
+      std::printf("ADES PSV, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+                  path.c_str());
     else if (is("ades-xml"))
-      std::printf("ADES XML, %zu detections: %s\n", out.detections, path.c_str());
+      std::printf("ADES XML, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+                  path.c_str());
     else if (is("candidates-json") || is("csv"))
       std::printf("candidates with their vetting state: %s\n", path.c_str());
     else if (is("mpc"))
-      std::printf("MPC 80-column, %zu detections: %s\n", out.detections, path.c_str());
+      std::printf("MPC 80-column, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+                  path.c_str());
     else
       std::printf("FITS stack: %s\n", path.c_str());
   }

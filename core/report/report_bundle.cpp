@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <set>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -108,6 +109,10 @@ void writeSubmission(const ReportRequest& r, ReportOutcome& out) {
   std::vector<std::string> warnings;
   const auto detections = realDetections(r.session, r.submission.positions, warnings);
   out.detections = detections.size();
+  std::set<std::string> objects;
+  for (const auto& d : detections)
+    objects.insert(d.trkSub);
+  out.objects = objects.size();
   if (detections.empty()) {
     // An ADES file needs at least one observation (submit.xsd: obsData holds one or more), and an empty
     // 80-column message is no submission either: none is written.

@@ -173,6 +173,22 @@ TEST(SessionReport, ARealObjectIsATrackletOfItsSegmentPositions) {
     EXPECT_NEAR(*d[k].sigmaRaArcsec, k == 0 ? 0.07 : (0.2 + 0.01 * k) * 0.3, 1e-15);
     EXPECT_NEAR(*d[k].sigmaDecArcsec, k == 0 ? 0.09 : 0.12, 1e-15);
   }
+  // The files count the positions and the objects apart.
+  {
+    test::TempDir dir;
+    ReportRequest r;
+    r.session = s;
+    r.submission.stationCode = "291";
+    r.submission.observers = "A. Observer";
+    r.submission.apertureM = 0.5;
+    r.submission.astCat = "Gaia3";
+    r.files[ReportFile::AdesPsv] = (dir / "out.psv").string();
+    NullProgress progress;
+    CancelToken cancel;
+    const ReportOutcome out = writeReports(r, progress, cancel);
+    EXPECT_EQ(out.detections, 4u);
+    EXPECT_EQ(out.objects, 1u);
+  }
   // Each low-SNR position is named with its segment.
   const auto low = lowSnrWarnings(d, 7.0);
   ASSERT_EQ(low.size(), 3u);

@@ -54,7 +54,8 @@ struct ReportRequest {
 struct ReportOutcome {
   std::vector<std::string> written;   ///< paths, in the order written
   std::vector<std::string> warnings;  ///< low SNR, real candidates without a sky position, ...
-  std::size_t detections = 0;         ///< astrometric detections in the submission files
+  std::size_t detections = 0;         ///< astrometric detections (positions) in the submission files
+  std::size_t objects = 0;            ///< the objects (trkSubs) they are of: a tracklet is several positions
   /// Submission files asked for and not written: with no detection (no candidate labelled real with a sky
   /// position) an ADES or 80-column file would be an empty submission, which the MPC's schema rejects.
   std::vector<std::string> notWritten;
