@@ -80,10 +80,10 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
       std::snprintf(name, sizeof name, "_c%03zu_%s.fits", i + 1, object ? "object" : "sky");
     const std::string path = r.stacksStem + name;
     makeParent(path);
-    const stack::StackResult st = stack::stackIpsa(cube, dt, p.velocity);
-    const PixelOffset first{cube.info().front().offsetXPx, cube.info().front().offsetYPx};
+    const std::vector<PixelOffset> offsets = r.frameOffsets.empty() ? cube.frameOffsets() : r.frameOffsets;
+    const stack::StackResult st = stack::stackIpsa(cube, dt, p.velocity, offsets);
     writeStackFits(path, backgroundSubtractedMean(st.sum, st.nIn), p, cube.wcs.get(), dt.front(), &st.nIn,
-                   first);
+                   offsets.empty() ? PixelOffset{} : offsets.front());
     out.written.push_back(path);
   }
 }
@@ -175,14 +175,21 @@ std::string defaultFileName(const std::string& folder, const std::string& baseNa
   return (fs::path(folder) / (baseName + suffix)).string();
 }
 
-RegionContext regionContext(const FrameCube* raw, const session::Session& s) {
+RegionContext regionContext(const FrameCube* raw, const session::Session& s,
+                            const std::vector<PixelOffset>& frameOffsets) {
   RegionContext ctx;
   if (!raw || raw->empty()) return ctx;
   const auto dt = raw->timeOffsetsS();
   ctx.trackStartS = dt.front();
   ctx.trackEndS = dt.back();
-  if (raw->wcs) {
+  if (raw->wcs && frameOffsets.empty()) {
     ctx.toSky = skyMappingAtTRef(*raw, sessionSkyRate(s));
+    ctx.frame = ds9SkyFrame(*raw->wcs);
+  } else if (raw->wcs) {
+    // The first frame's registration offset from the frames that hold it.
+    const astro::PixelToSky atTRef = skyMappingAtTRef(*raw->wcs, sessionSkyRate(s), dt.front());
+    const PixelOffset o = frameOffsets.front();
+    ctx.toSky = [atTRef, o](double x, double y) { return atTRef(x + o.x, y + o.y); };
     ctx.frame = ds9SkyFrame(*raw->wcs);
   }
   return ctx;

@@ -90,6 +90,11 @@ void ipsaRows(const FrameCube& cube, const std::vector<IntShift>& shifts, int y0
 }
 
 StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS, Velocity v) {
+  return stackIpsa(cube, offsetsS, v, cube.frameOffsets());
+}
+
+StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS, Velocity v,
+                      const std::vector<PixelOffset>& frameOffsets) {
   checkCube(cube, offsetsS.size());
   StackResult r;
   r.sum = Image(cube.width(), cube.height());
@@ -97,7 +102,7 @@ StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS
   r.velocity = v;
   r.tRefMjd = cube.tRefMjd();
   r.mode = search::StackMode::Ipsa;
-  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v, cube.frameOffsets());
+  const std::vector<IntShift> shifts = ipsaShifts(offsetsS, v, frameOffsets);
   const std::size_t blocks = (std::size_t(cube.height()) + kBlockRows - 1) / kBlockRows;
   parallelFor(blocks, 2, [&](std::size_t b, std::size_t e) {
     const int y0 = int(b) * kBlockRows, y1 = std::min(cube.height(), int(e) * kBlockRows);

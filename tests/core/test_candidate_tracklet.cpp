@@ -8,14 +8,19 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <limits>
 
 #include "st/candidate/candidate_fit.hpp"
+#include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
 #include "st/pipeline/preprocess.hpp"
 #include "st/report/regions.hpp"
+#include "st/report/report_bundle.hpp"
 #include "st/sim/simulator.hpp"
 #include "st/vet/segments.hpp"
+#include "test_support.hpp"
 
 namespace st::candidate {
 namespace {
@@ -134,6 +139,70 @@ TEST(Tracklet, SkyPositionsFollowTheFirstFramesRegistrationOffset) {
   EXPECT_NEAR((viaOffset.raDeg - viaPlain.raDeg) * cosDec * 3600.0, 0.0, 1e-3);
   EXPECT_NEAR((viaOffset.decDeg - viaPlain.decDeg) * 3600.0, 0.0, 1e-3);
   EXPECT_NEAR((viaPlain.raDeg - plain.sky->raDeg) * cosDec * 3600.0, 0.0, 1e-6);
+}
+
+// The GUI reports from the frames it loaded, which carry no registration, with the prepared frames'
+// offsets beside them (ReportRequest::frameOffsets): its FITS stacks and DS9 regions must be those of frames
+// that carry the offsets themselves (the CLI's prepared cube).
+TEST(Tracklet, ReportWithFrameOffsetsGivenApartEqualsFramesCarryingThem) {
+  NullProgress p;
+  CancelToken c;
+  const sim::SimResult sim = sim::simulate(sim::preset("small"), 7, p, c);
+  ASSERT_TRUE(sim.cube.wcs);
+  auto loaded = std::make_shared<const FrameCube>(sim.cube);
+  auto carrying = std::make_shared<FrameCube>(sim.cube);
+  std::vector<PixelOffset> offsets;
+  for (std::size_t n = 0; n < carrying->frameCount(); ++n) {
+    const PixelOffset o{2.0 + static_cast<double>(n % 3), -1.0 - static_cast<double>(n % 2)};  // a dither
+    carrying->info()[n].offsetXPx = o.x;
+    carrying->info()[n].offsetYPx = o.y;
+    offsets.push_back(o);
+  }
+  nlohmann::json search{{"t_ref_mjd", sim.truth.tRefMjd}, {"psf_fwhm_px", 2.5}};
+  search["sky_rate"] = {{"vx_px_s", sim.truth.skyVxPxPerS}, {"vy_px_s", sim.truth.skyVyPxPerS}};
+  const sim::TruthObject& o = sim.truth.objects.front();
+  search["candidates"] = {{{"x", static_cast<int>(o.xRefPx)},
+                           {"y", static_cast<int>(o.yRefPx)},
+                           {"vx_px_s", o.vxPxPerS},
+                           {"vy_px_s", o.vyPxPerS},
+                           {"snr", 12.0}}};
+  const session::Session s = session::fromSearchJson(search);
+  test::TempDir dir;
+  const auto run = [&](std::shared_ptr<const FrameCube> raw, const std::vector<PixelOffset>& given,
+                       const std::string& stem) {
+    report::ReportRequest r;
+    r.session = s;
+    r.raw = std::move(raw);
+    r.frameOffsets = given;
+    r.regions = report::regionContext(r.raw.get(), r.session, r.frameOffsets);
+    r.files[report::ReportFile::Ds9] = (dir / (stem + ".reg")).string();
+    r.stacksStem = (dir / stem).string();
+    r.stackChoice = report::StackChoice::All;
+    (void)report::writeReports(r, p, c);
+  };
+  run(loaded, offsets, "given");
+  run(carrying, {}, "carried");
+  run(loaded, {}, "none");
+  const auto text = [&](const std::string& name) {
+    std::ifstream in(dir / name);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(text("given.reg"), text("carried.reg"));
+  EXPECT_NE(text("none.reg"), text("carried.reg"));  // the offsets matter here
+  io::LoadOptions lo;
+  lo.startMjd = 60000.0;
+  lo.frameRateHz = 1.0;
+  for (const char* kind : {"_c001_object.fits", "_c001_sky.fits"}) {
+    SCOPED_TRACE(kind);
+    const FrameCube a = io::loadFrames({(dir / (std::string("given") + kind)).string()}, lo, p, c);
+    const FrameCube b = io::loadFrames({(dir / (std::string("carried") + kind)).string()}, lo, p, c);
+    ASSERT_EQ(a.pixels().size(), b.pixels().size());
+    EXPECT_TRUE(std::equal(a.pixels().begin(), a.pixels().end(), b.pixels().begin()));
+    ASSERT_TRUE(a.wcs && b.wcs);
+    const auto sa = a.wcs->pixelToSky(40.0, 30.0), sb = b.wcs->pixelToSky(40.0, 30.0);
+    EXPECT_EQ(sa.raDeg, sb.raDeg);
+    EXPECT_EQ(sa.decDeg, sb.decDeg);
+  }
 }
 
 }  // namespace

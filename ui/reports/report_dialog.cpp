@@ -302,6 +302,13 @@ bool ReportDialog::exportReports() {
     return false;
   }
   r.raw = m_ctx.observation ? m_ctx.observation->raw() : nullptr;
+  // The loaded frames carry no registration; the prepared ones do (dithers, guiding drift).
+  if (m_ctx.observation && r.raw && m_ctx.observation->prepared() &&
+      m_ctx.observation->prepared()->filtered) {
+    const FrameCube& registered = m_ctx.observation->prepared()->filtered->frames;
+    if (registered.frameCount() == r.raw->frameCount() && registered.hasFrameOffsets())
+      r.frameOffsets = registered.frameOffsets();
+  }
   const std::string folder = m_folder->text().trimmed().toStdString();
   const std::string base =
       m_base->text().trimmed().isEmpty() ? "synthtrack" : m_base->text().trimmed().toStdString();
@@ -315,7 +322,7 @@ bool ReportDialog::exportReports() {
                                   std::pair{m_csv, ReportFile::CandidatesCsv}, std::pair{m_ds9, ReportFile::Ds9},
                                   std::pair{m_ades, ReportFile::AdesPsv}, std::pair{m_mpc, ReportFile::Mpc80}})
     if (box->isChecked()) r.files[file] = report::defaultFileName(folder, base, file);
-  r.regions = report::regionContext(r.raw.get(), r.session);
+  r.regions = report::regionContext(r.raw.get(), r.session, r.frameOffsets);
   if (m_stacks->isChecked()) r.stacksStem = (std::filesystem::path(folder) / base).string();
   r.stackChoice = static_cast<StackChoice>(m_stackChoice->currentData().toInt());
   r.selected = m_ctx.observation ? m_ctx.observation->selected() : std::nullopt;

@@ -49,6 +49,10 @@ struct ReportRequest {
   StackChoice stackChoice = StackChoice::Real;
   std::optional<int> selected;           ///< 0-based, for StackChoice::Selected
   std::shared_ptr<const FrameCube> raw;  ///< the observation's frames (stacks only)
+  /// The registration offsets of `raw`'s frames (FrameInfo::offsetXPx/offsetYPx), one per frame, when `raw`
+  /// was loaded without them (the GUI's loaded frames; its prepared frames hold them); empty: raw's own.
+  /// The stacks shift by them, and their WCS and the DS9 regions map through the first one.
+  std::vector<PixelOffset> frameOffsets;
 };
 
 struct ReportOutcome {
@@ -66,8 +70,10 @@ struct ReportOutcome {
 [[nodiscard]] std::string defaultFileName(const std::string& folder, const std::string& baseName, ReportFile file);
 
 /// The regions' placement from the observation's frames: their WCS (ds9SkyFrame, skyMappingAtTRef with the
-/// session's sky rate and the first frame's epoch) and time span; image coordinates without a WCS.
-[[nodiscard]] RegionContext regionContext(const FrameCube* raw, const session::Session& session);
+/// session's sky rate, the first frame's epoch and registration offset, `frameOffsets`' first when given)
+/// and time span; image coordinates without a WCS.
+[[nodiscard]] RegionContext regionContext(const FrameCube* raw, const session::Session& session,
+                                          const std::vector<PixelOffset>& frameOffsets = {});
 
 /// Writes the requested files (folders are created). Throws st::InputError / st::FitsError naming the path at
 /// fault, and, before writing anything, st::InputError listing report::submissionProblems() when ADES or

@@ -50,4 +50,10 @@ StackResult stackIpsa(const FrameCube& cube, Velocity v);
 /// scrubbing. Both use the cube's registration offsets (FrameInfo::offsetXPx/offsetYPx). Throws st::InputError when offsetsS.size() != cube.frameCount().
 StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS, Velocity v);
 
+/// As above with the frames' registration offsets given (one per frame; empty = all 0) instead of the cube's:
+/// for frames loaded without them whose registration another cube holds (the GUI's loaded frames and its
+/// prepared ones). Throws st::InputError when frameOffsets is neither empty nor one per frame.
+StackResult stackIpsa(const FrameCube& cube, const std::vector<double>& offsetsS, Velocity v,
+                      const std::vector<PixelOffset>& frameOffsets);
+
 }  // namespace st::stack
