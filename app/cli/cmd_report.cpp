@@ -2,6 +2,7 @@
 // DS9 regions of every candidate, ADES (PSV, XML) and MPC 80-column astrometry of the candidates labelled
 // real. A submission that would not validate is refused before any file is written (exit 2, usage).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -31,6 +32,7 @@ constexpr const char* kHelp =
     "                             [--candidates-json C.json] [--csv C.csv]\n"
     "                             [--ds9 out.reg] [--ades out.psv] [--ades-xml out.xml] [--mpc out.txt]\n"
     "                             [--station CODE] [--observer NAME] [--measurer NAME] [--submitter NAME]\n"
+    "                             [--contact-email ADDRESS]\n"
     "                             [--telescope-aperture M] [--telescope-design D]\n"
     "                             [--telescope-detector CCD|CMO]\n"
     "                             [--ast-cat CAT] [--mpc-cat C] [--safe-snr S] [--positions segments|fit]\n"
@@ -61,6 +63,7 @@ constexpr const char* kHelp =
     "  --station CODE    MPC observatory code (3 characters)\n"
     "  --observer NAME   observer name(s), comma-separated\n"
     "  --measurer NAME   measurer (default: the first observer)   --submitter NAME  (default: the measurer)\n"
+    "  --contact-email ADDRESS  where the MPC sends its acknowledgment (80-column AC2 line)\n"
     "  --telescope-aperture M     aperture in metres (ADES telescope aperture)\n"
     "  --telescope-design D       reflector (default), refractor, Schmidt, ...\n"
     "  --telescope-detector CCD   CCD (default) or CMO (CMOS); also the ADES mode and 80-column note 2\n"
@@ -69,10 +72,9 @@ constexpr const char* kHelp =
     "                    is left blank: the MPC fills it)\n"
     "  --mpc-cat C       the catalogue by its MPC code (W = Gaia DR3, ...), instead of --ast-cat's\n"
     "  --safe-snr S      warn for detections below this SNR (default 7)\n"
-    "  --positions P     positions per real object: 'segments' (default: one per segment of its fit's\n"
-    "                    segment check, 4 at about half the fit's SNR each, the tracklet the MPC links a "
-    "new\n"
-    "                    object from) or 'fit' (the whole fit's one position at t_ref)\n"
+    "  --positions P     positions per real object: 'segments' (default: the tracklet the MPC links a new\n"
+    "                    object from, one position per equal-time segment of its fit, floor((SNR/7)^2)\n"
+    "                    segments from 2 to 4, each near SNR 7) or 'fit' (the whole fit's one position)\n"
     "  --prepared P.json artifact checks (charge leakage, bright star, diffraction, edge) with the star "
     "catalog\n"
     "                    of the pre-processing sidecar and the input frames' times; kept in the session\n"
@@ -85,7 +87,7 @@ constexpr const char* kHelp =
 const std::set<std::string> kValuedOptions = {
     "session", "label", "note", "ds9", "ades", "ades-xml", "mpc", "station", "observer", "measurer", "submitter",
     "telescope-aperture", "telescope-design", "telescope-detector", "ast-cat", "safe-snr", "wcs", "stacks",
-    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv", "positions"};
+    "mpc-cat", "prepared", "known", "known-radius", "candidates-json", "csv", "positions", "contact-email"};
 // clang-format on
 
 nlohmann::json readJson(const std::string& path) {
@@ -132,6 +134,7 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (auto s = cli.value("observer")) settings["observers"] = *s;
   if (auto s = cli.value("measurer")) settings["measurer"] = *s;
   if (auto s = cli.value("submitter")) settings["submitter"] = *s;
+  if (auto s = cli.value("contact-email")) settings["contact_email"] = *s;
   if (auto s = cli.value("telescope-design")) settings["telescope_design"] = *s;
   if (auto s = cli.value("telescope-detector")) settings["detector"] = *s;
   if (auto m = cli.number("telescope-aperture")) {
@@ -142,6 +145,11 @@ void applyEdits(const CliArgs& cli, session::SessionEditor& ed) {
   if (auto s = cli.value("mpc-cat")) {
     if (s->size() != 1) throw UsageError("--mpc-cat needs one character (the MPC's catalogue code, e.g. W)");
     settings["mpc_catalog_code"] = *s;
+  }
+  if (auto snr = cli.number("safe-snr")) {
+    if (!(*snr > 0.0) || !std::isfinite(*snr))
+      throw UsageError("--safe-snr needs a positive SNR, got " + std::to_string(*snr));
+    settings["safe_snr"] = *snr;
   }
   if (auto s = cli.value("positions")) {
     try {
@@ -177,6 +185,7 @@ const char* optionFor(const std::string& key) {
   if (key == "station") return "--station CODE";
   if (key == "observers" || key == "measurer") return "--observer NAME or --measurer NAME";
   if (key == "submitter") return "--submitter NAME";
+  if (key == "contact_email") return "--contact-email ADDRESS";
   if (key == "telescope_design") return "--telescope-design D";
   if (key == "aperture_m") return "--telescope-aperture M";
   if (key == "detector") return "--telescope-detector CCD|CMO";
@@ -184,12 +193,11 @@ const char* optionFor(const std::string& key) {
   return "--ast-cat CAT or --mpc-cat C";
 }
 
-/// The submission settings of the session (with --safe-snr, and the catalogue of --wcs's header when none is
+/// The submission settings of the session (with the catalogue of --wcs's header when none is
 /// set); refuses with a usage error naming every missing value and its option, before anything is written.
 report::SubmissionSettings submissionSettings(const nlohmann::json& json, const CliArgs& cli,
                                               const std::optional<WcsMapping>& wcs) {
   report::SubmissionSettings out = report::submissionFromJson(json);
-  out.safeSnr = cli.number("safe-snr", out.safeSnr);
   if (out.astCat.empty() && wcs) {
     if (auto cat = report::astCatFromHeader(wcs->cube.header)) {
       out.astCat = *cat;
@@ -377,15 +385,15 @@ int cmdReport(const Args& args) {
       std::printf("DS9 regions of %zu candidates (%s): %s\n", request.session.candidates.size(),
                   request.regions.frame.c_str(), path.c_str());
     else if (is("ades"))
-      std::printf("ADES PSV, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+      std::printf("ADES PSV, %zu position(s) of %zu object(s): %s\n", out.detections, out.objects,
                   path.c_str());
     else if (is("ades-xml"))
-      std::printf("ADES XML, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+      std::printf("ADES XML, %zu position(s) of %zu object(s): %s\n", out.detections, out.objects,
                   path.c_str());
     else if (is("candidates-json") || is("csv"))
       std::printf("candidates with their vetting state: %s\n", path.c_str());
     else if (is("mpc"))
-      std::printf("MPC 80-column, %zu positions of %zu object(s): %s\n", out.detections, out.objects,
+      std::printf("MPC 80-column, %zu position(s) of %zu object(s): %s\n", out.detections, out.objects,
                   path.c_str());
     else
       std::printf("FITS stack: %s\n", path.c_str());

@@ -195,6 +195,11 @@ SubmissionText formatMpc80(const std::vector<AstrometricDetection>& ds, const Su
     out.warnings.push_back("80-column: astCat '" + s.astCat +
                            "' is not in the MPC's list of catalogue codes: the NET line names it as given");
   header("ACK", "synthtrack astrometry, " + std::to_string(ds.size()) + " observation(s)");
+  header("AC2", s.contactEmail);
+  if (s.contactEmail.empty())
+    out.warnings.push_back(
+        "80-column: no contact e-mail for the AC2 line, where the MPC sends its acknowledgment (set "
+        "--contact-email)");
   if (s.observers.empty())
     out.warnings.push_back("80-column: no observer name for the OBS line (set --observer)");
   initialsWarnings(s, out.warnings);

@@ -122,6 +122,12 @@ std::vector<SettingsProblem> submissionProblems(const SubmissionSettings& s, Sub
                      "the reference catalogue of the astrometric solution for the NET line (astCat, "
                      "e.g. Gaia3)"});
     }
+    const std::string& mail = s.contactEmail;
+    if (!mail.empty() &&
+        (std::count(mail.begin(), mail.end(), '@') != 1 || mail.front() == '@' || mail.back() == '@' ||
+         mail.find_first_of(" \t|") != std::string::npos || mail.size() > 76))
+      out.push_back(
+          {"contact_email", "a contact e-mail address for the AC2 line (name@host), got '" + mail + "'"});
   }
   return out;
 }
@@ -151,6 +157,7 @@ nlohmann::json toJson(const SubmissionSettings& s) {
           {"observers", s.observers},
           {"measurer", s.measurer},
           {"submitter", s.submitter},
+          {"contact_email", s.contactEmail},
           {"telescope_design", s.telescopeDesign},
           {"aperture_m", s.apertureM},
           {"detector", s.detector},
@@ -173,6 +180,7 @@ SubmissionSettings submissionFromJson(const nlohmann::json& j) {
   text("observers", s.observers);
   text("measurer", s.measurer);
   text("submitter", s.submitter);
+  text("contact_email", s.contactEmail);
   text("telescope_design", s.telescopeDesign);
   number("aperture_m", s.apertureM);
   text("detector", s.detector);

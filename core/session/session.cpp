@@ -218,8 +218,8 @@ void SessionStore::save(Session& session) const {
 
 CandidateState& SessionEditor::at(std::size_t i) {
   if (i >= m_session.candidates.size()) {
-    throw InputError("candidate " + std::to_string(i) + " does not exist (the session has " +
-                     std::to_string(m_session.candidates.size()) + ")");
+    throw InputError("candidate " + std::to_string(i + 1) + " does not exist (the session has " +
+                     std::to_string(m_session.candidates.size()) + ", numbered from 1)");
   }
   return m_session.candidates[i];
 }

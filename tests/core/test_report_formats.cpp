@@ -38,6 +38,7 @@ SubmissionSettings settings291() {
   s.stationCode = "291";
   s.observers = "A. Observer, B. Second";
   s.astCat = "Gaia3";
+  s.contactEmail = "observer@example.org";
   return s;
 }
 
@@ -108,15 +109,30 @@ TEST(Mpc80, MessageHasTheHeaderLinesThenTheObservations) {
   std::stringstream ss(t.text);
   for (std::string l; std::getline(ss, l);)
     lines.push_back(l);
-  ASSERT_EQ(lines.size(), 8u);
+  ASSERT_EQ(lines.size(), 9u);
   EXPECT_EQ(lines[0], "COD 291");
   EXPECT_EQ(lines[1], "OBS A. Observer, B. Second");
   EXPECT_EQ(lines[2], "MEA A. Observer");
   EXPECT_EQ(lines[3], "TEL reflector + CCD");
   EXPECT_EQ(lines[4], "NET Gaia-DR3");  // the MPC's name of astCat Gaia3
   EXPECT_EQ(lines[5].substr(0, 4), "ACK ");
-  EXPECT_EQ(lines[6], mpc80Line(publishedDetection(), settings291()));
-  EXPECT_TRUE(t.warnings.empty());  // SNR 12, a listed catalogue, observers given
+  EXPECT_EQ(lines[6], "AC2 observer@example.org");
+  EXPECT_EQ(lines[7], mpc80Line(publishedDetection(), settings291()));
+  EXPECT_TRUE(t.warnings.empty());  // SNR 12, a listed catalogue, observers and a contact given
+  // Without a contact e-mail there is no AC2 line, and a warning says where the acknowledgment would go.
+  SubmissionSettings noMail = settings291();
+  noMail.contactEmail.clear();
+  const SubmissionText u = formatMpc80({publishedDetection()}, noMail);
+  EXPECT_EQ(u.text.find("AC2"), std::string::npos);
+  ASSERT_EQ(u.warnings.size(), 1u);
+  EXPECT_NE(u.warnings[0].find("no contact e-mail for the AC2 line"), std::string::npos) << u.warnings[0];
+  // A malformed one is refused, by name.
+  noMail.contactEmail = "observer at example.org";
+  const auto problems = submissionProblems(noMail, SubmissionFormat::Mpc80);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_EQ(problems[0].key, "contact_email");
+  noMail.contactEmail = "a@b@c";
+  EXPECT_EQ(submissionProblems(noMail, SubmissionFormat::Mpc80).size(), 1u);
 }
 
 TEST(Mpc80, NoMagnitudeCmosAndBadInput) {

@@ -279,6 +279,18 @@ def tracklet_of_the_demo(cli, tmp, cpath, real, wcs, mjd, sky):
     check(r.returncode == 0 and len(body) == 2, "--positions fit: one line (%d)" % (len(body) - 1))
     r = run(cli, ["report", cpath, "--session", session, "--positions", "three", "--ades", ades] + settings)
     check(r.returncode == 2 and "--positions" in r.stderr, "--positions three: usage error (%d) %s" % (r.returncode, r.stderr))
+    # The safe SNR and the contact e-mail are kept in the session, as the help says; the AC2 line carries it.
+    mpc = os.path.join(tmp, "tracklet_mpc.txt")
+    r = run(cli, ["report", cpath, "--session", session, "--safe-snr", "9", "--contact-email", "me@example.org",
+                  "--mpc", mpc] + settings)
+    kept = json.load(open(session))["settings"]
+    check(r.returncode == 0 and kept.get("safe_snr") == 9 and kept.get("contact_email") == "me@example.org",
+          "--safe-snr and --contact-email kept: %s" % kept)
+    check("AC2 me@example.org" in open(mpc).read().splitlines(), "AC2 line")
+    r = run(cli, ["report", cpath, "--session", session, "--safe-snr", "-1"])
+    check(r.returncode == 2 and "--safe-snr" in r.stderr, "--safe-snr -1: usage error (%d)" % r.returncode)
+    r = run(cli, ["report", cpath, "--session", session, "--label", "5=real"])
+    check(r.returncode != 0 and "candidate 5 does not exist" in r.stderr, "candidate named as given: " + r.stderr)
 
 
 if __name__ == "__main__":

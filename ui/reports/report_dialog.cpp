@@ -129,6 +129,10 @@ QWidget* ReportDialog::buildObservatoryPage() {
   m_measurer->setPlaceholderText("the first observer");
   m_submitter = new QLineEdit(page);
   m_submitter->setPlaceholderText("the measurer");
+  m_contactEmail = new QLineEdit(page);
+  m_contactEmail->setPlaceholderText("name@host");
+  m_contactEmail->setToolTip(
+      "Where the MPC sends its acknowledgment of an 80-column submission (the AC2 line)");
   m_telescope = new QLineEdit(page);
   m_telescope->setToolTip("ADES telescope design: reflector, refractor, Schmidt, ... (required)");
   m_aperture = new QDoubleSpinBox(page);
@@ -168,6 +172,7 @@ QWidget* ReportDialog::buildObservatoryPage() {
   form->addRow("Observers", m_observers);
   form->addRow("Measurer", m_measurer);
   form->addRow("Submitter", m_submitter);
+  form->addRow("Contact e-mail", m_contactEmail);
   form->addRow("Telescope design", m_telescope);
   form->addRow("Aperture", m_aperture);
   form->addRow("Detector", m_detector);
@@ -175,7 +180,8 @@ QWidget* ReportDialog::buildObservatoryPage() {
   form->addRow("80-column catalogue code", m_mpcCat);
   form->addRow("Safe SNR", m_safeSnr);
   form->addRow("Positions per object", m_positions);
-  for (QLineEdit* e : {m_station, m_observers, m_measurer, m_submitter, m_telescope, m_astCat, m_mpcCat})
+  for (QLineEdit* e :
+       {m_station, m_observers, m_measurer, m_submitter, m_contactEmail, m_telescope, m_astCat, m_mpcCat})
     connect(e, &QLineEdit::editingFinished, this, &ReportDialog::onSettingsEdited);
   connect(m_aperture, &QDoubleSpinBox::valueChanged, this, &ReportDialog::onSettingsEdited);
   connect(m_safeSnr, &QDoubleSpinBox::valueChanged, this, &ReportDialog::onSettingsEdited);
@@ -190,6 +196,7 @@ report::SubmissionSettings ReportDialog::submissionSettings() const {
   s.observers = m_observers->text().trimmed().toStdString();
   s.measurer = m_measurer->text().trimmed().toStdString();
   s.submitter = m_submitter->text().trimmed().toStdString();
+  s.contactEmail = m_contactEmail->text().trimmed().toStdString();
   s.telescopeDesign = m_telescope->text().trimmed().toStdString();
   s.apertureM = m_aperture->value();
   s.detector = m_detector->currentText().toStdString();
@@ -208,6 +215,7 @@ void ReportDialog::setSubmissionSettings(const report::SubmissionSettings& s) {
   m_observers->setText(QString::fromStdString(s.observers));
   m_measurer->setText(QString::fromStdString(s.measurer));
   m_submitter->setText(QString::fromStdString(s.submitter));
+  m_contactEmail->setText(QString::fromStdString(s.contactEmail));
   m_telescope->setText(QString::fromStdString(s.telescopeDesign));
   m_aperture->setValue(s.apertureM);
   m_detector->setCurrentText(QString::fromStdString(s.detector));

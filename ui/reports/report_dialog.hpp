@@ -104,6 +104,7 @@ class ReportDialog : public QDialog {
   QLineEdit* m_mpcCat = nullptr;
   QDoubleSpinBox* m_safeSnr = nullptr;
   QComboBox* m_positions = nullptr;
+  QLineEdit* m_contactEmail = nullptr;
   QLabel* m_warning = nullptr;
   QPlainTextEdit* m_result = nullptr;
   QPushButton* m_export = nullptr;

@@ -49,7 +49,8 @@ struct SubmissionText {
 /// code, catalogue) or a designation longer than 7.
 [[nodiscard]] std::string mpc80Line(const AstrometricDetection& d, const SubmissionSettings& settings);
 /// The whole 80-column message: the MPC1992 header lines COD (station), OBS (observers), MEA (measurer), TEL
-/// (telescope), NET (the catalogue by the MPC's name: netCatalogueName()), ACK, then one line per detection.
+/// (telescope), NET (the catalogue by the MPC's name: netCatalogueName()), ACK, AC2 (the contact e-mail, when
+/// given; a warning when not), then one line per detection.
 [[nodiscard]] SubmissionText formatMpc80(const std::vector<AstrometricDetection>& detections,
                                          const SubmissionSettings& settings);
 /// The ADES document: obsContext from the settings, the fields trkSub, mode, stn, obsTime, ra, dec, rmsRA,

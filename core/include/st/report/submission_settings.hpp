@@ -27,6 +27,7 @@ struct SubmissionSettings {
   std::string observers;                      ///< observer name(s), comma-separated ("A. Smith, B. Jones")
   std::string measurer;                       ///< measurer name; default: the first observer
   std::string submitter;                      ///< default: the measurer
+  std::string contactEmail;                   ///< where the MPC sends its acknowledgment (80-column AC2 line)
   std::string telescopeDesign = "reflector";  ///< ADES telescope design (reflector, refractor, Schmidt, ...)
   double apertureM = 0.0;        ///< telescope aperture, metres; ADES requires it (0 = not given)
   std::string detector = "CCD";  ///< ADES telescope detector and observation mode: CCD or CMO (CMOS)
@@ -43,8 +44,8 @@ struct SubmissionSettings {
 enum class SubmissionFormat { Ades, Mpc80 };
 
 /// A value a valid file needs that the settings lack or hold malformed. `key` is the value's key in the
-/// settings JSON (toJson below: station, observers, measurer, submitter, telescope_design, aperture_m,
-/// detector, ast_cat, mpc_catalog_code), for a front end to name its own option or field.
+/// settings JSON (toJson below: station, observers, measurer, submitter, contact_email, telescope_design,
+/// aperture_m, detector, ast_cat, mpc_catalog_code), for a front end to name its own option or field.
 struct SettingsProblem {
   std::string key;
   std::string message;
@@ -71,8 +72,8 @@ struct SettingsProblem {
 [[nodiscard]] std::string netCatalogueName(const SubmissionSettings& settings);
 
 /// The settings as kept in a session's settings and in the GUI's QSettings: station, observers, measurer,
-/// submitter, telescope_design, aperture_m, detector, ast_cat, mpc_catalog_code (one character, " " = from
-/// astCat), safe_snr, positions ("segments" or "fit").
+/// submitter, contact_email, telescope_design, aperture_m, detector, ast_cat, mpc_catalog_code (one
+/// character, " " = from astCat), safe_snr, positions ("segments" or "fit").
 [[nodiscard]] nlohmann::json toJson(const SubmissionSettings& settings);
 /// The inverse; missing, mistyped or unknown values keep the defaults of SubmissionSettings.
 [[nodiscard]] SubmissionSettings submissionFromJson(const nlohmann::json& json);
