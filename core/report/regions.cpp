@@ -98,22 +98,22 @@ void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& mar
   if (!out) throw InputError("error writing DS9 region file '" + path + "'");
 }
 
-astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS) {
-  return [&wcs, skyRate, mappingEpochOffsetS](double x, double y) {
-    const auto s = wcs.pixelToSky(x + skyRate.vx * mappingEpochOffsetS, y + skyRate.vy * mappingEpochOffsetS);
+astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS,
+                                   PixelOffset mappingFrameOffset) {
+  const double ox = mappingFrameOffset.x + skyRate.vx * mappingEpochOffsetS;
+  const double oy = mappingFrameOffset.y + skyRate.vy * mappingEpochOffsetS;
+  return [&wcs, ox, oy](double x, double y) {
+    const auto s = wcs.pixelToSky(x + ox, y + oy);
     return astro::SkyPoint{s.raDeg, s.decDeg};
   };
 }
 
 astro::PixelToSky skyMappingAtTRef(const FrameCube& frames, Velocity skyRate) {
-  const std::shared_ptr<const Wcs> wcs = frames.wcs;
-  const double t0 = frames.timeOffsetsS().front();
-  const double ox = frames.info().front().offsetXPx + skyRate.vx * t0;
-  const double oy = frames.info().front().offsetYPx + skyRate.vy * t0;
-  return [wcs, ox, oy](double x, double y) {
-    const auto s = wcs->pixelToSky(x + ox, y + oy);
-    return astro::SkyPoint{s.raDeg, s.decDeg};
-  };
+  const std::shared_ptr<const Wcs> wcs = frames.wcs;  // the mapping keeps it alive
+  const FrameInfo& first = frames.info().front();
+  const astro::PixelToSky atTRef =
+      skyMappingAtTRef(*wcs, skyRate, frames.timeOffsetsS().front(), {first.offsetXPx, first.offsetYPx});
+  return [wcs, atTRef](double x, double y) { return atTRef(x, y); };
 }
 
 }  // namespace st::report

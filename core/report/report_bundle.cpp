@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <set>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "st/common/error.hpp"
@@ -59,6 +59,7 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
   const auto& c = r.session.candidates[i];
   const Velocity sky = sessionSkyRate(r.session);
   const auto dt = cube.timeOffsetsS();
+  const std::vector<PixelOffset> offsets = r.frameOffsets.empty() ? cube.frameOffsets() : r.frameOffsets;
   const std::vector<bool> which = r.stacksObjectOnly ? std::vector<bool>{true} : std::vector<bool>{false, true};
   for (const bool object : which) {
     StackProvenance p;
@@ -80,7 +81,6 @@ void writeStacksFor(const ReportRequest& r, std::size_t i, ReportOutcome& out) {
       std::snprintf(name, sizeof name, "_c%03zu_%s.fits", i + 1, object ? "object" : "sky");
     const std::string path = r.stacksStem + name;
     makeParent(path);
-    const std::vector<PixelOffset> offsets = r.frameOffsets.empty() ? cube.frameOffsets() : r.frameOffsets;
     const stack::StackResult st = stack::stackIpsa(cube, dt, p.velocity, offsets);
     writeStackFits(path, backgroundSubtractedMean(st.sum, st.nIn), p, cube.wcs.get(), dt.front(), &st.nIn,
                    offsets.empty() ? PixelOffset{} : offsets.front());
@@ -182,14 +182,12 @@ RegionContext regionContext(const FrameCube* raw, const session::Session& s,
   const auto dt = raw->timeOffsetsS();
   ctx.trackStartS = dt.front();
   ctx.trackEndS = dt.back();
-  if (raw->wcs && frameOffsets.empty()) {
-    ctx.toSky = skyMappingAtTRef(*raw, sessionSkyRate(s));
-    ctx.frame = ds9SkyFrame(*raw->wcs);
-  } else if (raw->wcs) {
-    // The first frame's registration offset from the frames that hold it.
-    const astro::PixelToSky atTRef = skyMappingAtTRef(*raw->wcs, sessionSkyRate(s), dt.front());
-    const PixelOffset o = frameOffsets.front();
-    ctx.toSky = [atTRef, o](double x, double y) { return atTRef(x + o.x, y + o.y); };
+  if (raw->wcs) {
+    // The first frame's registration offset: given apart, or the frames' own.
+    const PixelOffset first = frameOffsets.empty()
+                                  ? PixelOffset{raw->info().front().offsetXPx, raw->info().front().offsetYPx}
+                                  : frameOffsets.front();
+    ctx.toSky = skyMappingAtTRef(*raw->wcs, sessionSkyRate(s), dt.front(), first);
     ctx.frame = ds9SkyFrame(*raw->wcs);
   }
   return ctx;

@@ -68,21 +68,21 @@ void appendMotionRows(QTableWidget* table, const Observation& obs, double x, dou
 // per segment by default, report::realDetections).
 void appendSegmentRows(QTableWidget* table, const std::optional<candidate::SegmentSummary>& seg) {
   if (!seg) return;
-  const auto add = [table](const QString& name, const QString& value, const QString& sigma = {},
-                           const QString& note = {}) { appendRow(table, name, value, sigma, {}, note); };
-  add(QString("segments (K = %1)").arg(seg->snr.size()), seg->flagged ? "flagged" : "consistent", {},
-      QString("tracklet: %1 position%2 of %3 segments")
-          .arg(seg->positions.size())
-          .arg(seg->positions.size() == 1 ? "" : "s")
-          .arg(seg->positionSegments));
+  appendRow(table, QString("segments (K = %1)").arg(seg->snr.size()), seg->flagged ? "flagged" : "consistent",
+            {}, {},
+            QString("tracklet: %1 position%2 of %3 segments")
+                .arg(seg->positions.size())
+                .arg(seg->positions.size() == 1 ? "" : "s")
+                .arg(seg->positionSegments));
   for (const auto& q : seg->positions) {
     QString note = QString("SNR %1").arg(q.snr, 0, 'f', 1);
     if (q.raDeg && q.decDeg)
       note += QString(", RA %1 Dec %2 deg").arg(*q.raDeg, 0, 'f', 6).arg(*q.decDeg, 0, 'f', 6);
-    add(QString::asprintf("segment %d/%d (x, y) [px] at t_ref %+.1f s", q.segment, seg->positionSegments,
-                          q.tOffsetS),
-        QString("%1, %2").arg(q.x, 0, 'f', 3).arg(q.y, 0, 'f', 3),
-        QString("%1, %2").arg(q.sigmaXPx, 0, 'g', 3).arg(q.sigmaYPx, 0, 'g', 3), note);
+    appendRow(table,
+              QString::asprintf("segment %d/%d (x, y) [px] at t_ref %+.1f s", q.segment,
+                                seg->positionSegments, q.tOffsetS),
+              QString("%1, %2").arg(q.x, 0, 'f', 3).arg(q.y, 0, 'f', 3),
+              QString("%1, %2").arg(q.sigmaXPx, 0, 'g', 3).arg(q.sigmaYPx, 0, 'g', 3), {}, note);
   }
 }
 

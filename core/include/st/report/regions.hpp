@@ -47,13 +47,14 @@ void writeDs9Regions(const std::string& path, const std::vector<RegionMark>& mar
                      const astro::PixelToSky& toSky, const std::string& skyFrame = "fk5");
 
 /// The mapping of pixels at t_ref through a WCS that belongs to the frame at `mappingEpochOffsetS` (seconds
-/// from t_ref; the first frame's for a cube's FITS WCS): a point at (x, y) at t_ref was at (x, y) +
-/// skyRate * mappingEpochOffsetS in that frame (the stars drift at skyRate), the convention of
+/// from t_ref; the first frame's for a cube's FITS WCS), whose registration offset is `mappingFrameOffset`
+/// (FrameInfo::offsetXPx/offsetYPx; dithers): a point at (x, y) at t_ref was at (x, y) + skyRate *
+/// mappingEpochOffsetS + that offset in that frame (the stars drift at skyRate), the convention of
 /// astro::skyMeasurement.
-[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate,
-                                                 double mappingEpochOffsetS);
-/// The same through the WCS of `frames` (which it must have), the first frame's: at its epoch, and at its
-/// registration offset (FrameInfo::offsetXPx/offsetYPx; astro::skyMeasurement's frames overload).
+[[nodiscard]] astro::PixelToSky skyMappingAtTRef(const Wcs& wcs, Velocity skyRate, double mappingEpochOffsetS,
+                                                 PixelOffset mappingFrameOffset = {});
+/// The same through the WCS of `frames` (which it must have), the first frame's: at its epoch and its
+/// registration offset.
 [[nodiscard]] astro::PixelToSky skyMappingAtTRef(const FrameCube& frames, Velocity skyRate);
 
 }  // namespace st::report
