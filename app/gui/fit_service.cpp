@@ -14,8 +14,7 @@ ui::FitOutcome fitCandidate(const ui::PreparedView& prepared, const search::Cand
     throw InputError("co-moving fit: pre-processing kept no unfiltered frames or PSF (run it again)");
   const FrameCube& frames = prepared.unfiltered->frames;
   const pipeline::Prepared& products = *prepared.products;
-  fit::FitOptions stackOptions;
-  stackOptions.psf = products.psf;
+  const fit::FitOptions stackOptions = candidate::fitOptions(frames, products, candidate);
   using Clock = std::chrono::steady_clock;
   auto last = Clock::now() - std::chrono::hours(1);
   const fit::IterationCallback onIteration = [&](const fit::FitIteration& it) {

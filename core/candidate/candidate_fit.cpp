@@ -48,16 +48,33 @@ std::vector<SegmentPosition> positionsOf(const vet::SegmentReport& seg, const Fr
   return out;
 }
 
+// Whether `c` is one of the movers the static-source search found (pipeline::Prepared::movers): their
+// streaks were left out of the per-pixel background, so their flux is not in it.
+bool nearLeftOutMover(const pipeline::Prepared& prepared, const search::Candidate& c) {
+  const double radius = 2.0 * prepared.psf.fwhm() + 2.0;
+  return std::any_of(prepared.movers.begin(), prepared.movers.end(), [&](const detect::MovingSource& m) {
+    return m.moving && std::hypot(m.x - c.x, m.y - c.y) <= radius;
+  });
+}
+
 }  // namespace
 
-FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepared,
-                        const search::Candidate& c, CancelToken& cancel,
-                        const fit::IterationCallback& onIteration, fit::FitResult* result) {
+fit::FitOptions fitOptions(const FrameCube& frames, const pipeline::Prepared& prepared,
+                           const search::Candidate& c) {
   fit::FitOptions opt;
   opt.psf = prepared.psf;
   opt.sigmaN = prepared.sigmaN;
   opt.gain = astro::photoelectronsPerCount(frames.header);
   opt.excessNoise = astro::excessNoiseFactor(frames.header);
+  opt.selfSubtraction = prepared.backgroundWindows;
+  opt.sourceInBackground = !nearLeftOutMover(prepared, c);
+  return opt;
+}
+
+FitSummary fitCandidate(const FrameCube& frames, const pipeline::Prepared& prepared,
+                        const search::Candidate& c, CancelToken& cancel,
+                        const fit::IterationCallback& onIteration, fit::FitResult* result) {
+  const fit::FitOptions opt = fitOptions(frames, prepared, c);
   const fit::FitResult f = fit::fitComoving(frames, fit::startFromCandidate(c), opt, onIteration, cancel);
   FitSummary s = summarize(f);
   if (f.sigmaN > 0.0) {

@@ -106,6 +106,22 @@ Setup makeSetup(const FrameCube& cube, const FitOptions& o) {
   return s;
 }
 
+detail::FitProblem makeProblem(const FrameCube& cube, const Setup& s, const FitOptions& o) {
+  detail::FitProblem prob(cube, s.frames, s.times, o.psf, s.half);
+  if (o.selfSubtraction && !o.selfSubtraction->empty()) {
+    for (const std::size_t n : o.selfSubtraction->frames) {
+      if (n >= cube.frameCount()) {
+        throw InputError("co-moving fit: the background's frame " + std::to_string(n) +
+                         " is out of range (cube has " + std::to_string(cube.frameCount()) + " frames)");
+      }
+    }
+    const double clip = o.sigmaN && *o.sigmaN > 0.0 ? o.selfSubtraction->clipXi * *o.sigmaN
+                                                    : std::numeric_limits<double>::infinity();
+    prob.setSelfSubtraction(*o.selfSubtraction, s.tRefOffsetS, clip, o.sourceInBackground);
+  }
+  return prob;
+}
+
 // Solves (A + lambda diag(A)) d = b on the free parameters; false when singular.
 bool solveStep(const ParamMatrix& a, const ParamVector& b, const std::array<bool, kParamCount>& free,
                double lambda, ParamVector& step) {
@@ -288,7 +304,10 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
   res.photonsPerFrame = o.gain * st.p.alpha * o.psf.integral();
   res.framesInside = prob.framesInside(st.p);
   const double nf = static_cast<double>(res.framesInside);
-  if (res.sigmaN > 0 && nf > 0) res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN);
+  // With the background's share of the source in the model (FitOptions::selfSubtraction), alpha is the
+  // source's whole amplitude but only the part the background left can be detected.
+  if (res.sigmaN > 0 && nf > 0)
+    res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN) * prob.snrKept(st.p);
   if (res.photonsPerFrame > 0 && res.snr > 0) {
     res.sigmaPosPaper = positionSigmaPaper(res.photonsPerFrame, w, o.gain * res.sigmaN, nf);
     res.sigmaPosSnr = positionSigmaFromSnr(w, res.snr);
@@ -307,7 +326,7 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
 
 FitStacks stacksAt(const FrameCube& cube, const FitParams& params, const FitOptions& options) {
   const Setup s = makeSetup(cube, options);
-  detail::FitProblem prob(cube, s.frames, s.times, options.psf, s.half);
+  detail::FitProblem prob = makeProblem(cube, s, options);
   prob.centreStamps(params);
   FitStacks out;
   prob.stacks(params, out.data, out.model, out.residual);
@@ -326,7 +345,7 @@ FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOp
       !std::isfinite(start.v.vy) || !std::isfinite(start.i0)) {
     throw InputError("co-moving fit: the start point has a non-finite position, velocity or I0");
   }
-  detail::FitProblem prob(cube, s.frames, s.times, options.psf, s.half);
+  detail::FitProblem prob = makeProblem(cube, s, options);
   FitResult res;
   res.framesUsed = s.frames.size();
   res.freeParams = s.nFree;
@@ -353,7 +372,7 @@ FitResult fitComoving(const FrameCube& cube, const FitParams& start, const FitOp
 ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track, const FitOptions& options,
                                   double sigmaN) {
   const Setup s = makeSetup(cube, options);
-  detail::FitProblem prob(cube, s.frames, s.times, options.psf, s.half);
+  detail::FitProblem prob = makeProblem(cube, s, options);
   prob.centreStamps(track);
   FitParams p = track;
   p.alpha = std::numeric_limits<double>::quiet_NaN();

@@ -1,8 +1,11 @@
 #include "fit_problem.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
+#include <unordered_map>
 
 #include "st/common/parallel.hpp"
 #include "st/fit/pixel_psf.hpp"
@@ -18,7 +21,9 @@ FitProblem::FitProblem(const FrameCube& cube, std::vector<std::size_t> frames, s
       m_cy(m_frames.size(), 0),
       m_psf(psf),
       m_table(psf, 2.0 * halfSize + 4.0),
-      m_half(halfSize) {
+      m_half(halfSize),
+      m_clipLevel(std::numeric_limits<double>::infinity()),
+      m_termStart(m_frames.size() + 1, 0) {
   // The frames' registration offsets: the track in frame n is at (xc + ox_n + vx t, yc + oy_n + vy t).
   for (const std::size_t n : m_frames) {
     m_ox.push_back(n < cube.frameCount() ? cube.info()[n].offsetXPx : 0.0);
@@ -26,11 +31,95 @@ FitProblem::FitProblem(const FrameCube& cube, std::vector<std::size_t> frames, s
   }
 }
 
+void FitProblem::setSelfSubtraction(const stats::PixelBackgroundWindows& windows, double tRefOffsetS,
+                                    double clipLevel, bool sourceInBackground) {
+  m_windows = windows.empty() ? nullptr : &windows;
+  m_termsOn = sourceInBackground;
+  m_tRefOffsetS = tRefOffsetS;
+  m_clipLevel = clipLevel;
+  // A term farther than 3 FWHM (+ 1 px) from a pixel adds < 2e-3 of the peak even for beta = 2.5.
+  const double reach = 3.0 * m_psf.fwhm() + 1.0;
+  m_termReach2 = reach * reach;
+}
+
 void FitProblem::centreStamps(const FitParams& p) {
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
     m_cx[k] = static_cast<int>(std::lround(p.xc + m_ox[k] + p.v.vx * m_times[k]));
     m_cy[k] = static_cast<int>(std::lround(p.yc + m_oy[k] + p.v.vy * m_times[k]));
   }
+  gatherBackgroundTerms(p);
+}
+
+void FitProblem::gatherBackgroundTerms(const FitParams& p) {
+  m_terms.clear();
+  m_termStart.assign(m_frames.size() + 1, 0);
+  if (m_windows == nullptr || !m_termsOn) return;
+  const std::vector<double> t = m_cube.timeOffsetsS();
+  const auto& info = m_cube.info();
+  const std::vector<std::size_t>& used = m_windows->frames;
+  const double groupSpan = m_psf.fwhm() / 8.0;
+  // Terms whose track position is farther than this from the stamp's centre reach none of its pixels, even
+  // after the track moves by a stamp's half-size during the fit (re-centring gathers them again).
+  const double reach = std::sqrt(m_termReach2) + 2.5 * m_half + 1.0;
+  const auto at = [&](std::size_t m) {
+    return std::array<double, 2>{p.xc + info[m].offsetXPx + p.v.vx * (t[m] - m_tRefOffsetS),
+                                 p.yc + info[m].offsetYPx + p.v.vy * (t[m] - m_tRefOffsetS)};
+  };
+  for (std::size_t k = 0; k < m_frames.size(); ++k) {
+    m_termStart[k] = m_terms.size();
+    const auto [lo, hi] = m_windows->leftOut(m_frames[k], t);
+    const double w = 1.0 / static_cast<double>(used.size() - (hi - lo));
+    const double cx = p.xc + m_ox[k] + p.v.vx * m_times[k];
+    const double cy = p.yc + m_oy[k] + p.v.vy * m_times[k];
+    // The frames of the background in two runs (before and after the left-out range), each cut into groups
+    // whose track positions lie within groupSpan of each other.
+    for (const auto& [b, e] : {std::pair{std::size_t{0}, lo}, std::pair{hi, used.size()}}) {
+      std::size_t g = b;
+      while (g < e) {
+        const auto first = at(used[g]);
+        double x0 = first[0], x1 = first[0], y0 = first[1], y1 = first[1];
+        double st = 0.0, sx = 0.0, sy = 0.0;
+        std::size_t c = 0;
+        for (; g < e; ++g, ++c) {
+          const auto r = at(used[g]);
+          const double nx0 = std::min(x0, r[0]), nx1 = std::max(x1, r[0]);
+          const double ny0 = std::min(y0, r[1]), ny1 = std::max(y1, r[1]);
+          if (c > 0 && (nx1 - nx0 > groupSpan || ny1 - ny0 > groupSpan)) break;
+          x0 = nx0, x1 = nx1, y0 = ny0, y1 = ny1;
+          st += t[used[g]] - m_tRefOffsetS;
+          sx += info[used[g]].offsetXPx;
+          sy += info[used[g]].offsetYPx;
+        }
+        const double n = static_cast<double>(c);
+        const BackgroundTerm term{st / n, sx / n, sy / n, w * n};
+        const double dx = p.xc + term.ox + p.v.vx * term.t - cx;
+        const double dy = p.yc + term.oy + p.v.vy * term.t - cy;
+        if (dx * dx + dy * dy <= reach * reach) m_terms.push_back(term);
+      }
+    }
+  }
+  m_termStart[m_frames.size()] = m_terms.size();
+}
+
+FitProblem::ModelSample FitProblem::modelSample(std::size_t k, int x, int y,
+                                                const FitParams& p) const noexcept {
+  const double t = m_times[k];
+  const PsfSample s = m_table.sample(x - (p.xc + m_ox[k] + p.v.vx * t), y - (p.yc + m_oy[k] + p.v.vy * t));
+  ModelSample m{s.value, t * s.du, t * s.dv, s.du, s.dv};
+  for (std::size_t i = m_termStart[k]; i < m_termStart[k + 1]; ++i) {
+    const BackgroundTerm& g = m_terms[i];
+    const double u = x - (p.xc + g.ox + p.v.vx * g.t);
+    const double v = y - (p.yc + g.oy + p.v.vy * g.t);
+    if (u * u + v * v > m_termReach2) continue;
+    const PsfSample b = m_table.sample(u, v);
+    if (p.alpha * b.value > m_clipLevel) continue;  // the clip left this sample out of the background
+    m.value -= g.w * b.value;
+    m.atDu -= g.w * g.t * b.du;
+    m.atDv -= g.w * g.t * b.dv;
+    m.du -= g.w * b.du;
+    m.dv -= g.w * b.dv;
+  }
+  return m;
 }
 
 int FitProblem::centreDrift(const FitParams& p) const {
@@ -82,17 +171,14 @@ NormalEquations FitProblem::evaluate(const FitParams& p, bool withJacobian) cons
     NormalEquations& acc = partial[b / chunk];
     ParamVector j;
     for (std::size_t k = b; k < e; ++k) {
-      const double t = m_times[k];
-      const double px = p.xc + m_ox[k] + p.v.vx * t;
-      const double py = p.yc + m_oy[k] + p.v.vy * t;
       forEachPixel(k, [&](int x, int y, double d) {
-        const PsfSample s = m_table.sample(x - px, y - py);
+        const ModelSample s = modelSample(k, x, y, p);
         const double r = d - (p.alpha * s.value + p.i0);
         acc.cost += r * r;
         ++acc.pixels;
         if (!withJacobian) return;
-        // model = alpha P(x - xc - vx t, y - yc - vy t) + I0
-        j << -p.alpha * t * s.du, -p.alpha * t * s.dv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
+        // model = alpha P(x - xc - vx t, y - yc - vy t) + I0 (less its background terms)
+        j << -p.alpha * s.atDu, -p.alpha * s.atDv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
         acc.jtj.selfadjointView<Eigen::Lower>().rankUpdate(j);
         acc.jtr.noalias() += j * r;
       });
@@ -112,29 +198,88 @@ NormalEquations FitProblem::evaluate(const FitParams& p, bool withJacobian) cons
 
 ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double gain) const {
   ParamMatrix m = ParamMatrix::Zero();
-  ParamVector j;
+  // Frame n's background is the mean of its frames O_n, so the noise of the zero-biased frames at one pixel
+  // is correlated: cov(d_n, d_n') = sigma_n^2 K(n, n'), K = delta - a_n(n') - a_n'(n) + |O_n & O_n'| /
+  // (|O_n| |O_n'|), a_n(m) = 1 / |O_n| for m in O_n. A slow mover's stamps share pixels across frames, so
+  // the pairs add to the middle of the sandwich; without the windows only the diagonal (K = 1) is known.
+  const NoiseCorrelation corr = noiseCorrelation();
+  struct Entry {
+    std::size_t k;
+    ParamVector j;
+  };
+  std::unordered_map<std::size_t, std::vector<Entry>> byPixel;
+  std::size_t pairs = 0;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
     const double t = m_times[k];
     const double px = p.xc + m_ox[k] + p.v.vx * t;
     const double py = p.yc + m_oy[k] + p.v.vy * t;
     forEachPixel(k, [&](int x, int y, double) {
-      const PsfSample s = m_table.sample(x - px, y - py);
-      const double var = sigmaN2 + std::max(p.alpha * s.value, 0.0) / gain;
-      j << -p.alpha * t * s.du, -p.alpha * t * s.dv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
+      const ModelSample s = modelSample(k, x, y, p);
+      // The source's photon noise is this frame's; its background terms' is averaged away.
+      const double own = m_termStart[k] == m_termStart[k + 1] ? s.value : m_table.value(x - px, y - py);
+      ParamVector j;
+      j << -p.alpha * s.atDu, -p.alpha * s.atDv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
+      const double var = sigmaN2 * corr(k, k) + std::max(p.alpha * own, 0.0) / gain;
       m.selfadjointView<Eigen::Lower>().rankUpdate(j, var);
+      if (!corr.empty()) {
+        auto& list = byPixel[static_cast<std::size_t>(y) * m_cube.width() + x];
+        pairs += list.size();
+        list.push_back({k, j});
+      }
     });
+  }
+  // The pairs of frames that share a pixel (bounded: a cube of thousands of frames of a slow mover keeps
+  // the diagonal alone).
+  if (pairs > 0 && pairs <= kMaxCorrelatedPairs) {
+    for (const auto& [pixel, list] : byPixel) {
+      for (std::size_t a = 0; a < list.size(); ++a)
+        for (std::size_t b = 0; b < a; ++b) {
+          // |K| < 0.01: frames far apart in a cube of hundreds (K ~ 1 / |O_n|); dozens of such pairs per
+          // pixel add a few per cent of the diagonal at most.
+          const double k = corr(list[a].k, list[b].k);
+          if (std::abs(k) < 0.01) continue;
+          const double c = sigmaN2 * k;
+          m.noalias() += c * (list[a].j * list[b].j.transpose() + list[b].j * list[a].j.transpose());
+        }
+    }
   }
   const ParamMatrix full = m.selfadjointView<Eigen::Lower>();
   return full;
 }
 
+FitProblem::NoiseCorrelation FitProblem::noiseCorrelation() const {
+  NoiseCorrelation c;
+  if (m_windows == nullptr) return c;
+  const std::vector<double> t = m_cube.timeOffsetsS();
+  const std::vector<std::size_t>& used = m_windows->frames;
+  c.total = used.size();
+  for (const std::size_t n : m_frames) {
+    const auto [lo, hi] = m_windows->leftOut(n, t);
+    const auto it = std::lower_bound(used.begin(), used.end(), n);
+    c.lo.push_back(lo);
+    c.hi.push_back(hi);
+    c.pos.push_back(it != used.end() && *it == n ? static_cast<std::size_t>(it - used.begin()) : kNone);
+  }
+  return c;
+}
+
+double FitProblem::NoiseCorrelation::operator()(std::size_t a, std::size_t b) const {
+  if (empty()) return a == b ? 1.0 : 0.0;
+  const auto size = [&](std::size_t k) { return static_cast<double>(total - (hi[k] - lo[k])); };
+  const auto weightOf = [&](std::size_t k, std::size_t m) {  // a_k(frame of m)
+    return pos[m] != kNone && !(pos[m] >= lo[k] && pos[m] < hi[k]) ? 1.0 / size(k) : 0.0;
+  };
+  const std::size_t overlap =
+      std::max(lo[a], lo[b]) < std::min(hi[a], hi[b]) ? std::min(hi[a], hi[b]) - std::max(lo[a], lo[b]) : 0;
+  const double shared = static_cast<double>(total - ((hi[a] - lo[a]) + (hi[b] - lo[b]) - overlap));
+  return (a == b ? 1.0 : 0.0) - weightOf(a, b) - weightOf(b, a) + shared / (size(a) * size(b));
+}
+
 FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
   LinearSums l;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
-    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
     forEachPixel(k, [&](int x, int y, double d) {
-      const double v = m_table.value(x - px, y - py);
+      const double v = modelSample(k, x, y, p).value;
       l.sp += v;
       l.spp += v * v;
       l.sd += d;
@@ -143,6 +288,21 @@ FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
     });
   }
   return l;
+}
+
+double FitProblem::snrKept(const FitParams& p) const {
+  if (m_terms.empty()) return 1.0;
+  double ep = 0.0, p2 = 0.0;
+  for (std::size_t k = 0; k < m_frames.size(); ++k) {
+    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
+    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
+    forEachPixel(k, [&](int x, int y, double) {
+      const double v = m_table.value(x - px, y - py);
+      ep += modelSample(k, x, y, p).value * v;
+      p2 += v * v;
+    });
+  }
+  return p2 > 0.0 ? ep / p2 : 1.0;
 }
 
 FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0) const {
@@ -181,7 +341,7 @@ void FitProblem::stacks(const FitParams& p, Image& data, Image& model, Image& re
         if (m_cube.isMasked(m_frames[k], x, y)) continue;
         const double d = img[static_cast<std::size_t>(y) * m_cube.width() + x];
         if (!std::isfinite(d)) continue;
-        const double m = p.alpha * m_table.value(x - px, y - py) + p.i0;
+        const double m = p.alpha * modelSample(k, x, y, p).value + p.i0;
         data.at(sx, sy) += static_cast<float>(d);
         model.at(sx, sy) += static_cast<float>(m);
         residual.at(sx, sy) += static_cast<float>(d - m);

@@ -24,7 +24,14 @@ class FitProblem {
   FitProblem(const FrameCube& cube, std::vector<std::size_t> frames, std::vector<double> times,
              const psf::Moffat& psf, int halfSize);
 
-  /// Centres every frame's stamp on the rounded track of `p`.
+  /// The model subtracts what the per-pixel background `windows` took of the source
+  /// (FitOptions::selfSubtraction); `tRefOffsetS` is the fit's reference time (s from the cube's t_ref),
+  /// `clipLevel` the data value above which a sample was clipped out of it; `sourceInBackground` false keeps
+  /// the windows for the noise correlations alone (no background terms). Before centreStamps.
+  void setSelfSubtraction(const stats::PixelBackgroundWindows& windows, double tRefOffsetS, double clipLevel,
+                          bool sourceInBackground);
+  /// Centres every frame's stamp on the rounded track of `p` (and gathers the background terms that reach
+  /// the stamps).
   void centreStamps(const FitParams& p);
   /// Largest |rounded track - stamp centre| over frames and axes (pixels).
   [[nodiscard]] int centreDrift(const FitParams& p) const;
@@ -40,6 +47,10 @@ class FitProblem {
     double n = 0, sp = 0, spp = 0, sd = 0, sdp = 0;
   };
   [[nodiscard]] LinearSums linearSums(const FitParams& p) const;
+  /// sum E P / sum P^2 over the stamps at the track of `p`: the share of the source's detection SNR that a
+  /// filter matched to P at the track (the search's) sees once the background terms took theirs (1 without
+  /// them). Not sqrt(sum E^2 / sum P^2): the terms' negative images repeat other frames' flux and noise.
+  [[nodiscard]] double snrKept(const FitParams& p) const;
   /// Data, model and residual stacks on the current stamp grid (integer-shift aligned).
   void stacks(const FitParams& p, Image& data, Image& model, Image& residual) const;
   /// Frames whose track position (pixel centre convention) lies inside the frame: the N_in of the paper's
@@ -51,6 +62,23 @@ class FitProblem {
  private:
   template <typename PixelFn>
   void forEachPixel(std::size_t k, const PixelFn& fn) const;
+  /// The model's PSF part at pixel (x, y) of stamp k for the track of `p`: value E = P_k - sum_g w_g P_g,
+  /// and the parts of its gradient, J = -alpha (at du, at dv, du, dv) for (vx, vy, xc, yc).
+  struct ModelSample {
+    double value, atDu, atDv, du, dv;
+  };
+  [[nodiscard]] ModelSample modelSample(std::size_t k, int x, int y, const FitParams& p) const noexcept;
+  void gatherBackgroundTerms(const FitParams& p);
+  /// K(k, k') of noiseMoment for the fit's frames k, k' (their ranges left out of the background).
+  struct NoiseCorrelation {
+    std::vector<std::size_t> lo, hi, pos;  ///< per fit frame: left-out range, index in the windows' frames
+    std::size_t total = 0;                 ///< frames of the background
+    [[nodiscard]] bool empty() const noexcept { return total == 0; }
+    [[nodiscard]] double operator()(std::size_t a, std::size_t b) const;
+  };
+  static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+  static constexpr std::size_t kMaxCorrelatedPairs = 20'000'000;
+  [[nodiscard]] NoiseCorrelation noiseCorrelation() const;
 
   const FrameCube& m_cube;
   std::vector<std::size_t> m_frames;
@@ -61,6 +89,19 @@ class FitProblem {
   psf::Moffat m_psf;
   PixelPsfTable m_table;
   int m_half;
+
+  /// One background term of a stamp: frames of its background within a FWHM / 8 of each other, at their
+  /// mean time (from the fit's reference) and mean registration offset, weighted by their share.
+  struct BackgroundTerm {
+    double t, ox, oy, w;
+  };
+  const stats::PixelBackgroundWindows* m_windows = nullptr;
+  bool m_termsOn = false;  ///< gather background terms (the source is in its background)
+  double m_tRefOffsetS = 0.0;
+  double m_clipLevel;
+  double m_termReach2 = 0.0;            ///< squared distance beyond which a term's P is ignored
+  std::vector<BackgroundTerm> m_terms;  ///< of every stamp, stamp k's in [m_termStart[k], [k + 1])
+  std::vector<std::size_t> m_termStart;
 };
 
 }  // namespace st::fit::detail

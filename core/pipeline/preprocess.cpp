@@ -469,6 +469,7 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
     stats::Background& bg = zb.background;
     out.sigmaN = bg.sigmaN;
     out.background = std::move(bg.level);
+    out.backgroundWindows = stats::pixelBackgroundWindows(cube, params.background);
     out.noise = std::move(bg.sigma);
     out.noiseMap = std::move(bg.noiseMap);
     unmeasured = std::move(bg.filled);

@@ -445,6 +445,31 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
   return clipRows(cube, params, exclude, progress, cancel, onRow);
 }
 
+PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube, const BackgroundParams& params) {
+  PixelBackgroundWindows w;
+  const std::vector<double> t = cube.timeOffsetsS();
+  w.frames = evenlySpaced(cube.frameCount(), params.maxFrames);
+  w.windowS = std::is_sorted(t.begin(), t.end()) ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
+  // subtractPixelBackground's need with every sample of the pixel clipped in.
+  w.minOutside = std::min(params.minSamples, std::max<std::size_t>(4, w.frames.size() / 3));
+  w.clipXi = params.xi;
+  return w;
+}
+
+std::pair<std::size_t, std::size_t> PixelBackgroundWindows::leftOut(std::size_t n,
+                                                                    const std::vector<double>& t) const {
+  if (!(windowS > 0.0) || n >= t.size()) return {0, 0};
+  // The same bounds as subtractPixelBackground's.
+  const auto lo = std::lower_bound(frames.begin(), frames.end(), n,
+                                   [&](std::size_t k, std::size_t m) { return t[k] < t[m] - windowS; });
+  const auto hi = std::upper_bound(frames.begin(), frames.end(), n,
+                                   [&](std::size_t m, std::size_t k) { return t[m] + windowS < t[k]; });
+  const auto a = static_cast<std::size_t>(lo - frames.begin());
+  const auto b = static_cast<std::size_t>(hi - frames.begin());
+  if (b <= a || frames.size() - (b - a) < minOutside) return {0, 0};
+  return {a, b};
+}
+
 void subtractBackground(FrameCube& cube, const Image& level, ProgressSink& progress, CancelToken& cancel) {
   if (level.width != cube.width() || level.height != cube.height()) {
     throw InputError("background of " + std::to_string(level.width) + "x" + std::to_string(level.height) +

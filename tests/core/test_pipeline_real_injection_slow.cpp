@@ -156,7 +156,7 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   std::vector<double> ratios;
   // The co-moving fit of each found mover of expected SNR >= 12 and its segment positions (what a report's
   // tracklet gives) against the injected track, in units of their own errors.
-  std::vector<double> fitPulls, segmentPulls;
+  std::vector<double> fitPulls, segmentPulls, velocityPulls, fluxRatios;
   int fitted = 0, segmentPositions = 0, segmentsCut = 0;
   // ST_INJECTION_SEEDS=K runs only the first K seeds (for a quicker look while developing).
   const char* seedsEnv = std::getenv("ST_INJECTION_SEEDS");
@@ -210,11 +210,16 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
         if (fit.converged()) {
           ++fitted;
           fitPulls.insert(fitPulls.end(), {(fit.x - m.x) / fit.sigma.xPx, (fit.y - m.y) / fit.sigma.yPx});
+          velocityPulls.insert(velocityPulls.end(),
+                               {(whole.params.v.vx - m.vx) / whole.sigmaNoiseModel[fit::kVx],
+                                (whole.params.v.vy - m.vy) / whole.sigmaNoiseModel[fit::kVy]});
+          fluxRatios.push_back(whole.params.alpha * prep.psf.integral() / m.flux);
           std::printf(
-              "seed %u mover (%.1f, %.1f) fit SNR %.1f reduced chi2 %.3f sigma (%.3f, %.3f) px pull (%+.2f, "
-              "%+.2f)",
-              seed, m.x, m.y, fit.snr, whole.reducedChi2, fit.sigma.xPx, fit.sigma.yPx, fitPulls.end()[-2],
-              fitPulls.back());
+              "seed %u mover (%.1f, %.1f) fit SNR %.1f reduced chi2 %.3f flux/injected %.3f sigma (%.3f, "
+              "%.3f) "
+              "px pull (%+.2f, %+.2f) velocity pull (%+.2f, %+.2f)",
+              seed, m.x, m.y, fit.snr, whole.reducedChi2, fluxRatios.back(), fit.sigma.xPx, fit.sigma.yPx,
+              fitPulls.end()[-2], fitPulls.back(), velocityPulls.end()[-2], velocityPulls.back());
           if (fit.segments) segmentsCut += fit.segments->positionSegments;
           if (fit.segments)
             for (const auto& q : fit.segments->positions) {
@@ -294,22 +299,31 @@ TEST(PipelineRealInjection, LowellCompletenessAndSnrEfficiency) {
   };
   const auto [fitRms, fitMax] = rmsAndMax(fitPulls);
   const auto [segRms, segMax] = rmsAndMax(segmentPulls);
+  const auto [velRms, velMax] = rmsAndMax(velocityPulls);
+  std::sort(fluxRatios.begin(), fluxRatios.end());
+  std::printf("fits: velocity pull rms %.3f (largest %.2f); fitted flux / injected: median %.3f\n", velRms,
+              velMax, fluxRatios.empty() ? 0.0 : fluxRatios[fluxRatios.size() / 2]);
   std::printf(
       "fits of the found movers of SNR >= 12: %d converged of %d found, position pull rms %.3f (largest "
       "%.2f); %d segment positions (of %d segments), pull rms %.3f (largest %.2f)\n",
       fitted, brightFound, fitRms, fitMax, segmentPositions, segmentsCut, segRms, segMax);
-  // Measured 2026-12-05 (dev VM, 3 seeds): 58 of 58 fitted, whole-fit pull rms 1.051 (largest 3.72); the
-  // tracklets' 215 segment positions (2 to 4 per mover by its SNR; 4 each: 232 at rms 1.208), pull rms 1.175
-  // (largest 3.90), the same from segment SNR 5 to 12 (not the fit's low-SNR non-linearity; the simulator's
-  // seeds give 1.048 and 1.080), reduced chi^2 0.94-1.13 (the noise level is right). The first and last of 4
-  // segments sit 0.6 and 0.2 sigma outward along the track on average: each pixel's background, from 15
-  // frames, takes in part of a slow mover's own flux (the 0.915 of flux kept above). Held at the measured
-  // level.
+  // Measured 2026-12-05 (dev VM, 3 seeds), before the fit modelled its background
+  // (FitOptions::selfSubtraction): whole-fit position pull rms 1.051, velocity 1.298 (along the track
+  // +0.49 sigma on average: a slow mover's own flux in its background made its track look longer), the
+  // tracklets' 215 segment positions 1.175, the first and last of 4 segments -0.62 and +0.30 sigma outward.
+  // With the model and the frames' correlated background noise in the errors: position 0.951, velocity
+  // 1.092 (along the track +0.06), the 204 segment positions 1.074, the ends -0.29 and -0.06; fitted flux /
+  // injected median 0.987 (0.997 before). The data's ghosts (prep - clean less the direct image) were
+  // measured against the model's at amplitude 1.00 +- 0.01 per mover (a one-off check, too slow to keep).
   EXPECT_EQ(fitted, brightFound);
   EXPECT_GE(segmentPositions, 0.9 * segmentsCut);
   EXPECT_GE(segmentsCut, 2 * fitted);
-  EXPECT_LT(fitRms, 1.25);
-  EXPECT_LT(segRms, 1.35);
+  EXPECT_LT(fitRms, 1.12);
+  EXPECT_GT(fitRms, 0.8);
+  EXPECT_LT(velRms, 1.25);
+  EXPECT_LT(segRms, 1.2);
+  EXPECT_GT(segRms, 0.85);
+  EXPECT_NEAR(fluxRatios[fluxRatios.size() / 2], 1.0, 0.06);
   EXPECT_GE(brightFound, 0.9 * bright);
   EXPECT_GE(midFound, 0.5 * mid);
   // Issue 14 asks for >= 0.8; measured 0.791 over the 3 seeds (2026-11-25): IPSA sums whole pixels, and with

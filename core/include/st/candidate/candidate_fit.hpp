@@ -19,9 +19,16 @@ inline constexpr double kTrackletSnr = 7.0;
 /// 15.9 (the demo): 4 segments of SNR ~8; 12: 2 of ~8.5; below 9.9 each of the 2 is below 7.
 [[nodiscard]] int trackletSegments(double snr) noexcept;
 
+/// The options fitCandidate fits `candidate` with (the live residual stacks of a front end use them too).
+[[nodiscard]] fit::FitOptions fitOptions(const FrameCube& frames, const pipeline::Prepared& products,
+                                         const search::Candidate& candidate);
+
 /// Fits `candidate` on the zero-biased `frames` with the PSF, sigma_n and sky rate of `products` (its own
 /// `frames` are not read; the GUI keeps them in its unfiltered cube), with the photo-electrons per count and
-/// the excess noise of the frames' header (astro::photoelectronsPerCount, excessNoiseFactor):
+/// the excess noise of the frames' header (astro::photoelectronsPerCount, excessNoiseFactor), and the
+/// per-pixel background's windows of `products` (fit::FitOptions::selfSubtraction: the mover's own flux in
+/// its background and the frames' correlated background noise; not its flux for a mover the static-source
+/// search left out of the background):
 /// status, position at t_ref, velocity, noise-model and paper uncertainties, photons per frame, SNR; the
 /// segment check (K = 4, vet::checkSegments) when sigma_n is known, and, when the fit converged, the
 /// tracklet: trackletSegments(SNR) segments (the check's own when that is 4), each segment's position where

@@ -25,6 +25,7 @@
 #include "st/common/units.hpp"
 #include "st/psf/moffat.hpp"
 #include "st/search/types.hpp"
+#include "st/stats/background.hpp"
 
 namespace st::fit {
 
@@ -78,6 +79,18 @@ struct FitOptions {
   /// Reference time of the fitted position, seconds from the cube's t_ref. Default: the mean time of the
   /// frames used (0 for the whole cube, the paper's "mid epoch").
   std::optional<double> tRefOffsetS;
+  /// How the frames' per-pixel background was made (pipeline::Prepared::backgroundWindows). The mover's own
+  /// flux in the frames averaged into frame n's background was subtracted with it, so the model of frame n
+  /// is alpha (P(q - r_n) - sum_m P(q - r_m) / M_n) + I0 over the M_n frames m of n's background (those
+  /// within a FWHM / 8 of each other taken at their mean time; a term alpha P above clipXi sigma_n left out,
+  /// as the clip leaves such a sample out). A slow mover otherwise loses flux and, at the ends of its
+  /// track, is pulled outward. The same windows make the frames' noise correlated at each pixel (frames
+  /// share background frames); the noise-model covariance (sigmaNoiseModel) carries those correlations.
+  /// Unset (or empty): the model and the covariance are the paper's.
+  std::optional<stats::PixelBackgroundWindows> selfSubtraction;
+  /// False: the source was left out of its background (a mover the static-source search masked there):
+  /// selfSubtraction's noise correlations are kept, its background terms are not.
+  bool sourceInBackground = true;
 };
 
 /// One LM iteration, for a live cost plot.
@@ -118,7 +131,7 @@ struct FitResult {
   double tTotS = 0.0;            ///< effectiveDurationS of the frames used (vel_snr's T_tot)
   double sumP2 = 0.0;            ///< pixelPsfSumOfSquares
   double photonsPerFrame = 0.0;  ///< gain * alpha * sum P  (paper's N_ph)
-  double snr = 0.0;              ///< detection_snr with sigma_n
+  double snr = 0.0;  ///< detection_snr with sigma_n (x the share FitOptions::selfSubtraction leaves)
   double sigmaPosPaper = 0.0;    ///< eq:sig with N_ph, W, gain*sigma_n, N_f (px)
   double sigmaPosSnr = 0.0;      ///< cent_snr 0.65 W / SNR (px)
   double sigmaVelPaper = 0.0;    ///< vel_snr from sigmaPosPaper and tTotS (px/s)

@@ -94,6 +94,9 @@ struct Prepared {
   FrameCube frames;         ///< zero-biased; cosmic rays, stars, single-frame sources and masked pixels 0
   double sigmaN = 0.0;      ///< noise of one pixel of one frame, counts (paper §4.2)
   Image background;         ///< per-pixel background that was subtracted, counts
+  /// Which frames went into each frame's per-pixel background: what the co-moving fit's model takes of a
+  /// mover's own flux (fit::FitOptions::selfSubtraction; candidate::fitCandidate). Empty: not recorded.
+  stats::PixelBackgroundWindows backgroundWindows;
   Image noise;              ///< per-pixel frame-to-frame sigma, counts
   Image noiseMap;           ///< smooth noise map when params.background.noiseMap
   stats::ClipStats global;  ///< pixel-independent background (50 frames, xi = 5)

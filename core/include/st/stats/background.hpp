@@ -5,6 +5,7 @@
 // makes the frames zero-biased.
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -72,6 +73,25 @@ Background estimateBackground(const FrameCube& cube, const BackgroundParams& par
 Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& params,
                                    const MovingMask* exclude, ProgressSink& progress,
                                    CancelToken& cancel);
+
+/// What subtractPixelBackground takes into frame n's background, for a model of the flux a mover gives its
+/// own background (fit::FitOptions::selfSubtraction): the mean over the `frames` (the evenly spaced set the
+/// per-pixel clip uses) that lie outside +- windowS of frame n; the mean over all of them when fewer than
+/// minOutside remain (the per-pixel rule with every sample clipped in) or when windowS is 0. Samples more
+/// than clipXi sigma above the pixel's level are clipped out of the mean.
+struct PixelBackgroundWindows {
+  std::vector<std::size_t> frames;
+  double windowS = 0.0;
+  std::size_t minOutside = 0;
+  double clipXi = 4.0;
+  [[nodiscard]] bool empty() const noexcept { return frames.empty(); }
+  /// The [lo, hi) range of `frames` (indices into it) left out of frame n's background; lo == hi when none
+  /// is left out or too few would remain. `timesS` are the cube's time offsets.
+  [[nodiscard]] std::pair<std::size_t, std::size_t> leftOut(std::size_t n,
+                                                            const std::vector<double>& timesS) const;
+};
+[[nodiscard]] PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube,
+                                                            const BackgroundParams& params);
 
 /// Subtracts `level` from every frame in place; masked pixels become 0, so the frames are zero-biased and
 /// carry no NaN. Throws st::InputError when the sizes differ.
