@@ -374,10 +374,12 @@ ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track,
   const Setup s = makeSetup(cube, options);
   detail::FitProblem prob = makeProblem(cube, s, options);
   prob.centreStamps(track);
+  // One set of sums for the amplitude and its error: the track's amplitude decides which background terms
+  // the clip left out (FitOptions::selfSubtraction) in both.
+  const auto l = prob.linearSums(track);
   FitParams p = track;
   p.alpha = std::numeric_limits<double>::quiet_NaN();
-  p = prob.linearAmplitude(p, options.fitBackground);
-  const auto l = prob.linearSums(track);
+  p = detail::FitProblem::linearAmplitude(p, options.fitBackground, l);
   ForcedPhotometry f;
   f.alpha = p.alpha;
   f.i0 = p.i0;
@@ -387,6 +389,9 @@ ForcedPhotometry forcedPhotometry(const FrameCube& cube, const FitParams& track,
   const double var = options.fitBackground ? (det > 0 ? l.n / det : 0.0) : (l.spp > 0 ? 1.0 / l.spp : 0.0);
   f.sigmaAlpha = sigmaN * std::sqrt(var);
   f.snr = f.sigmaAlpha > 0 ? f.alpha / f.sigmaAlpha : 0.0;
+  // With background terms, the SNR a filter matched to P sees (as FitResult::snr), not the terms' repeat of
+  // other frames' flux: x sum E P / sqrt(sum E^2 sum P^2).
+  if (prob.hasBackgroundTerms() && l.spp > 0 && l.sPP > 0) f.snr *= l.sep / std::sqrt(l.spp * l.sPP);
   return f;
 }
 

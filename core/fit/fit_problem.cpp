@@ -198,17 +198,13 @@ NormalEquations FitProblem::evaluate(const FitParams& p, bool withJacobian) cons
 
 ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double gain) const {
   ParamMatrix m = ParamMatrix::Zero();
-  // Frame n's background is the mean of its frames O_n, so the noise of the zero-biased frames at one pixel
-  // is correlated: cov(d_n, d_n') = sigma_n^2 K(n, n'), K = delta - a_n(n') - a_n'(n) + |O_n & O_n'| /
-  // (|O_n| |O_n'|), a_n(m) = 1 / |O_n| for m in O_n. A slow mover's stamps share pixels across frames, so
-  // the pairs add to the middle of the sandwich; without the windows only the diagonal (K = 1) is known.
+  // Frame n's background is the mean of its frames O_n, so the zero-biased frames' noise at one pixel is
+  // correlated: d_n = e_n - sum_m a_n(m) e_m, a_n(m) = 1 / |O_n| for m in O_n, and cov(d_n, d_n') =
+  // sigma_n^2 (delta - a_n(n') - a_n'(n) + |O_n & O_n'| / (|O_n| |O_n'|)). A slow mover's stamps share
+  // pixels across frames, so every pair sharing a pixel adds to the middle of the sandwich (pixelMoment
+  // sums them exactly); without the windows only the diagonal is known.
   const NoiseCorrelation corr = noiseCorrelation();
-  struct Entry {
-    std::size_t k;
-    ParamVector j;
-  };
-  std::unordered_map<std::size_t, std::vector<Entry>> byPixel;
-  std::size_t pairs = 0;
+  std::unordered_map<std::size_t, std::vector<PixelSample>> byPixel;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
     const double t = m_times[k];
     const double px = p.xc + m_ox[k] + p.v.vx * t;
@@ -219,30 +215,17 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
       const double own = m_termStart[k] == m_termStart[k + 1] ? s.value : m_table.value(x - px, y - py);
       ParamVector j;
       j << -p.alpha * s.atDu, -p.alpha * s.atDv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
-      const double var = sigmaN2 * corr(k, k) + std::max(p.alpha * own, 0.0) / gain;
-      m.selfadjointView<Eigen::Lower>().rankUpdate(j, var);
-      if (!corr.empty()) {
-        auto& list = byPixel[static_cast<std::size_t>(y) * m_cube.width() + x];
-        pairs += list.size();
-        list.push_back({k, j});
+      const double photon = std::max(p.alpha * own, 0.0) / gain;
+      if (corr.empty()) {
+        m.selfadjointView<Eigen::Lower>().rankUpdate(j, sigmaN2 + photon);
+        return;
       }
+      m.selfadjointView<Eigen::Lower>().rankUpdate(j, photon);
+      byPixel[static_cast<std::size_t>(y) * m_cube.width() + x].push_back({k, j});
     });
   }
-  // The pairs of frames that share a pixel (bounded: a cube of thousands of frames of a slow mover keeps
-  // the diagonal alone).
-  if (pairs > 0 && pairs <= kMaxCorrelatedPairs) {
-    for (const auto& [pixel, list] : byPixel) {
-      for (std::size_t a = 0; a < list.size(); ++a)
-        for (std::size_t b = 0; b < a; ++b) {
-          // |K| < 0.01: frames far apart in a cube of hundreds (K ~ 1 / |O_n|); dozens of such pairs per
-          // pixel add a few per cent of the diagonal at most.
-          const double k = corr(list[a].k, list[b].k);
-          if (std::abs(k) < 0.01) continue;
-          const double c = sigmaN2 * k;
-          m.noalias() += c * (list[a].j * list[b].j.transpose() + list[b].j * list[a].j.transpose());
-        }
-    }
-  }
+  for (auto& [pixel, list] : byPixel)
+    m.noalias() += sigmaN2 * corr.pixelMoment(list);
   const ParamMatrix full = m.selfadjointView<Eigen::Lower>();
   return full;
 }
@@ -263,23 +246,69 @@ FitProblem::NoiseCorrelation FitProblem::noiseCorrelation() const {
   return c;
 }
 
-double FitProblem::NoiseCorrelation::operator()(std::size_t a, std::size_t b) const {
-  if (empty()) return a == b ? 1.0 : 0.0;
-  const auto size = [&](std::size_t k) { return static_cast<double>(total - (hi[k] - lo[k])); };
-  const auto weightOf = [&](std::size_t k, std::size_t m) {  // a_k(frame of m)
-    return pos[m] != kNone && !(pos[m] >= lo[k] && pos[m] < hi[k]) ? 1.0 / size(k) : 0.0;
+ParamMatrix FitProblem::NoiseCorrelation::pixelMoment(std::vector<PixelSample>& list) const {
+  // sum_{k,k'} K(k, k') j_k j_k'^T = sum_k j_k j_k^T - sum_k (j_k s_k^T + s_k j_k^T) + sum_m b_m b_m^T, with
+  // s_k = sum_k' a_k(frame of k') j_k' (from prefix sums over the samples' places in the background's
+  // frames) and b_m = sum_k a_k(m) j_k (piecewise constant in m between the samples' left-out ranges):
+  // O(M log M) for the M samples of a pixel instead of M^2 pairs.
+  ParamMatrix out = ParamMatrix::Zero();
+  std::sort(list.begin(), list.end(),
+            [&](const PixelSample& a, const PixelSample& b) { return pos[a.k] < pos[b.k]; });
+  std::vector<ParamVector> prefix(list.size() + 1, ParamVector::Zero());
+  std::vector<std::size_t> places;
+  places.reserve(list.size());
+  std::size_t inBackground = 0;
+  for (const PixelSample& e : list) {
+    if (pos[e.k] == kNone) break;
+    prefix[inBackground + 1] = prefix[inBackground] + e.j;
+    places.push_back(pos[e.k]);
+    ++inBackground;
+  }
+  const auto sumWithin = [&](std::size_t lo, std::size_t hi) {  // sum of j over places in [lo, hi)
+    const auto a = std::lower_bound(places.begin(), places.end(), lo) - places.begin();
+    const auto b = std::lower_bound(places.begin(), places.end(), hi) - places.begin();
+    return ParamVector(prefix[b] - prefix[a]);
   };
-  const std::size_t overlap =
-      std::max(lo[a], lo[b]) < std::min(hi[a], hi[b]) ? std::min(hi[a], hi[b]) - std::max(lo[a], lo[b]) : 0;
-  const double shared = static_cast<double>(total - ((hi[a] - lo[a]) + (hi[b] - lo[b]) - overlap));
-  return (a == b ? 1.0 : 0.0) - weightOf(a, b) - weightOf(b, a) + shared / (size(a) * size(b));
+  ParamVector t = ParamVector::Zero();
+  std::vector<std::pair<std::size_t, ParamVector>> events;  // (place, change of the left-out sum w_m)
+  for (const PixelSample& e : list) {
+    const std::size_t k = e.k;
+    const double size = static_cast<double>(total - (hi[k] - lo[k]));
+    const ParamVector s = (prefix[inBackground] - sumWithin(lo[k], hi[k])) / size;
+    out.noalias() += e.j * e.j.transpose() - e.j * s.transpose() - s * e.j.transpose();
+    const ParamVector g = e.j / size;
+    t += g;
+    if (hi[k] > lo[k]) {
+      events.emplace_back(lo[k], g);
+      events.emplace_back(hi[k], -g);
+    }
+  }
+  std::sort(events.begin(), events.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  ParamVector w = ParamVector::Zero();
+  std::size_t at = 0;
+  for (std::size_t i = 0; i <= events.size(); ++i) {
+    const std::size_t next = i < events.size() ? events[i].first : total;
+    if (next > at) {
+      const ParamVector b = t - w;
+      out.noalias() += static_cast<double>(next - at) * (b * b.transpose());
+      at = next;
+    }
+    if (i < events.size()) w += events[i].second;
+  }
+  return out;
 }
 
 FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
   LinearSums l;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
+    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
+    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
+    const bool terms = m_termStart[k] != m_termStart[k + 1];
     forEachPixel(k, [&](int x, int y, double d) {
       const double v = modelSample(k, x, y, p).value;
+      const double own = terms ? m_table.value(x - px, y - py) : v;
+      l.sep += v * own;
+      l.sPP += own * own;
       l.sp += v;
       l.spp += v * v;
       l.sd += d;
@@ -306,7 +335,10 @@ double FitProblem::snrKept(const FitParams& p) const {
 }
 
 FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0) const {
-  const LinearSums l = linearSums(p);
+  return linearAmplitude(p, fitI0, linearSums(p));
+}
+
+FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0, const LinearSums& l) {
   FitParams out = p;
   if (fitI0) {
     const double det = l.spp * l.n - l.sp * l.sp;

@@ -42,11 +42,15 @@ class FitProblem {
   [[nodiscard]] ParamMatrix noiseMoment(const FitParams& p, double sigmaN2, double gain) const;
   /// Linear least squares for (alpha, I0) with the track of `p` held fixed (I0 held when !fitI0).
   [[nodiscard]] FitParams linearAmplitude(const FitParams& p, bool fitI0) const;
-  /// Sums over the stamps at the track of `p`: n, sum P, sum P^2, sum d, sum d P.
+  /// Sums over the stamps at the track of `p`: n, sum E, sum E^2, sum d, sum d E (E = P less its background
+  /// terms), and sum E P, sum P^2 with the source's own P.
   struct LinearSums {
-    double n = 0, sp = 0, spp = 0, sd = 0, sdp = 0;
+    double n = 0, sp = 0, spp = 0, sd = 0, sdp = 0, sep = 0, sPP = 0;
   };
   [[nodiscard]] LinearSums linearSums(const FitParams& p) const;
+  /// The same from given sums (the track of `p` held).
+  [[nodiscard]] static FitParams linearAmplitude(const FitParams& p, bool fitI0, const LinearSums& l);
+  [[nodiscard]] bool hasBackgroundTerms() const noexcept { return !m_terms.empty(); }
   /// sum E P / sum P^2 over the stamps at the track of `p`: the share of the source's detection SNR that a
   /// filter matched to P at the track (the search's) sees once the background terms took theirs (1 without
   /// them). Not sqrt(sum E^2 / sum P^2): the terms' negative images repeat other frames' flux and noise.
@@ -69,15 +73,20 @@ class FitProblem {
   };
   [[nodiscard]] ModelSample modelSample(std::size_t k, int x, int y, const FitParams& p) const noexcept;
   void gatherBackgroundTerms(const FitParams& p);
-  /// K(k, k') of noiseMoment for the fit's frames k, k' (their ranges left out of the background).
+  /// One stamp pixel's sample of fit frame k: its row of J.
+  struct PixelSample {
+    std::size_t k;
+    ParamVector j;
+  };
+  /// The correlation of the fit frames' background noise (noiseMoment).
   struct NoiseCorrelation {
     std::vector<std::size_t> lo, hi, pos;  ///< per fit frame: left-out range, index in the windows' frames
     std::size_t total = 0;                 ///< frames of the background
     [[nodiscard]] bool empty() const noexcept { return total == 0; }
-    [[nodiscard]] double operator()(std::size_t a, std::size_t b) const;
+    /// sum over the pixel's samples' pairs of K(k, k') j_k j_k'^T (reorders `list`).
+    [[nodiscard]] ParamMatrix pixelMoment(std::vector<PixelSample>& list) const;
   };
   static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
-  static constexpr std::size_t kMaxCorrelatedPairs = 20'000'000;
   [[nodiscard]] NoiseCorrelation noiseCorrelation() const;
 
   const FrameCube& m_cube;

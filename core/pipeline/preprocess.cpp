@@ -561,6 +561,12 @@ Prepared preprocess(FrameCube raw, const PreprocessParams& params, ProgressSink&
   // frame 0's grid, the pixels a frame does not cover are 0 but inside it). The per-pixel maps (background,
   // noise, noise model) stay on frame 0's grid.
   if (!out.registration.alignedPx.empty()) {
+    // The per-pixel background was taken on frame 0's grid: a mover's images in the frames of its
+    // background sit at other pixels of the frames' own grids than backgroundWindows describes, so the
+    // co-moving fit keeps the paper's model for these frames.
+    const bool shifted = std::any_of(out.registration.alignedPx.begin(), out.registration.alignedPx.end(),
+                                     [](const auto& s) { return s.first != 0 || s.second != 0; });
+    if (shifted) out.backgroundWindows = {};
     if (!out.frames.empty()) detect::restoreWholePixels(out.frames, out.registration, cancel);
     if (!out.filtered.frames.empty())
       detect::restoreWholePixels(out.filtered.frames, out.registration, cancel);
