@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <numeric>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "st/common/frame_cube.hpp"
@@ -92,6 +93,24 @@ struct Mover {
   double x, y, vx, vy, alpha;
 };
 
+// The fit's options for these cubes' unit Gaussian noise (no photon noise of the source).
+FitOptions unitNoiseOptions(const psf::Moffat& psf) {
+  FitOptions o;
+  o.psf = psf;
+  o.sigmaN = 1.0;
+  o.gain = 1e12;
+  return o;
+}
+
+// The fits of `cube` from `start` without (first) and with (second) the background windows of `cube`.
+std::pair<FitResult, FitResult> fitWithoutAndWith(const FrameCube& cube, const FitParams& start,
+                                                  const FitOptions& o, bool sourceInBackground) {
+  FitOptions os = o;
+  os.selfSubtraction = stats::pixelBackgroundWindows(cube, {});
+  os.sourceInBackground = sourceInBackground;
+  return {fitComoving(cube, start, o), fitComoving(cube, start, os)};
+}
+
 // 15 frames of a slow mover (pixel-integrated Moffat, the fit's own model) on sky 100 with unit noise, less
 // their per-pixel background as pre-processing makes it.
 FrameCube moverCube(const Mover& m, const psf::Moffat& psf, unsigned seed, int w = 64, std::size_t nf = 15) {
@@ -159,15 +178,12 @@ TEST(SelfSubtraction, TheFitOfASlowMoverIsUnbiasedOnlyWithTheModel) {
   const int seeds = 48;
   for (int seed = 0; seed < seeds; ++seed) {
     const FrameCube cube = moverCube(m, psf, 1000 + seed);
-    FitOptions o;
-    o.psf = psf;
-    o.sigmaN = 1.0;
-    o.gain = 1e12;  // the noise is Gaussian, with no photon noise of the source
+    const FitOptions o = unitNoiseOptions(psf);
     FitOptions os = o;
     os.selfSubtraction = stats::pixelBackgroundWindows(cube, {});
     const FitParams start{{m.vx * 1.1, m.vy * 0.9}, m.x + 0.3, m.y - 0.2, std::nan(""), 0.0};
     const std::vector<double> t = cube.timeOffsetsS();
-    for (FitOptions* opt : {&o, &os}) {
+    for (const FitOptions* opt : {&o, static_cast<const FitOptions*>(&os)}) {
       const FitResult r = fitComoving(cube, start, *opt);
       ASSERT_TRUE(r.ok()) << r.message << " seed " << seed;
       // The end quarters, velocity held at the whole fit's (the tracklet's segment fits).
@@ -218,14 +234,8 @@ TEST(SelfSubtraction, AFastMoverIsFittedAsWithoutTheModel) {
   const psf::Moffat psf = psf::Moffat::fromFwhm(2.4, 3.0);
   const Mover m{50.3, 20.4, 80.0 / (14 * kSpacingS), 0.0, 3.0};
   const FrameCube cube = moverCube(m, psf, 7, 100);
-  FitOptions o;
-  o.psf = psf;
-  o.sigmaN = 1.0;
-  FitOptions os = o;
-  os.selfSubtraction = stats::pixelBackgroundWindows(cube, {});
   const FitParams start{{m.vx, m.vy}, m.x + 0.2, m.y, std::nan(""), 0.0};
-  const FitResult a = fitComoving(cube, start, o);
-  const FitResult b = fitComoving(cube, start, os);
+  const auto [a, b] = fitWithoutAndWith(cube, start, unitNoiseOptions(psf), true);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(a.params.xc, b.params.xc);
   EXPECT_EQ(a.params.v.vx, b.params.v.vx);
@@ -240,16 +250,8 @@ TEST(SelfSubtraction, ASourceLeftOutOfItsBackgroundKeepsTheModelButNotTheErrors)
   const psf::Moffat psf = psf::Moffat::fromFwhm(2.4, 3.0);
   const Mover m{30.3, 20.4, 3.0 * 2.4 / (14 * kSpacingS), 0.0, 3.0};
   const FrameCube cube = moverCube(m, psf, 11);
-  FitOptions o;
-  o.psf = psf;
-  o.sigmaN = 1.0;
-  o.gain = 1e12;
-  FitOptions os = o;
-  os.selfSubtraction = stats::pixelBackgroundWindows(cube, {});
-  os.sourceInBackground = false;
   const FitParams start{{m.vx, m.vy}, m.x + 0.2, m.y, std::nan(""), 0.0};
-  const FitResult a = fitComoving(cube, start, o);
-  const FitResult b = fitComoving(cube, start, os);
+  const auto [a, b] = fitWithoutAndWith(cube, start, unitNoiseOptions(psf), false);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(a.params.xc, b.params.xc);
   EXPECT_EQ(a.params.v.vx, b.params.v.vx);
@@ -271,10 +273,7 @@ TEST(SelfSubtraction, ErrorsHoldForTwoHundredFrames) {
   const int seeds = 32;
   for (int seed = 0; seed < seeds; ++seed) {
     const FrameCube cube = moverCube(m, psf, 2000 + seed, 64, nf);
-    FitOptions o;
-    o.psf = psf;
-    o.sigmaN = 1.0;
-    o.gain = 1e12;
+    FitOptions o = unitNoiseOptions(psf);
     o.selfSubtraction = stats::pixelBackgroundWindows(cube, {});
     const FitResult r = fitComoving(cube, {{m.vx, m.vy}, m.x + 0.2, m.y, std::nan(""), 0.0}, o);
     ASSERT_TRUE(r.ok()) << r.message;
