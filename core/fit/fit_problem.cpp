@@ -105,7 +105,7 @@ FitProblem::ModelSample FitProblem::modelSample(std::size_t k, int x, int y,
                                                 const FitParams& p) const noexcept {
   const double t = m_times[k];
   const PsfSample s = m_table.sample(x - (p.xc + m_ox[k] + p.v.vx * t), y - (p.yc + m_oy[k] + p.v.vy * t));
-  ModelSample m{s.value, t * s.du, t * s.dv, s.du, s.dv};
+  ModelSample m{s.value, s.value, t * s.du, t * s.dv, s.du, s.dv};
   for (std::size_t i = m_termStart[k]; i < m_termStart[k + 1]; ++i) {
     const BackgroundTerm& g = m_terms[i];
     const double u = x - (p.xc + g.ox + p.v.vx * g.t);
@@ -206,16 +206,12 @@ ParamMatrix FitProblem::noiseMoment(const FitParams& p, double sigmaN2, double g
   const NoiseCorrelation corr = noiseCorrelation();
   std::unordered_map<std::size_t, std::vector<PixelSample>> byPixel;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double t = m_times[k];
-    const double px = p.xc + m_ox[k] + p.v.vx * t;
-    const double py = p.yc + m_oy[k] + p.v.vy * t;
     forEachPixel(k, [&](int x, int y, double) {
       const ModelSample s = modelSample(k, x, y, p);
-      // The source's photon noise is this frame's; its background terms' is averaged away.
-      const double own = m_termStart[k] == m_termStart[k + 1] ? s.value : m_table.value(x - px, y - py);
       ParamVector j;
       j << -p.alpha * s.atDu, -p.alpha * s.atDv, -p.alpha * s.du, -p.alpha * s.dv, s.value, 1.0;
-      const double photon = std::max(p.alpha * own, 0.0) / gain;
+      // The source's photon noise is this frame's; its background terms' is averaged away.
+      const double photon = std::max(p.alpha * s.own, 0.0) / gain;
       if (corr.empty()) {
         m.selfadjointView<Eigen::Lower>().rankUpdate(j, sigmaN2 + photon);
         return;
@@ -301,14 +297,11 @@ ParamMatrix FitProblem::NoiseCorrelation::pixelMoment(std::vector<PixelSample>& 
 FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
   LinearSums l;
   for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
-    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
-    const bool terms = m_termStart[k] != m_termStart[k + 1];
     forEachPixel(k, [&](int x, int y, double d) {
-      const double v = modelSample(k, x, y, p).value;
-      const double own = terms ? m_table.value(x - px, y - py) : v;
-      l.sep += v * own;
-      l.sPP += own * own;
+      const ModelSample s = modelSample(k, x, y, p);
+      const double v = s.value;
+      l.sep += v * s.own;
+      l.sPP += s.own * s.own;
       l.sp += v;
       l.spp += v * v;
       l.sd += d;
@@ -321,17 +314,8 @@ FitProblem::LinearSums FitProblem::linearSums(const FitParams& p) const {
 
 double FitProblem::snrKept(const FitParams& p) const {
   if (m_terms.empty()) return 1.0;
-  double ep = 0.0, p2 = 0.0;
-  for (std::size_t k = 0; k < m_frames.size(); ++k) {
-    const double px = p.xc + m_ox[k] + p.v.vx * m_times[k];
-    const double py = p.yc + m_oy[k] + p.v.vy * m_times[k];
-    forEachPixel(k, [&](int x, int y, double) {
-      const double v = m_table.value(x - px, y - py);
-      ep += modelSample(k, x, y, p).value * v;
-      p2 += v * v;
-    });
-  }
-  return p2 > 0.0 ? ep / p2 : 1.0;
+  const LinearSums l = linearSums(p);
+  return l.sPP > 0.0 ? l.sep / l.sPP : 1.0;
 }
 
 FitParams FitProblem::linearAmplitude(const FitParams& p, bool fitI0) const {

@@ -67,9 +67,10 @@ class FitProblem {
   template <typename PixelFn>
   void forEachPixel(std::size_t k, const PixelFn& fn) const;
   /// The model's PSF part at pixel (x, y) of stamp k for the track of `p`: value E = P_k - sum_g w_g P_g,
-  /// and the parts of its gradient, J = -alpha (at du, at dv, du, dv) for (vx, vy, xc, yc).
+  /// the source's own P_k, and the parts of E's gradient, J = -alpha (at du, at dv, du, dv) for (vx, vy,
+  /// xc, yc).
   struct ModelSample {
-    double value, atDu, atDv, du, dv;
+    double value, own, atDu, atDv, du, dv;
   };
   [[nodiscard]] ModelSample modelSample(std::size_t k, int x, int y, const FitParams& p) const noexcept;
   void gatherBackgroundTerms(const FitParams& p);

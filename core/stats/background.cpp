@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -387,24 +388,13 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
   const int w = cube.width();
   const std::size_t nf = cube.frameCount(), np = cube.framePixels();
   const std::vector<double> t = cube.timeOffsetsS();
-  const bool sorted = std::is_sorted(t.begin(), t.end());
-  const double window = sorted ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
   const auto& mask = cube.mask();
   // For every frame n, the used frames [lo, hi) (indices into the evenly spaced set) within +-window of it.
-  const auto used = evenlySpaced(nf, params.maxFrames);
+  const PixelBackgroundWindows windows = pixelBackgroundWindows(cube, params);
+  const double window = windows.windowS;
   std::vector<std::size_t> lo(nf, 0), hi(nf, 0);
-  if (window > 0.0) {
-    for (std::size_t n = 0; n < nf; ++n) {
-      lo[n] = static_cast<std::size_t>(
-          std::lower_bound(used.begin(), used.end(), n,
-                           [&](std::size_t k, std::size_t m) { return t[k] < t[m] - window; }) -
-          used.begin());
-      hi[n] = static_cast<std::size_t>(
-          std::upper_bound(used.begin(), used.end(), n,
-                           [&](std::size_t m, std::size_t k) { return t[m] + window < t[k]; }) -
-          used.begin());
-    }
-  }
+  for (std::size_t n = 0; n < nf; ++n)
+    std::tie(lo[n], hi[n]) = windows.window(n, t);
   float* pix = cube.pixels().data();
   auto onRow = [&](std::size_t y, const std::vector<float>& buf, const std::vector<std::size_t>& frames,
                    const RowClip& r, const std::uint8_t* validRow, const float* levelRow) {
@@ -456,16 +446,19 @@ PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube, const Backg
   return w;
 }
 
-std::pair<std::size_t, std::size_t> PixelBackgroundWindows::leftOut(std::size_t n,
-                                                                    const std::vector<double>& t) const {
+std::pair<std::size_t, std::size_t> PixelBackgroundWindows::window(std::size_t n,
+                                                                   const std::vector<double>& t) const {
   if (!(windowS > 0.0) || n >= t.size()) return {0, 0};
-  // The same bounds as subtractPixelBackground's.
   const auto lo = std::lower_bound(frames.begin(), frames.end(), n,
                                    [&](std::size_t k, std::size_t m) { return t[k] < t[m] - windowS; });
   const auto hi = std::upper_bound(frames.begin(), frames.end(), n,
                                    [&](std::size_t m, std::size_t k) { return t[m] + windowS < t[k]; });
-  const auto a = static_cast<std::size_t>(lo - frames.begin());
-  const auto b = static_cast<std::size_t>(hi - frames.begin());
+  return {static_cast<std::size_t>(lo - frames.begin()), static_cast<std::size_t>(hi - frames.begin())};
+}
+
+std::pair<std::size_t, std::size_t> PixelBackgroundWindows::leftOut(std::size_t n,
+                                                                    const std::vector<double>& t) const {
+  const auto [a, b] = window(n, t);
   if (b <= a || frames.size() - (b - a) < minOutside) return {0, 0};
   return {a, b};
 }

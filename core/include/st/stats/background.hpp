@@ -85,8 +85,12 @@ struct PixelBackgroundWindows {
   std::size_t minOutside = 0;
   double clipXi = 4.0;
   [[nodiscard]] bool empty() const noexcept { return frames.empty(); }
-  /// The [lo, hi) range of `frames` (indices into it) left out of frame n's background; lo == hi when none
-  /// is left out or too few would remain. `timesS` are the cube's time offsets.
+  /// The [lo, hi) range of `frames` (indices into it) within +- windowS of frame n (lo == hi when windowS is
+  /// 0): what subtractPixelBackground leaves out of a pixel's samples before its per-pixel count rule.
+  /// `timesS` are the cube's time offsets.
+  [[nodiscard]] std::pair<std::size_t, std::size_t> window(std::size_t n,
+                                                           const std::vector<double>& timesS) const;
+  /// window(), or an empty range when fewer than minOutside frames would remain (the whole mean is taken).
   [[nodiscard]] std::pair<std::size_t, std::size_t> leftOut(std::size_t n,
                                                             const std::vector<double>& timesS) const;
 };
