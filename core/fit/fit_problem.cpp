@@ -260,9 +260,9 @@ ParamMatrix FitProblem::NoiseCorrelation::pixelMoment(std::vector<PixelSample>& 
     places.push_back(pos[e.k]);
     ++inBackground;
   }
-  const auto sumWithin = [&](std::size_t lo, std::size_t hi) {  // sum of j over places in [lo, hi)
-    const auto a = std::lower_bound(places.begin(), places.end(), lo) - places.begin();
-    const auto b = std::lower_bound(places.begin(), places.end(), hi) - places.begin();
+  const auto sumWithin = [&](std::size_t from, std::size_t to) {  // sum of j over places in [from, to)
+    const auto a = std::lower_bound(places.begin(), places.end(), from) - places.begin();
+    const auto b = std::lower_bound(places.begin(), places.end(), to) - places.begin();
     return ParamVector(prefix[b] - prefix[a]);
   };
   ParamVector t = ParamVector::Zero();

@@ -8,6 +8,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/search/ipsa.hpp"
 #include "st/search/sidelobes.hpp"
 #include "st/search/sky_motion.hpp"
 #include "st/stats/false_alarm.hpp"
@@ -125,22 +126,39 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
   result.candidates = clusterCells(hits, result.grid, defaultClusterParams(psfFwhmPx), result.trials);
   result.sidelobesMerged = static_cast<std::int64_t>(
       mergeSidelobes(result.candidates, dtS, width, height, psfFwhmPx, result.snrThreshold, offsets));
-  setAsideStaticSources(result, psfFwhmPx, dtS, skyRate);
+  setAsideStaticSources(result, psfFwhmPx, TrackFrames{dtS, width, height, offsets}, skyRate);
 }
 
-void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const std::vector<double>& dtS,
-                           Velocity skyRate) {
-  // Static sources: relative to the stars, less than one FWHM over the span (the cell's velocity is the grid
-  // velocity, so the limit is compared with the offset of the grid cell from the sky rate).
-  double tMin = 0.0, tMax = 0.0;
-  if (!dtS.empty()) {
-    const auto [lo, hi] = std::minmax_element(dtS.begin(), dtS.end());
-    tMin = *lo;
-    tMax = *hi;
+double trackSpanS(const Candidate& c, const TrackFrames& frames) {
+  double lo = 0.0, hi = 0.0;
+  bool any = false;
+  for (std::size_t n = 0; n < frames.dtS.size(); ++n) {
+    const double dt = frames.dtS[n];
+    const PixelOffset o = frames.offsets.empty() ? PixelOffset{} : frames.offsets[n];
+    const int sx = c.x + ipsaShift(c.v.vx, dt, o.x);
+    const int sy = c.y + ipsaShift(c.v.vy, dt, o.y);
+    if (sx < 0 || sy < 0 || sx >= frames.width || sy >= frames.height) continue;
+    lo = any ? std::min(lo, dt) : dt;
+    hi = any ? std::max(hi, dt) : dt;
+    any = true;
   }
-  const double limit = staticRateLimitPxS(psfFwhmPx, tMax - tMin);
-  if (limit <= 0.0) return;
+  return hi - lo;
+}
+
+void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const TrackFrames& frames,
+                           Velocity skyRate) {
+  // Static sources: relative to the stars, less than one FWHM over the frames that hold the track (the
+  // cell's velocity is the grid velocity, so the limit is compared with the offset of the grid cell from
+  // the sky rate).
+  double wholeSpan = 0.0;
+  if (!frames.dtS.empty()) {
+    const auto [lo, hi] = std::minmax_element(frames.dtS.begin(), frames.dtS.end());
+    wholeSpan = *hi - *lo;
+  }
+  if (staticRateLimitPxS(psfFwhmPx, wholeSpan) <= 0.0) return;
   auto isStatic = [&](const Candidate& c) {
+    const double own = trackSpanS(c, frames);
+    const double limit = staticRateLimitPxS(psfFwhmPx, own > 0.0 ? own : wholeSpan);
     // Strictly less than the limit (a grid of FWHM / span steps keeps its first ring of cells as movers).
     return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) < limit * (1.0 - 1e-9);
   };

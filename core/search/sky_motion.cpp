@@ -42,17 +42,20 @@ double staticRateLimitPxS(double fwhmPx, double spanS) {
 
 std::string staticRateLimitNote(const FrameCube& cube, double fwhmPx) {
   const double v = staticRateLimitPxS(fwhmPx, cube.timeSpanS());
-  char buf[256];
+  char buf[384];
   if (cube.plateScaleArcsecPerPx) {
-    std::snprintf(buf, sizeof buf,
-                  "movers slower than %.3g px/s (%.3g deg/day: one PSF FWHM of %.2f px over the %.0f s span) "
-                  "relative to the stars look static and are removed with them",
-                  v, v * *cube.plateScaleArcsecPerPx * 86400.0 / 3600.0, fwhmPx, cube.timeSpanS());
+    std::snprintf(
+        buf, sizeof buf,
+        "movers slower than %.3g px/s (%.3g deg/day: one PSF FWHM of %.2f px over the %.0f s span) "
+        "relative to the stars look static and are removed with them (a track inside the image for part "
+        "of the span: one FWHM over the frames that hold it)",
+        v, v * *cube.plateScaleArcsecPerPx * 86400.0 / 3600.0, fwhmPx, cube.timeSpanS());
   } else {
     std::snprintf(
         buf, sizeof buf,
         "movers slower than %.3g px/s (one PSF FWHM of %.2f px over the %.0f s span) relative to the "
-        "stars look static and are removed with them",
+        "stars look static and are removed with them (a track inside the image for part of the span: one "
+        "FWHM over the frames that hold it)",
         v, fwhmPx, cube.timeSpanS());
   }
   return buf;

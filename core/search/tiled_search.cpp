@@ -184,6 +184,7 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
   std::size_t read = 0;
   double psfFwhm = 0.0;
   std::vector<double> dtS;
+  std::vector<PixelOffset> offsets;
   Velocity skyRate;
   for (const SearchTile& tile : tiles) {
     std::optional<FilteredCube> cube;
@@ -199,6 +200,7 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
         ++read;
         psfFwhm = cube->psfFwhmPx;
         dtS = cube->frames.timeOffsetsS();
+        offsets = cube->frames.frameOffsets();
         skyRate = cube->skyRate;
       }
       polished[i] = polishCandidate(*cube, result, c, tile.read.x0, tile.read.y0, cancel);
@@ -206,7 +208,13 @@ PolishSummary polishTiledTreeCandidates(const TileLoader& load, const std::vecto
   }
   progress.report(1.0, "re-scoring the tree's candidates");
   if (dtS.empty()) return {};  // no candidate to re-score
-  const PolishSummary summary = finishPolish(result, polished, psfFwhm, dtS, skyRate);
+  // The whole image (candidates are in its pixels): the owned areas partition it.
+  TrackFrames frames{std::move(dtS), 0, 0, std::move(offsets)};
+  for (const SearchTile& tile : tiles) {
+    frames.width = std::max(frames.width, tile.owned.x0 + tile.owned.width);
+    frames.height = std::max(frames.height, tile.owned.y0 + tile.owned.height);
+  }
+  const PolishSummary summary = finishPolish(result, polished, psfFwhm, frames, skyRate);
   result.backendNote.append(1, '\n').append(polishNote(summary));
   return summary;
 }

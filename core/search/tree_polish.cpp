@@ -59,7 +59,7 @@ std::optional<Candidate> polishCandidate(const FilteredCube& cube, const SearchR
 }
 
 PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional<Candidate>>& polished,
-                           double psfFwhmPx, const std::vector<double>& dtS, Velocity skyRate) {
+                           double psfFwhmPx, const TrackFrames& frames, Velocity skyRate) {
   PolishSummary out;
   // Decreasing SNR, ties as setCandidates orders cells.
   const auto before = [](const Candidate& a, const Candidate& b) {
@@ -99,7 +99,7 @@ PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional
   // A candidate re-scored onto the sky rate joins the static sources, once per cell and in their order.
   std::vector<Candidate> earlier = std::move(result.staticSources);
   result.staticSources.clear();
-  setAsideStaticSources(result, psfFwhmPx, dtS, skyRate);
+  setAsideStaticSources(result, psfFwhmPx, frames, skyRate);
   std::set<Cell> staticCells;
   for (const Candidate& c : result.staticSources)
     staticCells.insert(cellOf(c));
@@ -116,7 +116,9 @@ PolishSummary polishTreeCandidates(const FilteredCube& cube, SearchResult& resul
     for (std::size_t i = i0; i < i1; ++i)
       polished[i] = polishCandidate(cube, result, result.candidates[i], 0, 0, cancel);
   });
-  return finishPolish(result, polished, cube.psfFwhmPx, cube.frames.timeOffsetsS(), cube.skyRate);
+  const TrackFrames frames{cube.frames.timeOffsetsS(), cube.frames.width(), cube.frames.height(),
+                           cube.frames.frameOffsets()};
+  return finishPolish(result, polished, cube.psfFwhmPx, frames, cube.skyRate);
 }
 
 std::string polishNote(const PolishSummary& s) {

@@ -64,7 +64,9 @@ TEST(Mpc80, ColumnsMatchThePublishedExample) {
   for (int c : {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15})
     EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
   for (int c = 57; c <= 80; ++c)
-    if (c != 72) EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+    if (c != 72) {
+      EXPECT_EQ(ours[c - 1], pub[c - 1]) << "column " << c;
+    }
   EXPECT_EQ(pub[71], 'd');
   EXPECT_EQ(ours[71], ' ');
   // Date, RA and Dec: the same separators in the same columns; ours carries one more decimal.

@@ -118,15 +118,15 @@ TEST(WeightedFilter, VaryingNoiseIsNormalisedAndGivesTheLikelihoodStatistic) {
   // Same noise on the quiet and the noisy side, in the frames of every scale (pooled over the 4 frames of
   // each scale: the filtered noise is correlated over ~30 px, so one frame's half has ~600 independent
   // values).
-  for (std::size_t k = 0; k < 3; ++k) {
+  for (std::size_t scale = 0; scale < 3; ++scale) {
     std::vector<float> left, right;
-    for (std::size_t n = k; n < nf; n += 3)
+    for (std::size_t n = scale; n < nf; n += 3)
       for (int y = 10; y < h - 10; ++y)
         for (int x = 10; x < w - 10; ++x) {
           if (std::hypot(x - sx, y - sy) < 12) continue;
           (x < w / 2 ? left : right).push_back(cube.frame(n)[std::size_t(y) * w + x]);
         }
-    EXPECT_NEAR(robustSigma(left), robustSigma(right), 0.06 * robustSigma(right)) << "frame scale " << k;
+    EXPECT_NEAR(robustSigma(left), robustSigma(right), 0.06 * robustSigma(right)) << "frame scale " << scale;
   }
 }
 
@@ -291,9 +291,15 @@ TEST(PixelBackground, FluxKeptAgainstTheMoversSpeed) {
             }
     }
     std::printf("%18.0f | %.3f\n", fwhms, kept / total);
-    if (fwhms >= 6.0) EXPECT_GT(kept / total, 0.95) << fwhms << " FWHM over the span";
-    if (fwhms >= 4.0) EXPECT_GT(kept / total, 0.8) << fwhms << " FWHM over the span";
-    if (fwhms <= 1.0) EXPECT_LT(kept / total, 0.9) << "a static-looking mover is absorbed (the oracle)";
+    if (fwhms >= 6.0) {
+      EXPECT_GT(kept / total, 0.95) << fwhms << " FWHM over the span";
+    }
+    if (fwhms >= 4.0) {
+      EXPECT_GT(kept / total, 0.8) << fwhms << " FWHM over the span";
+    }
+    if (fwhms <= 1.0) {
+      EXPECT_LT(kept / total, 0.9) << "a static-looking mover is absorbed (the oracle)";
+    }
   }
 }
 

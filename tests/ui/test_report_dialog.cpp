@@ -164,7 +164,9 @@ TEST_F(ReportDialogTest, OnlyRealCandidatesReachAdesAndMpcAndLowSnrIsWarned) {
   ASSERT_EQ(obsLines.size(), 5u);
   for (int k = 0; k < 4; ++k) {
     EXPECT_EQ(obsLines[k].substr(5, 7), "st00001");
-    if (k > 0) EXPECT_GT(obsLines[k].substr(15, 17), obsLines[k - 1].substr(15, 17));
+    if (k > 0) {
+      EXPECT_GT(obsLines[k].substr(15, 17), obsLines[k - 1].substr(15, 17));
+    }
   }
   EXPECT_EQ(obsLines[4].substr(5, 7), "st00002");
   EXPECT_EQ(readAll(folder + "/run_mpc.txt").find("st00003"), std::string::npos);

@@ -65,9 +65,17 @@ void setCandidates(SearchResult& result, std::vector<CellHit> hits, double psfFw
                    const std::vector<double>& dtS, int width, int height, const SearchParams& params,
                    const std::vector<PixelOffset>& offsets, Velocity skyRate);
 
-/// Moves the candidates within the static-rate limit of `skyRate` (staticRateLimitPxS of the PSF FWHM and
-/// the span of `dtS`) from result.candidates to the end of result.staticSources, in their order.
-void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const std::vector<double>& dtS,
+/// The time (s) between the first and the last frame in which candidate c's track (its cell's samples:
+/// ipsaShift of its grid velocity with the frame's offset) lies inside the image; 0 when in at most one.
+double trackSpanS(const Candidate& c, const TrackFrames& frames);
+
+/// Moves the candidates within the static-rate limit of `skyRate` from result.candidates to the end of
+/// result.staticSources, in their order. The limit is staticRateLimitPxS of the PSF FWHM and the candidate's
+/// own span inside the image (trackSpanS; the whole span of frames.dtS when that is 0): a source that the
+/// field's drift carries across the image moves less than one FWHM against the stars over the frames that
+/// hold it, and is as static there as one that stays in for the whole span (simulator seed 66's partial-span
+/// star, 0.14 px/s off the sky rate against 0.13 px/s over the whole span).
+void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const TrackFrames& frames,
                            Velocity skyRate);
 
 }  // namespace st::search

@@ -47,7 +47,7 @@ std::optional<Candidate> polishCandidate(const FilteredCube& cube, const SearchR
 /// polished.size() are kept as they are), then orders, merges one cell's candidates and sets aside the static
 /// ones as polishTreeCandidates does.
 PolishSummary finishPolish(SearchResult& result, const std::vector<std::optional<Candidate>>& polished,
-                           double psfFwhmPx, const std::vector<double>& dtS, Velocity skyRate);
+                           double psfFwhmPx, const TrackFrames& frames, Velocity skyRate);
 /// The line of SearchResult::backendNote that says what the re-scoring did.
 std::string polishNote(const PolishSummary& summary);
 

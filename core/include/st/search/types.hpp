@@ -104,6 +104,15 @@ struct VelocityMap {
   std::vector<int> argY;      ///< row of the maximum
 };
 
+/// What the static-source rule reads of a cube: the frames' t - t_ref (s), the whole image's size (px) and
+/// the frames' registration offsets (empty = all 0).
+struct TrackFrames {
+  std::vector<double> dtS;
+  int width = 0;
+  int height = 0;
+  std::vector<PixelOffset> offsets;
+};
+
 struct SearchResult {
   VelocityGrid grid;
   VelocityMap map;
