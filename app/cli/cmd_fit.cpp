@@ -10,9 +10,12 @@
 #include "commands.hpp"
 #include "st/astro/astrometry.hpp"
 #include "st/astro/photometry.hpp"
+#include "st/candidate/candidate_fit.hpp"
 #include "st/fit/comoving_fit.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/prepared_cube.hpp"
+#include "st/pipeline/prepared_json.hpp"
 #include "st/vet/segments.hpp"
 #include "terminal_progress.hpp"
 
@@ -226,6 +229,28 @@ void printText(const nlohmann::json& j) {
   }
 }
 
+// A zero-biased cube from `preprocess`: the fit models its per-pixel background (header BGWINS...) and
+// takes the movers in the sidecar beside it as left out of that background, as `search --fit` does on the
+// frames it pre-processed (candidate::fitOptions). Returns what was done, for the user.
+std::vector<std::string> modelPreparedBackground(const FrameCube& cube, double x, double y,
+                                                 fit::FitOptions& opt) {
+  std::vector<std::string> notes;
+  const auto h = pipeline::recognisePreparedHeader(cube.header, pipeline::cubeSource(cube));
+  if (!h || h->state != pipeline::PreparedState::ZeroBiased) return notes;
+  stats::PixelBackgroundWindows windows = pipeline::preparedBackgroundWindows(*h, cube, notes);
+  if (windows.empty()) return notes;
+  opt.selfSubtraction = std::move(windows);
+  const std::string sidecar = pipeline::preparedSidecarPath(pipeline::cubeSource(cube));
+  const auto movers = pipeline::readPreparedMovers(sidecar);
+  opt.sourceInBackground = !(movers && candidate::amongLeftOutMovers(*movers, opt.psf.fwhm(), x, y));
+  notes.push_back(std::string("the fit models the per-pixel background's windows (header BGWINS): ") +
+                  (!movers ? "no sidecar " + sidecar + ", so the source is taken as in its background"
+                   : opt.sourceInBackground
+                       ? "the source is in its background (not one of the sidecar's movers)"
+                       : "the source is one of the sidecar's movers, left out of its background"));
+  return notes;
+}
+
 }  // namespace
 
 int cmdFit(const Args& args) {
@@ -260,11 +285,14 @@ int cmdFit(const Args& args) {
     std::fprintf(stderr, "warning: %s\n", w.c_str());
   // The header's photo-electrons per count (GAIN, or EGAIN, over EMGAIN) unless given: as search --fit.
   opt.gain = a.number("gain").value_or(astro::photoelectronsPerCount(cube.header));
+  const std::vector<std::string> notes = modelPreparedBackground(cube, *a.number("x"), *a.number("y"), opt);
+  for (const auto& n : notes)
+    std::fprintf(stderr, "note: %s\n", n.c_str());
 
   const fit::FitParams start{
       {*a.number("vx-px-s"), *a.number("vy-px-s")}, *a.number("x"), *a.number("y"), std::nan(""), 0.0};
   const fit::FitResult r = fit::fitComoving(cube, start, opt, {}, cancel);
-  nlohmann::json out = {{"inputs", a.positionals()}, {"fit", fitJson(r)}};
+  nlohmann::json out = {{"inputs", a.positionals()}, {"fit", fitJson(r)}, {"notes", notes}};
   std::optional<vet::SegmentReport> seg;
   if (segments > 0 && r.sigmaN > 0) {
     vet::SegmentOptions so;

@@ -44,12 +44,6 @@ std::pair<double, double> pairOf(const CliArgs& cli, const std::string& name) {
   }
 }
 
-std::string sidecarPath(const std::string& out) {
-  std::filesystem::path p(out);
-  p.replace_extension(".json");
-  return p.string();
-}
-
 const char* kHelp =
     "usage: synthtrack-cli preprocess INPUT... -o PREPARED.fits [options]\n\n"
     "Calibrates (overscan BIASSEC, bias, dark, flat, TRIMSEC), removes cosmic rays, estimates the "
@@ -199,7 +193,7 @@ int cmdPreprocess(const Args& args) {
     io::writeImage(*cli.value("background"), prepared.background,
                    pipeline::preparedCubeCards(prepared, std::nullopt));
   }
-  const std::string sidecar = sidecarPath(*out);
+  const std::string sidecar = pipeline::preparedSidecarPath(*out);
   pipeline::writePreparedSidecar(sidecar, prepared);
   progress.finish();
   warnings.insert(warnings.end(), prepared.calibration.warnings.begin(), prepared.calibration.warnings.end());

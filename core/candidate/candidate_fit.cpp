@@ -48,16 +48,15 @@ std::vector<SegmentPosition> positionsOf(const vet::SegmentReport& seg, const Fr
   return out;
 }
 
-// Whether `c` is one of the movers the static-source search found (pipeline::Prepared::movers): their
-// streaks were left out of the per-pixel background, so their flux is not in it.
-bool nearLeftOutMover(const pipeline::Prepared& prepared, const search::Candidate& c) {
-  const double radius = 2.0 * prepared.psf.fwhm() + 2.0;
-  return std::any_of(prepared.movers.begin(), prepared.movers.end(), [&](const detect::MovingSource& m) {
-    return m.moving && std::hypot(m.x - c.x, m.y - c.y) <= radius;
+}  // namespace
+
+bool amongLeftOutMovers(const std::vector<detect::MovingSource>& movers, double psfFwhmPx, double x,
+                        double y) {
+  const double radius = 2.0 * psfFwhmPx + 2.0;
+  return std::any_of(movers.begin(), movers.end(), [&](const detect::MovingSource& m) {
+    return m.moving && std::hypot(m.x - x, m.y - y) <= radius;
   });
 }
-
-}  // namespace
 
 fit::FitOptions fitOptions(const FrameCube& frames, const pipeline::Prepared& prepared,
                            const search::Candidate& c) {
@@ -67,7 +66,7 @@ fit::FitOptions fitOptions(const FrameCube& frames, const pipeline::Prepared& pr
   opt.gain = astro::photoelectronsPerCount(frames.header);
   opt.excessNoise = astro::excessNoiseFactor(frames.header);
   opt.selfSubtraction = prepared.backgroundWindows;
-  opt.sourceInBackground = !nearLeftOutMover(prepared, c);
+  opt.sourceInBackground = !amongLeftOutMovers(prepared.movers, prepared.psf.fwhm(), c.x, c.y);
   return opt;
 }
 

@@ -1,7 +1,9 @@
 #include "st/pipeline/prepared_cube.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include "st/common/error.hpp"
 #include "st/io/fits_writer.hpp"
@@ -88,7 +90,82 @@ FitsHeader preparedCubeCards(const Prepared& prepared, std::optional<PreparedSta
   if (state == PreparedState::Filtered) {
     h.setNumber("SIGMAF", prepared.filtered.sigmaF, "noise of one filtered frame, counts");
   }
+  if (state == PreparedState::ZeroBiased && !prepared.backgroundWindows.empty()) {
+    const stats::PixelBackgroundWindows& w = prepared.backgroundWindows;
+    h.setNumber("BGWINS", w.windowS, "per-pixel background: frames within +- s left out");
+    h.setNumber("BGNFRM", static_cast<double>(w.frames.size()), "per-pixel background: evenly spaced frames");
+    h.setNumber("BGMINOUT", static_cast<double>(w.minOutside), "per-pixel background: fewest left in");
+    h.setNumber("BGCLIP", w.clipXi, "per-pixel background: clip xi, sigma");
+  }
   return h;
+}
+
+namespace {
+
+// BGWINS, BGNFRM, BGMINOUT and BGCLIP: all four or none.
+std::optional<PreparedBackgroundWindows> headerWindows(const FitsHeader& h, const std::string& source) {
+  constexpr const char* kKeys[] = {"BGWINS", "BGNFRM", "BGMINOUT", "BGCLIP"};
+  std::optional<double> v[4];
+  int present = 0;
+  for (int i = 0; i < 4; ++i) {
+    v[i] = number(h, kKeys[i], source);
+    present += v[i].has_value();
+  }
+  if (present == 0) return std::nullopt;
+  for (int i = 0; i < 4; ++i)
+    if (!v[i]) {
+      throw InputError(source + ": has BGWINS, BGNFRM, BGMINOUT or BGCLIP but no " + kKeys[i] +
+                       " (the per-pixel background's windows need all four)");
+    }
+  const auto count = [&](int i) {
+    if (!(*v[i] >= 0.0) || *v[i] != std::floor(*v[i]) || *v[i] > 1e9) {
+      throw InputError(source + ": " + kKeys[i] + " = " + numberText(*v[i]) + " is not a frame count");
+    }
+    return static_cast<std::size_t>(*v[i]);
+  };
+  if (!(*v[0] >= 0.0) || !std::isfinite(*v[0])) {
+    throw InputError(source + ": BGWINS = " + numberText(*v[0]) + " is not a window (s, >= 0)");
+  }
+  if (!(*v[3] > 0.0) || !std::isfinite(*v[3])) {
+    throw InputError(source + ": BGCLIP = " + numberText(*v[3]) + " is not a clip (sigma, > 0)");
+  }
+  return PreparedBackgroundWindows{*v[0], count(1), count(2), *v[3]};
+}
+
+}  // namespace
+
+stats::PixelBackgroundWindows preparedBackgroundWindows(const PreparedHeader& header, const FrameCube& frames,
+                                                        std::vector<std::string>& notes) {
+  const std::string keep =
+      ": the co-moving fit keeps the paper's model of the background (a slow mover's own "
+      "flux in it is not modelled)";
+  if (!header.backgroundWindows) {
+    notes.push_back(cubeSource(frames) +
+                    " records no per-pixel background windows (BGWINS; written before "
+                    "2026-12-05, or not a zero-biased cube)" +
+                    keep);
+    return {};
+  }
+  const PreparedBackgroundWindows& w = *header.backgroundWindows;
+  if (w.setSize == 0 || w.setSize > frames.frameCount()) {
+    notes.push_back(cubeSource(frames) + ": BGNFRM = " + std::to_string(w.setSize) + " does not fit its " +
+                    std::to_string(frames.frameCount()) + " frames" + keep);
+    return {};
+  }
+  const std::vector<double> t = frames.timeOffsetsS();
+  if (w.windowS > 0.0 && !std::is_sorted(t.begin(), t.end())) {
+    notes.push_back(cubeSource(frames) + ": BGWINS = " + numberText(w.windowS) +
+                    " s but the frames are not in time order" + keep);
+    return {};
+  }
+  return stats::PixelBackgroundWindows::evenlyOver(frames.frameCount(), w.setSize, w.windowS, w.minOutside,
+                                                   w.clipXi);
+}
+
+std::string preparedSidecarPath(const std::string& cubePath) {
+  std::filesystem::path p(cubePath);
+  p.replace_extension(".json");
+  return p.string();
 }
 
 std::optional<PreparedHeader> recognisePreparedHeader(const FitsHeader& header, const std::string& source) {
@@ -101,6 +178,7 @@ std::optional<PreparedHeader> recognisePreparedHeader(const FitsHeader& header, 
   p.sigmaF = number(header, "SIGMAF", source);
   p.sigmaN = number(header, "SIGMAN", source);
   p.skyRate = {number(header, "SKYVX", source).value_or(0.0), number(header, "SKYVY", source).value_or(0.0)};
+  p.backgroundWindows = headerWindows(header, source);
   return p;
 }
 

@@ -130,4 +130,34 @@ void writePreparedSidecar(const std::string& path, const Prepared& prepared) {
   if (ec) throw InputError("cannot rename " + tmp + " to " + path + ": " + ec.message());
 }
 
+std::optional<std::vector<detect::MovingSource>> readPreparedMovers(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return std::nullopt;
+  std::ifstream f(path);
+  if (!f) throw InputError("pre-processing sidecar '" + path + "': cannot be opened");
+  std::vector<detect::MovingSource> out;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(f);
+    if (!j.is_object() || !j.contains("moving_sources")) {
+      throw InputError("pre-processing sidecar '" + path +
+                       "': no \"moving_sources\" (not written by "
+                       "synthtrack preprocess?)");
+    }
+    for (const auto& e : j.at("moving_sources")) {
+      detect::MovingSource m;
+      m.x = e.at("x_px").get<double>();
+      m.y = e.at("y_px").get<double>();
+      m.v = {e.at("vx_px_s").get<double>(), e.at("vy_px_s").get<double>()};
+      m.shiftPx = e.value("shift_px", 0.0);
+      m.shiftSigmaPx = e.value("shift_sigma_px", 0.0);
+      m.snr = e.value("snr", 0.0);
+      m.moving = true;
+      out.push_back(m);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError("pre-processing sidecar '" + path + "': \"moving_sources\": " + e.what());
+  }
+  return out;
+}
+
 }  // namespace st::pipeline

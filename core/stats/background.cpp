@@ -435,15 +435,25 @@ Background subtractPixelBackground(FrameCube& cube, const BackgroundParams& para
   return clipRows(cube, params, exclude, progress, cancel, onRow);
 }
 
-PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube, const BackgroundParams& params) {
+PixelBackgroundWindows PixelBackgroundWindows::evenlyOver(std::size_t frameCount, std::size_t setSize,
+                                                          double windowS, std::size_t minOutside,
+                                                          double clipXi) {
   PixelBackgroundWindows w;
-  const std::vector<double> t = cube.timeOffsetsS();
-  w.frames = evenlySpaced(cube.frameCount(), params.maxFrames);
-  w.windowS = std::is_sorted(t.begin(), t.end()) ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
-  // subtractPixelBackground's need with every sample of the pixel clipped in.
-  w.minOutside = std::min(params.minSamples, std::max<std::size_t>(4, w.frames.size() / 3));
-  w.clipXi = params.xi;
+  w.frames = evenlySpaced(frameCount, setSize);
+  w.windowS = windowS;
+  w.minOutside = minOutside;
+  w.clipXi = clipXi;
   return w;
+}
+
+PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube, const BackgroundParams& params) {
+  const std::vector<double> t = cube.timeOffsetsS();
+  const std::size_t setSize = std::min(cube.frameCount(), std::max<std::size_t>(1, params.maxFrames));
+  // subtractPixelBackground's need with every sample of the pixel clipped in.
+  return PixelBackgroundWindows::evenlyOver(
+      cube.frameCount(), setSize,
+      std::is_sorted(t.begin(), t.end()) ? params.moverWindowFraction * cube.timeSpanS() : 0.0,
+      std::min(params.minSamples, std::max<std::size_t>(4, setSize / 3)), params.xi);
 }
 
 std::pair<std::size_t, std::size_t> PixelBackgroundWindows::window(std::size_t n,

@@ -169,6 +169,39 @@ TEST_F(PreparedCli, StackFilteredTakesThePsfFromTheHeader) {
       << readText(path("stackf.err"));
 }
 
+// `fit` on the zero-biased cube models its per-pixel background (header BGWINS...) as `search --fit` does on
+// frames it pre-processed, and says so; the sidecar beside it says the object was not left out of it. Oracle:
+// the simulator's position of the object (the fit within 3 sigma of it).
+TEST_F(PreparedCli, FitOfThePreparedCubeModelsItsBackgroundWindows) {
+  const auto& o = truthObject();
+  const FitsHeader prepared = headerOf("P.fits");
+  ASSERT_TRUE(prepared.getDouble("BGWINS") && prepared.getDouble("BGNFRM"))
+      << "preprocess records the windows";
+  char args[512];
+  std::snprintf(args, sizeof args,
+                "fit %s --x %.3f --y %.3f --vx-px-s %.5f --vy-px-s %.5f --fwhm %.6f --psf-beta %.6f "
+                "--json > %s 2> %s",
+                quoted(path("P.fits")).c_str(), o["x_ref_px"].get<double>(), o["y_ref_px"].get<double>(),
+                o["vx_px_s"].get<double>(), o["vy_px_s"].get<double>(), *prepared.getDouble("PSFFWHM"),
+                *prepared.getDouble("PSFBETA"), quoted(path("fit.json")).c_str(),
+                quoted(path("fit.err")).c_str());
+  ASSERT_EQ(runCli(cliPath(), args), 0) << readText(path("fit.err"));
+  nlohmann::json j;
+  std::ifstream(path("fit.json")) >> j;
+  ASSERT_EQ(j["notes"].size(), 1u) << j.dump();
+  const std::string note = j["notes"][0].get<std::string>();
+  EXPECT_NE(note.find("models the per-pixel background's windows (header BGWINS)"), std::string::npos)
+      << note;
+  EXPECT_NE(note.find("not one of the sidecar's movers"), std::string::npos) << note;
+  EXPECT_NE(readText(path("fit.err")).find(note), std::string::npos) << "said on stderr too";
+  const auto& f = j["fit"];
+  EXPECT_EQ(f["status"], "converged");
+  EXPECT_NEAR(f["params"]["x_px"].get<double>(), o["x_ref_px"].get<double>(),
+              3.0 * f["sigma_noise_model"]["x_px"].get<double>());
+  EXPECT_NEAR(f["params"]["y_px"].get<double>(), o["y_ref_px"].get<double>(),
+              3.0 * f["sigma_noise_model"]["y_px"].get<double>());
+}
+
 TEST_F(PreparedCli, BiasFrameGivenAsScienceIsNamedInAWarning) {
   Image frame(32, 24);
   for (std::size_t i = 0; i < frame.pixels.size(); ++i)

@@ -1,8 +1,9 @@
 // Issue 15 item 4: a cube written as `synthtrack-cli preprocess` writes it (STPREP = 1, STFILT = F, PSFFWHM,
-// PSFBETA, SIGMAN, SKYVX/SKYVY, and the .json sidecar) opens in the GUI as prepared: no second
-// pre-processing, its PSF and sky rate taken from the header, and the status bar says so. The cube is made
-// with the core API from the simulator's small preset in a temporary folder; the GUI (synthtrack) runs in
-// its script mode, offscreen (skipped when it was not built).
+// PSFBETA, SIGMAN, SKYVX/SKYVY, the per-pixel background's windows BGWINS..., and the .json sidecar) opens in
+// the GUI as prepared: no second pre-processing, its PSF and sky rate taken from the header, the co-moving
+// fit's background model from the windows and the sidecar's movers, and the status bar says so. The cube is
+// made with the core API from the simulator's small preset in a temporary folder; the GUI (synthtrack) runs
+// in its script mode, offscreen (skipped when it was not built).
 #include <gtest/gtest.h>
 
 #include <QRegularExpression>
@@ -57,6 +58,11 @@ TEST(PreparedOpen, PreparedCubeOpensAsPreparedWithItsHeaderValues) {
                 prepared.skyRate.vy);
   EXPECT_TRUE(run.out.contains(sky)) << sky << "\n" << run.out.toStdString();
   EXPECT_TRUE(run.out.contains("grid: data default:")) << run.out.toStdString();
+  // The co-moving fit models the per-pixel background that the header records, with the sidecar's movers.
+  const QString windows = QString::fromStdString(
+      "the co-moving fit models the per-pixel background's windows (header BGWINS) and the " +
+      std::to_string(prepared.movers.size()) + " mover(s) left out of it");
+  EXPECT_TRUE(run.out.contains(windows)) << run.out.toStdString();
 }
 
 }  // namespace

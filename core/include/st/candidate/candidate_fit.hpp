@@ -19,6 +19,12 @@ inline constexpr double kTrackletSnr = 7.0;
 /// 15.9 (the demo): 4 segments of SNR ~8; 12: 2 of ~8.5; below 9.9 each of the 2 is below 7.
 [[nodiscard]] int trackletSegments(double snr) noexcept;
 
+/// Whether a source at (x, y) px is one of `movers` (within 2 FWHM + 2 px of one marked moving): the
+/// movers the static-source search found (pipeline::Prepared::movers), whose streaks were left out of the
+/// per-pixel background, so that their flux is not in it (fit::FitOptions::sourceInBackground = false).
+[[nodiscard]] bool amongLeftOutMovers(const std::vector<detect::MovingSource>& movers, double psfFwhmPx,
+                                      double x, double y);
+
 /// The options fitCandidate fits `candidate` with (the live residual stacks of a front end use them too).
 [[nodiscard]] fit::FitOptions fitOptions(const FrameCube& frames, const pipeline::Prepared& products,
                                          const search::Candidate& candidate);

@@ -10,6 +10,11 @@
 //   SIGMAN                noise of one pixel of one zero-biased frame, counts
 //   SIGMAF                noise of one filtered frame, counts (filtered cubes only)
 //   SKYVX, SKYVY          sky rate, px/s
+//   BGWINS, BGNFRM, BGMINOUT, BGCLIP   how the per-pixel background was taken (zero-biased cubes whose
+//                         Prepared::backgroundWindows is set): the window (s) around each frame left out of
+//                         its background, the evenly spaced frames of the clip, the fewest frames that must
+//                         remain outside the window, and the clip's xi (stats::PixelBackgroundWindows); the
+//                         co-moving fit models a slow mover's own flux in its background from them
 // Files written before STFILT existed are still read: SIGMAF (written only on filtered cubes) means
 // filtered; STEP = 'preprocess' with PSFFWHM and no SIGMAF means zero-biased.
 #include <optional>
@@ -43,6 +48,15 @@ inline constexpr double kDefaultPsfBeta = 4.0;
 /// to search) STPREP, STFILT and SIGMAF are left out.
 FitsHeader preparedCubeCards(const Prepared& prepared, std::optional<PreparedState> state);
 
+/// The per-pixel background's windows as a prepared cube's header records them (BGWINS, BGNFRM, BGMINOUT,
+/// BGCLIP; stats::PixelBackgroundWindows::evenlyOver).
+struct PreparedBackgroundWindows {
+  double windowS = 0.0;
+  std::size_t setSize = 0;
+  std::size_t minOutside = 0;
+  double clipXi = 0.0;
+};
+
 /// What a prepared cube's header says.
 struct PreparedHeader {
   PreparedState state = PreparedState::ZeroBiased;
@@ -51,6 +65,7 @@ struct PreparedHeader {
   std::optional<double> sigmaN;    ///< SIGMAN, counts
   Velocity skyRate;                ///< SKYVX/SKYVY, px/s; 0 when absent
   std::string evidence;            ///< the keywords that decided the state, e.g. "STFILT = F"
+  std::optional<PreparedBackgroundWindows> backgroundWindows;  ///< BGWINS...; none in files before 2026-12-05
 };
 
 /// Recognises a prepared cube from `header`: nullopt when nothing in it says so (no STPREP, no STFILT, no
@@ -94,6 +109,16 @@ PreparedSearchInput searchInputFromPrepared(FrameCube loaded, const PreparedOver
 /// Pre-processing a zero-biased cube again finds no stars or background to remove, and a filtered one would
 /// be filtered twice.
 void checkNotPrepared(const FrameCube& raw, const std::string& whatToDo);
+
+/// The per-pixel background's windows of prepared cube `frames` (its header's BGWINS...) for the co-moving
+/// fit (Prepared::backgroundWindows): empty, with a note in `notes` saying why the fit keeps the paper's
+/// model, when the header records none, when BGNFRM exceeds the cube's frames, or when a window is recorded
+/// but the frames' times are not in order (the subtraction took none then).
+stats::PixelBackgroundWindows preparedBackgroundWindows(const PreparedHeader& header, const FrameCube& frames,
+                                                        std::vector<std::string>& notes);
+
+/// The sidecar (prepared_json.hpp) that `preprocess -o FILE` writes beside FILE: FILE with extension .json.
+std::string preparedSidecarPath(const std::string& cubePath);
 
 /// "FILE" of a cube's first frame (for messages), or "the input" for an empty cube.
 std::string cubeSource(const FrameCube& cube);

@@ -3,7 +3,9 @@
 // PSF, sky rate, registration (model, residuals, each frame's measured star-field position and applied
 // offset), cosmic-ray and single-frame counts, and the star catalog (positions at t_ref, with RA/Dec when
 // the cube has a WCS). Units are in the keys (ARCHITECTURE.md).
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -17,5 +19,10 @@ nlohmann::json preparedToJson(const Prepared& prepared);
 /// Writes preparedToJson atomically (temporary file + rename). Throws st::InputError naming the path when it
 /// cannot be written.
 void writePreparedSidecar(const std::string& path, const Prepared& prepared);
+
+/// The moving sources of a sidecar ("moving_sources": the movers the static-source search left out of the
+/// per-pixel background, Prepared::movers, each with moving = true); nullopt when `path` does not exist.
+/// Throws st::InputError naming the path and the key when it cannot be read or is not such a sidecar.
+std::optional<std::vector<detect::MovingSource>> readPreparedMovers(const std::string& path);
 
 }  // namespace st::pipeline

@@ -85,6 +85,12 @@ struct PixelBackgroundWindows {
   std::size_t minOutside = 0;
   double clipXi = 4.0;
   [[nodiscard]] bool empty() const noexcept { return frames.empty(); }
+  /// The windows of a cube of `frameCount` frames whose per-pixel clip used `setSize` evenly spaced frames
+  /// (BackgroundParams::maxFrames; all when at least frameCount); what pixelBackgroundWindows builds, and
+  /// what a prepared cube's header records (pipeline::preparedBackgroundWindows).
+  [[nodiscard]] static PixelBackgroundWindows evenlyOver(std::size_t frameCount, std::size_t setSize,
+                                                         double windowS, std::size_t minOutside,
+                                                         double clipXi);
   /// The [lo, hi) range of `frames` (indices into it) within +- windowS of frame n (lo == hi when windowS is
   /// 0): what subtractPixelBackground leaves out of a pixel's samples before its per-pixel count rule.
   /// `timesS` are the cube's time offsets.
