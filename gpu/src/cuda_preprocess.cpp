@@ -139,15 +139,6 @@ CudaPreprocess::CudaPreprocess(DeviceInfo device)
   }
 }
 
-std::vector<std::size_t> preprocess_detail::evenlySpaced(std::size_t total, std::size_t wanted) {
-  std::vector<std::size_t> idx;
-  if (total == 0) return idx;
-  const std::size_t n = std::min(total, std::max<std::size_t>(1, wanted));
-  for (std::size_t i = 0; i < n; ++i)
-    idx.push_back(n == total ? i : (i * total) / n);
-  return idx;
-}
-
 stats::ClipStats CudaPreprocess::globalBackground(const FrameCube& cube,
                                                   const stats::GlobalBackgroundParams& params) {
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));

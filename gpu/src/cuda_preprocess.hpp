@@ -124,9 +124,6 @@ void downloadPieces(DeviceResources& r, const std::vector<DownloadPiece>& pieces
 void downloadInPlace(DeviceResources& r, void* host, const void* dev, std::size_t bytes, cudaStream_t s,
                      const std::string& what, const std::string& device);
 
-/// stats/background.cpp evenlySpaced.
-std::vector<std::size_t> evenlySpaced(std::size_t total, std::size_t wanted);
-
 }  // namespace preprocess_detail
 
 class CudaPreprocess final : public CudaPreprocessAccelerator {

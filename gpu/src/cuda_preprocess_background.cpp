@@ -34,25 +34,18 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
     throw GpuError("the exclusion mask has " + std::to_string(exclude->frameCount()) + " frames, the cube " +
                    std::to_string(nf));
   stats::Background out;
-  const std::vector<std::size_t> frames = evenlySpaced(nf, params.maxFrames);
+  // The clip's evenly spaced frames and frame n's window of them: stats::pixelBackgroundWindows, exactly what
+  // the CPU's subtractPixelBackground and the co-moving fit's model (FitOptions::selfSubtraction) take.
+  const std::vector<double> t = cube.timeOffsetsS();
+  const stats::PixelBackgroundWindows windows = stats::pixelBackgroundWindows(cube, params);
+  const std::vector<std::size_t>& frames = windows.frames;
   out.framesUsed = frames.size();
   const std::size_t nk = frames.size();
-  // Frame n's window of used frames (stats::subtractPixelBackground).
-  const std::vector<double> t = cube.timeOffsetsS();
-  const bool sorted = std::is_sorted(t.begin(), t.end());
-  const double window = sorted ? params.moverWindowFraction * cube.timeSpanS() : 0.0;
   std::vector<int> lo(nf, 0), hi(nf, 0);
-  if (window > 0.0) {
-    for (std::size_t n = 0; n < nf; ++n) {
-      lo[n] = static_cast<int>(
-          std::lower_bound(frames.begin(), frames.end(), n,
-                           [&](std::size_t k, std::size_t m) { return t[k] < t[m] - window; }) -
-          frames.begin());
-      hi[n] = static_cast<int>(
-          std::upper_bound(frames.begin(), frames.end(), n,
-                           [&](std::size_t m, std::size_t k) { return t[m] + window < t[k]; }) -
-          frames.begin());
-    }
+  for (std::size_t n = 0; n < nf; ++n) {
+    const auto [a, b] = windows.window(n, t);
+    lo[n] = static_cast<int>(a);
+    hi[n] = static_cast<int>(b);
   }
   const double hostTables = sw.lap();
   ST_CUDA_CHECK(cudaSetDevice(m_device.ordinal));
@@ -126,7 +119,7 @@ stats::Background CudaPreprocess::pixelBackground(FrameCube& cube, const stats::
   p.hi = hiBuf.get();
   p.winLo = loD.get();
   p.winHi = hiD.get();
-  p.window = window > 0.0 ? 1 : 0;
+  p.window = windows.windowS > 0.0 ? 1 : 0;
   Event k0(true), k1(true), kc(true), k2(true), k3(true);
   k0.record(s);
   launchBackgroundPrepare(p, s);
