@@ -27,6 +27,8 @@ constexpr const char* kUsage =
 
 INPUT is a zero-biased, unfiltered cube (or frames), e.g. the output of `synthtrack-cli preprocess`.
 X, Y: 0-based pixel at the cube's reference epoch (mean mid-time); VX, VY in px/s (a search candidate).
+On a cube from `preprocess` the fit models a slow mover's own flux in its per-pixel background (header
+BGWINS, BGNFRM, BGMINOUT, BGCLIP), taking the movers of the sidecar PREPARED.json as left out of it.
 
   --fwhm F | --psf-r R --psf-beta B   PSF (Moffat; with --fwhm alone beta = 4, the paper's)
   --segments K          segment checks with K equal-time segments (default 4; 0 = none)
