@@ -44,6 +44,11 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   // The asteroid's segment positions (candidate::fitCandidate, each segment's own fit) against the truth's
   // track at each segment's time, in units of their own errors: what the tracklet of a report is worth.
   std::vector<double> pulls;
+  // The same per segment of a 4-segment tracklet (x, y): sums and sums of squares, and counts. Over seeds
+  // 21-130 (2026-12-05) the first segment's x pulls averaged -0.39 (rms 1.43) against -0.16 / +0.03 / +0.02
+  // (rms 1.06-1.10) for the others: a bias of the first segment that is not yet explained (not the stars).
+  double segSum[4][2] = {}, segSum2[4][2] = {};
+  int segCount[4] = {};
   int positions = 0, segmentsCut = 0;
   // ST_SEEDS=FIRST-LAST runs another range (a campaign over more seeds; the bounds below are the 20 seeds').
   unsigned first = 21, last = 40;
@@ -129,6 +134,14 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
           const double px = (q.x - (truth.xRefPx + truth.vxPxPerS * q.tOffsetS)) / q.sigmaXPx;
           const double py = (q.y - (truth.yRefPx + truth.vyPxPerS * q.tOffsetS)) / q.sigmaYPx;
           pulls.insert(pulls.end(), {px, py});
+          if (fit.segments->positionSegments == 4 && q.segment >= 1 && q.segment <= 4) {
+            const int k = q.segment - 1;
+            segSum[k][0] += px;
+            segSum[k][1] += py;
+            segSum2[k][0] += px * px;
+            segSum2[k][1] += py * py;
+            ++segCount[k];
+          }
           std::printf(" [%d: SNR %.1f, sigma (%.2f, %.2f) px, pull (%+.2f, %+.2f)]", q.segment, q.snr,
                       q.sigmaXPx, q.sigmaYPx, px, py);
         }
@@ -173,6 +186,11 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   const double rmsPull = pulls.empty() ? 0.0 : std::sqrt(sumPull2 / pulls.size());
   std::printf("segment positions: %d of %d segments, rms pull %.3f, largest |pull| %.2f (%zu pulls)\n",
               positions, segmentsCut, rmsPull, maxPull, pulls.size());
+  for (int k = 0; k < 4; ++k)
+    if (segCount[k] > 0)
+      std::printf("segment %d of 4 (%d seeds): pull x mean %+.2f rms %.2f, y mean %+.2f rms %.2f\n", k + 1,
+                  segCount[k], segSum[k][0] / segCount[k], std::sqrt(segSum2[k][0] / segCount[k]),
+                  segSum[k][1] / segCount[k], std::sqrt(segSum2[k][1] / segCount[k]));
   // Each found asteroid a tracklet: nearly every segment gives a position; the errors honest to within the
   // spread an rms of ~150 unit normals has (~0.06) plus the fit's model error.
   EXPECT_GE(positions, 0.9 * segmentsCut);
