@@ -14,7 +14,6 @@
 #include "st/fit/comoving_fit.hpp"
 #include "st/io/fits_reader.hpp"
 #include "st/io/wcs.hpp"
-#include "st/pipeline/prepared_cube.hpp"
 #include "st/pipeline/prepared_json.hpp"
 #include "st/vet/segments.hpp"
 #include "terminal_progress.hpp"
@@ -239,11 +238,12 @@ std::vector<std::string> modelPreparedBackground(const FrameCube& cube, double x
   std::vector<std::string> notes;
   const auto h = pipeline::recognisePreparedHeader(cube.header, pipeline::cubeSource(cube));
   if (!h || h->state != pipeline::PreparedState::ZeroBiased) return notes;
-  stats::PixelBackgroundWindows windows = pipeline::preparedBackgroundWindows(*h, cube, notes);
-  if (windows.empty()) return notes;
-  opt.selfSubtraction = std::move(windows);
-  const std::string sidecar = pipeline::preparedSidecarPath(pipeline::cubeSource(cube));
-  const auto movers = pipeline::readPreparedMovers(sidecar);
+  pipeline::PreparedBackgroundModel model = pipeline::readPreparedBackgroundModel(*h, cube, notes);
+  if (model.windows.empty()) return notes;
+  if (!model.sidecarError.empty()) throw InputError(model.sidecarError);
+  opt.selfSubtraction = std::move(model.windows);
+  const std::string& sidecar = model.sidecar;
+  const auto& movers = model.movers;
   opt.sourceInBackground = !(movers && candidate::amongLeftOutMovers(*movers, opt.psf.fwhm(), x, y));
   notes.push_back(std::string("the fit models the per-pixel background's windows (header BGWINS): ") +
                   (!movers ? "no sidecar " + sidecar + ", so the source is taken as in its background"

@@ -68,33 +68,28 @@ ui::PreparedView openPrepared(const FrameCube& raw, const pipeline::PreparedHead
   prep->sigmaN = h.sigmaN.value_or(0.0);
   prep->skyRate = h.skyRate;
   prep->skyRateMeasured = true;
-  prep->notes = in.notes;
-  ui::PreparedView view;
   if (h.state == pipeline::PreparedState::ZeroBiased) {
     // The co-moving fit's model of the per-pixel background (header BGWINS...) and the movers that were left
     // out of it (the sidecar preprocess wrote beside the file), as when the frames are pre-processed here.
-    prep->backgroundWindows = pipeline::preparedBackgroundWindows(h, raw, in.notes);
-    if (!prep->backgroundWindows.empty() && !raw.empty()) {
-      const std::string sidecar = pipeline::preparedSidecarPath(raw.info().front().file);
-      try {
-        if (auto movers = pipeline::readPreparedMovers(sidecar)) {
-          prep->movers = std::move(*movers);
-          in.notes.push_back(
-              "the co-moving fit models the per-pixel background's windows (header BGWINS) and "
-              "the " +
-              std::to_string(prep->movers.size()) + " mover(s) left out of it (" + sidecar + ")");
-        } else {
-          in.notes.push_back("no sidecar " + sidecar +
-                             ": the co-moving fit models the per-pixel background's "
-                             "windows (header BGWINS) as if no mover had been left out of it");
-        }
-      } catch (const InputError& e) {
-        in.warnings.push_back(std::string(e.what()) +
-                              "; the co-moving fit takes no mover as left out of the "
-                              "per-pixel background");
-      }
+    pipeline::PreparedBackgroundModel model = pipeline::readPreparedBackgroundModel(h, raw, in.notes);
+    prep->backgroundWindows = std::move(model.windows);
+    if (model.movers) {
+      prep->movers = std::move(*model.movers);
+      in.notes.push_back(
+          "the co-moving fit models the per-pixel background's windows (header BGWINS) and the " +
+          std::to_string(prep->movers.size()) + " mover(s) left out of it (" + model.sidecar + ")");
+    } else if (!model.sidecarError.empty()) {
+      in.warnings.push_back(model.sidecarError +
+                            "; the co-moving fit takes no mover as left out of the per-pixel background");
+    } else if (!prep->backgroundWindows.empty()) {
+      in.notes.push_back("no sidecar " + model.sidecar +
+                         ": the co-moving fit models the per-pixel background's windows (header BGWINS) as "
+                         "if no mover had been left out of it");
     }
-    prep->notes = in.notes;
+  }
+  prep->notes = in.notes;
+  ui::PreparedView view;
+  if (h.state == pipeline::PreparedState::ZeroBiased) {
     auto unfiltered = std::make_shared<search::FilteredCube>();
     unfiltered->frames = raw;  // the fit's frames (the GUI keeps `raw` for viewing: one more copy)
     unfiltered->sigmaF = prep->sigmaN;

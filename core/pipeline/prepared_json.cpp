@@ -6,6 +6,7 @@
 
 #include "st/common/error.hpp"
 #include "st/io/wcs.hpp"
+#include "st/pipeline/prepared_cube.hpp"
 
 namespace st::pipeline {
 
@@ -158,6 +159,20 @@ std::optional<std::vector<detect::MovingSource>> readPreparedMovers(const std::s
     throw InputError("pre-processing sidecar '" + path + "': \"moving_sources\": " + e.what());
   }
   return out;
+}
+
+PreparedBackgroundModel readPreparedBackgroundModel(const PreparedHeader& header, const FrameCube& frames,
+                                                    std::vector<std::string>& notes) {
+  PreparedBackgroundModel m;
+  m.windows = preparedBackgroundWindows(header, frames, notes);
+  if (m.windows.empty() || frames.empty()) return m;
+  m.sidecar = preparedSidecarPath(cubeSource(frames));
+  try {
+    m.movers = readPreparedMovers(m.sidecar);
+  } catch (const InputError& e) {
+    m.sidecarError = e.what();
+  }
+  return m;
 }
 
 }  // namespace st::pipeline

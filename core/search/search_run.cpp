@@ -162,10 +162,11 @@ void setAsideStaticSources(SearchResult& result, double psfFwhmPx, const TrackFr
     // Strictly less than the limit (a grid of FWHM / span steps keeps its first ring of cells as movers).
     return std::hypot(c.v.vx - skyRate.vx, c.v.vy - skyRate.vy) < limit * (1.0 - 1e-9);
   };
-  for (const Candidate& c : result.candidates)
-    if (isStatic(c)) result.staticSources.push_back(c);
-  result.candidates.erase(std::remove_if(result.candidates.begin(), result.candidates.end(), isStatic),
-                          result.candidates.end());
+  // Each candidate judged once (its span is a pass over the frames), both lists kept in order.
+  std::vector<Candidate> movers;
+  for (Candidate& c : result.candidates)
+    (isStatic(c) ? result.staticSources : movers).push_back(std::move(c));
+  result.candidates = std::move(movers);
 }
 
 SearchResult runSearch(SearchBackend& backend, const FilteredCube& cube, const SearchRequest& request,

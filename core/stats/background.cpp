@@ -448,12 +448,12 @@ PixelBackgroundWindows PixelBackgroundWindows::evenlyOver(std::size_t frameCount
 
 PixelBackgroundWindows pixelBackgroundWindows(const FrameCube& cube, const BackgroundParams& params) {
   const std::vector<double> t = cube.timeOffsetsS();
-  const std::size_t setSize = std::min(cube.frameCount(), std::max<std::size_t>(1, params.maxFrames));
+  PixelBackgroundWindows w = PixelBackgroundWindows::evenlyOver(
+      cube.frameCount(), params.maxFrames,
+      std::is_sorted(t.begin(), t.end()) ? params.moverWindowFraction * cube.timeSpanS() : 0.0, 0, params.xi);
   // subtractPixelBackground's need with every sample of the pixel clipped in.
-  return PixelBackgroundWindows::evenlyOver(
-      cube.frameCount(), setSize,
-      std::is_sorted(t.begin(), t.end()) ? params.moverWindowFraction * cube.timeSpanS() : 0.0,
-      std::min(params.minSamples, std::max<std::size_t>(4, setSize / 3)), params.xi);
+  w.minOutside = std::min(params.minSamples, std::max<std::size_t>(4, w.frames.size() / 3));
+  return w;
 }
 
 std::pair<std::size_t, std::size_t> PixelBackgroundWindows::window(std::size_t n,
