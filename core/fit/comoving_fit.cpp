@@ -29,6 +29,11 @@ FitParams FitParams::fromVector(const ParamVector& p) {
   return f;
 }
 
+double lowSnrVarianceFactor(double snr) noexcept {
+  if (!(snr > 0.0) || !std::isfinite(snr)) return 1.0;
+  return 1.0 + kLowSnrVarianceCoefficient / (snr * snr);
+}
+
 FitParams startFromCandidate(const search::Candidate& candidate) {
   FitParams p;
   p.v = candidate.v;
@@ -308,6 +313,15 @@ void finish(const FitOptions& o, const Setup& s, const detail::FitProblem& prob,
   // source's whole amplitude but only the part the background left can be detected.
   if (res.sigmaN > 0 && nf > 0)
     res.snr = detectionSnr(st.p.alpha, nf, res.sumP2, res.sigmaN) * prob.snrKept(st.p);
+  // Least squares at low SNR scatters more than its covariance (the Fisher information) says; the excess
+  // grows as 1 / SNR^2 (lowSnrVarianceFactor). Both covariances carry it; the paper's formulas do not.
+  if (res.snr > 0.0) {
+    const double f2 = lowSnrVarianceFactor(res.snr);
+    res.covariance *= f2;
+    res.sigma = res.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    res.covarianceNoiseModel *= f2;
+    res.sigmaNoiseModel = res.covarianceNoiseModel.diagonal().cwiseMax(0.0).cwiseSqrt();
+  }
   if (res.photonsPerFrame > 0 && res.snr > 0) {
     res.sigmaPosPaper = positionSigmaPaper(res.photonsPerFrame, w, o.gain * res.sigmaN, nf);
     res.sigmaPosSnr = positionSigmaFromSnr(w, res.snr);

@@ -61,6 +61,11 @@ nlohmann::json searchResultToJson(const search::FilteredCube& cube, const search
   j["cells_above_threshold"] = r.cellsAboveThreshold;
   j["min_frames"] = r.minFrames;
   j["sidelobes_merged"] = r.sidelobesMerged;
+  if (r.statisticNoise.measured())
+    j["statistic_noise"] = {{"scale", r.statisticNoise.scale},
+                            {"standard_error", r.statisticNoise.standardError},
+                            {"mean", r.statisticNoise.mean},
+                            {"cells", r.statisticNoise.cells}};
   j["elapsed_s"] = r.elapsedS;
   j["candidates"] = nlohmann::json::array();
   const std::vector<char> crossing = candidate::crossesBrighter(cube, r.grid, r.candidates);
@@ -168,6 +173,14 @@ search::SearchResult searchResultFromJson(const nlohmann::json& j) {
   r.cellsAboveThreshold = optionalKey<std::int64_t>(j, "cells_above_threshold", 0, kWhat);
   r.minFrames = optionalKey<int>(j, "min_frames", 0, kWhat);
   r.sidelobesMerged = optionalKey<std::int64_t>(j, "sidelobes_merged", 0, kWhat);
+  if (j.contains("statistic_noise")) {
+    const auto& n = j["statistic_noise"];
+    if (!n.is_object()) throw InputError(std::string(kWhat) + ": \"statistic_noise\" is not an object");
+    r.statisticNoise.scale = required<double>(n, "scale", "statistic_noise");
+    r.statisticNoise.standardError = required<double>(n, "standard_error", "statistic_noise");
+    r.statisticNoise.mean = required<double>(n, "mean", "statistic_noise");
+    r.statisticNoise.cells = required<int>(n, "cells", "statistic_noise");
+  }
   if (j.contains("velocity_map")) r.map = velocityMapFromJson(j["velocity_map"]);
   if (j.contains("candidates")) {
     if (!j["candidates"].is_array()) throw InputError("search result: 'candidates' is not an array");

@@ -8,6 +8,7 @@
 
 #include "st/common/error.hpp"
 #include "st/common/parallel.hpp"
+#include "st/search/statistic_noise.hpp"
 #include "st/search/tree_plan.hpp"
 #include "st/search/tree_polish.hpp"
 #include "st/search/tree_search.hpp"
@@ -16,6 +17,10 @@
 namespace st::search {
 
 namespace {
+
+/// A statistic's noise above this many times the unit is a warning (statistic_noise.hpp): the Lowell frames'
+/// 1.07-1.09 is a note, a spread of 1.2 makes a threshold of 7 one of 5.8 sigma.
+constexpr double kNoiseWarningScale = 1.2;
 
 // CPU coefficients (fit: see the header and README "Performance").
 constexpr double kCpuTreeOpsWeight = 9.6;
@@ -251,6 +256,22 @@ SearchResult searchWithChoice(SearchBackend& backend, const FilteredCube& cube, 
     // The tree's candidates on the exact statistic, each around its own cell (tree_polish.hpp).
     const std::string text = polishNote(polishTreeCandidates(cube, result, kPolishedTreeCandidates, cancel));
     result.backendNote = result.backendNote.empty() ? text : result.backendNote + "\n" + text;
+  }
+  // The statistic's spread on this cube at random cells (statistic_noise.hpp), in the note every front end
+  // shows; a spread far above the unit is the user's to see (the SNRs overstate how unlikely the detections
+  // are).
+  const StatisticNoise noise = measureStatisticNoise(cube, grid, result.minFrames, cancel);
+  result.statisticNoise = noise;
+  const std::string noiseText = statisticNoiseNote(noise);
+  result.backendNote = result.backendNote.empty() ? noiseText : result.backendNote + "\n" + noiseText;
+  if (noise.measured() && noise.scale > kNoiseWarningScale) {
+    char text[240];
+    std::snprintf(text, sizeof text,
+                  "the search statistic's noise is %.2f x the unit sigma_F sqrt(N_in) on this cube: its SNRs "
+                  "overstate significance, and Prob_false understates the false alarms; check the flat "
+                  "field and the background",
+                  noise.scale);
+    result.warnings.push_back(text);
   }
   if (choice.method == SearchMethod::Tree && cube.psfFwhmPx > 0.0) {
     // What the tree costs for this cube (issue 16), in the note every front end shows.

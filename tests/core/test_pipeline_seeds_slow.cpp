@@ -46,7 +46,9 @@ TEST(PipelineSeeds, PaperNeoOverTwentySeeds) {
   std::vector<double> pulls;
   // The same per segment of a 4-segment tracklet (x, y): sums and sums of squares, and counts. Over seeds
   // 21-130 (2026-12-05) the first segment's x pulls averaged -0.39 (rms 1.43) against -0.16 / +0.03 / +0.02
-  // (rms 1.06-1.10) for the others: a bias of the first segment that is not yet explained (not the stars).
+  // for the others; seeds 131-170 gave -0.09 (rms 0.93), and 100 fresh seeds (131-230) with the background
+  // removed exactly (frames minus their noise-free scene) -0.12 +- 0.11: those seeds' noise, not a bias.
+  // Seeds 21-40 alone: -0.68 (rms 1.20, 19 seeds).
   double segSum[4][2] = {}, segSum2[4][2] = {};
   int segCount[4] = {};
   int positions = 0, segmentsCut = 0;

@@ -168,6 +168,7 @@ search::SearchResult awkwardResult() {
   r.minFrames = 5;
   r.backendNote = "host: plan 2.1 ms\ndevice 0: cube resident (1500 MiB)";
   r.warnings = {"cuda: X failed (out of memory); searched on cpu instead"};
+  r.statisticNoise = {1.0604123456789, 0.0053012345, 0.0049876543, 19999};
   return r;
 }
 
@@ -194,6 +195,10 @@ TEST(SearchReport, ResultRoundTripsExactlyThroughJsonText) {
   EXPECT_EQ(back.minFrames, 5);
   EXPECT_EQ(back.backendNote, r.backendNote);
   EXPECT_EQ(back.warnings, r.warnings);
+  EXPECT_EQ(back.statisticNoise.scale, r.statisticNoise.scale);
+  EXPECT_EQ(back.statisticNoise.standardError, r.statisticNoise.standardError);
+  EXPECT_EQ(back.statisticNoise.mean, r.statisticNoise.mean);
+  EXPECT_EQ(back.statisticNoise.cells, 19999);
   ASSERT_EQ(back.candidates.size(), 2u);
   for (std::size_t i = 0; i < 2; ++i)
     expectSameCandidate(back.candidates[i], r.candidates[i]);

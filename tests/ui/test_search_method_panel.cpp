@@ -121,6 +121,16 @@ TEST(SearchMethodPanel, BackendListNamesTheGpuAndTheSummarySaysWhatRan) {
       panel.statusText().startsWith("exact search on cpu: 1 candidate above SNR 7.00 (2 sidelobes merged)"))
       << panel.statusText().toStdString();
   EXPECT_TRUE(panel.statusText().contains("as selected")) << panel.statusText().toStdString();
+  EXPECT_FALSE(panel.statusText().contains("noise of the statistic")) << panel.statusText().toStdString();
+  // The statistic's measured noise, when the search measured it.
+  result = std::make_shared<search::SearchResult>(*result);
+  result->statisticNoise.scale = 1.0604;
+  result->statisticNoise.mean = 0.0049;
+  result->statisticNoise.cells = 19999;
+  obs.setResult(result);
+  EXPECT_TRUE(panel.statusText().contains(
+      "noise of the statistic on this cube: 1.060 x the unit, mean 0.00 (the paper assumes 1 and 0)"))
+      << panel.statusText().toStdString();
 
   // A GPU failure that the CPU made up for is said first; the backend's note is on hover.
   result = std::make_shared<search::SearchResult>(*result);

@@ -472,6 +472,12 @@ void SearchPanel::onResultChanged() {
                      .arg(candidateSummary(*r))
                      .arg(humanSeconds(r->elapsedS))
                      .arg(why);
+  // The statistic's spread on this cube (search/statistic_noise.hpp): how far its SNRs are the paper's unit.
+  if (r->statisticNoise.measured())
+    text +=
+        QString("\nnoise of the statistic on this cube: %1 x the unit, mean %2 (the paper assumes 1 and 0)")
+            .arg(r->statisticNoise.scale, 0, 'f', 3)
+            .arg(r->statisticNoise.mean, 0, 'f', 2);
   // What the user must see (e.g. the GPU failed and the CPU searched instead) goes first.
   for (auto it = r->warnings.rbegin(); it != r->warnings.rend(); ++it)
     text.prepend("Warning: " + QString::fromStdString(*it) + "\n");

@@ -113,6 +113,16 @@ struct TrackFrames {
   std::vector<PixelOffset> offsets;
 };
 
+/// The search statistic's spread measured on the cube (st/search/statistic_noise.hpp); the paper's unit until
+/// measured.
+struct StatisticNoise {
+  double scale = 1.0;          ///< the statistic's standard deviation at random cells (1 = the paper's unit)
+  double standardError = 0.0;  ///< of `scale` (scale / sqrt(2 cells))
+  double mean = 0.0;           ///< the statistic's mean there (0 when the background is removed)
+  int cells = 0;               ///< random cells measured (0 = not measured: scale is the unit)
+  [[nodiscard]] bool measured() const noexcept { return cells > 0; }
+};
+
 struct SearchResult {
   VelocityGrid grid;
   VelocityMap map;
@@ -138,6 +148,8 @@ struct SearchResult {
   std::string backendNote;
   /// What the user must see: e.g. the GPU failed and the CPU searched instead (fallback_backend.hpp).
   std::vector<std::string> warnings;
+  /// The statistic's noise on this cube, when measured (searchWithChoice); a measurement for the user.
+  StatisticNoise statisticNoise;
 };
 
 enum class StackMode { Ipsa, Csa };
