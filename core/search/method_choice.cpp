@@ -19,7 +19,7 @@ namespace st::search {
 namespace {
 
 /// A statistic's noise above this many times the unit is a warning (statistic_noise.hpp): the Lowell frames'
-/// 1.07-1.09 is a note, a spread of 1.2 makes a threshold of 7 one of 5.8 sigma.
+/// 1.06 is a note, a spread of 1.2 makes a threshold of 7 one of 5.8 sigma.
 constexpr double kNoiseWarningScale = 1.2;
 
 // CPU coefficients (fit: see the header and README "Performance").

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <random>
 
+#include "st/search/cpu_backend.hpp"
+#include "st/search/method_choice.hpp"
 #include "st/search/statistic_noise.hpp"
 
 namespace st::search {
@@ -93,6 +95,28 @@ TEST(StatisticNoise, NotMeasuredWithoutEnoughCellsOrNoise) {
   EXPECT_FALSE(measureStatisticNoise(c, VelocityGrid{{100.0, 100.0}, 1.0, 3, 3}, kFrames, cancel).measured());
   c.sigmaF = 0.0;
   EXPECT_FALSE(measureStatisticNoise(c, grid(3, 0.5), 1, cancel).measured());
+}
+
+TEST(StatisticNoise, EverySearchReportsItAndWarnsFarAboveTheUnit) {
+  NullProgress progress;
+  CancelToken cancel;
+  const auto backend = makeCpuBackend();
+  SearchParams params;
+  params.method = SearchMethod::Exact;
+  // White frames: measured, in the note, no warning.
+  const FilteredCube white = noiseCube(0.0, 4);
+  const SearchResult a = searchWithMethod(*backend, white, grid(3, 0.5), params, progress, cancel);
+  ASSERT_TRUE(a.statisticNoise.measured());
+  EXPECT_NEAR(a.statisticNoise.scale, 1.0, 4.0 * a.statisticNoise.standardError);
+  EXPECT_NE(a.backendNote.find(statisticNoiseNote(a.statisticNoise)), std::string::npos) << a.backendNote;
+  EXPECT_TRUE(a.warnings.empty());
+  // A static pattern of sigma_F / 4 searched at velocity 0 only: sqrt(2) x the unit, a warning.
+  const FilteredCube patterned = noiseCube(kSigma / 4.0, 7);
+  const SearchResult b = searchWithMethod(*backend, patterned, grid(1, 0.5), params, progress, cancel);
+  ASSERT_TRUE(b.statisticNoise.measured());
+  EXPECT_NEAR(b.statisticNoise.scale, std::sqrt(2.0), 4.0 * b.statisticNoise.standardError);
+  ASSERT_EQ(b.warnings.size(), 1u);
+  EXPECT_NE(b.warnings[0].find("the search statistic's noise is 1.4"), std::string::npos) << b.warnings[0];
 }
 
 TEST(StatisticNoise, TheNoteSaysWhatWasMeasured) {

@@ -3,7 +3,8 @@
 // "by assuming the background fluctuates independently with a Gaussian statistics": SNR = S / (sigma_F
 // sqrt(N_in)) then has unit variance in every cell. Real frames break the assumption (a residual that stays
 // put from frame to frame adds coherently along a slow track; the Lowell 42-inch frames' statistic
-// has 1.07-1.09 times the unit's spread, tests/core/test_pipeline_real_injection_slow.cpp), so the search
+// has 1.06 times the unit's spread over the search's grid and 1.07-1.09 on star-free tracks,
+// tests/core/test_pipeline_real_injection_slow.cpp), so the search
 // measures the spread where it searches: the statistic at random cells (positions, grid velocities) of the
 // cube, by the search's own shifts, clipped at 3 sigma (a source on a random track is an outlier, not noise).
 // It is a measurement for the user, not a correction: the SNRs and false-alarm probabilities stay the
