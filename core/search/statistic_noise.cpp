@@ -8,6 +8,7 @@
 
 #include "st/common/parallel.hpp"
 #include "st/search/ipsa.hpp"
+#include "st/stats/sigma_clip.hpp"
 
 namespace st::search {
 namespace {
@@ -72,7 +73,7 @@ StatisticNoise measureStatisticNoise(const FilteredCube& cube, const VelocityGri
       }
     }
   });
-  std::vector<double> snr;
+  std::vector<float> snr;
   snr.reserve(cells.size());
   for (std::size_t i = 0; i < cells.size(); ++i) {
     double s = 0.0;
@@ -81,40 +82,17 @@ StatisticNoise measureStatisticNoise(const FilteredCube& cube, const VelocityGri
       s += sums[c * cells.size() + i];
       nIn += counts[c * cells.size() + i];
     }
-    if (nIn >= std::max(1, minFrames)) snr.push_back(s / (cube.sigmaF * std::sqrt(static_cast<double>(nIn))));
+    if (nIn >= std::max(1, minFrames))
+      snr.push_back(static_cast<float>(s / (cube.sigmaF * std::sqrt(static_cast<double>(nIn)))));
   }
   if (static_cast<int>(snr.size()) < kMinKept) return out;
-  // Start from the median and the MAD; then mean and deviation within +-3 sigma, three times.
-  std::vector<double> sorted = snr;
-  std::sort(sorted.begin(), sorted.end());
-  double centre = sorted[sorted.size() / 2];
-  std::vector<double> dev;
-  dev.reserve(sorted.size());
-  for (double v : sorted)
-    dev.push_back(std::fabs(v - centre));
-  std::nth_element(dev.begin(), dev.begin() + static_cast<std::ptrdiff_t>(dev.size() / 2), dev.end());
-  double sigma = 1.4826 * dev[dev.size() / 2];
-  if (!(sigma > 0.0)) return out;
-  int kept = 0;
-  for (int iteration = 0; iteration < 3; ++iteration) {
-    double m = 0.0, m2 = 0.0;
-    kept = 0;
-    for (double v : snr)
-      if (std::fabs(v - centre) <= kClip * sigma) {
-        m += v;
-        ++kept;
-      }
-    if (kept < kMinKept) return out;
-    m /= kept;
-    for (double v : snr)
-      if (std::fabs(v - centre) <= kClip * sigma) m2 += (v - m) * (v - m);
-    centre = m;
-    sigma = std::sqrt(m2 / (kept - 1)) / kClipCorrection;
-  }
-  out.scale = sigma;
-  out.mean = centre;
+  // The project's symmetric iterative clip (a source on a random track is an outlier either way round).
+  const stats::ClipStats clip = stats::sigmaClipSymmetric(snr.data(), snr.size(), kClip);
+  if (static_cast<int>(clip.count) < kMinKept || !(clip.sigma > 0.0)) return out;
+  out.scale = clip.sigma / kClipCorrection;
+  out.mean = clip.mean;
   out.cells = static_cast<int>(snr.size());
-  out.standardError = sigma / std::sqrt(2.0 * kept);
+  out.standardError = out.scale / std::sqrt(2.0 * static_cast<double>(clip.count));
   return out;
 }
 

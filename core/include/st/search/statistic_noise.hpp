@@ -9,7 +9,7 @@
 // cube, by the search's own shifts, clipped at 3 sigma (a source on a random track is an outlier, not noise).
 // It is a measurement for the user, not a correction: the SNRs and false-alarm probabilities stay the
 // paper's. The core of the distribution does not give its 7-sigma tail: on the demo's cube (paper-neo, 500
-// frames) the spread is 1.049 and the mean +0.32 (+0.0027 sigma_n per pixel left in the zero-biased frames,
+// frames) the spread is 1.047 and the mean +0.32 (+0.0027 sigma_n per pixel left in the zero-biased frames,
 // amplified ~6x by the matched filter and sqrt(N) by the sum), yet over 110 such cubes (seeds 21-130,
 // 2026-12-05) the search found no false candidate at SNR >= 7, where Prob_false predicts 0.075 in all with
 // the paper's unit and ~5 with (SNR - mean) / spread: the paper's trial count, every cell independent,
@@ -26,8 +26,8 @@ namespace st::search {
 
 /// The statistic S / (sigma_F sqrt(N_in)) at statisticNoiseCells() random cells (x, y uniform over the image,
 /// velocities uniform over `grid`'s cells; a fixed seed, so the same cube gives the same figure), those with
-/// N_in >= minFrames kept; the standard deviation and mean after 3-sigma clipping about the median, the
-/// deviation corrected for the clip (/ 0.98658). Not measured (cells = 0) when sigma_F is not positive or
+/// N_in >= minFrames kept; the standard deviation and mean after stats::sigmaClipSymmetric at 3 sigma,
+/// the deviation corrected for the clip (/ 0.98658). Not measured (cells = 0) when sigma_F is not positive or
 /// fewer than 1,000 cells keep N_in >= minFrames. Throws st::Cancelled.
 [[nodiscard]] StatisticNoise measureStatisticNoise(const FilteredCube& cube, const VelocityGrid& grid,
                                                    int minFrames, CancelToken& cancel,
